@@ -1,0 +1,257 @@
+"""BRDF specs: the single description of a model's parameters.
+
+A spec drives the GUI sliders, scene-file validation, ``brdf-viewer models``, plot axes and the
+GLSL parameter block (see ``viewer.brdf.glsl``). Every family module in this package defines
+``SPEC`` plus numpy ``eval(p, wi, wo)``, ``sample(p, wo, u)`` and ``pdf(p, wi, wo)``; the
+GLSL twin lives in ``shaders/brdf/<name>.glsl``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from viewer import ViewerError
+
+KINDS = ("rgb", "float", "choice", "lobes", "table", "material")
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter of a model.
+
+    kind:
+      rgb      3 floats (linear RGB); a scalar in a scene file means grey
+      float    1 float
+      choice   one of ``choices`` (strings); the GLSL side gets its index as an int
+      lobes    a list of up to ``max_items`` tables whose fields are ``fields``
+      table    a sub-table whose fields are ``fields`` (e.g. the layered model's coating)
+      material another material table (any model except those with a ``material`` param)
+    lo, hi: the allowed range (inclusive) of a float and of each rgb component.
+    ui_lo, ui_hi: the slider range when narrower than the allowed range; log: log-scale slider.
+    """
+
+    name: str
+    kind: str
+    default: Any
+    doc: str = ""
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] = ()
+    fields: tuple["Param", ...] = ()
+    max_items: int = 4
+    ui_lo: float | None = None
+    ui_hi: float | None = None
+    log: bool = False
+
+    def __post_init__(self):
+        assert self.kind in KINDS, self.kind
+
+    @property
+    def slider_range(self) -> tuple[float, float]:
+        lo = self.ui_lo if self.ui_lo is not None else self.lo
+        hi = self.ui_hi if self.ui_hi is not None else self.hi
+        return (0.0 if lo is None else lo, 1.0 if hi is None else hi)
+
+    def allowed(self) -> str:
+        """Human-readable description of what this parameter accepts."""
+        if self.kind == "choice":
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.kind in ("float", "rgb"):
+            rng = f"in [{_fmt(self.lo)}, {_fmt(self.hi)}]"
+            return ("a number " if self.kind == "float" else "3 numbers (or one for grey) each ") + rng
+        if self.kind == "lobes":
+            return f"a list of up to {self.max_items} tables with keys " + ", ".join(f.name for f in self.fields)
+        if self.kind == "table":
+            return "a table with keys " + ", ".join(f.name for f in self.fields)
+        return "a material table with a 'model' key"
+
+
+def _fmt(v):
+    if v is None:
+        return "-inf"
+    return f"{v:g}"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    name: str
+    title: str
+    params: tuple[Param, ...]
+    source: str  # the paper(s) and equation(s) implemented
+    doc: str = ""
+    reciprocal: bool = True
+    reciprocal_why: str = ""  # why not, when reciprocal is False
+    delta: bool = False  # has a delta lobe (perfect mirror / smooth glass)
+    transmissive: bool = False
+    # aliases: a key a user may write that sets several parameters, e.g. alpha -> alpha_x, alpha_y
+    aliases: dict = field(default_factory=dict)
+
+    def param(self, name: str) -> Param:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    @property
+    def nests_material(self) -> bool:
+        return any(p.kind == "material" for p in self.params)
+
+
+class Params(dict):
+    """Validated parameter values of one model; attribute access (``p.alpha``) and ``p.model``.
+
+    rgb values are float64 arrays of shape (3,); floats are Python floats; choices are strings;
+    lobes are lists of Params; tables are Params; materials are Params with their own ``model``.
+    """
+
+    def __init__(self, model: str, values: dict):
+        super().__init__(values)
+        object.__setattr__(self, "model", model)
+
+    def __getattr__(self, key):
+        try:
+            return self[key]
+        except KeyError:
+            raise AttributeError(key) from None
+
+    def __setattr__(self, key, value):
+        self[key] = value
+
+    def replace(self, **kw) -> "Params":
+        d = dict(self)
+        d.update(kw)
+        return Params(self.model, d)
+
+    def to_plain(self) -> dict:
+        """JSON/TOML-friendly copy (lists instead of arrays), including the model name."""
+        out = {"model": self.model}
+        out.update({k: _plain(v) for k, v in self.items()})
+        return out
+
+
+def _plain(v):
+    if isinstance(v, Params):
+        d = v.to_plain()
+        if v.model in ("", None):
+            d.pop("model")
+        return d
+    if isinstance(v, np.ndarray):
+        return [float(x) for x in v]
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+
+
+def validate_value(param: Param, value, where: str, lookup_spec=None):
+    """Check one value against its Param; return the normalized value or raise ViewerError.
+
+    ``where`` names the field for the message (e.g. ``scene.toml: materials.ball.alpha``).
+    """
+    k = param.kind
+    if k == "float":
+        if not _is_number(value):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+        v = float(value)
+        if not math.isfinite(v) or (param.lo is not None and v < param.lo) or (param.hi is not None and v > param.hi):
+            raise ViewerError(f"{where}: {v:g} is out of range; allowed: {param.allowed()}")
+        return v
+    if k == "rgb":
+        if _is_number(value):
+            value = [value] * 3
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if not isinstance(value, (list, tuple)) or len(value) != 3 or not all(_is_number(x) for x in value):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+        arr = np.array([float(x) for x in value], dtype=np.float64)
+        bad = (~np.isfinite(arr)) | ((arr < param.lo) if param.lo is not None else False) | (
+            (arr > param.hi) if param.hi is not None else False)
+        if np.any(bad):
+            raise ViewerError(f"{where}: {list(arr)} is out of range; allowed: {param.allowed()}")
+        return arr
+    if k == "choice":
+        if value not in param.choices:
+            raise ViewerError(f"{where}: {value!r} is not allowed; allowed: {param.allowed()}")
+        return str(value)
+    if k == "table":
+        if not isinstance(value, dict):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+        return validate_fields(param.fields, value, where, model="")
+    if k == "lobes":
+        if not isinstance(value, (list, tuple)) or not (1 <= len(value) <= param.max_items):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+        out = []
+        for i, item in enumerate(value):
+            if not isinstance(item, dict):
+                raise ViewerError(f"{where}[{i}]: expected a table with keys "
+                                  + ", ".join(f.name for f in param.fields))
+            out.append(validate_fields(param.fields, item, f"{where}[{i}]", model=""))
+        return out
+    if k == "material":
+        if isinstance(value, Params):
+            return value
+        if not isinstance(value, dict) or "model" not in value:
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+        if lookup_spec is None:
+            raise ViewerError(f"{where}: nested materials need the registry")
+        sub = dict(value)
+        name = sub.pop("model")
+        spec = lookup_spec(name, f"{where}.model")
+        if spec.nests_material:
+            raise ViewerError(f"{where}.model: {name!r} cannot be nested inside another layered material")
+        return validate_params(spec, sub, where, lookup_spec)
+    raise AssertionError(k)
+
+
+def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, lookup_spec=None) -> Params:
+    names = [f.name for f in fields]
+    raw = dict(raw)
+    for alias, targets in (aliases or {}).items():
+        if alias in raw:
+            v = raw.pop(alias)
+            for t in targets:
+                if t in raw:
+                    raise ViewerError(f"{where}.{alias}: give either {alias!r} or {'/'.join(targets)}, not both")
+                raw[t] = v
+    for key in raw:
+        if key not in names:
+            allowed = names + list((aliases or {}).keys())
+            what = f"model {model!r}" if model else "this table"
+            raise ViewerError(f"{where}.{key}: unknown parameter of {what}; allowed: {', '.join(allowed)}")
+    out = {}
+    for f in fields:
+        if f.name in raw:
+            out[f.name] = validate_value(f, raw[f.name], f"{where}.{f.name}", lookup_spec)
+        else:
+            out[f.name] = _default(f, lookup_spec)
+    return Params(model, out)
+
+
+def _default(f: Param, lookup_spec=None):
+    d = f.default
+    if f.kind == "rgb":
+        return np.array(d if isinstance(d, (list, tuple)) else [d] * 3, dtype=np.float64)
+    if f.kind == "table":
+        return validate_fields(f.fields, dict(d or {}), f.name, "")
+    if f.kind == "lobes":
+        return [validate_fields(f.fields, dict(x), f.name, "") for x in d]
+    if f.kind == "material":
+        return validate_value(f, dict(d), f.name, lookup_spec)
+    return d
+
+
+def validate_params(spec: ModelSpec, raw: dict, where: str, lookup_spec=None) -> Params:
+    """Validate a material table (without its 'model' key) against a spec; fill defaults."""
+    return validate_fields(spec.params, raw, where, spec.name, spec.aliases, lookup_spec)
