@@ -1,0 +1,24 @@
+import os
+
+import pytest
+
+os.environ.setdefault("PYTHONHASHSEED", "0")
+
+
+@pytest.fixture(scope="session")
+def gl_ctx():
+    """One headless EGL context for the whole test session."""
+    from viewer.gl.context import create_offscreen_context
+
+    ctx = create_offscreen_context()
+    yield ctx
+    ctx.release()
+
+
+@pytest.fixture(scope="session")
+def renderer(gl_ctx):
+    from viewer.gl.renderer import Renderer
+
+    r = Renderer(gl_ctx)
+    yield r
+    r.release()

@@ -1,0 +1,51 @@
+"""Independent camera rays and analytic shading for the renderer tests (numpy only; no pyrr,
+no renderer code), so a wrong projection or orientation in the renderer is caught."""
+
+import math
+
+import numpy as np
+
+
+def camera_rays(position, target, up, fov_y, width, height, offset=(0.5, 0.5)):
+    """Unit ray directions (H, W, 3) through each pixel's point ``offset`` (0.5 = centre).
+    Row 0 is the top of the image, +x of the camera is to the right."""
+    pos = np.asarray(position, float)
+    fwd = np.asarray(target, float) - pos
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, np.asarray(up, float))
+    right /= np.linalg.norm(right)
+    upv = np.cross(right, fwd)
+    t = math.tan(math.radians(fov_y) / 2)
+    aspect = width / height
+    j = (np.arange(width) + offset[0]) / width * 2 - 1
+    i = 1 - (np.arange(height) + offset[1]) / height * 2
+    x = j[None, :] * t * aspect
+    y = i[:, None] * t
+    d = fwd[None, None, :] + x[..., None] * right[None, None, :] + y[..., None] * upv[None, None, :]
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def hit_sphere(origin, dirs, center, radius):
+    """Distance along each ray to the first hit of a sphere, inf where it misses."""
+    oc = np.asarray(origin, float) - np.asarray(center, float)
+    b = np.sum(dirs * oc, axis=-1)
+    c = np.dot(oc, oc) - radius * radius
+    disc = b * b - c
+    t = -b - np.sqrt(np.maximum(disc, 0.0))
+    return np.where((disc > 0) & (t > 0), t, np.inf)
+
+
+def hit_plane_y(origin, dirs, y0):
+    o = np.asarray(origin, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (y0 - o[1]) / dirs[..., 1]
+    return np.where(np.isfinite(t) & (t > 0), t, np.inf)
+
+
+def lambert_point(albedo, intensity, light_pos, p, n):
+    """albedo/pi * I * max(0, n.l) / r^2 (CONTRACT section 1), per pixel (H, W, 3)."""
+    d = np.asarray(light_pos, float) - p
+    r2 = np.sum(d * d, axis=-1, keepdims=True)
+    l = d / np.sqrt(r2)
+    cos = np.maximum(np.sum(n * l, axis=-1, keepdims=True), 0.0)
+    return np.asarray(albedo) / np.pi * np.asarray(intensity) * cos / r2

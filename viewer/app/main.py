@@ -1,0 +1,306 @@
+"""The interactive viewer: a glfw window (OpenGL 4.1 core, forward-compatible) with imgui-bundle's
+native glfw + opengl3 backends, the same Renderer as the offscreen path, and an orbit camera.
+
+Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
+F12 screenshot (PNG whose text chunks hold the scene and all parameters)."""
+
+from __future__ import annotations
+
+import ctypes
+import datetime
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.gl.context import GL_REQUIRED, GLUnavailable
+
+PANEL_WIDTH = 360
+
+
+class App:
+    def __init__(self, scene_ref=None, overrides=(), size=(1280, 720), title="brdf-viewer"):
+        import glfw
+        import moderngl
+        from imgui_bundle import imgui, implot
+
+        from viewer.camera import OrbitCamera
+        from viewer.gl.renderer import Renderer
+        from viewer.scene import load_scene
+
+        self.t_start = time.perf_counter()
+        self.scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
+        if not glfw.init():
+            raise GLUnavailable("cannot initialise glfw (no display?); headless commands: "
+                                "brdf-viewer render SCENE --out img.png")
+        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, GL_REQUIRED // 100)
+        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, (GL_REQUIRED % 100) // 10)
+        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+        self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
+        if not self.window:
+            glfw.terminate()
+            raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
+                                "(update the graphics driver); headless: brdf-viewer render SCENE --out img.png")
+        glfw.make_context_current(self.window)
+        glfw.swap_interval(1)
+        self.glfw = glfw
+        self.ctx = moderngl.create_context(require=GL_REQUIRED)
+        self.imgui = imgui
+        imgui.create_context()
+        implot.create_context()
+        io = imgui.get_io()
+        io.ini_filename = None  # no imgui.ini in the user's working folder
+        addr = ctypes.cast(self.window, ctypes.c_void_p).value
+        imgui.backends.glfw_init_for_opengl(addr, True)
+        imgui.backends.opengl3_init("#version 410")
+        self.renderer = Renderer(self.ctx)
+        self.camera = OrbitCamera.from_scene(self.scene)
+        self.view_mode = 0
+        self.status = ""
+        self.dirty = True
+        self.hdr = None
+        self.frame_count = 0
+        self.frame_ms = 0.0
+        self.render_ms = 0.0
+        self.first_frame_s = None
+        self._closing = False
+        self.screenshot_dir = Path.cwd()
+
+    # ------------------------------------------------------------------ lifecycle
+    def request_close(self, *_):
+        self._closing = True
+        try:
+            self.glfw.set_window_should_close(self.window, True)
+        except Exception:  # noqa: BLE001 - during teardown the window may be gone
+            pass
+
+    def should_close(self) -> bool:
+        return self._closing or bool(self.glfw.window_should_close(self.window))
+
+    def run(self, frames: int = 0, screenshot: str | None = None) -> int:
+        old = signal.signal(signal.SIGTERM, self.request_close)
+        try:
+            while not self.should_close():
+                self.frame()
+                if frames and self.frame_count >= frames:
+                    if screenshot:
+                        self.take_screenshot(screenshot)
+                    break
+        finally:
+            signal.signal(signal.SIGTERM, old)
+            self.close()
+        return 0
+
+    def close(self):
+        if self.window is None:
+            return
+        imgui = self.imgui
+        self.renderer.release()
+        imgui.backends.opengl3_shutdown()
+        imgui.backends.glfw_shutdown()
+        from imgui_bundle import implot
+
+        implot.destroy_context()
+        imgui.destroy_context()
+        self.ctx.release()
+        self.glfw.destroy_window(self.window)
+        self.glfw.terminate()
+        self.window = None
+
+    # ------------------------------------------------------------------ frame
+    def viewport(self):
+        fw, fh = self.glfw.get_framebuffer_size(self.window)
+        ww, _ = self.glfw.get_window_size(self.window)
+        scale = fw / ww if ww else 1.0
+        panel = int(PANEL_WIDTH * scale) if self.show_ui else 0
+        return panel, 0, max(fw - panel, 0), fh
+
+    show_ui = True
+
+    def frame(self):
+        glfw, imgui = self.glfw, self.imgui
+        t0 = time.perf_counter()
+        if self.dirty:
+            glfw.poll_events()
+        else:
+            glfw.wait_events_timeout(0.05)
+        fw, fh = glfw.get_framebuffer_size(self.window)
+        if fw == 0 or fh == 0:  # minimized: nothing to draw into
+            time.sleep(0.02)
+            return
+        imgui.backends.opengl3_new_frame()
+        imgui.backends.glfw_new_frame()
+        imgui.new_frame()
+        self._handle_input()
+        if self.show_ui:
+            self._panel()
+        vx, vy, vw, vh = self.viewport()
+        if vw > 0 and vh > 0:
+            if self.dirty or self.hdr is None or self.hdr.size != (vw, vh):
+                t1 = time.perf_counter()
+                self.hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
+                self.ctx.finish()
+                self.render_ms = 1000 * (time.perf_counter() - t1)
+                self.dirty = False
+        screen = self.ctx.screen
+        screen.use()
+        screen.viewport = (0, 0, fw, fh)
+        self.ctx.clear(0.08, 0.08, 0.09)
+        if self.hdr is not None and vw > 0 and vh > 0:
+            r = self.scene.render
+            self.renderer.tonemap_to(screen, self.hdr, r.exposure, r.tonemap, viewport=(vx, vy, vw, vh))
+        screen.viewport = (0, 0, fw, fh)
+        imgui.render()
+        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        glfw.swap_buffers(self.window)
+        self.frame_count += 1
+        if self.first_frame_s is None:
+            self.first_frame_s = time.perf_counter() - self.t_start
+        self.frame_ms = 1000 * (time.perf_counter() - t0)
+
+    def _handle_input(self):
+        imgui = self.imgui
+        io = imgui.get_io()
+        vx, vy, vw, vh = self.viewport()
+        if not io.want_capture_mouse:
+            d = io.mouse_delta
+            if imgui.is_mouse_double_clicked(imgui.MouseButton_.left):
+                self.camera.reset()
+                self.dirty = True
+            elif imgui.is_mouse_dragging(imgui.MouseButton_.left):
+                self.camera.orbit(d.x, d.y, vh)
+                self.dirty = True
+            elif imgui.is_mouse_dragging(imgui.MouseButton_.right) or imgui.is_mouse_dragging(imgui.MouseButton_.middle):
+                self.camera.pan(d.x, d.y, vh)
+                self.dirty = True
+            if io.mouse_wheel != 0.0:
+                self.camera.dolly(io.mouse_wheel)
+                self.dirty = True
+        if not io.want_capture_keyboard:
+            if imgui.is_key_pressed(imgui.Key.r, False):
+                self.camera.reset()
+                self.dirty = True
+            if imgui.is_key_pressed(imgui.Key.f12, False):
+                self.take_screenshot()
+
+    # ------------------------------------------------------------------ panel
+    def _panel(self):
+        from viewer.app import ui
+        from viewer.gl.renderer import TONEMAPS, VIEW_MODES
+
+        imgui = self.imgui
+        _, fh = self.glfw.get_window_size(self.window)
+        imgui.set_next_window_pos(imgui.ImVec2(0, 0))
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, fh))
+        flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+        imgui.begin("brdf-viewer", None, flags)
+        s = self.scene
+        if imgui.collapsing_header("Scene", imgui.TreeNodeFlags_.default_open):
+            imgui.text(f"file: {s.label}")
+            tris = sum(len(o.mesh_data.indices) for o in s.objects)
+            imgui.text(f"{len(s.objects)} objects, {tris:,} triangles, {len(s.lights)} lights")
+            imgui.text(f"render {self.render_ms:.1f} ms, frame {self.frame_ms:.1f} ms")
+            imgui.text_wrapped(f"GL: {self.ctx.info['GL_RENDERER']}")
+            if imgui.button("Reset camera (R)"):
+                self.camera.reset()
+                self.dirty = True
+            imgui.same_line()
+            if imgui.button("Fit scene"):
+                self.camera.fit(*s.bounds())
+                self.dirty = True
+        if imgui.collapsing_header("Display", imgui.TreeNodeFlags_.default_open):
+            r = s.render
+            ch, v = imgui.slider_float("exposure (EV)", float(r.exposure), -10.0, 10.0)
+            if ch:
+                r.exposure = ui.finite_or(v, r.exposure)
+            names = list(TONEMAPS)
+            ch, i = imgui.combo("tone map", names.index(r.tonemap) if r.tonemap in names else 0, names)
+            if ch:
+                r.tonemap = names[i]
+            modes = list(VIEW_MODES)
+            ch, i = imgui.combo("view", self.view_mode, modes)
+            if ch:
+                self.view_mode = i
+                self.dirty = True
+            ch, v = imgui.checkbox("shadows", bool(r.shadows))
+            if ch:
+                r.shadows = v
+                self.dirty = True
+        if imgui.collapsing_header("Lights", imgui.TreeNodeFlags_.default_open):
+            for i, light in enumerate(s.lights):
+                imgui.push_id(f"light{i}")
+                imgui.text(f"{i}: {light.type}")
+                if light.type == "point":
+                    ch, v = imgui.drag_float3("position", [float(x) for x in light.position], 0.02)
+                    if ch and all(np.isfinite(v)):
+                        light.position = np.array(v, float)
+                        self.dirty = True
+                    ch, v = imgui.drag_float3("intensity W/sr", [float(x) for x in light.intensity], 0.1, 0.0, 1e6)
+                    if ch and all(np.isfinite(v)) and min(v) >= 0:
+                        light.intensity = np.array(v, float)
+                        self.dirty = True
+                else:
+                    ch, v = imgui.drag_float3("direction", [float(x) for x in light.direction], 0.01)
+                    if ch and all(np.isfinite(v)) and np.linalg.norm(v) > 1e-6:
+                        light.direction = np.array(v, float) / np.linalg.norm(v)
+                        self.dirty = True
+                    ch, v = imgui.drag_float3("irradiance W/m2", [float(x) for x in light.irradiance], 0.05, 0.0, 1e6)
+                    if ch and all(np.isfinite(v)) and min(v) >= 0:
+                        light.irradiance = np.array(v, float)
+                        self.dirty = True
+                imgui.pop_id()
+        if imgui.collapsing_header("Materials", imgui.TreeNodeFlags_.default_open):
+            for name in list(s.materials):
+                imgui.push_id(f"mat_{name}")
+                if imgui.tree_node(f"{name} ({s.materials[name].model})"):
+                    ch, new = ui.material_editor(s.materials[name], f"{name}.")
+                    if ch:
+                        s.materials[name] = new
+                        self.dirty = True
+                    imgui.tree_pop()
+                imgui.pop_id()
+        imgui.separator()
+        if imgui.button("Screenshot (F12)"):
+            self.take_screenshot()
+        if ui.last_error:
+            self.status, ui.last_error = ui.last_error, ""
+        if self.status:
+            imgui.text_wrapped(self.status)
+        imgui.end()
+
+    # ------------------------------------------------------------------ actions
+    def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:
+        """Save the 3D view (no UI) as a PNG with the scene and parameters in its text chunks."""
+        from viewer.gl.renderer import VIEW_MODES
+        from viewer.io import write_png
+        from viewer.screenshot import png_text
+
+        if path is None:
+            stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+            path = self.screenshot_dir / f"brdf-viewer-{stamp}.png"
+        _, _, vw, vh = self.viewport()
+        if vw == 0 or vh == 0:
+            self.status = "screenshot skipped: the window is minimized"
+            return None
+        try:
+            hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
+            srgb = self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
+            view = list(VIEW_MODES)[self.view_mode]
+            write_png(path, srgb, png_text(self.scene, self.camera, {"view": view}))
+        except (OSError, ViewerError) as e:
+            self.status = f"screenshot failed: {e}"
+            return None
+        self.dirty = True
+        self.status = f"saved {path}"
+        print(self.status, file=sys.stderr)
+        return Path(path)
+
+
+def run_app(scene_ref=None, overrides=(), size=(1280, 720), frames=0, screenshot=None) -> int:
+    app = App(scene_ref, overrides, size)
+    return app.run(frames=frames, screenshot=screenshot)

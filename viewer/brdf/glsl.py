@@ -1,0 +1,246 @@
+"""GLSL glue generated from the BRDF specs.
+
+For each model the spec gives a struct ``<name>_params`` (field names = parameter names:
+rgb -> vec3, float -> float, choice -> int index, table -> nested struct, lobes -> vec4 array +
+``<name>_count``, material -> ``<name>_model`` + ``<name>_offset``) and an unpack function that
+reads the struct from the flat uniform block ``u_mat`` (vec4 array). ``pack_material`` writes the
+same layout from Python, so a slider move is a uniform upload, never a recompile.
+
+The generated ``brdf/dispatch.glsl`` includes every family file (``shaders/brdf/<name>.glsl``)
+and defines ``vec3 brdf_eval(int model, int offset, vec3 wi, vec3 wo)`` and
+``vec3 brdf_terms(...)`` (F, D, G for the term views; -1 where a model has none).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer import brdf
+from viewer.brdf.spec import ModelSpec, Param, Params
+from viewer.resources import SHADER_DIR
+
+MAT_VEC4 = 64  # size of the uniform block u_mat in vec4s (256 floats)
+
+
+# ---------------------------------------------------------------- layout
+def _size(param: Param) -> int:
+    k = param.kind
+    if k == "rgb":
+        return 3
+    if k in ("float", "choice"):
+        return 1
+    if k == "table":
+        return sum(_size(f) for f in param.fields)
+    if k == "lobes":
+        return 4 * param.max_items + 1
+    if k == "material":
+        return 2
+    raise AssertionError(k)
+
+
+def block_size(spec: ModelSpec) -> int:
+    return sum(_size(p) for p in spec.params)
+
+
+def model_index(name: str) -> int:
+    return brdf.names().index(name)
+
+
+def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
+    for p in params_spec:
+        v = values[p.name]
+        k = p.kind
+        if k == "rgb":
+            out.extend(float(x) for x in np.asarray(v).reshape(3))
+        elif k == "float":
+            out.append(float(v))
+        elif k == "choice":
+            out.append(float(p.choices.index(v)))
+        elif k == "table":
+            _pack_fields(p.fields, v, out, tail, base_offset_fn)
+        elif k == "lobes":
+            for i in range(p.max_items):
+                if i < len(v):
+                    vals = [float(v[i][f.name]) for f in p.fields]
+                    out.extend((vals + [0.0] * 4)[:4])
+                else:
+                    out.extend([0.0] * 4)
+            out.append(float(len(v)))
+        elif k == "material":
+            out.append(float(model_index(v.model)))
+            out.append(float(base_offset_fn(v)))
+        else:
+            raise AssertionError(k)
+
+
+def pack_material(params: Params, offset: int = 0) -> tuple[int, np.ndarray]:
+    """(model index, float32 array) for the uniform block, starting at float ``offset``.
+
+    Nested materials (the layered model's base) are appended after the main block; their
+    offset is stored as an absolute float index into u_mat."""
+    spec = brdf.get(params.model).spec
+    main: list[float] = []
+    tail: list[float] = []
+    main_size = block_size(spec)
+
+    def base_offset(sub: Params):
+        start = offset + main_size + len(tail)
+        _, arr = pack_material(sub, start)
+        tail.extend(arr.tolist())
+        return start
+
+    _pack_fields(spec.params, params, main, tail, base_offset)
+    assert len(main) == main_size, (params.model, len(main), main_size)
+    data = np.array(main + tail, dtype=np.float32)
+    if offset + data.size > 4 * MAT_VEC4:
+        raise ValueError(f"material {params.model} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
+    return model_index(params.model), data
+
+
+def uniform_block(params: Params) -> tuple[int, np.ndarray]:
+    """Model index and the whole u_mat contents (float32, 4 * MAT_VEC4) for one material."""
+    idx, data = pack_material(params)
+    block = np.zeros(4 * MAT_VEC4, dtype=np.float32)
+    block[: data.size] = data
+    return idx, block
+
+
+# ---------------------------------------------------------------- GLSL generation
+def _glsl_decls(struct_name: str, params_spec, structs: list[str]) -> list[str]:
+    lines = []
+    for p in params_spec:
+        k = p.kind
+        if k == "rgb":
+            lines.append(f"    vec3 {p.name};")
+        elif k == "float":
+            lines.append(f"    float {p.name};")
+        elif k == "choice":
+            lines.append(f"    int {p.name}; // " + ", ".join(f"{i} = {c}" for i, c in enumerate(p.choices)))
+        elif k == "table":
+            sub = f"{struct_name}_{p.name}_t"
+            structs.append(_struct(sub, p.fields, structs))
+            lines.append(f"    {sub} {p.name};")
+        elif k == "lobes":
+            lines.append(f"    vec4 {p.name}[{p.max_items}]; // " + ", ".join(f.name for f in p.fields))
+            lines.append(f"    int {p.name}_count;")
+        elif k == "material":
+            lines.append(f"    int {p.name}_model;")
+            lines.append(f"    int {p.name}_offset;")
+    return lines
+
+
+def _struct(name, params_spec, structs) -> str:
+    body = _glsl_decls(name, params_spec, structs)
+    return f"struct {name} {{\n" + "\n".join(body) + "\n};\n"
+
+
+def _glsl_reads(params_spec, target: str, o: list[int]) -> list[str]:
+    lines = []
+    for p in params_spec:
+        k = p.kind
+        at = o[0]
+        if k == "rgb":
+            lines.append(f"    {target}.{p.name} = vec3(mat_f(o + {at}), mat_f(o + {at + 1}), mat_f(o + {at + 2}));")
+        elif k == "float":
+            lines.append(f"    {target}.{p.name} = mat_f(o + {at});")
+        elif k == "choice":
+            lines.append(f"    {target}.{p.name} = int(mat_f(o + {at}) + 0.5);")
+        elif k == "table":
+            lines.extend(_glsl_reads(p.fields, f"{target}.{p.name}", o))
+            continue
+        elif k == "lobes":
+            lines.append(f"    for (int i = 0; i < {p.max_items}; ++i)")
+            lines.append(f"        {target}.{p.name}[i] = vec4(mat_f(o + {at} + 4 * i), mat_f(o + {at} + 4 * i + 1),"
+                         f" mat_f(o + {at} + 4 * i + 2), mat_f(o + {at} + 4 * i + 3));")
+            lines.append(f"    {target}.{p.name}_count = int(mat_f(o + {at + 4 * p.max_items}) + 0.5);")
+        elif k == "material":
+            lines.append(f"    {target}.{p.name}_model = int(mat_f(o + {at}) + 0.5);")
+            lines.append(f"    {target}.{p.name}_offset = int(mat_f(o + {at + 1}) + 0.5);")
+        o[0] += _size(p)
+    return lines
+
+
+def family_source(name: str) -> str:
+    path = SHADER_DIR / "brdf" / f"{name}.glsl"
+    try:
+        return path.read_text()
+    except OSError as e:
+        from viewer.gl.shaders import ShaderError
+
+        raise ShaderError(f"shaders/brdf/{name}.glsl: the GLSL twin of registered model {name!r} "
+                          f"cannot be read ({e.strerror})", f"brdf/{name}.glsl") from None
+
+
+def generate_dispatch() -> str:
+    """The source of the virtual file ``brdf/dispatch.glsl``."""
+    out = ["// Generated by viewer/brdf/glsl.py from the BRDF specs. Do not edit.",
+           '#include "common/math.glsl"',
+           f"uniform vec4 u_mat[{MAT_VEC4}];",
+           "float mat_f(int i) { return u_mat[i >> 2][i & 3]; }", ""]
+    plain, nesting = [], []
+    for name in brdf.names():
+        spec = brdf.get(name).spec
+        (nesting if spec.nests_material else plain).append(name)
+        structs: list[str] = []
+        main = _struct(f"{name}_params", spec.params, structs)
+        out.extend(structs)
+        out.append(main)
+        out.append(f"{name}_params {name}_unpack(int o) {{")
+        out.append(f"    {name}_params p;")
+        out.extend(_glsl_reads(spec.params, "p", [0]))
+        out.append("    return p;\n}\n")
+
+    def has_terms(n):
+        return f"{n}_terms(" in family_source(n)
+
+    def dispatch(fn_name, names_, fallback, kind):
+        lines = [f"vec3 {fn_name}(int model, int o, vec3 wi, vec3 wo) {{"]
+        for n in names_:
+            if kind == "eval":
+                lines.append(f"    if (model == {model_index(n)}) return {n}_eval({n}_unpack(o), wi, wo);")
+            elif has_terms(n):
+                lines.append(f"    if (model == {model_index(n)}) return {n}_terms({n}_unpack(o), wi, wo);")
+        lines.append(f"    return {fallback};\n}}\n")
+        return lines
+
+    for n in plain:
+        out.append(f'#include "brdf/{n}.glsl"')
+    out.append("")
+    out.extend(dispatch("brdf_eval_base", plain, "vec3(0.0)", "eval"))
+    for n in nesting:
+        out.append(f'#include "brdf/{n}.glsl"')
+    out.append("")
+    out.extend(dispatch("brdf_eval_nested", nesting, "brdf_eval_base(model, o, wi, wo)", "eval"))
+    out.append("// Evaluate the BRDF of the material packed at float offset o of u_mat (no cosine).")
+    out.append("vec3 brdf_eval(int model, int o, vec3 wi, vec3 wo) { return brdf_eval_nested(model, o, wi, wo); }\n")
+    out.extend(dispatch("brdf_terms", plain + nesting, "vec3(-1.0)", "terms"))
+    return "\n".join(out)
+
+
+def _check() -> int:
+    """Compile every family (``python -m viewer.brdf.glsl --check``)."""
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.shaders import ShaderError, build_program
+
+    ctx = create_offscreen_context()
+    frag = ('#version 410 core\n#include "brdf/dispatch.glsl"\nuniform int u_model;\nin vec2 v_uv;\n'
+            "out vec4 color;\nvoid main() { vec3 wi = normalize(vec3(v_uv, 1.0)); vec3 wo = vec3(0.0, 0.0, 1.0);\n"
+            "    color = vec4(brdf_eval(u_model, 0, wi, wo) + brdf_terms(u_model, 0, wi, wo), 1.0); }\n")
+    vert = ("#version 410 core\nin vec2 in_pos; out vec2 v_uv;\n"
+            "void main() { v_uv = in_pos; gl_Position = vec4(in_pos, 0.0, 1.0); }\n")
+    try:
+        build_program(ctx, vertex_source=vert, fragment_source=frag)
+    except ShaderError as e:
+        print(e)
+        return 1
+    print("all BRDF families compile:", ", ".join(brdf.names()))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    if "--print" in sys.argv:
+        print(generate_dispatch())
+        sys.exit(0)
+    sys.exit(_check())

@@ -1,0 +1,138 @@
+"""Command line (CONTRACT section 2). Argument parsing only; the work is done elsewhere."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from viewer import ViewerError
+
+COMMANDS = ("render", "models")
+HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer models "
+                 "(see README)")
+
+
+def _parser_window() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer", description=(
+        "OpenGL teaching viewer for BRDFs. With no command: open the window on SCENE (a scene "
+        "file or a built-in scene name; the built-in default scene when omitted). Commands: "
+        + ", ".join(COMMANDS) + " (brdf-viewer COMMAND --help)."))
+    p.add_argument("scene", nargs="?", help="scene file (.toml) or built-in scene name")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value by dotted path, e.g. materials.ball.albedo=[1,0,0]")
+    p.add_argument("--width", type=int, default=1280, help="window width in pixels")
+    p.add_argument("--height", type=int, default=720, help="window height in pixels")
+    p.add_argument("--frames", type=int, default=0, help="quit after this many frames (0 = run until closed)")
+    p.add_argument("--screenshot", metavar="PNG", help="save a screenshot of the last frame (with --frames)")
+    return p
+
+
+def _parser_render() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer render",
+                                description="Rasterize a scene offscreen (EGL) with the window's renderer.")
+    p.add_argument("scene", help="scene file (.toml) or built-in scene name")
+    p.add_argument("--out", required=True, help="output PNG (sRGB, after exposure and tone mapping)")
+    p.add_argument("--linear", help="also write the linear radiance as float32 .npy (H, W, 3), row 0 = top")
+    p.add_argument("--width", type=int, help="image width (overrides camera.width)")
+    p.add_argument("--height", type=int, help="image height (overrides camera.height)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value by dotted path (repeatable)")
+    p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | f cos (term views)")
+    return p
+
+
+def _parser_models() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(prog="brdf-viewer models",
+                                   description="List every BRDF model with its parameters, ranges and defaults.")
+
+
+def cmd_render(args) -> int:
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import VIEW_MODES, Renderer
+    from viewer.io import check_output_path, write_npy, write_png
+    from viewer.scene import load_scene
+    from viewer.screenshot import png_text
+
+    out = check_output_path(args.out, (".png",), "--out")
+    lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
+    if args.view not in VIEW_MODES:
+        raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
+    overrides = list(args.overrides)
+    for key, val in (("width", args.width), ("height", args.height)):
+        if val is not None:
+            overrides.append(f"camera.{key}={val}")
+    scene = load_scene(args.scene, overrides)
+    ctx = create_offscreen_context()
+    renderer = Renderer(ctx)
+    from viewer.camera import OrbitCamera
+
+    camera = OrbitCamera.from_scene(scene)
+    linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view])
+    if lin_path:
+        write_npy(lin_path, linear)
+    write_png(out, srgb, png_text(scene, camera))
+    print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
+    return 0
+
+
+def cmd_models(args) -> int:
+    from viewer import brdf
+
+    for name in brdf.names():
+        spec = brdf.get(name).spec
+        print(f"{name}: {spec.title}  [{spec.source}]")
+        for p in spec.params:
+            print(f"    {_describe_param(p)}")
+        if not spec.reciprocal:
+            print(f"    (not reciprocal: {spec.reciprocal_why})")
+    return 0
+
+
+def _describe_param(p, indent="    ") -> str:
+    from viewer.brdf.spec import _default
+
+    d = _default(p)
+    if p.kind == "rgb":
+        dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
+    elif p.kind in ("table", "lobes", "material"):
+        dv = "see below" if p.kind != "material" else d.model
+    else:
+        dv = repr(d) if isinstance(d, str) else f"{d:g}"
+    unit = f" {p.unit}" if p.unit else ""
+    line = f"{p.name} ({p.kind}) default {dv}{unit}; {p.allowed()}" + (f" - {p.doc}" if p.doc else "")
+    if p.kind in ("table", "lobes"):
+        line += "".join("\n" + indent + "    " + _describe_param(f, indent + "    ") for f in p.fields)
+    return line
+
+
+def cmd_window(args) -> int:
+    from viewer.gl.context import have_display
+
+    if not have_display():
+        raise ViewerError(f"no display found (DISPLAY is not set); {HEADLESS_HINT}")
+    from viewer.app.main import run_app
+
+    return run_app(args.scene, args.overrides, size=(args.width, args.height), frames=args.frames,
+                   screenshot=args.screenshot)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv and argv[0] in COMMANDS:
+            cmd, rest = argv[0], argv[1:]
+            parser = {"render": _parser_render, "models": _parser_models}[cmd]()
+            args = parser.parse_args(rest)
+            return {"render": cmd_render, "models": cmd_models}[cmd](args)
+        args = _parser_window().parse_args(argv)
+        return cmd_window(args)
+    except ViewerError as e:
+        print(f"brdf-viewer: error: {str(e).splitlines()[0] if str(e) else type(e).__name__}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

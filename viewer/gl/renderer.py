@@ -1,0 +1,336 @@
+"""The rasterizer: shadow maps, a forward pass into a linear HDR float target with MSAA, and a
+tone-mapping pass to the screen or an 8-bit sRGB image. The window and the offscreen path both
+call ``Renderer.render``; only the owner of the final framebuffer differs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from viewer.brdf.glsl import MAT_VEC4, uniform_block
+from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
+from viewer.gl.shaders import build_program, default_virtual
+
+MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
+SHADOW_TILE = 1024
+TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
+VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5}
+
+# (forward, up) of the six cube faces, in the order cube_face() in shadow.glsl returns them
+_FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)),
+          ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0))]
+
+
+def _set(prog, name, value):
+    """Set a uniform if the compiler kept it (unused uniforms are optimized away)."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, (bytes, bytearray)):
+        # the compiler may shorten an array to the highest index it sees used (u_mat with a
+        # constant offset): upload only what the program kept
+        u.write(bytes(value[: u.array_length * u.dimension * 4]))
+    else:
+        u.value = value
+
+
+class GpuMesh:
+    """Vertex and index buffers of one MeshData; one vertex array per program."""
+
+    def __init__(self, ctx, mesh):
+        data = np.hstack([mesh.positions, mesh.normals, mesh.tangents]).astype("f4")
+        self.vbo = ctx.buffer(np.ascontiguousarray(data).tobytes())
+        self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype="u4").tobytes())
+        self.ctx = ctx
+        self.vaos = {}
+
+    def vao(self, prog):
+        key = id(prog)
+        if key not in self.vaos:
+            # attributes the compiler dropped (e.g. the tangent when no model uses it) are skipped
+            fmt, names = [], []
+            for name, comps in (("in_position", 3), ("in_normal", 3), ("in_tangent", 4)):
+                try:
+                    prog[name]
+                    fmt.append(f"{comps}f")
+                    names.append(name)
+                except KeyError:
+                    fmt.append(f"{4 * comps}x")
+            content = [(self.vbo, " ".join(fmt), *names)]
+            self.vaos[key] = self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
+        return self.vaos[key]
+
+    def release(self):
+        for v in self.vaos.values():
+            v.release()
+        self.vbo.release()
+        self.ibo.release()
+
+
+class Renderer:
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.programs = {}
+        self.build_programs()
+        self._meshes: dict[int, tuple[object, GpuMesh]] = {}
+        self._targets = None
+        self._target_key = None
+        self._ldr = None
+        self._shadow = None
+        self._shadow_key = None
+        self._shadow_mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
+        self._shadow_texel = np.zeros(MAX_LIGHTS)
+        self._empty_vao = ctx.vertex_array(self.programs["tonemap"], [])
+
+    # ---------------------------------------------------------------- programs
+    def build_programs(self):
+        """(Re)compile every pass. Raises ShaderError; on failure the old programs stay."""
+        virtual = default_virtual()
+        new = {
+            "forward": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag", virtual=virtual),
+            "shadow": build_program(self.ctx, "passes/shadow.vert", "passes/shadow.frag", virtual=virtual),
+            "tonemap": build_program(self.ctx, "passes/fullscreen.vert", "passes/tonemap.frag", virtual=virtual),
+        }
+        old, self.programs = self.programs, new
+        for p in old.values():
+            p.release()
+        for _, gm in getattr(self, "_meshes", {}).values():
+            for v in gm.vaos.values():
+                v.release()
+            gm.vaos.clear()
+        if hasattr(self, "_empty_vao"):
+            self._empty_vao.release()
+            self._empty_vao = self.ctx.vertex_array(self.programs["tonemap"], [])
+
+    # ---------------------------------------------------------------- resources
+    def _gpu_mesh(self, mesh) -> GpuMesh:
+        key = id(mesh)
+        hit = self._meshes.get(key)
+        if hit is None or hit[0] is not mesh:
+            if hit is not None:
+                hit[1].release()
+            hit = (mesh, GpuMesh(self.ctx, mesh))
+            self._meshes[key] = hit
+        return hit[1]
+
+    def forget_meshes(self, keep=()):
+        """Release GPU buffers of meshes not in ``keep`` (called when a scene is replaced)."""
+        keep_ids = {id(m) for m in keep}
+        for key in list(self._meshes):
+            if key not in keep_ids:
+                self._meshes.pop(key)[1].release()
+
+    def _ensure_targets(self, w, h, samples):
+        samples = samples if samples > 1 else 0
+        samples = min(samples, self.ctx.max_samples)
+        key = (w, h, samples)
+        if self._target_key == key:
+            return self._targets
+        self._release_targets()
+        ctx = self.ctx
+        resolved = ctx.texture((w, h), 4, dtype="f4")
+        resolved.filter = (ctx.NEAREST, ctx.NEAREST)
+        resolved_fbo = ctx.framebuffer(color_attachments=[resolved])
+        if samples:
+            ms_color = ctx.renderbuffer((w, h), 4, samples=samples, dtype="f4")
+            ms_depth = ctx.depth_renderbuffer((w, h), samples=samples)
+            ms_fbo = ctx.framebuffer(color_attachments=[ms_color], depth_attachment=ms_depth)
+            extra = [ms_color, ms_depth]
+        else:
+            depth = ctx.depth_renderbuffer((w, h))
+            ms_fbo = ctx.framebuffer(color_attachments=[resolved], depth_attachment=depth)
+            extra = [depth]
+        self._targets = {"resolved": resolved, "resolved_fbo": resolved_fbo, "draw_fbo": ms_fbo,
+                         "extra": extra, "samples": samples}
+        self._target_key = key
+        return self._targets
+
+    def _release_targets(self):
+        if self._targets:
+            t = self._targets
+            if t["draw_fbo"] is not t["resolved_fbo"]:
+                t["draw_fbo"].release()
+            t["resolved_fbo"].release()
+            t["resolved"].release()
+            for r in t["extra"]:
+                r.release()
+        self._targets = None
+        self._target_key = None
+
+    # ---------------------------------------------------------------- shadows
+    def _shadow_lights(self, scene):
+        return scene.lights[:MAX_LIGHTS]
+
+    def _update_shadows(self, scene):
+        lights = self._shadow_lights(scene)
+        key = (tuple((l.type, tuple(np.round(l.position, 9)), tuple(np.round(l.direction, 9))) for l in lights),
+               tuple((id(o.mesh_data), o.model_matrix().tobytes()) for o in scene.objects))
+        if key == self._shadow_key and self._shadow is not None:
+            return
+        rows = max(1, len(lights))
+        S = SHADOW_TILE
+        ctx = self.ctx
+        if self._shadow is None or self._shadow["rows"] != rows:
+            if self._shadow is not None:
+                self._shadow["fbo"].release()
+                self._shadow["tex"].release()
+            tex = ctx.depth_texture((6 * S, rows * S))
+            tex.compare_func = "<="
+            tex.filter = (ctx.LINEAR, ctx.LINEAR)
+            tex.repeat_x = False
+            tex.repeat_y = False
+            self._shadow = {"tex": tex, "fbo": ctx.framebuffer(depth_attachment=tex), "rows": rows}
+        lo, hi = scene.bounds()
+        center = 0.5 * (lo + hi)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+        mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
+        for i, light in enumerate(lights):
+            if light.type == "point":
+                p = np.asarray(light.position, float)
+                far = float(np.linalg.norm(p - center)) + radius * 1.1
+                near = max(far * 1e-3, 1e-3)
+                # a little wider than 90 degrees: 3 texels of margin per side for the PCF kernel
+                fov = 2.0 * math.degrees(math.atan(S / (S - 6.0)))
+                proj = perspective(fov, 1.0, near, far)
+                for f, (fwd, up) in enumerate(_FACES):
+                    mats[i * 6 + f] = proj @ look_at(p, p + np.array(fwd, float), up)
+            else:
+                d = np.asarray(light.direction, float)
+                d = d / np.linalg.norm(d)
+                up = (0, 1, 0) if abs(d[1]) < 0.99 else (0, 0, 1)
+                eye = center - d * 2.0 * radius
+                mats[i * 6] = orthographic(radius, radius, radius * 0.9, radius * 3.1) @ look_at(eye, center, up)
+                self._shadow_texel[i] = 2.0 * radius / S
+        fbo = self._shadow["fbo"]
+        fbo.use()
+        fbo.clear(depth=1.0)
+        prog = self.programs["shadow"]
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        ctx.polygon_offset = (1.5, 2.0)  # slope-scaled depth bias in the shadow pass
+        for i, light in enumerate(lights):
+            faces = range(6) if light.type == "point" else range(1)
+            for f in faces:
+                fbo.viewport = (f * S, i * S, S, S)
+                for obj in scene.objects:
+                    _set(prog, "u_mvp", gl_bytes(mats[i * 6 + f] @ obj.model_matrix()))
+                    self._gpu_mesh(obj.mesh_data).vao(prog).render()
+        ctx.polygon_offset = (0.0, 0.0)
+        self._shadow_mats = mats
+        self._shadow_key = key
+
+    # ---------------------------------------------------------------- passes
+    def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
+               height: int | None = None, view_mode: int = 0, msaa: int | None = None):
+        """Render the scene into the linear HDR target; returns the resolved float texture."""
+        ctx = self.ctx
+        w = int(width or scene.camera.width)
+        h = int(height or scene.camera.height)
+        cam = camera or OrbitCamera.from_scene(scene)
+        targets = self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)
+        lights = self._shadow_lights(scene)
+        shadows = bool(scene.render.shadows) and len(lights) > 0
+        if shadows:
+            self._update_shadows(scene)
+
+        env = scene.environment
+        env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
+        fbo = targets["draw_fbo"]
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(*[float(x) for x in env_rad], 1.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        prog = self.programs["forward"]
+        view_proj = cam.projection(w / h) @ cam.view()
+        _set(prog, "u_view_proj", gl_bytes(view_proj))
+        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
+        _set(prog, "u_num_lights", len(lights))
+        types = np.zeros(MAX_LIGHTS, "i4")
+        pos = np.zeros((MAX_LIGHTS, 3), "f4")
+        val = np.zeros((MAX_LIGHTS, 3), "f4")
+        for i, l in enumerate(lights):
+            types[i] = 0 if l.type == "point" else 1
+            pos[i] = l.position if l.type == "point" else l.direction
+            val[i] = l.intensity if l.type == "point" else l.irradiance
+        _set(prog, "u_light_type", types.tobytes())
+        _set(prog, "u_light_pos", pos.tobytes())
+        _set(prog, "u_light_value", val.tobytes())
+        _set(prog, "u_env_constant", tuple(float(x) for x in env_rad))
+        _set(prog, "u_env_on", int(scene.render.ibl != "off"))
+        _set(prog, "u_view_mode", int(view_mode))
+        _set(prog, "u_shadows_on", int(shadows))
+        if shadows:
+            self._shadow["tex"].use(location=0)
+            _set(prog, "u_shadow_atlas", 0)
+            _set(prog, "u_shadow_mat", b"".join(gl_bytes(m) for m in self._shadow_mats))
+            _set(prog, "u_shadow_atlas_tiles", (6.0, float(self._shadow["rows"])))
+            _set(prog, "u_shadow_tile_size", float(SHADOW_TILE))
+            _set(prog, "u_shadow_texel_world", self._shadow_texel.astype("f4").tobytes())
+        for obj in scene.objects:
+            m = obj.model_matrix()
+            _set(prog, "u_model", gl_bytes(m))
+            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
+            idx, block = uniform_block(scene.materials[obj.material])
+            _set(prog, "u_model_id", idx)
+            _set(prog, "u_mat", block.tobytes())
+            self._gpu_mesh(obj.mesh_data).vao(prog).render()
+        if targets["draw_fbo"] is not targets["resolved_fbo"]:
+            ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
+        return targets["resolved"]
+
+    def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
+        """Exposure, tone mapping and sRGB encoding of ``hdr`` into ``fbo`` (e.g. ctx.screen)."""
+        ctx = self.ctx
+        fbo.use()
+        if viewport is not None:
+            fbo.viewport = viewport
+        ctx.disable(ctx.DEPTH_TEST)
+        prog = self.programs["tonemap"]
+        hdr.use(location=0)
+        _set(prog, "u_hdr", 0)
+        _set(prog, "u_exposure", float(exposure))
+        _set(prog, "u_tonemap", TONEMAPS.get(tonemap, 0))
+        self._empty_vao.render(vertices=3)
+
+    # ---------------------------------------------------------------- readback
+    def read_linear(self, hdr) -> np.ndarray:
+        """(H, W, 3) float32 radiance, row 0 = top (CONTRACT section 1)."""
+        w, h = hdr.size
+        a = np.frombuffer(hdr.read(), dtype="f4").reshape(h, w, 4)
+        return np.ascontiguousarray(a[::-1, :, :3])
+
+    def read_srgb(self, hdr, exposure=0.0, tonemap="none") -> np.ndarray:
+        """(H, W, 3) uint8 sRGB after exposure and tone mapping, row 0 = top."""
+        w, h = hdr.size
+        if self._ldr is None or self._ldr[0].size != (w, h):
+            if self._ldr is not None:
+                self._ldr[1].release()
+                self._ldr[0].release()
+            tex = self.ctx.texture((w, h), 4, dtype="f1")
+            self._ldr = (tex, self.ctx.framebuffer(color_attachments=[tex]))
+        self.tonemap_to(self._ldr[1], hdr, exposure, tonemap, viewport=(0, 0, w, h))
+        a = np.frombuffer(self._ldr[0].read(), dtype=np.uint8).reshape(h, w, 4)
+        return np.ascontiguousarray(a[::-1, :, :3])
+
+    def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0):
+        hdr = self.render(scene, camera, width, height, view_mode)
+        return (self.read_linear(hdr),
+                self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
+
+    def release(self):
+        self._release_targets()
+        for _, gm in self._meshes.values():
+            gm.release()
+        self._meshes.clear()
+        if self._shadow:
+            self._shadow["fbo"].release()
+            self._shadow["tex"].release()
+        if self._ldr:
+            self._ldr[1].release()
+            self._ldr[0].release()
+        self._empty_vao.release()
+        for p in self.programs.values():
+            p.release()
