@@ -54,7 +54,7 @@ class App:
         imgui.create_context()
         implot.create_context()
         io = imgui.get_io()
-        io.ini_filename = None  # no imgui.ini in the user's working folder
+        io.set_ini_filename("")  # no imgui.ini in the user's working folder
         addr = ctypes.cast(self.window, ctypes.c_void_p).value
         imgui.backends.glfw_init_for_opengl(addr, True)
         imgui.backends.opengl3_init("#version 410")
@@ -157,6 +157,9 @@ class App:
         screen.viewport = (0, 0, fw, fh)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        if self._capture_next is not None:
+            self._capture_next(self._read_screen(fw, fh))
+            self._capture_next = None
         glfw.swap_buffers(self.window)
         self.frame_count += 1
         if self.first_frame_s is None:
@@ -272,6 +275,20 @@ class App:
         if self.status:
             imgui.text_wrapped(self.status)
         imgui.end()
+
+    _capture_next = None
+
+    def _read_screen(self, fw, fh) -> np.ndarray:
+        data = self.ctx.screen.read(viewport=(0, 0, fw, fh), components=3, alignment=1)
+        return np.frombuffer(data, np.uint8).reshape(fh, fw, 3)[::-1].copy()
+
+    def capture_window(self) -> np.ndarray:
+        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top."""
+        out = []
+        self._capture_next = out.append
+        self.dirty = True
+        self.frame()
+        return out[0] if out else None
 
     # ------------------------------------------------------------------ actions
     def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:

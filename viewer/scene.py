@@ -1,0 +1,883 @@
+"""Scene files: loading, validation, ``--set`` overrides and saving (CONTRACT section 3).
+
+A scene is a TOML file with the sections ``camera``, ``environment``, ``render``,
+``[[lights]]``, ``[[objects]]`` and ``[materials.NAME]`` (plus an optional ``version = 1``).
+Everything is checked here, once, so the renderer, the path tracer and the GUI can trust a
+``Scene``. Every problem is reported as a ``ViewerError`` with one line::
+
+    <file>: <field path>: <problem>; allowed: <what is allowed>
+
+e.g. ``cornell.toml: lights[0].intensity: -1 is negative; allowed: 3 numbers >= 0 (W/sr), or
+one number for grey``. Field paths are dotted, list items indexed: ``camera.fov_y``,
+``lights[1].intensity``, ``objects[0].material``, ``materials.ball.alpha``.
+
+Conventions (CONTRACT section 1): right-handed, +y up, metres; colours linear RGB.
+
+* Point light: ``position`` (m) and ``intensity`` (W/sr, radiant intensity, RGB); it adds
+  ``f * I * cos(theta_i) / r^2``.
+* Directional light: ``direction`` is the direction the light *travels*, i.e. from the light
+  toward the scene (a sun overhead has ``direction = [0, -1, 0]``); it is stored normalized.
+  ``irradiance`` (W/m^2, RGB) is the irradiance on a surface facing the light.
+* Environment: radiance ``L(d) = intensity * constant`` or ``intensity * map(R_y(-rotation_deg) d)``
+  (the map is turned by ``rotation_deg`` about +y, right-handed). Absent section: black.
+* Object transform: ``M = T(translate) * R_y(rotate_y_deg) * S(scale)`` for column vectors.
+
+Mesh references and environment-map paths are resolved against the scene file's folder
+(never the working directory); a mesh may also be a built-in name (``viewer.mesh``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import re
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.resources import SCENE_DIR
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+import tomli_w
+
+SCENE_VERSION = 1
+
+TOP_KEYS = ("version", "camera", "environment", "render", "lights", "objects", "materials")
+CAMERA_KEYS = ("position", "target", "up", "fov_y", "width", "height")
+ENV_KEYS = ("constant", "map", "intensity", "rotation_deg")
+RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap")
+LIGHT_TYPES = ("point", "directional")
+POINT_KEYS = ("type", "position", "intensity")
+DIRECTIONAL_KEYS = ("type", "direction", "irradiance")
+OBJECT_KEYS = ("mesh", "material", "translate", "scale", "rotate_y_deg")
+
+IBL_MODES = ("split_sum", "fis", "brute_force", "off")
+TONEMAPS = ("none", "aces", "filmic", "reinhard")
+MSAA_SAMPLES = (0, 1, 2, 4, 8)
+MAX_SIZE = 16384
+EXPOSURE_RANGE = (-20.0, 20.0)
+
+
+# ----------------------------------------------------------------------------- data classes
+
+def _v3(x) -> np.ndarray:
+    return np.array(x, dtype=np.float64).reshape(3)
+
+
+@dataclass(eq=False)
+class Camera:
+    """A pinhole camera looking from ``position`` at ``target``; ``fov_y`` is the full vertical
+    field of view in degrees; ``width`` x ``height`` pixels."""
+
+    position: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 4.0]))
+    target: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 0.0]))
+    up: np.ndarray = field(default_factory=lambda: _v3([0.0, 1.0, 0.0]))
+    fov_y: float = 40.0
+    width: int = 256
+    height: int = 256
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    def __eq__(self, other):
+        return _equal(self, other)
+
+
+@dataclass(eq=False)
+class Light:
+    """A point light (``position`` m, ``intensity`` W/sr) or a directional light (``direction``:
+    unit vector the light travels along, from the light toward the scene; ``irradiance`` W/m^2).
+    The fields of the other type are zero."""
+
+    type: str = "point"
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    intensity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    irradiance: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __eq__(self, other):
+        return _equal(self, other)
+
+
+@dataclass(eq=False)
+class Environment:
+    """Light from infinitely far away: ``intensity * constant`` (RGB radiance from every
+    direction) or ``intensity * map(R_y(-rotation_deg) d)`` with ``map`` a lat-long image
+    (CONTRACT section 1 gives the mapping). Exactly one of ``constant`` and ``map`` is set."""
+
+    constant: np.ndarray | None = field(default_factory=lambda: np.zeros(3))
+    map: Path | None = None
+    intensity: float = 1.0
+    rotation_deg: float = 0.0
+
+    @property
+    def is_black(self) -> bool:
+        return self.map is None and (self.constant is None or not np.any(self.constant * self.intensity > 0))
+
+    def __eq__(self, other):
+        return _equal(self, other)
+
+
+@dataclass(eq=False)
+class RenderSettings:
+    """The rasterizer's switches (the reference path tracer ignores them)."""
+
+    ibl: str = "split_sum"
+    ssr: bool = False
+    shadows: bool = True
+    msaa: int = 4
+    exposure: float = 0.0
+    tonemap: str = "none"
+
+    def __eq__(self, other):
+        return _equal(self, other)
+
+
+@dataclass(eq=False)
+class SceneObject:
+    """One mesh instance. ``mesh`` is the reference as written in the file (a built-in name or
+    a path relative to the scene file); ``mesh_data`` is the loaded ``viewer.mesh.MeshData``
+    (None when the scene was parsed with ``load_meshes=False``). ``scale`` is a float or a
+    (3,) array of positive numbers."""
+
+    mesh: str
+    material: str
+    translate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale: float | np.ndarray = 1.0
+    rotate_y_deg: float = 0.0
+    mesh_data: Any = field(default=None, repr=False)
+
+    def model_matrix(self) -> np.ndarray:
+        """4x4 float64 object-to-world matrix for column vectors (``M @ [x, y, z, 1]``):
+        ``T(translate) @ R_y(rotate_y_deg) @ S(scale)``. Transpose it for pyrr's row-major
+        (vector-on-the-left) convention."""
+        s = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (3,))
+        a = math.radians(self.rotate_y_deg)
+        c, sn = math.cos(a), math.sin(a)
+        # Right-handed rotation about +y: x goes to -z for +90 degrees.
+        rot = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+        m = np.eye(4)
+        m[:3, :3] = rot * s[None, :]
+        m[:3, 3] = self.translate
+        return m
+
+    def normal_matrix(self) -> np.ndarray:
+        """3x3 matrix that transforms normals to world space (inverse transpose of the
+        upper-left 3x3 of the model matrix); renormalize after use."""
+        return np.linalg.inv(self.model_matrix()[:3, :3]).T
+
+    def world_positions(self) -> np.ndarray:
+        """(V, 3) float64 vertex positions in world space."""
+        p = np.asarray(self.mesh_data.positions, dtype=np.float64).reshape(-1, 3)
+        m = self.model_matrix()
+        return p @ m[:3, :3].T + m[:3, 3]
+
+    def __eq__(self, other):
+        return _equal(self, other, skip=("mesh_data",))
+
+
+@dataclass(eq=False)
+class Scene:
+    """A validated scene. ``data`` is the TOML data after ``--set`` overrides, as read (before
+    normalization); ``scene_to_toml(scene)`` writes the current field values instead, so edits
+    made to a Scene (e.g. by the GUI) are what gets saved. ``label`` names the scene in messages
+    (the file name, or ``<built-in default>``); ``base_dir`` is where relative paths resolve."""
+
+    path: Path | None
+    camera: Camera
+    environment: Environment
+    render: RenderSettings
+    lights: list
+    objects: list
+    materials: dict
+    data: dict = field(default_factory=dict)
+    label: str = "<scene>"
+    base_dir: Path | None = None
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) float64 (3,) corners of the world-space box around every object."""
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for obj in self.objects:
+            if obj.mesh_data is None:
+                continue
+            p = obj.world_positions()
+            if len(p):
+                lo = np.minimum(lo, p.min(axis=0))
+                hi = np.maximum(hi, p.max(axis=0))
+        if not np.all(np.isfinite(lo)):
+            return np.zeros(3), np.zeros(3)
+        return lo, hi
+
+    def material_of(self, obj: SceneObject):
+        return self.materials[obj.material]
+
+    def __eq__(self, other):
+        return _equal(self, other, skip=("data", "label", "base_dir"))
+
+
+def _equal(a, b, skip=()) -> bool:
+    """Structural equality that understands numpy arrays, Params and dataclasses.
+    Float arrays compare with a relative tolerance of 1e-12 (a normalized direction that is
+    normalized again may move by an ulp)."""
+    if type(a) is not type(b):
+        if not (isinstance(a, (int, float)) and isinstance(b, (int, float))
+                and not isinstance(a, bool) and not isinstance(b, bool)):
+            return False
+    if is_dataclass(a):
+        return all(_equal(getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name not in skip)
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
+    if isinstance(a, dict):
+        if getattr(a, "model", None) != getattr(b, "model", None):
+            return False
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+# ----------------------------------------------------------------------------- validation
+
+def _describe(v) -> str:
+    if isinstance(v, bool):
+        return f"{str(v).lower()} (a boolean)"
+    if isinstance(v, str):
+        return f"{v!r} (a string)"
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, list):
+        return f"a list of {len(v)}"
+    if isinstance(v, (int, float)):
+        return f"{v!r}"
+    return f"{v!r} (a {type(v).__name__})"
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _g(v: float) -> str:
+    return f"{v:g}"
+
+
+class _Checker:
+    """Builds the one-line messages: ``<label>: <field>: <problem>; allowed: <allowed>``."""
+
+    def __init__(self, label: str):
+        self.label = label
+
+    def fail(self, fld: str, problem: str, allowed: str):
+        raise ViewerError(f"{self.label}: {fld}: {problem}; allowed: {allowed}")
+
+    def table(self, value, fld: str, keys: Sequence[str], what: str = "key") -> dict:
+        if not isinstance(value, dict):
+            self.fail(fld, f"expected a table, got {_describe(value)}",
+                      f"a table [{fld}] with keys " + ", ".join(keys))
+        for k in value:
+            if k not in keys:
+                self.fail(f"{fld}.{k}" if fld else k, f"unknown {what}", ", ".join(keys))
+        return value
+
+    def number(self, value, fld, allowed, lo=None, hi=None, lo_open=False, hi_open=False) -> float:
+        if not _is_num(value):
+            self.fail(fld, f"expected a number, got {_describe(value)}", allowed)
+        v = float(value)
+        if not math.isfinite(v):
+            self.fail(fld, f"{v} is not a finite number", allowed)
+        if lo is not None and (v < lo or (lo_open and v == lo)):
+            self.fail(fld, f"{_g(v)} is out of range", allowed)
+        if hi is not None and (v > hi or (hi_open and v == hi)):
+            self.fail(fld, f"{_g(v)} is out of range", allowed)
+        return v
+
+    def integer(self, value, fld, allowed, lo=None, hi=None, choices=None) -> int:
+        if not isinstance(value, int) or isinstance(value, bool):
+            self.fail(fld, f"expected an integer, got {_describe(value)}", allowed)
+        if (lo is not None and value < lo) or (hi is not None and value > hi) or (
+                choices is not None and value not in choices):
+            self.fail(fld, f"{value} is out of range", allowed)
+        return int(value)
+
+    def boolean(self, value, fld) -> bool:
+        if not isinstance(value, bool):
+            self.fail(fld, f"expected true or false, got {_describe(value)}", "true, false")
+        return value
+
+    def choice(self, value, fld, choices) -> str:
+        allowed = ", ".join(f'"{c}"' for c in choices)
+        if not isinstance(value, str):
+            self.fail(fld, f"expected a string, got {_describe(value)}", allowed)
+        if value not in choices:
+            self.fail(fld, f"{value!r} is not allowed", allowed)
+        return value
+
+    def string(self, value, fld, allowed) -> str:
+        if not isinstance(value, str):
+            self.fail(fld, f"expected a string, got {_describe(value)}", allowed)
+        if not value.strip():
+            self.fail(fld, "is empty", allowed)
+        return value
+
+    def vec3(self, value, fld, allowed, grey=False, nonneg=False, positive=False, nonzero=False) -> np.ndarray:
+        if grey and _is_num(value):
+            value = [value] * 3
+        if not isinstance(value, list):
+            self.fail(fld, f"expected 3 numbers, got {_describe(value)}", allowed)
+        if len(value) != 3:
+            self.fail(fld, f"expected 3 numbers, got {len(value)}", allowed)
+        for i, x in enumerate(value):
+            if not _is_num(x):
+                self.fail(f"{fld}[{i}]", f"expected a number, got {_describe(x)}", allowed)
+        arr = np.array([float(x) for x in value], dtype=np.float64)
+        if not np.all(np.isfinite(arr)):
+            self.fail(fld, f"{[float(x) for x in arr]} is not finite", allowed)
+        if nonneg and np.any(arr < 0):
+            self.fail(fld, f"{[_num(x) for x in arr]} has a negative component", allowed)
+        if positive and np.any(arr <= 0):
+            self.fail(fld, f"{[_num(x) for x in arr]} has a component <= 0", allowed)
+        if nonzero and not np.any(arr != 0):
+            self.fail(fld, "is the zero vector", allowed)
+        return arr
+
+
+def _num(x: float):
+    return int(x) if float(x).is_integer() else float(x)
+
+
+# ----------------------------------------------------------------------------- public API
+
+def builtin_scene_names() -> list[str]:
+    """Names of the scenes shipped in ``viewer/scenes`` (``default`` first)."""
+    names = sorted(p.stem for p in SCENE_DIR.glob("*.toml"))
+    if "default" in names:
+        names.remove("default")
+        names.insert(0, "default")
+    return names
+
+
+def _builtin_label(name: str) -> str:
+    return f"<built-in {name}>"
+
+
+def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
+               load_meshes: bool = True) -> "Scene":
+    """Load and validate a scene.
+
+    ``ref`` None loads the built-in ``default``; a string without a path separator and without
+    a ``.toml`` suffix that names a built-in scene (``builtin_scene_names()``) loads that one;
+    anything else is a file path. ``overrides`` are ``KEY=VALUE`` assignments (``--set``)
+    applied before validation. Raises ``ViewerError`` (one line) on any problem.
+    """
+    if ref is None:
+        ref = "default"
+    text = str(ref)
+    seps = {"/", os.sep} | ({os.altsep} if os.altsep else set())
+    is_bare = isinstance(ref, str) and not any(s in text for s in seps) and not text.endswith(".toml")
+    builtins = builtin_scene_names()
+    if is_bare and text in builtins:
+        file = SCENE_DIR / f"{text}.toml"
+        label = _builtin_label(text)
+        data = _read_toml(file, label)
+        return parse_scene(data, None, overrides, label=label, base_dir=SCENE_DIR, load_meshes=load_meshes)
+    path = Path(ref)
+    label = text
+    if not path.exists():
+        hint = "a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+        if is_bare:
+            _Checker(label).fail("scene", "no such built-in scene or file", hint)
+        _Checker(label).fail("file", "not found", hint)
+    if path.is_dir():
+        _Checker(label).fail("file", "is a folder, not a scene file", "a scene file path (.toml)")
+    data = _read_toml(path, label)
+    return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
+
+
+def _read_toml(path: Path, label: str) -> dict:
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        _Checker(label).fail("file", f"cannot be read ({e.strerror or e})", "a readable scene file (.toml)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        _Checker(label).fail("file", f"is not UTF-8 text (byte {e.start})", "a UTF-8 TOML text file")
+    return _loads(text, label)
+
+
+def _loads(text: str, label: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        msg = str(e).splitlines()[0] if str(e) else "invalid TOML"
+        m = re.search(r"line (\d+)", msg)
+        where = f"line {m.group(1)}" if m else "TOML"
+        _Checker(label).fail(where, f"TOML syntax error: {msg}",
+                             "TOML syntax (key = value, [table], [[array]], strings in double quotes)")
+
+
+def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
+                label: str | None = None, base_dir: Path | None = None,
+                load_meshes: bool = True) -> "Scene":
+    """Validate parsed TOML ``data`` (not modified) and build a ``Scene``.
+
+    ``path`` names the file in messages and is where relative mesh and map paths resolve
+    (``base_dir`` overrides that; without either they resolve against the working folder).
+    ``overrides`` are ``--set`` assignments applied to a copy of ``data`` first.
+    """
+    path = Path(path) if path is not None else None
+    if label is None:
+        label = str(path) if path is not None else "<scene>"
+    if base_dir is None:
+        base_dir = path.parent if path is not None else Path.cwd()
+    base_dir = Path(base_dir).absolute()
+    data = copy.deepcopy(data)
+    for a in overrides:
+        apply_override(data, a)
+    ck = _Checker(label)
+    ck.table(data, "", TOP_KEYS, what="section")
+
+    if "version" in data:
+        ck.integer(data["version"], "version", f"{SCENE_VERSION}", SCENE_VERSION, SCENE_VERSION)
+    camera = _parse_camera(ck, data.get("camera", {}))
+    environment = _parse_environment(ck, data.get("environment"), base_dir)
+    render = _parse_render(ck, data.get("render", {}))
+    materials = _parse_materials(ck, data.get("materials", {}))
+    lights = _parse_lights(ck, data.get("lights", []))
+    objects = _parse_objects(ck, data.get("objects"), materials)
+
+    if load_meshes:
+        from viewer.mesh import load_mesh
+
+        cache: dict[str, Any] = {}
+        for i, obj in enumerate(objects):
+            if obj.mesh not in cache:
+                cache[obj.mesh] = load_mesh(obj.mesh, base_dir, where=f"{label}: objects[{i}].mesh")
+            obj.mesh_data = cache[obj.mesh]
+
+    return Scene(path=path, camera=camera, environment=environment, render=render, lights=lights,
+                 objects=objects, materials=materials, data=data, label=label, base_dir=base_dir)
+
+
+def _parse_camera(ck: _Checker, t) -> Camera:
+    ck.table(t, "camera", CAMERA_KEYS)
+    cam = Camera()
+    pos_allowed = "3 finite numbers [x, y, z] in metres"
+    if "position" in t:
+        cam.position = ck.vec3(t["position"], "camera.position", pos_allowed)
+    if "target" in t:
+        cam.target = ck.vec3(t["target"], "camera.target", pos_allowed)
+    if "up" in t:
+        cam.up = ck.vec3(t["up"], "camera.up", "3 finite numbers, not all zero", nonzero=True)
+    if "fov_y" in t:
+        cam.fov_y = ck.number(t["fov_y"], "camera.fov_y", "a number of degrees in (0, 180), the full vertical field of view",
+                              0.0, 180.0, lo_open=True, hi_open=True)
+    for k in ("width", "height"):
+        if k in t:
+            setattr(cam, k, ck.integer(t[k], f"camera.{k}", f"an integer of pixels in [1, {MAX_SIZE}]", 1, MAX_SIZE))
+    view = cam.target - cam.position
+    if not np.any(view != 0):
+        ck.fail("camera.target", "equals camera.position, so there is no viewing direction",
+                "a target different from the position")
+    if np.linalg.norm(np.cross(view / np.linalg.norm(view), cam.up / np.linalg.norm(cam.up))) < 1e-6:
+        ck.fail("camera.up", "is parallel to the viewing direction (target - position)",
+                "a vector not parallel to the viewing direction, e.g. [0, 1, 0]")
+    return cam
+
+
+def _parse_environment(ck: _Checker, t, base_dir: Path) -> Environment:
+    env = Environment()
+    if t is None:
+        return env
+    ck.table(t, "environment", ENV_KEYS)
+    if "constant" in t and "map" in t:
+        ck.fail("environment.map", "given together with environment.constant",
+                "either constant = [r, g, b] or map = \"file.hdr\", not both")
+    if "constant" in t:
+        env.constant = ck.vec3(t["constant"], "environment.constant",
+                               "3 numbers >= 0 (radiance, linear RGB), or one number for grey",
+                               grey=True, nonneg=True)
+    if "map" in t:
+        env.constant = None
+        env.map = _check_file(ck, t["map"], "environment.map", base_dir,
+                              "a lat-long image file (e.g. .hdr, .exr) relative to the scene file")
+    if "intensity" in t:
+        env.intensity = ck.number(t["intensity"], "environment.intensity", "a number >= 0 (a scale factor)", 0.0)
+    if "rotation_deg" in t:
+        env.rotation_deg = ck.number(t["rotation_deg"], "environment.rotation_deg",
+                                     "a finite number of degrees (rotation about +y)")
+    return env
+
+
+def _check_file(ck: _Checker, value, fld: str, base_dir: Path, allowed: str) -> Path:
+    ref = ck.string(value, fld, allowed)
+    p = Path(ref).expanduser()
+    if not p.is_absolute():
+        p = base_dir / p
+    if not p.exists():
+        ck.fail(fld, f"file not found: {p}", allowed)
+    if not p.is_file():
+        ck.fail(fld, f"not a file: {p}", allowed)
+    try:
+        with open(p, "rb") as fh:
+            fh.read(1)
+    except OSError as e:
+        ck.fail(fld, f"cannot be read: {p} ({e.strerror or e})", allowed)
+    return p
+
+
+def _parse_render(ck: _Checker, t) -> RenderSettings:
+    ck.table(t, "render", RENDER_KEYS)
+    r = RenderSettings()
+    if "ibl" in t:
+        r.ibl = ck.choice(t["ibl"], "render.ibl", IBL_MODES)
+    if "ssr" in t:
+        r.ssr = ck.boolean(t["ssr"], "render.ssr")
+    if "shadows" in t:
+        r.shadows = ck.boolean(t["shadows"], "render.shadows")
+    if "msaa" in t:
+        r.msaa = ck.integer(t["msaa"], "render.msaa", "one of " + ", ".join(map(str, MSAA_SAMPLES)),
+                            choices=MSAA_SAMPLES)
+    if "exposure" in t:
+        lo, hi = EXPOSURE_RANGE
+        r.exposure = ck.number(t["exposure"], "render.exposure", f"a number of EV in [{lo:g}, {hi:g}]", lo, hi)
+    if "tonemap" in t:
+        r.tonemap = ck.choice(t["tonemap"], "render.tonemap", TONEMAPS)
+    return r
+
+
+def _parse_lights(ck: _Checker, lst) -> list[Light]:
+    if isinstance(lst, dict):
+        ck.fail("lights", "is a single table", "an array of tables: write [[lights]] for each light")
+    if not isinstance(lst, list):
+        ck.fail("lights", f"expected an array of tables, got {_describe(lst)}", "[[lights]] tables")
+    out = []
+    for i, t in enumerate(lst):
+        fld = f"lights[{i}]"
+        if not isinstance(t, dict):
+            ck.fail(fld, f"expected a table, got {_describe(t)}", "a [[lights]] table")
+        kind = ck.choice(t.get("type", "point"), f"{fld}.type", LIGHT_TYPES)
+        if kind == "point":
+            ck.table(t, fld, POINT_KEYS, what="key for a point light")
+            if "position" not in t:
+                ck.fail(f"{fld}.position", "missing (a point light needs a position)", "3 finite numbers [x, y, z] in metres")
+            light = Light("point")
+            light.position = ck.vec3(t["position"], f"{fld}.position", "3 finite numbers [x, y, z] in metres")
+            light.intensity = ck.vec3(t.get("intensity", [1.0, 1.0, 1.0]), f"{fld}.intensity",
+                                      "3 numbers >= 0 (radiant intensity, W/sr), or one number for grey",
+                                      grey=True, nonneg=True)
+        else:
+            ck.table(t, fld, DIRECTIONAL_KEYS, what="key for a directional light")
+            allowed = "3 finite numbers, not all zero: the direction the light travels (from the light toward the scene)"
+            if "direction" not in t:
+                ck.fail(f"{fld}.direction", "missing (a directional light needs a direction)", allowed)
+            light = Light("directional")
+            d = ck.vec3(t["direction"], f"{fld}.direction", allowed, nonzero=True)
+            light.direction = d / np.linalg.norm(d)
+            light.irradiance = ck.vec3(t.get("irradiance", [1.0, 1.0, 1.0]), f"{fld}.irradiance",
+                                       "3 numbers >= 0 (irradiance, W/m^2), or one number for grey",
+                                       grey=True, nonneg=True)
+        out.append(light)
+    return out
+
+
+def _mesh_allowed() -> str:
+    try:
+        from viewer.mesh import builtin_names
+
+        names = ", ".join(builtin_names())
+    except Exception:  # mesh module absent or broken: still give a useful hint
+        names = "sphere, plane, ..."
+    return f"a built-in mesh name ({names}) or a mesh file path relative to the scene file"
+
+
+def _parse_objects(ck: _Checker, lst, materials: dict) -> list[SceneObject]:
+    need = "one or more [[objects]] tables, each with mesh and material"
+    if lst is None:
+        ck.fail("objects", "missing (a scene needs at least one object)", need)
+    if isinstance(lst, dict):
+        ck.fail("objects", "is a single table", "an array of tables: write [[objects]] for each object")
+    if not isinstance(lst, list):
+        ck.fail("objects", f"expected an array of tables, got {_describe(lst)}", need)
+    if not lst:
+        ck.fail("objects", "is empty (a scene needs at least one object)", need)
+    mat_allowed = ", ".join(materials) if materials else "none defined yet: add a [materials.NAME] table"
+    out = []
+    for i, t in enumerate(lst):
+        fld = f"objects[{i}]"
+        ck.table(t, fld, OBJECT_KEYS)
+        if "mesh" not in t:
+            ck.fail(f"{fld}.mesh", "missing", _mesh_allowed())
+        mesh = ck.string(t["mesh"], f"{fld}.mesh", _mesh_allowed())
+        if "material" not in t:
+            ck.fail(f"{fld}.material", "missing", "the name of a [materials.NAME] table: " + mat_allowed)
+        mat = ck.string(t["material"], f"{fld}.material", "a material name: " + mat_allowed)
+        if mat not in materials:
+            ck.fail(f"{fld}.material", f"unknown material {mat!r}", mat_allowed)
+        obj = SceneObject(mesh=mesh, material=mat)
+        if "translate" in t:
+            obj.translate = ck.vec3(t["translate"], f"{fld}.translate", "3 finite numbers [x, y, z] in metres")
+        if "scale" in t:
+            s = t["scale"]
+            allowed = "a number > 0, or 3 numbers > 0 [sx, sy, sz]"
+            if isinstance(s, list):
+                obj.scale = ck.vec3(s, f"{fld}.scale", allowed, positive=True)
+            else:
+                obj.scale = ck.number(s, f"{fld}.scale", allowed, 0.0, lo_open=True)
+        if "rotate_y_deg" in t:
+            obj.rotate_y_deg = ck.number(t["rotate_y_deg"], f"{fld}.rotate_y_deg",
+                                         "a finite number of degrees (rotation about +y)")
+        out.append(obj)
+    return out
+
+
+def _parse_materials(ck: _Checker, t) -> dict:
+    from viewer import brdf
+    from viewer.brdf.presets import PRESETS
+    from viewer.brdf.spec import validate_params
+
+    if not isinstance(t, dict):
+        ck.fail("materials", f"expected a table, got {_describe(t)}", "[materials.NAME] tables")
+    out = {}
+    for name, raw in t.items():
+        fld = f"materials.{name}"
+        if not isinstance(raw, dict):
+            ck.fail(fld, f"expected a table, got {_describe(raw)}",
+                    f"a [{fld}] table with model = one of {', '.join(brdf.names())} (or preset = ...)")
+        raw = dict(raw)
+        if "preset" in raw:
+            pname = raw.pop("preset")
+            allowed = ", ".join(PRESETS) or "none defined"
+            if not isinstance(pname, str):
+                ck.fail(f"{fld}.preset", f"expected a string, got {_describe(pname)}", allowed)
+            if pname not in PRESETS:
+                ck.fail(f"{fld}.preset", f"unknown preset {pname!r}", allowed)
+            merged = copy.deepcopy(PRESETS[pname])
+            if "model" in raw and raw["model"] != merged.get("model"):
+                # The table picks another model: keep only the preset's parameters it knows.
+                other = brdf.lookup_spec(raw["model"], f"{ck.label}: {fld}.model") if isinstance(
+                    raw["model"], str) else None
+                known = set(other.names) | set(other.aliases) if other else set()
+                merged = {k: v for k, v in merged.items() if k in known}
+            merged.update(raw)
+            raw = merged
+        if "model" not in raw:
+            ck.fail(f"{fld}.model", "missing", ", ".join(brdf.names()) + " (or give preset = one of "
+                    + (", ".join(PRESETS) or "none") + ")")
+        model = raw.pop("model")
+        if not isinstance(model, str):
+            ck.fail(f"{fld}.model", f"expected a string, got {_describe(model)}", ", ".join(brdf.names()))
+        spec = brdf.lookup_spec(model, f"{ck.label}: {fld}.model")
+        out[name] = validate_params(spec, raw, f"{ck.label}: {fld}", brdf.lookup_spec)
+    return out
+
+
+# ----------------------------------------------------------------------------- overrides
+
+_INDEX = re.compile(r"\[(\d+)\]")
+
+
+def _parse_value(text: str):
+    """A TOML value (number, bool, array, inline table, quoted string); else the bare text."""
+    text = text.strip()
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def apply_override(data: dict, assignment: str, where: str = "--set") -> None:
+    """Apply one ``KEY=VALUE`` assignment to ``data`` in place.
+
+    KEY is a dotted path (``materials.ball.alpha``, ``camera.fov_y``); list items are addressed
+    by index (``lights.0.intensity`` or ``lights[0].intensity``). VALUE is parsed as a TOML
+    value (``0.2``, ``[1, 2, 3]``, ``true``, ``"text"``); a bare word that is not TOML is taken
+    as a string (``model=ggx``). Missing top-level sections (camera, environment, render,
+    materials) are created; any other missing part of the path is an error naming it. The
+    value itself is checked later, by ``parse_scene``.
+    """
+    ck = _Checker(f"{where} {assignment}")
+    if "=" not in assignment:
+        ck.fail("KEY=VALUE", "no '=' in the assignment", "KEY=VALUE with a dotted KEY, e.g. materials.ball.alpha=0.2")
+    key, text = assignment.split("=", 1)
+    key = _INDEX.sub(r".\1", key.strip())
+    parts = key.split(".")
+    if not key or any(not p for p in parts):
+        ck.fail(key or "KEY", "empty part in the dotted path",
+                "a dotted path like materials.ball.alpha or lights.0.intensity")
+    value = _parse_value(text)
+    cur: Any = data
+    for depth, part in enumerate(parts):
+        here = ".".join(parts[:depth + 1])
+        last = depth == len(parts) - 1
+        if isinstance(cur, list):
+            if not part.isdigit() or int(part) >= len(cur):
+                allowed = (f"an index 0..{len(cur) - 1}" if cur else "nothing: the list is empty")
+                ck.fail(here, f"no item {part!r} in {'.'.join(parts[:depth]) or 'the list'}", allowed)
+            idx = int(part)
+            if last:
+                cur[idx] = value
+            else:
+                cur = cur[idx]
+        elif isinstance(cur, dict):
+            if last:
+                cur[part] = value
+            elif part in cur:
+                cur = cur[part]
+            elif depth == 0 and part in ("camera", "environment", "render", "materials"):
+                cur[part] = {}
+                cur = cur[part]
+            else:
+                allowed = ", ".join(map(str, cur)) if cur else "nothing here yet"
+                if depth == 0:
+                    allowed = ", ".join(TOP_KEYS)
+                ck.fail(here, f"no {part!r} in {'.'.join(parts[:depth]) or 'the scene'}", allowed)
+        else:
+            ck.fail(here, f"{'.'.join(parts[:depth])} is a value ({_describe(cur)}), not a table or list",
+                    "a path that ends at " + ".".join(parts[:depth]))
+
+
+# ----------------------------------------------------------------------------- saving
+
+def scene_to_data(scene: Scene) -> dict:
+    """The scene's current values as plain TOML data (every value explicit, presets expanded).
+    Relative paths are written relative to the scene's folder."""
+    cam = scene.camera
+    d: dict[str, Any] = {"version": SCENE_VERSION}
+    d["camera"] = {"position": _list(cam.position), "target": _list(cam.target), "up": _list(cam.up),
+                   "fov_y": float(cam.fov_y), "width": int(cam.width), "height": int(cam.height)}
+    env = scene.environment
+    e: dict[str, Any] = {}
+    if env.map is not None:
+        e["map"] = _rel(env.map, scene)
+    else:
+        e["constant"] = _list(env.constant if env.constant is not None else np.zeros(3))
+    e["intensity"] = float(env.intensity)
+    e["rotation_deg"] = float(env.rotation_deg)
+    d["environment"] = e
+    r = scene.render
+    d["render"] = {"ibl": r.ibl, "ssr": bool(r.ssr), "shadows": bool(r.shadows), "msaa": int(r.msaa),
+                   "exposure": float(r.exposure), "tonemap": r.tonemap}
+    lights = []
+    for light in scene.lights:
+        if light.type == "point":
+            lights.append({"type": "point", "position": _list(light.position), "intensity": _list(light.intensity)})
+        else:
+            lights.append({"type": light.type, "direction": _list(light.direction),
+                           "irradiance": _list(light.irradiance)})
+    if lights:
+        d["lights"] = lights
+    objs = []
+    for o in scene.objects:
+        s = o.scale
+        scale = _list(s) if np.ndim(s) else float(s)
+        objs.append({"mesh": o.mesh, "material": o.material, "translate": _list(o.translate),
+                     "scale": scale, "rotate_y_deg": float(o.rotate_y_deg)})
+    d["objects"] = objs
+    d["materials"] = {name: _plain(p.to_plain()) for name, p in scene.materials.items()}
+    return d
+
+
+def _list(a) -> list:
+    return [float(x) for x in np.asarray(a, dtype=np.float64).reshape(-1)]
+
+
+def _plain(v):
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _list(v)
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def _rel(p: Path, scene: Scene) -> str:
+    base = scene.base_dir or (scene.path.parent if scene.path else Path.cwd())
+    p = Path(p)
+    try:
+        return Path(os.path.relpath(p, Path(base).absolute())).as_posix()
+    except ValueError:  # another drive on Windows
+        return str(p)
+
+
+def scene_to_toml(scene_or_data) -> str:
+    """TOML text for a ``Scene`` (its current values, see ``scene_to_data``) or for plain data.
+    ``parse_scene(tomllib.loads(scene_to_toml(s)), s.path) == s``."""
+    data = scene_to_data(scene_or_data) if isinstance(scene_or_data, Scene) else _plain(scene_or_data)
+    lines: list[str] = []
+    _emit_table(lines, [], data, header=None)
+    text = "\n".join(lines).strip("\n") + "\n"
+    # tomli_w is the reference writer: fall back to it should our layout ever fail to parse back.
+    try:
+        if tomllib.loads(text) != data:
+            raise ValueError
+    except (tomllib.TOMLDecodeError, ValueError):
+        text = tomli_w.dumps(data)
+    return text
+
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else _string(k)
+
+
+def _string(s: str) -> str:
+    return tomli_w.dumps({"v": s})[4:].strip()
+
+
+def _is_aot(v) -> bool:
+    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return _string(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
+    return tomli_w.dumps({"v": v})[4:].strip()
+
+
+def _emit_table(lines: list, prefix: list, tbl: dict, header: str | None):
+    """Readable TOML: scalars and number arrays inline, tables as [a.b], arrays of tables as
+    [[a.b]]. ``header`` is "[]" or "[[]]" for the kind of header this table gets (None: root)."""
+    simple = [(k, v) for k, v in tbl.items() if not isinstance(v, dict) and not _is_aot(v)]
+    nested = [(k, v) for k, v in tbl.items() if isinstance(v, dict) or _is_aot(v)]
+    name = ".".join(_key(p) for p in prefix)
+    if header == "[[]]" or (header == "[]" and (simple or not nested)):
+        if lines:
+            lines.append("")
+        lines.append(f"[[{name}]]" if header == "[[]]" else f"[{name}]")
+    for k, v in simple:
+        lines.append(f"{_key(k)} = {_value(v)}")
+    for k, v in nested:
+        if isinstance(v, dict):
+            _emit_table(lines, prefix + [k], v, "[]")
+        else:
+            for item in v:
+                _emit_table(lines, prefix + [k], item, "[[]]")
