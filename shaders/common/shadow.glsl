@@ -1,6 +1,6 @@
 // Shadow maps in one depth atlas: light i owns row i; a point light uses six 90-degree (plus a
 // margin) perspective tiles, one per cube face, a directional light one orthographic tile.
-// Filtering: 3x3 taps of hardware 2x2 comparison (bilinear PCF).
+// Filtering: 4 taps of hardware 2x2 comparison (bilinear PCF), a 3x3-texel tent.
 const int MAX_LIGHTS = 4;
 
 uniform sampler2DShadow u_shadow_atlas;
@@ -24,15 +24,16 @@ float shadow_lookup(int light, int face, vec3 p) {
     vec2 uv = ndc.xy * 0.5 + 0.5;
     float depth = ndc.z * 0.5 + 0.5;
     float texel = 1.0 / u_shadow_tile_size;
+    // four bilinear comparison taps at +-half a texel: a 3x3-texel tent filter for 4 fetches
     float sum = 0.0;
-    for (int y = -1; y <= 1; ++y)
-        for (int x = -1; x <= 1; ++x) {
-            // stay one texel inside this tile so taps never read a neighbouring face
-            vec2 t = clamp(uv + vec2(x, y) * texel, vec2(texel), vec2(1.0 - texel));
-            vec2 a = (vec2(float(face), float(light)) + t) / u_shadow_atlas_tiles;
-            sum += texture(u_shadow_atlas, vec3(a, depth));
-        }
-    return sum / 9.0;
+    for (int k = 0; k < 4; ++k) {
+        vec2 o = vec2((k & 1) == 0 ? -0.5 : 0.5, (k & 2) == 0 ? -0.5 : 0.5);
+        // stay inside this tile so taps never read a neighbouring face
+        vec2 t = clamp(uv + o * texel, vec2(texel), vec2(1.0 - texel));
+        vec2 a = (vec2(float(face), float(light)) + t) / u_shadow_atlas_tiles;
+        sum += texture(u_shadow_atlas, vec3(a, depth));
+    }
+    return 0.25 * sum;
 }
 
 // Visibility of light `light` from world point p with geometric normal ng.

@@ -18,19 +18,10 @@ uniform vec3 u_light_value[MAX_LIGHTS];  // point: intensity I [W/sr]; direction
 uniform vec3 u_env_constant;             // constant environment radiance
 uniform int u_env_on;
 uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos
+const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
+uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
 
 out vec4 frag_color;
-
-// Hammersley point k of n (radical inverse in base 2).
-vec2 hammersley(int k, int n) {
-    uint b = uint(k);
-    b = (b << 16u) | (b >> 16u);
-    b = ((b & 0x55555555u) << 1u) | ((b & 0xAAAAAAAAu) >> 1u);
-    b = ((b & 0x33333333u) << 2u) | ((b & 0xCCCCCCCCu) >> 2u);
-    b = ((b & 0x0F0F0F0Fu) << 4u) | ((b & 0xF0F0F0F0u) >> 4u);
-    b = ((b & 0x00FF00FFu) << 8u) | ((b & 0xFF00FF00u) >> 8u);
-    return vec2((float(k) + 0.5) / float(n), float(b) * 2.3283064365386963e-10);
-}
 
 // A false-colour ramp for term views (dark blue -> cyan -> yellow -> red), t in [0, 1].
 vec3 false_colour(float t) {
@@ -85,18 +76,14 @@ void main() {
         radiance += f * e * cos_i * vis;
     }
     if (u_env_on != 0 && any(greaterThan(u_env_constant, vec3(0.0)))) {
-        // Constant environment: L_env * integral of f cos over the hemisphere, by a fixed
-        // cosine-weighted Hammersley quadrature (exact for Lambert; environment maps and a proper
-        // prefiltered IBL replace this in the environment-lighting work). No occlusion.
-        const int N = 32;
-        vec3 acc = vec3(0.0);
-        for (int k = 0; k < N; ++k) {
-            vec2 u = hammersley(k, N);
-            float r = sqrt(u.x), phi = TWO_PI * u.y;
-            vec3 wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));
-            acc += brdf_eval(u_model_id, 0, wi, wo);
-        }
-        radiance += u_env_constant * PI * acc / float(N);
+        // Constant environment: L_o = L_env * rho(wo), the directional albedo, tabulated per
+        // material over cos(theta_o) by viewer/brdf/albedo.py with the model's own sampler.
+        // No occlusion (environment maps and proper IBL come with the environment work).
+        float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
+        int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
+        int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
+        vec3 rho = mix(u_albedo[k0], u_albedo[k1], clamp(x - float(k0), 0.0, 1.0));
+        radiance += u_env_constant * (wo.z > 0.0 ? rho : vec3(0.0));
     }
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);

@@ -69,6 +69,9 @@ class App:
         self.render_ms = 0.0
         self.first_frame_s = None
         self._closing = False
+        self._last_interaction = -1.0
+        self._quality = "full"
+        self._hdr_for = None
         self.screenshot_dir = Path.cwd()
 
     # ------------------------------------------------------------------ lifecycle
@@ -125,7 +128,7 @@ class App:
     def frame(self):
         glfw, imgui = self.glfw, self.imgui
         t0 = time.perf_counter()
-        if self.dirty:
+        if self.dirty or self._quality != "full":
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
@@ -141,11 +144,21 @@ class App:
             self._panel()
         vx, vy, vw, vh = self.viewport()
         if vw > 0 and vh > 0:
-            if self.dirty or self.hdr is None or self.hdr.size != (vw, vh):
+            now = time.perf_counter()
+            interacting = now - self._last_interaction < 0.3
+            # While the user drags, render at half resolution without MSAA (software GL is slow);
+            # a full-quality frame follows as soon as the interaction pauses.
+            scale = 0.5 if interacting else 1.0
+            rw, rh = max(1, int(vw * scale)), max(1, int(vh * scale))
+            want_full = not interacting and self._quality != "full"
+            if self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh):
                 t1 = time.perf_counter()
-                self.hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
+                self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
+                                                msaa=0 if interacting else None)
                 self.ctx.finish()
                 self.render_ms = 1000 * (time.perf_counter() - t1)
+                self._hdr_for = (vw, vh)
+                self._quality = "preview" if interacting else "full"
                 self.dirty = False
         screen = self.ctx.screen
         screen.use()
@@ -164,11 +177,14 @@ class App:
         self.frame_count += 1
         if self.first_frame_s is None:
             self.first_frame_s = time.perf_counter() - self.t_start
+            print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
 
     def _handle_input(self):
         imgui = self.imgui
         io = imgui.get_io()
+        if imgui.is_any_item_active():  # a slider being dragged counts as interaction
+            self._last_interaction = time.perf_counter()
         vx, vy, vw, vh = self.viewport()
         if not io.want_capture_mouse:
             d = io.mouse_delta
@@ -178,12 +194,15 @@ class App:
             elif imgui.is_mouse_dragging(imgui.MouseButton_.left):
                 self.camera.orbit(d.x, d.y, vh)
                 self.dirty = True
+                self._last_interaction = time.perf_counter()
             elif imgui.is_mouse_dragging(imgui.MouseButton_.right) or imgui.is_mouse_dragging(imgui.MouseButton_.middle):
                 self.camera.pan(d.x, d.y, vh)
                 self.dirty = True
+                self._last_interaction = time.perf_counter()
             if io.mouse_wheel != 0.0:
                 self.camera.dolly(io.mouse_wheel)
                 self.dirty = True
+                self._last_interaction = time.perf_counter()
         if not io.want_capture_keyboard:
             if imgui.is_key_pressed(imgui.Key.r, False):
                 self.camera.reset()

@@ -248,6 +248,8 @@ def _default(f: Param, lookup_spec=None):
     if f.kind == "lobes":
         return [validate_fields(f.fields, dict(x), f.name, "") for x in d]
     if f.kind == "material":
+        if lookup_spec is None:
+            from viewer.brdf import lookup_spec
         return validate_value(f, dict(d), f.name, lookup_spec)
     return d
 

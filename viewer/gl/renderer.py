@@ -4,11 +4,13 @@ call ``Renderer.render``; only the owner of the final framebuffer differs."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 
-from viewer.brdf.glsl import MAT_VEC4, uniform_block
+from viewer.brdf.albedo import albedo_table
+from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import build_program, default_virtual
 
@@ -83,6 +85,7 @@ class Renderer:
         self._shadow_mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._shadow_texel = np.zeros(MAX_LIGHTS)
         self._empty_vao = ctx.vertex_array(self.programs["tonemap"], [])
+        self._albedo_cache: dict[str, np.ndarray] = {}
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -221,6 +224,19 @@ class Renderer:
         self._shadow_mats = mats
         self._shadow_key = key
 
+    def albedo_table(self, params) -> np.ndarray:
+        """float32 (32, 3) directional albedo of a material, cached by its parameter values."""
+        key = json.dumps(params.to_plain(), sort_keys=True)
+        table = self._albedo_cache.get(key)
+        if table is None:
+            from viewer import brdf
+
+            table = albedo_table(brdf.get(params.model), params).astype("f4")
+            if len(self._albedo_cache) > 256:
+                self._albedo_cache.clear()
+            self._albedo_cache[key] = table
+        return table
+
     # ---------------------------------------------------------------- passes
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
                height: int | None = None, view_mode: int = 0, msaa: int | None = None):
@@ -259,7 +275,8 @@ class Renderer:
         _set(prog, "u_light_pos", pos.tobytes())
         _set(prog, "u_light_value", val.tobytes())
         _set(prog, "u_env_constant", tuple(float(x) for x in env_rad))
-        _set(prog, "u_env_on", int(scene.render.ibl != "off"))
+        env_on = scene.render.ibl != "off" and bool(np.any(env_rad > 0))
+        _set(prog, "u_env_on", int(env_on))
         _set(prog, "u_view_mode", int(view_mode))
         _set(prog, "u_shadows_on", int(shadows))
         if shadows:
@@ -273,9 +290,12 @@ class Renderer:
             m = obj.model_matrix()
             _set(prog, "u_model", gl_bytes(m))
             _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
-            idx, block = uniform_block(scene.materials[obj.material])
+            params = scene.materials[obj.material]
+            idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
+            if env_on:
+                _set(prog, "u_albedo", self.albedo_table(params).tobytes())
             self._gpu_mesh(obj.mesh_data).vao(prog).render()
         if targets["draw_fbo"] is not targets["resolved_fbo"]:
             ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
@@ -289,6 +309,8 @@ class Renderer:
             fbo.viewport = viewport
         ctx.disable(ctx.DEPTH_TEST)
         prog = self.programs["tonemap"]
+        # linear filtering when a preview resolution is stretched over the viewport
+        hdr.filter = (ctx.LINEAR, ctx.LINEAR)
         hdr.use(location=0)
         _set(prog, "u_hdr", 0)
         _set(prog, "u_exposure", float(exposure))
@@ -299,7 +321,7 @@ class Renderer:
     def read_linear(self, hdr) -> np.ndarray:
         """(H, W, 3) float32 radiance, row 0 = top (CONTRACT section 1)."""
         w, h = hdr.size
-        a = np.frombuffer(hdr.read(), dtype="f4").reshape(h, w, 4)
+        a = np.frombuffer(hdr.read(), dtype="f4").reshape(h, w, 4)  # exact texels, no filtering
         return np.ascontiguousarray(a[::-1, :, :3])
 
     def read_srgb(self, hdr, exposure=0.0, tonemap="none") -> np.ndarray:

@@ -1,0 +1,136 @@
+"""The window app under a real X server (Xvfb): it starts on the default scene, renders frames,
+saves a screenshot through its own action, survives resizes and a 0x0 framebuffer, and exits
+cleanly on window close and on SIGTERM."""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
+                                reason="needs Xvfb (apt-get install xvfb) or a display")
+
+
+@pytest.fixture(scope="module")
+def display():
+    """A private Xvfb server (its number chosen by Xvfb itself), or the existing DISPLAY."""
+    if shutil.which("Xvfb") is None:
+        yield os.environ["DISPLAY"]
+        return
+    r, w = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(w)
+    with os.fdopen(r) as f:
+        num = f.readline().strip()
+    yield f":{num}"
+    proc.terminate()
+    proc.wait(10)
+
+
+def _env(display):
+    env = dict(os.environ)
+    env["DISPLAY"] = display
+    env.pop("WAYLAND_DISPLAY", None)
+    return env
+
+
+def _run_py(code, display, timeout=120):
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_starts_renders_and_screenshots(display, tmp_path):
+    shot = tmp_path / "shot.png"
+    r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "4", "--screenshot", str(shot)],
+                       env=_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "first frame" in r.stderr
+    from PIL import Image
+
+    img = np.asarray(Image.open(shot).convert("RGB")).astype(float)
+    # the scene, not a uniform image: clear structure and the terracotta ball
+    assert img.std() > 20, img.std()
+    assert (img[..., 0] - img[..., 2]).max() > 80  # some clearly orange pixels
+    from viewer.io import read_png_text
+    from viewer.scene import parse_scene
+
+    text = read_png_text(shot)
+    import tomllib
+
+    scene = parse_scene(tomllib.loads(text["brdf-viewer:scene"]), None, load_meshes=False)
+    assert scene.materials["ball"].model == "lambert"
+    assert not any(p.name.endswith(".part") for p in tmp_path.iterdir())  # atomic write
+
+
+def test_window_close_resize_and_zero_framebuffer(display):
+    r = _run_py("""
+        import numpy as np
+        from viewer.app.main import App
+        app = App(None, size=(800, 500))
+        for _ in range(3):
+            app.frame()
+        a = app.capture_window()
+        assert a.shape[:2] == (500, 800), a.shape
+        assert a.std() > 10
+        app.glfw.set_window_size(app.window, 1000, 640)
+        for _ in range(20):
+            app.frame()
+            if app.glfw.get_framebuffer_size(app.window) == (1000, 640):
+                break
+        b = app.capture_window()
+        assert b.shape[:2] == (640, 1000), b.shape
+        # a minimized window has a 0x0 framebuffer: frames are skipped, nothing breaks
+        real = app.glfw.get_framebuffer_size
+        app.glfw.get_framebuffer_size = lambda w: (0, 0)
+        before = app.frame_count
+        for _ in range(3):
+            app.frame()
+        assert app.frame_count == before
+        app.glfw.get_framebuffer_size = real
+        app.frame()
+        app.glfw.set_window_should_close(app.window, True)
+        rc = app.run()
+        assert app.window is None
+        print("CLOSED", rc)
+    """, display)
+    assert r.returncode == 0, r.stderr + r.stdout
+    assert "CLOSED 0" in r.stdout
+
+
+def test_sigterm_exits_cleanly(display, tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "viewer"], env=_env(display), stderr=subprocess.PIPE,
+                         stdout=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        t0 = time.time()
+        line = ""
+        while "first frame" not in line and time.time() - t0 < 120:
+            line = p.stderr.readline()
+            if not line and p.poll() is not None:
+                break
+        assert "first frame" in line, line
+        p.send_signal(signal.SIGTERM)
+        rc = p.wait(30)
+        err = p.stderr.read()
+        assert rc == 0, err
+        assert "Traceback" not in err
+    finally:
+        if p.poll() is None:
+            p.kill()
+
+
+def test_no_display_message(tmp_path):
+    env = dict(os.environ)
+    env.pop("DISPLAY", None)
+    env.pop("WAYLAND_DISPLAY", None)
+    r = subprocess.run([sys.executable, "-m", "viewer"], env=env, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert "no display" in lines[0] and "brdf-viewer render" in lines[0]
