@@ -89,10 +89,14 @@ class Renderer:
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
-        """(Re)compile every pass. Raises ShaderError; on failure the old programs stay."""
-        virtual = default_virtual()
+        """(Re)compile every pass. Raises ShaderError; on failure the old programs stay.
+
+        The forward pass is compiled per set of material models (``forward_program``), on
+        first use, and cached: a slider move is a uniform upload, a model switch compiles at
+        most once."""
+        virtual = default_virtual(("lambert",))
         new = {
-            "forward": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag", virtual=virtual),
+            "forward:lambert": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag", virtual=virtual),
             "shadow": build_program(self.ctx, "passes/shadow.vert", "passes/shadow.frag", virtual=virtual),
             "tonemap": build_program(self.ctx, "passes/fullscreen.vert", "passes/tonemap.frag", virtual=virtual),
         }
@@ -106,6 +110,19 @@ class Renderer:
         if hasattr(self, "_empty_vao"):
             self._empty_vao.release()
             self._empty_vao = self.ctx.vertex_array(self.programs["tonemap"], [])
+
+    def forward_program(self, params):
+        """The forward program for a material (its model, and a nested base model if any)."""
+        from viewer.brdf.glsl import models_used
+
+        used = models_used(params)
+        key = "forward:" + "+".join(used)
+        prog = self.programs.get(key)
+        if prog is None:
+            prog = build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
+                                 virtual=default_virtual(used))
+            self.programs[key] = prog
+        return prog
 
     # ---------------------------------------------------------------- resources
     def _gpu_mesh(self, mesh) -> GpuMesh:
@@ -259,11 +276,7 @@ class Renderer:
         fbo.clear(*[float(x) for x in env_rad], 1.0, depth=1.0)
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
-        prog = self.programs["forward"]
         view_proj = cam.projection(w / h) @ cam.view()
-        _set(prog, "u_view_proj", gl_bytes(view_proj))
-        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
-        _set(prog, "u_num_lights", len(lights))
         types = np.zeros(MAX_LIGHTS, "i4")
         pos = np.zeros((MAX_LIGHTS, 3), "f4")
         val = np.zeros((MAX_LIGHTS, 3), "f4")
@@ -271,26 +284,39 @@ class Renderer:
             types[i] = 0 if l.type == "point" else 1
             pos[i] = l.position if l.type == "point" else l.direction
             val[i] = l.intensity if l.type == "point" else l.irradiance
-        _set(prog, "u_light_type", types.tobytes())
-        _set(prog, "u_light_pos", pos.tobytes())
-        _set(prog, "u_light_value", val.tobytes())
-        _set(prog, "u_env_constant", tuple(float(x) for x in env_rad))
         env_on = scene.render.ibl != "off" and bool(np.any(env_rad > 0))
-        _set(prog, "u_env_on", int(env_on))
-        _set(prog, "u_view_mode", int(view_mode))
-        _set(prog, "u_shadows_on", int(shadows))
+        frame_uniforms = {
+            "u_view_proj": gl_bytes(view_proj),
+            "u_camera_pos": tuple(float(x) for x in cam.position),
+            "u_num_lights": len(lights),
+            "u_light_type": types.tobytes(),
+            "u_light_pos": pos.tobytes(),
+            "u_light_value": val.tobytes(),
+            "u_env_constant": tuple(float(x) for x in env_rad),
+            "u_env_on": int(env_on),
+            "u_view_mode": int(view_mode),
+            "u_shadows_on": int(shadows),
+        }
         if shadows:
             self._shadow["tex"].use(location=0)
-            _set(prog, "u_shadow_atlas", 0)
-            _set(prog, "u_shadow_mat", b"".join(gl_bytes(m) for m in self._shadow_mats))
-            _set(prog, "u_shadow_atlas_tiles", (6.0, float(self._shadow["rows"])))
-            _set(prog, "u_shadow_tile_size", float(SHADOW_TILE))
-            _set(prog, "u_shadow_texel_world", self._shadow_texel.astype("f4").tobytes())
+            frame_uniforms.update({
+                "u_shadow_atlas": 0,
+                "u_shadow_mat": b"".join(gl_bytes(m) for m in self._shadow_mats),
+                "u_shadow_atlas_tiles": (6.0, float(self._shadow["rows"])),
+                "u_shadow_tile_size": float(SHADOW_TILE),
+                "u_shadow_texel_world": self._shadow_texel.astype("f4").tobytes(),
+            })
+        ready = set()
         for obj in scene.objects:
+            params = scene.materials[obj.material]
+            prog = self.forward_program(params)
+            if id(prog) not in ready:
+                for k, v in frame_uniforms.items():
+                    _set(prog, k, v)
+                ready.add(id(prog))
             m = obj.model_matrix()
             _set(prog, "u_model", gl_bytes(m))
             _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
-            params = scene.materials[obj.material]
             idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())

@@ -100,10 +100,10 @@ def load(rel: str, virtual: dict[str, str] | None = None) -> Source:
     return preprocess(text, rel, virtual)
 
 
-def default_virtual() -> dict[str, str]:
+def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
     from viewer.brdf.glsl import generate_dispatch
 
-    return {"brdf/dispatch.glsl": generate_dispatch()}
+    return {"brdf/dispatch.glsl": generate_dispatch(only)}
 
 
 def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *,

@@ -1,0 +1,97 @@
+"""Figures for the closing notes: `python benchmarks/run.py` (prints numbers, asserts nothing).
+
+- start to first frame of the window app (under Xvfb when there is no display)
+- frame time of the default scene at 1280x720 and 640x360 (the offscreen renderer, which the
+  window uses too), full quality (scene MSAA) and the interactive preview (no MSAA)
+- whole-process time of `brdf-viewer render` for a 512x512 PNG
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def _xvfb():
+    if os.environ.get("DISPLAY"):
+        return None, os.environ["DISPLAY"]
+    if not shutil.which("Xvfb"):
+        return None, None
+    r, w = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(w)
+    with os.fdopen(r) as f:
+        return proc, ":" + f.readline().strip()
+
+
+def start_to_first_frame(runs=3):
+    proc, display = _xvfb()
+    if display is None:
+        print("start to first frame: skipped (no display and no Xvfb)")
+        return
+    env = dict(os.environ, DISPLAY=display)
+    firsts, wholes = [], []
+    try:
+        for _ in range(runs):
+            t = time.perf_counter()
+            r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "1"], env=env,
+                               capture_output=True, text=True, timeout=300)
+            wholes.append(time.perf_counter() - t)
+            m = re.search(r"first frame after ([0-9.]+) s", r.stderr)
+            if m:
+                firsts.append(float(m.group(1)))
+    finally:
+        if proc:
+            proc.terminate()
+    print(f"window, start to first frame (in-process, after imports): median {statistics.median(firsts):.2f} s")
+    print(f"window, process start to exit after 1 frame:              median {statistics.median(wholes):.2f} s")
+
+
+def frame_times(frames=5):
+    from viewer.camera import OrbitCamera
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import load_scene
+
+    ctx = create_offscreen_context()
+    print(f"GL: {ctx.info['GL_RENDERER']} | {ctx.info['GL_VERSION']} | {os.cpu_count()} CPU cores")
+    r = Renderer(ctx)
+    scene = load_scene("default")
+    cam = OrbitCamera.from_scene(scene)
+    for w, h in ((1280, 720), (640, 360)):
+        for label, msaa in (("full (MSAA %d)" % scene.render.msaa, None), ("preview (no MSAA)", 0)):
+            r.render(scene, cam, w, h, msaa=msaa)
+            ctx.finish()
+            ts = []
+            for _ in range(frames):
+                t = time.perf_counter()
+                r.render(scene, cam, w, h, msaa=msaa)
+                ctx.finish()
+                ts.append(time.perf_counter() - t)
+            print(f"default scene {w}x{h} {label:18s}: median {1000 * statistics.median(ts):7.1f} ms/frame")
+    r.release()
+    ctx.release()
+
+
+def render_process(runs=3):
+    with tempfile.TemporaryDirectory() as d:
+        ts = []
+        for i in range(runs):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "viewer", "render", "default", "--out", f"{d}/o{i}.png",
+                            "--width", "512", "--height", "512"], check=True, capture_output=True, timeout=300)
+            ts.append(time.perf_counter() - t)
+    print(f"brdf-viewer render default 512x512 PNG, whole process: median {statistics.median(ts):.2f} s")
+
+
+if __name__ == "__main__":
+    frame_times()
+    render_process()
+    start_to_first_frame()
