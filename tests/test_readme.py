@@ -1,0 +1,23 @@
+"""The README's quick start is what CI runs: the test command in .ci/run appears verbatim in the
+README, and the README documents every CLI command that exists."""
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_ci_runs_the_readme_test_command():
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    cmd = [l for l in ci if "pytest" in l and not l.startswith("#")]
+    assert len(cmd) == 1
+    readme = (ROOT / "README.md").read_text()
+    assert cmd[0].strip() in readme
+
+
+def test_readme_documents_each_command():
+    from viewer.cli import COMMANDS
+
+    readme = (ROOT / "README.md").read_text()
+    for c in COMMANDS:
+        assert re.search(rf"### `brdf-viewer {c}`", readme), c
