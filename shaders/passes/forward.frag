@@ -20,6 +20,11 @@ uniform int u_env_on;
 uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos
 const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
+uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
+uniform int u_transmit_on;
+uniform vec3 u_sigma_a;                  // absorption inside a transmissive material [1/m]
+uniform float u_ior;
+uniform sampler2D u_thickness;           // distance to the nearest back face (0 = none)
 
 out vec4 frag_color;
 
@@ -82,7 +87,19 @@ void main() {
         float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
         int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
         int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
-        vec3 rho = mix(u_albedo[k0], u_albedo[k1], clamp(x - float(k0), 0.0, 1.0));
+        float fx = clamp(x - float(k0), 0.0, 1.0);
+        vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
+        if (u_transmit_on != 0) {
+            // Glass: light refracted in crosses the object and leaves through the back. The
+            // rasterizer's approximation: one straight traversal of length d = back - front
+            // along the view ray with Bouguer attenuation exp(-sigma_a d), the radiance factor
+            // ior^2 of leaving the denser medium, no exit Fresnel or internal bounces.
+            float front = length(v_position - u_camera_pos);
+            float back = texelFetch(u_thickness, ivec2(gl_FragCoord.xy), 0).r;
+            float d = (any(greaterThan(u_sigma_a, vec3(0.0))) && back > front) ? back - front : 0.0;
+            vec3 rho_t = mix(u_albedo_t[k0], u_albedo_t[k1], fx) * u_ior * u_ior;
+            rho += rho_t * exp(-u_sigma_a * d);
+        }
         radiance += u_env_constant * (wo.z > 0.0 ? rho : vec3(0.0));
     }
     if (u_view_mode == 0) {

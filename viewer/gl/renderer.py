@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from viewer.brdf.albedo import albedo_table
+from viewer.brdf.albedo import albedo_tables
 from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import build_program, default_virtual
@@ -22,6 +22,16 @@ VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5}
 # (forward, up) of the six cube faces, in the order cube_face() in shadow.glsl returns them
 _FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)),
           ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0))]
+
+
+def brdf_spec(params):
+    from viewer import brdf
+
+    return brdf.get(params.model).spec
+
+
+def _absorbing(params) -> bool:
+    return brdf_spec(params).transmissive and "sigma_a" in params and bool(np.any(np.asarray(params.sigma_a) > 0))
 
 
 def _set(prog, name, value):
@@ -85,7 +95,8 @@ class Renderer:
         self._shadow_mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._shadow_texel = np.zeros(MAX_LIGHTS)
         self._empty_vao = ctx.vertex_array(self.programs["tonemap"], [])
-        self._albedo_cache: dict[str, np.ndarray] = {}
+        self._albedo_cache: dict[str, tuple] = {}
+        self._thick = None
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -241,18 +252,20 @@ class Renderer:
         self._shadow_mats = mats
         self._shadow_key = key
 
-    def albedo_table(self, params) -> np.ndarray:
-        """float32 (32, 3) directional albedo of a material, cached by its parameter values."""
+    def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """float32 (32, 3) reflected and transmitted directional albedo of a material, cached
+        by its parameter values."""
         key = json.dumps(params.to_plain(), sort_keys=True)
-        table = self._albedo_cache.get(key)
-        if table is None:
+        tables = self._albedo_cache.get(key)
+        if tables is None:
             from viewer import brdf
 
-            table = albedo_table(brdf.get(params.model), params).astype("f4")
+            r, t = albedo_tables(brdf.get(params.model), params)
+            tables = (r.astype("f4"), t.astype("f4"))
             if len(self._albedo_cache) > 256:
                 self._albedo_cache.clear()
-            self._albedo_cache[key] = table
-        return table
+            self._albedo_cache[key] = tables
+        return tables
 
     # ---------------------------------------------------------------- passes
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
@@ -270,6 +283,10 @@ class Renderer:
 
         env = scene.environment
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
+        thickness = None
+        absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])]
+        if absorbers and scene.render.ibl != "off" and np.any(env_rad > 0):
+            thickness = self._thickness_pass(absorbers, cam, w, h)
         fbo = targets["draw_fbo"]
         fbo.use()
         fbo.viewport = (0, 0, w, h)
@@ -321,11 +338,56 @@ class Renderer:
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
             if env_on:
-                _set(prog, "u_albedo", self.albedo_table(params).tobytes())
+                refl, trans = self.albedo_tables(params)
+                _set(prog, "u_albedo", refl.tobytes())
+                _set(prog, "u_albedo_t", trans.tobytes())
+                absorbing = "sigma_a" in params and brdf_spec(params).transmissive
+                _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
+                _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))
+                _set(prog, "u_ior", float(params.get("ior", 1.0)))
+                if thickness is not None:
+                    thickness.use(location=1)
+                    _set(prog, "u_thickness", 1)
             self._gpu_mesh(obj.mesh_data).vao(prog).render()
         if targets["draw_fbo"] is not targets["resolved_fbo"]:
             ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
         return targets["resolved"]
+
+    def _thickness_pass(self, objects, cam, w, h):
+        """Distance from the camera to the nearest back face of absorbing transmissive objects,
+        per pixel (R32F). The forward pass takes back - front as the path length inside, the
+        rasterizer's approximation of Bouguer absorption (the reference path tracer follows
+        the refracted path exactly)."""
+        ctx = self.ctx
+        key = (w, h)
+        if self._thick is None or self._thick[0] != key:
+            if self._thick is not None:
+                for r in self._thick[1:]:
+                    r.release()
+            tex = ctx.texture((w, h), 1, dtype="f4")
+            tex.filter = (ctx.NEAREST, ctx.NEAREST)
+            depth = ctx.depth_renderbuffer((w, h))
+            self._thick = (key, tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+        _, tex, _, fbo = self._thick
+        if "thickness" not in self.programs:
+            self.programs["thickness"] = build_program(ctx, "passes/forward.vert", "passes/thickness.frag",
+                                                       virtual=default_virtual(("lambert",)))
+        prog = self.programs["thickness"]
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST | ctx.CULL_FACE)
+        ctx.cull_face = "front"  # keep back faces: the far side of each object
+        _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
+        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
+        for obj in objects:
+            m = obj.model_matrix()
+            _set(prog, "u_model", gl_bytes(m))
+            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
+            self._gpu_mesh(obj.mesh_data).vao(prog).render()
+        ctx.cull_face = "back"
+        ctx.disable(ctx.CULL_FACE)
+        return tex
 
     def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
         """Exposure, tone mapping and sRGB encoding of ``hdr`` into ``fbo`` (e.g. ctx.screen)."""
@@ -379,6 +441,9 @@ class Renderer:
         if self._ldr:
             self._ldr[1].release()
             self._ldr[0].release()
+        if self._thick:
+            for r in self._thick[1:]:
+                r.release()
         self._empty_vao.release()
         for p in self.programs.values():
             p.release()
