@@ -80,6 +80,44 @@ def frame_times(frames=5):
     ctx.release()
 
 
+def model_switch():
+    """Time to switch the default scene's ball to each model and show a frame at 640x360 (the
+    window's preview size): first switch (compiles that model's program, builds its albedo
+    table) and a repeat switch (both cached)."""
+    from viewer import brdf
+    from viewer.camera import OrbitCamera
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import load_scene
+
+    ctx = create_offscreen_context()
+    r = Renderer(ctx)
+    scene = load_scene("default")
+    cam = OrbitCamera.from_scene(scene)
+    r.render(scene, cam, 640, 360, msaa=0)
+    ctx.finish()
+    rows = []
+    for name in brdf.names():
+        scene.materials["ball"] = brdf.get(name).params()
+        t = time.perf_counter()
+        r.render(scene, cam, 640, 360, msaa=0)
+        ctx.finish()
+        first = time.perf_counter() - t
+        scene.materials["ball"] = brdf.get("lambert").params()
+        r.render(scene, cam, 640, 360, msaa=0)
+        scene.materials["ball"] = brdf.get(name).params(**{})
+        r._albedo_cache.clear()
+        t = time.perf_counter()
+        r.render(scene, cam, 640, 360, msaa=0)
+        ctx.finish()
+        rows.append((name, first, time.perf_counter() - t))
+    print("model switch (frame at 640x360 incl.): first time (compile) | again (program cached, table rebuilt)")
+    for name, a, b in rows:
+        print(f"  {name:18s} {1000 * a:7.0f} ms | {1000 * b:7.0f} ms")
+    r.release()
+    ctx.release()
+
+
 def render_process(runs=3):
     with tempfile.TemporaryDirectory() as d:
         ts = []
@@ -93,5 +131,6 @@ def render_process(runs=3):
 
 if __name__ == "__main__":
     frame_times()
+    model_switch()
     render_process()
     start_to_first_frame()

@@ -72,6 +72,9 @@ class App:
         self._last_interaction = -1.0
         self._quality = "full"
         self._hdr_for = None
+        from viewer import brdf
+
+        self._warm = list(brdf.names())
         self.screenshot_dir = Path.cwd()
 
     # ------------------------------------------------------------------ lifecycle
@@ -174,6 +177,8 @@ class App:
             self._capture_next(self._read_screen(fw, fh))
             self._capture_next = None
         glfw.swap_buffers(self.window)
+        if not self.dirty and self._warm:
+            self._warm_one()
         self.frame_count += 1
         if self.first_frame_s is None:
             self.first_frame_s = time.perf_counter() - self.t_start
@@ -296,6 +301,18 @@ class App:
         imgui.end()
 
     _capture_next = None
+    _warm = None
+
+    def _warm_one(self):
+        """Compile one model's forward program while idle, so switching models later does not
+        wait for the shader compiler (software GL compiles take 0.1-0.5 s each)."""
+        from viewer import brdf
+
+        name = self._warm.pop(0)
+        try:
+            self.renderer.forward_program(brdf.get(name).params())
+        except ViewerError as e:
+            self.status = str(e)
 
     def _read_screen(self, fw, fh) -> np.ndarray:
         data = self.ctx.screen.read(viewport=(0, 0, fw, fh), components=3, alignment=1)
