@@ -57,3 +57,70 @@ def frame_from_z(z):
     x = np.stack([1.0 + sign * z[..., 0] ** 2 * a, sign * b, -sign * z[..., 0]], axis=-1)
     y = np.stack([b, sign + z[..., 1] ** 2 * a, -z[..., 1]], axis=-1)
     return x, y
+
+
+# ---- power-cosine lobes and mixtures (added for phong / blinn_phong / lafortune / ashikhmin_shirley)
+LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
+
+
+def luminance(rgb):
+    """Rec.709 luminance of linear RGB (..., 3) -> (...)."""
+    return np.asarray(rgb, dtype=np.float64) @ LUMINANCE_REC709
+
+
+def power_cosine(u, n):
+    """Directions around +z with pdf (n + 1) / (2 pi) cos^n(theta) (Phong lobe sampling,
+    Lafortune & Willems 1994, Sec. 4: cos theta = u1^(1 / (n + 1)), phi = 2 pi u2)."""
+    n = np.broadcast_to(np.asarray(n, dtype=np.float64), u.shape[:-1])
+    cos_t = np.power(u[..., 0], 1.0 / (n + 1.0))
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    phi = 2.0 * np.pi * u[..., 1]
+    return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
+
+
+def power_cosine_pdf(cos_t, n):
+    """pdf (solid angle) of ``power_cosine``: (n + 1) / (2 pi) max(cos, 0)^n; 0 for cos <= 0
+    (so n = 0 never meets pow(0, 0))."""
+    c = np.asarray(cos_t, dtype=np.float64)
+    pos = c > 0
+    val = (np.asarray(n) + 1.0) / (2.0 * np.pi) * np.power(np.where(pos, c, 1.0), n)
+    return np.where(pos, val, 0.0)
+
+
+def to_world(local, axis):
+    """Rotate directions given in a frame whose z is ``axis`` (unit, (..., 3)) to the shading frame."""
+    x, y = frame_from_z(axis)
+    return local[..., 0:1] * x + local[..., 1:2] * y + local[..., 2:3] * axis
+
+
+def uniform_hemisphere(u):
+    """Uniform directions on the upper hemisphere; pdf 1 / (2 pi)."""
+    z = u[..., 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u[..., 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def pick_lobe(u0, probs):
+    """Choose a lobe per row from probabilities ``probs`` (N, K) (rows sum to 1) with the uniform
+    ``u0`` (N,); return the index (N,) and u0 rescaled to [0, 1) within the chosen interval, so one
+    2-D sample drives both the choice and the lobe (the usual mixture-sampling trick)."""
+    cdf = np.cumsum(probs, axis=1)
+    cdf[:, -1] = np.maximum(cdf[:, -1], 1.0)
+    k = np.sum(u0[:, None] >= cdf, axis=1)
+    k = np.minimum(k, probs.shape[1] - 1)
+    lo = np.where(k > 0, np.take_along_axis(cdf, np.maximum(k - 1, 0)[:, None], 1)[:, 0], 0.0)
+    width = np.take_along_axis(probs, k[:, None], 1)[:, 0]
+    u_new = np.where(width > 0, (u0 - lo) / np.where(width > 0, width, 1.0), 0.0)
+    return k, np.clip(u_new, 0.0, np.nextafter(1.0, 0.0))
+
+
+
+# ---- (added for dielectric / layered) splitting one uniform into two independent ones
+def split_uniform(u, levels=65536):
+    """Two independent uniforms from one: a discrete one on ``levels`` cell centres (for a lobe
+    choice) and the continuous position inside the cell (for the direction). Exactly independent
+    and both uniform when u is; the discrete one is off by at most 0.5 / levels."""
+    q = np.asarray(u, dtype=np.float64) * levels
+    cell = np.minimum(np.floor(q), levels - 1)
+    return (cell + 0.5) / levels, np.clip(q - cell, 0.0, np.nextafter(1.0, 0.0))

@@ -1,0 +1,56 @@
+// Ashikhmin & Shirley 2000, "An Anisotropic Phong BRDF Model", JGT 5(2).
+// Specular eq. 4 with Schlick's Fresnel on rs, diffuse eq. 5; nu along the tangent x, nv along y.
+// Twin of viewer/brdf/ashikhmin_shirley.py.
+
+// log(1 - x), series near 0 so that sharp lobes keep float32 precision (see phong.glsl).
+float ashikhmin_shirley_log1m(float x) {
+    if (x < 0.2) {
+        float s = 1.0 / 12.0;
+        s = 1.0 / 11.0 + x * s; s = 1.0 / 10.0 + x * s; s = 1.0 / 9.0 + x * s;
+        s = 1.0 / 8.0 + x * s;  s = 1.0 / 7.0 + x * s;  s = 1.0 / 6.0 + x * s;
+        s = 1.0 / 5.0 + x * s;  s = 1.0 / 4.0 + x * s;  s = 1.0 / 3.0 + x * s;
+        s = 1.0 / 2.0 + x * s;  s = 1.0 + x * s;
+        return -x * s;
+    }
+    return log(1.0 - x);
+}
+
+float ashikhmin_shirley_pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
+
+// Schlick 1994: F0 + (1 - F0)(1 - cos)^5 (the F of Ashikhmin & Shirley 2000, eq. 4).
+vec3 F_Schlick_AS(vec3 f0, float cos_theta) {
+    return f0 + (1.0 - f0) * ashikhmin_shirley_pow5(1.0 - saturate(cos_theta));
+}
+
+// Ashikhmin & Shirley 2000, eq. 8 (without 1 / (4 k.h)): sqrt((nu+1)(nv+1)) / (2 pi) (n.h)^e,
+// e = nu cos^2 phi_h + nv sin^2 phi_h = (nu h.x^2 + nv h.y^2) / (1 - h.z^2), replaced by nu at h = n
+// where (n.h)^e = 1 anyway; 1 - n.h = (h.x^2 + h.y^2) / (1 + h.z) avoids the cancellation.
+float D_AshikhminShirley(vec3 h, float nu, float nv) {
+    if (h.z <= 0.0) return 0.0;
+    float t2 = h.x * h.x + h.y * h.y;
+    float e = t2 > 0.0 ? (nu * h.x * h.x + nv * h.y * h.y) / t2 : nu;
+    float x = t2 / (1.0 + h.z);
+    if (x >= 1.0) return 0.0;
+    return sqrt((nu + 1.0) * (nv + 1.0)) / (2.0 * PI) * exp(e * ashikhmin_shirley_log1m(x));
+}
+
+// Ashikhmin & Shirley 2000, eq. 4: D / (4 (h.k) max(n.k1, n.k2)) F(k.h).
+vec3 ashikhmin_shirley_specular(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
+    vec3 h = normalize(wi + wo);
+    float hk = dot(h, wo);
+    float den = 4.0 * hk * max(wi.z, wo.z);
+    if (den <= 0.0) return vec3(0.0);
+    return D_AshikhminShirley(h, p.nu, p.nv) / den * F_Schlick_AS(p.rs, hk);
+}
+
+// Ashikhmin & Shirley 2000, eq. 5: 28 rd / (23 pi) (1 - rs)(1 - (1 - n.k1/2)^5)(1 - (1 - n.k2/2)^5).
+vec3 ashikhmin_shirley_diffuse(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
+    float a = 1.0 - ashikhmin_shirley_pow5(1.0 - 0.5 * wi.z);
+    float b = 1.0 - ashikhmin_shirley_pow5(1.0 - 0.5 * wo.z);
+    return (28.0 / (23.0 * PI)) * p.rd * (1.0 - p.rs) * (a * b);
+}
+
+vec3 ashikhmin_shirley_eval(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    return ashikhmin_shirley_diffuse(p, wi, wo) + ashikhmin_shirley_specular(p, wi, wo);
+}

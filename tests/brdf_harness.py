@@ -1,0 +1,450 @@
+"""One statistical harness for every registered BRDF (Nori warptest / chi2test, Mitsuba ChiSquareTest).
+
+Everything here takes a registry model (``brdf.get(name)``) and parameters, so a new model is tested
+by being registered. Optional per-model hooks, looked up on the model's module:
+
+  TEST_PARAMS        {label: overrides} parameter sets for the chi-square and furnace tests
+                     (default: the defaults plus a rough and a sharp set derived from parameter names)
+  energy_conserving  p -> p, the nearest parameters that conserve energy (e.g. kd + ks <= 1);
+                     applied by ``random_params`` and ``param_grid``
+  ALBEDO_BOUND       the model's known maximum directional albedo when it is above 1 (a published
+                     model that is not energy conserving); ALBEDO_BOUND_WHY must say why
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+import tempfile
+
+import numpy as np
+from scipy import stats
+
+from viewer import brdf
+from viewer.brdf.spec import Params
+
+# ----------------------------------------------------------------------------- directions
+
+
+def direction(theta_deg, phi_rad=0.0):
+    """Unit vector at polar angle theta (degrees, from +z) and azimuth phi (radians)."""
+    t = math.radians(theta_deg)
+    return np.array([math.sin(t) * math.cos(phi_rad), math.sin(t) * math.sin(phi_rad), math.cos(t)])
+
+
+def uniform_sphere(u):
+    z = 1.0 - 2.0 * u[:, 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def uniform_hemisphere(u):
+    z = u[:, 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def random_upper(rng, n, max_theta_deg=89.0):
+    """Directions uniform in solid angle over the cap theta <= max_theta."""
+    zmin = math.cos(math.radians(max_theta_deg))
+    u = rng.random((n, 2))
+    z = zmin + (1.0 - zmin) * u[:, 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+# ----------------------------------------------------------------------------- parameters
+
+
+def _hook(model_or_name, attr, default=None):
+    model = brdf.get(model_or_name) if isinstance(model_or_name, str) else model_or_name
+    return getattr(model.module, attr, default)
+
+
+def plausible(p: Params) -> Params:
+    """Apply the model's ``energy_conserving`` hook (and that of a nested material)."""
+    model = brdf.get(p.model)
+    for prm in model.spec.params:
+        if prm.kind == "material":
+            p = p.replace(**{prm.name: plausible(p[prm.name])})
+    hook = _hook(model, "energy_conserving")
+    return hook(p) if hook else p
+
+
+def _range(prm):
+    lo = prm.lo if prm.lo is not None else (prm.ui_lo if prm.ui_lo is not None else 0.0)
+    hi = prm.hi if prm.hi is not None else (prm.ui_hi if prm.ui_hi is not None else lo + 10.0)
+    return lo, hi
+
+
+def _draw_float(prm, rng, size=None):
+    lo, hi = _range(prm)
+    if prm.log:
+        # log-uniform; a range starting at 0 starts the log scale at the slider's low end instead
+        llo = lo if lo > 0 else (prm.ui_lo if prm.ui_lo and prm.ui_lo > 0 else hi * 1e-4)
+        return np.exp(rng.uniform(math.log(llo), math.log(hi), size))
+    return rng.uniform(lo, hi, size)
+
+
+def _random_fields(fields, rng, depth):
+    out = {}
+    for prm in fields:
+        k = prm.kind
+        if k == "float":
+            out[prm.name] = float(_draw_float(prm, rng))
+        elif k == "rgb":
+            out[prm.name] = [float(x) for x in _draw_float(prm, rng, 3)]
+        elif k == "choice":
+            out[prm.name] = str(prm.choices[rng.integers(len(prm.choices))])
+        elif k == "table":
+            out[prm.name] = _random_fields(prm.fields, rng, depth)
+        elif k == "lobes":
+            count = int(rng.integers(1, min(3, prm.max_items) + 1))
+            out[prm.name] = [_random_fields(prm.fields, rng, depth) for _ in range(count)]
+        elif k == "material":
+            bases = [n for n in brdf.names() if not brdf.get(n).spec.nests_material]
+            base = bases[rng.integers(len(bases))]
+            out[prm.name] = random_params(brdf.get(base).spec, rng, _depth=depth + 1)
+        else:
+            raise AssertionError(k)
+    return out
+
+
+def random_params(spec, rng, _depth=0) -> Params:
+    """Random valid parameters for any spec: rgb / float uniform in [lo, hi] (log-uniform where the
+    parameter is ``log``), choices uniform, 1-3 random lobes, tables and nested materials recursively
+    (a random model that does not nest itself). The model's ``energy_conserving`` hook is applied,
+    so e.g. kd + ks <= 1 holds for phong, and every number is float32-representable."""
+    if isinstance(spec, str):
+        spec = brdf.get(spec).spec
+    model = brdf.get(spec.name)
+    raw = _random_fields(spec.params, rng, _depth)
+    return _float32_values(plausible(model.params(**raw)), spec.params)
+
+
+def _f32(x, prm):
+    """x rounded to the nearest float32 inside [lo, hi]: the GPU twin then sees exactly the values
+    numpy uses (a lobe C^n with n = 5000 turns one float32 rounding of C into 3e-4 relative)."""
+    y = np.float32(x)
+    if prm.lo is not None and y < prm.lo:
+        y = np.nextafter(np.float32(prm.lo), np.float32(np.inf))
+    if prm.hi is not None and y > prm.hi:
+        y = np.nextafter(np.float32(prm.hi), np.float32(-np.inf))
+    return y
+
+
+def _float32_values(p, fields):
+    out = {}
+    for prm in fields:
+        v = p[prm.name]
+        if prm.kind == "float":
+            v = float(_f32(v, prm))
+        elif prm.kind == "rgb":
+            v = np.array([float(_f32(x, prm)) for x in v])
+        elif prm.kind == "table":
+            v = _float32_values(v, prm.fields)
+        elif prm.kind == "lobes":
+            v = [_float32_values(item, prm.fields) for item in v]
+        elif prm.kind == "material":
+            v = _float32_values(v, brdf.get(v.model).spec.params)
+        out[prm.name] = v
+    return Params(p.model, out)
+
+
+def _extremes(prm):
+    lo, hi = _range(prm)
+    vals = [lo, hi]
+    for v in (prm.ui_lo, prm.ui_hi):
+        if v is not None and v not in vals:
+            vals.append(v)
+    return vals
+
+
+def param_grid(model) -> list[Params]:
+    """Defaults; each float at its range ends (and slider ends); each rgb all-lo, all-hi and mixed
+    per component; each choice; lobes at their field extremes and at the maximum count; nested
+    materials with every non-nesting model's defaults; all-lo and all-hi combinations. Every set
+    passes through the model's ``energy_conserving`` hook."""
+    spec = model.spec
+    base = model.params()
+    sets = [base]
+
+    def add(**kw):
+        try:
+            sets.append(base.replace(**kw))
+        except Exception as e:  # a combination the spec refuses is a harness bug
+            raise AssertionError(f"{spec.name}: grid point {kw} refused: {e}") from e
+
+    lo_all, hi_all = {}, {}
+    for prm in spec.params:
+        k = prm.kind
+        if k == "float":
+            for v in _extremes(prm):
+                add(**{prm.name: float(v)})
+            lo_all[prm.name], hi_all[prm.name] = _range(prm)
+        elif k == "rgb":
+            lo, hi = _range(prm)
+            for combo in [(lo, lo, lo), (hi, hi, hi), (lo, hi, 0.5 * (lo + hi)), (hi, lo, lo)]:
+                add(**{prm.name: np.array(combo, dtype=float)})
+            lo_all[prm.name] = np.full(3, lo)
+            hi_all[prm.name] = np.full(3, hi)
+        elif k == "choice":
+            for c in prm.choices:
+                add(**{prm.name: c})
+        elif k == "table":
+            for f in prm.fields:
+                if f.kind in ("float", "rgb"):
+                    for v in _extremes(f):
+                        sub = dict(base[prm.name])
+                        sub[f.name] = float(v) if f.kind == "float" else np.full(3, v)
+                        add(**{prm.name: Params("", sub)})
+        elif k == "lobes":
+            default_lobe = base[prm.name][0]
+            for f in prm.fields:
+                for v in _extremes(f):
+                    add(**{prm.name: [default_lobe.replace(**{f.name: float(v)})]})
+            add(**{prm.name: [default_lobe] * prm.max_items})
+        elif k == "material":
+            for n in brdf.names():
+                if not brdf.get(n).spec.nests_material:
+                    add(**{prm.name: brdf.get(n).params()})
+    if lo_all:
+        add(**lo_all)
+        add(**hi_all)
+        # every choice combination at the high end (e.g. oren_nayar qualitative with sigma = 90)
+        choices = [prm for prm in spec.params if prm.kind == "choice"]
+        for combo in itertools.product(*[prm.choices for prm in choices]):
+            add(**hi_all, **{prm.name: c for prm, c in zip(choices, combo)})
+    return [plausible(p) for p in sets]
+
+
+# rough / sharp sets derived from parameter names when a module has no TEST_PARAMS
+_ROUGH_SHARP = {
+    "alpha": (0.5, 0.1), "alpha_x": (0.5, 0.1), "alpha_y": (0.5, 0.1), "roughness": (0.7, 0.3),
+    "shininess": (5.0, 500.0), "nu": (5.0, 500.0), "nv": (5.0, 500.0), "sigma": (60.0, 10.0),
+}
+
+
+def test_param_sets(model) -> dict[str, Params]:
+    """{label: params} for the chi-square and furnace tests: the module's TEST_PARAMS, or the
+    defaults plus a 'rough' and a 'sharp' set derived from known parameter names."""
+    hook = _hook(model, "TEST_PARAMS")
+    if hook is not None:
+        return {label: plausible(model.params(**kw)) for label, kw in hook.items()}
+    out = {"default": plausible(model.params())}
+    names = set(model.spec.names)
+    for i, label in enumerate(("rough", "sharp")):
+        kw = {n: v[i] for n, v in _ROUGH_SHARP.items() if n in names}
+        if kw:
+            try:
+                out[label] = plausible(model.params(**kw))
+            except Exception:
+                pass
+    return out
+
+
+test_param_sets.__test__ = False  # not a pytest test
+
+
+# ----------------------------------------------------------------------------- estimators
+
+
+def sample_chunks(model, p, wo, n, rng, chunk=250_000):
+    """Yield (wi, weight, pdf) for n samples at a fixed wo, in chunks (bounded memory)."""
+    done = 0
+    while done < n:
+        m = min(chunk, n - done)
+        yield model.sample(p, np.broadcast_to(wo, (m, 3)), rng.random((m, 2)))
+        done += m
+
+
+def albedo_sampler(model, p, wo, n, rng):
+    """Directional albedo E[weight] with the model's own sampler: (mean (3,), standard error (3,))."""
+    s1 = np.zeros(3)
+    s2 = np.zeros(3)
+    for _, w, _ in sample_chunks(model, p, wo, n, rng):
+        s1 += w.sum(axis=0)
+        s2 += (w * w).sum(axis=0)
+    mean = s1 / n
+    var = np.maximum(s2 / n - mean * mean, 0.0)
+    return mean, np.sqrt(var / n)
+
+
+def albedo_uniform(model, p, wo, n, rng, sphere=False):
+    """Independent estimator: f |cos| / pdf with uniform (hemi)sphere directions."""
+    s1 = np.zeros(3)
+    s2 = np.zeros(3)
+    done = 0
+    while done < n:
+        m = min(250_000, n - done)
+        u = rng.random((m, 2))
+        wi = uniform_sphere(u) if sphere else uniform_hemisphere(u)
+        inv_pdf = 4.0 * np.pi if sphere else 2.0 * np.pi
+        v = model.eval(p, wi, np.broadcast_to(wo, (m, 3))) * np.abs(wi[:, 2:3]) * inv_pdf
+        s1 += v.sum(axis=0)
+        s2 += (v * v).sum(axis=0)
+        done += m
+    mean = s1 / n
+    var = np.maximum(s2 / n - mean * mean, 0.0)
+    return mean, np.sqrt(var / n)
+
+
+# ----------------------------------------------------------------------------- chi-square
+
+
+class Chi2Result:
+    def __init__(self, ok, p_value, stat, dof, message, observed=None, expected=None):
+        self.ok, self.p_value, self.stat, self.dof = ok, p_value, stat, dof
+        self.message, self.observed, self.expected = message, observed, expected
+
+
+def _integrate_cells(model, p, wo, rows, cols, c0, cells, sub, order=4):
+    """Integrals of pdf over the listed (row, col) cells by composite Gauss-Legendre: sub x sub
+    sub-cells per cell with order x order nodes each. Evaluated in chunks of cells."""
+    x, w = np.polynomial.legendre.leggauss(order)
+    t = (np.arange(sub)[:, None] + 0.5 * (x[None, :] + 1.0)).reshape(-1) / sub  # nodes in [0, 1]
+    tw = np.tile(w, sub) / (2.0 * sub)  # weights, sum 1
+    k = t.size
+    dc = (1.0 - c0) / rows
+    dphi = 2.0 * np.pi / cols
+    out = np.empty(len(cells))
+    chunk = max(1, 400_000 // (k * k))
+    for s in range(0, len(cells), chunk):
+        cc = cells[s:s + chunk]
+        c = c0 + (cc[:, 0, None] + t[None, :]) * dc  # (m, k)
+        ph = (cc[:, 1, None] + t[None, :]) * dphi
+        C = np.broadcast_to(c[:, :, None], (len(cc), k, k))
+        PH = np.broadcast_to(ph[:, None, :], (len(cc), k, k))
+        sn = np.sqrt(np.maximum(0.0, 1.0 - C * C))
+        wi = np.stack([sn * np.cos(PH), sn * np.sin(PH), C], axis=-1).reshape(-1, 3)
+        vals = model.pdf(p, wi, np.broadcast_to(wo, wi.shape)).reshape(len(cc), k, k)
+        out[s:s + chunk] = np.einsum("i,mij,j->m", tw, vals, tw) * dc * dphi
+    return out
+
+
+def integrate_pdf(model, p, wo, rows, cols, sphere, n_samples=1e6, sub=2, max_sub=64):
+    """Integral of pdf(wi, wo) over each (cos theta, phi) cell: composite Gauss-Legendre (sub x sub
+    sub-cells of 4 x 4 nodes), refined adaptively (sub doubled) in every cell whose estimate still
+    moves by more than 0.05 sqrt(expected count) samples, so that integration error stays far below the
+    sampling noise the chi-square statistic measures, even for a sharp lobe inside one cell or at the
+    pole. With an odd number of rows on the sphere, the even ``sub`` puts a sub-cell edge on the
+    horizon, where a reflection model's pdf jumps."""
+    c0 = -1.0 if sphere else 0.0
+    cells = np.array([(r, q) for r in range(rows) for q in range(cols)])
+    coarse = _integrate_cells(model, p, wo, rows, cols, c0, cells, sub)
+    result = coarse.copy()
+    todo = np.arange(len(cells))
+    while len(todo) and sub < max_sub:
+        sub *= 2
+        fine = _integrate_cells(model, p, wo, rows, cols, c0, cells[todo], sub)
+        err = np.abs(fine - coarse[todo]) * n_samples
+        result[todo] = fine
+        keep = err > 0.05 * np.sqrt(np.maximum(fine * n_samples, 1.0))
+        coarse[todo] = fine
+        todo = todo[keep]
+    return result.reshape(rows, cols)
+
+
+def histogram(model, p, wo, n, rng, rows, cols, sphere):
+    """Counts of sampled directions per (cos theta, phi) cell, plus the count of failed samples
+    (pdf = 0), and a list of problems (NaN, pdf > 0 with weight NaN, ...)."""
+    c0 = -1.0 if sphere else 0.0
+    counts = np.zeros(rows * cols, dtype=np.int64)
+    failed = 0
+    problems = []
+    for wi, w, pdf in sample_chunks(model, p, wo, n, rng):
+        ok = pdf > 0
+        failed += int((~ok).sum())
+        if not np.all(np.isfinite(wi[ok])) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(pdf)):
+            problems.append("non-finite wi / weight / pdf from sample")
+        if np.any(w[~ok] != 0):
+            problems.append("weight != 0 where pdf == 0")
+        d = wi[ok]
+        c = np.clip(d[:, 2], -1.0, 1.0)
+        if not sphere and np.any(c < 0):
+            problems.append(f"{int((c < 0).sum())} samples below the surface with pdf > 0 "
+                            "(a reflection-only model must fail them)")
+            c = np.maximum(c, 0.0)
+        r = np.clip(((c - c0) / (1.0 - c0) * rows).astype(np.int64), 0, rows - 1)
+        phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2.0 * np.pi)
+        q = np.clip((phi / (2.0 * np.pi) * cols).astype(np.int64), 0, cols - 1)
+        counts += np.bincount(r * cols + q, minlength=rows * cols)
+    return counts.reshape(rows, cols), failed, sorted(set(problems))
+
+
+def chi2_test(model, p, wo, n, rng, alpha, rows=25, cols=50, sphere=False, min_expected=5.0):
+    """Pearson chi-square goodness of fit of ``sample`` against ``pdf`` (Nori chi2test): cells with
+    expected count < min_expected are pooled; samples that fail (pdf = 0) form one more cell whose
+    expected count is n (1 - integral of pdf). Rejects at significance ``alpha`` (already corrected
+    for the number of tests by the caller)."""
+    assert rows % 2 == 1
+    if sphere:
+        rows = 2 * rows + 1
+    observed, failed, problems = histogram(model, p, wo, n, rng, rows, cols, sphere)
+    expected = n * integrate_pdf(model, p, wo, rows, cols, sphere, n_samples=n)
+    if problems:
+        return Chi2Result(False, 0.0, math.inf, 0, "; ".join(problems), observed, expected)
+    obs = np.append(observed.reshape(-1), failed).astype(np.float64)
+    exp = np.append(expected.reshape(-1), max(0.0, n - expected.sum()))
+    zero = (exp <= 0) & (obs > 0)
+    # a few samples in a cell of zero expected mass would fail at any significance; allow a
+    # 1e-9 relative slack for cells that only touch the support (integration nodes miss it)
+    if np.any(zero):
+        i = int(np.argmax(zero))
+        return Chi2Result(False, 0.0, math.inf, 0,
+                          f"{int(obs[zero].sum())} samples in cells with expected count 0 (first: cell {i})",
+                          observed, expected)
+    order = np.argsort(exp)
+    obs, exp = obs[order], exp[order]
+    small = exp < min_expected
+    pool_o, pool_e = obs[small].sum(), exp[small].sum()
+    obs, exp = obs[~small], exp[~small]
+    if pool_e >= min_expected or len(exp) == 0:
+        obs, exp = np.append(obs, pool_o), np.append(exp, pool_e)
+    elif len(exp):
+        obs[0] += pool_o
+        exp[0] += pool_e
+    exp_pos = exp > 0
+    stat = float(np.sum((obs[exp_pos] - exp[exp_pos]) ** 2 / exp[exp_pos]))
+    dof = int(exp_pos.sum()) - 1
+    if dof < 1:
+        return Chi2Result(True, 1.0, stat, dof, "all mass in one cell", observed, expected)
+    p_value = float(stats.chi2.sf(stat, dof))
+    ok = p_value > alpha
+    msg = f"chi2 = {stat:.1f}, dof = {dof}, p = {p_value:.3g} (alpha = {alpha:.3g}), failed samples {failed}"
+    return Chi2Result(ok, p_value, stat, dof, msg, observed, expected)
+
+
+def write_chi2_images(result, label) -> str:
+    """The histogram, the integrated pdf and their difference as PNGs in a new temp folder."""
+    from PIL import Image
+
+    folder = tempfile.mkdtemp(prefix=f"chi2_{label}_")
+    o, e = result.observed.astype(float), result.expected
+    scale = max(o.max(), e.max(), 1e-12)
+
+    def save(a, name, signed=False):
+        if signed:
+            m = max(np.abs(a).max(), 1e-12)
+            rgb = np.stack([np.clip(a / m, 0, 1), np.zeros_like(a), np.clip(-a / m, 0, 1)], axis=-1)
+        else:
+            g = np.clip(a / scale, 0, 1)
+            rgb = np.stack([g, g, g], axis=-1)
+        img = (rgb[::-1] * 255).astype(np.uint8)  # row 0 = top = cos theta 1
+        Image.fromarray(img).resize((img.shape[1] * 8, img.shape[0] * 8), Image.NEAREST).save(
+            os.path.join(folder, name))
+
+    save(o, "histogram.png")
+    save(e, "expected_pdf.png")
+    save((o - e) / np.sqrt(np.maximum(e, 1.0)), "difference_sigma.png", signed=True)
+    np.savez(os.path.join(folder, "chi2.npz"), observed=o, expected=e)
+    return folder
+
+
+def sidak(alpha, n_tests):
+    """Per-test significance so that n_tests independent tests reject wrongly with probability alpha."""
+    return 1.0 - (1.0 - alpha) ** (1.0 / max(n_tests, 1))
