@@ -86,3 +86,23 @@ def test_glsl_finite_at_extremes(name, evaluator):
         if not model.spec.transmissive:
             below = (wi32[:, 2] < 0) | (wo32[:, 2] < 0)
             assert np.all(got[below] == 0), f"{name}: GLSL non-zero below the surface for {p.to_plain()}"
+
+
+def test_term_views_match_python(evaluator):
+    """The F and D of the term views equal the Python functions they show."""
+    from viewer.brdf.fresnel import fresnel_schlick
+
+    m = brdf.get("ashikhmin_shirley")
+    p = m.params(rs=[0.2, 0.4, 0.6], nu=50.0, nv=200.0)
+    rng = np.random.default_rng(7)
+    wi = _random_dirs(rng, 300)
+    wo = _random_dirs(rng, 300)
+    wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
+    wi = wi.astype(np.float32).astype(np.float64)
+    wo = wo.astype(np.float32).astype(np.float64)
+    got = evaluator.eval(p, wi, wo, what=1)
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    F = fresnel_schlick(np.sum(h * wo, axis=1)[:, None], p.rs[None, :]).mean(axis=1)
+    assert np.allclose(got[:, 0], F, rtol=1e-4, atol=1e-6)
+    assert np.all(got[:, 2] == -1.0)

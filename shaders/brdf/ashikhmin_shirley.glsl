@@ -54,3 +54,10 @@ vec3 ashikhmin_shirley_eval(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
     if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
     return ashikhmin_shirley_diffuse(p, wi, wo) + ashikhmin_shirley_specular(p, wi, wo);
 }
+
+// Term views: (F averaged over RGB, D, -1); the model has no shadowing term G ("not applicable").
+vec3 ashikhmin_shirley_terms(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
+    vec3 h = normalize(wi + wo);
+    vec3 F = F_Schlick_AS(p.rs, dot(h, wo));
+    return vec3((F.r + F.g + F.b) / 3.0, D_AshikhminShirley(h, p.nu, p.nv), -1.0);
+}
