@@ -1,0 +1,50 @@
+// Microfacet BRDF f = F G D / (4 cos_i cos_o) (lecture; Torrance & Sparrow 1967, Blinn 1977,
+// Cook & Torrance 1981, Walter et al. 2007 eq. 20) plus the optional diffuse base
+// kd / pi (1 - F(cos_i)) (1 - F(cos_o)). Twin of viewer/brdf/microfacet.py.
+// Choice ids: distribution 0 beckmann, 1 ggx, 2 blinn_phong; shadowing 0 smith, 1 v_cavity;
+// fresnel 0 dielectric, 1 conductor, 2 schlick.
+#include "common/fresnel.glsl"
+#include "common/microfacet.glsl"
+
+vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
+    if (p.fresnel == 0) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
+    if (p.fresnel == 1) return fresnel_conductor(cos_i, p.eta, p.k);
+    return fresnel_schlick(cos_i, p.f0);
+}
+
+float microfacet_G(microfacet_params p, vec3 wi, vec3 wo, vec3 h) {
+    if (p.shadowing == 1) return G_v_cavity(wi, wo, h);
+    float lam_i = mf_lambda(p.distribution, wi, p.alpha_x, p.alpha_y);
+    float lam_o = mf_lambda(p.distribution, wo, p.alpha_x, p.alpha_y);
+    float G = smith_g2_height_correlated(lam_i, lam_o, wi, wo, h);
+    // blinn_phong borrows Beckmann's Lambda (Walter 2007 sec. 5.2); capped by the V-cavity G so
+    // that the albedo stays <= 1 near alpha = 1 (Heitz 2014 sec. 4.3); see microfacet.py
+    if (p.distribution == 2) G = min(G, G_v_cavity(wi, wo, h));
+    return G;
+}
+
+// (F averaged over RGB, D, G) for the term views; zero below the surface.
+vec3 microfacet_terms(microfacet_params p, vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    vec3 h = normalize(wi + wo);
+    vec3 F = microfacet_fresnel(p, dot(wi, h));
+    float D = mf_D(p.distribution, h, p.alpha_x, p.alpha_y);
+    return vec3((F.r + F.g + F.b) / 3.0, D, microfacet_G(p, wi, wo, h));
+}
+
+vec3 microfacet_eval(microfacet_params p, vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+    float den = 4.0 * wi.z * wo.z;
+    if (den <= 0.0) return vec3(0.0);  // both cosines underflowed: nothing finite to return
+    vec3 h = normalize(wi + wo);
+    vec3 F = microfacet_fresnel(p, dot(wi, h));
+    float D = mf_D(p.distribution, h, p.alpha_x, p.alpha_y);
+    float G = microfacet_G(p, wi, wo, h);
+    vec3 f = F * (D * G / den);
+    if (any(greaterThan(p.kd, vec3(0.0)))) {
+        vec3 Fi = microfacet_fresnel(p, wi.z);
+        vec3 Fo = microfacet_fresnel(p, wo.z);
+        f += p.kd * INV_PI * (1.0 - Fi) * (1.0 - Fo);
+    }
+    return f;
+}

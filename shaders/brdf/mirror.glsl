@@ -1,0 +1,15 @@
+// Perfect mirror (lecture: "Reflectance of perfectly specular materials"): a delta lobe, so the
+// BRDF as a function is 0 everywhere; the rasterizer reflects the environment with
+// mirror_reflectance() instead. Twin of viewer/brdf/mirror.py.
+// fresnel: 0 = conductor, 1 = dielectric, 2 = none.
+#include "common/fresnel.glsl"
+
+vec3 mirror_reflectance(mirror_params p, float cos_o) {
+    if (p.fresnel == 0) return fresnel_conductor(cos_o, p.eta, p.k);
+    if (p.fresnel == 1) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));
+    return vec3(1.0);
+}
+
+vec3 mirror_eval(mirror_params p, vec3 wi, vec3 wo) {
+    return vec3(0.0);
+}

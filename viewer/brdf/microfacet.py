@@ -1,0 +1,175 @@
+"""Microfacet BRDF: f = F G D / (4 cos_i cos_o) (lecture; Torrance & Sparrow 1967, Blinn 1977,
+Cook & Torrance 1981, Walter et al. 2007 eq. 20), plus an optional Lambertian base.
+
+  * D: beckmann | ggx | blinn_phong (see ``microfacet_dist``); anisotropic alpha_x along the
+    tangent +x and alpha_y along +y (blinn_phong is isotropic and uses alpha_x).
+  * G: smith = height-correlated Smith G2 (Heitz 2014 eq. 99), v_cavity = Cook-Torrance 1981.
+    blinn_phong + smith uses Beckmann's Lambda (Walter 2007 sec. 5.2) capped by the V-cavity G
+    (see ``terms``), since the borrowed Lambda breaks energy conservation near alpha = 1.
+  * F at the microfacet: F(wi . h) with h = normalize(wi + wo): dielectric (ior, exact),
+    conductor (eta + i k, exact) or Schlick (f0).
+  * kd: the diffuse base, f_d = kd / pi (1 - F(cos_i)) (1 - F(cos_o)), F evaluated with the
+    macro-normal cosines (the light that enters and leaves through a Fresnel interface; the
+    coupling idea of Shirley et al. 1997 / Ashikhmin & Shirley 2000, simplified to Fresnel
+    transmittances). This keeps kd + specular from doubling energy near grazing angles; it is
+    not a proof of energy conservation, but the directional albedo stays <= 1 over the full
+    parameter grid checked in tests/test_microfacet.py (kd <= 1).
+
+Sampling: visible normals (GGX, Beckmann) or D cos (blinn_phong) for the specular lobe, cosine
+for the diffuse lobe, chosen with probability P_d = mean(kd (1 - F(cos_o))) /
+(mean(kd (1 - F(cos_o))) + mean(F(cos_o))); the pdf is the matching mixture and the weight is
+f cos / pdf (one-sample MIS over the two lobes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
+from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_v_cavity
+from viewer.brdf.presets import METALS
+from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, reflect
+from viewer.brdf.spec import ModelSpec, Param
+
+_GOLD_ETA, _GOLD_K = METALS["gold"]
+_GOLD_F0 = [round(float(x), 3) for x in f0_conductor(np.array(_GOLD_ETA), np.array(_GOLD_K))]
+
+SPEC = ModelSpec(
+    name="microfacet",
+    title="Microfacet (Torrance-Sparrow / Cook-Torrance / Walter)",
+    params=(
+        Param("distribution", "choice", "ggx", "microfacet normal distribution D",
+              choices=DISTRIBUTIONS),
+        Param("shadowing", "choice", "smith", "geometric attenuation G: height-correlated Smith "
+              "(Heitz 2014) or V-cavity (Cook-Torrance 1981)", choices=SHADOWING),
+        Param("fresnel", "choice", "conductor", "Fresnel term F at the microfacet",
+              choices=("dielectric", "conductor", "schlick")),
+        Param("alpha_x", "float", 0.2, "roughness along the tangent +x (Walter 2007 alpha)",
+              lo=1e-4, hi=1.0, ui_lo=0.001, log=True),
+        Param("alpha_y", "float", 0.2, "roughness along the bitangent +y (unused by blinn_phong)",
+              lo=1e-4, hi=1.0, ui_lo=0.001, log=True),
+        Param("ior", "float", 1.5, "index of refraction (fresnel = dielectric)", lo=1.0, hi=3.0),
+        Param("eta", "rgb", list(_GOLD_ETA), "real part of the complex IOR (fresnel = conductor); "
+              "default: gold", lo=0.01, hi=10.0),
+        Param("k", "rgb", list(_GOLD_K), "extinction coefficient (fresnel = conductor)",
+              lo=0.0, hi=20.0),
+        Param("f0", "rgb", _GOLD_F0, "normal-incidence reflectance (fresnel = schlick)",
+              lo=0.0, hi=1.0),
+        Param("kd", "rgb", [0.0, 0.0, 0.0], "diffuse base albedo, weighted by the Fresnel "
+              "transmittances (1 - F(cos_i)) (1 - F(cos_o))", lo=0.0, hi=1.0),
+    ),
+    source="Torrance & Sparrow 1967; Blinn 1977; Cook & Torrance 1981; Walter et al. 2007 eq. 20 "
+           "(f = F G D / (4 cos_i cos_o)); Heitz 2014 eq. 99 (Smith G2); Heitz 2018 (GGX VNDF); "
+           "Heitz & d'Eon 2014 (Beckmann VNDF)",
+    doc="Lecture: 'The origins' / 'Microfacet models in graphics'.",
+    aliases={"alpha": ("alpha_x", "alpha_y")},
+)
+
+
+def distribution(p) -> Distribution:
+    return Distribution(p.distribution, p.alpha_x, p.alpha_y)
+
+
+def fresnel_rgb(p, cos):
+    """F(cos) as (N, 3) for the chosen Fresnel variant."""
+    c = np.clip(cos, 0.0, 1.0)[:, None]
+    if p.fresnel == "conductor":
+        return fresnel_conductor(c, p.eta[None, :], p.k[None, :])
+    if p.fresnel == "schlick":
+        return fresnel_schlick(c, p.f0[None, :])
+    return np.broadcast_to(fresnel_dielectric(c, p.ior), (c.shape[0], 3))
+
+
+def _half(wi, wo):
+    return normalize(wi + wo)
+
+
+def terms(p, wi, wo):
+    """(F (N,3), D (N,), G (N,), h) for reflection; the term views show these."""
+    h = _half(wi, wo)
+    dist = distribution(p)
+    D = dist.D(h)
+    if p.shadowing == "smith":
+        G = dist.G2(wi, wo, h)
+        if p.distribution == "blinn_phong":
+            # Beckmann's Lambda is only an approximation for the Phong distribution (Walter et al.
+            # 2007 sec. 5.2), far off as alpha -> 1 (n -> 0), where it lets the albedo exceed 1.
+            # Capping by the V-cavity G, which satisfies the projected-area constraint for any D
+            # (Heitz 2014 sec. 4.3), bounds the albedo by 1.
+            G = np.minimum(G, G_v_cavity(wi, wo, h))
+    else:
+        G = G_v_cavity(wi, wo, h)
+    F = fresnel_rgb(p, np.sum(wi * h, axis=-1))
+    return F, D, G, h
+
+
+def eval_specular(p, wi, wo):
+    ci, co = wi[:, 2], wo[:, 2]
+    ok = (ci > 0) & (co > 0)
+    F, D, G, _ = terms(p, wi, wo)
+    den = 4.0 * np.where(ok, ci * co, 1.0)
+    return np.where(ok[:, None], F * (D * G / den)[:, None], 0.0)
+
+
+def eval_diffuse(p, wi, wo):
+    ci, co = wi[:, 2], wo[:, 2]
+    ok = (ci > 0) & (co > 0)
+    fd = p.kd[None, :] * INV_PI * (1.0 - fresnel_rgb(p, ci)) * (1.0 - fresnel_rgb(p, co))
+    return np.where(ok[:, None], fd, 0.0)
+
+
+def eval(p, wi, wo):
+    f = eval_specular(p, wi, wo)
+    if np.any(p.kd > 0):
+        f = f + eval_diffuse(p, wi, wo)
+    return f
+
+
+def _p_diffuse(p, wo):
+    """Probability of sampling the diffuse lobe for each wo."""
+    if not np.any(p.kd > 0):
+        return np.zeros(wo.shape[0])
+    Fo = fresnel_rgb(p, wo[:, 2])
+    wd = np.mean(p.kd[None, :] * (1.0 - Fo), axis=-1)
+    ws = np.mean(Fo, axis=-1)
+    tot = wd + ws
+    return np.where(tot > 0, wd / np.where(tot > 0, tot, 1.0), 0.0)
+
+
+def _pdf_specular(p, wi, wo):
+    h = _half(wi, wo)
+    oh = np.sum(wo * h, axis=-1)
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (oh > 0)
+    # reflection Jacobian dm/dwi = 1 / (4 |wo.m|) (Walter et al. 2007, eq. 14)
+    pm = distribution(p).pdf_m(wo, h)
+    return np.where(ok, pm / (4.0 * np.where(ok, oh, 1.0)), 0.0)
+
+
+def pdf(p, wi, wo):
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    pd = _p_diffuse(p, wo)
+    out = (1.0 - pd) * _pdf_specular(p, wi, wo) + pd * np.maximum(wi[:, 2], 0.0) * INV_PI
+    return np.where(ok, out, 0.0)
+
+
+def sample(p, wo, u):
+    n = wo.shape[0]
+    up = wo[:, 2] > 0
+    wo_s = np.where(up[:, None], wo, np.array([0.0, 0.0, 1.0]))
+    pd = _p_diffuse(p, wo_s)
+    choose_d = u[:, 0] < pd
+    u0 = np.where(choose_d, u[:, 0] / np.where(pd > 0, pd, 1.0),
+                  (u[:, 0] - pd) / np.where(pd < 1, 1.0 - pd, 1.0))
+    uu = np.stack([np.clip(u0, 0.0, 1.0 - 1e-16), u[:, 1]], axis=-1)
+    wi = np.empty((n, 3))
+    if np.any(~choose_d):
+        m = distribution(p).sample_m(wo_s, uu)
+        wi_s = reflect(wo_s, m)
+        wi[:] = wi_s
+    if np.any(choose_d):
+        wi[choose_d] = cosine_hemisphere(uu[choose_d])
+    pdf_ = pdf(p, wi, wo)
+    ok = up & (wi[:, 2] > 0) & (pdf_ > 0)
+    f = eval(p, wi, wo)
+    weight = np.where(ok[:, None], f * (wi[:, 2] / np.where(ok, pdf_, 1.0))[:, None], 0.0)
+    return wi, weight, np.where(ok, pdf_, 0.0)
