@@ -283,3 +283,14 @@ def test_albedo_table_of_smooth_glass_matches_fresnel():
     R = fresnel_dielectric(cos_o, 1.5)
     assert np.abs(r_tab[:, 0] - R).max() < 1.0 / 576
     assert np.abs(t_tab[:, 0] * 1.5 ** 2 - (1 - R)).max() < 1.0 / 576
+
+
+@pytest.mark.parametrize("name", ["default", "sphere", "cornell", "gallery"])
+def test_builtin_scenes_render_clean(renderer, name):
+    from viewer.scene import builtin_scene_names
+
+    assert name in builtin_scene_names()
+    scene = load_scene(name, ["camera.width=160", "camera.height=90"])
+    img = renderer.render_arrays(scene, OrbitCamera.from_scene(scene))[0]
+    assert np.isfinite(img).all() and (img >= 0).all()
+    assert img.std() > 0.01  # a picture, not a uniform image

@@ -86,6 +86,11 @@ def cmd_models(args) -> int:
             print(f"    {_describe_param(p)}")
         if not spec.reciprocal:
             print(f"    (not reciprocal: {spec.reciprocal_why})")
+    from viewer.brdf.presets import PRESETS
+
+    print("\npresets (scene files: preset = \"NAME\", any parameter may be overridden beside it):")
+    for name in sorted(PRESETS):
+        print(f"    {name}: {PRESETS[name]['model']}")
     return 0
 
 

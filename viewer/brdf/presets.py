@@ -107,6 +107,19 @@ PRESETS["lecture_ggx"] = {
     "model": "microfacet", "distribution": "ggx", "shadowing": "smith",
     "fresnel": "dielectric", "ior": 1.5, "alpha": 0.2, "kd": [0.5, 0.5, 0.5]}
 PRESETS["lecture_layered"] = dict(PRESETS["car_paint"])
+# Oren-Nayar 1994 against Lambert: the same albedo, rough (sigma = 30 deg) Lambertian facets
+PRESETS["lecture_oren_nayar"] = {"model": "oren_nayar", "albedo": [0.8, 0.8, 0.8], "sigma": 30.0,
+                                 "variant": "full"}
+# Lafortune et al. 1997: a diffuse base, a forward lobe (Cx = Cy < 0, a generalized Phong lobe
+# about the mirror direction) and a retro-reflective lobe (Cx = Cy > 0) for dusty surfaces
+PRESETS["lecture_lafortune"] = {"model": "lafortune", "kd": [0.4, 0.3, 0.2],
+                                "lobes": [{"cx": -1.0, "cy": -1.0, "cz": 1.0, "n": 20.0},
+                                          {"cx": 0.9, "cy": 0.9, "cz": 0.9, "n": 5.0}]}
+# Ashikhmin & Shirley 2000: anisotropy, highlights stretched across the tangent (brushed metal)
+PRESETS["lecture_ashikhmin_shirley"] = {"model": "ashikhmin_shirley", "rd": [0.3, 0.1, 0.05],
+                                        "rs": [0.5, 0.5, 0.5], "nu": 10.0, "nv": 1000.0}
+# Bouguer's law: glass that absorbs red and blue over its path inside (sigma_a per metre)
+PRESETS["lecture_absorbing_glass"] = dict(PRESETS["green_glass"])
 
 
 def get_preset(name: str) -> dict:
