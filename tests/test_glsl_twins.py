@@ -55,13 +55,15 @@ def test_glsl_matches_numpy(name, evaluator):
         err = np.abs(got - ref)
         tol = 1e-4 * np.abs(ref) + 1e-6
         bad = err > tol
-        rel = err / np.maximum(np.abs(ref), 1e-6)
-        worst = max(worst, float(rel.max()))
+        # report the relative error where the relative bound governs (tol dominated by 1e-4 |ref|)
+        big = np.abs(ref) >= 1e-2
+        if big.any():
+            worst = max(worst, float((err[big] / np.abs(ref[big])).max()))
         if bad.any():
             i = np.argwhere(bad)[0][0]
             pytest.fail(f"{name}: {bad.sum()} of {bad.size} values differ; first wi={wi32[i]}, wo={wo32[i]}, "
                         f"glsl={got[i]}, numpy={ref[i]}, params={p.to_plain()}")
-    print(f"{name}: max relative error {worst:.2e}")
+    print(f"{name}: max relative error {worst:.2e} (values >= 1e-2)")
 
 
 @pytest.mark.parametrize("name", brdf.names())
