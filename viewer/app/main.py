@@ -282,8 +282,10 @@ class App:
                         self.dirty = True
                 imgui.pop_id()
         if imgui.collapsing_header("Materials", imgui.TreeNodeFlags_.default_open):
-            for name in list(s.materials):
+            for i, name in enumerate(list(s.materials)):
                 imgui.push_id(f"mat_{name}")
+                if i == 0:  # the first material starts open
+                    imgui.set_next_item_open(True, imgui.Cond_.once)
                 if imgui.tree_node(f"{name} ({s.materials[name].model})"):
                     ch, new = ui.material_editor(s.materials[name], f"{name}.")
                     if ch:
