@@ -106,6 +106,8 @@ class App:
         if self.window is None:
             return
         imgui = self.imgui
+        if self._reference is not None:
+            self._reference.close()
         self.renderer.release()
         imgui.backends.opengl3_shutdown()
         imgui.backends.glfw_shutdown()
@@ -163,13 +165,19 @@ class App:
                 self._hdr_for = (vw, vh)
                 self._quality = "preview" if interacting else "full"
                 self.dirty = False
+        shown = self.hdr
+        if self.image_mode == "reference" and vw > 0 and vh > 0:
+            self.reference_view().update(self.scene, self.camera, (vw, vh))
+            ref = self.reference_view().texture_for_display()
+            if ref is not None:
+                shown = ref
         screen = self.ctx.screen
         screen.use()
         screen.viewport = (0, 0, fw, fh)
         self.ctx.clear(0.08, 0.08, 0.09)
-        if self.hdr is not None and vw > 0 and vh > 0:
+        if shown is not None and vw > 0 and vh > 0:
             r = self.scene.render
-            self.renderer.tonemap_to(screen, self.hdr, r.exposure, r.tonemap, viewport=(vx, vy, vw, vh))
+            self.renderer.tonemap_to(screen, shown, r.exposure, r.tonemap, viewport=(vx, vy, vw, vh))
         screen.viewport = (0, 0, fw, fh)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
@@ -241,6 +249,15 @@ class App:
                 self.camera.fit(*s.bounds())
                 self.dirty = True
         if imgui.collapsing_header("Display", imgui.TreeNodeFlags_.default_open):
+            modes_img = ["raster", "reference"]
+            ch, i = imgui.combo("image", modes_img.index(self.image_mode), modes_img)
+            if ch:
+                self.set_image_mode(modes_img[i])
+            if self.image_mode == "reference" and self._reference is not None:
+                rv = self._reference
+                imgui.text(f"reference: {rv.spp} spp, {rv.samples_per_second / 1e3:.1f} k samples/s")
+                if rv.error:
+                    imgui.text_wrapped(rv.error)
             r = s.render
             ch, v = imgui.slider_float("exposure (EV)", float(r.exposure), -10.0, 10.0)
             if ch:
@@ -304,6 +321,22 @@ class App:
 
     _capture_next = None
     _warm = None
+    image_mode = "raster"  # or "reference"
+    _reference = None
+
+    def reference_view(self):
+        if self._reference is None:
+            from viewer.app.reference_view import ReferenceView
+
+            self._reference = ReferenceView(self.ctx)
+        return self._reference
+
+    def set_image_mode(self, mode: str):
+        assert mode in ("raster", "reference"), mode
+        self.image_mode = mode
+        if mode == "raster" and self._reference is not None:
+            self._reference.stop()
+        self.dirty = True
 
     def _warm_one(self):
         """Compile one model's forward program while idle, so switching models later does not
