@@ -2,19 +2,6 @@
 // Specular eq. 4 with Schlick's Fresnel on rs, diffuse eq. 5; nu along the tangent x, nv along y.
 // Twin of viewer/brdf/ashikhmin_shirley.py.
 
-// log(1 - x), series near 0 so that sharp lobes keep float32 precision (see phong.glsl).
-float ashikhmin_shirley_log1m(float x) {
-    if (x < 0.2) {
-        float s = 1.0 / 12.0;
-        s = 1.0 / 11.0 + x * s; s = 1.0 / 10.0 + x * s; s = 1.0 / 9.0 + x * s;
-        s = 1.0 / 8.0 + x * s;  s = 1.0 / 7.0 + x * s;  s = 1.0 / 6.0 + x * s;
-        s = 1.0 / 5.0 + x * s;  s = 1.0 / 4.0 + x * s;  s = 1.0 / 3.0 + x * s;
-        s = 1.0 / 2.0 + x * s;  s = 1.0 + x * s;
-        return -x * s;
-    }
-    return log(1.0 - x);
-}
-
 float ashikhmin_shirley_pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
 
 // Schlick 1994: F0 + (1 - F0)(1 - cos)^5 (the F of Ashikhmin & Shirley 2000, eq. 4).
@@ -31,7 +18,7 @@ float D_AshikhminShirley(vec3 h, float nu, float nv) {
     float e = t2 > 0.0 ? (nu * h.x * h.x + nv * h.y * h.y) / t2 : nu;
     float x = t2 / (1.0 + h.z);
     if (x >= 1.0) return 0.0;
-    return sqrt((nu + 1.0) * (nv + 1.0)) / (2.0 * PI) * exp(e * ashikhmin_shirley_log1m(x));
+    return sqrt((nu + 1.0) * (nv + 1.0)) / (2.0 * PI) * exp(e * log1m(x));
 }
 
 // Ashikhmin & Shirley 2000, eq. 4: D / (4 (h.k) max(n.k1, n.k2)) F(k.h).

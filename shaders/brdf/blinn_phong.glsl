@@ -4,19 +4,6 @@
 // elsewhere. (Real-Time Rendering's (n + 8) / (8 pi) overshoots by up to 7.5 %.)
 // Twin of viewer/brdf/blinn_phong.py.
 
-// log(1 - x), series near 0 so that sharp lobes keep float32 precision (see phong.glsl).
-float blinn_phong_log1m(float x) {
-    if (x < 0.2) {
-        float s = 1.0 / 12.0;
-        s = 1.0 / 11.0 + x * s; s = 1.0 / 10.0 + x * s; s = 1.0 / 9.0 + x * s;
-        s = 1.0 / 8.0 + x * s;  s = 1.0 / 7.0 + x * s;  s = 1.0 / 6.0 + x * s;
-        s = 1.0 / 5.0 + x * s;  s = 1.0 / 4.0 + x * s;  s = 1.0 / 3.0 + x * s;
-        s = 1.0 / 2.0 + x * s;  s = 1.0 + x * s;
-        return -x * s;
-    }
-    return log(1.0 - x);
-}
-
 // Giesen 2009: the exact Blinn-Phong normalization.
 float blinn_phong_normalization_giesen(float n) {
     return (n + 2.0) * (n + 4.0) / (8.0 * PI * (exp2(-0.5 * n) + n));
@@ -28,7 +15,7 @@ float blinn_phong_lobe(vec3 wi, vec3 wo, float n) {
     if (h.z <= 0.0) return 0.0;
     float x = (h.x * h.x + h.y * h.y) / (1.0 + h.z);
     if (x >= 1.0) return 0.0;
-    return exp(n * blinn_phong_log1m(x));
+    return exp(n * log1m(x));
 }
 
 vec3 blinn_phong_eval(blinn_phong_params p, vec3 wi, vec3 wo) {

@@ -2,19 +2,6 @@
 // Sec. 3: f = kd / pi + sum_j max(0, Cx wi.x wo.x + Cy wi.y wo.y + Cz wi.z wo.z)^n_j.
 // lobes[j] = (cx, cy, cz, n). Twin of viewer/brdf/lafortune.py.
 
-// log(1 - x), series near 0 (|x| < 0.2, either sign) so that sharp lobes keep float32 precision (see phong.glsl).
-float lafortune_log1m(float x) {
-    if (abs(x) < 0.2) {
-        float s = 1.0 / 12.0;
-        s = 1.0 / 11.0 + x * s; s = 1.0 / 10.0 + x * s; s = 1.0 / 9.0 + x * s;
-        s = 1.0 / 8.0 + x * s;  s = 1.0 / 7.0 + x * s;  s = 1.0 / 6.0 + x * s;
-        s = 1.0 / 5.0 + x * s;  s = 1.0 / 4.0 + x * s;  s = 1.0 / 3.0 + x * s;
-        s = 1.0 / 2.0 + x * s;  s = 1.0 + x * s;
-        return -x * s;
-    }
-    return log(1.0 - x);
-}
-
 // One generalized cosine lobe: with v = C o wo, (v . wi)^n = |v|^n cos^n(angle(wi, v)); evaluated as
 // exp(n (log|v| + log(1 - x))), x = |wi - v/|v||^2 / 2, so a sharp lobe keeps its precision, n = 0 never
 // meets pow(0, 0), and values are clamped at e^80 (far outside energy conservation) instead of overflowing.
@@ -26,11 +13,11 @@ float lafortune_lobe(vec4 lobe, vec3 wi, vec3 wo) {
     if (len <= 0.0) return 0.0;
     float L = dot(wo * wo, (1.0 - lobe.xyz) * (1.0 + lobe.xyz));
     // the L form where |v| is near 1; the plain log|v| where |v| is small (L ~ 1 would cancel there)
-    float log_len = L <= 0.5 ? 0.5 * lafortune_log1m(L) : log(len);
+    float log_len = L <= 0.5 ? 0.5 * log1m(L) : log(len);
     vec3 d = wi - v / len;
     float x = 0.5 * dot(d, d);
     if (x >= 1.0) return 0.0;
-    return exp(min(lobe.w * (log_len + lafortune_log1m(x)), 80.0));
+    return exp(min(lobe.w * (log_len + log1m(x)), 80.0));
 }
 
 vec3 lafortune_eval(lafortune_params p, vec3 wi, vec3 wo) {

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
+from viewer.brdf.sampling import (pow_one_minus, INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
                                   normalize, pick_lobe, reflect)
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -44,12 +44,6 @@ TEST_PARAMS = {
     "rough": {"rd": [0.2, 0.2, 0.2], "rs": [0.6, 0.6, 0.6], "nu": 3.0, "nv": 8.0},
     "sharp_anisotropic": {"rd": [0.1, 0.1, 0.1], "rs": [0.9, 0.9, 0.9], "nu": 1000.0, "nv": 20.0},
 }
-
-def pow_one_minus(x, n):
-    """(1 - x)^n = exp(n log1p(-x)) for x in [0, 1): exact for sharp lobes (x = 1 - n.h tiny)."""
-    inside = x < 1.0
-    return np.where(inside, np.exp(n * np.log1p(-np.where(inside, x, 0.0))), 0.0)
-
 
 def F_Schlick(f0, cos):
     """Schlick 1994: F0 + (1 - F0)(1 - cos)^5 (Ashikhmin & Shirley 2000, eq. 4's F)."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
+from viewer.brdf.sampling import (pow_one_minus, INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
                                   normalize, pick_lobe, power_cosine, reflect)
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -50,12 +50,6 @@ def energy_conserving(p):
 def normalization_giesen(n):
     """Giesen 2009: (n + 2)(n + 4) / (8 pi (2^(-n/2) + n)), the exact Blinn-Phong normalization."""
     return (n + 2.0) * (n + 4.0) / (8.0 * np.pi * (np.exp2(-0.5 * n) + n))
-
-
-def pow_one_minus(x, n):
-    """(1 - x)^n = exp(n log1p(-x)) for x in [0, 1): exact for sharp lobes (x = 1 - cos tiny)."""
-    inside = x < 1.0
-    return np.where(inside, np.exp(n * np.log1p(-np.where(inside, x, 0.0))), 0.0)
 
 
 def half_vector(wi, wo):

@@ -124,3 +124,11 @@ def split_uniform(u, levels=65536):
     q = np.asarray(u, dtype=np.float64) * levels
     cell = np.minimum(np.floor(q), levels - 1)
     return (cell + 0.5) / levels, np.clip(q - cell, 0.0, np.nextafter(1.0, 0.0))
+
+
+def pow_one_minus(x, n):
+    """(1 - x)^n for x in [0, 1), 0 at x >= 1, computed as exp(n log1p(-x)): for a sharp lobe
+    x = 1 - cos is tiny and rounding 1 - x first would cost n ulps (float32: 6e-4 relative error
+    at n = 10000)."""
+    inside = x < 1.0
+    return np.where(inside, np.exp(n * np.log1p(-np.where(inside, x, 0.0))), 0.0)
