@@ -40,16 +40,17 @@ intensity = [12.0, 12.0, 12.0]
 [[objects]]
 mesh = "sphere"
 material = "m"
-
-[materials.m]
-{material}
 """
 
 
-def _material_toml(params) -> str:
-    import tomli_w
+def _scene_with_material(tmp_path, params):
+    import tomllib
 
-    return tomli_w.dumps(params.to_plain())
+    from viewer.scene import parse_scene
+
+    data = tomllib.loads(SCENE.format(W=W, H=H))
+    data["materials"] = {"m": params.to_plain()}  # nested tables (layered) as data, not text
+    return parse_scene(data, tmp_path / "s.toml")
 
 
 def _interior(cam, center=(0, 0, 0), radius=1.0, light=(2.0, 3.0, 3.0), margin=1):
@@ -96,9 +97,7 @@ def _compare(raster, mean, var, mask, label):
 @pytest.mark.parametrize("name", brdf.names())
 def test_direct_light_agrees_per_pixel(tmp_path, renderer, name):
     model = brdf.get(name)
-    path = tmp_path / "s.toml"
-    path.write_text(SCENE.format(W=W, H=H, material=_material_toml(model.params())))
-    scene = load_scene(path)
+    scene = _scene_with_material(tmp_path, model.params())
     cam = OrbitCamera.from_scene(scene)
     raster = renderer.render_arrays(scene, cam)[0]
     ref = pathtracer.ReferenceRenderer(scene, camera=cam, max_depth=1, seed=11, workers=2)

@@ -8,7 +8,7 @@ import time
 
 from viewer import ViewerError
 
-COMMANDS = ("render", "models")
+COMMANDS = ("render", "reference", "models")
 HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer models "
                  "(see README)")
 
@@ -39,6 +39,25 @@ def _parser_render() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | f cos (term views)")
+    return p
+
+
+def _parser_reference() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer reference",
+                                description="Render a scene with the CPU reference path tracer (same meshes, "
+                                            "same camera as render). Prints progress and samples/second.")
+    p.add_argument("scene", help="scene file (.toml) or built-in scene name")
+    p.add_argument("--spp", type=int, required=True, help="samples per pixel (>= 1)")
+    p.add_argument("--out", required=True, help="output PNG (sRGB, after exposure and tone mapping)")
+    p.add_argument("--linear", help="also write the linear radiance as float32 .npy (H, W, 3), row 0 = top")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same image)")
+    p.add_argument("--max-depth", type=int, default=8, dest="max_depth",
+                   help="scattering events per path (1 = direct light only)")
+    p.add_argument("--width", type=int, help="image width (overrides camera.width)")
+    p.add_argument("--height", type=int, help="image height (overrides camera.height)")
+    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value by dotted path (repeatable)")
     return p
 
 
@@ -73,6 +92,65 @@ def cmd_render(args) -> int:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera))
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
+    return 0
+
+
+def cmd_reference(args) -> int:
+    from viewer.camera import OrbitCamera
+    from viewer.colour import to_srgb8
+    from viewer.io import check_output_path, write_npy, write_png
+    from viewer.scene import load_scene
+    from viewer.screenshot import png_text
+
+    out = check_output_path(args.out, (".png",), "--out")
+    lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
+    if args.spp < 1:
+        raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
+    if args.max_depth < 1:
+        raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1 "
+                          "(1 = direct light only)")
+    if args.workers is not None and args.workers < 0:
+        raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
+    overrides = list(args.overrides)
+    for key, val in (("width", args.width), ("height", args.height)):
+        if val is not None:
+            overrides.append(f"camera.{key}={val}")
+    scene = load_scene(args.scene, overrides)
+    camera = OrbitCamera.from_scene(scene)
+    from viewer.pathtracer import ReferenceRenderer
+
+    w, h = scene.camera.width, scene.camera.height
+    t0 = time.perf_counter()
+    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    try:
+        renderer.warm_up()
+        start = time.perf_counter()
+
+        def bar(frac):
+            n = int(30 * frac)
+            sys.stderr.write(f"\rreference [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}% "
+                             f"{w}x{h} {args.spp} spp {time.perf_counter() - start:6.1f} s")
+            sys.stderr.flush()
+
+        bar(0.0)
+        renderer.step(args.spp, progress=bar)
+        sys.stderr.write("\n")
+        wall = time.perf_counter() - start
+        linear = renderer.mean()
+        bad = renderer.bad_values
+    finally:
+        renderer.close()
+    srgb = to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
+    if lin_path:
+        write_npy(lin_path, linear)
+    write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
+                                                                "max_depth": args.max_depth}}))
+    samples = w * h * args.spp
+    print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
+    print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
+          f"{time.perf_counter() - t0 - wall:.2f} s setup)")
+    if bad:
+        print(f"warning: {bad} NaN/Inf/negative values from the BRDF models were replaced by 0", file=sys.stderr)
     return 0
 
 
@@ -127,9 +205,10 @@ def main(argv=None) -> int:
     try:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
-            parser = {"render": _parser_render, "models": _parser_models}[cmd]()
+            parser = {"render": _parser_render, "reference": _parser_reference,
+                      "models": _parser_models}[cmd]()
             args = parser.parse_args(rest)
-            return {"render": cmd_render, "models": cmd_models}[cmd](args)
+            return {"render": cmd_render, "reference": cmd_reference, "models": cmd_models}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:

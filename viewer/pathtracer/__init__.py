@@ -1,0 +1,22 @@
+"""The CPU reference path tracer (DESIGN.md: ``pathtracer/``). It never imports GL.
+
+* ``geometry``       the scene as one world-space triangle soup + shading data
+* ``kernel_embree``  ray queries with Embree (``EmbreeKernel``); ``kernel_numba`` the same
+                     interface without Embree (``NumbaKernel``)
+* ``envmap``         constant / lat-long environment light with importance sampling
+* ``integrator``     wavefront path tracing in numpy (NEE, MIS, Russian roulette, Bouguer)
+* ``progressive``    ``ReferenceRenderer``: deterministic progressive accumulation on a
+                     process pool, cancellable
+
+Typical use::
+
+    from viewer.pathtracer import ReferenceRenderer
+    r = ReferenceRenderer(scene, width=128, height=128, max_depth=8, seed=0)
+    r.step(64)                     # 64 samples per pixel
+    img, var = r.mean(), r.variance()
+    r.close()
+"""
+
+from viewer.pathtracer.progressive import ReferenceRenderer
+
+__all__ = ["ReferenceRenderer"]
