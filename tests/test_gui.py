@@ -134,3 +134,40 @@ def test_no_display_message(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1, r.stderr
     assert "no display" in lines[0] and "brdf-viewer render" in lines[0]
+
+
+def test_reference_view_renders_in_background_and_restarts(display):
+    r = _run_py("""
+        import time
+        import numpy as np
+        from viewer import brdf
+        from viewer.app.main import App
+        app = App("sphere", size=(520, 300))
+        app.set_image_mode("reference")
+        t0 = time.time()
+        while (app._reference is None or app._reference.spp < 2) and time.time() - t0 < 60:
+            app.frame()
+        rv = app._reference
+        assert rv.spp >= 2, rv.error
+        img = app.capture_window()
+        assert img[:, 360:].std() > 5  # the sphere is there (not a blank view)
+        frames_before = app.frame_count
+        t1 = time.time()
+        for _ in range(5):
+            app.frame()
+        assert app.frame_count == frames_before + 5 and time.time() - t1 < 10  # raster stays live
+        key_before = rv._key
+        app.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
+        app.dirty = True
+        app.frame()
+        assert rv._key != key_before and rv.spp < 2  # restarted on the change
+        t0 = time.time()
+        while rv.spp < 1 and time.time() - t0 < 60:
+            app.frame()
+        assert rv.spp >= 1
+        app.glfw.set_window_should_close(app.window, True)
+        app.run()
+        print("REF OK")
+    """, display, timeout=180)
+    assert r.returncode == 0, r.stderr + r.stdout
+    assert "REF OK" in r.stdout

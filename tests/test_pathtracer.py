@@ -447,3 +447,40 @@ def test_envmap_orientation_and_importance_sampling():
     assert np.all(np.abs(est.mean(axis=0) - exact) <= 4 * se), (est.mean(axis=0), exact, se)
     # proportional to luminance x sin(theta): far lower variance than uniform sampling
     assert np.all(se / exact < 0.01)
+
+
+def test_reset_reuses_workers_and_matches_a_fresh_renderer(tmp_path):
+    """reset() re-targets the same worker processes; the result equals a new renderer's."""
+    import textwrap
+
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    body = textwrap.dedent("""
+        [camera]
+        position = [0.0, 0.0, 4.0]
+        width = 24
+        height = 16
+        [environment]
+        constant = [1.0, 1.0, 1.0]
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "lambert"
+        albedo = [{a}, {a}, {a}]
+        """)
+    (tmp_path / "a.toml").write_text(body.format(a=0.5))
+    (tmp_path / "b.toml").write_text(body.format(a=0.2))
+    a, b = load_scene(tmp_path / "a.toml"), load_scene(tmp_path / "b.toml")
+    with ReferenceRenderer(a, max_depth=2, seed=3, workers=2) as r:
+        r.step(2)
+        pids = set(r._pool._processes)
+        r.reset(b)
+        assert r.spp == 0
+        r.step(2)
+        assert set(r._pool._processes) == pids
+        got = r.mean()
+    with ReferenceRenderer(b, max_depth=2, seed=3, workers=0) as fresh:
+        fresh.step(2)
+        assert np.array_equal(got, fresh.mean())

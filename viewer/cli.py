@@ -38,7 +38,10 @@ def _parser_render() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
-    p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | f cos (term views)")
+    p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | f cos | shadow (term views)")
+    p.add_argument("--supersample", type=int, default=1, metavar="K",
+                   help="K x K shading points per pixel, averaged (an exact box filter, as the reference "
+                        "computes pixels); default 1 = the scene's MSAA, shading once per pixel")
     return p
 
 
@@ -87,7 +90,10 @@ def cmd_render(args) -> int:
     from viewer.camera import OrbitCamera
 
     camera = OrbitCamera.from_scene(scene)
-    linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view])
+    if not 1 <= args.supersample <= 8:
+        raise ViewerError(f"--supersample: {args.supersample} is out of range; allowed: 1 to 8")
+    linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view],
+                                          supersample=args.supersample)
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera))

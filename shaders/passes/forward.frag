@@ -5,9 +5,19 @@
 #include "brdf/dispatch.glsl"
 #include "common/shadow.glsl"
 
+// With MSAA, shade at every sample (GLSL 4.00 'sample' inputs) so a pixel is the average over
+// its square (CONTRACT section 1, box filter) rather than the value at its centre; defined by
+// the renderer when sample shading is on.
+#ifdef SAMPLE_SHADING
+sample in vec3 v_position;
+sample in vec3 v_normal;
+sample in vec4 v_tangent;
+#else
 in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;
+#endif
+flat in vec3 v_geometric_normal;  // from forward.geom
 
 uniform int u_model_id;        // registry index of this object's material model
 uniform vec3 u_camera_pos;
@@ -17,7 +27,7 @@ uniform vec3 u_light_pos[MAX_LIGHTS];    // point: position; directional: direct
 uniform vec3 u_light_value[MAX_LIGHTS];  // point: intensity I [W/sr]; directional: irradiance E [W/m^2]
 uniform vec3 u_env_constant;             // constant environment radiance
 uniform int u_env_on;
-uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos
+uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos, 6 shadow
 const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
@@ -37,7 +47,7 @@ vec3 false_colour(float t) {
 }
 
 void main() {
-    vec3 ng = normalize(cross(dFdx(v_position), dFdy(v_position)));
+    vec3 ng = v_geometric_normal;
     vec3 n = normalize(v_normal);
     vec3 wo_w = normalize(u_camera_pos - v_position);
     // Two-sided surfaces: shade the side the viewer sees.
@@ -53,6 +63,7 @@ void main() {
     vec3 radiance = vec3(0.0);
     vec3 first_terms = vec3(-1.0);
     float first_ndotl = 0.0;
+    float first_visibility = 0.0;
     vec3 first_fcos = vec3(0.0);
     for (int i = 0; i < MAX_LIGHTS; ++i) {
         if (i >= u_num_lights) break;
@@ -78,6 +89,7 @@ void main() {
         }
         if (cos_i <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
         float vis = shadow_visibility(i, is_point, u_light_pos[i], v_position, ng, dot(ng, wi_w));
+        if (i == 0) first_visibility = vis;
         radiance += f * e * cos_i * vis;
     }
     if (u_env_on != 0 && any(greaterThan(u_env_constant, vec3(0.0)))) {
@@ -111,7 +123,9 @@ void main() {
         frag_color = vec4(v < 0.0 ? vec3(0.25) : false_colour(t), 1.0);
     } else if (u_view_mode == 4) {
         frag_color = vec4(false_colour(first_ndotl), 1.0);
-    } else {
+    } else if (u_view_mode == 5) {
         frag_color = vec4(first_fcos, 1.0);
+    } else {
+        frag_color = vec4(vec3(first_visibility), 1.0);  // light 0 visibility (shadow map)
     }
 }

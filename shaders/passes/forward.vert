@@ -8,14 +8,14 @@ uniform mat4 u_model;
 uniform mat3 u_normal_matrix;   // inverse transpose of the model matrix's 3x3
 uniform mat4 u_view_proj;
 
-out vec3 v_position;
-out vec3 v_normal;
-out vec4 v_tangent;
+out vec3 vs_position;   // to forward.geom, which adds the triangle's geometric normal
+out vec3 vs_normal;
+out vec4 vs_tangent;
 
 void main() {
     vec4 world = u_model * vec4(in_position, 1.0);
-    v_position = world.xyz;
-    v_normal = u_normal_matrix * in_normal;
-    v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
+    vs_position = world.xyz;
+    vs_normal = u_normal_matrix * in_normal;
+    vs_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
     gl_Position = u_view_proj * world;
 }

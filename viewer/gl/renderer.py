@@ -17,7 +17,7 @@ from viewer.gl.shaders import build_program, default_virtual
 MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
 SHADOW_TILE = 1024
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
-VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5}
+VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5, "shadow": 6}
 
 # (forward, up) of the six cube faces, in the order cube_face() in shadow.glsl returns them
 _FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)),
@@ -107,7 +107,8 @@ class Renderer:
         most once."""
         virtual = default_virtual(("lambert",))
         new = {
-            "forward:lambert": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag", virtual=virtual),
+            "forward:lambert": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
+                                             geometry="passes/forward.geom", virtual=virtual),
             "shadow": build_program(self.ctx, "passes/shadow.vert", "passes/shadow.frag", virtual=virtual),
             "tonemap": build_program(self.ctx, "passes/fullscreen.vert", "passes/tonemap.frag", virtual=virtual),
         }
@@ -122,16 +123,23 @@ class Renderer:
             self._empty_vao.release()
             self._empty_vao = self.ctx.vertex_array(self.programs["tonemap"], [])
 
-    def forward_program(self, params):
+    # Per-sample shading (GLSL 'sample' inputs) is off: on Mesa llvmpipe 22.3 it gave wrong shadow
+    # visibility on fully covered pixels near silhouettes (measured against the reference). For
+    # an exact box filter use render_arrays(..., supersample=k) instead.
+    sample_shading = False
+
+    def forward_program(self, params, sample_shading: bool | None = None):
         """The forward program for a material (its model, and a nested base model if any)."""
         from viewer.brdf.glsl import models_used
 
+        per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
-        key = "forward:" + "+".join(used)
+        key = "forward:" + "+".join(used) + (":sample" if per_sample else "")
         prog = self.programs.get(key)
         if prog is None:
             prog = build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
-                                 virtual=default_virtual(used))
+                                 geometry="passes/forward.geom", virtual=default_virtual(used),
+                                 defines={"SAMPLE_SHADING": "1"} if per_sample else None)
             self.programs[key] = prog
         return prog
 
@@ -326,7 +334,7 @@ class Renderer:
         ready = set()
         for obj in scene.objects:
             params = scene.materials[obj.material]
-            prog = self.forward_program(params)
+            prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1)
             if id(prog) not in ready:
                 for k, v in frame_uniforms.items():
                     _set(prog, k, v)
@@ -425,10 +433,25 @@ class Renderer:
         a = np.frombuffer(self._ldr[0].read(), dtype=np.uint8).reshape(h, w, 4)
         return np.ascontiguousarray(a[::-1, :, :3])
 
-    def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0):
-        hdr = self.render(scene, camera, width, height, view_mode)
-        return (self.read_linear(hdr),
-                self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
+    def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0, supersample: int = 1):
+        """(linear float32, sRGB uint8) images, (H, W, 3), row 0 = top.
+
+        ``supersample`` k > 1 renders k x k shading points per pixel on a regular grid (no MSAA)
+        and averages them: the box filter of CONTRACT section 1 up to 1/k^2 of the error of
+        shading at the pixel centre (what MSAA does), at k^2 times the cost."""
+        if supersample <= 1:
+            hdr = self.render(scene, camera, width, height, view_mode)
+            return (self.read_linear(hdr),
+                    self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
+        from viewer.colour import to_srgb8
+
+        k = int(supersample)
+        w = int(width or scene.camera.width)
+        h = int(height or scene.camera.height)
+        hdr = self.render(scene, camera, w * k, h * k, view_mode, msaa=0)
+        big = self.read_linear(hdr)
+        linear = big.reshape(h, k, w, k, 3).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+        return linear, to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
 
     def release(self):
         self._release_targets()

@@ -51,8 +51,9 @@ class Source:
 
 
 def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
-               root: Path = SHADER_DIR) -> Source:
-    """Inline includes, emitting ``#line`` directives so compiler messages map back to files."""
+               root: Path = SHADER_DIR, defines: dict[str, str] | None = None) -> Source:
+    """Inline includes, emitting ``#line`` directives so compiler messages map back to files;
+    ``defines`` become ``#define`` lines right after ``#version``."""
     virtual = dict(virtual or {})
     src = Source("", [name])
     included = {name}
@@ -84,6 +85,8 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
                 continue
             out.append(line)
             if n == 1 and line.lstrip().startswith("#version"):
+                if idx == 0:
+                    out.extend(f"#define {k} {v}" for k, v in (defines or {}).items())
                 out.append(f"#line 2 {idx}")
 
     emit(text, 0)
@@ -91,13 +94,13 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
     return src
 
 
-def load(rel: str, virtual: dict[str, str] | None = None) -> Source:
+def load(rel: str, virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None) -> Source:
     path = SHADER_DIR / rel
     try:
         text = path.read_text()
     except OSError as e:
         raise ShaderError(f"{rel}: cannot read shader: {e.strerror}", rel) from None
-    return preprocess(text, rel, virtual)
+    return preprocess(text, rel, virtual, defines=defines)
 
 
 def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
@@ -106,22 +109,26 @@ def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
     return {"brdf/dispatch.glsl": generate_dispatch(only)}
 
 
-def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *,
+def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *, geometry: str | None = None,
                   vertex_source: str | None = None, fragment_source: str | None = None,
-                  virtual: dict[str, str] | None = None):
+                  virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None):
     """Compile and link a program from files under shaders/ (or given sources)."""
     import moderngl
 
     if virtual is None:
         virtual = default_virtual()
-    vs = load(vertex, virtual) if vertex else preprocess(vertex_source, "<vertex>", virtual)
-    fs = load(fragment, virtual) if fragment else preprocess(fragment_source, "<fragment>", virtual)
+    vs = load(vertex, virtual, defines) if vertex else preprocess(vertex_source, "<vertex>", virtual, defines=defines)
+    fs = load(fragment, virtual, defines) if fragment else preprocess(fragment_source, "<fragment>", virtual,
+                                                                      defines=defines)
+    gs = load(geometry, virtual, defines) if geometry else None
     try:
-        return ctx.program(vertex_shader=vs.text, fragment_shader=fs.text)
+        return ctx.program(vertex_shader=vs.text, fragment_shader=fs.text,
+                           geometry_shader=gs.text if gs else None)
     except moderngl.Error as e:
         log = str(e)
         # moderngl names the failing stage in its message
-        which = fs if "fragment" in log.lower()[:200] or "GL_FRAGMENT_SHADER" in log else vs
+        head = log.lower()[:200]
+        which = fs if "fragment" in head else (gs if gs is not None and "geometry" in head else vs)
         text, _, f, ln = which.locate(log)
         first = text.splitlines()
         head = next((l for l in first if "error" in l.lower()), first[0] if first else "compile error")

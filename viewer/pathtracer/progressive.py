@@ -27,6 +27,8 @@ import concurrent.futures as cf
 import math
 import multiprocessing as mp
 import os
+import pickle
+import tempfile
 import threading
 import time
 
@@ -39,15 +41,28 @@ TARGET_CHUNK_PATHS = 8192      # camera samples per chunk (about 60 ms on one co
 POLL_S = 0.005
 
 _WORKER: Integrator | None = None
+_WORKER_KEY: str | None = None
 
 
-def _init_worker(setup: RenderSetup):
-    global _WORKER
-    _WORKER = Integrator(setup)
+def _init_worker(setup: RenderSetup, key: str):
+    global _WORKER, _WORKER_KEY
+    _WORKER, _WORKER_KEY = Integrator(setup), key
 
 
-def _run_chunk(row0, row1, samples, seed, block_id):
-    it = _WORKER
+def _worker_for(key: str, path: str | None) -> Integrator:
+    """The worker's integrator for scene version ``key``, loaded from ``path`` (written once by
+    ``reset``) when the worker last rendered another version: a scene change reuses the worker
+    processes instead of starting new ones."""
+    global _WORKER, _WORKER_KEY
+    if _WORKER_KEY != key:
+        with open(path, "rb") as f:
+            _WORKER = Integrator(pickle.load(f))
+        _WORKER_KEY = key
+    return _WORKER
+
+
+def _run_chunk(key, path, row0, row1, samples, seed, block_id):
+    it = _worker_for(key, path)
     before = it.bad_values
     s, s2 = it.render_block(row0, row1, samples, seed, block_id)
     return s, s2, it.bad_values - before
@@ -77,22 +92,49 @@ class ReferenceRenderer:
                  workers=None, env_image=None, kernel: str = "embree"):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
-        self.setup = RenderSetup.from_scene(scene, camera, width, height, max_depth, env_image, kernel)
-        self.width, self.height = self.setup.width, self.setup.height
+        self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
         self.seed = int(seed)
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        self._local: Integrator | None = None
+        self._pool: cf.ProcessPoolExecutor | None = None
+        self._setup_file: str | None = None
+        self._version = 0
+        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image, kernel))
+        if self.workers > 0:
+            self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+                                                initializer=_init_worker, initargs=(self.setup, self._key))
+
+    def _set_setup(self, setup: RenderSetup):
+        self.setup = setup
+        self.width, self.height = setup.width, setup.height
         self.blocks = block_layout(self.width, self.height)
         self.spp = 0
         self.bad_values = 0
         self._sum = np.zeros((self.height, self.width, 3))
         self._sum2 = np.zeros((self.height, self.width, 3))
-        self._local: Integrator | None = None
-        self._pool: cf.ProcessPoolExecutor | None = None
-        if self.workers > 0:
-            self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
-                                                initializer=_init_worker, initargs=(self.setup,))
-        else:
-            self._local = Integrator(self.setup)
+        self._version += 1
+        self._key = f"{os.getpid()}-{id(self)}-{self._version}"
+        if self.workers == 0:
+            self._local = Integrator(setup)
+
+    def reset(self, scene, camera=None, width=None, height=None):
+        """Start over on a changed scene, camera or size, keeping the worker processes."""
+        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth,
+                                               self.env_image, self.kernel))
+        if self._pool is not None:
+            fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")
+            with os.fdopen(fd, "wb") as f:
+                pickle.dump(self.setup, f, protocol=pickle.HIGHEST_PROTOCOL)
+            self._drop_setup_file()
+            self._setup_file = path
+
+    def _drop_setup_file(self):
+        if self._setup_file is not None:
+            try:
+                os.unlink(self._setup_file)
+            except OSError:
+                pass
+            self._setup_file = None
 
     # ------------------------------------------------------------------ work
     def _chunks(self, s0: int, spp: int):
@@ -102,7 +144,7 @@ class ReferenceRenderer:
         for g0 in range(s0, s0 + spp, per):
             samples = tuple(range(g0, min(g0 + per, s0 + spp)))
             for bid, (r0, r1) in enumerate(self.blocks):
-                out.append((r0, r1, samples, self.seed, bid))
+                out.append((self._key, self._setup_file, r0, r1, samples, self.seed, bid))
         return out
 
     def step(self, spp: int = 1, cancel: threading.Event | None = None, progress=None) -> bool:
@@ -118,7 +160,7 @@ class ReferenceRenderer:
                 if cancel is not None and cancel.is_set():
                     return False
                 before = self._local.bad_values
-                s, s2 = self._local.render_block(*c)
+                s, s2 = self._local.render_block(*c[2:])
                 results[i] = (s, s2, self._local.bad_values - before)
                 if progress:
                     progress((i + 1) / len(chunks))
@@ -142,7 +184,7 @@ class ReferenceRenderer:
         new_sum = self._sum.copy()
         new_sum2 = self._sum2.copy()
         bad = 0
-        for (r0, r1, _, _, _), (s, s2, nb) in zip(chunks, results):
+        for (_, _, r0, r1, _, _, _), (s, s2, nb) in zip(chunks, results):
             new_sum[r0:r1] += s
             new_sum2[r0:r1] += s2
             bad += nb
@@ -186,6 +228,7 @@ class ReferenceRenderer:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+        self._drop_setup_file()
 
     def __enter__(self):
         return self
