@@ -484,3 +484,38 @@ def test_reset_reuses_workers_and_matches_a_fresh_renderer(tmp_path):
     with ReferenceRenderer(b, max_depth=2, seed=3, workers=0) as fresh:
         fresh.step(2)
         assert np.array_equal(got, fresh.mean())
+
+
+def test_scene_environment_map_is_used(tmp_path):
+    """A scene naming a map (here a saved .hdr file) lights the reference: a Lambert sphere of
+    albedo a under a map of constant radiance 0.75 shows a * 0.75 (furnace with a map file)."""
+    from viewer.environment.io import save_environment
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    save_environment(tmp_path / "flat.hdr", np.full((16, 32, 3), 0.75, dtype=np.float32))
+    (tmp_path / "s.toml").write_text(textwrap.dedent("""
+        [camera]
+        position = [0.0, 0.0, 4.0]
+        width = 16
+        height = 16
+        [environment]
+        map = "flat.hdr"
+        intensity = 2.0
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "lambert"
+        albedo = [0.5, 0.5, 0.5]
+        """))
+    scene = load_scene(tmp_path / "s.toml")
+    with ReferenceRenderer(scene, max_depth=3, seed=1, workers=0) as r:
+        r.step(8)
+        img, var = r.mean(), r.variance()
+    # background: the map itself (1.5); centre of the sphere: 0.5 * 1.5. RGBE stores 0.75
+    # exactly (a power-of-two mantissa), so the only error is Monte Carlo noise (4 SE).
+    assert np.allclose(img[0, 0], 1.5, atol=1e-6)
+    c = img[7:9, 7:9].reshape(-1, 3)
+    se = np.sqrt(var[7:9, 7:9].reshape(-1, 3))
+    assert np.all(np.abs(c - 0.75) <= 4 * se + 1e-6), (c, se)

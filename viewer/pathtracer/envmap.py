@@ -82,8 +82,8 @@ class EnvironmentLight:
         if image is not None:
             return cls(image=image, intensity=env.intensity, rotation_deg=env.rotation_deg)
         if env.map is not None:
-            raise ViewerError(f"{scene.label}: environment.map: the reference path tracer takes an "
-                              "environment map only as an array for now; allowed: environment.constant")
+            # intensity is already applied by radiance_map(); the rotation is applied at lookup
+            return cls(image=env.radiance_map(), intensity=1.0, rotation_deg=env.rotation_deg)
         if env.constant is None:
             return cls()
         return cls(constant=env.constant, intensity=env.intensity)
