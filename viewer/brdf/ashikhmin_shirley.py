@@ -135,3 +135,10 @@ def sample(p, wo, u):
     f = eval(p, wi, wo)
     weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
     return wi, weight, np.where(ok, pdf_, 0.0)
+
+
+def ibl_split(p):
+    """Image-based lighting proxy: the specular lobe alone (rd = 0), and the GGX alpha of an
+    isotropic lobe of the geometric-mean exponent sqrt(nu nv): alpha = sqrt(2 / (n + 2))."""
+    n = float(np.sqrt(p.nu * p.nv))
+    return p.replace(rd=np.zeros(3)), float(np.sqrt(2.0 / (n + 2.0)))

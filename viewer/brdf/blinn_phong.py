@@ -104,3 +104,9 @@ def sample(p, wo, u):
     f = eval(p, wi, wo)
     weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
     return wi, weight, np.where(ok, pdf_, 0.0)
+
+
+def ibl_split(p):
+    """Image-based lighting proxy: the specular lobe alone, and the GGX alpha of a lobe of similar
+    width, alpha = sqrt(2 / (n + 2)) (Walter et al. 2007, the Phong-Beckmann relation below eq. 33)."""
+    return p.replace(kd=np.zeros(3)), float(np.sqrt(2.0 / (p.shininess + 2.0)))

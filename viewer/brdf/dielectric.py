@@ -181,3 +181,8 @@ def sample(p, wo, u):
     if _is_smooth(p):
         return _sample_smooth(p, wo, u)
     return _sample_rough(p, wo, u)
+
+
+def ibl_split(p):
+    """Image-based lighting: reflection and transmission are both specular lobes of width alpha."""
+    return p, float(p.alpha)

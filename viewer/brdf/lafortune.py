@@ -188,3 +188,10 @@ def sample(p, wo, u):
     f = eval(p, wi, wo)
     weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
     return wi, weight, np.where(ok, pdf_, 0.0)
+
+
+def ibl_split(p):
+    """Image-based lighting proxy: the lobes alone (kd = 0), and the GGX alpha of the sharpest
+    lobe's exponent, alpha = sqrt(2 / (n + 2))."""
+    n = max(float(l["n"]) for l in p.lobes)
+    return p.replace(kd=np.zeros(3)), float(np.sqrt(2.0 / (n + 2.0)))

@@ -204,3 +204,10 @@ def sample(p, wo, u):
 def _base_is_delta(p):
     spec = _base(p).spec
     return spec.delta and not (spec.name == "dielectric" and p.base.get("alpha", 0.0) > 0)
+
+
+def ibl_split(p):
+    """Image-based lighting proxy: the coating alone (a black base) and the coating's alpha."""
+    from viewer import brdf
+
+    return p.replace(base=brdf.get("lambert").params(albedo=[0.0, 0.0, 0.0])), float(p.coating["alpha"])

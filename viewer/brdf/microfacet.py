@@ -173,3 +173,10 @@ def sample(p, wo, u):
     f = eval(p, wi, wo)
     weight = np.where(ok[:, None], f * (wi[:, 2] / np.where(ok, pdf_, 1.0))[:, None], 0.0)
     return wi, weight, np.where(ok, pdf_, 0.0)
+
+
+def ibl_split(p):
+    """Image-based lighting (split sum): the specular lobe alone (kd = 0) and its alpha (the
+    geometric mean of alpha_x and alpha_y for anisotropic lobes; alpha_x for blinn_phong)."""
+    a = p.alpha_x if p.distribution == "blinn_phong" else float(np.sqrt(p.alpha_x * p.alpha_y))
+    return p.replace(kd=np.zeros(3)), float(a)

@@ -58,3 +58,8 @@ def sample(p, wo, u):
     ok = wo[:, 2] > 0
     weight = np.where(ok[:, None], reflectance(p, wo[:, 2]), 0.0)
     return wi, weight, np.where(ok, 1.0, 0.0)
+
+
+def ibl_split(p):
+    """Image-based lighting: all of it is the (delta) specular lobe, alpha 0."""
+    return p, 0.0
