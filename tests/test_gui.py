@@ -171,3 +171,30 @@ def test_reference_view_renders_in_background_and_restarts(display):
     """, display, timeout=180)
     assert r.returncode == 0, r.stderr + r.stdout
     assert "REF OK" in r.stdout
+
+
+def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
+    bad = tmp_path / "broken.hdr"
+    bad.write_bytes(b"#?RADIANCE\\nFORMAT=32-bit_rle_rgbe\\n\\n-Y 4 +X 8\\n\\x02")  # truncated
+    r = _run_py(f"""
+        import numpy as np
+        from viewer.app.main import App
+        app = App(None, size=(640, 360))
+        app.frame()
+        before = app.capture_window()
+        assert app.set_environment("studio")
+        app.frame()
+        after = app.capture_window()
+        assert np.abs(after.astype(float) - before).mean() > 1.0  # the image changed
+        env = app.scene.environment
+        assert not app.set_environment({str(bad)!r})
+        assert app.scene.environment is env and "broken.hdr" in app.status
+        app._on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
+        assert "not an environment map" in app.status
+        app.frame()
+        app.glfw.set_window_should_close(app.window, True)
+        app.run()
+        print("ENV OK")
+    """, display)
+    assert r.returncode == 0, r.stderr + r.stdout
+    assert "ENV OK" in r.stdout

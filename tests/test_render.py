@@ -294,3 +294,11 @@ def test_builtin_scenes_render_clean(renderer, name):
     img = renderer.render_arrays(scene, OrbitCamera.from_scene(scene))[0]
     assert np.isfinite(img).all() and (img >= 0).all()
     assert img.std() > 0.01  # a picture, not a uniform image
+
+
+def test_no_environment_with_shadows_still_draws(tmp_path, renderer):
+    """ibl = "off" and no environment, with a shadowed point light: the lit sphere is drawn (a
+    sampler left on the shadow atlas's texture unit would make every draw call invalid)."""
+    body = SPHERE.format(lx=2.0, ly=3.0, lz=4.0).replace("[render]", '[render]\nibl = "off"')
+    img = _render(renderer, _scene(tmp_path, body))
+    assert img.max() > 0.05

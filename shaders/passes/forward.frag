@@ -4,6 +4,7 @@
 #include "common/math.glsl"
 #include "brdf/dispatch.glsl"
 #include "common/shadow.glsl"
+#include "common/ibl.glsl"
 
 // With MSAA, shade at every sample (GLSL 4.00 'sample' inputs) so a pixel is the average over
 // its square (CONTRACT section 1, box filter) rather than the value at its centre; defined by
@@ -25,12 +26,16 @@ uniform int u_num_lights;
 uniform int u_light_type[MAX_LIGHTS];    // 0 point, 1 directional
 uniform vec3 u_light_pos[MAX_LIGHTS];    // point: position; directional: direction the light travels
 uniform vec3 u_light_value[MAX_LIGHTS];  // point: intensity I [W/sr]; directional: irradiance E [W/m^2]
-uniform vec3 u_env_constant;             // constant environment radiance
-uniform int u_env_on;
+uniform int u_env_on;                    // any environment light (constant or map), IBL not "off"
+uniform int u_ibl_mode;                  // 1 split sum, 2 filtered importance sampling, 3 brute force
+uniform float u_ibl_alpha;               // the lobe width of the material's specular part (ibl_split)
+uniform int u_ibl_delta;                 // the material has only delta lobes (mirror, smooth glass)
+uniform int u_frame_index;               // brute force: a new sample set each frame
 uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos, 6 shadow
 const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
+uniform vec3 u_albedo_s[ALBEDO_TABLE];   // the reflected albedo of the specular part alone
 uniform int u_transmit_on;
 uniform vec3 u_sigma_a;                  // absorption inside a transmissive material [1/m]
 uniform float u_ior;
@@ -44,6 +49,60 @@ vec3 false_colour(float t) {
     vec3 a = mix(vec3(0.05, 0.05, 0.35), vec3(0.0, 0.8, 0.9), smoothstep(0.0, 0.35, t));
     vec3 b = mix(a, vec3(1.0, 0.9, 0.1), smoothstep(0.35, 0.7, t));
     return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
+}
+
+float ibl_hash(uvec2 p, uint frame) {
+    uint h = p.x * 1973u + p.y * 9277u + frame * 26699u;
+    h = (h ^ 61u) ^ (h >> 16u);
+    h *= 9u;
+    h ^= h >> 4u;
+    h *= 0x27d4eb2du;
+    h ^= h >> 15u;
+    return float(h) * 2.3283064365386963e-10;
+}
+
+// Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
+// density: a GGX lobe of the material's alpha about the normal (reflected half vectors, Walter
+// et al. 2007 eq. 35-36) mixed with a cosine lobe in proportion to rho_s : rho_d. Unbiased for
+// any model (the cosine part covers the hemisphere). filtered: the environment is looked up at
+// the Colbert-Krivanek 2007 mip level of each sample's pdf (FIS); otherwise at full resolution
+// (brute force, averaged over frames by the renderer).
+const int IBL_SAMPLES = 16;
+vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bool filtered, int frame) {
+    float ls = luminance(rho_s), lt = luminance(rho);
+    float p_spec = lt > 0.0 ? clamp(ls / lt, 0.1, 0.9) : 0.5;
+    float a = max(alpha, 0.02);
+    float a2 = a * a;
+    vec2 cp = vec2(ibl_hash(uvec2(gl_FragCoord.xy), uint(frame)), ibl_hash(uvec2(gl_FragCoord.yx) + 7u, uint(frame)));
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < IBL_SAMPLES; ++k) {
+        float u0 = (float(k) + 0.5) / float(IBL_SAMPLES);
+        float u1 = fract(float(k) * 0.6180339887498949);  // golden-ratio sequence
+        u0 = fract(u0 + cp.x);
+        u1 = fract(u1 + cp.y);
+        vec3 wi;
+        if (u0 < p_spec) {
+            float v = u0 / p_spec;
+            float phi = TWO_PI * u1;
+            float cos2 = (1.0 - v) / (1.0 + (a2 - 1.0) * v);  // GGX: tan^2 theta_h = a^2 v / (1 - v)
+            float ch = sqrt(cos2), sh = sqrt(max(0.0, 1.0 - cos2));
+            vec3 h = vec3(sh * cos(phi), sh * sin(phi), ch);
+            wi = reflect(-wo, h);
+        } else {
+            float v = (u0 - p_spec) / (1.0 - p_spec);
+            float r = sqrt(v), phi = TWO_PI * u1;
+            wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - v)));
+        }
+        if (wi.z <= 0.0) continue;
+        vec3 h = normalize(wi + wo);
+        float d_h = a2 / (PI * sqr(h.z * h.z * (a2 - 1.0) + 1.0));
+        float pdf = p_spec * d_h * h.z / (4.0 * max(dot(wo, h), 1e-6)) + (1.0 - p_spec) * wi.z * INV_PI;
+        if (pdf <= 0.0) continue;
+        vec3 dir = from_local * wi;
+        vec3 L = filtered ? env_radiance_lod(dir, env_fis_lod(pdf, IBL_SAMPLES)) : env_radiance(dir);
+        sum += brdf_eval(u_model_id, 0, wi, wo) * wi.z / pdf * L;
+    }
+    return sum / float(IBL_SAMPLES);
 }
 
 void main() {
@@ -92,27 +151,49 @@ void main() {
         if (i == 0) first_visibility = vis;
         radiance += f * e * cos_i * vis;
     }
-    if (u_env_on != 0 && any(greaterThan(u_env_constant, vec3(0.0)))) {
-        // Constant environment: L_o = L_env * rho(wo), the directional albedo, tabulated per
-        // material over cos(theta_o) by viewer/brdf/albedo.py with the model's own sampler.
-        // No occlusion (environment maps and proper IBL come with the environment work).
+    if (u_env_on != 0) {
+        // Environment light. Tables (viewer/brdf/albedo.py, the model's own sampler) give the
+        // directional albedo rho(wo), its specular part rho_s (the model's ibl_split hook) and the
+        // transmitted part; rho_d = rho - rho_s is treated as diffuse.
         float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
         int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
         int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
         float fx = clamp(x - float(k0), 0.0, 1.0);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
-        if (u_transmit_on != 0) {
+        vec3 rho_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho);
+        vec3 rho_d = rho - rho_s;
+        vec3 r_w = reflect(-wo_w, n);
+        if (wo.z > 0.0) {
+            if (u_ibl_mode == 1 || u_ibl_delta != 0) {
+                // Split sum (Karis 2013): the lobe integral of the environment is the prefiltered
+                // environment around the mirror direction times the lobe's albedo; the diffuse
+                // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
+                // environment; no occlusion.
+                radiance += rho_d * env_irradiance(n) * INV_PI + rho_s * env_prefiltered(r_w, u_ibl_alpha);
+            } else {
+                radiance += ibl_sampled(wo, transpose(to_local), rho, rho_s, u_ibl_alpha,
+                                        u_ibl_mode == 2, u_frame_index);
+            }
+        }
+        if (u_transmit_on != 0 && wo.z > 0.0) {
             // Glass: light refracted in crosses the object and leaves through the back. The
             // rasterizer's approximation: one straight traversal of length d = back - front
             // along the view ray with Bouguer attenuation exp(-sigma_a d), the radiance factor
-            // ior^2 of leaving the denser medium, no exit Fresnel or internal bounces.
+            // ior^2 of leaving the denser medium, no exit Fresnel or internal bounces; the
+            // environment is looked up along the ray refracted at the entry surface and bent
+            // again by an exit surface taken parallel to the entry one mirrored through the
+            // centre (exact for a sphere's central ray, and the straight line for a slab).
             float front = length(v_position - u_camera_pos);
             float back = texelFetch(u_thickness, ivec2(gl_FragCoord.xy), 0).r;
             float d = (any(greaterThan(u_sigma_a, vec3(0.0))) && back > front) ? back - front : 0.0;
             vec3 rho_t = mix(u_albedo_t[k0], u_albedo_t[k1], fx) * u_ior * u_ior;
-            rho += rho_t * exp(-u_sigma_a * d);
+            vec3 t_in = refract(-wo_w, n, 1.0 / u_ior);
+            // a sphere's outward normal where the chord along t_in leaves: n - 2 (n.t) t
+            vec3 n_out = reflect(n, t_in);
+            vec3 t_out = refract(t_in, -n_out, u_ior);
+            if (dot(t_out, t_out) == 0.0) t_out = reflect(t_in, -n_out);  // total internal reflection
+            radiance += rho_t * exp(-u_sigma_a * d) * env_prefiltered(normalize(t_out), u_ibl_alpha);
         }
-        radiance += u_env_constant * (wo.z > 0.0 ? rho : vec3(0.0));
     }
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);

@@ -58,6 +58,7 @@ class App:
         addr = ctypes.cast(self.window, ctypes.c_void_p).value
         imgui.backends.glfw_init_for_opengl(addr, True)
         imgui.backends.opengl3_init("#version 410")
+        glfw.set_drop_callback(self.window, self._on_drop)  # imgui installs no drop callback
         self.renderer = Renderer(self.ctx)
         self.camera = OrbitCamera.from_scene(self.scene)
         self.view_mode = 0
@@ -275,6 +276,8 @@ class App:
             if ch:
                 r.shadows = v
                 self.dirty = True
+        if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
+            self._environment_panel()
         if imgui.collapsing_header("Lights", imgui.TreeNodeFlags_.default_open):
             for i, light in enumerate(s.lights):
                 imgui.push_id(f"light{i}")
@@ -360,6 +363,86 @@ class App:
         self.dirty = True
         self.frame()
         return out[0] if out else None
+
+    _env_path_text = ""
+
+    def _environment_panel(self):
+        from viewer.environment.procedural import builtin_names
+        from viewer.gl.renderer import IBL_MODES
+
+        imgui = self.imgui
+        env = self.scene.environment
+        current = "constant" if env.map is None else (env.map if env.is_builtin else "file")
+        choices = ["constant"] + list(builtin_names()) + (["file"] if current == "file" else [])
+        ch, i = imgui.combo("map", choices.index(current), choices)
+        if ch and choices[i] != current:
+            self.set_environment(None if choices[i] == "constant" else choices[i])
+        if env.map is not None and not env.is_builtin:
+            imgui.text_wrapped(f"file: {env.map}")
+        ch, self._env_path_text = imgui.input_text("##envpath", self._env_path_text)
+        imgui.same_line()
+        if imgui.button("Load .hdr/.exr"):
+            self.set_environment(self._env_path_text.strip())
+        imgui.text_disabled("(or drop a file on the window)")
+        if env.map is None:
+            c = [float(x) for x in (env.constant if env.constant is not None else np.zeros(3))]
+            ch, v = imgui.color_edit3("radiance", c, imgui.ColorEditFlags_.float | imgui.ColorEditFlags_.hdr)
+            if ch and all(np.isfinite(v)) and min(v) >= 0:
+                env.constant = np.array(v, float)
+                self.dirty = True
+        ch, v = imgui.slider_float("intensity", float(env.intensity), 0.001, 100.0, "%.3g",
+                                   imgui.SliderFlags_.logarithmic)
+        if ch and np.isfinite(v) and v >= 0:
+            env.intensity = float(v)
+            self.dirty = True
+        ch, v = imgui.slider_float("rotation (deg)", float(env.rotation_deg), -180.0, 180.0)
+        if ch and np.isfinite(v):
+            env.rotation_deg = float(v)
+            self.dirty = True
+        modes = list(IBL_MODES)
+        r = self.scene.render
+        ch, i = imgui.combo("IBL", modes.index(r.ibl) if r.ibl in modes else 1, modes)
+        if ch:
+            r.ibl = modes[i]
+            self.dirty = True
+
+    def set_environment(self, ref) -> bool:
+        """Switch the environment to a built-in map name, a .hdr/.exr path or None (constant).
+        A file that does not load leaves the previous environment and shows why."""
+        import dataclasses
+        from pathlib import Path as _P
+
+        env = self.scene.environment
+        new = dataclasses.replace(env)
+        new.__dict__.pop("_map_cache", None)
+        if ref is None:
+            new.map = None
+            if new.constant is None:
+                new.constant = np.array([0.1, 0.1, 0.1])
+        else:
+            from viewer.environment.procedural import builtin_names
+
+            new.map = ref if ref in builtin_names() else _P(ref).expanduser()
+            new.constant = None
+            try:
+                new.radiance_map()
+            except ViewerError as e:
+                self.status = f"environment not changed: {e}"
+                return False
+            except Exception as e:  # noqa: BLE001 - any decoder failure keeps the old map
+                self.status = f"environment not changed: {ref}: {type(e).__name__}: {e}"
+                return False
+        self.scene.environment = new
+        self.status = f"environment: {ref or 'constant'}"
+        self.dirty = True
+        return True
+
+    def _on_drop(self, window, paths):
+        for p in paths:
+            if p.lower().endswith((".hdr", ".exr")):
+                self.set_environment(p)
+            else:
+                self.status = f"dropped {p}: not an environment map; allowed: .hdr, .exr"
 
     # ------------------------------------------------------------------ actions
     def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:

@@ -17,6 +17,7 @@ from viewer.gl.shaders import build_program, default_virtual
 MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
 SHADOW_TILE = 1024
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
+IBL_MODES = {"off": 0, "split_sum": 1, "fis": 2, "brute_force": 3}
 VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5, "shadow": 6}
 
 # (forward, up) of the six cube faces, in the order cube_face() in shadow.glsl returns them
@@ -97,6 +98,7 @@ class Renderer:
         self._empty_vao = ctx.vertex_array(self.programs["tonemap"], [])
         self._albedo_cache: dict[str, tuple] = {}
         self._thick = None
+        self._ibl = None
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -260,24 +262,41 @@ class Renderer:
         self._shadow_mats = mats
         self._shadow_key = key
 
-    def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray]:
-        """float32 (32, 3) reflected and transmitted directional albedo of a material, cached
-        by its parameter values."""
+    def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """A material's environment-lighting data, cached by its parameter values: float32
+        (32, 3) tables of the reflected albedo, the transmitted albedo and the reflected albedo
+        of the specular part alone (the model's ``ibl_split`` hook; none for diffuse models),
+        and that part's lobe width alpha."""
         key = json.dumps(params.to_plain(), sort_keys=True)
         tables = self._albedo_cache.get(key)
         if tables is None:
             from viewer import brdf
 
-            r, t = albedo_tables(brdf.get(params.model), params)
-            tables = (r.astype("f4"), t.astype("f4"))
+            model = brdf.get(params.model)
+            r, t = albedo_tables(model, params)
+            split = getattr(model.module, "ibl_split", None)
+            if split is None:
+                spec, alpha = np.zeros_like(r), 1.0
+            else:
+                spec_params, alpha = split(params)
+                spec = r if spec_params is params else albedo_tables(model, spec_params)[0]
+            tables = (r.astype("f4"), t.astype("f4"), np.minimum(spec, r).astype("f4"), float(alpha))
             if len(self._albedo_cache) > 256:
                 self._albedo_cache.clear()
             self._albedo_cache[key] = tables
         return tables
 
     # ---------------------------------------------------------------- passes
+    def ibl(self):
+        """The image-based lighting state (prefiltered environment), created on first use."""
+        if self._ibl is None:
+            from viewer.gl.ibl import IBL
+
+            self._ibl = IBL(self.ctx)
+        return self._ibl
+
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
-               height: int | None = None, view_mode: int = 0, msaa: int | None = None):
+               height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0):
         """Render the scene into the linear HDR target; returns the resolved float texture."""
         ctx = self.ctx
         w = int(width or scene.camera.width)
@@ -291,14 +310,28 @@ class Renderer:
 
         env = scene.environment
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
+        env_map = env.radiance_map() if env.map is not None else None
         thickness = None
         absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])]
-        if absorbers and scene.render.ibl != "off" and np.any(env_rad > 0):
+        if absorbers and scene.render.ibl != "off" and (env_map is not None or np.any(env_rad > 0)):
             thickness = self._thickness_pass(absorbers, cam, w, h)
+        ibl = self.ibl()
+        ibl.set_environment(env_map, constant=None if env_map is not None else env_rad)
         fbo = targets["draw_fbo"]
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         fbo.clear(*[float(x) for x in env_rad], 1.0, depth=1.0)
+        if env_map is not None:  # draw the environment behind the scene
+            bg = self.programs.get("background")
+            if bg is None:
+                bg = self.programs["background"] = build_program(
+                    ctx, "passes/fullscreen.vert", "passes/background.frag", virtual=default_virtual(("lambert",)))
+                self._bg_vao = ctx.vertex_array(bg, [])
+            ctx.disable(ctx.DEPTH_TEST)
+            _set(bg, "u_inv_view_proj", gl_bytes(np.linalg.inv(cam.projection(w / h) @ cam.view())))
+            _set(bg, "u_camera_pos", tuple(float(x) for x in cam.position))
+            ibl.bind(bg, env.rotation_deg)
+            self._bg_vao.render(vertices=3)
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
         view_proj = cam.projection(w / h) @ cam.view()
@@ -309,7 +342,7 @@ class Renderer:
             types[i] = 0 if l.type == "point" else 1
             pos[i] = l.position if l.type == "point" else l.direction
             val[i] = l.intensity if l.type == "point" else l.irradiance
-        env_on = scene.render.ibl != "off" and bool(np.any(env_rad > 0))
+        env_on = scene.render.ibl != "off" and (env_map is not None or bool(np.any(env_rad > 0)))
         frame_uniforms = {
             "u_view_proj": gl_bytes(view_proj),
             "u_camera_pos": tuple(float(x) for x in cam.position),
@@ -317,8 +350,9 @@ class Renderer:
             "u_light_type": types.tobytes(),
             "u_light_pos": pos.tobytes(),
             "u_light_value": val.tobytes(),
-            "u_env_constant": tuple(float(x) for x in env_rad),
             "u_env_on": int(env_on),
+            "u_ibl_mode": IBL_MODES.get(scene.render.ibl, 1),
+            "u_frame_index": int(frame_index),
             "u_view_mode": int(view_mode),
             "u_shadows_on": int(shadows),
         }
@@ -338,6 +372,9 @@ class Renderer:
             if id(prog) not in ready:
                 for k, v in frame_uniforms.items():
                     _set(prog, k, v)
+                # always: unbound samplers default to unit 0, where the shadow atlas (a different
+                # sampler type) is, and that makes the draw call invalid
+                ibl.bind(prog, env.rotation_deg)
                 ready.add(id(prog))
             m = obj.model_matrix()
             _set(prog, "u_model", gl_bytes(m))
@@ -346,9 +383,12 @@ class Renderer:
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
             if env_on:
-                refl, trans = self.albedo_tables(params)
+                refl, trans, spec, alpha = self.albedo_tables(params)
                 _set(prog, "u_albedo", refl.tobytes())
                 _set(prog, "u_albedo_t", trans.tobytes())
+                _set(prog, "u_albedo_s", spec.tobytes())
+                _set(prog, "u_ibl_alpha", alpha)
+                _set(prog, "u_ibl_delta", int(brdf_spec(params).delta and alpha == 0.0))
                 absorbing = "sigma_a" in params and brdf_spec(params).transmissive
                 _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
                 _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))
@@ -433,16 +473,26 @@ class Renderer:
         a = np.frombuffer(self._ldr[0].read(), dtype=np.uint8).reshape(h, w, 4)
         return np.ascontiguousarray(a[::-1, :, :3])
 
-    def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0, supersample: int = 1):
+    def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0, supersample: int = 1,
+                      frames: int = 1):
         """(linear float32, sRGB uint8) images, (H, W, 3), row 0 = top.
 
         ``supersample`` k > 1 renders k x k shading points per pixel on a regular grid (no MSAA)
         and averages them: the box filter of CONTRACT section 1 up to 1/k^2 of the error of
         shading at the pixel centre (what MSAA does), at k^2 times the cost."""
-        if supersample <= 1:
+        if supersample <= 1 and frames <= 1:
             hdr = self.render(scene, camera, width, height, view_mode)
             return (self.read_linear(hdr),
                     self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
+        if supersample <= 1:  # progressive: the mean of ``frames`` frames with new sample sets
+            from viewer.colour import to_srgb8
+
+            acc = None
+            for f in range(frames):
+                img = self.read_linear(self.render(scene, camera, width, height, view_mode, frame_index=f))
+                acc = img.astype(np.float64) if acc is None else acc + img
+            linear = (acc / frames).astype(np.float32)
+            return linear, to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
         from viewer.colour import to_srgb8
 
         k = int(supersample)
@@ -467,6 +517,8 @@ class Renderer:
         if self._thick:
             for r in self._thick[1:]:
                 r.release()
+        if self._ibl is not None:
+            self._ibl.release()
         self._empty_vao.release()
         for p in self.programs.values():
             p.release()

@@ -1,0 +1,451 @@
+"""Image-based lighting on the GPU: the environment's textures for ``shaders/common/ibl.glsl``.
+
+``IBL.set_environment(latlong)`` builds, from a lat-long radiance map (intensity applied,
+rotation *not* applied: the rotation is a uniform, so turning the map costs nothing):
+
+1. **The map** as a float RGB 2D texture with a full mip chain (``u_env_map``): the background,
+   mirror reflections and the source of every filtered lookup. The levels are made on the GPU
+   (``passes/ibl_downsample.frag``): each texel is the *solid-angle weighted* mean of the
+   texels under it, a box filter on the sphere (GL's ``glGenerateMipmap`` would weight the
+   small polar texels like equatorial ones), exact for odd sizes too.
+2. **GGX-prefiltered radiance** (``u_env_prefiltered``), one level per alpha in ``ALPHAS``
+   (Walter et al. 2007's alpha): Karis 2013's split-sum first factor with n = v = r, half
+   vectors drawn from D(h)(n.h) (with v = n this *is* Heitz 2018's visible-normal density),
+   weights n.l, and *filtered importance sampling* (Colbert & Krivanek 2007, GPU Gems 3 ch. 20):
+   each sample reads the map's mip level whose texel solid angle matches the sample's share
+   1 / (N pdf), so a tiny bright sun is spread over the lobe instead of making fireflies. All
+   levels come from one draw (``passes/ibl_prefilter.frag``). ``SAMPLES`` gives the Hammersley
+   samples per texel of each level (the same set for every texel: the error is smooth across
+   the map, not noise). The exact integral each level estimates is
+       P(r, alpha) = int L(l) D(h) max(0, r.l) dl / int D(h) max(0, r.l) dl, h = (r + l) / |r + l|.
+3. **The DFG table** (``u_env_dfg``), rendered on the GPU (``passes/ibl_dfg.frag``) in the
+   convention of ``viewer.environment.dfg``: s = alpha, t = NoV, (r, g) = (A, B), E_ss = F0 A + B.
+   It depends on no environment, so it is made once per ``IBL`` (and disk-cached).
+4. **SH9 irradiance**: ``viewer.environment.sh.project_latlong`` on the CPU (exact texel
+   integrals; ~tens of ms for 1024 x 512), 9 vec3 uniforms ``u_env_sh``.
+5. On request, ``cubemap()``: the map resampled into a float cube map on the GPU
+   (``passes/ibl_cubemap.frag``), checked against ``viewer.environment.latlong.to_cubemap``.
+
+**Representation of the prefiltered levels, and why.** moderngl can neither attach a cube face
+nor a mip level other than 0 to a framebuffer, nor write the mip levels of a cube texture, so a
+mipmapped prefiltered cube map (the usual choice) would need raw GL calls. The levels are
+instead lat-long images of one size (``LAYER_WIDTH`` x ``LAYER_WIDTH / 2``, smaller for smaller
+maps) in one ``sampler2DArray``: layer k - 1 holds ALPHAS[k] (k >= 1); level 0, alpha = 0, is
+the full-resolution map itself. Why not a lat-long *mip chain*: mip sizes halve per level,
+which ties resolution to the level index; the GGX lobe does not narrow that fast and with 8
+levels alpha = 1 would sit in a 4 x 2 (or 8 x 4) image, far too coarse for bilinear lookups
+(the poles of a lat-long image need a few rows). Equal-size layers keep every level well
+sampled (a 256 x 128 texel is 1.4 degrees; the alpha = 0.05 lobe is ~7 degrees wide), need no
+seam handling (repeat in u, clamp in v, no derivatives) and the lookup interpolates between the
+two nearest levels explicitly, with exactly the alphas of ``ALPHAS`` (uploaded as
+``u_env_alphas``, so GLSL and Python cannot disagree). The whole stack renders in one draw into
+a tall 2D target, is read back (it is needed on the CPU anyway, for the disk cache) and
+written into the array with ``TextureArray.write``.
+
+Disk cache: ``viewer.environment.cache`` by content hash (map bytes + settings + version): a
+second ``set_environment`` with the same map, even in a new process, runs no prefilter pass
+(``stats["cached"]``, ``stats["prefilter_passes"] == 0``). The map texture and its mip chain
+are always rebuilt (a few small GPU passes).
+
+Texture units: ``bind(prog, rotation_deg, first_unit)`` uses first_unit (map),
+first_unit + 1 (prefiltered), first_unit + 2 (DFG) and, once ``cubemap()`` was made,
+first_unit + 3 (``u_env_cube``).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from viewer.environment import cache
+from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
+from viewer.environment.latlong import rotation_y
+from viewer.gl.shaders import build_program
+
+log = logging.getLogger(__name__)
+
+#: GGX alphas of the prefiltered levels (Walter et al. 2007's alpha, not perceptual roughness).
+#: Level 0 is the map itself. Roughly doubling lobe widths at first, then evenly up to 1.
+ALPHAS = (0.0, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
+#: Hammersley samples per texel for each level (level 0 takes none). Measured against a
+#: brute-force integral on the studio map (tests/test_ibl.py): 256 per texel left median
+#: relative errors of 2-6 % and up to 60 % in dark texels next to bright panels; 1024 gives
+#: 1.7 % median, 13 % at the 95th percentile, 20 % worst (the FIS bias in the GGX tail; the
+#: sky: ~1 % median); 1024 x 512 prefilters in 2.6 s on 2 idle llvmpipe cores. Samples are
+#: drawn only where l is above the surface (theta_h < 45 degrees when n = v): none wasted.
+SAMPLES = (0, 1024, 1024, 1024, 1024, 1024, 1024, 1024)
+#: width of every prefiltered layer (height = width / 2), or the map's width if smaller
+LAYER_WIDTH = 256
+#: DFG table: size and quadrature points, as viewer.environment.dfg.dfg_table's defaults
+DFG_SAMPLES = 4096
+#: a constant environment is a small constant map (the same code path, exact results)
+CONSTANT_MAP_SIZE = (16, 8)
+MAX_LEVELS = 8  # keep equal to IBL_MAX_LEVELS in shaders/common/ibl.glsl
+
+_VERT = "passes/fullscreen.vert"
+
+
+def _set(prog, name, value):
+    """Set a uniform if the compiler kept it (unused uniforms are optimized away)."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, (bytes, bytearray)):
+        u.write(bytes(value[: u.array_length * u.dimension * 4]))
+    else:
+        u.value = value
+
+
+def sanitize_map(latlong) -> np.ndarray:
+    """float32 (H, W, 3), C-contiguous, non-finite and negative values set to 0."""
+    a = np.asarray(latlong, dtype=np.float32)
+    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise ValueError(f"an environment map must be (H, W, 3), got {a.shape}")
+    bad = ~np.isfinite(a) | (a < 0)
+    if bad.any():
+        a = np.where(bad, np.float32(0.0), a)
+    return np.ascontiguousarray(a)
+
+
+def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
+    """(w, h) of every level of a full GL mip chain."""
+    sizes = [(width, height)]
+    while sizes[-1] != (1, 1):
+        w, h = sizes[-1]
+        sizes.append((max(1, w // 2), max(1, h // 2)))
+    return sizes
+
+
+class IBL:
+    ALPHAS = ALPHAS
+    SAMPLES = SAMPLES
+
+    def __init__(self, ctx, *, alphas=ALPHAS, samples=SAMPLES, layer_width: int = LAYER_WIDTH,
+                 use_cache: bool = True, fis_bias: float = 1.0):
+        if len(alphas) != len(samples) or not 2 <= len(alphas) <= MAX_LEVELS or alphas[0] != 0.0 \
+                or any(b <= a for a, b in zip(alphas, alphas[1:])):
+            raise ValueError("alphas must start at 0, increase, and match samples (2..8 levels)")
+        self.ctx = ctx
+        self.alphas = tuple(float(a) for a in alphas)
+        self.samples = tuple(int(s) for s in samples)
+        self.layer_width = int(layer_width)
+        self.use_cache = use_cache
+        self.fis_bias = float(fis_bias)
+        self.stats: dict = {}
+        self._key = None
+        self.map_tex = None
+        self.prefiltered = None
+        self.dfg_tex = None
+        self.dfg = None  # (size, size, 2) float32, table[i, j] = (A, B) at NoV_i, alpha_j
+        self.sh = np.zeros((9, 3))
+        self.map_size = (0, 0)
+        self.layer_size = (0, 0)
+        self.prefiltered_data = None  # (levels - 1, h, w, 3) float32
+        self.cube = None
+        self._cube_key = None
+        self._programs = {}
+        self._vaos = {}
+        self._dfg_s = 0.0
+
+    # ------------------------------------------------------------------ helpers
+    def _program(self, name: str):
+        prog = self._programs.get(name)
+        if prog is None:
+            prog = build_program(self.ctx, _VERT, f"passes/{name}.frag", virtual={})
+            self._programs[name] = prog
+            self._vaos[name] = self.ctx.vertex_array(prog, [])
+        return prog
+
+    def _draw(self, name: str, fbo, viewport):
+        """One fullscreen triangle into ``fbo``; the caller's framebuffer binding is restored
+        (so set_environment may run between a renderer's passes)."""
+        prev = self.ctx.fbo
+        fbo.use()
+        fbo.viewport = viewport
+        try:
+            self._vaos[name].render(vertices=3)
+        finally:
+            try:
+                prev.use()
+            except Exception:  # noqa: BLE001 - the previous one was released: nothing to restore
+                pass
+
+    def _target(self, w: int, h: int):
+        tex = self.ctx.texture((w, h), 4, dtype="f4")
+        tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+        return tex, self.ctx.framebuffer(color_attachments=[tex])
+
+    def _settings(self) -> dict:
+        return {"alphas": self.alphas, "samples": self.samples, "layer_width": self.layer_width,
+                "fis_bias": self.fis_bias, "estimator": "ggx-dcos-n=v=r-nol-weighted-fis"}
+
+    def _map_uniforms(self, prog, rotation_deg: float = 0.0):
+        w, h = self.map_size
+        _set(prog, "u_env_rot", np.ascontiguousarray(rotation_y(-rotation_deg).T, dtype="f4").tobytes())
+        _set(prog, "u_env_size", (float(w), float(h)))
+        _set(prog, "u_env_max_lod", float(len(mip_sizes(w, h)) - 1))
+        al = np.zeros(MAX_LEVELS, "f4")
+        al[: len(self.alphas)] = self.alphas
+        _set(prog, "u_env_alphas", al.tobytes())
+        _set(prog, "u_env_num_levels", len(self.alphas))
+
+    # ------------------------------------------------------------------ environment
+    def set_environment(self, latlong: np.ndarray | None, constant=None) -> None:
+        """Build (or load from the disk cache) every texture for ``latlong`` (float32 (H, W, 3)
+        radiance, intensity applied, rotation not applied) or, when it is None, for the constant
+        radiance ``constant`` (3,) (black if that is None too). No work if the content is the
+        one already set."""
+        t0 = time.perf_counter()
+        if latlong is None:
+            c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
+            w, h = CONSTANT_MAP_SIZE
+            img = sanitize_map(np.broadcast_to(c, (h, w, 3)))
+        else:
+            img = sanitize_map(latlong)
+        key = cache.content_key(img, self._settings())
+        t_hash = time.perf_counter() - t0
+        if key == self._key:
+            self.stats.update({"unchanged": True, "hash_s": t_hash, "prefilter_passes": 0})
+            return
+        tc = time.perf_counter()
+        for name in ("ibl_downsample", "ibl_prefilter"):
+            self._program(name)
+        t_compile = time.perf_counter() - tc
+        self._ensure_dfg()
+        h, w = img.shape[:2]
+        lw = min(self.layer_width, w)
+        lh = max(1, min(self.layer_width // 2, h))
+        nl = len(self.alphas) - 1
+
+        t1 = time.perf_counter()
+        self._upload_map(img)
+        t_map = time.perf_counter() - t1
+
+        cached = False
+        passes = 0
+        t2 = time.perf_counter()
+        hit = cache.load(key, expect={"prefiltered": (nl, lh, lw, 3), "sh": (9, 3)}) if self.use_cache else None
+        if hit is not None:
+            pre = hit["prefiltered"].astype("f4")
+            coeffs = hit["sh"].astype(np.float64)
+            cached = True
+            t_pre = t_sh = 0.0
+        else:
+            pre = self._prefilter(lw, lh)
+            passes = 1
+            t_pre = time.perf_counter() - t2
+            t3 = time.perf_counter()
+            from viewer.environment.sh import project_latlong
+
+            coeffs = project_latlong(img)
+            t_sh = time.perf_counter() - t3
+            if self.use_cache:
+                cache.store(key, {"prefiltered": pre, "sh": coeffs})
+        t4 = time.perf_counter()
+        if self.prefiltered is not None:
+            self.prefiltered.release()
+        arr = self.ctx.texture_array((lw, lh, nl), 3, np.ascontiguousarray(pre, dtype="f4").tobytes(), dtype="f4")
+        arr.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
+        arr.repeat_x = True
+        arr.repeat_y = False
+        self.prefiltered = arr
+        self.prefiltered_data = pre
+        self.sh = coeffs
+        self.layer_size = (lw, lh)
+        self._key = key
+        self._cube_key = None
+        t_up = time.perf_counter() - t4
+        self.stats = {"cached": cached, "prefilter_passes": passes, "unchanged": False,
+                      "prefilter_s": t_pre, "sh_s": t_sh, "map_s": t_map, "hash_s": t_hash,
+                      "upload_s": t_up, "compile_s": t_compile, "dfg_s": self._dfg_s,
+                      "total_s": time.perf_counter() - t0,
+                      "levels": len(self.alphas), "alphas": self.alphas, "samples": self.samples,
+                      "map_size": (w, h), "layer_size": (lw, lh)}
+
+    def _upload_map(self, img: np.ndarray):
+        """The map with its solid-angle weighted mip chain, built level by level on the GPU."""
+        ctx = self.ctx
+        h, w = img.shape[:2]
+        if self.map_tex is not None:
+            self.map_tex.release()
+        tex = ctx.texture((w, h), 3, img.tobytes(), dtype="f4")
+        tex.build_mipmaps()  # allocates the chain (GL's box filter); every level is overwritten
+        sizes = mip_sizes(w, h)
+        prog = self._program("ibl_downsample")
+        tex.filter = (ctx.NEAREST_MIPMAP_NEAREST, ctx.NEAREST)  # texelFetch only while building
+        tex.use(0)
+        _set(prog, "u_src", 0)
+        scratch = None
+        try:
+            for k in range(1, len(sizes)):
+                sw, sh_ = sizes[k - 1]
+                dw, dh = sizes[k]
+                if scratch is None or scratch[0].size != (dw, dh):
+                    if scratch is not None:
+                        scratch[1].release()
+                        scratch[0].release()
+                    scratch = self._target(dw, dh)
+                _set(prog, "u_src_level", k - 1)
+                _set(prog, "u_src_size", (float(sw), float(sh_)))
+                _set(prog, "u_dst_size", (float(dw), float(dh)))
+                self._draw("ibl_downsample", scratch[1], (0, 0, dw, dh))
+                data = np.frombuffer(scratch[0].read(), dtype="f4").reshape(dh, dw, 4)[:, :, :3]
+                tex.write(np.ascontiguousarray(data).tobytes(), level=k)
+        finally:
+            if scratch is not None:
+                scratch[1].release()
+                scratch[0].release()
+        tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+        tex.repeat_x = True
+        tex.repeat_y = False
+        self.map_tex = tex
+        self.map_size = (w, h)
+
+    def _prefilter(self, lw: int, lh: int) -> np.ndarray:
+        """All prefiltered levels in one draw into a (lw, lh * levels) target; (L, lh, lw, 3)."""
+        nl = len(self.alphas) - 1
+        prog = self._program("ibl_prefilter")
+        self.map_tex.use(0)
+        _set(prog, "u_env_map", 0)
+        self._map_uniforms(prog, 0.0)
+        _set(prog, "u_layer_size", (float(lw), float(lh)))
+        _set(prog, "u_fis_bias", self.fis_bias)
+        smp = np.zeros(MAX_LEVELS, "i4")
+        smp[: len(self.samples)] = self.samples
+        _set(prog, "u_samples", smp.tobytes())
+        tex, fbo = self._target(lw, lh * nl)
+        try:
+            self._draw("ibl_prefilter", fbo, (0, 0, lw, lh * nl))
+            data = np.frombuffer(tex.read(), dtype="f4").reshape(nl, lh, lw, 4)[..., :3]
+            return np.ascontiguousarray(data)
+        finally:
+            fbo.release()
+            tex.release()
+
+    # ------------------------------------------------------------------ DFG
+    def _ensure_dfg(self):
+        if self.dfg_tex is not None:
+            self._dfg_s = 0.0
+            return
+        t0 = time.perf_counter()
+        settings = {"size": DFG_SIZE, "samples": DFG_SAMPLES}
+        key = cache.content_key(None, settings, kind="dfg")
+        hit = cache.load(key, kind="dfg", expect={"dfg": (DFG_SIZE, DFG_SIZE, 2)}) if self.use_cache else None
+        if hit is not None:
+            table = hit["dfg"].astype("f4")
+        else:
+            table = self.render_dfg(DFG_SIZE, DFG_SAMPLES)
+            if self.use_cache:
+                cache.store(key, {"dfg": table}, kind="dfg")
+        tex = self.ctx.texture((DFG_SIZE, DFG_SIZE), 2, np.ascontiguousarray(table).tobytes(), dtype="f4")
+        tex.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
+        tex.repeat_x = False
+        tex.repeat_y = False
+        self.dfg_tex = tex
+        self.dfg = table
+        self._dfg_s = time.perf_counter() - t0
+
+    def render_dfg(self, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> np.ndarray:
+        """(size, size, 2) float32 DFG table computed on the GPU: table[i, j] = (A, B) at
+        NoV = (i + 0.5) / size, alpha = (j + 0.5) / size (``viewer.environment.dfg``)."""
+        ctx = self.ctx
+        u, wq = vndf_quadrature(samples)
+        n = len(u)
+        qw = 64
+        rows = (n + qw - 1) // qw
+        q = np.zeros((rows * qw, 3), "f4")
+        q[:n, :2] = u
+        q[:n, 2] = wq
+        qtex = ctx.texture((qw, rows), 3, q.tobytes(), dtype="f4")
+        qtex.filter = (ctx.NEAREST, ctx.NEAREST)
+        prog = self._program("ibl_dfg")
+        qtex.use(0)
+        _set(prog, "u_quad", 0)
+        _set(prog, "u_quad_count", n)
+        _set(prog, "u_quad_width", qw)
+        _set(prog, "u_size", float(size))
+        tex, fbo = self._target(size, size)
+        try:
+            self._draw("ibl_dfg", fbo, (0, 0, size, size))
+            data = np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :2]
+            return np.ascontiguousarray(data)
+        finally:
+            fbo.release()
+            tex.release()
+            qtex.release()
+
+    # ------------------------------------------------------------------ cube map
+    def cubemap(self, size: int | None = None, rotation_deg: float = 0.0, supersample: int = 1):
+        """The map as a float RGB ``TextureCube`` (faces in GL order, linear filtering with a
+        mip chain), resampled on the GPU: texel = mean of ``supersample``^2 bilinear lookups, as
+        ``viewer.environment.latlong.to_cubemap``. Default size: map width / 4."""
+        self._require_env()
+        ctx = self.ctx
+        size = int(size or max(1, self.map_size[0] // 4))
+        key = (self._key, size, float(rotation_deg), int(supersample))
+        if self.cube is not None and self._cube_key == key:
+            return self.cube
+        prog = self._program("ibl_cubemap")
+        self.map_tex.use(0)
+        _set(prog, "u_env_map", 0)
+        self._map_uniforms(prog, rotation_deg)
+        _set(prog, "u_face_size", float(size))
+        _set(prog, "u_supersample", int(supersample))
+        faces = []
+        tex, fbo = self._target(size, size)
+        try:
+            for f in range(6):
+                _set(prog, "u_face", f)
+                self._draw("ibl_cubemap", fbo, (0, 0, size, size))
+                faces.append(np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :3].copy())
+        finally:
+            fbo.release()
+            tex.release()
+        if self.cube is not None:
+            self.cube.release()
+        cube = ctx.texture_cube((size, size), 3, None, dtype="f4")
+        for f in range(6):
+            cube.write(f, np.ascontiguousarray(faces[f]).tobytes())
+        cube.build_mipmaps()
+        cube.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+        self.cube = cube
+        self.cube_data = np.stack(faces)  # (6, size, size, 3), rows t, columns s
+        self._cube_key = key
+        return cube
+
+    # ------------------------------------------------------------------ binding
+    def _require_env(self):
+        if self._key is None:
+            self.set_environment(None, np.zeros(3))
+
+    def bind(self, prog, rotation_deg: float = 0.0, first_unit: int = 4) -> None:
+        """Bind the textures to units first_unit.. and set every uniform of common/ibl.glsl
+        (those the compiler dropped are skipped)."""
+        self._require_env()
+        self.map_tex.use(first_unit)
+        self.prefiltered.use(first_unit + 1)
+        self.dfg_tex.use(first_unit + 2)
+        _set(prog, "u_env_map", first_unit)
+        _set(prog, "u_env_prefiltered", first_unit + 1)
+        _set(prog, "u_env_dfg", first_unit + 2)
+        if self.cube is not None:
+            self.cube.use(first_unit + 3)
+            _set(prog, "u_env_cube", first_unit + 3)
+        self._map_uniforms(prog, rotation_deg)
+        _set(prog, "u_env_sh", np.ascontiguousarray(self.sh, dtype="f4").tobytes())
+
+    def release(self):
+        for t in (self.map_tex, self.prefiltered, self.dfg_tex, self.cube):
+            if t is not None:
+                t.release()
+        self.map_tex = self.prefiltered = self.dfg_tex = self.cube = None
+        for v in self._vaos.values():
+            v.release()
+        for p in self._programs.values():
+            p.release()
+        self._vaos.clear()
+        self._programs.clear()
+        self._key = None
