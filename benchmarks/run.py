@@ -76,6 +76,19 @@ def frame_times(frames=5):
                 ctx.finish()
                 ts.append(time.perf_counter() - t)
             print(f"default scene {w}x{h} {label:18s}: median {1000 * statistics.median(ts):7.1f} ms/frame")
+    # image-based lighting: the studio map, split sum (prefiltering once, not in the frame time)
+    ibl_scene = load_scene("default", ['environment={map="studio"}'])
+    for mode in ("split_sum", "fis"):
+        ibl_scene.render.ibl = mode
+        r.render(ibl_scene, cam, 1280, 720)
+        ctx.finish()
+        ts = []
+        for _ in range(frames):
+            t = time.perf_counter()
+            r.render(ibl_scene, cam, 1280, 720)
+            ctx.finish()
+            ts.append(time.perf_counter() - t)
+        print(f"default scene 1280x720, studio map, IBL {mode:9s}: median {1000 * statistics.median(ts):7.1f} ms/frame")
     r.release()
     ctx.release()
 

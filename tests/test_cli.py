@@ -103,3 +103,21 @@ def test_models_lists_registry():
     for name in brdf.names():
         assert f"{name}:" in r.stdout
     assert "albedo (rgb) default" in r.stdout
+
+
+def test_truncated_hdr_environment_exit_2(tmp_path):
+    from viewer.environment.io import save_environment
+
+    good = tmp_path / "good.hdr"
+    save_environment(good, np.random.default_rng(0).random((32, 64, 3)).astype(np.float32))
+    (tmp_path / "cut.hdr").write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2])
+    (tmp_path / "s.toml").write_text('[environment]\nmap = "cut.hdr"\n[[objects]]\nmesh = "sphere"\n'
+                                     'material = "m"\n[materials.m]\nmodel = "lambert"\n')
+    out = tmp_path / "o.png"
+    for cmd in ("render", "reference"):
+        extra = ["--spp", "1"] if cmd == "reference" else []
+        r = run(cmd, tmp_path / "s.toml", "--out", out, *extra)
+        assert r.returncode == 2, (cmd, r.stderr)
+        lines = [l for l in r.stderr.strip().splitlines() if l.startswith("brdf-viewer")]
+        assert len(lines) == 1 and "cut.hdr" in lines[0], r.stderr
+        assert "Traceback" not in r.stderr and not out.exists()

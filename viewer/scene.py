@@ -56,7 +56,7 @@ SCENE_VERSION = 1
 TOP_KEYS = ("version", "camera", "environment", "render", "lights", "objects", "materials")
 CAMERA_KEYS = ("position", "target", "up", "fov_y", "width", "height")
 ENV_KEYS = ("constant", "map", "intensity", "rotation_deg")
-RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap")
+RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation")
 LIGHT_TYPES = ("point", "directional")
 POINT_KEYS = ("type", "position", "intensity")
 DIRECTIONAL_KEYS = ("type", "direction", "irradiance")
@@ -200,6 +200,9 @@ class RenderSettings:
     msaa: int = 4
     exposure: float = 0.0
     tonemap: str = "none"
+    # multiple-scattering energy compensation of glossy lobes under environment light
+    # (Fdez-Aguera 2019; Kulla & Conty 2017): the energy single scattering loses, put back
+    ms_compensation: bool = False
 
     def __eq__(self, other):
         return _equal(self, other)
@@ -630,6 +633,8 @@ def _parse_render(ck: _Checker, t) -> RenderSettings:
         r.exposure = ck.number(t["exposure"], "render.exposure", f"a number of EV in [{lo:g}, {hi:g}]", lo, hi)
     if "tonemap" in t:
         r.tonemap = ck.choice(t["tonemap"], "render.tonemap", TONEMAPS)
+    if "ms_compensation" in t:
+        r.ms_compensation = ck.boolean(t["ms_compensation"], "render.ms_compensation")
     return r
 
 
@@ -844,7 +849,8 @@ def scene_to_data(scene: Scene) -> dict:
     d["environment"] = e
     r = scene.render
     d["render"] = {"ibl": r.ibl, "ssr": bool(r.ssr), "shadows": bool(r.shadows), "msaa": int(r.msaa),
-                   "exposure": float(r.exposure), "tonemap": r.tonemap}
+                   "exposure": float(r.exposure), "tonemap": r.tonemap,
+                   "ms_compensation": bool(r.ms_compensation)}
     lights = []
     for light in scene.lights:
         if light.type == "point":

@@ -31,6 +31,8 @@ uniform int u_ibl_mode;                  // 1 split sum, 2 filtered importance s
 uniform float u_ibl_alpha;               // the lobe width of the material's specular part (ibl_split)
 uniform int u_ibl_delta;                 // the material has only delta lobes (mirror, smooth glass)
 uniform int u_frame_index;               // brute force: a new sample set each frame
+uniform int u_ms_on;                     // multiple-scattering compensation (Fdez-Aguera 2019)
+uniform vec3 u_ms_f0;                    // the specular lobe's normal-incidence reflectance
 uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos, 6 shadow
 const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
@@ -170,6 +172,17 @@ void main() {
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
                 // environment; no occlusion.
                 radiance += rho_d * env_irradiance(n) * INV_PI + rho_s * env_prefiltered(r_w, u_ibl_alpha);
+                if (u_ms_on != 0 && u_ibl_delta == 0) {
+                    // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
+                    // energy (E_ss = A + B from the GGX DFG table); bounces return the geometric
+                    // series F_ms = FssEss F_avg / (1 - E_ms F_avg), spread like a diffuse lobe.
+                    // FssEss is the lobe's exact single-scattering albedo (the table rho_s).
+                    vec2 ab = env_dfg(wo.z, max(u_ibl_alpha, 1e-3));
+                    float e_ms = clamp(1.0 - (ab.x + ab.y), 0.0, 1.0);
+                    vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
+                    vec3 f_ms = rho_s * f_avg / (1.0 - e_ms * f_avg);
+                    radiance += f_ms * e_ms * env_irradiance(n) * INV_PI;
+                }
             } else {
                 radiance += ibl_sampled(wo, transpose(to_local), rho, rho_s, u_ibl_alpha,
                                         u_ibl_mode == 2, u_frame_index);

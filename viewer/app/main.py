@@ -365,6 +365,7 @@ class App:
         return out[0] if out else None
 
     _env_path_text = ""
+    _env_dialog = None
 
     def _environment_panel(self):
         from viewer.environment.procedural import builtin_names
@@ -383,6 +384,20 @@ class App:
         imgui.same_line()
         if imgui.button("Load .hdr/.exr"):
             self.set_environment(self._env_path_text.strip())
+        if imgui.button("Browse..."):
+            try:  # the desktop's own dialog (zenity / kdialog on Linux), polled, never blocking
+                from imgui_bundle import portable_file_dialogs as pfd
+
+                self._env_dialog = pfd.open_file("Environment map (.hdr, .exr)", str(Path.cwd()),
+                                                 ["HDR environment maps", "*.hdr *.exr", "All files", "*"])
+            except Exception as e:  # noqa: BLE001 - no dialog backend: say so, keep going
+                self.status = f"no file dialog available ({e}); type a path or drop a file"
+        if self._env_dialog is not None and self._env_dialog.ready(0):
+            picked = self._env_dialog.result()
+            self._env_dialog = None
+            if picked:
+                self.set_environment(picked[0])
+        imgui.same_line()
         imgui.text_disabled("(or drop a file on the window)")
         if env.map is None:
             c = [float(x) for x in (env.constant if env.constant is not None else np.zeros(3))]
@@ -404,6 +419,10 @@ class App:
         ch, i = imgui.combo("IBL", modes.index(r.ibl) if r.ibl in modes else 1, modes)
         if ch:
             r.ibl = modes[i]
+            self.dirty = True
+        ch, v = imgui.checkbox("multiple-scattering compensation", bool(r.ms_compensation))
+        if ch:
+            r.ms_compensation = v
             self.dirty = True
 
     def set_environment(self, ref) -> bool:

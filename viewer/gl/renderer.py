@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from viewer.brdf.albedo import albedo_tables
+from viewer.brdf.albedo import TABLE_SIZE, albedo_tables
 from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import build_program, default_virtual
@@ -29,6 +29,21 @@ def brdf_spec(params):
     from viewer import brdf
 
     return brdf.get(params.model).spec
+
+
+_DFG = None
+
+
+def _ms_f0(spec_albedo_normal, alpha: float, nov: float) -> np.ndarray:
+    """The specular lobe's Fresnel at normal incidence for the multiple-scattering term: its
+    albedo there divided by the GGX albedo with F = 1 (A + B of the DFG table), clamped to 1."""
+    global _DFG
+    from viewer.environment.dfg import dfg_table, lookup_dfg
+
+    if _DFG is None:
+        _DFG = dfg_table()
+    a, b = lookup_dfg(_DFG, nov, max(alpha, 1e-3))
+    return np.clip(np.asarray(spec_albedo_normal, float) / max(float(a + b), 1e-6), 0.0, 1.0)
 
 
 def _absorbing(params) -> bool:
@@ -262,11 +277,12 @@ class Renderer:
         self._shadow_mats = mats
         self._shadow_key = key
 
-    def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """A material's environment-lighting data, cached by its parameter values: float32
         (32, 3) tables of the reflected albedo, the transmitted albedo and the reflected albedo
         of the specular part alone (the model's ``ibl_split`` hook; none for diffuse models),
-        and that part's lobe width alpha."""
+        that part's lobe width alpha, and its normal-incidence Fresnel for the multiple-scattering
+        compensation."""
         key = json.dumps(params.to_plain(), sort_keys=True)
         tables = self._albedo_cache.get(key)
         if tables is None:
@@ -280,7 +296,9 @@ class Renderer:
             else:
                 spec_params, alpha = split(params)
                 spec = r if spec_params is params else albedo_tables(model, spec_params)[0]
-            tables = (r.astype("f4"), t.astype("f4"), np.minimum(spec, r).astype("f4"), float(alpha))
+            spec = np.minimum(spec, r)
+            tables = (r.astype("f4"), t.astype("f4"), spec.astype("f4"), float(alpha),
+                      _ms_f0(spec[-1], alpha, (TABLE_SIZE - 0.5) / TABLE_SIZE))
             if len(self._albedo_cache) > 256:
                 self._albedo_cache.clear()
             self._albedo_cache[key] = tables
@@ -353,6 +371,7 @@ class Renderer:
             "u_env_on": int(env_on),
             "u_ibl_mode": IBL_MODES.get(scene.render.ibl, 1),
             "u_frame_index": int(frame_index),
+            "u_ms_on": int(bool(getattr(scene.render, "ms_compensation", False))),
             "u_view_mode": int(view_mode),
             "u_shadows_on": int(shadows),
         }
@@ -383,12 +402,13 @@ class Renderer:
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
             if env_on:
-                refl, trans, spec, alpha = self.albedo_tables(params)
+                refl, trans, spec, alpha, ms_f0 = self.albedo_tables(params)
                 _set(prog, "u_albedo", refl.tobytes())
                 _set(prog, "u_albedo_t", trans.tobytes())
                 _set(prog, "u_albedo_s", spec.tobytes())
                 _set(prog, "u_ibl_alpha", alpha)
                 _set(prog, "u_ibl_delta", int(brdf_spec(params).delta and alpha == 0.0))
+                _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
                 absorbing = "sigma_a" in params and brdf_spec(params).transmissive
                 _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
                 _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))
