@@ -198,3 +198,23 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
     """, display)
     assert r.returncode == 0, r.stderr + r.stdout
     assert "ENV OK" in r.stdout
+
+
+def test_brute_force_ibl_accumulates_in_the_window(display):
+    r = _run_py("""
+        from viewer.app.main import App
+        app = App(None, ['environment={map="studio"}', 'render.ibl="brute_force"'], size=(400, 240))
+        for _ in range(6):
+            app.frame()
+        assert app._bf_count >= 4, app._bf_count
+        n = app._bf_count
+        app.camera.orbit(5.0, 0.0, 240.0)
+        app.dirty = True
+        app.frame()
+        assert app._bf_count <= 1  # a change starts the average over
+        app.glfw.set_window_should_close(app.window, True)
+        app.run()
+        print("BF OK", n)
+    """, display)
+    assert r.returncode == 0, r.stderr + r.stdout
+    assert "BF OK" in r.stdout

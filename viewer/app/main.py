@@ -109,6 +109,8 @@ class App:
         imgui = self.imgui
         if self._reference is not None:
             self._reference.close()
+        if self._bf_tex is not None:
+            self._bf_tex.release()
         self.renderer.release()
         imgui.backends.opengl3_shutdown()
         imgui.backends.glfw_shutdown()
@@ -134,7 +136,7 @@ class App:
     def frame(self):
         glfw, imgui = self.glfw, self.imgui
         t0 = time.perf_counter()
-        if self.dirty or self._quality != "full":
+        if self.dirty or self._quality != "full" or (self.scene.render.ibl == "brute_force" and self._bf_count < 256):
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
@@ -157,10 +159,16 @@ class App:
             scale = 0.5 if interacting else 1.0
             rw, rh = max(1, int(vw * scale)), max(1, int(vh * scale))
             want_full = not interacting and self._quality != "full"
-            if self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh):
+            progressive = self.scene.render.ibl == "brute_force" and not interacting and self._bf_count < 256
+            if self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh) or progressive:
                 t1 = time.perf_counter()
+                restart = self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh)
+                if restart:
+                    self._bf_count, self._bf_sum = 0, None
                 self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
-                                                msaa=0 if interacting else None)
+                                                msaa=0 if interacting else None, frame_index=self._bf_count)
+                if self.scene.render.ibl == "brute_force" and not interacting:
+                    self.hdr = self._accumulate(self.hdr)
                 self.ctx.finish()
                 self.render_ms = 1000 * (time.perf_counter() - t1)
                 self._hdr_for = (vw, vh)
@@ -278,6 +286,8 @@ class App:
                 self.dirty = True
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self._environment_panel()
+            if s.render.ibl == "brute_force":
+                imgui.text(f"brute force: {self._bf_count} frames x 16 samples per pixel")
         if imgui.collapsing_header("Lights", imgui.TreeNodeFlags_.default_open):
             for i, light in enumerate(s.lights):
                 imgui.push_id(f"light{i}")
@@ -365,6 +375,26 @@ class App:
         return out[0] if out else None
 
     _env_path_text = ""
+    _bf_count = 0
+    _bf_sum = None
+    _bf_tex = None
+
+    def _accumulate(self, hdr):
+        """Brute-force IBL: the running mean of frames with new sample sets (as the offscreen
+        ``render_arrays(frames=K)``), shown while it converges."""
+        img = self.renderer.read_linear(hdr).astype(np.float64)
+        self._bf_sum = img if self._bf_sum is None else self._bf_sum + img
+        self._bf_count += 1
+        mean = (self._bf_sum / self._bf_count).astype("f4")
+        h, w = mean.shape[:2]
+        rgba = np.ones((h, w, 4), "f4")
+        rgba[..., :3] = mean[::-1]
+        if self._bf_tex is None or self._bf_tex.size != (w, h):
+            if self._bf_tex is not None:
+                self._bf_tex.release()
+            self._bf_tex = self.ctx.texture((w, h), 4, dtype="f4")
+        self._bf_tex.write(rgba.tobytes())
+        return self._bf_tex
     _env_dialog = None
 
     def _environment_panel(self):
