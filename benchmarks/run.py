@@ -4,6 +4,7 @@
 - frame time of the default scene at 1280x720 and 640x360 (the offscreen renderer, which the
   window uses too), full quality (scene MSAA) and the interactive preview (no MSAA)
 - whole-process time of `brdf-viewer render` for a 512x512 PNG
+- screen-space reflections: the SSR pass alone and the frame with and without SSR at 1280x720
 """
 
 from __future__ import annotations
@@ -131,6 +132,42 @@ def model_switch():
     ctx.release()
 
 
+def ssr_times(frames=5):
+    """The reflective-floor scene at 1280x720 (MSAA 4): frame time with SSR on and off, and the
+    SSR pass alone (resolve of its three attachments, the colour mip chain and the trace)."""
+    from viewer.camera import OrbitCamera
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import load_scene
+
+    ctx = create_offscreen_context()
+    r = Renderer(ctx)
+    scene = load_scene("reflective_floor")
+    cam = OrbitCamera.from_scene(scene)
+    w, h = 1280, 720
+
+    def median_ms(fn):
+        fn()
+        ctx.finish()
+        ts = []
+        for _ in range(frames):
+            t = time.perf_counter()
+            fn()
+            ctx.finish()
+            ts.append(time.perf_counter() - t)
+        return 1000 * statistics.median(ts)
+
+    for on in (False, True):
+        scene.render.ssr = on
+        ms = median_ms(lambda: r.render(scene, cam, w, h))
+        print(f"reflective_floor {w}x{h} MSAA 4, SSR {'on ' if on else 'off'}: median {ms:7.1f} ms/frame")
+    ibl = r.ibl()
+    ms = median_ms(lambda: r.ssr().resolve_and_trace(ibl, cam, w, h, True, scene.environment.rotation_deg))
+    print(f"reflective_floor {w}x{h}, the SSR pass alone (resolve, mips, trace): median {ms:7.1f} ms")
+    r.release()
+    ctx.release()
+
+
 def render_process(runs=3):
     with tempfile.TemporaryDirectory() as d:
         ts = []
@@ -144,6 +181,7 @@ def render_process(runs=3):
 
 if __name__ == "__main__":
     frame_times()
+    ssr_times()
     model_switch()
     render_process()
     start_to_first_frame()

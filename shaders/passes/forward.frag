@@ -43,7 +43,18 @@ uniform vec3 u_sigma_a;                  // absorption inside a transmissive mat
 uniform float u_ior;
 uniform sampler2D u_thickness;           // distance to the nearest back face (0 = none)
 
+#ifdef SSR
+// Screen-space reflections (viewer/gl/ssr.py): the radiance without the specular environment
+// term, that term's weight rho_s and lobe width, and the geometry the SSR pass traces against.
+layout(location = 0) out vec4 frag_color;
+layout(location = 1) out vec4 frag_spec;   // rho_s, alpha of the specular part
+layout(location = 2) out vec4 frag_geom;   // world shading normal, linear view depth
+uniform mat4 u_view;
+const bool SSR_ON = true;
+#else
 out vec4 frag_color;
+const bool SSR_ON = false;
+#endif
 
 // A false-colour ramp for term views (dark blue -> cyan -> yellow -> red), t in [0, 1].
 vec3 false_colour(float t) {
@@ -166,12 +177,16 @@ void main() {
         vec3 rho_d = rho - rho_s;
         vec3 r_w = reflect(-wo_w, n);
         if (wo.z > 0.0) {
-            if (u_ibl_mode == 1 || u_ibl_delta != 0) {
+            if (u_ibl_mode == 1 || u_ibl_delta != 0 || SSR_ON) {
                 // Split sum (Karis 2013): the lobe integral of the environment is the prefiltered
                 // environment around the mirror direction times the lobe's albedo; the diffuse
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
                 // environment; no occlusion.
+#ifdef SSR
+                radiance += rho_d * env_irradiance(n) * INV_PI;  // rho_s * L_spec: the SSR pass
+#else
                 radiance += rho_d * env_irradiance(n) * INV_PI + rho_s * env_prefiltered(r_w, u_ibl_alpha);
+#endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
                     // energy (E_ss = A + B from the GGX DFG table); bounces return the geometric
@@ -208,6 +223,20 @@ void main() {
             radiance += rho_t * exp(-u_sigma_a * d) * env_prefiltered(normalize(t_out), u_ibl_alpha);
         }
     }
+#ifdef SSR
+    {
+        // the same table lookup as the environment block, also when the environment is off
+        // (reflections of the lit scene need the weight all the same)
+        float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
+        int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
+        int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
+        float fx = clamp(x - float(k0), 0.0, 1.0);
+        vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
+        vec3 rho_s = wo.z > 0.0 ? min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho) : vec3(0.0);
+        frag_spec = vec4(rho_s, u_ibl_alpha);
+        frag_geom = vec4(n, -(u_view * vec4(v_position, 1.0)).z);
+    }
+#endif
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);
     } else if (u_view_mode <= 3) {

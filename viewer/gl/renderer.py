@@ -18,7 +18,10 @@ MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
 SHADOW_TILE = 1024
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
 IBL_MODES = {"off": 0, "split_sum": 1, "fis": 2, "brute_force": 3}
-VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5, "shadow": 6}
+VIEW_MODES = {"shaded": 0, "F": 1, "D": 2, "G": 3, "N.L": 4, "f cos": 5, "shadow": 6,
+              # screen-space reflections (viewer/gl/ssr.py; only with [render] ssr = true):
+              "ssr hit": 7, "ssr steps": 8, "ssr uv": 9, "ssr only": 10}
+SSR_VIEW_BASE = 6  # view mode 7.. = SSR debug output 1..
 
 # (forward, up) of the six cube faces, in the order cube_face() in shadow.glsl returns them
 _FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)),
@@ -114,6 +117,7 @@ class Renderer:
         self._albedo_cache: dict[str, tuple] = {}
         self._thick = None
         self._ibl = None
+        self._ssr = None
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -145,18 +149,23 @@ class Renderer:
     # an exact box filter use render_arrays(..., supersample=k) instead.
     sample_shading = False
 
-    def forward_program(self, params, sample_shading: bool | None = None):
+    def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False):
         """The forward program for a material (its model, and a nested base model if any)."""
         from viewer.brdf.glsl import models_used
 
         per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
-        key = "forward:" + "+".join(used) + (":sample" if per_sample else "")
+        key = "forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
         prog = self.programs.get(key)
         if prog is None:
+            defines = {}
+            if per_sample:
+                defines["SAMPLE_SHADING"] = "1"
+            if ssr:
+                defines["SSR"] = "1"
             prog = build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
                                  geometry="passes/forward.geom", virtual=default_virtual(used),
-                                 defines={"SAMPLE_SHADING": "1"} if per_sample else None)
+                                 defines=defines or None)
             self.programs[key] = prog
         return prog
 
@@ -313,6 +322,14 @@ class Renderer:
             self._ibl = IBL(self.ctx)
         return self._ibl
 
+    def ssr(self):
+        """The screen-space reflection pass (viewer/gl/ssr.py), created on first use."""
+        if self._ssr is None:
+            from viewer.gl.ssr import SSR
+
+            self._ssr = SSR(self.ctx)
+        return self._ssr
+
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
                height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0):
         """Render the scene into the linear HDR target; returns the resolved float texture."""
@@ -320,7 +337,13 @@ class Renderer:
         w = int(width or scene.camera.width)
         h = int(height or scene.camera.height)
         cam = camera or OrbitCamera.from_scene(scene)
+        ssr_on = bool(scene.render.ssr)
         targets = self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)
+        if ssr_on:  # the same sample count, with the SSR pass's three attachments
+            targets = self.ssr().targets(w, h, targets["samples"])
+        ssr_debug = view_mode - SSR_VIEW_BASE if view_mode > SSR_VIEW_BASE else 0
+        if ssr_debug:
+            view_mode = 0  # the forward pass shades; the SSR pass shows its debug output
         lights = self._shadow_lights(scene)
         shadows = bool(scene.render.shadows) and len(lights) > 0
         if shadows:
@@ -339,7 +362,9 @@ class Renderer:
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         fbo.clear(*[float(x) for x in env_rad], 1.0, depth=1.0)
-        if env_map is not None:  # draw the environment behind the scene
+        if ssr_on:
+            self._ssr.background(ibl, cam, w, h, env_map is not None, env_rad, env.rotation_deg)
+        elif env_map is not None:  # draw the environment behind the scene
             bg = self.programs.get("background")
             if bg is None:
                 bg = self.programs["background"] = build_program(
@@ -375,6 +400,8 @@ class Renderer:
             "u_view_mode": int(view_mode),
             "u_shadows_on": int(shadows),
         }
+        if ssr_on:
+            frame_uniforms["u_view"] = gl_bytes(cam.view())
         if shadows:
             self._shadow["tex"].use(location=0)
             frame_uniforms.update({
@@ -387,7 +414,8 @@ class Renderer:
         ready = set()
         for obj in scene.objects:
             params = scene.materials[obj.material]
-            prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1)
+            prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1,
+                                        ssr=ssr_on)
             if id(prog) not in ready:
                 for k, v in frame_uniforms.items():
                     _set(prog, k, v)
@@ -401,7 +429,7 @@ class Renderer:
             idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
-            if env_on:
+            if env_on or ssr_on:
                 refl, trans, spec, alpha, ms_f0 = self.albedo_tables(params)
                 _set(prog, "u_albedo", refl.tobytes())
                 _set(prog, "u_albedo_t", trans.tobytes())
@@ -417,6 +445,8 @@ class Renderer:
                     thickness.use(location=1)
                     _set(prog, "u_thickness", 1)
             self._gpu_mesh(obj.mesh_data).vao(prog).render()
+        if ssr_on:
+            return self._ssr.resolve_and_trace(ibl, cam, w, h, env_on, env.rotation_deg, ssr_debug)
         if targets["draw_fbo"] is not targets["resolved_fbo"]:
             ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
         return targets["resolved"]
@@ -539,6 +569,8 @@ class Renderer:
                 r.release()
         if self._ibl is not None:
             self._ibl.release()
+        if self._ssr is not None:
+            self._ssr.release()
         self._empty_vao.release()
         for p in self.programs.values():
             p.release()
