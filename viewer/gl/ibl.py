@@ -63,6 +63,7 @@ from viewer.environment import cache
 from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
 from viewer.environment.latlong import rotation_y
 from viewer.gl.shaders import build_program
+from viewer.gl.shaders import set_uniform as _set
 
 log = logging.getLogger(__name__)
 
@@ -85,18 +86,6 @@ CONSTANT_MAP_SIZE = (16, 8)
 MAX_LEVELS = 8  # keep equal to IBL_MAX_LEVELS in shaders/common/ibl.glsl
 
 _VERT = "passes/fullscreen.vert"
-
-
-def _set(prog, name, value):
-    """Set a uniform if the compiler kept it (unused uniforms are optimized away)."""
-    try:
-        u = prog[name]
-    except KeyError:
-        return
-    if isinstance(value, (bytes, bytearray)):
-        u.write(bytes(value[: u.array_length * u.dimension * 4]))
-    else:
-        u.value = value
 
 
 def sanitize_map(latlong) -> np.ndarray:

@@ -13,6 +13,7 @@ from viewer.brdf.albedo import TABLE_SIZE, albedo_tables
 from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import build_program, default_virtual
+from viewer.gl.shaders import set_uniform as _set
 
 MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
 SHADOW_TILE = 1024
@@ -51,20 +52,6 @@ def _ms_f0(spec_albedo_normal, alpha: float, nov: float) -> np.ndarray:
 
 def _absorbing(params) -> bool:
     return brdf_spec(params).transmissive and "sigma_a" in params and bool(np.any(np.asarray(params.sigma_a) > 0))
-
-
-def _set(prog, name, value):
-    """Set a uniform if the compiler kept it (unused uniforms are optimized away)."""
-    try:
-        u = prog[name]
-    except KeyError:
-        return
-    if isinstance(value, (bytes, bytearray)):
-        # the compiler may shorten an array to the highest index it sees used (u_mat with a
-        # constant offset): upload only what the program kept
-        u.write(bytes(value[: u.array_length * u.dimension * 4]))
-    else:
-        u.value = value
 
 
 class GpuMesh:

@@ -133,3 +133,17 @@ def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *
         first = text.splitlines()
         head = next((l for l in first if "error" in l.lower()), first[0] if first else "compile error")
         raise ShaderError(f"shader compile failed: {head}" + ("\n" + text if len(first) > 1 else ""), f, ln) from None
+
+
+def set_uniform(prog, name, value):
+    """Set a uniform if the compiler kept it (unused uniforms are optimized away). Bytes are
+    cut to what the program kept: the compiler may shorten an array to the highest index it sees
+    used (u_mat with a constant offset)."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, (bytes, bytearray)):
+        u.write(bytes(value[: u.array_length * u.dimension * 4]))
+    else:
+        u.value = value

@@ -31,14 +31,9 @@ import numpy as np
 
 from viewer.camera import gl_bytes
 from viewer.gl.shaders import build_program, default_virtual
+from viewer.gl.shaders import set_uniform as _set
 
 SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
-
-
-def _set(prog, name, value):
-    from viewer.gl.renderer import _set as set_uniform
-
-    set_uniform(prog, name, value)
 
 
 class SSR:
