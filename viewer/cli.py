@@ -38,7 +38,7 @@ def _parser_render() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
-    p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | f cos | shadow (term views)")
+    p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | \"f cos\" | shadow (term views) | \"ssr hit\" | \"ssr steps\" | \"ssr uv\" | \"ssr only\" (SSR debug)")
     p.add_argument("--supersample", type=int, default=1, metavar="K",
                    help="K x K shading points per pixel, averaged (an exact box filter, as the reference "
                         "computes pixels); default 1 = the scene's MSAA, shading once per pixel")
