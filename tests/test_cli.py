@@ -121,3 +121,18 @@ def test_truncated_hdr_environment_exit_2(tmp_path):
         lines = [l for l in r.stderr.strip().splitlines() if l.startswith("brdf-viewer")]
         assert len(lines) == 1 and "cut.hdr" in lines[0], r.stderr
         assert "Traceback" not in r.stderr and not out.exists()
+
+
+def test_screenshot_reopens_as_the_same_scene(tmp_path):
+    """A PNG written by render holds its scene: rendering the PNG gives the identical image."""
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert run("render", "gallery", "--out", a, "--linear", tmp_path / "a.npy", "--width", 96, "--height", 54,
+               "--set", 'materials.gold.alpha=0.4').returncode == 0
+    r = run("render", a, "--out", b, "--linear", tmp_path / "b.npy")
+    assert r.returncode == 0, r.stderr
+    assert np.array_equal(np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy"))
+    from PIL import Image
+
+    Image.new("RGB", (4, 4)).save(tmp_path / "plain.png")
+    r = run("render", tmp_path / "plain.png", "--out", tmp_path / "c.png")
+    assert r.returncode == 2 and "holds no scene" in r.stderr

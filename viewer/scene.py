@@ -464,8 +464,31 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
         _Checker(label).fail("file", "not found", hint)
     if path.is_dir():
         _Checker(label).fail("file", "is a folder, not a scene file", "a scene file path (.toml)")
+    if path.suffix.lower() == ".png":
+        # a screenshot: its text chunk holds the whole scene (viewer.screenshot.png_text)
+        data = _read_screenshot(path, label)
+        return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
     data = _read_toml(path, label)
     return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
+
+
+SCREENSHOT_KEY = "brdf-viewer:scene"
+
+
+def _read_screenshot(path: Path, label: str) -> dict:
+    """The scene stored in a screenshot's PNG text chunk. Mesh and map paths in it resolve
+    against the screenshot's folder; built-in names work anywhere."""
+    try:
+        from viewer.io import read_png_text
+
+        text = read_png_text(path)
+    except Exception as e:  # noqa: BLE001 - Pillow raises many kinds for a broken PNG
+        _Checker(label).fail("file", f"cannot be read as PNG ({type(e).__name__}: {e})",
+                             "a brdf-viewer screenshot (.png) or a scene file (.toml)")
+    if SCREENSHOT_KEY not in text:
+        _Checker(label).fail(SCREENSHOT_KEY, "this PNG holds no scene",
+                             "a screenshot saved by brdf-viewer (F12 or render)")
+    return _loads(text[SCREENSHOT_KEY], label)
 
 
 def _read_toml(path: Path, label: str) -> dict:
