@@ -27,6 +27,7 @@ uniform int u_light_type[MAX_LIGHTS];    // 0 point, 1 directional
 uniform vec3 u_light_pos[MAX_LIGHTS];    // point: position; directional: direction the light travels
 uniform vec3 u_light_value[MAX_LIGHTS];  // point: intensity I [W/sr]; directional: irradiance E [W/m^2]
 uniform int u_env_on;                    // any environment light (constant or map), IBL not "off"
+uniform vec3 u_env_constant;             // the constant environment's radiance (ENV_CONSTANT)
 uniform int u_ibl_mode;                  // 1 split sum, 2 filtered importance sampling, 3 brute force
 uniform float u_ibl_alpha;               // the lobe width of the material's specular part (ibl_split)
 uniform int u_ibl_delta;                 // the material has only delta lobes (mirror, smooth glass)
@@ -74,6 +75,7 @@ float ibl_hash(uvec2 p, uint frame) {
     return float(h) * 2.3283064365386963e-10;
 }
 
+#ifdef IBL_SAMPLED
 // Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
 // density: a GGX lobe of the material's alpha about the normal (reflected half vectors, Walter
 // et al. 2007 eq. 35-36) mixed with a cosine lobe in proportion to rho_s : rho_d. Unbiased for
@@ -117,6 +119,8 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
     }
     return sum / float(IBL_SAMPLES);
 }
+
+#endif
 
 void main() {
     vec3 ng = v_geometric_normal;
@@ -164,6 +168,16 @@ void main() {
         if (i == 0) first_visibility = vis;
         radiance += f * e * cos_i * vis;
     }
+#ifdef ENV_LIGHT  // compiled in only where the environment lights the scene (see IBL_SAMPLED)
+#ifdef ENV_CONSTANT
+    // a constant environment L: irradiance pi L and prefiltered radiance L at every alpha (what
+    // the SH and prefiltered lookups return for it, without their cost)
+    #define ENV_IRRADIANCE(n) (PI * u_env_constant)
+    #define ENV_PREFILTERED(r, a) (u_env_constant)
+#else
+    #define ENV_IRRADIANCE(n) env_irradiance(n)
+    #define ENV_PREFILTERED(r, a) env_prefiltered(r, a)
+#endif
     if (u_env_on != 0) {
         // Environment light. Tables (viewer/brdf/albedo.py, the model's own sampler) give the
         // directional albedo rho(wo), its specular part rho_s (the model's ibl_split hook) and the
@@ -183,9 +197,9 @@ void main() {
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
                 // environment; no occlusion.
 #ifdef SSR
-                radiance += rho_d * env_irradiance(n) * INV_PI;  // rho_s * L_spec: the SSR pass
+                radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI;  // rho_s * L_spec: the SSR pass
 #else
-                radiance += rho_d * env_irradiance(n) * INV_PI + rho_s * env_prefiltered(r_w, u_ibl_alpha);
+                radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
 #endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
@@ -196,11 +210,15 @@ void main() {
                     float e_ms = clamp(1.0 - (ab.x + ab.y), 0.0, 1.0);
                     vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
                     vec3 f_ms = rho_s * f_avg / (1.0 - e_ms * f_avg);
-                    radiance += f_ms * e_ms * env_irradiance(n) * INV_PI;
+                    radiance += f_ms * e_ms * ENV_IRRADIANCE(n) * INV_PI;
                 }
             } else {
+#ifdef IBL_SAMPLED
+                // only compiled into programs for the fis / brute_force modes: software GL pays
+                // for an untaken loop of BRDF evaluations (measured: +65% frame time)
                 radiance += ibl_sampled(wo, transpose(to_local), rho, rho_s, u_ibl_alpha,
                                         u_ibl_mode == 2, u_frame_index);
+#endif
             }
         }
         if (u_transmit_on != 0 && wo.z > 0.0) {
@@ -220,7 +238,7 @@ void main() {
             vec3 n_out = reflect(n, t_in);
             vec3 t_out = refract(t_in, -n_out, u_ior);
             if (dot(t_out, t_out) == 0.0) t_out = reflect(t_in, -n_out);  // total internal reflection
-            radiance += rho_t * exp(-u_sigma_a * d) * env_prefiltered(normalize(t_out), u_ibl_alpha);
+            radiance += rho_t * exp(-u_sigma_a * d) * ENV_PREFILTERED(normalize(t_out), u_ibl_alpha);
         }
     }
 #ifdef SSR
@@ -236,6 +254,7 @@ void main() {
         frag_spec = vec4(rho_s, u_ibl_alpha);
         frag_geom = vec4(n, -(u_view * vec4(v_position, 1.0)).z);
     }
+#endif
 #endif
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);

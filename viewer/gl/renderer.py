@@ -136,13 +136,18 @@ class Renderer:
     # an exact box filter use render_arrays(..., supersample=k) instead.
     sample_shading = False
 
-    def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False):
-        """The forward program for a material (its model, and a nested base model if any)."""
+    def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False,
+                        ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False):
+        """The forward program for a material (its model, and a nested base model if any).
+        ``ibl_sampled`` compiles in the per-pixel environment sampling of the fis and
+        brute_force modes (left out otherwise: software GL pays for untaken loops)."""
         from viewer.brdf.glsl import models_used
 
         per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
-        key = "forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
+        key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
+               + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
+               + (":const" if env_constant else ""))
         prog = self.programs.get(key)
         if prog is None:
             defines = {}
@@ -150,6 +155,12 @@ class Renderer:
                 defines["SAMPLE_SHADING"] = "1"
             if ssr:
                 defines["SSR"] = "1"
+            if ibl_sampled:
+                defines["IBL_SAMPLED"] = "1"
+            if env_light:
+                defines["ENV_LIGHT"] = "1"
+            if env_constant:
+                defines["ENV_CONSTANT"] = "1"
             prog = build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
                                  geometry="passes/forward.geom", virtual=default_virtual(used),
                                  defines=defines or None)
@@ -381,6 +392,7 @@ class Renderer:
             "u_light_pos": pos.tobytes(),
             "u_light_value": val.tobytes(),
             "u_env_on": int(env_on),
+            "u_env_constant": tuple(float(x) for x in env_rad),
             "u_ibl_mode": IBL_MODES.get(scene.render.ibl, 1),
             "u_frame_index": int(frame_index),
             "u_ms_on": int(bool(getattr(scene.render, "ms_compensation", False))),
@@ -402,7 +414,8 @@ class Renderer:
         for obj in scene.objects:
             params = scene.materials[obj.material]
             prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1,
-                                        ssr=ssr_on)
+                                        ssr=ssr_on, ibl_sampled=env_on and scene.render.ibl in ("fis", "brute_force"),
+                                        env_light=env_on, env_constant=env_map is None)
             if id(prog) not in ready:
                 for k, v in frame_uniforms.items():
                     _set(prog, k, v)
