@@ -224,3 +224,88 @@ def test_ssr_off_is_unchanged(tmp_path, renderer, gl_ctx):
     scene.render.ssr = False
     after = renderer.render_arrays(scene)[0]
     assert np.array_equal(before, after)
+
+
+# ---------------------------------------------------------------- Hi-Z (hierarchical depth)
+# The trace can skip empty space with a min-depth pyramid (Uludag 2014, GPU Pro 5; the DDA is
+# McGuire & Mara 2014, JCGT 3(4)). SSR.settings["hiz"] switches it (u_hiz in ssr.frag); the
+# tests above run with the default (on).
+
+
+def _blocks_min(z, k):
+    """Brute-force reference for level k: each texel the min over its block of level-0 pixels,
+    the last block of each axis running to the image's end."""
+    h, w = z.shape
+    hk, wk = max(1, h >> k), max(1, w >> k)
+    out = np.empty((hk, wk), np.float32)
+    for j in range(hk):
+        y1 = h if j == hk - 1 else (j + 1) << k
+        for i in range(wk):
+            x1 = w if i == wk - 1 else (i + 1) << k
+            out[j, i] = z[j << k:y1, i << k:x1].min()
+    return out
+
+
+def test_hiz_numpy_reference_is_block_min():
+    from viewer.gl.ssr import hiz_pyramid_numpy
+
+    rng = np.random.default_rng(1)
+    for shape in ((13, 21), (8, 8), (1, 7), (6, 1), (31, 17)):
+        z = rng.uniform(0.1, 10.0, shape).astype(np.float32)
+        pyr = hiz_pyramid_numpy(z)
+        assert len(pyr) == 1 + int(np.floor(np.log2(max(shape))))
+        for k, lv in enumerate(pyr):
+            assert np.array_equal(lv, _blocks_min(z, k)), (shape, k)
+
+
+@pytest.mark.parametrize("size", [(W, H), (W - 1, H - 3)])  # even, then odd widths and heights
+def test_hiz_pyramid_is_min_pooling(renderer, size):
+    from viewer.gl.ssr import depth_from_geom, hiz_pyramid_numpy
+
+    w, h = size
+    scene = load_scene("reflective_floor")
+    renderer.render_arrays(scene, width=w, height=h)
+    ssr = renderer.ssr()
+    t = ssr._t
+    geom = np.frombuffer(t["resolved"][2].read(), np.float32).reshape(h, w, 4)
+    depth = depth_from_geom(geom)
+    gpu = ssr.read_hiz()
+    assert len(gpu) == 1 + int(np.floor(np.log2(max(w, h))))
+    # level 0: the shader's depth / coverage, to float32 rounding (length() and the division)
+    np.testing.assert_allclose(gpu[0], depth, rtol=2e-7, atol=0)
+    assert np.array_equal(gpu[0] >= 1e29, depth >= 1e29)
+    # levels k > 0: exactly the min-pooling of the level below (min involves no rounding)
+    ref = hiz_pyramid_numpy(gpu[0], len(gpu))
+    for k in range(1, len(gpu)):
+        assert gpu[k].shape == ref[k].shape, k
+        assert np.array_equal(gpu[k], ref[k]), k
+    # the CPU build (readback, numpy, Texture.write) gives the same pyramid
+    ssr.build_hiz("cpu")
+    cpu = ssr.read_hiz()
+    ssr.build_hiz("gpu")
+    for k in range(len(gpu)):
+        np.testing.assert_allclose(cpu[k], gpu[k], rtol=2e-7, atol=0)
+
+
+def test_hiz_trace_matches_dda(renderer):
+    scene = load_scene("reflective_floor")
+    settings = renderer.ssr().settings
+    out = {}
+    try:
+        for hiz in (0, 1):
+            settings["hiz"] = hiz
+            hit = renderer.render_arrays(scene, width=W, height=H, view_mode=VIEW_MODES["ssr hit"])[0][..., 0]
+            uv = renderer.render_arrays(scene, width=W, height=H, view_mode=VIEW_MODES["ssr uv"])[0][..., :2]
+            img = renderer.render_arrays(scene, width=W, height=H)[0]
+            out[hiz] = (hit > 0, uv, img)
+    finally:
+        settings["hiz"] = 1
+    (m0, uv0, img0), (m1, uv1, img1) = out[0], out[1]
+    assert m0.sum() > 500
+    agree = float((m0 == m1).mean())
+    both = m0 & m1
+    d_px = np.abs(uv0[both] - uv1[both]) * [W, H]
+    print(f"Hi-Z vs DDA: {m0.sum()} / {m1.sum()} hits, masks agree on {100 * agree:.3f}% of pixels, "
+          f"max hit distance {d_px.max():.3f} px, max image difference {np.abs(img0 - img1).max():.2e}")
+    assert agree >= 0.99
+    assert np.all(d_px <= 1.5)

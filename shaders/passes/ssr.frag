@@ -14,6 +14,8 @@
 // ray's depth at each step with one division; a step is a hit when the depth interval the ray
 // covers over it overlaps [scene depth, scene depth + thickness]. Here a bisection between the
 // last miss and the hit refines the hit point afterwards (the paper's stride-then-refine idea).
+// With u_hiz = 1 the same steps are visited through a min-depth pyramid (trace_hiz), which skips
+// only cells where no step can hit, so the result is the DDA's.
 #include "common/math.glsl"
 #include "common/ibl.glsl"
 
@@ -36,6 +38,10 @@ uniform float u_edge_fade;    // fraction of the screen over which hits fade out
 uniform float u_max_lod;
 uniform int u_env_on;
 uniform int u_debug;          // 0 composite, 1 hit mask, 2 step count, 3 hit uv, 4 SSR only
+uniform int u_hiz;            // 0: the linear DDA over every stride; 1: skip empty space with u_hiz_tex
+uniform sampler2D u_hiz_tex;  // Hi-Z pyramid: level k = min (closest) linear depth over 2x2 of k - 1
+uniform int u_hiz_max_level;
+uniform int u_hiz_max_iter;
 
 in vec2 v_uv;
 out vec4 frag_color;
@@ -67,6 +73,87 @@ float ray_depth(Ray2D r, float t) { return -(r.q0 + r.dq * t) / (r.k0 + r.dk * t
 
 bool inside(vec2 px) { return all(greaterThanEqual(px, vec2(0.0))) && all(lessThan(px, u_size)); }
 
+// One step of the DDA at step t (an integer): 0 no hit, 1 hit, 2 off screen (the trace ends).
+// The depth interval the ray spans over this pixel: from the previous step's end to half a
+// step ahead (the paper's half-pixel extents).
+int dda_step(Ray2D r, float t, float t_end) {
+    vec2 px = ray_px(r, t);
+    if (!inside(px)) return 2;
+    float prev = t <= 1.0 ? ray_depth(r, 0.0) : ray_depth(r, min(t - 0.5, t_end + 1.0));
+    float cur = ray_depth(r, min(t + 0.5, t_end + 1.0));
+    float dmin = min(prev, cur), dmax = max(prev, cur);
+    float zs = scene_depth(ivec2(px));
+    return (zs > 0.0 && dmax >= zs && dmin <= zs + u_thickness) ? 1 : 0;
+}
+
+// Bisection between the last step that was in front (t - 1) and the hit at step t.
+vec2 refine(Ray2D r, float t) {
+    float lo = t - 1.0, hi = t;
+    for (int j = 0; j < u_refine_steps; ++j) {
+        float mid = 0.5 * (lo + hi);
+        vec2 pm = ray_px(r, mid);
+        float zm = scene_depth(ivec2(pm));
+        float rd = ray_depth(r, mid);
+        if (zm > 0.0 && rd >= zm && rd <= zm + u_thickness) hi = mid; else lo = mid;
+    }
+    return ray_px(r, hi);
+}
+
+// Hierarchical traversal (Uludag 2014, GPU Pro 5, on a pyramid of the linear view depth whose
+// texels hold the closest depth of the pixels below them): at parameter u (in DDA steps) the
+// ray is in one cell of level L; u_exit is where it leaves that cell. If the ray's depth over
+// the DDA intervals of every step in [u, u_exit) (each extends half a step to either side) stays
+// in front of the cell's closest depth, none of those steps can hit (the DDA's test needs the
+// interval to reach the pixel's depth): skip to u_exit and go up a level. Otherwise go down;
+// at level 0 run the DDA's own steps inside the pixel. The first hit is therefore the DDA's
+// first hit, with the same bisection, for far fewer texel reads over empty space.
+bool trace_hiz(Ray2D r, float t_end, out vec2 hit_px, out float steps) {
+    steps = 0.0;
+    hit_px = vec2(-1.0);
+    float u_last = min(float(u_max_steps), floor(t_end + 1.0));  // the DDA's last step
+    vec2 ds = r.ds;
+    vec2 pos_dir = step(0.0, ds);
+    // 1 / ds with the zero component made harmless (that axis never exits)
+    vec2 inv_ds = vec2(abs(ds.x) > 1e-12 ? 1.0 / ds.x : 1e30, abs(ds.y) > 1e-12 ? 1.0 / ds.y : 1e30);
+    float u = 0.0;
+    int level = 0;
+    for (int it = 0; it < u_hiz_max_iter; ++it) {
+        if (u > u_last) break;
+        vec2 s = r.s0 + ds * u;
+        vec2 sp = r.permute ? s.yx : s;
+        if (!inside(sp)) break;  // the screen is convex: the later steps are off screen too
+        steps += 1.0;
+        float c = exp2(float(level));
+        // the cell the ray is in, taking the side it moves toward on a boundary
+        vec2 q = s / c;
+        vec2 cell = mix(ceil(q) - 1.0, floor(q), pos_dir);
+        vec2 bound = (cell + pos_dir) * c;
+        vec2 te = (bound - r.s0) * inv_ds;
+        te = mix(te, vec2(1e30), lessThanEqual(abs(ds), vec2(1e-12)));
+        float u_exit = max(min(te.x, te.y), u + 1e-4);
+        ivec2 fc = ivec2(r.permute ? cell.yx : cell);
+        // level sizes are max(1, n >> k); the last texel also covers an odd level's extra row / column
+        fc = clamp(fc, ivec2(0), max(ivec2(u_size) >> level, ivec2(1)) - 1);
+        float zmin = texelFetch(u_hiz_tex, fc, level).r;
+        float a = u <= 1.0 ? 0.0 : min(u - 0.5, t_end + 1.0);
+        float b = min(u_exit + 0.5, t_end + 1.0);
+        float dmax = max(ray_depth(r, a), ray_depth(r, b));
+        if (dmax < zmin) {
+            u = u_exit;
+            level = min(level + 1, u_hiz_max_level);
+            continue;
+        }
+        if (level > 0) { level -= 1; continue; }
+        for (float i = max(1.0, ceil(u)); i < u_exit && i <= u_last; i += 1.0) {
+            int res = dda_step(r, i, t_end);
+            if (res == 2) return false;
+            if (res == 1) { hit_px = refine(r, i); return true; }
+        }
+        u = u_exit;
+    }
+    return false;
+}
+
 // Trace from view-space P0 along unit R. Returns the hit pixel position (continuous) or false.
 bool trace(vec3 P0, vec3 R, out vec2 hit_px, out float steps) {
     steps = 0.0;
@@ -94,33 +181,15 @@ bool trace(vec3 P0, vec3 R, out vec2 hit_px, out float steps) {
     r.k0 = k0;
     r.dk = (k1 - k0) * inv_dx * u_stride;
     float t_end = n_px / u_stride;
-    float prev = ray_depth(r, 0.0);
+    if (u_hiz != 0) return trace_hiz(r, t_end, hit_px, steps);
     float t = 0.0;
     for (int i = 0; i < u_max_steps; ++i) {
         t += 1.0;
         if (t > t_end + 1.0) break;
         steps += 1.0;
-        vec2 px = ray_px(r, t);
-        if (!inside(px)) break;
-        // the depth interval the ray spans over this pixel: from the previous step's end to
-        // half a step ahead (the paper's half-pixel extents)
-        float cur = ray_depth(r, min(t + 0.5, t_end + 1.0));
-        float dmin = min(prev, cur), dmax = max(prev, cur);
-        prev = cur;
-        float zs = scene_depth(ivec2(px));
-        if (zs > 0.0 && dmax >= zs && dmin <= zs + u_thickness) {
-            // bisection between the last step that was in front and this one
-            float lo = t - 1.0, hi = t;
-            for (int j = 0; j < u_refine_steps; ++j) {
-                float mid = 0.5 * (lo + hi);
-                vec2 pm = ray_px(r, mid);
-                float zm = scene_depth(ivec2(pm));
-                float rd = ray_depth(r, mid);
-                if (zm > 0.0 && rd >= zm && rd <= zm + u_thickness) hi = mid; else lo = mid;
-            }
-            hit_px = ray_px(r, hi);
-            return true;
-        }
+        int res = dda_step(r, t, t_end);
+        if (res == 2) break;
+        if (res == 1) { hit_px = refine(r, t); return true; }
     }
     return false;
 }
