@@ -136,3 +136,24 @@ def test_screenshot_reopens_as_the_same_scene(tmp_path):
     Image.new("RGB", (4, 4)).save(tmp_path / "plain.png")
     r = run("render", tmp_path / "plain.png", "--out", tmp_path / "c.png")
     assert r.returncode == 2 and "holds no scene" in r.stderr
+
+
+def test_compare_writes_images_and_consistent_metrics(tmp_path):
+    import json
+
+    out = tmp_path / "cmp"
+    r = run("compare", "sphere", "--spp", 8, "--out", out, "--width", 40, "--height", 40, "--max-depth", 1)
+    assert r.returncode == 0, r.stderr
+    for name in ("raster.png", "reference.png", "diff_abs.png", "diff_rel.png", "raster.npy", "reference.npy",
+                 "metrics.json"):
+        assert (out / name).is_file(), name
+    m = json.loads((out / "metrics.json").read_text())
+    a, b = np.load(out / "raster.npy"), np.load(out / "reference.npy")
+    d2 = (a.astype(float) - b) ** 2
+    assert np.isclose(m["rmse"], np.sqrt(d2.mean()))
+    assert np.isclose(m["relative_mse"], (d2 / (b.astype(float) ** 2 + 1e-2)).mean())
+    assert np.allclose(m["mean_reference_per_channel"], b.mean(axis=(0, 1)), rtol=1e-6)
+    # direct light from one point light on a Lambert sphere: raster and reference agree closely
+    assert m["rmse"] < 0.02
+    r = run("compare", "sphere", "--spp", 0, "--out", tmp_path / "x")
+    assert r.returncode == 2 and "--spp" in r.stderr and not (tmp_path / "x").exists()

@@ -8,7 +8,7 @@ import time
 
 from viewer import ViewerError
 
-COMMANDS = ("render", "reference", "models")
+COMMANDS = ("render", "reference", "compare", "models")
 HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer models "
                  "(see README)")
 
@@ -160,6 +160,80 @@ def cmd_reference(args) -> int:
     return 0
 
 
+def _parser_compare() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer compare",
+                                description="Raster vs reference: both images, difference heat maps and metrics.json.")
+    p.add_argument("scene", help="scene file (.toml), screenshot (.png) or built-in scene name")
+    p.add_argument("--spp", type=int, required=True, help="reference samples per pixel")
+    p.add_argument("--out", required=True, help="output folder (created if missing)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-depth", type=int, default=8, help="reference path length (1 = direct light)")
+    p.add_argument("--supersample", type=int, default=4,
+                   help="raster K x K shading points per pixel (box filter, as the reference); default 4")
+    p.add_argument("--width", type=int)
+    p.add_argument("--height", type=int)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--workers", type=int, default=None)
+    return p
+
+
+def cmd_compare(args) -> int:
+    """Writes raster.png/.npy, reference.png/.npy, diff_abs.png, diff_rel.png, metrics.json."""
+    import json
+    from pathlib import Path
+
+    from viewer.camera import OrbitCamera
+    from viewer.colour import to_srgb8
+    from viewer.compare import heat_map, metrics
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+    from viewer.io import atomic_write_bytes, write_npy, write_png
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    if args.spp < 1:
+        raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
+    if args.max_depth < 1:
+        raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
+    if not 1 <= args.supersample <= 8:
+        raise ViewerError(f"--supersample: {args.supersample} is out of range; allowed: 1 to 8")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ViewerError(f"--out {out}: exists and is not a folder")
+    overrides = list(args.overrides)
+    for key, val in (("width", args.width), ("height", args.height)):
+        if val is not None:
+            overrides.append(f"camera.{key}={val}")
+    scene = load_scene(args.scene, overrides)
+    camera = OrbitCamera.from_scene(scene)
+    ctx = create_offscreen_context()
+    raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
+    t0 = time.perf_counter()
+    with ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers) as ref:
+        ref.step(args.spp)
+        reference, variance = ref.mean(), ref.variance()
+    wall = time.perf_counter() - t0
+    m = metrics(raster, reference)
+    m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
+              "raster_supersample": args.supersample, "reference_seconds": wall,
+              "reference_mean_variance_of_mean": float(variance.mean())})
+    abs_png, abs_scale = heat_map(raster, reference)
+    rel_png, rel_scale = heat_map(raster, reference, relative=True)
+    m["heat_map_scale_abs"], m["heat_map_scale_rel"] = abs_scale, rel_scale
+    out.mkdir(parents=True, exist_ok=True)
+    exp, tm = scene.render.exposure, scene.render.tonemap
+    write_npy(out / "raster.npy", raster)
+    write_npy(out / "reference.npy", reference)
+    write_png(out / "raster.png", to_srgb8(raster, exp, tm))
+    write_png(out / "reference.png", to_srgb8(reference, exp, tm))
+    write_png(out / "diff_abs.png", abs_png)
+    write_png(out / "diff_rel.png", rel_png)
+    atomic_write_bytes(out / "metrics.json", (json.dumps(m, indent=2) + "\n").encode())
+    print(f"wrote {out}/: raster, reference, diff_abs (scale {abs_scale:.3g}), diff_rel (scale {rel_scale:.3g}), "
+          f"metrics.json; RMSE {m['rmse']:.4g}, relative MSE {m['relative_mse']:.4g}")
+    return 0
+
+
 def cmd_models(args) -> int:
     from viewer import brdf
 
@@ -211,10 +285,11 @@ def main(argv=None) -> int:
     try:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
-            parser = {"render": _parser_render, "reference": _parser_reference,
+            parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
                       "models": _parser_models}[cmd]()
             args = parser.parse_args(rest)
-            return {"render": cmd_render, "reference": cmd_reference, "models": cmd_models}[cmd](args)
+            return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
+                    "models": cmd_models}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:
