@@ -69,6 +69,15 @@ def _parser_models() -> argparse.ArgumentParser:
                                    description="List every BRDF model with its parameters, ranges and defaults.")
 
 
+def _overrides(args) -> list[str]:
+    """--set assignments plus --width / --height as camera overrides."""
+    out = list(args.overrides)
+    for key, val in (("width", args.width), ("height", args.height)):
+        if val is not None:
+            out.append(f"camera.{key}={val}")
+    return out
+
+
 def cmd_render(args) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import VIEW_MODES, Renderer
@@ -80,11 +89,7 @@ def cmd_render(args) -> int:
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
-    overrides = list(args.overrides)
-    for key, val in (("width", args.width), ("height", args.height)):
-        if val is not None:
-            overrides.append(f"camera.{key}={val}")
-    scene = load_scene(args.scene, overrides)
+    scene = load_scene(args.scene, _overrides(args))
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
@@ -117,11 +122,7 @@ def cmd_reference(args) -> int:
                           "(1 = direct light only)")
     if args.workers is not None and args.workers < 0:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
-    overrides = list(args.overrides)
-    for key, val in (("width", args.width), ("height", args.height)):
-        if val is not None:
-            overrides.append(f"camera.{key}={val}")
-    scene = load_scene(args.scene, overrides)
+    scene = load_scene(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
     from viewer.pathtracer import ReferenceRenderer
 
@@ -200,11 +201,7 @@ def cmd_compare(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ViewerError(f"--out {out}: exists and is not a folder")
-    overrides = list(args.overrides)
-    for key, val in (("width", args.width), ("height", args.height)):
-        if val is not None:
-            overrides.append(f"camera.{key}={val}")
-    scene = load_scene(args.scene, overrides)
+    scene = load_scene(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]

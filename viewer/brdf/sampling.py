@@ -132,3 +132,10 @@ def pow_one_minus(x, n):
     at n = 10000)."""
     inside = x < 1.0
     return np.where(inside, np.exp(n * np.log1p(-np.where(inside, x, 0.0))), 0.0)
+
+
+def energy_conserving_kd_ks(p):
+    """The nearest energy-conserving parameters of a kd + ks model whose specular lobe reflects
+    at most ks (normalized Phong, Blinn-Phong): kd and ks scaled by 1 / max(1, kd + ks) per channel."""
+    s = np.maximum(1.0, p.kd + p.ks)
+    return p.replace(kd=p.kd / s, ks=p.ks / s)

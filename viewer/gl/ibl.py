@@ -188,6 +188,15 @@ class IBL:
         radiance ``constant`` (3,) (black if that is None too). No work if the content is the
         one already set."""
         t0 = time.perf_counter()
+        # Called every frame: the same (read-only, cached) map array or the same constant needs
+        # no hash. The array is held, so its identity cannot be reused by another one.
+        ident = ("map", latlong) if latlong is not None else (
+            "constant", tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))))
+        last = getattr(self, "_last_ident", None)
+        if last is not None and self._key is not None and last[0] == ident[0] and (
+                last[1] is ident[1] if ident[0] == "map" else last[1] == ident[1]):
+            self.stats.update({"unchanged": True, "hash_s": 0.0, "prefilter_passes": 0})
+            return
         if latlong is None:
             c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
             w, h = CONSTANT_MAP_SIZE
@@ -198,6 +207,7 @@ class IBL:
         t_hash = time.perf_counter() - t0
         if key == self._key:
             self.stats.update({"unchanged": True, "hash_s": t_hash, "prefilter_passes": 0})
+            self._last_ident = ident
             return
         tc = time.perf_counter()
         for name in ("ibl_downsample", "ibl_prefilter"):
@@ -245,6 +255,7 @@ class IBL:
         self.sh = coeffs
         self.layer_size = (lw, lh)
         self._key = key
+        self._last_ident = ident  # only once everything for it is built
         self._cube_key = None
         t_up = time.perf_counter() - t4
         self.stats = {"cached": cached, "prefilter_passes": passes, "unchanged": False,
