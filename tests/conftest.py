@@ -1,8 +1,12 @@
 import os
+import tempfile
 
 import pytest
 
 os.environ.setdefault("PYTHONHASHSEED", "0")
+# the window's state file (viewer.app.state) goes to a throwaway folder, never the user's ~/.config;
+# subprocesses started by the tests inherit it
+os.environ["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
 
 
 @pytest.fixture(scope="session")

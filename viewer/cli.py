@@ -8,9 +8,9 @@ import time
 
 from viewer import ViewerError
 
-COMMANDS = ("render", "reference", "compare", "models")
-HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer models "
-                 "(see README)")
+COMMANDS = ("render", "reference", "compare", "plot", "models")
+HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer plot MODEL "
+                 "--kind polar --out plot.png | brdf-viewer models (see README)")
 
 
 def _parser_window() -> argparse.ArgumentParser:
@@ -21,8 +21,8 @@ def _parser_window() -> argparse.ArgumentParser:
     p.add_argument("scene", nargs="?", help="scene file (.toml) or built-in scene name")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path, e.g. materials.ball.albedo=[1,0,0]")
-    p.add_argument("--width", type=int, default=1280, help="window width in pixels")
-    p.add_argument("--height", type=int, default=720, help="window height in pixels")
+    p.add_argument("--width", type=int, help="window width in pixels (default: the last session's, else 1280)")
+    p.add_argument("--height", type=int, help="window height in pixels (default: the last session's, else 720)")
     p.add_argument("--frames", type=int, default=0, help="quit after this many frames (0 = run until closed)")
     p.add_argument("--screenshot", metavar="PNG", help="save a screenshot of the last frame (with --frames)")
     return p
@@ -62,6 +62,138 @@ def _parser_reference() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     return p
+
+
+def _parser_plot() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer plot", description=(
+        "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
+        "'brdf-viewer:plot' holds the plotted numbers as JSON."))
+    p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer")
+    p.add_argument("--out", required=True, help="output PNG")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
+    p.add_argument("--theta-i", dest="theta_i", type=float, default=45.0, metavar="DEG",
+                   help="incident angle from the normal, [0, 90) (polar, lobe); default 45")
+    p.add_argument("--phi", type=float, default=0.0, metavar="DEG",
+                   help="azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z) (polar, lobe)")
+    p.add_argument("--channel", default="rgb",
+                   help="rgb (one curve per distinct channel) | lum (Rec.709 luminance) | r | g | b")
+    p.add_argument("--inside", action="store_true",
+                   help="fresnel: light inside the denser medium (eta = 1/ior): critical angle, total internal reflection")
+    p.add_argument("--log", action="store_true", help="polar, lobe: plot log10(1 + f cos)")
+    p.add_argument("--data", metavar="JSON", help="also write the plotted numbers as JSON")
+    p.add_argument("--width", type=int, default=900, help="image width (default 900)")
+    p.add_argument("--height", type=int, default=600, help="image height (default 600)")
+    return p
+
+
+def _plot_value(text: str):
+    """A TOML value (number, array, inline table, quoted string); else the bare text."""
+    try:
+        import tomllib
+    except ImportError:  # Python < 3.11
+        import tomli as tomllib
+    try:
+        return tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+
+
+def _plain_default(v):
+    from viewer.brdf.spec import Params
+
+    if isinstance(v, Params):
+        d = v.to_plain()
+        if v.model in ("", None):
+            d.pop("model")
+        return d
+    if isinstance(v, list):
+        return [_plain_default(x) for x in v]
+    if hasattr(v, "tolist"):
+        return v.tolist()
+    return v
+
+
+def _plot_material(name: str, assignments):
+    """Validated Params of a model (defaults) or preset, with --set KEY=VALUE applied; KEY is a
+    parameter name, dotted into tables and nested materials (coating.ior, base.albedo,
+    lobes.0.n)."""
+    from viewer import brdf
+    from viewer.brdf.presets import PRESETS, get_preset
+    from viewer.brdf.spec import validate_params
+
+    if name in brdf.names():
+        raw = {"model": name}
+    elif name in PRESETS:
+        raw = get_preset(name)
+    else:
+        raise ViewerError(f"MODEL: {name!r} is not a BRDF model or preset; allowed: models "
+                          f"{', '.join(brdf.names())}; presets {', '.join(sorted(PRESETS))}")
+    for a in assignments:
+        if "=" not in a:
+            raise ViewerError(f"--set {a}: no '=' in the assignment; allowed: KEY=VALUE with a parameter "
+                              "name, e.g. alpha=0.2 or coating.ior=1.3")
+        key, text = a.split("=", 1)
+        parts = key.strip().split(".")
+        if not all(parts):
+            raise ViewerError(f"--set {a}: empty part in {key.strip()!r}; allowed: a parameter name, dotted "
+                              "into tables (coating.ior)")
+        model_name = raw.get("model")
+        spec = brdf.lookup_spec(model_name, "--set model") if isinstance(model_name, str) else None
+        if spec is not None and len(parts) == 1:
+            # aliases (microfacet: alpha -> alpha_x, alpha_y): the newer assignment wins
+            for alias, targets in spec.aliases.items():
+                if parts[0] == alias:
+                    for t in targets:
+                        raw.pop(t, None)
+                elif parts[0] in targets and alias in raw:
+                    v = raw.pop(alias)
+                    for t in targets:
+                        raw[t] = v
+        if spec is not None and len(parts) > 1 and parts[0] not in raw and parts[0] in spec.names:
+            # a table, list or nested material not given yet: start from its defaults
+            raw[parts[0]] = _plain_default(brdf.get(model_name).params()[parts[0]])
+        cur = raw
+        for depth, part in enumerate(parts):
+            last = depth == len(parts) - 1
+            if isinstance(cur, list):
+                if not part.isdigit() or int(part) >= len(cur):
+                    raise ViewerError(f"--set {a}: no item {part!r} in {'.'.join(parts[:depth])}; allowed: "
+                                      + (f"an index 0..{len(cur) - 1}" if cur else "nothing (the list is empty)"))
+                part = int(part)
+            elif not isinstance(cur, dict):
+                raise ViewerError(f"--set {a}: {'.'.join(parts[:depth])} is a value, not a table or list; "
+                                  f"allowed: {'.'.join(parts[:depth])}=VALUE")
+            if last:
+                cur[part] = _plot_value(text)
+            else:
+                if isinstance(cur, dict) and cur.get(part) is None:
+                    cur[part] = {}
+                cur = cur[part]
+    model = raw.pop("model")
+    if not isinstance(model, str):
+        raise ViewerError(f"--set model: expected a model name; allowed: {', '.join(brdf.names())}")
+    spec = brdf.lookup_spec(model, "--set model")
+    return validate_params(spec, raw, model, brdf.lookup_spec)
+
+
+def cmd_plot(args) -> int:
+    from viewer import plots
+    from viewer.io import check_output_path
+
+    out = check_output_path(args.out, (".png",), "--out")
+    data = check_output_path(args.data, (".json",), "--data") if args.data else None
+    if args.kind not in plots.KINDS:
+        raise ViewerError(f"--kind: {args.kind!r} is not a plot kind; allowed: {', '.join(plots.KINDS)}")
+    if args.channel not in plots.CHANNELS:
+        raise ViewerError(f"--channel: {args.channel!r} is not a channel; allowed: {', '.join(plots.CHANNELS)}")
+    p = _plot_material(args.model, args.overrides)
+    fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
+                       inside=args.inside, log=args.log, name=args.model)
+    plots.write_plot(fig, out, data, args.width, args.height)
+    print(f"wrote {out} ({args.kind} plot of {args.model})" + (f" and {data}" if data else ""))
+    return 0
 
 
 def _parser_models() -> argparse.ArgumentParser:
@@ -273,7 +405,8 @@ def cmd_window(args) -> int:
         raise ViewerError(f"no display found (DISPLAY is not set); {HEADLESS_HINT}")
     from viewer.app.main import run_app
 
-    return run_app(args.scene, args.overrides, size=(args.width, args.height), frames=args.frames,
+    size = None if args.width is None and args.height is None else (args.width or 1280, args.height or 720)
+    return run_app(args.scene, args.overrides, size=size, frames=args.frames,
                    screenshot=args.screenshot)
 
 
@@ -283,10 +416,10 @@ def main(argv=None) -> int:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
-                      "models": _parser_models}[cmd]()
+                      "plot": _parser_plot, "models": _parser_models}[cmd]()
             args = parser.parse_args(rest)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
-                    "models": cmd_models}[cmd](args)
+                    "plot": cmd_plot, "models": cmd_models}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:

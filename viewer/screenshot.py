@@ -10,14 +10,26 @@ import json
 import viewer
 
 
+def scene_with_camera(scene, camera=None, size=None):
+    """A shallow copy of ``scene`` whose [camera] is the orbit camera where the user left it
+    (and the image size ``size`` = (w, h) when given)."""
+    if camera is None and size is None:
+        return scene
+    scene = copy.copy(scene)
+    cam = scene.camera
+    if camera is not None:
+        cam = dataclasses.replace(cam, position=camera.position.copy(), target=camera.target.copy(),
+                                  fov_y=float(camera.fov_y))
+    if size is not None:
+        cam = dataclasses.replace(cam, width=int(size[0]), height=int(size[1]))
+    scene.camera = cam
+    return scene
+
+
 def png_text(scene, camera=None, extra: dict | None = None) -> dict[str, str]:
     from viewer.scene import scene_to_toml
 
-    if camera is not None:
-        # the scene as seen: the camera where the user left it
-        scene = copy.copy(scene)
-        scene.camera = dataclasses.replace(scene.camera, position=camera.position.copy(),
-                                           target=camera.target.copy(), fov_y=float(camera.fov_y))
+    scene = scene_with_camera(scene, camera)  # the scene as seen
     text = {
         "Software": f"brdf-viewer {viewer.__version__}",
         "brdf-viewer:scene": scene_to_toml(scene),

@@ -2,7 +2,10 @@
 native glfw + opengl3 backends, the same Renderer as the offscreen path, and an orbit camera.
 
 Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
-F12 screenshot (PNG whose text chunks hold the scene and all parameters)."""
+F12 screenshot (PNG whose text chunks hold the scene and all parameters), C cycle the compare
+views, P the BRDF plots, L lecture mode (then 1-9, 0 and the arrow / page keys step the tour),
+H hide the UI, F11 fullscreen, Ctrl +/- the UI scale. Files dropped on the window load by kind:
+.toml / .png scenes, .hdr / .exr environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
 
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ PANEL_WIDTH = 360
 
 
 class App:
-    def __init__(self, scene_ref=None, overrides=(), size=(1280, 720), title="brdf-viewer"):
+    def __init__(self, scene_ref=None, overrides=(), size=None, title="brdf-viewer", restore_state: bool = True):
         import glfw
         import moderngl
         from imgui_bundle import imgui, implot
@@ -32,8 +35,14 @@ class App:
         from viewer.gl.renderer import Renderer
         from viewer.scene import load_scene
 
+        from viewer.app import state as state_mod
+
         self.t_start = time.perf_counter()
         self.scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
+        self._state = state_mod.load_state() if restore_state else {}
+        self._save_state_on_close = restore_state
+        if size is None:
+            size = (self._state.get("window_width", 1280), self._state.get("window_height", 720))
         if not glfw.init():
             raise GLUnavailable("cannot initialise glfw (no display?); headless commands: "
                                 "brdf-viewer render SCENE --out img.png")
@@ -46,6 +55,8 @@ class App:
             glfw.terminate()
             raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
                                 "(update the graphics driver); headless: brdf-viewer render SCENE --out img.png")
+        if "window_x" in self._state and "window_y" in self._state:
+            glfw.set_window_pos(self.window, self._state["window_x"], self._state["window_y"])
         glfw.make_context_current(self.window)
         glfw.swap_interval(1)
         self.glfw = glfw
@@ -59,9 +70,31 @@ class App:
         imgui.backends.glfw_init_for_opengl(addr, True)
         imgui.backends.opengl3_init("#version 410")
         glfw.set_drop_callback(self.window, self._on_drop)  # imgui installs no drop callback
+        self._load_font()
         self.renderer = Renderer(self.ctx)
         self.camera = OrbitCamera.from_scene(self.scene)
+        from viewer.app.compare_view import MODES, CompareView
+        from viewer.app.plots_panel import PlotsPanel
+        from viewer.app.shader_overlay import HotReload
+
+        self.compare = CompareView(self.ctx)
+        self.hot_reload = HotReload(self.renderer)
+        self.plots = PlotsPanel()
+        self.plots.visible = bool(self._state.get("plots_visible", False))
+        self.raster_version = 0
+        self.lecture_step = -1  # -1: lecture mode off; else the tour's step shown
+        self.set_ui_scale(self._state.get("ui_scale", 1.0))
+        self.show_ui = bool(self._state.get("show_ui", True))
+        if self._state.get("compare_mode") in MODES:
+            self.compare.mode = self._state["compare_mode"]
+        self.compare.split = float(self._state.get("split", 0.5))
+        self._fullscreen_restore = None
+        self._scene_ref = None if scene_ref is None else str(scene_ref)
         self.view_mode = 0
+        from viewer.gl.renderer import VIEW_MODES
+
+        if 0 <= self._state.get("view_mode", 0) < len(VIEW_MODES):
+            self.view_mode = self._state.get("view_mode", 0)
         self.status = ""
         self.dirty = True
         self.hdr = None
@@ -107,8 +140,12 @@ class App:
         if self.window is None:
             return
         imgui = self.imgui
+        if self._save_state_on_close:
+            self.save_state()
         if self._reference is not None:
             self._reference.close()
+        self.compare.release()
+        self.plots.close()
         if self._bf_tex is not None:
             self._bf_tex.release()
         self.renderer.release()
@@ -128,8 +165,20 @@ class App:
         fw, fh = self.glfw.get_framebuffer_size(self.window)
         ww, _ = self.glfw.get_window_size(self.window)
         scale = fw / ww if ww else 1.0
-        panel = int(PANEL_WIDTH * scale) if self.show_ui else 0
+        panel = int(self.panel_width * scale) if self.show_ui else 0
         return panel, 0, max(fw - panel, 0), fh
+
+    def view_logical(self):
+        """The 3D view in imgui's coordinates (window points, y down)."""
+        ww, wh = self.glfw.get_window_size(self.window)
+        panel = self.panel_width if self.show_ui else 0
+        return float(panel), 0.0, float(max(ww - panel, 0)), float(wh)
+
+    @property
+    def panel_width(self) -> int:
+        return int(PANEL_WIDTH * self.ui_scale)
+
+    ui_scale = 1.0
 
     show_ui = True
 
@@ -147,46 +196,64 @@ class App:
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
         imgui.new_frame()
+        if self.hot_reload.poll():
+            self.dirty = True
+        self._poll_dialogs()
         self._handle_input()
         if self.show_ui:
             self._panel()
+            self.plots.draw(self.scene.materials)
+        self.hot_reload.draw_overlay()
         vx, vy, vw, vh = self.viewport()
-        if vw > 0 and vh > 0:
+        view = (vx, vy, vw, vh)
+        cmp = self.compare
+        _, _, rw_full, rh_full = cmp.raster_rect(view)
+        if rw_full > 0 and rh_full > 0 and (cmp.mode not in ("reference",) or self.hdr is None or self.dirty):
             now = time.perf_counter()
             interacting = now - self._last_interaction < 0.3
             # While the user drags, render at half resolution without MSAA (software GL is slow);
             # a full-quality frame follows as soon as the interaction pauses.
             scale = 0.5 if interacting else 1.0
-            rw, rh = max(1, int(vw * scale)), max(1, int(vh * scale))
+            rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
             want_full = not interacting and self._quality != "full"
             progressive = self.scene.render.ibl == "brute_force" and not interacting and self._bf_count < 256
-            if self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh) or progressive:
+            stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
+            if self.dirty or want_full or stale or progressive:
                 t1 = time.perf_counter()
-                restart = self.dirty or want_full or self.hdr is None or self._hdr_for != (vw, vh)
+                restart = self.dirty or want_full or stale
                 if restart:
                     self._bf_count, self._bf_sum = 0, None
-                self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
-                                                msaa=0 if interacting else None, frame_index=self._bf_count)
-                if self.scene.render.ibl == "brute_force" and not interacting:
-                    self.hdr = self._accumulate(self.hdr)
+                try:
+                    self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
+                                                    msaa=0 if interacting else None, frame_index=self._bf_count)
+                    if self.scene.render.ibl == "brute_force" and not interacting:
+                        self.hdr = self._accumulate(self.hdr)
+                except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
+                    self.status = str(e)
                 self.ctx.finish()
+                self.raster_version += 1
                 self.render_ms = 1000 * (time.perf_counter() - t1)
-                self._hdr_for = (vw, vh)
+                self._hdr_for = (rw_full, rh_full)
                 self._quality = "preview" if interacting else "full"
                 self.dirty = False
-        shown = self.hdr
-        if self.image_mode == "reference" and vw > 0 and vh > 0:
-            self.reference_view().update(self.scene, self.camera, (vw, vh))
-            ref = self.reference_view().texture_for_display()
-            if ref is not None:
-                shown = ref
+        ref_tex = None
+        if cmp.uses_reference and vw > 0 and vh > 0:
+            _, _, ref_w, ref_h = cmp.reference_rect(view)
+            rv = self.reference_view()
+            rv.update(self.scene, self.camera, (ref_w, ref_h))
+            ref_tex = rv.texture_for_display()
+            if cmp.mode != "reference" and self._quality == "full" and self.hdr is not None:
+                cmp.update_metrics(self.renderer, self.hdr, self.raster_version, rv)
         screen = self.ctx.screen
         screen.use()
         screen.viewport = (0, 0, fw, fh)
         self.ctx.clear(0.08, 0.08, 0.09)
-        if shown is not None and vw > 0 and vh > 0:
+        if vw > 0 and vh > 0:
             r = self.scene.render
-            self.renderer.tonemap_to(screen, shown, r.exposure, r.tonemap, viewport=(vx, vy, vw, vh))
+            cmp.draw(self.renderer, screen, view, self.hdr, ref_tex, r.exposure, r.tonemap)
+            cmp.draw_overlay(imgui, self.view_logical(),
+                             self._reference.spp if self._reference is not None else 0)
+            self._lecture_overlay()
         screen.viewport = (0, 0, fw, fh)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
@@ -208,7 +275,8 @@ class App:
         if imgui.is_any_item_active():  # a slider being dragged counts as interaction
             self._last_interaction = time.perf_counter()
         vx, vy, vw, vh = self.viewport()
-        if not io.want_capture_mouse:
+        divider = not io.want_capture_mouse and self.compare.handle_mouse(imgui, self.view_logical())
+        if not io.want_capture_mouse and not divider:
             d = io.mouse_delta
             if imgui.is_mouse_double_clicked(imgui.MouseButton_.left):
                 self.camera.reset()
@@ -231,6 +299,45 @@ class App:
                 self.dirty = True
             if imgui.is_key_pressed(imgui.Key.f12, False):
                 self.take_screenshot()
+            self._handle_keys(imgui, io)
+
+    def _handle_keys(self, imgui, io):
+        from viewer.app.compare_view import MODES
+
+        K = imgui.Key
+        pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
+        if io.key_ctrl:
+            if pressed(K.equal) or pressed(K.keypad_add):
+                self.set_ui_scale(self.ui_scale * 1.25)
+            if pressed(K.minus) or pressed(K.keypad_subtract):
+                self.set_ui_scale(self.ui_scale / 1.25)
+            if pressed(K._0):
+                self.set_ui_scale(1.0)
+            return
+        if pressed(K.h):
+            self.show_ui = not self.show_ui
+            self.dirty = True
+        if pressed(K.f11):
+            self.toggle_fullscreen()
+        if pressed(K.c):
+            self.set_image_mode(MODES[(MODES.index(self.compare.mode) + 1) % len(MODES)])
+        if pressed(K.p):
+            self.plots.visible = not self.plots.visible
+        if pressed(K.l):
+            self.lecture(0 if self.lecture_step < 0 else None)
+        if self.lecture_step >= 0:
+            from viewer.lecture import TOUR
+
+            if pressed(K.right_arrow) or pressed(K.page_down) or pressed(K.space):
+                self.lecture((self.lecture_step + 1) % len(TOUR))
+            if pressed(K.left_arrow) or pressed(K.page_up):
+                self.lecture((self.lecture_step - 1) % len(TOUR))
+            digits = [K._1, K._2, K._3, K._4, K._5, K._6, K._7, K._8, K._9, K._0]
+            for i, k in enumerate(digits[:len(TOUR)]):
+                if pressed(k):
+                    self.lecture(i)
+            if pressed(K.escape):
+                self.lecture(None)
 
     # ------------------------------------------------------------------ panel
     def _panel(self):
@@ -257,16 +364,42 @@ class App:
             if imgui.button("Fit scene"):
                 self.camera.fit(*s.bounds())
                 self.dirty = True
+        self._file_panel()
+        self._lecture_panel()
         if imgui.collapsing_header("Display", imgui.TreeNodeFlags_.default_open):
-            modes_img = ["raster", "reference"]
-            ch, i = imgui.combo("image", modes_img.index(self.image_mode), modes_img)
+            from viewer.app.compare_view import MODES
+
+            ch, i = imgui.combo("image (C)", MODES.index(self.compare.mode), list(MODES))
             if ch:
-                self.set_image_mode(modes_img[i])
-            if self.image_mode == "reference" and self._reference is not None:
+                self.set_image_mode(MODES[i])
+            if self.compare.mode == "split":
+                ch, v = imgui.slider_float("divider", float(self.compare.split), 0.0, 1.0)
+                if ch:
+                    self.compare.split = float(np.clip(ui.finite_or(v, 0.5), 0.0, 1.0))
+            if self.compare.mode in ("difference", "relative difference"):
+                ch, v = imgui.checkbox("auto scale (99th percentile)", self.compare.auto_scale)
+                if ch:
+                    self.compare.auto_scale = v
+                if not self.compare.auto_scale:
+                    ch, v = imgui.slider_float("scale", float(self.compare.scale), 1e-4, 10.0, "%.4g",
+                                               imgui.SliderFlags_.logarithmic)
+                    if ch and np.isfinite(v) and v > 0:
+                        self.compare.scale = float(v)
+            if self.compare.uses_reference and self._reference is not None:
                 rv = self._reference
                 imgui.text(f"reference: {rv.spp} spp, {rv.samples_per_second / 1e3:.1f} k samples/s")
+                m = self.compare.metrics
+                if m and "rmse" in m and self.compare.mode != "reference":
+                    imgui.text(f"RMSE {m['rmse']:.4g}, relMSE {m['relative_mse']:.4g}")
                 if rv.error:
                     imgui.text_wrapped(rv.error)
+            ch, v = imgui.checkbox("BRDF plots (P)", self.plots.visible)
+            if ch:
+                self.plots.visible = v
+            imgui.same_line()
+            ch, v = imgui.slider_float("UI scale", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            if ch and np.isfinite(v):
+                self.set_ui_scale(v)
             r = s.render
             ch, v = imgui.slider_float("exposure (EV)", float(r.exposure), -10.0, 10.0)
             if ch:
@@ -334,8 +467,11 @@ class App:
 
     _capture_next = None
     _warm = None
-    image_mode = "raster"  # or "reference"
     _reference = None
+
+    @property
+    def image_mode(self) -> str:
+        return self.compare.mode
 
     def reference_view(self):
         if self._reference is None:
@@ -345,11 +481,374 @@ class App:
         return self._reference
 
     def set_image_mode(self, mode: str):
-        assert mode in ("raster", "reference"), mode
-        self.image_mode = mode
-        if mode == "raster" and self._reference is not None:
+        """One of ``compare_view.MODES``: raster, reference, split, side by side, difference,
+        relative difference. Modes without the reference stop its render (no CPU spent)."""
+        from viewer.app.compare_view import MODES
+
+        if mode not in MODES:
+            raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
+        self.compare.mode = mode
+        if not self.compare.uses_reference and self._reference is not None:
             self._reference.stop()
+            self._reference._key = None  # the next compare view starts a new render
         self.dirty = True
+
+    # ------------------------------------------------------------------ UI scale, fullscreen
+    def _load_font(self):
+        """DroidSans from imgui-bundle's assets (imgui >= 1.92 rasterizes fonts at any size, so
+        the UI scale stays sharp on a projector); imgui's built-in font when it is missing."""
+        import imgui_bundle
+
+        path = Path(imgui_bundle.__file__).parent / "assets" / "fonts" / "DroidSans.ttf"
+        if path.exists():
+            try:
+                self.imgui.get_io().fonts.add_font_from_file_ttf(str(path), 16.0)
+            except Exception as e:  # noqa: BLE001 - a font is cosmetic: keep the default
+                print(f"brdf-viewer: font {path} not loaded ({e})", file=sys.stderr)
+
+    def set_ui_scale(self, scale: float):
+        scale = float(np.clip(scale if np.isfinite(scale) else 1.0, 0.5, 3.0))
+        self.ui_scale = scale
+        self.imgui.get_style().font_scale_main = scale
+        self.dirty = True
+
+    def toggle_fullscreen(self):
+        glfw = self.glfw
+        if self._fullscreen_restore is None:
+            monitor = glfw.get_primary_monitor()
+            mode = glfw.get_video_mode(monitor) if monitor else None
+            if not monitor or mode is None:
+                self.status = "fullscreen: no monitor reported by the window system"
+                return
+            x, y = glfw.get_window_pos(self.window)
+            w, h = glfw.get_window_size(self.window)
+            self._fullscreen_restore = (x, y, w, h)
+            glfw.set_window_monitor(self.window, monitor, 0, 0, mode.size.width, mode.size.height,
+                                    mode.refresh_rate)
+        else:
+            x, y, w, h = self._fullscreen_restore
+            self._fullscreen_restore = None
+            glfw.set_window_monitor(self.window, None, x, y, w, h, 0)
+        self.dirty = True
+
+    # ------------------------------------------------------------------ lecture mode
+    def lecture(self, step: int | None):
+        """Show the lecture tour's ``step`` (0-based; None ends lecture mode). The step's scene
+        replaces the current one; a step that fails to load leaves the scene as it was."""
+        from viewer.lecture import TOUR, tour_scene
+
+        if step is None:
+            self.lecture_step = -1
+            self.status = "lecture mode off"
+            return True
+        step %= len(TOUR)
+        t0 = time.perf_counter()
+        try:
+            scene = tour_scene(step)
+        except ViewerError as e:
+            self.status = f"lecture step {step + 1} not loaded: {e}"
+            return False
+        self._set_scene(scene, None)
+        self.lecture_step = step
+        tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
+               "bouguer": "Bouguer"}.get(TOUR[step].plot)
+        if tab:
+            self.plots.select_tab(tab)
+        self.plots.inside = TOUR[step].key == "tir"  # the critical angle needs light from inside
+        for name in scene.materials:  # plot the step's subjects, not the floor under them
+            self.plots.shown[name] = name != "floor"
+        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
+        return True
+
+    def _lecture_panel(self):
+        from viewer.lecture import TOUR
+
+        imgui = self.imgui
+        if imgui.collapsing_header("Lecture (L)"):
+            labels = ["(off)"] + [f"{i + 1}. {s.title}" for i, s in enumerate(TOUR)]
+            ch, i = imgui.combo("step", self.lecture_step + 1, labels)
+            if ch:
+                self.lecture(i - 1 if i > 0 else None)
+            if imgui.button("< prev"):
+                self.lecture((max(self.lecture_step, 0) - 1) % len(TOUR))
+            imgui.same_line()
+            if imgui.button("next >"):
+                self.lecture((self.lecture_step + 1) % len(TOUR))
+            imgui.text_disabled("keys: L on/off, 1-9 0, arrows, PgUp/PgDn, Esc")
+
+    def _lecture_overlay(self):
+        if self.lecture_step < 0:
+            return
+        from viewer.lecture import TOUR
+
+        imgui = self.imgui
+        step = TOUR[self.lecture_step]
+        x, y, w, h = self.view_logical()
+        dl = imgui.get_foreground_draw_list()
+        size = imgui.get_font_size() * 1.6
+        cap = imgui.get_font_size() * 1.15
+        title = f"{self.lecture_step + 1}/{len(TOUR)}  {step.title}"
+        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
+        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6))
+        font = imgui.get_font()
+        base = imgui.get_font_size()  # text width scales with the font size
+        tw = imgui.calc_text_size(title).x * size / base
+        cw = min(imgui.calc_text_size(step.caption).x * cap / base, w - 28)
+        box_h = size + cap + 24
+        y0 = y + h - box_h - 8
+        dl.add_rect_filled(imgui.ImVec2(x + 8, y0), imgui.ImVec2(x + w - 8, y0 + box_h), shade, 6.0)
+        dl.add_text(font, size, imgui.ImVec2(x + (w - tw) / 2, y0 + 6), white, title)
+        dl.add_text(font, cap, imgui.ImVec2(x + max((w - cw) / 2, 14), y0 + 12 + size), white, step.caption,
+                    w - 28)
+
+    # ------------------------------------------------------------------ scenes, materials, meshes
+    def _set_scene(self, scene, ref):
+        from viewer.camera import OrbitCamera
+
+        self.scene = scene
+        self.camera = OrbitCamera.from_scene(scene)
+        self._scene_ref = ref
+        self._env_path_text = ""
+        self.hdr = None
+        self.dirty = True
+
+    def open_scene(self, ref) -> bool:
+        """Load a scene file, a screenshot (.png) or a built-in name; on failure keep the old."""
+        from viewer.scene import load_scene
+
+        try:
+            scene = load_scene(str(ref))
+        except ViewerError as e:
+            self.status = f"scene not opened: {e}"
+            return False
+        except Exception as e:  # noqa: BLE001 - anything unexpected keeps the running scene
+            self.status = f"scene not opened: {ref}: {type(e).__name__}: {e}"
+            return False
+        self._set_scene(scene, str(Path(ref).absolute()) if Path(str(ref)).exists() else str(ref))
+        self.lecture_step = -1
+        self.status = f"opened {ref}"
+        return True
+
+    def save_scene(self, path) -> bool:
+        """The current scene (camera as seen) as TOML in the CONTRACT format, written atomically."""
+        from viewer.io import atomic_write_bytes
+        from viewer.screenshot import scene_with_camera
+        from viewer.scene import scene_to_toml
+
+        try:
+            text = scene_to_toml(scene_with_camera(self.scene, self.camera))
+            atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
+        except (OSError, ViewerError) as e:
+            self.status = f"scene not saved: {e}"
+            return False
+        self.status = f"saved scene {path}"
+        return True
+
+    def save_material(self, name: str, path) -> bool:
+        """One material as a ``[materials.NAME]`` table (the scene file's format)."""
+        import tomli_w
+
+        from viewer.io import atomic_write_bytes
+        from viewer.scene import _plain
+
+        try:
+            data = {"materials": {name: _plain(self.scene.materials[name].to_plain())}}
+            atomic_write_bytes(Path(path).expanduser(), tomli_w.dumps(data).encode("utf-8"))
+        except (OSError, KeyError, ViewerError) as e:
+            self.status = f"material not saved: {e}"
+            return False
+        self.status = f"saved material {name} to {path}"
+        return True
+
+    def load_material(self, name: str, path) -> bool:
+        """Replace material ``name`` with the first material of a TOML file (a material file or
+        a whole scene), validated like a scene's; on any problem the old material stays."""
+        from viewer.scene import _Checker, _parse_materials, _read_toml
+
+        path = Path(path).expanduser()
+        try:
+            data = _read_toml(path, str(path))
+            mats = data.get("materials") if isinstance(data, dict) else None
+            if not isinstance(mats, dict) or not mats:
+                _Checker(str(path)).fail("materials", "no [materials.NAME] table in the file",
+                                         "a file with [materials.NAME] and model = ... (or preset = ...)")
+            first = next(iter(mats))
+            parsed = _parse_materials(_Checker(str(path)), {first: mats[first]})
+        except ViewerError as e:
+            self.status = f"material not loaded: {e}"
+            return False
+        self.scene.materials[name] = parsed[first]
+        self.dirty = True
+        self.status = f"material {name} <- {path} [{first}]"
+        return True
+
+    def load_mesh(self, path, object_index: int | None = None) -> bool:
+        """Replace one object's mesh (default: the largest object that is not a plane) with a
+        mesh file, scaled to the same bounding-sphere radius and centre; errors keep the old."""
+        from viewer.mesh import load_mesh
+
+        objs = self.scene.objects
+        if not objs:
+            self.status = "mesh not loaded: the scene has no objects"
+            return False
+        if object_index is None:
+            object_index = self.mesh_target
+        object_index = int(np.clip(object_index, 0, len(objs) - 1))
+        obj = objs[object_index]
+        try:
+            md = load_mesh(str(Path(path).expanduser().absolute()), None, where=f"{path}")
+        except ViewerError as e:
+            self.status = f"mesh not loaded: {e}"
+            return False
+        except Exception as e:  # noqa: BLE001 - trimesh raises many kinds for a broken file
+            self.status = f"mesh not loaded: {path}: {type(e).__name__}: {e}"
+            return False
+
+        def sphere(points):
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-12)
+
+        old_c, old_r = sphere(obj.world_positions())
+        new_p = np.asarray(md.positions, np.float64).reshape(-1, 3)
+        new_c, new_r = sphere(new_p)
+        s = old_r / new_r
+        obj.mesh = str(Path(path).expanduser().absolute())
+        obj.mesh_data = md
+        obj.scale = s
+        obj.rotate_y_deg = 0.0
+        obj.translate = old_c - s * new_c
+        self.dirty = True
+        self.status = f"object {object_index} <- {path} ({len(md.indices):,} triangles)"
+        return True
+
+    @property
+    def mesh_target(self) -> int:
+        """The object a loaded mesh replaces: the one picked in the panel, else the largest
+        object that is not a plane."""
+        if self._mesh_target is not None and self._mesh_target < len(self.scene.objects):
+            return self._mesh_target
+        best, best_r = 0, -1.0
+        for i, o in enumerate(self.scene.objects):
+            if o.mesh == "plane":
+                continue
+            p = o.world_positions()
+            r = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+            if r > best_r:
+                best, best_r = i, r
+        return best
+
+    _mesh_target = None
+    _dialog = None  # (kind, portable_file_dialogs object)
+    _file_text = ""
+
+    def _file_panel(self):
+        imgui = self.imgui
+        if not imgui.collapsing_header("Files"):
+            return
+        ch, self._file_text = imgui.input_text("path##files", self._file_text)
+        names = [f"{i}: {o.mesh if len(o.mesh) < 24 else '...' + o.mesh[-21:]} ({o.material})"
+                 for i, o in enumerate(self.scene.objects)]
+        ch, i = imgui.combo("object", self.mesh_target, names)
+        if ch:
+            self._mesh_target = i
+        mats = list(self.scene.materials)
+        mat = self.scene.objects[self.mesh_target].material if self.scene.objects else (mats[0] if mats else "")
+        path = self._file_text.strip()
+        if imgui.button("Open scene"):
+            self._open_or_browse("scene", path)
+        imgui.same_line()
+        if imgui.button("Save scene"):
+            self._open_or_browse("save_scene", path)
+        imgui.same_line()
+        if imgui.button("Load mesh"):
+            self._open_or_browse("mesh", path)
+        if mat:
+            if imgui.button(f"Save material '{mat}'"):
+                self._open_or_browse("save_material", path)
+            imgui.same_line()
+            if imgui.button("Load material"):
+                self._open_or_browse("material", path)
+        from viewer.app import state as state_mod
+
+        if state_mod.last_scene_path().exists() and imgui.button("Reopen last session"):
+            self.open_scene(state_mod.last_scene_path())
+        imgui.text_disabled("empty path: a file dialog; or drop files on the window")
+
+    _FILTERS = {
+        "scene": ["Scenes and screenshots", "*.toml *.png", "All files", "*"],
+        "save_scene": ["Scene (.toml)", "*.toml"],
+        "mesh": ["Meshes", "*.obj *.ply *.stl *.off *.glb *.gltf", "All files", "*"],
+        "material": ["Materials and scenes (.toml)", "*.toml", "All files", "*"],
+        "save_material": ["Material (.toml)", "*.toml"],
+    }
+
+    def _open_or_browse(self, kind: str, path: str):
+        if path:
+            self._file_action(kind, path)
+            return
+        try:  # the desktop's own dialog (zenity / kdialog on Linux), polled, never blocking
+            from imgui_bundle import portable_file_dialogs as pfd
+
+            title = kind.replace("_", " ")
+            if kind.startswith("save"):
+                self._dialog = (kind, pfd.save_file(title, str(Path.cwd()), self._FILTERS[kind]))
+            else:
+                self._dialog = (kind, pfd.open_file(title, str(Path.cwd()), self._FILTERS[kind]))
+        except Exception as e:  # noqa: BLE001 - no dialog backend: say so, keep going
+            self.status = f"no file dialog available ({e}); type a path or drop a file"
+
+    def _poll_dialogs(self):
+        if self._dialog is not None and self._dialog[1].ready(0):
+            kind, dlg = self._dialog
+            self._dialog = None
+            picked = dlg.result()
+            if isinstance(picked, list):
+                picked = picked[0] if picked else ""
+            if picked:
+                self._file_action(kind, picked)
+        if self._env_dialog is not None and self._env_dialog.ready(0):
+            picked = self._env_dialog.result()
+            self._env_dialog = None
+            if picked:
+                self.set_environment(picked[0])
+
+    def _file_action(self, kind: str, path: str) -> bool:
+        target = self.scene.objects[self.mesh_target].material if self.scene.objects else None
+        if kind == "scene":
+            return self.open_scene(path)
+        if kind == "save_scene":
+            return self.save_scene(path if path.lower().endswith(".toml") else path + ".toml")
+        if kind == "mesh":
+            return self.load_mesh(path)
+        if kind == "material" and target:
+            return self.load_material(target, path)
+        if kind == "save_material" and target:
+            return self.save_material(target, path if path.lower().endswith(".toml") else path + ".toml")
+        return False
+
+    def save_state(self):
+        """The window's state for the next start, and the scene as last_scene.toml (atomic)."""
+        from viewer.app import state as state_mod
+        from viewer.io import atomic_write_bytes
+        from viewer.scene import scene_to_toml
+        from viewer.screenshot import scene_with_camera
+
+        st = dict(self._state)
+        try:
+            if self._fullscreen_restore is not None:
+                x, y, w, h = self._fullscreen_restore
+            else:
+                (x, y), (w, h) = self.glfw.get_window_pos(self.window), self.glfw.get_window_size(self.window)
+            if w >= 64 and h >= 64:
+                st.update(window_width=w, window_height=h, window_x=x, window_y=y)
+            st.update(ui_scale=self.ui_scale, show_ui=self.show_ui, compare_mode=self.compare.mode,
+                      split=self.compare.split, view_mode=self.view_mode, plots_visible=self.plots.visible,
+                      lecture_step=self.lecture_step)
+            state_mod.save_state(st)
+            text = scene_to_toml(scene_with_camera(self.scene, self.camera))
+            atomic_write_bytes(state_mod.last_scene_path(), text.encode("utf-8"))
+        except Exception as e:  # noqa: BLE001 - never lose the session to a state-file problem
+            print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
 
     def _warm_one(self):
         """Compile one model's forward program while idle, so switching models later does not
@@ -422,11 +921,6 @@ class App:
                                                  ["HDR environment maps", "*.hdr *.exr", "All files", "*"])
             except Exception as e:  # noqa: BLE001 - no dialog backend: say so, keep going
                 self.status = f"no file dialog available ({e}); type a path or drop a file"
-        if self._env_dialog is not None and self._env_dialog.ready(0):
-            picked = self._env_dialog.result()
-            self._env_dialog = None
-            if picked:
-                self.set_environment(picked[0])
         imgui.same_line()
         imgui.text_disabled("(or drop a file on the window)")
         if env.map is None:
@@ -486,12 +980,20 @@ class App:
         self.dirty = True
         return True
 
+    MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+
     def _on_drop(self, window, paths):
         for p in paths:
-            if p.lower().endswith((".hdr", ".exr")):
+            low = p.lower()
+            if low.endswith((".hdr", ".exr")):
                 self.set_environment(p)
+            elif low.endswith((".toml", ".png")):
+                self.open_scene(p)
+            elif low.endswith(self.MESH_SUFFIXES):
+                self.load_mesh(p)
             else:
-                self.status = f"dropped {p}: not an environment map; allowed: .hdr, .exr"
+                self.status = (f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
+                               "meshes " + " ".join(self.MESH_SUFFIXES))
 
     # ------------------------------------------------------------------ actions
     def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:
@@ -521,6 +1023,6 @@ class App:
         return Path(path)
 
 
-def run_app(scene_ref=None, overrides=(), size=(1280, 720), frames=0, screenshot=None) -> int:
+def run_app(scene_ref=None, overrides=(), size=None, frames=0, screenshot=None) -> int:
     app = App(scene_ref, overrides, size)
     return app.run(frames=frames, screenshot=screenshot)

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import json
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from viewer.brdf.albedo import TABLE_SIZE, albedo_tables
 from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
-from viewer.gl.shaders import build_program, default_virtual
+from viewer.gl.shaders import ShaderError, compile_sources, default_virtual, program_sources
 from viewer.gl.shaders import set_uniform as _set
 
 MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
@@ -54,6 +55,44 @@ def _absorbing(params) -> bool:
     return brdf_spec(params).transmissive and "sigma_a" in params and bool(np.any(np.asarray(params.sigma_a) > 0))
 
 
+class _Recipe(NamedTuple):
+    """How to build one program from the files under shader_root(), kept so hot reload can
+    build it again: stage files, the BRDF models of the generated ``brdf/dispatch.glsl``
+    (None: no virtual files) and ``#define``s."""
+
+    vertex: str
+    fragment: str
+    geometry: str | None = None
+    models: tuple[str, ...] | None = ("lambert",)
+    defines: tuple[tuple[str, str], ...] = ()
+
+    def sources(self):
+        virtual = {} if self.models is None else default_virtual(self.models)
+        return program_sources(self.vertex, self.fragment, geometry=self.geometry, virtual=virtual,
+                               defines=dict(self.defines) or None)
+
+
+def _texts(sources) -> tuple:
+    return tuple(None if s is None else s.text for s in sources)
+
+
+def _files(sources) -> set[str]:
+    return {f for s in sources if s is not None for f in s.files}
+
+
+_FIXED = {
+    "forward:lambert": _Recipe("passes/forward.vert", "passes/forward.frag", "passes/forward.geom"),
+    "shadow": _Recipe("passes/shadow.vert", "passes/shadow.frag"),
+    "tonemap": _Recipe("passes/fullscreen.vert", "passes/tonemap.frag"),
+}
+# programs the SSR pass owns (viewer/gl/ssr.py builds them the same way): attribute names
+_SSR_PROGRAMS = {
+    "ssr:trace": (_Recipe("passes/fullscreen.vert", "passes/ssr.frag"), "prog", "vao"),
+    "ssr:background": (_Recipe("passes/fullscreen.vert", "passes/ssr_background.frag"), "bg_prog", "bg_vao"),
+    "ssr:hiz": (_Recipe("passes/fullscreen.vert", "passes/ssr_hiz.frag"), "hiz_prog", "hiz_vao"),
+}
+
+
 class GpuMesh:
     """Vertex and index buffers of one MeshData; one vertex array per program."""
 
@@ -88,11 +127,22 @@ class GpuMesh:
 
 
 class Renderer:
+    #: set by hot reload (viewer/gl/hot_reload.py): a program that fails to compile is reported
+    #: in ``shader_errors`` instead of raised from ``render`` (objects whose forward program has
+    #: no good version yet are left out of the image), and is retried when a shader file changes.
+    hot_reload = False
+
     def __init__(self, ctx):
         self.ctx = ctx
         self.programs = {}
-        self.build_programs()
+        self._recipes: dict[str, _Recipe] = {}  # how each program in self.programs was built
+        self._good: dict[str, tuple] = {}  # the source texts of the program in use, per key
+        self._failed: dict[str, tuple] = {}  # key -> (source texts or None, ShaderError)
+        self._render_error: ShaderError | None = None
+        self.last_reloaded: list[str] = []
+        self._bg_vao = None
         self._meshes: dict[int, tuple[object, GpuMesh]] = {}
+        self.build_programs()
         self._targets = None
         self._target_key = None
         self._ldr = None
@@ -100,7 +150,6 @@ class Renderer:
         self._shadow_key = None
         self._shadow_mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._shadow_texel = np.zeros(MAX_LIGHTS)
-        self._empty_vao = ctx.vertex_array(self.programs["tonemap"], [])
         self._albedo_cache: dict[str, tuple] = {}
         self._thick = None
         self._ibl = None
@@ -108,28 +157,180 @@ class Renderer:
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
-        """(Re)compile every pass. Raises ShaderError; on failure the old programs stay.
+        """(Re)compile the fixed passes. Raises ShaderError; on failure the old programs stay.
 
         The forward pass is compiled per set of material models (``forward_program``), on
         first use, and cached: a slider move is a uniform upload, a model switch compiles at
-        most once."""
-        virtual = default_virtual(("lambert",))
-        new = {
-            "forward:lambert": build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
-                                             geometry="passes/forward.geom", virtual=virtual),
-            "shadow": build_program(self.ctx, "passes/shadow.vert", "passes/shadow.frag", virtual=virtual),
-            "tonemap": build_program(self.ctx, "passes/fullscreen.vert", "passes/tonemap.frag", virtual=virtual),
-        }
-        old, self.programs = self.programs, new
-        for p in old.values():
-            p.release()
-        for _, gm in getattr(self, "_meshes", {}).values():
-            for v in gm.vaos.values():
+        most once. ``reload_shaders`` rebuilds every program from the files."""
+        new = {}
+        try:
+            for key, recipe in _FIXED.items():
+                new[key] = self._compile(key, recipe)
+        except ShaderError:
+            for p, _ in new.values():
+                p.release()
+            raise
+        for key, (prog, text) in new.items():
+            self._recipes[key] = _FIXED[key]
+            self._install(key, prog, text)
+
+    def _compile(self, key: str, recipe: _Recipe):
+        """(program, its source texts); a failure is remembered (``shader_errors``) and raised."""
+        try:
+            sources = recipe.sources()
+        except ShaderError as e:
+            e.program = key
+            self._failed[key] = (None, e)
+            raise
+        text = _texts(sources)
+        try:
+            prog = compile_sources(self.ctx, *sources)
+        except ShaderError as e:
+            e.program = key
+            self._failed[key] = (text, e)
+            raise
+        self._failed.pop(key, None)
+        return prog, text
+
+    def _drop_program(self, prog):
+        """Release a program and every vertex array made for it (mesh VAOs are keyed by id)."""
+        for _, gm in self._meshes.values():
+            v = gm.vaos.pop(id(prog), None)
+            if v is not None:
                 v.release()
-            gm.vaos.clear()
-        if hasattr(self, "_empty_vao"):
-            self._empty_vao.release()
-            self._empty_vao = self.ctx.vertex_array(self.programs["tonemap"], [])
+        prog.release()
+
+    def _install(self, key: str, prog, text: tuple):
+        """Put ``prog`` (built from sources ``text``) in use under ``key``; the program it
+        replaces is released only now."""
+        old = self.programs.get(key)
+        self.programs[key] = prog
+        self._good[key] = text
+        if key == "tonemap":
+            if getattr(self, "_empty_vao", None) is not None:
+                self._empty_vao.release()
+            self._empty_vao = self.ctx.vertex_array(prog, [])
+        elif key == "background":
+            if self._bg_vao is not None:
+                self._bg_vao.release()
+            self._bg_vao = self.ctx.vertex_array(prog, [])
+        if old is not None and old is not prog:
+            self._drop_program(old)
+
+    def _program(self, key: str, recipe: _Recipe):
+        """The cached program ``key``, built from ``recipe`` on first use. In hot-reload mode a
+        build that failed is not tried again until a shader file changes (``reload_shaders``)."""
+        prog = self.programs.get(key)
+        if prog is not None:
+            return prog
+        self._recipes[key] = recipe
+        failed = self._failed.get(key)
+        if failed is not None and self.hot_reload:
+            raise failed[1]
+        prog, text = self._compile(key, recipe)
+        self._install(key, prog, text)
+        return prog
+
+    # ---------------------------------------------------------------- hot reload
+    @property
+    def shader_errors(self) -> list[ShaderError]:
+        """The programs that do not compile from the current files (each error once; a program
+        that failed keeps rendering with its last good version). Empty when all compile."""
+        out, seen = [], set()
+        errs = [e for _, e in self._failed.values()]
+        if self._render_error is not None:
+            errs.append(self._render_error)
+        for e in errs:
+            k = (e.file, e.line, e.detail)
+            if k not in seen:
+                seen.add(k)
+                out.append(e)
+        return out
+
+    def _reload_slots(self):
+        """(key, recipe, install) of every program that can be rebuilt, the SSR and IBL passes'
+        included (their installers swap the program, its vertex array and stale results)."""
+        slots = [(k, r, lambda p, t, k=k: self._install(k, p, t)) for k, r in list(self._recipes.items())]
+        if self._ssr is not None:
+            for key, (recipe, attr, vao_attr) in _SSR_PROGRAMS.items():
+                slots.append((key, recipe, lambda p, t, a=attr, va=vao_attr: self._install_ssr(p, a, va)))
+        if self._ibl is not None:
+            for name in list(self._ibl._programs):
+                recipe = _Recipe("passes/fullscreen.vert", f"passes/{name}.frag", models=None)
+                slots.append(("ibl:" + name, recipe, lambda p, t, n=name: self._install_ibl(p, n)))
+        return slots
+
+    def _install_ssr(self, prog, attr: str, vao_attr: str):
+        ssr = self._ssr
+        old, old_vao = getattr(ssr, attr), getattr(ssr, vao_attr)
+        setattr(ssr, attr, prog)
+        setattr(ssr, vao_attr, self.ctx.vertex_array(prog, []))
+        old_vao.release()
+        old.release()
+
+    def _install_ibl(self, prog, name: str):
+        """Swap an IBL program and drop what it computed, so the next render recomputes it."""
+        ibl = self._ibl
+        old, old_vao = ibl._programs.get(name), ibl._vaos.get(name)
+        ibl._programs[name] = prog
+        ibl._vaos[name] = self.ctx.vertex_array(prog, [])
+        if old_vao is not None:
+            old_vao.release()
+        if old is not None:
+            old.release()
+        # the disk cache is keyed by the map and the settings, not by shader sources: bypass it
+        # (and never store results of an edited shader) for the rest of this session
+        ibl.use_cache = False
+        if name == "ibl_dfg" and ibl.dfg_tex is not None:
+            ibl.dfg_tex.release()
+            ibl.dfg_tex = None
+        if name in ("ibl_downsample", "ibl_prefilter", "ibl_dfg"):
+            ibl._key = None
+            ibl._last_ident = None
+        if name == "ibl_cubemap":
+            ibl._cube_key = None
+
+    def reload_shaders(self, changed=None) -> list[ShaderError]:
+        """Rebuild programs from the shader files as they are now and return ``shader_errors``.
+
+        ``changed``: paths relative to shader_root() that changed (as ShaderWatcher reports
+        them), or None for all. A program is compiled again only if its preprocessed sources
+        differ from those of the program in use (or, for the SSR and IBL passes' programs, if
+        it includes a changed file), or if it failed before and its sources changed since.
+        A program that compiles replaces the old one, which is released only then; one that
+        fails keeps the old one in use. Never raises ShaderError. ``last_reloaded`` lists the
+        keys of the programs replaced."""
+        changed = None if changed is None else {str(c).replace("\\", "/") for c in changed}
+        self.last_reloaded = []
+        self._render_error = None  # the next render tries again
+        for key, recipe, install in self._reload_slots():
+            failed = self._failed.get(key)
+            good = self._good.get(key)
+            try:
+                sources = recipe.sources()
+            except ShaderError as e:
+                e.program = key
+                self._failed[key] = (None, e)
+                continue
+            text = _texts(sources)
+            if failed is not None and failed[0] == text:
+                continue  # the same sources as the failed attempt: the same error
+            if text == good:
+                self._failed.pop(key, None)  # back to the sources of the program in use
+                continue
+            if failed is None and good is None and changed is not None and not (_files(sources) & changed):
+                continue
+            try:
+                prog = compile_sources(self.ctx, *sources)
+            except ShaderError as e:
+                e.program = key
+                self._failed[key] = (text, e)
+                continue
+            self._failed.pop(key, None)
+            self._good[key] = text
+            install(prog, text)
+            self.last_reloaded.append(key)
+        return self.shader_errors
 
     # Per-sample shading (GLSL 'sample' inputs) is off: on Mesa llvmpipe 22.3 it gave wrong shadow
     # visibility on fully covered pixels near silhouettes (measured against the reference). For
@@ -148,24 +349,19 @@ class Renderer:
         key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
                + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
                + (":const" if env_constant else ""))
-        prog = self.programs.get(key)
-        if prog is None:
-            defines = {}
-            if per_sample:
-                defines["SAMPLE_SHADING"] = "1"
-            if ssr:
-                defines["SSR"] = "1"
-            if ibl_sampled:
-                defines["IBL_SAMPLED"] = "1"
-            if env_light:
-                defines["ENV_LIGHT"] = "1"
-            if env_constant:
-                defines["ENV_CONSTANT"] = "1"
-            prog = build_program(self.ctx, "passes/forward.vert", "passes/forward.frag",
-                                 geometry="passes/forward.geom", virtual=default_virtual(used),
-                                 defines=defines or None)
-            self.programs[key] = prog
-        return prog
+        defines = {}
+        if per_sample:
+            defines["SAMPLE_SHADING"] = "1"
+        if ssr:
+            defines["SSR"] = "1"
+        if ibl_sampled:
+            defines["IBL_SAMPLED"] = "1"
+        if env_light:
+            defines["ENV_LIGHT"] = "1"
+        if env_constant:
+            defines["ENV_CONSTANT"] = "1"
+        return self._program(key, _Recipe("passes/forward.vert", "passes/forward.frag", "passes/forward.geom",
+                                          models=tuple(used), defines=tuple(defines.items())))
 
     # ---------------------------------------------------------------- resources
     def _gpu_mesh(self, mesh) -> GpuMesh:
@@ -330,7 +526,25 @@ class Renderer:
 
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
                height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0):
-        """Render the scene into the linear HDR target; returns the resolved float texture."""
+        """Render the scene into the linear HDR target; returns the resolved float texture.
+
+        Raises ShaderError when a program it needs does not compile, except in hot-reload mode
+        (``hot_reload``): there the error goes to ``shader_errors``, an object whose forward
+        program never compiled is left out, and a pass that cannot be built gives back the
+        colour target as it is (normally the previous frame)."""
+        if not self.hot_reload:
+            return self._render(scene, camera, width, height, view_mode, msaa, frame_index)
+        try:
+            hdr = self._render(scene, camera, width, height, view_mode, msaa, frame_index)
+        except ShaderError as e:
+            self._render_error = e
+            w = int(width or scene.camera.width)
+            h = int(height or scene.camera.height)
+            return self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)["resolved"]
+        self._render_error = None
+        return hdr
+
+    def _render(self, scene, camera, width, height, view_mode, msaa, frame_index):
         ctx = self.ctx
         w = int(width or scene.camera.width)
         h = int(height or scene.camera.height)
@@ -363,11 +577,7 @@ class Renderer:
         if ssr_on:
             self._ssr.background(ibl, cam, w, h, env_map is not None, env_rad, env.rotation_deg)
         elif env_map is not None:  # draw the environment behind the scene
-            bg = self.programs.get("background")
-            if bg is None:
-                bg = self.programs["background"] = build_program(
-                    ctx, "passes/fullscreen.vert", "passes/background.frag", virtual=default_virtual(("lambert",)))
-                self._bg_vao = ctx.vertex_array(bg, [])
+            bg = self._program("background", _Recipe("passes/fullscreen.vert", "passes/background.frag"))
             ctx.disable(ctx.DEPTH_TEST)
             _set(bg, "u_inv_view_proj", gl_bytes(np.linalg.inv(cam.projection(w / h) @ cam.view())))
             _set(bg, "u_camera_pos", tuple(float(x) for x in cam.position))
@@ -413,9 +623,15 @@ class Renderer:
         ready = set()
         for obj in scene.objects:
             params = scene.materials[obj.material]
-            prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1,
-                                        ssr=ssr_on, ibl_sampled=env_on and scene.render.ibl in ("fis", "brute_force"),
-                                        env_light=env_on, env_constant=env_map is None)
+            try:
+                prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1,
+                                            ssr=ssr_on,
+                                            ibl_sampled=env_on and scene.render.ibl in ("fis", "brute_force"),
+                                            env_light=env_on, env_constant=env_map is None)
+            except ShaderError:
+                if not self.hot_reload:
+                    raise
+                continue  # never compiled (see shader_errors): leave the object out, draw the rest
             if id(prog) not in ready:
                 for k, v in frame_uniforms.items():
                     _set(prog, k, v)
@@ -467,10 +683,7 @@ class Renderer:
             depth = ctx.depth_renderbuffer((w, h))
             self._thick = (key, tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
         _, tex, _, fbo = self._thick
-        if "thickness" not in self.programs:
-            self.programs["thickness"] = build_program(ctx, "passes/forward.vert", "passes/thickness.frag",
-                                                       virtual=default_virtual(("lambert",)))
-        prog = self.programs["thickness"]
+        prog = self._program("thickness", _Recipe("passes/forward.vert", "passes/thickness.frag"))
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -572,5 +785,8 @@ class Renderer:
         if self._ssr is not None:
             self._ssr.release()
         self._empty_vao.release()
+        if self._bg_vao is not None:
+            self._bg_vao.release()
         for p in self.programs.values():
             p.release()
+        self.programs.clear()

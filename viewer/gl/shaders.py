@@ -1,8 +1,14 @@
 """Shader loading: ``#include "file"`` resolution (each file at most once), error lines mapped
-back to the file they came from, and generated virtual files (``brdf/dispatch.glsl``)."""
+back to the file they came from, and generated virtual files (``brdf/dispatch.glsl``).
+
+Files are read from disk on every build (there is no source cache), from ``shader_root()``:
+the package's ``shaders/`` unless ``set_shader_root`` or the environment variable
+``BRDF_VIEWER_SHADERS`` names another folder (tests point it at a temporary copy; hot reload
+in ``viewer/gl/hot_reload.py`` rebuilds programs when files there change)."""
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,19 +17,58 @@ from viewer import ViewerError
 from viewer.resources import SHADER_DIR
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+# Line numbers of included file k start at k * LINE_BASE (``#line``), so a compiler message
+# names the file through its line number alone: Mesa 22 reports source string 0 for some errors
+# in included code (undeclared identifiers in expressions) although it keeps the line right.
+LINE_BASE = 100000
 # Mesa: "0:12(5): error: ..."; NVIDIA: "0(12) : error ..."; Apple/AMD: "ERROR: 0:12: ..."
 _ERR = [re.compile(r"(?P<file>\d+):(?P<line>\d+)\(\d+\)"),
         re.compile(r"(?P<file>\d+)\((?P<line>\d+)\)"),
         re.compile(r"ERROR:\s*(?P<file>\d+):(?P<line>\d+)")]
 
 
-class ShaderError(ViewerError):
-    """A shader failed to compile or link; ``.file`` and ``.line`` locate the first error."""
+#: environment variable naming another shader folder (default: the package's shaders/)
+SHADER_ROOT_ENV = "BRDF_VIEWER_SHADERS"
+_root_override: Path | None = None
 
-    def __init__(self, message: str, file: str | None = None, line: int | None = None):
+
+def set_shader_root(path: str | os.PathLike | None) -> None:
+    """Read shaders from ``path`` from now on (None: back to the environment variable or the
+    package's shaders/). Programs already built are not affected until they are rebuilt."""
+    global _root_override
+    _root_override = None if path is None else Path(path).resolve()
+
+
+def shader_root() -> Path:
+    """The folder shader files are read from: ``set_shader_root``'s, else $BRDF_VIEWER_SHADERS,
+    else the package's shaders/ (never the working folder)."""
+    if _root_override is not None:
+        return _root_override
+    env = os.environ.get(SHADER_ROOT_ENV)
+    return Path(env).resolve() if env else SHADER_DIR
+
+
+class ShaderError(ViewerError):
+    """A shader failed to compile or link; ``.file`` and ``.line`` locate the first error (the
+    included file it is really in, not the pass that included it; None for link errors).
+    ``.detail`` is that error's message without its location; ``.program`` names the program
+    when the renderer knows it (e.g. ``shadow``, ``forward:lambert:env``)."""
+
+    def __init__(self, message: str, file: str | None = None, line: int | None = None,
+                 detail: str | None = None, program: str | None = None):
         super().__init__(message)
         self.file = file
         self.line = line
+        self.detail = detail if detail is not None else message.splitlines()[0] if message else ""
+        self.program = program
+
+    def summary(self) -> str:
+        """One line: ``file:line: message`` (``program: message`` when no file is known)."""
+        if self.file is not None:
+            where = f"{self.file}:{self.line}" if self.line is not None else self.file
+        else:
+            where = self.program or "link"
+        return f"{where}: {self.detail}"
 
 
 @dataclass
@@ -40,6 +85,8 @@ class Source:
                 m = pat.search(raw)
                 if m:
                     idx, ln = int(m.group("file")), int(m.group("line"))
+                    if ln >= LINE_BASE:  # the line number says which file: trust it over idx
+                        idx, ln = divmod(ln, LINE_BASE)
                     name = self.files[idx] if 0 <= idx < len(self.files) else f"<source {idx}>"
                     line = raw[: m.start()] + f"{name}:{ln}" + raw[m.end():]
                     if first_file is None and "error" in raw.lower():
@@ -51,22 +98,24 @@ class Source:
 
 
 def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
-               root: Path = SHADER_DIR, defines: dict[str, str] | None = None) -> Source:
+               root: Path | None = None, defines: dict[str, str] | None = None) -> Source:
     """Inline includes, emitting ``#line`` directives so compiler messages map back to files;
-    ``defines`` become ``#define`` lines right after ``#version``."""
+    ``defines`` become ``#define`` lines right after ``#version``. ``root``: shader_root()."""
+    root = shader_root() if root is None else Path(root)
     virtual = dict(virtual or {})
     src = Source("", [name])
     included = {name}
     out: list[str] = []
 
-    def read(rel: str, where: str) -> str:
+    def read(rel: str, file: str, line: int) -> str:
         if rel in virtual:
             return virtual[rel]
         path = root / rel
         try:
             return path.read_text()
         except OSError as e:
-            raise ShaderError(f"{where}: cannot include {rel!r}: {e.strerror}", where) from None
+            why = f"cannot include {rel!r}: {e.strerror}"
+            raise ShaderError(f"{file}:{line}: {why}", file, line, detail=why) from None
 
     def emit(body: str, idx: int):
         for n, line in enumerate(body.splitlines(), start=1):
@@ -77,9 +126,9 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
                     included.add(rel)
                     src.files.append(rel)
                     child = len(src.files) - 1
-                    out.append(f"#line 1 {child}")
-                    emit(read(rel, f"{src.files[idx]}:{n}"), child)
-                    out.append(f"#line {n + 1} {idx}")
+                    out.append(f"#line {child * LINE_BASE + 1} {child}")
+                    emit(read(rel, src.files[idx], n), child)
+                    out.append(f"#line {idx * LINE_BASE + n + 1} {idx}")
                 else:
                     out.append("")
                 continue
@@ -87,7 +136,7 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
             if n == 1 and line.lstrip().startswith("#version"):
                 if idx == 0:
                     out.extend(f"#define {k} {v}" for k, v in (defines or {}).items())
-                out.append(f"#line 2 {idx}")
+                out.append(f"#line {idx * LINE_BASE + 2} {idx}")
 
     emit(text, 0)
     src.text = "\n".join(out) + "\n"
@@ -95,12 +144,13 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
 
 
 def load(rel: str, virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None) -> Source:
-    path = SHADER_DIR / rel
+    root = shader_root()
     try:
-        text = path.read_text()
+        text = (root / rel).read_text()
     except OSError as e:
-        raise ShaderError(f"{rel}: cannot read shader: {e.strerror}", rel) from None
-    return preprocess(text, rel, virtual, defines=defines)
+        raise ShaderError(f"{rel}: cannot read shader: {e.strerror}", rel, detail=f"cannot read shader: {e.strerror}") \
+            from None
+    return preprocess(text, rel, virtual, root=root, defines=defines)
 
 
 def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
@@ -109,18 +159,25 @@ def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
     return {"brdf/dispatch.glsl": generate_dispatch(only)}
 
 
-def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *, geometry: str | None = None,
-                  vertex_source: str | None = None, fragment_source: str | None = None,
-                  virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None):
-    """Compile and link a program from files under shaders/ (or given sources)."""
-    import moderngl
-
+def program_sources(vertex: str | None = None, fragment: str | None = None, *, geometry: str | None = None,
+                    vertex_source: str | None = None, fragment_source: str | None = None,
+                    virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None):
+    """The preprocessed (vertex, fragment, geometry or None) sources of a program, read from
+    disk now; ``virtual`` None = every model's dispatch. Raises ShaderError (unreadable file)."""
     if virtual is None:
         virtual = default_virtual()
     vs = load(vertex, virtual, defines) if vertex else preprocess(vertex_source, "<vertex>", virtual, defines=defines)
     fs = load(fragment, virtual, defines) if fragment else preprocess(fragment_source, "<fragment>", virtual,
                                                                       defines=defines)
     gs = load(geometry, virtual, defines) if geometry else None
+    return vs, fs, gs
+
+
+def compile_sources(ctx, vs: Source, fs: Source, gs: Source | None = None):
+    """Compile and link preprocessed sources; a failure raises ShaderError located in the file
+    (of the includes) the first error is in."""
+    import moderngl
+
     try:
         return ctx.program(vertex_shader=vs.text, fragment_shader=fs.text,
                            geometry_shader=gs.text if gs else None)
@@ -132,7 +189,20 @@ def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *
         text, _, f, ln = which.locate(log)
         first = text.splitlines()
         head = next((l for l in first if "error" in l.lower()), first[0] if first else "compile error")
-        raise ShaderError(f"shader compile failed: {head}" + ("\n" + text if len(first) > 1 else ""), f, ln) from None
+        detail = head
+        if f is not None and ln is not None and detail.startswith(f"{f}:{ln}"):
+            detail = detail[len(f"{f}:{ln}"):].lstrip(":( 0123456789)").strip() or head
+        raise ShaderError(f"shader compile failed: {head}" + ("\n" + text if len(first) > 1 else ""), f, ln,
+                          detail=detail) from None
+
+
+def build_program(ctx, vertex: str | None = None, fragment: str | None = None, *, geometry: str | None = None,
+                  vertex_source: str | None = None, fragment_source: str | None = None,
+                  virtual: dict[str, str] | None = None, defines: dict[str, str] | None = None):
+    """Compile and link a program from files under shader_root() (or given sources)."""
+    return compile_sources(ctx, *program_sources(vertex, fragment, geometry=geometry, vertex_source=vertex_source,
+                                                 fragment_source=fragment_source, virtual=virtual,
+                                                 defines=defines))
 
 
 def set_uniform(prog, name, value):

@@ -1,0 +1,244 @@
+"""The window's compare views: raster only, reference only, a split with a draggable divider,
+side by side, and difference heat maps (absolute and relative) with a colour bar, its scale and
+the live RMSE and relative MSE.
+
+Both halves go through the same exposure / tone-mapping pass (``Renderer.tonemap_to``), so
+they are shown alike. The metrics compare the reference (rendered at half the view's
+resolution) with the raster image box-filtered 2 x 2 down to the same pixels, the filter of
+CONTRACT section 1 (``brdf-viewer compare`` does the same with a supersampled raster).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from viewer.compare import REL_MSE_EPS, _ramp, metrics
+
+MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
+USES_REFERENCE = frozenset(MODES[1:])
+METRICS_INTERVAL_S = 0.5  # recompute RMSE / relMSE at most this often (a readback + numpy pass)
+
+
+def box_down(img: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Average ``img`` (H, W, 3) down to ``shape`` (h, w) by whole-pixel boxes; H >= h, W >= w.
+    Exact 2 x 2 means when H = 2h and W = 2w; otherwise each output pixel averages the input
+    pixels whose centres fall inside it."""
+    h, w = shape
+    H, W = img.shape[:2]
+    if H == 2 * h and W == 2 * w:
+        return img.reshape(h, 2, w, 2, -1).mean(axis=(1, 3))
+    rows = np.minimum((np.arange(H) + 0.5) * h / H, h - 1).astype(int)
+    cols = np.minimum((np.arange(W) + 0.5) * w / W, w - 1).astype(int)
+    out = np.zeros((h, w, img.shape[2]))
+    cnt = np.zeros((h, w, 1))
+    np.add.at(out, (rows[:, None], cols[None, :]), img)
+    np.add.at(cnt, (rows[:, None], cols[None, :]), 1.0)
+    return out / np.maximum(cnt, 1.0)
+
+
+def error_image(raster: np.ndarray, reference: np.ndarray, relative: bool) -> np.ndarray:
+    """Per-pixel error as in ``viewer.compare.heat_map``: |raster - reference| averaged over
+    channels, divided by the reference's mean + eps when relative."""
+    err = np.abs(raster.astype(np.float64) - reference).mean(axis=-1)
+    if relative:
+        err = err / (reference.mean(axis=-1) + REL_MSE_EPS)
+    return err
+
+
+class CompareView:
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.mode = "raster"
+        self.split = 0.5              # divider position, fraction of the view's width
+        self.dragging = False
+        self.metrics: dict | None = None
+        self.metrics_spp = 0
+        self.scale = 1.0              # heat map: the error at the top of the colour bar
+        self.auto_scale = True
+        self._heat_tex = None
+        self._heat_key = None
+        self._raster_small = None     # (key, array): the raster box-filtered to the reference's size
+        self._last_metrics_t = 0.0
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def uses_reference(self) -> bool:
+        return self.mode in USES_REFERENCE
+
+    def raster_rect(self, view):
+        """Where the raster image goes (framebuffer pixels) and the size to render it at."""
+        x, y, w, h = view
+        if self.mode == "side by side":
+            return (x, y, w // 2, h)
+        return view
+
+    def reference_rect(self, view):
+        x, y, w, h = view
+        if self.mode == "side by side":
+            return (x + w // 2, y, w - w // 2, h)
+        return view
+
+    # ------------------------------------------------------------------ metrics
+    def update_metrics(self, renderer, raster_tex, raster_version, ref_view, force=False):
+        """Recompute RMSE / relMSE when the reference has new samples (rate limited)."""
+        img = ref_view.latest()
+        if img is None or raster_tex is None:
+            self.metrics = None
+            return
+        ref, spp = img
+        now = time.perf_counter()
+        if not force and spp == self.metrics_spp and self.metrics is not None:
+            return
+        if not force and now - self._last_metrics_t < METRICS_INTERVAL_S and self.metrics is not None:
+            return
+        key = (raster_version, ref.shape)
+        if self._raster_small is None or self._raster_small[0] != key:
+            big = renderer.read_linear(raster_tex)
+            h, w = ref.shape[:2]
+            if big.shape[0] < h or big.shape[1] < w:
+                return  # a preview-resolution raster: wait for the full-quality frame
+            self._raster_small = (key, box_down(big, (h, w)).astype(np.float32))
+        small = self._raster_small[1]
+        if not (np.isfinite(small).all() and np.isfinite(ref).all()):
+            self.metrics = {"error": "non-finite pixels"}
+            return
+        self.metrics = metrics(small, ref)
+        self.metrics_spp = spp
+        self._last_metrics_t = now
+        self._raster_ref = (small, ref)
+
+    def heat_texture(self, relative: bool):
+        """The heat map as a float texture (linear colours from the same ramp as `compare`)."""
+        pair = getattr(self, "_raster_ref", None)
+        if pair is None:
+            return None
+        key = (id(pair[1]), self.metrics_spp, relative, self.auto_scale, None if self.auto_scale else self.scale)
+        if key != self._heat_key:
+            err = error_image(pair[0], pair[1], relative)
+            if self.auto_scale:  # the 99th percentile, as `brdf-viewer compare`
+                self.scale = float(np.percentile(err, 99)) or float(err.max()) or 1.0
+            rgb = _ramp(err / max(self.scale, 1e-30)).astype("f4")
+            h, w = err.shape
+            rgba = np.ones((h, w, 4), "f4")
+            rgba[..., :3] = rgb[::-1]
+            if self._heat_tex is None or self._heat_tex.size != (w, h):
+                if self._heat_tex is not None:
+                    self._heat_tex.release()
+                self._heat_tex = self.ctx.texture((w, h), 4, dtype="f4")
+            self._heat_tex.write(rgba.tobytes())
+            self._heat_key = key
+        return self._heat_tex
+
+    # ------------------------------------------------------------------ drawing
+    def draw(self, renderer, fbo, view, raster_tex, ref_tex, exposure, tonemap):
+        """Compose the view into ``fbo`` (the screen) inside ``view`` = (x, y, w, h)."""
+        ctx = self.ctx
+        x, y, w, h = view
+        m = self.mode
+        if m == "raster" or (ref_tex is None and m in ("split", "side by side")):
+            if raster_tex is not None:
+                renderer.tonemap_to(fbo, raster_tex, exposure, tonemap, viewport=self.raster_rect(view))
+            return
+        if m == "reference":
+            if ref_tex is not None:
+                renderer.tonemap_to(fbo, ref_tex, exposure, tonemap, viewport=view)
+            return
+        if m == "split":
+            if raster_tex is not None:
+                renderer.tonemap_to(fbo, raster_tex, exposure, tonemap, viewport=view)
+            cut = int(round(w * self.split))
+            ctx.scissor = (x + cut, y, w - cut, h)
+            try:
+                renderer.tonemap_to(fbo, ref_tex, exposure, tonemap, viewport=view)
+            finally:
+                ctx.scissor = None
+            return
+        if m == "side by side":
+            if raster_tex is not None:
+                renderer.tonemap_to(fbo, raster_tex, exposure, tonemap, viewport=self.raster_rect(view))
+            renderer.tonemap_to(fbo, ref_tex, exposure, tonemap, viewport=self.reference_rect(view))
+            return
+        heat = self.heat_texture(relative=(m == "relative difference"))
+        if heat is not None:  # the ramp is already a display colour: no exposure, no tone map
+            renderer.tonemap_to(fbo, heat, 0.0, "none", viewport=view)
+
+    # ------------------------------------------------------------------ imgui overlays
+    def divider_x(self, view_logical) -> float:
+        x, _, w, _ = view_logical
+        return x + w * self.split
+
+    def handle_mouse(self, imgui, view_logical) -> bool:
+        """Drag the split divider; True when the mouse belongs to the divider this frame."""
+        if self.mode != "split":
+            self.dragging = False
+            return False
+        io = imgui.get_io()
+        mx, my = io.mouse_pos.x, io.mouse_pos.y
+        x, y, w, h = view_logical
+        near = abs(mx - self.divider_x(view_logical)) <= 6 and y <= my <= y + h
+        if near or self.dragging:
+            imgui.set_mouse_cursor(imgui.MouseCursor_.resize_ew)
+        if imgui.is_mouse_clicked(imgui.MouseButton_.left) and near:
+            self.dragging = True
+        if self.dragging:
+            if imgui.is_mouse_down(imgui.MouseButton_.left):
+                self.split = float(np.clip((mx - x) / max(w, 1), 0.0, 1.0))
+            else:
+                self.dragging = False
+            return True
+        return near
+
+    def draw_overlay(self, imgui, view_logical, ref_spp: int):
+        dl = imgui.get_foreground_draw_list()
+        x, y, w, h = view_logical
+        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
+        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))
+
+        def label(px, py, text):
+            size = imgui.calc_text_size(text)
+            dl.add_rect_filled(imgui.ImVec2(px - 3, py - 2), imgui.ImVec2(px + size.x + 3, py + size.y + 2), shade)
+            dl.add_text(imgui.ImVec2(px, py), white, text)
+
+        ref_label = f"reference ({ref_spp} spp)" if ref_spp else "reference (starting...)"
+        if self.mode == "split":
+            dx = self.divider_x(view_logical)
+            dl.add_line(imgui.ImVec2(dx, y), imgui.ImVec2(dx, y + h), white, 2.0)
+            dl.add_circle_filled(imgui.ImVec2(dx, y + h / 2), 7.0, white)
+            label(x + 8, y + 8, "raster")
+            label(max(dx + 8, x + 8), y + 8, ref_label)
+        elif self.mode == "side by side":
+            label(x + 8, y + 8, "raster")
+            label(x + w / 2 + 8, y + 8, ref_label)
+        elif self.mode == "reference":
+            label(x + 8, y + 8, ref_label)
+        if self.mode in ("difference", "relative difference"):
+            self._colour_bar(imgui, dl, view_logical, label)
+        if self.uses_reference and self.mode != "reference":
+            m = self.metrics
+            if m and "rmse" in m:
+                label(x + 8, y + h - 26 if self.mode not in ("difference", "relative difference") else y + 8,
+                      f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)")
+
+    def _colour_bar(self, imgui, dl, view_logical, label):
+        x, y, w, h = view_logical
+        bw, bh = min(360.0, w * 0.5), 14.0
+        bx, by = x + (w - bw) / 2, y + h - bh - 30
+        n = 48
+        for i in range(n):
+            c = _ramp(np.array([(i + 0.5) / n]))[0]
+            srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+            col = imgui.get_color_u32(imgui.ImVec4(float(srgb[0]), float(srgb[1]), float(srgb[2]), 1.0))
+            dl.add_rect_filled(imgui.ImVec2(bx + bw * i / n, by), imgui.ImVec2(bx + bw * (i + 1) / n + 1, by + bh), col)
+        rel = self.mode == "relative difference"
+        what = "|raster - reference| / (reference + 0.01)" if rel else "|raster - reference|"
+        label(bx, by + bh + 4, f"0")
+        txt = f"{self.scale:.3g}"
+        label(bx + bw - imgui.calc_text_size(txt).x, by + bh + 4, txt)
+        label(bx + bw / 2 - imgui.calc_text_size(what).x / 2, by - 22, what)
+
+    def release(self):
+        if self._heat_tex is not None:
+            self._heat_tex.release()
+            self._heat_tex = None

@@ -1,0 +1,391 @@
+"""The window's "BRDF plots" panel: polar lobe, 3D lobe, directional albedo, Fresnel and Bouguer
+plots of the scene's materials, overlaid (implot / implot3d), from the data functions of
+``viewer.plots`` (the same numbers ``brdf-viewer plot`` draws).
+
+Each material keeps one colour in every tab (BRDF Explorer's convention); a checkbox shows or
+hides it and 'solo' shows it alone. Data are cached per (kind, material parameters, angles) and
+recomputed only when those change; the albedo curve (tens of ms per material) waits while a
+slider is held and is recomputed when it is released.
+
+Use from the app (one instance for the window's lifetime)::
+
+    panel = PlotsPanel()
+    ...in the frame, between imgui.new_frame() and imgui.render():
+    panel.draw(scene.materials)        # draws nothing while panel.visible is False
+    ...at shutdown, before implot / imgui destroy their contexts:
+    panel.close()
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from imgui_bundle import imgui, implot
+
+from viewer import ViewerError, plots
+
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer")
+CHANNELS = ("lum", "r", "g", "b")
+CHANNEL_LABELS = ("luminance", "red", "green", "blue")
+# one colour per material, in the order materials are first seen (Tableau 10, then lighter tints)
+PALETTE = ((0.12, 0.47, 0.71), (1.00, 0.50, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
+           (0.58, 0.40, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.50, 0.50, 0.50),
+           (0.74, 0.74, 0.13), (0.09, 0.75, 0.81),
+           (0.68, 0.78, 0.91), (1.00, 0.73, 0.47), (0.60, 0.87, 0.54), (1.00, 0.60, 0.59),
+           (0.77, 0.69, 0.84), (0.77, 0.61, 0.58), (0.97, 0.71, 0.82), (0.78, 0.78, 0.78),
+           (0.86, 0.86, 0.55), (0.62, 0.85, 0.90))
+LIGHT = (0.95, 0.55, 0.10)
+_CACHE_MAX = 256
+
+
+def _vec4(rgb, a=1.0):
+    return imgui.ImVec4(float(rgb[0]), float(rgb[1]), float(rgb[2]), float(a))
+
+
+def _label(text, x, y):
+    """Text in a plot starting just right of (x, y) (plot_text centres it)."""
+    implot.plot_text(text, x, y, imgui.ImVec2(imgui.calc_text_size(text).x / 2 + 4, 0))
+
+
+def _params_key(p) -> str:
+    return json.dumps(p.to_plain(), sort_keys=True, default=str)
+
+
+class PlotsPanel:
+    """An imgui window "BRDF plots" with tabs Polar / 3D lobe / Albedo / Fresnel / Bouguer.
+
+    ``draw(materials)`` takes the scene's ``{name: Params}``; ``visible`` opens and closes the
+    window (its close button sets it False)."""
+
+    def __init__(self):
+        self.visible = True
+        self.theta_i = 45.0  # degrees (polar, 3D lobe)
+        self.phi = 0.0  # azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z)
+        self.channel = "lum"
+        self.log = False  # log10(1 + f cos) in the polar and 3D plots
+        self.inside = False  # Fresnel: light inside the denser medium (critical angle, TIR)
+        self.show_components = True  # Fresnel: R_s and R_p besides R
+        self.shown: dict[str, bool] = {}
+        self.solo: str | None = None
+        self.tab = TABS[0]  # the tab drawn last
+        self.messages: list[str] = []  # why a material is missing from the current tab
+        self._select: str | None = None
+        self._colours: dict[str, int] = {}
+        self._cache: dict = {}
+        self._albedo_shown: dict[str, tuple] = {}
+        self._albedo_stale: set[str] = set()
+        self._own_implot3d = False
+
+    # ------------------------------------------------------------------ public
+    def select_tab(self, tab: str) -> None:
+        """Open one of ``TABS`` on the next ``draw``."""
+        if tab not in TABS:
+            raise ValueError(f"unknown tab {tab!r}; allowed: {', '.join(TABS)}")
+        self._select = tab
+
+    def colour(self, name: str) -> tuple:
+        if name not in self._colours:
+            self._colours[name] = len(self._colours)
+        return PALETTE[self._colours[name] % len(PALETTE)]
+
+    def active(self, materials) -> list[str]:
+        """The materials drawn: the solo one, else every checked one."""
+        if self.solo in materials:
+            return [self.solo]
+        return [n for n in materials if self.shown.setdefault(n, True)]
+
+    def close(self) -> None:
+        """Destroy the implot3d context if this panel created it (call before imgui's)."""
+        if self._own_implot3d:
+            from imgui_bundle import implot3d
+
+            implot3d.destroy_context()
+            self._own_implot3d = False
+
+    def draw(self, materials: dict) -> None:
+        if not self.visible:
+            return
+        for name in materials:
+            self.colour(name)
+        imgui.set_next_window_pos(imgui.ImVec2(380, 20), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_size(imgui.ImVec2(860, 700), imgui.Cond_.first_use_ever)
+        expanded, opened = imgui.begin("BRDF plots", self.visible)
+        if opened is False:
+            self.visible = False
+        if expanded:
+            self._controls(materials)
+            self.messages = []
+            if imgui.begin_tab_bar("##plot_kinds"):
+                for tab in TABS:
+                    flags = imgui.TabItemFlags_.set_selected if self._select == tab else 0
+                    selected, _ = imgui.begin_tab_item(tab, None, flags)
+                    if selected:
+                        self.tab = tab
+                        try:
+                            self._draw_tab(tab, materials)
+                        except ViewerError as e:  # a parameter the plots cannot use: say so, keep going
+                            imgui.text_wrapped(str(e))
+                        imgui.end_tab_item()
+                imgui.end_tab_bar()
+            self._select = None
+        imgui.end()
+
+    # ------------------------------------------------------------------ controls
+    def _controls(self, materials):
+        cols = 3 if len(materials) > 4 else max(1, len(materials))
+        if materials and imgui.begin_table("##plot_materials", cols, imgui.TableFlags_.sizing_stretch_same):
+            for name in materials:
+                imgui.table_next_column()
+                imgui.push_id(f"plotmat_{name}")
+                imgui.color_button("##colour", _vec4(self.colour(name)), imgui.ColorEditFlags_.no_tooltip,
+                                   imgui.ImVec2(14, 14))
+                imgui.same_line()
+                solo = self.solo == name
+                if solo:
+                    imgui.push_style_color(imgui.Col_.button, _vec4((0.85, 0.55, 0.1)))
+                if imgui.small_button("solo"):
+                    self.solo = None if solo else name
+                if solo:
+                    imgui.pop_style_color()
+                imgui.same_line()
+                _, self.shown[name] = imgui.checkbox(name, self.shown.get(name, True))
+                if imgui.is_item_hovered():
+                    imgui.set_tooltip(f"{name}: {materials[name].model}")
+                imgui.pop_id()
+            imgui.end_table()
+        imgui.push_item_width(180)
+        _, self.theta_i = imgui.slider_float("theta_i (deg)", self.theta_i, 0.0, 89.0, "%.1f")
+        imgui.same_line()
+        _, self.phi = imgui.slider_float("plane phi (deg)", self.phi, 0.0, 90.0, "%.0f")
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z)")
+        ch, i = imgui.combo("channel", CHANNELS.index(self.channel), list(CHANNEL_LABELS))
+        if ch:
+            self.channel = CHANNELS[i]
+        imgui.same_line()
+        _, self.log = imgui.checkbox("log10(1 + f cos)", self.log)
+        imgui.pop_item_width()
+
+    # ------------------------------------------------------------------ data (cached)
+    def _data(self, kind, name, p, *args, fn):
+        key = (kind, name, _params_key(p)) + args
+        if key not in self._cache:
+            if len(self._cache) > _CACHE_MAX:
+                self._cache.clear()
+            self._cache[key] = fn()
+        return self._cache[key]
+
+    def _albedo(self, name, p):
+        key = ("albedo", name, _params_key(p))
+        if key in self._cache:
+            self._albedo_shown[name] = self._cache[key]
+            self._albedo_stale.discard(name)
+            return self._cache[key]
+        if imgui.is_any_item_active() and name in self._albedo_shown:
+            self._albedo_stale.add(name)  # a slider is held: keep the old curve until it is released
+            return self._albedo_shown[name]
+        self._cache[key] = self._albedo_shown[name] = plots.albedo_curve(p)
+        self._albedo_stale.discard(name)
+        return self._cache[key]
+
+    # ------------------------------------------------------------------ tabs
+    def _draw_tab(self, tab, materials):
+        names = self.active(materials)
+        if not names:
+            imgui.text("no material shown: tick one above")
+            return
+        {"Polar": self._polar, "3D lobe": self._lobe, "Albedo": self._albedo_tab,
+         "Fresnel": self._fresnel, "Bouguer": self._bouguer}[tab](names, materials)
+        for m in self.messages:
+            imgui.text_wrapped(m)
+
+    def _plot_size(self):
+        """The rest of the window, less room for the messages under the plot."""
+        avail = imgui.get_content_region_avail()
+        lines = sum(1 + len(m) * imgui.calc_text_size("x").x // max(avail.x, 1.0) for m in self.messages)
+        return imgui.ImVec2(-1, max(150.0, avail.y - lines * imgui.get_text_line_height_with_spacing()))
+
+    def _legend(self):
+        implot.setup_legend(implot.Location_.north_east, implot.LegendFlags_.outside)
+
+    def _y(self, v):
+        v = np.asarray(v, dtype=np.float64)
+        return np.log10(1.0 + v) if self.log else v
+
+    def _polar(self, names, materials):
+        data = {n: self._data("polar", n, materials[n], round(self.theta_i, 3), round(self.phi, 3),
+                              fn=lambda n=n: plots.polar_lobe(materials[n], self.theta_i, self.phi))
+                for n in names}
+        rmax = 0.0
+        curves = {}
+        for n, d in data.items():
+            r = self._y(plots.reduce_channel(d["fcos"], self.channel))
+            curves[n] = r
+            rmax = max(rmax, float(r.max()) if r.size else 0.0,
+                       *[float(self._y(plots.reduce_channel(x["reflectance"], self.channel))) for x in d["delta"]])
+        rmax = plots._nice_ceil(rmax * 1.05) if rmax > 0 else 1.0
+        size = self._plot_size()
+        if implot.begin_plot("##polar", size, implot.Flags_.equal):
+            implot.setup_axes("x (theta_o > 0: mirror side)", "z (normal)")
+            self._legend()
+            implot.setup_axes_limits(-rmax * 1.05, rmax * 1.05, -0.02 * rmax, rmax * 1.05, implot.Cond_.always)
+            grey = implot.Spec(line_color=_vec4((0.5, 0.5, 0.5), 0.5), line_weight=1.0)
+            t = np.radians(np.linspace(-90.0, 90.0, 91))
+            for k, v in enumerate(plots._nice_ticks(0.0, rmax, 4)[1:]):
+                implot.plot_line(f"##ring{k}", v * np.sin(t), v * np.cos(t), grey)
+            implot.plot_line("##surface", np.array([-rmax, rmax]), np.array([0.0, 0.0]),
+                             implot.Spec(line_color=_vec4((0.7, 0.7, 0.7)), line_weight=2.0))
+            ti = math.radians(self.theta_i)
+            implot.plot_line("light (wi)", np.array([-rmax * math.sin(ti), 0.0]), np.array([rmax * math.cos(ti), 0.0]),
+                             implot.Spec(line_color=_vec4(LIGHT), line_weight=2.5))
+            implot.plot_line("##mirror", np.array([0.0, rmax * math.sin(ti)]), np.array([0.0, rmax * math.cos(ti)]), grey)
+            for n in names:
+                d, r = data[n], curves[n]
+                t = np.radians(d["theta_o"])
+                implot.plot_line(n, r * np.sin(t), r * np.cos(t),
+                                 implot.Spec(line_color=_vec4(self.colour(n)), line_weight=2.0))
+                for x in d["delta"]:
+                    rr = float(self._y(plots.reduce_channel(x["reflectance"], self.channel)))
+                    implot.plot_line(f"{n} (delta, R = {rr:.3g})##delta", np.array([0.0, rr * math.sin(ti)]),
+                                     np.array([0.0, rr * math.cos(ti)]),
+                                     implot.Spec(line_color=_vec4(self.colour(n)), line_weight=5.0))
+            implot.end_plot()
+
+    def _lobe(self, names, materials):
+        from imgui_bundle import implot3d
+
+        if implot3d.get_current_context() is None:
+            implot3d.create_context()
+            self._own_implot3d = True
+        data = {n: self._data("lobe", n, materials[n], round(self.theta_i, 3), round(self.phi, 3), self.channel,
+                              fn=lambda n=n: plots.lobe_3d(materials[n], self.theta_i, self.phi, n_theta=31,
+                                                           n_phi=61, channel=self.channel))
+                for n in names}
+        rmax = max([float(self._y(d["value"]).max()) for d in data.values()] + [1e-6])
+        rmax = plots._nice_ceil(rmax * 1.05)
+        size = self._plot_size()
+        if implot3d.begin_plot("##lobe3d", size):
+            implot3d.setup_axes("x (tangent)", "y", "z (normal)")
+            implot3d.setup_axes_limits(-rmax, rmax, -rmax, rmax, 0.0, rmax, implot3d.Cond_.always)
+            implot3d.setup_box_initial_rotation(25.0, -60.0)
+            wi = plots.direction(self.theta_i, self.phi) * rmax
+            implot3d.plot_line("light (wi)", np.array([wi[0], 0.0]), np.array([wi[1], 0.0]), np.array([wi[2], 0.0]),
+                               implot3d.Spec(line_color=_vec4(LIGHT), line_weight=2.5))
+            for n in names:
+                d = data[n]
+                v = self._y(d["value"])
+                xs, ys, zs = (np.ascontiguousarray((v * d["wo"][..., i]).ravel()) for i in range(3))
+                col = self.colour(n)
+                implot3d.plot_surface(n, xs, ys, zs, v.shape[1], v.shape[0], 0.0, 0.0,
+                                      implot3d.Spec(fill_color=_vec4(col, 0.55), line_color=_vec4(col, 0.9),
+                                                    line_weight=1.0))
+                for x in d["delta"]:
+                    rr = float(self._y(plots.reduce_channel(x["reflectance"], self.channel)))
+                    w = x["wo"] * rr
+                    implot3d.plot_line(f"{n} (delta)", np.array([0.0, w[0]]), np.array([0.0, w[1]]),
+                                       np.array([0.0, w[2]]), implot3d.Spec(line_color=_vec4(col), line_weight=5.0))
+            implot3d.end_plot()
+
+    def _albedo_tab(self, names, materials):
+        data = {n: self._albedo(n, materials[n]) for n in names}
+        ymax = max([1.0] + [float(plots.reduce_channel(d["albedo"], self.channel).max()) for d in data.values()])
+        if self._albedo_stale:
+            self.messages.append("(updating when the slider is released: " + ", ".join(sorted(self._albedo_stale)) + ")")
+        size = self._plot_size()
+        if implot.begin_plot("##albedo", size):
+            implot.setup_axes("theta (deg) of wo", "directional albedo")
+            self._legend()
+            implot.setup_axes_limits(0.0, 90.0, 0.0, ymax * 1.05, implot.Cond_.always)
+            for n in names:
+                d = data[n]
+                col = self.colour(n)
+                stale = n in self._albedo_stale
+                implot.plot_line(n, d["theta"], plots.reduce_channel(d["albedo"], self.channel),
+                                 implot.Spec(line_color=_vec4(col, 0.4 if stale else 1.0), line_weight=2.0))
+                if d["transmissive"]:
+                    implot.plot_line(f"{n} reflected", d["theta"], plots.reduce_channel(d["reflected"], self.channel),
+                                     implot.Spec(line_color=_vec4(col, 0.6), line_weight=1.0,
+                                                 marker=implot.Marker_.square, marker_size=2.0))
+            implot.end_plot()
+
+    def _fresnel(self, names, materials):
+        _, self.inside = imgui.checkbox("light inside the denser medium (critical angle)", self.inside)
+        imgui.same_line()
+        _, self.show_components = imgui.checkbox("R_s, R_p", self.show_components)
+        ch = "g" if self.channel == "lum" else self.channel
+        data, missing = {}, []
+        for n in names:
+            p = materials[n]
+            if "fresnel" not in plots.applicable_kinds(p):
+                missing.append(n)
+                continue
+            src = plots.fresnel_source(p)
+            inside = self.inside and src["type"] == "dielectric"
+            if self.inside and not inside:
+                self.messages.append(f"{n}: {src['type']} Fresnel, seen from air (no inside)")
+            data[n] = self._data("fresnel", n, p, inside, fn=lambda p=p, inside=inside: plots.fresnel_curves(p, inside))
+        if missing:
+            self.messages.append("no Fresnel term (no index of refraction): " + ", ".join(missing))
+        if self.channel == "lum" and any(not np.allclose(d["eta"], d["eta"][0]) for d in data.values()):
+            self.messages.append("channel: green (a Fresnel curve is per wavelength)")
+        size = self._plot_size()
+        if implot.begin_plot("##fresnel", size):
+            implot.setup_axes("angle of incidence (deg)", "reflectance")
+            self._legend()
+            implot.setup_axes_limits(0.0, 90.0, 0.0, 1.05, implot.Cond_.always)
+            c = "rgb".index(ch)
+            for k, (n, d) in enumerate(data.items()):
+                col = self.colour(n)
+                implot.plot_line(f"{n} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
+                                 implot.Spec(line_color=_vec4(col), line_weight=2.5))
+                if self.show_components:
+                    implot.plot_line(f"{n} R_s", d["theta"], np.ascontiguousarray(d["Rs"][:, c]),
+                                     implot.Spec(line_color=_vec4(col, 0.7), line_weight=1.0))
+                    implot.plot_line(f"{n} R_p", d["theta"], np.ascontiguousarray(d["Rp"][:, c]),
+                                     implot.Spec(line_color=_vec4(col, 0.7), line_weight=1.0,
+                                                 marker=implot.Marker_.circle, marker_size=1.5))
+                if "schlick" in d:
+                    implot.plot_line(f"{n} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
+                                     implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.0,
+                                                 marker=implot.Marker_.diamond, marker_size=2.0))
+                b = float(d["brewster"][c])
+                implot.drag_line_x(1000 + 2 * k, b, _vec4(col, 0.8), 1.0, implot.DragToolFlags_.no_inputs)
+                implot.tag_x(b, _vec4(col), "B" if d["type"] != "conductor" else "pB")
+                if len(data) <= 3:  # more would overlap: the tags on the axis remain
+                    _label(f"{'Brewster' if d['type'] != 'conductor' else 'pseudo-Brewster'} {b:.1f}°",
+                           b, 1.0 - 0.07 * k)
+                crit = float(d["critical"][c])
+                if math.isfinite(crit):
+                    implot.drag_line_x(1001 + 2 * k, crit, _vec4((0.85, 0.15, 0.15)), 1.5,
+                                       implot.DragToolFlags_.no_inputs)
+                    implot.tag_x(crit, _vec4((0.85, 0.15, 0.15)), "C")
+                    if len(data) <= 3:
+                        _label(f"critical {crit:.1f}°", crit, 0.965 - 0.07 * k)
+            implot.end_plot()
+
+    def _bouguer(self, names, materials):
+        data, missing = {}, []
+        for n in names:
+            p = materials[n]
+            if "bouguer" not in plots.applicable_kinds(p):
+                missing.append(n)
+                continue
+            data[n] = self._data("bouguer", n, p, fn=lambda p=p: plots.bouguer_curve(p))
+        if missing:
+            self.messages.append("no absorption coefficient sigma_a: " + ", ".join(missing))
+        units = sorted({d["unit"] for d in data.values()})
+        size = self._plot_size()
+        if implot.begin_plot("##bouguer", size):
+            implot.setup_axes(f"distance d ({' | '.join(units) or 'm'})", "transmittance T = exp(-sigma_a d)")
+            self._legend()
+            xmax = max([float(d["d"][-1]) for d in data.values()] + [1e-9])
+            implot.setup_axes_limits(0.0, xmax, 0.0, 1.05, implot.Cond_.always)
+            for n, d in data.items():
+                col = self.colour(n)
+                implot.plot_line(f"{n} ({d['unit']})", d["d"], plots.reduce_channel(d["T"], self.channel),
+                                 implot.Spec(line_color=_vec4(col), line_weight=2.0))
+                if d["thickness"]:
+                    implot.tag_x(float(d["thickness"]), _vec4(col), "layer")
+            implot.end_plot()

@@ -1,0 +1,82 @@
+"""The window's persistent state: restored at the next start, written atomically at exit.
+
+Where: ``$BRDF_VIEWER_STATE`` if set (a file path), else ``$XDG_CONFIG_HOME/brdf-viewer/state.toml``
+(``~/.config`` when XDG_CONFIG_HOME is unset). Next to it, ``last_scene.toml`` holds the last
+session's scene in the CONTRACT format (the window's "Reopen last session" loads it).
+
+The state is a small TOML table; anything unreadable, of the wrong type or out of range is
+ignored key by key (with one line on stderr), so a damaged state file never stops the viewer.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tomllib
+from pathlib import Path
+
+# key -> (type, lo, hi) for numbers, (type, choices) for strings; anything else is dropped
+SCHEMA = {
+    "window_width": (int, 64, 16384),
+    "window_height": (int, 64, 16384),
+    "window_x": (int, -32768, 32768),
+    "window_y": (int, -32768, 32768),
+    "ui_scale": (float, 0.5, 4.0),
+    "show_ui": (bool,),
+    "compare_mode": (str, None),
+    "split": (float, 0.0, 1.0),
+    "view_mode": (int, 0, 64),
+    "plots_visible": (bool,),
+    "lecture_step": (int, -1, 1000),
+    "scene": (str, None),
+}
+
+
+def state_path() -> Path:
+    env = os.environ.get("BRDF_VIEWER_STATE")
+    if env:
+        return Path(env).expanduser()
+    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    return Path(base) / "brdf-viewer" / "state.toml"
+
+
+def last_scene_path() -> Path:
+    return state_path().with_name("last_scene.toml")
+
+
+def load_state(path: Path | None = None) -> dict:
+    path = state_path() if path is None else Path(path)
+    if not path.exists():
+        return {}
+    try:
+        raw = tomllib.loads(path.read_text("utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        print(f"brdf-viewer: {path}: window state ignored ({type(e).__name__}: {e})", file=sys.stderr)
+        return {}
+    out = {}
+    for k, v in raw.items():
+        spec = SCHEMA.get(k)
+        if spec is None:
+            continue
+        t = spec[0]
+        if t is float and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        if not isinstance(v, t) or (t is int and isinstance(v, bool)):
+            print(f"brdf-viewer: {path}: {k}: ignored (expected {t.__name__})", file=sys.stderr)
+            continue
+        if t in (int, float) and not (spec[1] <= v <= spec[2]):
+            print(f"brdf-viewer: {path}: {k}: ignored (out of range {spec[1]}..{spec[2]})", file=sys.stderr)
+            continue
+        out[k] = v
+    return out
+
+
+def save_state(state: dict, path: Path | None = None) -> None:
+    import tomli_w
+
+    from viewer.io import atomic_write_bytes
+
+    path = state_path() if path is None else Path(path)
+    clean = {k: v for k, v in state.items() if k in SCHEMA and v is not None}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, tomli_w.dumps(clean).encode("utf-8"))

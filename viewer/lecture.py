@@ -1,0 +1,124 @@
+"""The lecture tour: the examples of the course (Frisvad, "BRDF, Fresnel Reflectance, and
+Absorption"), one scene each with a one-line caption saying what to notice.
+
+The window steps through them with the number and arrow keys (lecture mode); ``tour_scene(i)``
+builds the same scenes anywhere (tests render every step offscreen). Each step is a complete
+scene in the CONTRACT's TOML format, built from the lecture presets of ``viewer.brdf.presets``,
+so what the tour shows is exactly what a student gets by loading that TOML.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Step:
+    key: str          # short id, e.g. "fresnel"
+    title: str        # shown large
+    caption: str      # one line: what to notice
+    toml: str         # the scene
+    plot: str = ""    # the plot kind that goes with it ("fresnel", "polar", ...), may be empty
+
+
+def _camera(pos=(0.0, 0.9, 4.2), target=(0.0, 0.6, 0.0), fov=36.0) -> str:
+    return (f"[camera]\nposition = {list(pos)}\ntarget = {list(target)}\nup = [0.0, 1.0, 0.0]\n"
+            f"fov_y = {fov}\nwidth = 960\nheight = 540\n")
+
+
+_FLOOR = '[[objects]]\nmesh = "plane"\nmaterial = "floor"\nscale = 6.0\n'
+_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n'
+_KEY_LIGHT = '[[lights]]\ntype = "point"\nposition = [-2.0, 4.0, 3.0]\nintensity = [30.0, 30.0, 30.0]\n'
+
+
+def _sphere(material: str, x: float = 0.0, r: float = 0.6, y: float | None = None) -> str:
+    y = r if y is None else y
+    return (f'[[objects]]\nmesh = "sphere"\nmaterial = "{material}"\nscale = {r}\n'
+            f"translate = [{x}, {y}, 0.0]\n")
+
+
+def _env(spec: str) -> str:
+    return f"[environment]\n{spec}\n"
+
+
+def _render(ibl: str = "split_sum", ssr: bool = False) -> str:
+    return f'[render]\nibl = "{ibl}"\nssr = {str(ssr).lower()}\nshadows = true\nmsaa = 4\n'
+
+
+def _mat(name: str, preset: str, **extra) -> str:
+    lines = [f"[materials.{name}]", f'preset = "{preset}"']
+    for k, v in extra.items():
+        lines.append(f"{k} = {v!r}".replace("'", '"'))
+    return "\n".join(lines) + "\n"
+
+
+def _scene(*parts: str) -> str:
+    return "\n".join(parts)
+
+
+_DIM = _env("constant = [0.08, 0.08, 0.09]")
+_STUDIO = _env('map = "studio"\nintensity = 1.0')
+# the sky model is in cd/m^2 (thousands): scaled so the horizon reads about 0.3 (EV 0)
+_SKY = _env('map = "sky"\nintensity = 0.006')
+
+TOUR: tuple[Step, ...] = (
+    Step("lambert", "Lambert",
+         "Perfectly diffuse: the same radiance toward every viewer; shading follows cos(theta_i) alone.",
+         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                _mat("ball", "lecture_lambert")), "polar"),
+    Step("fresnel", "Mirror and glass with Fresnel",
+         "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (look at the rims).",
+         _scene(_camera(), _SKY, _render("split_sum"), _FLOOR, _sphere("black_glass", -0.75),
+                _sphere("glass", 0.75), _FLOOR_MAT,
+                '[materials.black_glass]\nmodel = "mirror"\nfresnel = "dielectric"\nior = 1.5\n',
+                _mat("glass", "lecture_air_glass")), "fresnel"),
+    Step("tir", "Total internal reflection",
+         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects: faces turn to mirrors (compare with the reference view).",
+         _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY, _render("split_sum"), _FLOOR,
+                '[[objects]]\nmesh = "cube"\nmaterial = "glass"\nscale = 0.55\n'
+                'translate = [0.0, 0.56, 0.0]\nrotate_y_deg = 35.0\n',
+                _FLOOR_MAT, _mat("glass", "lecture_air_glass")), "fresnel"),
+    Step("torrance_sparrow", "Torrance-Sparrow with a Blinn-Phong distribution",
+         "Microfacets: D (Blinn-Phong), V-cavity shadowing G and Fresnel F shape one highlight over a diffuse base.",
+         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                _mat("ball", "lecture_torrance_sparrow_blinn")), "polar"),
+    Step("beckmann_ggx", "Beckmann (left) against GGX (right)",
+         "Same alpha = 0.2: GGX's long tail leaves a glow around the highlight; Beckmann falls off quickly.",
+         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("beckmann", -0.75),
+                _sphere("ggx", 0.75), _FLOOR_MAT, _mat("beckmann", "lecture_beckmann"),
+                _mat("ggx", "lecture_ggx")), "polar"),
+    Step("oren_nayar", "Oren-Nayar (left) against Lambert (right)",
+         "Lit from behind the viewer, rough clay looks flat (backscatter); Lambert darkens toward the rim.",
+         _scene(_camera(), _DIM, _render("off"),
+                '[[lights]]\ntype = "point"\nposition = [0.0, 1.2, 6.0]\nintensity = [60.0, 60.0, 60.0]\n',
+                _FLOOR, _sphere("oren_nayar", -0.75), _sphere("lambert", 0.75), _FLOOR_MAT,
+                _mat("oren_nayar", "lecture_oren_nayar"), _mat("lambert", "lecture_lambert")), "polar"),
+    Step("lafortune", "Lafortune's generalized cosine lobes",
+         "A forward lobe about the mirror direction plus a retro-reflective lobe, over a diffuse base.",
+         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                _mat("ball", "lecture_lafortune")), "polar"),
+    Step("ashikhmin_shirley", "Ashikhmin-Shirley anisotropy",
+         "n_u = 10, n_v = 1000: the highlight stretches across the tangent direction, as on brushed metal.",
+         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                _mat("ball", "lecture_ashikhmin_shirley")), "lobe"),
+    Step("layered", "Weidlich-Wilkie layered coat",
+         "A clear coat over a coloured base: a sharp Fresnel reflection on top of a glossy, tinted layer.",
+         _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                _mat("ball", "lecture_layered")), "albedo"),
+    Step("absorbing_glass", "Absorbing glass (Bouguer / Beer-Lambert)",
+         "Transmittance exp(-sigma_a d): the big sphere's longer paths come out a deeper colour than the small one's.",
+         _scene(_camera(), _SKY, _render("split_sum"), _FLOOR, _sphere("glass_big", -0.6, 0.7),
+                _sphere("glass_small", 0.9, 0.3), _FLOOR_MAT, _mat("glass_big", "lecture_absorbing_glass"),
+                _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
+)
+
+
+def tour_scene(index: int, load_meshes: bool = True):
+    """The tour's step ``index`` (0-based) as a validated ``Scene``."""
+    import tomllib
+
+    from viewer.scene import SCENE_DIR, parse_scene
+
+    step = TOUR[index % len(TOUR)]
+    label = f"<lecture {index % len(TOUR) + 1}: {step.key}>"
+    return parse_scene(tomllib.loads(step.toml), None, label=label, base_dir=SCENE_DIR, load_meshes=load_meshes)
