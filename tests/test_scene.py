@@ -570,3 +570,20 @@ def test_every_preset_loads_and_round_trips(name):
                     None, load_meshes=False)
     assert s.materials["m"].model == PRESETS[name]["model"]
     _roundtrip(s)
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_every_preset_conserves_energy(name):
+    """A preset is what students meet first: none may reflect more light than it receives.
+    Directional albedo (reflected + transmitted) <= 1 at every incident angle. Tolerance 0.02:
+    the albedo is a stratified Monte Carlo estimate (24 x 24 samples x 4 azimuths); its error for
+    these smooth integrands is well below 1% (the furnace tests bound it)."""
+    from viewer.brdf.albedo import directional_albedo
+
+    s = parse_scene({"objects": [{"mesh": "sphere", "material": "m"}], "materials": {"m": {"preset": name}}},
+                    None, load_meshes=False)
+    p = s.materials["m"]
+    cos_o = np.linspace(0.05, 1.0, 12)
+    r, t = directional_albedo(brdf.get(p.model), p, cos_o, split=True)
+    total = np.asarray(r) + np.asarray(t)
+    assert total.max() <= 1.02, (name, total.max(axis=0))

@@ -114,7 +114,7 @@ PRESETS["lecture_oren_nayar"] = {"model": "oren_nayar", "albedo": [0.8, 0.8, 0.8
 # about the mirror direction) and a retro-reflective lobe (Cx = Cy > 0) for dusty surfaces
 PRESETS["lecture_lafortune"] = {"model": "lafortune", "kd": [0.4, 0.3, 0.2],
                                 "lobes": [{"cx": -1.0, "cy": -1.0, "cz": 1.0, "n": 20.0},
-                                          {"cx": 0.9, "cy": 0.9, "cz": 0.9, "n": 5.0}]}
+                                          {"cx": 0.7, "cy": 0.7, "cz": 0.7, "n": 5.0}]}
 # Ashikhmin & Shirley 2000: anisotropy, highlights stretched across the tangent (brushed metal)
 PRESETS["lecture_ashikhmin_shirley"] = {"model": "ashikhmin_shirley", "rd": [0.3, 0.1, 0.05],
                                         "rs": [0.5, 0.5, 0.5], "nu": 10.0, "nv": 1000.0}
