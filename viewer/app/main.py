@@ -605,6 +605,7 @@ class App:
     def _set_scene(self, scene, ref):
         from viewer.camera import OrbitCamera
 
+        self.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
         self.scene = scene
         self.camera = OrbitCamera.from_scene(scene)
         self._scene_ref = ref
@@ -714,6 +715,7 @@ class App:
         s = old_r / new_r
         obj.mesh = str(Path(path).expanduser().absolute())
         obj.mesh_data = md
+        self.renderer.forget_meshes(keep=[o.mesh_data for o in objs])
         obj.scale = s
         obj.rotate_y_deg = 0.0
         obj.translate = old_c - s * new_c
