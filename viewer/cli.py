@@ -272,8 +272,10 @@ def cmd_reference(args) -> int:
             sys.stderr.flush()
 
         bar(0.0)
-        renderer.step(args.spp, progress=bar)
-        sys.stderr.write("\n")
+        try:
+            renderer.step(args.spp, progress=bar)
+        finally:  # an error message starts on its own line, not after the bar
+            sys.stderr.write("\n")
         wall = time.perf_counter() - start
         linear = renderer.mean()
         bad = renderer.bad_values

@@ -1,10 +1,13 @@
-"""Writing output files atomically (temporary file in the same folder, then rename), so a kill
-mid-write never leaves a partial file behind."""
+"""Writing output files atomically (temporary file in the same folder, fsync, then rename), so a
+kill mid-write never leaves a partial file behind; and small helpers for one-line messages about
+files."""
 
 from __future__ import annotations
 
+import errno
 import io
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -13,17 +16,85 @@ import numpy as np
 from viewer import ViewerError
 
 
+def one_line(text: str) -> str:
+    """``text`` with every line break and control character written as an escape, so a message
+    that quotes a file name, key or value stays one line (``str.splitlines`` splits on more than
+    \\n: \\r, \\v, \\f, \\x1c-\\x1e, \\x85, \\u2028, \\u2029)."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def expand_user(path) -> Path:
+    """``Path(path).expanduser()``, or the path unchanged where ``~user`` names nobody."""
+    p = Path(path)
+    try:
+        return p.expanduser()
+    except RuntimeError:
+        return p
+
+
+def path_problem(path) -> str | None:
+    """None when ``path`` is a regular file; else what is wrong with it, phrased for a message
+    ("file not found", "is a folder, not a file", "the name is too long", ...). Never raises:
+    ``Path.exists`` raises for a name that is too long and ``os.stat`` for a NUL character."""
+    try:
+        st = os.stat(path)
+    except ValueError:
+        return "the name contains a NUL character"
+    except OSError as e:
+        if e.errno in (errno.ENOENT, errno.ENOTDIR):
+            return "file not found"
+        if e.errno == errno.ELOOP:
+            return "file not found (a loop of symbolic links)"
+        if e.errno == errno.ENAMETOOLONG:
+            return "the name is too long"
+        return f"cannot be examined ({e.strerror or e})"
+    if stat.S_ISDIR(st.st_mode):
+        return "is a folder, not a file"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file (a device, pipe or socket)"
+    return None
+
+
 def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically: ``path`` is at every moment absent, its old
+    content or the complete new content, never a part (see ``atomic_write_file``)."""
+
+    def write(tmp: Path):
+        with open(tmp, "r+b") as f:
+            f.write(data)
+
+    return atomic_write_file(path, write)
+
+
+def atomic_write_file(path, write, suffix: str = "") -> Path:
+    """Create ``path`` through ``write(tmp)``, which writes the whole file at ``tmp``.
+
+    ``tmp`` is a new empty file in the same folder, named ``.NAME.PID.XXXXXXXX.part`` + ``suffix``
+    (a library that picks its format by the file name gets ``suffix``, e.g. ".hdr"). When
+    ``write`` returns, the file is flushed to disk (fsync), given the permissions a plain
+    ``open(path, "w")`` would give it (an existing file keeps its mode; ``mkstemp`` alone would
+    leave 0600), renamed over ``path`` with ``os.replace`` (atomic within a file system), and the
+    folder is fsynced so that the rename survives a power cut. On any error the temporary file
+    is removed and ``path`` is untouched. A writer killed mid-write cannot remove its temporary
+    file; the next write to the same name removes those whose process no longer exists."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise ViewerError(f"{path}: the folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
+        raise ViewerError(one_line(f"{path}: the folder {folder} does not exist"))
+    prefix = f".{path.name}."
+    _remove_orphans(folder, prefix)
+    fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".part" + suffix, dir=folder)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        write(Path(tmp))
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.chmod(tmp, _mode_for(path))
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -31,7 +102,65 @@ def atomic_write_bytes(path, data: bytes) -> Path:
         except OSError:
             pass
         raise
+    _fsync_folder(folder)
     return path
+
+
+def _mode_for(path: Path) -> int:
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    try:  # Linux >= 4.7 shows it without changing it
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # elsewhere: read by setting (briefly, process-wide) and restoring
+    os.umask(mask)
+    return mask
+
+
+def _fsync_folder(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # Windows cannot open a folder; nothing to do there
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _remove_orphans(folder: Path, prefix: str) -> None:
+    """Remove ``prefix + PID.*.part*`` files in ``folder`` left by writers that were killed
+    (their process ``PID`` no longer exists)."""
+    try:
+        entries = [e.name for e in os.scandir(folder) if e.name.startswith(prefix) and ".part" in e.name]
+    except OSError:
+        return
+    for name in entries:
+        pid_text = name[len(prefix):].split(".", 1)[0]
+        if not pid_text.isdigit() or int(pid_text) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid_text), 0)
+            continue            # alive (or another user's process): not ours to remove
+        except ProcessLookupError:
+            pass
+        except (PermissionError, OSError, OverflowError):
+            continue
+        try:
+            os.unlink(folder / name)
+        except OSError:
+            pass
 
 
 def png_bytes(srgb: np.ndarray, text: dict[str, str] | None = None) -> bytes:

@@ -46,6 +46,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer import meshgen
+from viewer.io import expand_user, path_problem
 from viewer.resources import MODEL_DIR
 
 EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -82,7 +83,20 @@ def builtin_names() -> list[str]:
 
 def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> MeshData:
     """Load a built-in mesh by name or a mesh file (relative paths against ``base_dir``,
-    else the working directory). Raises ViewerError on any problem."""
+    else the working directory). Raises ViewerError on any problem, with a one-line message
+    (a line break in a file name is written as an escape)."""
+    try:
+        return _load_mesh(ref, base_dir, where)
+    except ViewerError as e:
+        from viewer.io import one_line
+
+        text = one_line(str(e))
+        if text == str(e):
+            raise
+        raise ViewerError(text) from None
+
+
+def _load_mesh(ref, base_dir, where) -> MeshData:
     if not isinstance(ref, (str, os.PathLike)) or str(ref).strip() == "":
         raise ViewerError(f"{where}: {ref!r}: expected a built-in mesh name "
                           f"({', '.join(builtin_names())}) or a mesh file path")
@@ -90,12 +104,12 @@ def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> Me
     if ref_s in meshgen.GENERATORS:
         return _load_builtin(ref_s, where)
 
-    path = Path(ref_s).expanduser()
+    path = expand_user(ref_s)
     if not path.is_absolute() and base_dir is not None:
         path = Path(base_dir) / path
     try:
         path = path.resolve()
-    except (OSError, RuntimeError):
+    except (OSError, RuntimeError, ValueError):  # a symlink loop, a NUL character
         path = path.absolute()
 
     ext = path.suffix.lower()
@@ -103,15 +117,16 @@ def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> Me
         what = f"unsupported extension '{path.suffix}'" if path.suffix else "not a built-in mesh name and no file extension"
         raise ViewerError(f"{where}: {path}: {what} (allowed: {', '.join(EXTENSIONS)}; "
                           f"or a built-in name: {', '.join(builtin_names())})")
-    try:
-        st = path.stat()
-    except OSError:
-        st = None
-    if st is None or not path.is_file():
+    problem = path_problem(path)
+    if problem is None:
+        try:
+            st = path.stat()
+        except OSError as e:  # removed in between
+            problem = f"cannot be examined ({e.strerror or e})"
+    if problem is not None:
         stem = Path(ref_s).stem
         if (Path(ref_s).name == ref_s and ext == ".ply" and stem in meshgen.GENERATORS):
             return _load_builtin(stem, where)
-        problem = "is not a file" if st is not None else "file not found"
         raise ViewerError(f"{where}: {path}: {problem}")
 
     key = ("file", str(path), st.st_mtime_ns, st.st_size)
@@ -185,6 +200,8 @@ def _load_file(path: Path, name: str, where: str) -> MeshData:
         positions, normals, uvs, faces = _read_trimesh(path)
     except _BadFile as e:
         raise ViewerError(f"{where}: {path}: {e}") from None
+    except ViewerError as e:  # a missing package (viewer.optional)
+        raise ViewerError(f"{where}: {path}: {e}") from None
     except MemoryError:
         raise ViewerError(f"{where}: {path}: cannot read {path.suffix.lower()[1:].upper()} file (out of memory)") from None
     except Exception as e:  # noqa: BLE001 - any parser failure is a bad file
@@ -199,7 +216,10 @@ def _read_trimesh(path: Path):
     Returns positions (V,3) float64, normals (V,3) with NaN rows where the file has none,
     uvs (V,2) or None, faces (F,3) int64."""
     import logging
-    import trimesh
+
+    from viewer.optional import require
+
+    trimesh = require("trimesh")
 
     logging.getLogger("trimesh").setLevel(logging.ERROR)
     if path.stat().st_size == 0:
@@ -272,7 +292,7 @@ def _read_trimesh(path: Path):
 
 def write_ply(path: Path | str, positions, normals, indices, uvs=None) -> None:
     """Write a binary little-endian PLY with float32 x y z nx ny nz [s t] and uint32
-    triangle indices (the format of ``models/*.ply``)."""
+    triangle indices (the format of ``models/*.ply``), atomically (``viewer.io``)."""
     P = np.asarray(positions, dtype="<f4").reshape(-1, 3)
     N = np.asarray(normals, dtype="<f4").reshape(-1, 3)
     F = np.asarray(indices, dtype="<u4").reshape(-1, 3)
@@ -289,10 +309,9 @@ def write_ply(path: Path | str, positions, normals, indices, uvs=None) -> None:
     fdata = np.zeros(len(F), dtype=[("n", "u1"), ("i", "<u4", (3,))])
     fdata["n"] = 3
     fdata["i"] = F
-    with open(path, "wb") as fh:
-        fh.write(("\n".join(header) + "\n").encode("ascii"))
-        fh.write(vdata.tobytes())
-        fh.write(fdata.tobytes())
+    from viewer.io import atomic_write_bytes
+
+    atomic_write_bytes(path, ("\n".join(header) + "\n").encode("ascii") + vdata.tobytes() + fdata.tobytes())
 
 
 # --------------------------------------------------------------------------- cleaning

@@ -32,6 +32,7 @@ Mesh references and environment-map paths are resolved against the scene file's 
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import os
 import re
@@ -42,6 +43,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from viewer import ViewerError
+from viewer.io import expand_user, one_line, path_problem
 from viewer.resources import SCENE_DIR
 
 try:  # Python >= 3.11
@@ -67,6 +69,10 @@ TONEMAPS = ("none", "aces", "filmic", "reinhard")
 MSAA_SAMPLES = (0, 1, 2, 4, 8)
 MAX_SIZE = 16384
 EXPOSURE_RANGE = (-20.0, 20.0)
+# Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
+# a finite float64 beyond this would turn into inf there.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+MIN_VIEW_DISTANCE = 1e-6  # m, between camera.position and camera.target (viewer.camera clamps there)
 
 
 # ----------------------------------------------------------------------------- data classes
@@ -78,7 +84,7 @@ def _v3(x) -> np.ndarray:
 @dataclass(eq=False)
 class Camera:
     """A pinhole camera looking from ``position`` at ``target``; ``fov_y`` is the full vertical
-    field of view in degrees; ``width`` x ``height`` pixels."""
+    field of view in degrees; ``width`` x ``height`` pixels. ``up`` is stored unit length."""
 
     position: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 4.0]))
     target: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 0.0]))
@@ -291,6 +297,9 @@ class Scene:
         return _equal(self, other, skip=("data", "label", "base_dir"))
 
 
+_EQ_SKIP = {SceneObject: ("mesh_data",)}
+
+
 def _equal(a, b, skip=()) -> bool:
     """Structural equality that understands numpy arrays, Params and dataclasses.
     Float arrays compare with a relative tolerance of 1e-12 (a normalized direction that is
@@ -300,6 +309,9 @@ def _equal(a, b, skip=()) -> bool:
                 and not isinstance(a, bool) and not isinstance(b, bool)):
             return False
     if is_dataclass(a):
+        # A SceneObject inside a Scene's list skips mesh_data as it does on its own, so a scene
+        # loaded with meshes equals the same scene parsed with load_meshes=False.
+        skip = skip or _EQ_SKIP.get(type(a), ())
         return all(_equal(getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name not in skip)
     if isinstance(a, np.ndarray):
         return a.shape == b.shape and bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
@@ -318,14 +330,21 @@ def _describe(v) -> str:
     if isinstance(v, bool):
         return f"{str(v).lower()} (a boolean)"
     if isinstance(v, str):
-        return f"{v!r} (a string)"
+        return f"{_short(v)!r} (a string)"
     if isinstance(v, dict):
         return "a table"
     if isinstance(v, list):
         return f"a list of {len(v)}"
+    if isinstance(v, int) and abs(v) >= 10 ** 15:
+        return "%.3g" % v if abs(v) < 10 ** 300 else "a huge integer"
     if isinstance(v, (int, float)):
         return f"{v!r}"
     return f"{v!r} (a {type(v).__name__})"
+
+
+def _short(text: str, n: int = 60) -> str:
+    """``text`` cut to ``n`` characters for a message (a scene may hold a megabyte string)."""
+    return text if len(text) <= n else text[: n - 3] + "..."
 
 
 def _is_num(v) -> bool:
@@ -343,7 +362,7 @@ class _Checker:
         self.label = label
 
     def fail(self, fld: str, problem: str, allowed: str):
-        raise ViewerError(f"{self.label}: {fld}: {problem}; allowed: {allowed}")
+        raise ViewerError(one_line(f"{self.label}: {fld}: {problem}; allowed: {allowed}"))
 
     def table(self, value, fld: str, keys: Sequence[str], what: str = "key") -> dict:
         if not isinstance(value, dict):
@@ -351,15 +370,21 @@ class _Checker:
                       f"a table [{fld}] with keys " + ", ".join(keys))
         for k in value:
             if k not in keys:
+                k = _short(k, 40)
                 self.fail(f"{fld}.{k}" if fld else k, f"unknown {what}", ", ".join(keys))
         return value
 
     def number(self, value, fld, allowed, lo=None, hi=None, lo_open=False, hi_open=False) -> float:
         if not _is_num(value):
             self.fail(fld, f"expected a number, got {_describe(value)}", allowed)
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:  # an integer beyond any float (TOML integers are unbounded)
+            v = math.inf if value > 0 else -math.inf
         if not math.isfinite(v):
-            self.fail(fld, f"{v} is not a finite number", allowed)
+            self.fail(fld, f"{_describe(value)} is not a finite number", allowed)
+        if abs(v) > FLOAT32_MAX:
+            self.fail(fld, f"{_g(v)} is beyond the float32 range the renderers compute in (|x| <= 3.4e38)", allowed)
         if lo is not None and (v < lo or (lo_open and v == lo)):
             self.fail(fld, f"{_g(v)} is out of range", allowed)
         if hi is not None and (v > hi or (hi_open and v == hi)):
@@ -371,7 +396,7 @@ class _Checker:
             self.fail(fld, f"expected an integer, got {_describe(value)}", allowed)
         if (lo is not None and value < lo) or (hi is not None and value > hi) or (
                 choices is not None and value not in choices):
-            self.fail(fld, f"{value} is out of range", allowed)
+            self.fail(fld, f"{_describe(value)} is out of range", allowed)
         return int(value)
 
     def boolean(self, value, fld) -> bool:
@@ -404,9 +429,13 @@ class _Checker:
         for i, x in enumerate(value):
             if not _is_num(x):
                 self.fail(f"{fld}[{i}]", f"expected a number, got {_describe(x)}", allowed)
-        arr = np.array([float(x) for x in value], dtype=np.float64)
+        with np.errstate(over="ignore"):
+            arr = np.array([_to_float(x) for x in value], dtype=np.float64)
         if not np.all(np.isfinite(arr)):
             self.fail(fld, f"{[float(x) for x in arr]} is not finite", allowed)
+        if np.any(np.abs(arr) > FLOAT32_MAX):
+            self.fail(fld, f"{[_num(x) for x in arr]} is beyond the float32 range the renderers compute in "
+                           "(|x| <= 3.4e38)", allowed)
         if nonneg and np.any(arr < 0):
             self.fail(fld, f"{[_num(x) for x in arr]} has a negative component", allowed)
         if positive and np.any(arr <= 0):
@@ -416,8 +445,15 @@ class _Checker:
         return arr
 
 
+def _to_float(x) -> float:
+    try:
+        return float(x)
+    except OverflowError:  # a TOML integer beyond any float
+        return math.inf if x > 0 else -math.inf
+
+
 def _num(x: float):
-    return int(x) if float(x).is_integer() else float(x)
+    return int(x) if float(x).is_integer() and abs(x) < 1e15 else float(x)
 
 
 # ----------------------------------------------------------------------------- public API
@@ -435,6 +471,22 @@ def _builtin_label(name: str) -> str:
     return f"<built-in {name}>"
 
 
+def _one_line_errors(fn):
+    """Re-raise a ViewerError from deeper code (the BRDF registry, mesh and map loading) with
+    its message on one line: it may quote a key or a value from the file."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except ViewerError as e:
+            text = one_line(str(e))
+            if text == str(e):
+                raise
+            raise type(e)(text) from None
+    return wrapper
+
+
+@_one_line_errors
 def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
                load_meshes: bool = True) -> "Scene":
     """Load and validate a scene.
@@ -457,13 +509,16 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
         return parse_scene(data, None, overrides, label=label, base_dir=SCENE_DIR, load_meshes=load_meshes)
     path = Path(ref)
     label = text
-    if not path.exists():
+    problem = path_problem(path)
+    if problem == "file not found":
         hint = "a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
         if is_bare:
             _Checker(label).fail("scene", "no such built-in scene or file", hint)
         _Checker(label).fail("file", "not found", hint)
-    if path.is_dir():
+    if problem == "is a folder, not a file":
         _Checker(label).fail("file", "is a folder, not a scene file", "a scene file path (.toml)")
+    if problem is not None:  # a pipe would block the read; a name too long, a NUL character
+        _Checker(label).fail("file", problem, "a scene file path (.toml)")
     if path.suffix.lower() == ".png":
         # a screenshot: its text chunk holds the whole scene (viewer.screenshot.png_text)
         data = _read_screenshot(path, label)
@@ -503,17 +558,41 @@ def _read_toml(path: Path, label: str) -> dict:
     return _loads(text, label)
 
 
+MAX_NESTING = 32  # tables and arrays inside each other; a scene needs 5
+
+
 def _loads(text: str, label: str) -> dict:
+    syntax = "TOML syntax (key = value, [table], [[array]], strings in double quotes)"
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         msg = str(e).splitlines()[0] if str(e) else "invalid TOML"
         m = re.search(r"line (\d+)", msg)
         where = f"line {m.group(1)}" if m else "TOML"
-        _Checker(label).fail(where, f"TOML syntax error: {msg}",
-                             "TOML syntax (key = value, [table], [[array]], strings in double quotes)")
+        _Checker(label).fail(where, f"TOML syntax error: {msg}", syntax)
+    except RecursionError:  # the parser recurses once per nested [ or {
+        _Checker(label).fail("TOML", "arrays or inline tables nested too deeply to read", syntax)
+    except ValueError as e:  # e.g. an integer of more than 4300 digits (int() refuses it)
+        _Checker(label).fail("TOML", f"a value cannot be read ({_short(str(e).splitlines()[0], 80)})", syntax)
+    _check_nesting(data, label)
+    return data
 
 
+def _check_nesting(data, label: str) -> None:
+    """Refuse data nested deeper than MAX_NESTING (copying or walking it would recurse)."""
+    stack = [(data, 0)]
+    while stack:
+        v, depth = stack.pop()
+        if depth > MAX_NESTING:
+            _Checker(label).fail("TOML", f"tables or arrays nested more than {MAX_NESTING} deep",
+                                 "a scene as in CONTRACT section 3 (at most a few levels deep)")
+        if isinstance(v, dict):
+            stack.extend((x, depth + 1) for x in v.values())
+        elif isinstance(v, list):
+            stack.extend((x, depth + 1) for x in v)
+
+
+@_one_line_errors
 def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
                 label: str | None = None, base_dir: Path | None = None,
                 load_meshes: bool = True) -> "Scene":
@@ -577,7 +656,13 @@ def _parse_camera(ck: _Checker, t) -> Camera:
     if not np.any(view != 0):
         ck.fail("camera.target", "equals camera.position, so there is no viewing direction",
                 "a target different from the position")
-    if np.linalg.norm(np.cross(view / np.linalg.norm(view), cam.up / np.linalg.norm(cam.up))) < 1e-6:
+    dist = float(np.linalg.norm(view))
+    if dist < MIN_VIEW_DISTANCE:  # the orbit camera clamps its distance there; 1e-300 would not normalize
+        ck.fail("camera.target", f"is only {dist:.3g} m from camera.position",
+                f"a target at least {MIN_VIEW_DISTANCE:g} m from the position")
+    up = cam.up / np.max(np.abs(cam.up))  # scaled first: the norm of [0, 1e-200, 0] underflows
+    cam.up = up / np.linalg.norm(up)      # stored unit length, as a light's direction
+    if np.linalg.norm(np.cross(view / dist, cam.up)) < 1e-6:
         ck.fail("camera.up", "is parallel to the viewing direction (target - position)",
                 "a vector not parallel to the viewing direction, e.g. [0, 1, 0]")
     return cam
@@ -624,13 +709,14 @@ def _parse_environment(ck: _Checker, t, base_dir: Path) -> Environment:
 
 def _check_file(ck: _Checker, value, fld: str, base_dir: Path, allowed: str) -> Path:
     ref = ck.string(value, fld, allowed)
-    p = Path(ref).expanduser()
+    p = expand_user(ref)
     if not p.is_absolute():
         p = base_dir / p
-    if not p.exists():
+    problem = path_problem(p)
+    if problem == "file not found":
         ck.fail(fld, f"file not found: {p}", allowed)
-    if not p.is_file():
-        ck.fail(fld, f"not a file: {p}", allowed)
+    if problem is not None:
+        ck.fail(fld, f"not a file: {p} ({problem})", allowed)
     try:
         with open(p, "rb") as fh:
             fh.read(1)
@@ -688,6 +774,7 @@ def _parse_lights(ck: _Checker, lst) -> list[Light]:
                 ck.fail(f"{fld}.direction", "missing (a directional light needs a direction)", allowed)
             light = Light("directional")
             d = ck.vec3(t["direction"], f"{fld}.direction", allowed, nonzero=True)
+            d = d / np.max(np.abs(d))  # scaled first: the norm of [1e-200, -1e-200, 0] underflows
             light.direction = d / np.linalg.norm(d)
             light.irradiance = ck.vec3(t.get("irradiance", [1.0, 1.0, 1.0]), f"{fld}.irradiance",
                                        "3 numbers >= 0 (irradiance, W/m^2), or one number for grey",
@@ -755,7 +842,7 @@ def _parse_materials(ck: _Checker, t) -> dict:
         ck.fail("materials", f"expected a table, got {_describe(t)}", "[materials.NAME] tables")
     out = {}
     for name, raw in t.items():
-        fld = f"materials.{name}"
+        fld = f"materials.{_short(name, 40)}"
         if not isinstance(raw, dict):
             ck.fail(fld, f"expected a table, got {_describe(raw)}",
                     f"a [{fld}] table with model = one of {', '.join(brdf.names())} (or preset = ...)")
@@ -796,9 +883,11 @@ def _parse_value(text: str):
     """A TOML value (number, bool, array, inline table, quoted string); else the bare text."""
     text = text.strip()
     try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+        value = tomllib.loads(f"v = {text}")["v"]
+    except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError; so is a 5000-digit integer
         return text
+    _check_nesting(value, f"--set value {_short(text)}")
+    return value
 
 
 def apply_override(data: dict, assignment: str, where: str = "--set") -> None:

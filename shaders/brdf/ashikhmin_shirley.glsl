@@ -23,11 +23,11 @@ float D_AshikhminShirley(vec3 h, float nu, float nv) {
 
 // Ashikhmin & Shirley 2000, eq. 4: D / (4 (h.k) max(n.k1, n.k2)) F(k.h).
 vec3 ashikhmin_shirley_specular(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
-    vec3 h = normalize(wi + wo);
+    vec3 h = normalize_safe(wi + wo);
     float hk = dot(h, wo);
     float den = 4.0 * hk * max(wi.z, wo.z);
     if (den <= 0.0) return vec3(0.0);
-    return D_AshikhminShirley(h, p.nu, p.nv) / den * F_Schlick_AS(p.rs, hk);
+    return ratio_capped(D_AshikhminShirley(h, p.nu, p.nv), den) * F_Schlick_AS(p.rs, hk);
 }
 
 // Ashikhmin & Shirley 2000, eq. 5: 28 rd / (23 pi) (1 - rs)(1 - (1 - n.k1/2)^5)(1 - (1 - n.k2/2)^5).
@@ -44,7 +44,7 @@ vec3 ashikhmin_shirley_eval(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
 
 // Term views: (F averaged over RGB, D, -1); the model has no shadowing term G ("not applicable").
 vec3 ashikhmin_shirley_terms(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
-    vec3 h = normalize(wi + wo);
+    vec3 h = normalize_safe(wi + wo);
     vec3 F = F_Schlick_AS(p.rs, dot(h, wo));
     return vec3((F.r + F.g + F.b) / 3.0, D_AshikhminShirley(h, p.nu, p.nv), -1.0);
 }

@@ -11,7 +11,7 @@ float blinn_phong_normalization_giesen(float n) {
 
 // Blinn 1977: cos^n(theta_h), with 1 - h.z = (h.x^2 + h.y^2) / (1 + h.z) (no cancellation near the normal).
 float blinn_phong_lobe(vec3 wi, vec3 wo, float n) {
-    vec3 h = normalize(wi + wo);
+    vec3 h = normalize_safe(wi + wo);
     if (h.z <= 0.0) return 0.0;
     float x = (h.x * h.x + h.y * h.y) / (1.0 + h.z);
     if (x >= 1.0) return 0.0;

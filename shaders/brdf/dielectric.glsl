@@ -46,8 +46,11 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
                                          lambda_ggx(wo, p.alpha, p.alpha), wi, wo, wm);
     float aci = abs(ci);
     double om_c = clamp(omd, 0.0LF, 1.0LF);
-    if (refl) return vec3(fresnel_dielectric(float(om_c), float(eta)) * G * D / (4.0 * aci * co));
+    // values capped at F_MAX (common/math.glsl): 1 / (|cos_i| cos_o) outgrows float32 at grazing angles
+    if (refl) return vec3(fresnel_dielectric(float(om_c), float(eta)) * ratio_capped(G * D, 4.0 * aci * co));
     // eq. 21 with (eta_i (i.m) + eta_o (o.m))^2 = |h|^2 / etap^2, then radiance's 1 / etap^2
     double T = dielectric_transmittance_d(om_c, eta);
-    return vec3(float(T * abs(imd) * abs(omd) / hlen2) * (G * D / (aci * co)));
+    float t = float(min(T * abs(imd) * abs(omd) / hlen2, double(F_MAX)));
+    float r = ratio_capped(G * D, aci * co);
+    return vec3(t <= 1.0 || r < F_MAX / t ? t * r : F_MAX);
 }

@@ -15,11 +15,11 @@ vec3 layered_refract_in(vec3 w, float eta) {
 }
 
 float layered_coat(layered_params p, vec3 wi, vec3 wo) {
-    vec3 h = normalize(wi + wo);
+    vec3 h = normalize_safe(wi + wo);
     float a = p.coating.alpha;
     float F = fresnel_dielectric(clamp(dot(wi, h), 0.0, 1.0), p.coating.ior);
     float G = smith_g2_height_correlated(lambda_ggx(wi, a, a), lambda_ggx(wo, a, a), wi, wo, h);
-    return F * G * D_ggx(h, a, a) / (4.0 * wi.z * wo.z);
+    return F * ratio_capped(G * D_ggx(h, a, a), 4.0 * wi.z * wo.z);
 }
 
 vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {

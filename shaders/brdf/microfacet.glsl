@@ -26,7 +26,7 @@ float microfacet_G(microfacet_params p, vec3 wi, vec3 wo, vec3 h) {
 // (F averaged over RGB, D, G) for the term views; zero below the surface.
 vec3 microfacet_terms(microfacet_params p, vec3 wi, vec3 wo) {
     if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
-    vec3 h = normalize(wi + wo);
+    vec3 h = normalize_safe(wi + wo);
     vec3 F = microfacet_fresnel(p, dot(wi, h));
     float D = mf_D(p.distribution, h, p.alpha_x, p.alpha_y);
     return vec3((F.r + F.g + F.b) / 3.0, D, microfacet_G(p, wi, wo, h));
@@ -34,13 +34,12 @@ vec3 microfacet_terms(microfacet_params p, vec3 wi, vec3 wo) {
 
 vec3 microfacet_eval(microfacet_params p, vec3 wi, vec3 wo) {
     if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
-    float den = 4.0 * wi.z * wo.z;
-    if (den <= 0.0) return vec3(0.0);  // both cosines underflowed: nothing finite to return
-    vec3 h = normalize(wi + wo);
+    float den = 4.0 * wi.z * wo.z;  // may underflow at grazing angles: ratio_capped caps at F_MAX
+    vec3 h = normalize_safe(wi + wo);
     vec3 F = microfacet_fresnel(p, dot(wi, h));
     float D = mf_D(p.distribution, h, p.alpha_x, p.alpha_y);
     float G = microfacet_G(p, wi, wo, h);
-    vec3 f = F * (D * G / den);
+    vec3 f = F * ratio_capped(D * G, den);
     if (any(greaterThan(p.kd, vec3(0.0)))) {
         vec3 Fi = microfacet_fresnel(p, wi.z);
         vec3 Fo = microfacet_fresnel(p, wo.z);

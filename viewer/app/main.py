@@ -490,7 +490,6 @@ class App:
         self.compare.mode = mode
         if not self.compare.uses_reference and self._reference is not None:
             self._reference.stop()
-            self._reference._key = None  # the next compare view starts a new render
         self.dirty = True
 
     # ------------------------------------------------------------------ UI scale, fullscreen

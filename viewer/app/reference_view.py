@@ -1,6 +1,17 @@
 """The window's Reference view: the CPU path tracer renders progressively in a background
 thread (its workers are processes, so the raster view stays interactive) and restarts whenever
-the scene, a material, a light or the camera changes."""
+the scene, a material, a light or the camera changes.
+
+Lifecycle: one background thread for the life of the view, started on the first ``restart``.
+``restart`` only posts the newest request (a snapshot of the scene and camera) and cancels the
+job in progress; the thread picks the newest request up, re-targets its ``ReferenceRenderer``
+(``reset`` keeps the worker processes) and renders until cancelled. So restarting never waits
+for the thread in the GUI's frame, never runs two jobs at once on one renderer (a slow reset
+of a large scene used to outlive ``stop``'s join timeout, after which a second thread shared
+the renderer), and a thousand restarts leave one thread and one pool. A job that fails drops
+its renderer, so the next request starts a fresh pool rather than a broken one. ``close`` ends
+the thread, which closes the renderer and its worker processes.
+"""
 
 from __future__ import annotations
 
@@ -21,15 +32,20 @@ def scene_key(scene, camera, size) -> str:
 
 class ReferenceView:
     def __init__(self, ctx, scale: float = 0.5, max_depth: int = 8, workers: int | None = None):
-        self.ctx = ctx
+        self.ctx = ctx            # only texture_for_display uses it
         self.scale = scale
         self.max_depth = max_depth
         self.workers = workers
         self._key = None
-        self._thread = None
+        self._thread: threading.Thread | None = None
+        self._cond = threading.Condition()
+        self._request = None      # (generation, scene, camera, w, h): the job the thread runs next
+        self._generation = 0      # of the newest request; older jobs publish nothing
         self._cancel = threading.Event()
+        self._busy = False        # the thread is running a job
+        self._closing = False
         self._lock = threading.Lock()
-        self._renderer = None
+        self._renderer = None     # owned by the background thread
         self._image = None        # latest mean, (H, W, 3) float32
         self._image_spp = 0
         self._uploaded_spp = -1
@@ -52,27 +68,62 @@ class ReferenceView:
             self.restart(scene, camera, w, h)
 
     def restart(self, scene, camera, w, h):
-        self.stop()
+        """Render ``scene`` seen by ``camera`` at w x h from now on (the current job is
+        cancelled; returns at once)."""
         snapshot = copy.deepcopy(scene)  # the GUI keeps editing its own copy
         cam = copy.deepcopy(camera)
-        self._cancel = threading.Event()
-        self._image, self._image_spp = None, 0
-        self.error = ""
-        self.started_at = time.perf_counter()
-        self._thread = threading.Thread(target=self._run, args=(snapshot, cam, w, h, self._cancel),
-                                        name="reference", daemon=True)
-        self._thread.start()
+        with self._cond:
+            if self._closing:
+                return
+            self._generation += 1
+            self._request = (self._generation, snapshot, cam, int(w), int(h))
+            self._cancel.set()
+            with self._lock:
+                self._image, self._image_spp = None, 0
+            self.error = ""
+            self.started_at = time.perf_counter()
+            self._cond.notify_all()
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._loop, name="reference", daemon=True)
+                self._thread.start()
 
-    def _run(self, scene, camera, w, h, cancel):
+    # ------------------------------------------------------------------ background thread
+    def _loop(self):
+        try:
+            while True:
+                with self._cond:
+                    self._busy = False
+                    self._cond.notify_all()
+                    while self._request is None and not self._closing:
+                        self._cond.wait()
+                    if self._closing:
+                        return
+                    gen, scene, camera, w, h = self._request
+                    self._request = None
+                    self._cancel.clear()  # a later restart sets it again
+                    self._busy = True
+                self._job(gen, scene, camera, w, h)
+                del scene, camera
+        finally:
+            renderer, self._renderer = self._renderer, None
+            if renderer is not None:
+                renderer.close()
+            with self._cond:
+                self._busy = False
+                self._cond.notify_all()
+
+    def _current(self, gen) -> bool:
+        return gen == self._generation and not self._cancel.is_set()
+
+    def _job(self, gen, scene, camera, w, h):
         from viewer import ViewerError
         from viewer.pathtracer import ReferenceRenderer
 
+        cancel = self._cancel
         try:
-            if self._renderer is not None and hasattr(self._renderer, "reset"):
+            if self._renderer is not None:
                 self._renderer.reset(scene, camera=camera, width=w, height=h)  # keeps its workers
             else:
-                if self._renderer is not None:
-                    self._renderer.close()
                 self._renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
                                                    max_depth=self.max_depth, workers=self.workers)
             r = self._renderer
@@ -81,14 +132,33 @@ class ReferenceView:
                     break
                 img = r.mean()
                 with self._lock:
-                    if not cancel.is_set():
+                    if self._current(gen):
                         self._image, self._image_spp = img, r.spp
                         elapsed = time.perf_counter() - self.started_at
                         self.samples_per_second = r.spp * w * h / max(elapsed, 1e-9)
         except ViewerError as e:
-            self.error = str(e)
+            self._fail(gen, str(e))
         except Exception as e:  # noqa: BLE001 - shown in the window; the raster view keeps running
-            self.error = f"reference failed: {type(e).__name__}: {e}"
+            self._fail(gen, f"reference failed: {type(e).__name__}: {e}")
+
+    def _fail(self, gen, message):
+        # The renderer may be half-reset or its pool broken (a worker killed): start afresh next time.
+        renderer, self._renderer = self._renderer, None
+        if renderer is not None:
+            try:
+                renderer.close()
+            except Exception:  # noqa: BLE001 - closing a broken pool
+                pass
+        if gen == self._generation:
+            self.error = message
+
+    # ------------------------------------------------------------------ GUI side
+    def latest(self):
+        """(image (H, W, 3) float32, spp) of the newest pass, or None before the first."""
+        with self._lock:
+            if self._image is None:
+                return None
+            return self._image, self._image_spp
 
     def texture_for_display(self):
         """The latest image as a float texture (None until the first pass is done)."""
@@ -108,17 +178,31 @@ class ReferenceView:
             self._uploaded_spp = spp
         return self.texture
 
-    def stop(self):
-        self._cancel.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-            self._thread = None
+    def stop(self, timeout: float = 5.0) -> bool:
+        """Cancel the job in progress and forget any pending request (the workers go idle; the
+        next ``update`` with a changed key starts again). Waits up to ``timeout`` seconds for
+        the thread to go idle; True when it did."""
+        with self._cond:
+            self._request = None
+            self._generation += 1
+            self._cancel.set()
+            self._key = None
+            return self._cond.wait_for(lambda: not self._busy, timeout=timeout)
 
-    def close(self):
-        self.stop()
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+    def close(self, timeout: float | None = None):
+        """End the background thread (it closes the renderer and its worker processes) and
+        release the texture. Waits for the thread (``timeout`` None: until it has ended)."""
+        with self._cond:
+            self._closing = True
+            self._request = None
+            self._generation += 1
+            self._cancel.set()
+            self._cond.notify_all()
+            thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+            if not thread.is_alive():
+                self._thread = None
         if self.texture is not None:
             self.texture.release()
             self.texture = None

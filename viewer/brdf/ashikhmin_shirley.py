@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.sampling import (pow_one_minus, INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
-                                  normalize, pick_lobe, reflect)
+                                  normalize, pick_lobe, ratio_capped, reflect)
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -72,7 +72,7 @@ def as_specular(p, wi, wo):
     hk = np.sum(h * wo, axis=-1)
     den = 4.0 * hk * np.maximum(wi[:, 2], wo[:, 2])
     ok = den > 0
-    s = D_AshikhminShirley(h, p.nu, p.nv) / np.where(ok, den, 1.0)
+    s = ratio_capped(D_AshikhminShirley(h, p.nu, p.nv), den)
     return np.where(ok, s, 0.0)[:, None] * F_Schlick(p.rs, hk)
 
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
-from viewer.brdf.sampling import normalize, reflect, reflect_z, split_uniform
+from viewer.brdf.sampling import F_MAX, normalize, ratio_capped, reflect, reflect_z, split_uniform
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -109,11 +109,12 @@ def _rough_eval_pdf(p, wi, wo):
     co = np.where(valid, co, 1.0)
     safe_h2 = np.where(valid, hlen2, 1.0)
     # reflection: Walter et al. 2007 eq. 20, f = F G D / (4 |cos_i| |cos_o|)
-    f_r = F * G * D / (4.0 * aci * co)
+    f_r = F * ratio_capped(G * D, 4.0 * aci * co)  # capped at F_MAX (sampling.py)
     # transmission: Walter et al. 2007 eq. 21 with (eta_i (i.h) + eta_o (o.h))^2 written as
     # |wi etap + wo|^2 / etap^2 (no cancellation), then the radiance factor 1 / etap^2:
     # f_t = T G D |i.m| |o.m| / (|h|^2 |cos_i| |cos_o|)
-    f_t = T * G * D * np.abs(im) * np.abs(om) / (safe_h2 * aci * co)
+    f_t = np.minimum(np.minimum(T * np.abs(im) * np.abs(om) / safe_h2, F_MAX) * ratio_capped(G * D, aci * co),
+                     F_MAX)
     f = np.where(valid, np.where(reflect_, f_r, f_t), 0.0)
     # pdf: visible normals times the Jacobians (eq. 14: 1 / (4 |o.m|); eq. 17 with the half-vector
     # length: |i.m| etap^2 / |h|^2), times the probability of the branch

@@ -186,8 +186,12 @@ def sample(p, wo, u):
     pdf_ = _pdf(p, wi, wo, probs)
     ok = pdf_ > 0
     f = eval(p, wi, wo)
-    weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
-    return wi, weight, np.where(ok, pdf_, 0.0)
+    with np.errstate(over="ignore"):
+        weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
+    # f is clamped at e^80 (LOG_CLAMP) but the pdf is not: far out in a huge lobe (|C| = 10,
+    # n = 10^4, u ~ 1e-300) f cos / pdf overflows. That sample fails (CONTRACT: weight = pdf = 0).
+    ok &= np.all(np.isfinite(weight), axis=1)
+    return wi, np.where(ok[:, None], weight, 0.0), np.where(ok, pdf_, 0.0)
 
 
 def ibl_split(p):

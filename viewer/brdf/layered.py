@@ -44,7 +44,7 @@ import numpy as np
 
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
-from viewer.brdf.sampling import normalize, reflect, split_uniform
+from viewer.brdf.sampling import normalize, ratio_capped, reflect, split_uniform
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -102,7 +102,7 @@ def eval_coat(p, wi, wo):
     d = _dist(p)
     # Walter et al. 2007 eq. 20 with the dielectric F (Fresnel at the microfacet)
     F = fresnel_dielectric(np.clip(np.sum(wi * h, axis=-1), 0.0, 1.0), p.coating.ior)
-    val = F * d.G2(wi, wo, h) * d.D(h) / (4.0 * np.where(ok, ci * co, 1.0))
+    val = F * ratio_capped(d.G2(wi, wo, h) * d.D(h), 4.0 * np.where(ok, ci * co, 1.0))
     return np.where(ok, val, 0.0)
 
 

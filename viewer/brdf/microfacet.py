@@ -28,7 +28,7 @@ import numpy as np
 from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
 from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_v_cavity
 from viewer.brdf.presets import METALS
-from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, reflect
+from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
 from viewer.brdf.spec import ModelSpec, Param
 
 _GOLD_ETA, _GOLD_K = METALS["gold"]
@@ -108,7 +108,7 @@ def eval_specular(p, wi, wo):
     ok = (ci > 0) & (co > 0)
     F, D, G, _ = terms(p, wi, wo)
     den = 4.0 * np.where(ok, ci * co, 1.0)
-    return np.where(ok[:, None], F * (D * G / den)[:, None], 0.0)
+    return np.where(ok[:, None], F * ratio_capped(D * G, den)[:, None], 0.0)
 
 
 def eval_diffuse(p, wi, wo):

@@ -6,6 +6,22 @@ import numpy as np
 
 INV_PI = 1.0 / np.pi
 
+# BRDF values are capped at F_MAX = e^80 (about 5.5e34) in both twins (GLSL: common/math.glsl):
+# at grazing angles 1 / (4 cos_i cos_o) outgrows float32 (3.4e38), the shader's inf would turn
+# into NaN at the next multiplication by 0, and float64 would carry a value no image can hold.
+# Lafortune's lobe clamp (LOG_CLAMP = 80) is the same bound.
+F_MAX = float(np.exp(80.0))
+
+
+def ratio_capped(a, b):
+    """a / b for a >= 0, capped at F_MAX; 0 where a <= 0; F_MAX where a > 0 and b <= 0 (the
+    GLSL twin ``ratio_capped`` computes the same without overflowing)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        r = np.minimum(a / np.where(b > 0, b, 1.0), F_MAX)
+    return np.where(a > 0, np.where(b > 0, r, F_MAX), 0.0)
+
 
 def cos_theta(w):
     return w[..., 2]

@@ -155,6 +155,24 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
 
 
+def _show(value, n: int = 60) -> str:
+    """A value for a message, cut to ``n`` characters (a scene may hold huge values)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10 ** 15:
+        return "%.3g" % value if abs(value) < 10 ** 300 else "a huge integer"
+    try:
+        text = repr(value)
+    except ValueError:  # e.g. an integer of more than 4300 digits inside a list
+        text = f"a {type(value).__name__}"
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
+def _float(x) -> float:
+    try:
+        return float(x)
+    except OverflowError:  # an integer beyond any float: out of every range
+        return math.inf if x > 0 else -math.inf
+
+
 def validate_value(param: Param, value, where: str, lookup_spec=None):
     """Check one value against its Param; return the normalized value or raise ViewerError.
 
@@ -163,8 +181,8 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
     k = param.kind
     if k == "float":
         if not _is_number(value):
-            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
-        v = float(value)
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
+        v = _float(value)
         if not math.isfinite(v) or (param.lo is not None and v < param.lo) or (param.hi is not None and v > param.hi):
             raise ViewerError(f"{where}: {v:g} is out of range; allowed: {param.allowed()}")
         return v
@@ -174,8 +192,8 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         if isinstance(value, np.ndarray):
             value = value.tolist()
         if not isinstance(value, (list, tuple)) or len(value) != 3 or not all(_is_number(x) for x in value):
-            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
-        arr = np.array([float(x) for x in value], dtype=np.float64)
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
+        arr = np.array([_float(x) for x in value], dtype=np.float64)
         bad = (~np.isfinite(arr)) | ((arr < param.lo) if param.lo is not None else False) | (
             (arr > param.hi) if param.hi is not None else False)
         if np.any(bad):
@@ -183,15 +201,15 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         return arr
     if k == "choice":
         if value not in param.choices:
-            raise ViewerError(f"{where}: {value!r} is not allowed; allowed: {param.allowed()}")
+            raise ViewerError(f"{where}: {_show(value)} is not allowed; allowed: {param.allowed()}")
         return str(value)
     if k == "table":
         if not isinstance(value, dict):
-            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
         return validate_fields(param.fields, value, where, model="")
     if k == "lobes":
         if not isinstance(value, (list, tuple)) or not (1 <= len(value) <= param.max_items):
-            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
         out = []
         for i, item in enumerate(value):
             if not isinstance(item, dict):
@@ -203,7 +221,7 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         if isinstance(value, Params):
             return value
         if not isinstance(value, dict) or "model" not in value:
-            raise ViewerError(f"{where}: expected {param.allowed()}, got {value!r}")
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
         if lookup_spec is None:
             raise ViewerError(f"{where}: nested materials need the registry")
         sub = dict(value)
@@ -229,6 +247,7 @@ def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, loo
         if key not in names:
             allowed = names + list((aliases or {}).keys())
             what = f"model {model!r}" if model else "this table"
+            key = key if len(key) <= 40 else key[:37] + "..."
             raise ViewerError(f"{where}.{key}: unknown parameter of {what}; allowed: {', '.join(allowed)}")
     out = {}
     for f in fields:

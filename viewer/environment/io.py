@@ -32,10 +32,14 @@ lat-long map (``viewer.environment.latlong``); neither format needs a flip.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import os
 import re
+import sys
 import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,6 +61,7 @@ _OTHER_MAGICS = (  # for a friendlier message when the file is something else
     (b"\x93NUMPY", "a numpy .npy file"),
 )
 SUFFIXES = (".hdr", ".exr")
+MAX_TEXELS = 1 << 30  # OpenCV's own limit (CV_IO_MAX_IMAGE_PIXELS); 12 GiB as float32 RGB
 
 
 @dataclass
@@ -73,14 +78,19 @@ class EnvironmentImage:
 
 
 def _fail(path, problem: str):
-    raise ViewerError(f"{path}: {problem}")
+    from viewer.io import one_line
+
+    raise ViewerError(one_line(f"{path}: {problem}"))
 
 
 def _read_head(path: Path, n: int = 4096) -> bytes:
-    if not path.exists():
-        _fail(path, "file not found")
-    if not path.is_file():
-        _fail(path, "not a file (a folder?); expected a Radiance .hdr or OpenEXR .exr image")
+    from viewer.io import path_problem
+
+    problem = path_problem(path)
+    if problem == "file not found":
+        _fail(path, problem)
+    if problem is not None:
+        _fail(path, f"not a file ({problem}); expected a Radiance .hdr or OpenEXR .exr image")
     try:
         with open(path, "rb") as fh:
             return fh.read(n)
@@ -171,13 +181,19 @@ def _hdr_header(path: Path) -> tuple[float, tuple[int, int]]:
     if (m.group(1), m.group(3)) != (b"-Y", b"+X"):
         _fail(path, f"unsupported Radiance orientation {res_line.decode('latin-1').strip()!r}; "
                     "allowed: the standard '-Y height +X width'")
-    if not exposure > 0:
+    if not (0.0 < exposure < float("inf")):
+        log.warning(f"{path}: EXPOSURE in the Radiance header multiplies to {exposure:g}; ignored (taken as 1)")
         exposure = 1.0
-    return exposure, (int(m.group(2)), int(m.group(4)))
+    h, w = int(m.group(2)), int(m.group(4))
+    if h * w > MAX_TEXELS:
+        _fail(path, f"image is {w} x {h} texels; at most {MAX_TEXELS} texels (2^30) are read")
+    return exposure, (h, w)
 
 
 def _read_hdr(path: Path) -> np.ndarray:
-    import cv2
+    from viewer.optional import require
+
+    cv2 = require("cv2")
 
     exposure, (h, w) = _hdr_header(path)
     if w < 2 or h < 1:
@@ -199,21 +215,107 @@ def _read_hdr(path: Path) -> np.ndarray:
         _fail(path, f"decoded {img.shape[1]} x {img.shape[0]} texels but the header says {w} x {h}")
     img = img[..., ::-1].astype(np.float32)  # OpenCV gives BGR
     if exposure != 1.0:
-        img /= np.float32(exposure)
+        with np.errstate(all="ignore"):  # a tiny EXPOSURE: the texels that overflow are inf,
+            img = (img / exposure).astype(np.float32)  # then set to 0 and counted as bad texels
     return img
 
 
 # ----------------------------------------------------------------------------- OpenEXR
 
-def _read_exr(path: Path) -> np.ndarray:
-    import OpenEXR
+_QUIET_LOCK = threading.Lock()
 
+
+@contextlib.contextmanager
+def _captured_output():
+    """Collect what C libraries print to the process's stdout and stderr (file descriptors 1 and
+    2) while the block runs, instead of letting it reach the terminal; yields a list that holds
+    the text afterwards. The OpenEXR library prints its own lines for a corrupt file
+    ("(EXR_ERR_BAD_CHUNK_LEADER) ...", "Warning: Exception raised reading pixel data ...") beside
+    the exception it raises, and a bad file must give one message, ours. Python-level output of
+    other threads during the few milliseconds of a read is captured too (and dropped)."""
+    out: list[str] = []
+    with _QUIET_LOCK, tempfile.TemporaryFile() as sink:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (AttributeError, OSError, ValueError):
+                pass
+        _flush_c_stdio()  # what others wrote before goes where it belongs
+        saved = []
+        py_streams = (sys.stdout, sys.stderr)
+        py_sink = io.StringIO()
+        try:
+            for fd in (1, 2):
+                try:
+                    saved.append((fd, os.dup(fd)))
+                    os.dup2(sink.fileno(), fd)
+                except OSError:  # no such descriptor (a service without stdio): nothing to hide
+                    pass
+            # the bindings' own warnings go through Python's print (sys.stdout), which need not
+            # be file descriptor 1 (pytest's capture, an IDE console)
+            sys.stdout = sys.stderr = py_sink
+            yield out
+        finally:
+            sys.stdout, sys.stderr = py_streams
+            _flush_c_stdio()  # the C library's lines sit in C stdio's buffer until flushed
+            for fd, copy in saved:
+                os.dup2(copy, fd)
+                os.close(copy)
+            sink.seek(0)
+            text = py_sink.getvalue() + sink.read(1 << 16).decode("utf-8", "replace")
+            out.extend(line for line in text.splitlines() if line.strip())
+
+
+def _flush_c_stdio() -> None:
+    """fflush(NULL): C and C++ streams buffer output written to a pipe or file."""
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
-            ch = {name: np.asarray(c.pixels) for name, c in f.channels().items()}
-    except Exception as e:  # the bindings raise RuntimeError / ValueError with a C message
-        text = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-        _fail(path, f"truncated or corrupt OpenEXR data ({text})")
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):  # no C library to ask (not POSIX)
+        pass
+
+
+def _exr_library_problem(lines: list[str], path: Path) -> str | None:
+    """The most informative line the OpenEXR library printed, without the file name."""
+    for line in lines:
+        text = line.replace(str(path), "").split(" - ", 1)[-1] if "Exception raised reading" in line \
+            else line.replace(str(path), "")
+        text = " ".join(text.split()).lstrip(":; ")
+        if text:
+            return text[:200]
+    return None
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    from viewer.optional import require
+
+    OpenEXR = require("OpenEXR")
+
+    error = None
+    with _captured_output() as printed:
+        try:
+            # The header first: the bindings allocate the data window before reading a texel,
+            # so a corrupt 100000 x 100000 window would ask for 37 GiB.
+            with OpenEXR.File(str(path), header_only=True) as f:
+                (x0, y0), (x1, y1) = (np.asarray(v, dtype=np.int64) for v in f.header()["dataWindow"])
+            w, h = int(x1 - x0 + 1), int(y1 - y0 + 1)
+            if w < 1 or h < 1 or w * h > MAX_TEXELS:
+                _fail(path, f"OpenEXR data window is {w} x {h} texels; allowed: 1 to {MAX_TEXELS} texels (2^30)")
+            with OpenEXR.File(str(path), separate_channels=True) as f:
+                ch = {name: np.asarray(c.pixels) for name, c in f.channels().items()}
+        except ViewerError:
+            raise
+        except Exception as e:  # the bindings raise RuntimeError / ValueError with a C message
+            error = e
+    detail = _exr_library_problem(printed, path)
+    if error is not None:
+        text = str(error).strip().splitlines()[-1].replace(str(path), "the file") if str(error).strip() \
+            else type(error).__name__
+        _fail(path, f"truncated or corrupt OpenEXR data ({detail or text})")
+    if any("Exception raised reading pixel data" in line for line in printed):
+        # the bindings report a failed pixel read by printing, and return what they have
+        _fail(path, f"truncated or corrupt OpenEXR data ({detail})")
     # Channel names may carry a layer prefix ("diffuse.R"); take the unprefixed ones first.
     def pick(name):
         if name in ch:
@@ -242,8 +344,8 @@ def _read_exr(path: Path) -> np.ndarray:
 def save_environment(path, array) -> None:
     """Write float (H, W, 3) linear radiance to ``path`` (.hdr: Radiance RGBE, run-length
     encoded; .exr: OpenEXR, 32-bit float RGB, ZIP compression). The file appears atomically
-    (written beside it under a temporary name, then renamed), so a failure leaves no partial
-    file. RGBE cannot store negative values: they are written as 0."""
+    (written beside it under a temporary name, fsynced, then renamed: ``viewer.io.atomic_write_file``),
+    so a failure or a kill leaves no partial file. RGBE cannot store negative values: they are written as 0."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
@@ -251,25 +353,23 @@ def save_environment(path, array) -> None:
     a = np.asarray(array, dtype=np.float32)
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
         _fail(path, f"cannot write an array of shape {a.shape}; expected (height, width, 3)")
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=folder)
-    os.close(fd)
-    try:
-        if suffix == ".hdr":
-            import cv2
+    from viewer.io import atomic_write_file
 
+    def write(tmp: Path):
+        from viewer.optional import require
+
+        if suffix == ".hdr":
+            cv2 = require("cv2")
             bgr = np.ascontiguousarray(np.maximum(a, 0.0)[..., ::-1])
-            if not cv2.imwrite(tmp, bgr):
+            if not cv2.imwrite(str(tmp), bgr):
                 _fail(path, "OpenCV could not write the Radiance file")
         else:
-            import OpenEXR
-
+            OpenEXR = require("OpenEXR")
             header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
             with OpenEXR.File(header, {"RGB": np.ascontiguousarray(a)}) as f:
-                f.write(tmp)
-        os.replace(tmp, path)
+                f.write(str(tmp))
+
+    try:
+        atomic_write_file(path, write, suffix=suffix)
     except OSError as e:
         _fail(path, f"cannot be written ({e.strerror or e})")
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)

@@ -39,24 +39,48 @@ from viewer.pathtracer.integrator import Integrator, RenderSetup
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
 TARGET_CHUNK_PATHS = 8192      # camera samples per chunk (about 60 ms on one core)
 POLL_S = 0.005
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 _WORKER: Integrator | None = None
 _WORKER_KEY: str | None = None
+_INITIAL: tuple | None = None   # (setup, key) the pool was created with
+
+
+def _build(setup: RenderSetup) -> Integrator:
+    """An Integrator, or a one-line ViewerError when a package it needs is missing (it travels
+    from a worker to the caller of ``step`` intact; a bare ImportError in the pool's
+    initializer would only break the pool, with a traceback per worker and no name)."""
+    try:
+        return Integrator(setup)
+    except ImportError as e:
+        from viewer import ViewerError
+        from viewer.optional import explain
+
+        raise ViewerError(explain(e, None, f"the {setup.kernel} ray kernel of the reference path tracer")) from None
 
 
 def _init_worker(setup: RenderSetup, key: str):
-    global _WORKER, _WORKER_KEY
-    _WORKER, _WORKER_KEY = Integrator(setup), key
+    global _INITIAL
+    _INITIAL = (setup, key)
+    try:
+        _worker_for(key, None)  # build now, so warm_up() starts ready workers
+    except Exception:  # noqa: BLE001 - reported by the first chunk, which builds again
+        pass
 
 
 def _worker_for(key: str, path: str | None) -> Integrator:
     """The worker's integrator for scene version ``key``, loaded from ``path`` (written once by
     ``reset``) when the worker last rendered another version: a scene change reuses the worker
-    processes instead of starting new ones."""
+    processes instead of starting new ones. ``path`` None: the pool's initial setup."""
     global _WORKER, _WORKER_KEY
     if _WORKER_KEY != key:
-        with open(path, "rb") as f:
-            _WORKER = Integrator(pickle.load(f))
+        if path is None and _INITIAL is not None and _INITIAL[1] == key:
+            setup = _INITIAL[0]
+        else:  # (a chunk of a cancelled pass may name a file already removed: it fails here)
+            with open(path, "rb") as f:
+                setup = pickle.load(f)
+        _WORKER, _WORKER_KEY = None, None  # free the old scene before building the next
+        _WORKER = _build(setup)
         _WORKER_KEY = key
     return _WORKER
 
@@ -68,7 +92,9 @@ def _run_chunk(key, path, row0, row1, samples, seed, block_id):
     return s, s2, it.bad_values - before
 
 
-def _warm(seconds):
+def _warm(seconds, key=None, path=None):
+    if key is not None:
+        _worker_for(key, path)  # raises what the first chunk would (a missing package)
     time.sleep(seconds)
     return os.getpid()
 
@@ -77,6 +103,21 @@ def _worker_modules():
     import sys
 
     return sorted(sys.modules)
+
+
+KERNELS = {"embree": "embreex", "numba": "numba"}  # ray kernel -> the package it needs
+
+
+def _check_kernel(kernel: str) -> None:
+    """A one-line ViewerError for an unknown kernel or a missing package, here in the calling
+    process (in a worker it would only break the pool, with a message that names nothing)."""
+    from viewer import ViewerError
+    from viewer.optional import require
+
+    if kernel not in KERNELS:
+        raise ViewerError(f"kernel: {kernel!r} is not a ray kernel; allowed: {', '.join(KERNELS)}")
+    require(KERNELS[kernel], f"the {kernel} ray kernel of the reference path tracer (kernel={kernel!r})",
+            load=False)
 
 
 def block_layout(width: int, height: int) -> list[tuple[int, int]]:
@@ -92,6 +133,7 @@ class ReferenceRenderer:
                  workers=None, env_image=None, kernel: str = "embree"):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
+        _check_kernel(kernel)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
         self.seed = int(seed)
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
@@ -115,7 +157,8 @@ class ReferenceRenderer:
         self._version += 1
         self._key = f"{os.getpid()}-{id(self)}-{self._version}"
         if self.workers == 0:
-            self._local = Integrator(setup)
+            self._local = None
+            self._local = _build(setup)
 
     def reset(self, scene, camera=None, width=None, height=None):
         """Start over on a changed scene, camera or size, keeping the worker processes."""
@@ -185,6 +228,10 @@ class ReferenceRenderer:
         new_sum2 = self._sum2.copy()
         bad = 0
         for (_, _, r0, r1, _, _, _), (s, s2, nb) in zip(chunks, results):
+            broken = ~np.isfinite(s)
+            if broken.any():  # a path whose float64 throughput overflowed would poison the pixel for good
+                bad += int(np.count_nonzero(broken))
+                s, s2 = np.where(broken, 0.0, s), np.where(broken, 0.0, s2)
             new_sum[r0:r1] += s
             new_sum2[r0:r1] += s2
             bad += nb
@@ -195,10 +242,13 @@ class ReferenceRenderer:
 
     # ------------------------------------------------------------------ results
     def mean(self) -> np.ndarray:
-        """(H, W, 3) float32 running mean, row 0 = top."""
+        """(H, W, 3) float32 running mean, row 0 = top. Radiance beyond the float32 range
+        saturates at its largest value (3.4e38) instead of becoming inf: possible at the far ends
+        of the parameter ranges, e.g. a Lafortune lobe |C| = 10, n = 5000, whose value is capped
+        at e^80 but whose path weights multiply over the bounces."""
         if self.spp == 0:
             return np.zeros((self.height, self.width, 3), dtype=np.float32)
-        return (self._sum / self.spp).astype(np.float32)
+        return np.minimum(self._sum / self.spp, FLOAT32_MAX).astype(np.float32)
 
     def variance(self) -> np.ndarray:
         """(H, W, 3) variance of the mean per pixel: unbiased sample variance / n
@@ -207,14 +257,16 @@ class ReferenceRenderer:
         if n < 2:
             return np.full((self.height, self.width, 3), np.inf, dtype=np.float32)
         m = self._sum / n
-        var = np.maximum(self._sum2 - n * m * m, 0.0) / (n - 1)
-        return (var / n).astype(np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):  # squares of huge values: inf, never NaN
+            var = np.maximum(self._sum2 - n * m * m, 0.0) / (n - 1)
+            var = np.where(np.isfinite(self._sum2), var, np.inf)
+            return (var / n).astype(np.float32)
 
     def warm_up(self):
         """Start every worker process now (and build its ray-tracing structures), so the
         first ``step`` measures rendering only."""
         if self._pool is not None:
-            futs = [self._pool.submit(_warm, 0.05) for _ in range(self.workers)]
+            futs = [self._pool.submit(_warm, 0.05, self._key, self._setup_file) for _ in range(self.workers)]
             for f in futs:
                 f.result()
 
