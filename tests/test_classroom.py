@@ -360,3 +360,56 @@ def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, t
     assert res["m1"] == "sphere" and "mesh not loaded" in res["s1"] and "broken.ply" in res["s1"], res
     assert res["m2"].endswith("box.obj") and res["tri"] == 12, res
     assert "unknown kind" in res["s3"] and ".toml" in res["s3"], res
+
+
+def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):  # noqa: F811
+    """Mutated scenes, meshes and environment maps (tests/fuzz_cases.py) opened in the running
+    window: each either loads or leaves the scene exactly as it was, with one line of status."""
+    import fuzz_cases as fc
+
+    rng = np.random.default_rng(11)
+    texts = fc.builtin_scene_texts()
+    scenes, meshes, envs = [], [], []
+    kinds = [k for k in fc.SCENE_KINDS if k != "override"]  # the window opens files, no --set
+    for i in range(24):
+        p = tmp_path / f"scene{i}.toml"
+        name = sorted(texts)[i % len(texts)]
+        _, raw, _ = fc.mutate_scene(rng, texts[name], kinds[i % len(kinds)])
+        p.write_bytes(raw)
+        scenes.append(str(p))
+    for i in range(16):
+        meshes.append(str(fc.make_mesh_case(rng, tmp_path, fc.MESH_KINDS[i % len(fc.MESH_KINDS)], i)[1]))
+    for i in range(13):
+        envs.append(str(fc.make_env_case(rng, tmp_path, fc.ENV_KINDS[i % len(fc.ENV_KINDS)], i)[1]))
+    r = _run_py(f"""
+        import json
+        from viewer.app.main import App
+        from viewer.scene import scene_to_toml
+        app = App("sphere", size=(480, 300), restore_state=False)
+        app.frame()
+        out = dict(loaded=0, refused=0, bad=[])
+        def attempt(kind, fn, path):
+            before = scene_to_toml(app.scene)
+            ok = fn(path)
+            app.frame()
+            after = scene_to_toml(app.scene)
+            if ok:
+                out["loaded"] += 1
+            else:
+                out["refused"] += 1
+                if after != before or "\\n" in app.status or not app.status:
+                    out["bad"].append([kind, path, app.status])
+        for p in {scenes!r}:
+            attempt("scene", app.open_scene, p)
+            app.open_scene("sphere")
+        for p in {meshes!r}:
+            attempt("mesh", app.load_mesh, p)
+        for p in {envs!r}:
+            attempt("env", app.set_environment, p)
+        app.close()
+        print("RESULT " + json.dumps(out))
+        """, display, timeout=400)
+    res = _result(r)
+    print(res["loaded"], "loaded,", res["refused"], "refused")
+    assert res["bad"] == [], res["bad"]
+    assert res["refused"] >= 20 and res["loaded"] + res["refused"] == 24 + 16 + 13
