@@ -9,7 +9,8 @@ minimized), environment switches (including a file that does not exist), compare
 camera moves while the reference renders (each one restarts it), lecture steps, the plots window
 and the UI scale. After every frame: glGetError must be GL_NO_ERROR and the image finite.
 
-Printed: frames, actions per kind, failures, resident memory and the count of live GL objects
+Printed: frames, actions per kind, failures, resident memory, Python's allocated blocks and
+objects (to tell Python-side growth from the GL driver's) and the count of live GL objects
 (textures, buffers, framebuffers, renderbuffers, programs, shaders, vertex arrays, queried with
 glIs* over the names in use) at frame 1,000 and at the end. ``--json`` prints one JSON line.
 """
@@ -155,7 +156,11 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
             if i in (report_at, frames):
                 app.set_image_mode("raster")  # the reference's images are not GL objects; settle it
                 app.frame()
+                import gc
+
+                gc.collect()
                 snapshots[i] = {"rss_mb": round(rss_mb(), 1), "gl": glo.count(),
+                                "python_blocks": sys.getallocatedblocks(), "python_objects": len(gc.get_objects()),
                                 "elapsed_s": round(time.perf_counter() - t0, 1)}
                 log(f"frame {i}: {snapshots[i]}")
     finally:
