@@ -38,6 +38,20 @@ def box_down(img: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return out / np.maximum(cnt, 1.0)
 
 
+def upload_rgb(ctx, tex, img: np.ndarray):
+    """Write an (H, W, 3) image (row 0 = top) into an RGBA32F texture, GL's rows bottom-up;
+    ``tex`` is reused when its size fits, else released and replaced. Returns the texture."""
+    h, w = img.shape[:2]
+    rgba = np.ones((h, w, 4), "f4")
+    rgba[..., :3] = img[::-1]
+    if tex is None or tex.size != (w, h):
+        if tex is not None:
+            tex.release()
+        tex = ctx.texture((w, h), 4, dtype="f4")
+    tex.write(rgba.tobytes())
+    return tex
+
+
 def error_image(raster: np.ndarray, reference: np.ndarray, relative: bool) -> np.ndarray:
     """Per-pixel error as in ``viewer.compare.heat_map``: |raster - reference| averaged over
     channels, divided by the reference's mean + eps when relative."""
@@ -119,15 +133,7 @@ class CompareView:
             err = error_image(pair[0], pair[1], relative)
             if self.auto_scale:  # the 99th percentile, as `brdf-viewer compare`
                 self.scale = float(np.percentile(err, 99)) or float(err.max()) or 1.0
-            rgb = _ramp(err / max(self.scale, 1e-30)).astype("f4")
-            h, w = err.shape
-            rgba = np.ones((h, w, 4), "f4")
-            rgba[..., :3] = rgb[::-1]
-            if self._heat_tex is None or self._heat_tex.size != (w, h):
-                if self._heat_tex is not None:
-                    self._heat_tex.release()
-                self._heat_tex = self.ctx.texture((w, h), 4, dtype="f4")
-            self._heat_tex.write(rgba.tobytes())
+            self._heat_tex = upload_rgb(self.ctx, self._heat_tex, _ramp(err / max(self.scale, 1e-30)))
             self._heat_key = key
         return self._heat_tex
 

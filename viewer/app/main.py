@@ -885,15 +885,9 @@ class App:
         img = self.renderer.read_linear(hdr).astype(np.float64)
         self._bf_sum = img if self._bf_sum is None else self._bf_sum + img
         self._bf_count += 1
-        mean = (self._bf_sum / self._bf_count).astype("f4")
-        h, w = mean.shape[:2]
-        rgba = np.ones((h, w, 4), "f4")
-        rgba[..., :3] = mean[::-1]
-        if self._bf_tex is None or self._bf_tex.size != (w, h):
-            if self._bf_tex is not None:
-                self._bf_tex.release()
-            self._bf_tex = self.ctx.texture((w, h), 4, dtype="f4")
-        self._bf_tex.write(rgba.tobytes())
+        from viewer.app.compare_view import upload_rgb
+
+        self._bf_tex = upload_rgb(self.ctx, self._bf_tex, self._bf_sum / self._bf_count)
         return self._bf_tex
     _env_dialog = None
 

@@ -167,14 +167,9 @@ class ReferenceView:
         if img is None:
             return None
         if spp != self._uploaded_spp or self.texture is None or self.texture.size != (img.shape[1], img.shape[0]):
-            h, w = img.shape[:2]
-            rgba = np.ones((h, w, 4), dtype="f4")
-            rgba[..., :3] = img[::-1]  # row 0 = top -> GL's bottom-up rows
-            if self.texture is None or self.texture.size != (w, h):
-                if self.texture is not None:
-                    self.texture.release()
-                self.texture = self.ctx.texture((w, h), 4, dtype="f4")
-            self.texture.write(rgba.tobytes())
+            from viewer.app.compare_view import upload_rgb
+
+            self.texture = upload_rgb(self.ctx, self.texture, img)
             self._uploaded_spp = spp
         return self.texture
 

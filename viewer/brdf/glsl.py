@@ -17,7 +17,6 @@ import numpy as np
 
 from viewer import brdf
 from viewer.brdf.spec import ModelSpec, Param, Params
-from viewer.resources import SHADER_DIR
 
 MAT_VEC4 = 64  # size of the uniform block u_mat in vec4s (256 floats)
 
@@ -161,7 +160,9 @@ def _glsl_reads(params_spec, target: str, o: list[int]) -> list[str]:
 
 
 def family_source(name: str) -> str:
-    path = SHADER_DIR / "brdf" / f"{name}.glsl"
+    from viewer.gl.shaders import shader_root  # the hot-reload / BRDF_VIEWER_SHADERS folder
+
+    path = shader_root() / "brdf" / f"{name}.glsl"
     try:
         return path.read_text()
     except OSError as e:
