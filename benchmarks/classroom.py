@@ -1,0 +1,67 @@
+"""Classroom-viewer figures (issue 7), in a real window:
+
+    xvfb-run -a -s "-screen 0 1600x1000x24" python benchmarks/classroom.py
+
+Prints the time to step between lecture presets (first visit, which compiles programs and
+prefilters environment maps, and a second visit), and the frame time at 1280x720 with the split
+view while the reference renders: idle (the raster image cached, the reference's new passes
+uploaded and both halves tone mapped) and while the camera moves (a new raster frame and a
+reference restart every frame)."""
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def main():
+    from viewer.app.main import App
+    from viewer.lecture import TOUR
+
+    app = App("sphere", size=(1280, 720), restore_state=False)
+    app.frame()
+
+    def visit():
+        out = []
+        for i in range(len(TOUR)):
+            t = time.perf_counter()
+            app.lecture(i)
+            app.frame()
+            out.append(1000 * (time.perf_counter() - t))
+        return out
+
+    first, again = visit(), visit()
+    print("lecture step, first visit (ms):  " + " ".join(f"{x:.0f}" for x in first))
+    print("lecture step, second visit (ms): " + " ".join(f"{x:.0f}" for x in again)
+          + f"   median {np.median(again):.0f}")
+    app.lecture(None)
+    app.open_scene("default")
+    app.set_image_mode("split")
+    t0 = time.time()
+    while (app._reference is None or app._reference.spp < 4) and time.time() - t0 < 300:
+        app.frame()
+    idle = []
+    for _ in range(20):
+        t = time.perf_counter()
+        app.frame()
+        idle.append(1000 * (time.perf_counter() - t))
+    moving = []
+    for _ in range(10):
+        app.camera.orbit(5.0, 0.0, 720.0)
+        app.dirty = True
+        t = time.perf_counter()
+        app.frame()
+        moving.append(1000 * (time.perf_counter() - t))
+    rv = app._reference
+    print(f"split view 1280x720 (view {app.viewport()[2]}x{app.viewport()[3]}), reference running: "
+          f"idle frame {np.median(idle):.0f} ms median, raster render {app.render_ms:.0f} ms, "
+          f"frame while orbiting {np.median(moving):.0f} ms median; reference {rv.samples_per_second / 1e3:.0f} "
+          f"k samples/s at half resolution")
+    app.close()
+
+
+if __name__ == "__main__":
+    main()
