@@ -165,7 +165,34 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
                 log(f"frame {i}: {snapshots[i]}")
     finally:
         app.close()
+    drift_check(snapshots, report_at, frames, failures)
     return {"frames": frames, "seed": seed, "actions": counts, "failures": failures, "snapshots": snapshots}
+
+
+# Allowed drift between the report frame (1,000) and the end:
+# - resident memory: 64 MB. Python's own heap is reported separately and stays within 1%; the
+#   rest is the GL driver, which keeps the machine code of every program variant it compiled
+#   (llvmpipe: a few MB each), and the allocator's arenas, which do not shrink.
+# - GL programs and shaders: the forward program is compiled per material model and variant
+#   (SSR, IBL mode, environment kind) on first use and cached, so their count grows until every
+#   combination the actions reached was compiled (bounded: 10 models x a few variants), never by
+#   repetition; the check allows that growth only.
+# - textures, buffers, framebuffers, renderbuffers, vertex arrays: +4 (render targets are made per
+#   size and feature, e.g. SSR's when a lecture step turns it on; a leak grows without bound).
+RSS_DRIFT_MB = 64.0
+OBJECT_SLACK = 4
+BOUNDED = ("Program", "Shader")
+
+
+def drift_check(snapshots, report_at, frames, failures):
+    if report_at not in snapshots or frames not in snapshots or report_at == frames:
+        return
+    a, b = snapshots[report_at], snapshots[frames]
+    if b["rss_mb"] - a["rss_mb"] > RSS_DRIFT_MB:
+        failures.append(f"resident memory grew {b['rss_mb'] - a['rss_mb']:.1f} MB (allowed {RSS_DRIFT_MB})")
+    for k, n in b["gl"].items():
+        if k not in BOUNDED and n > a["gl"].get(k, 0) + OBJECT_SLACK:
+            failures.append(f"live GL {k} objects grew {a['gl'].get(k, 0)} -> {n} (allowed +{OBJECT_SLACK})")
 
 
 def main():

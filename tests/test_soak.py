@@ -1,7 +1,8 @@
 """A short soak of the window app (benchmarks/soak.py, 200 frames of random actions including
 typed NaN / Inf / huge slider values, resizes, a 0x0 framebuffer, environment and compare-view
 switches and reference restarts): no exception, no GL error, no NaN / Inf / negative pixel.
-The 10,000-frame run with memory and GL-object figures is the benchmark itself."""
+The 10,000-frame run with memory and GL-object figures is the benchmark itself (200 frames are
+too few for a drift check: the first frames compile programs and fill caches)."""
 
 import json
 import subprocess
@@ -18,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.skipif(not __import__("shutil").which("Xvfb"), reason="needs Xvfb")
 def test_short_soak_has_no_failures(display):  # noqa: F811
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--frames", "200",
-                        "--report-at", "100", "--seed", "7", "--json"],
+                        "--report-at", "200", "--seed", "7", "--json"],
                        env=_env(display), capture_output=True, text=True, timeout=600)
     assert r.returncode in (0, 1), r.stderr[-3000:]
     res = json.loads(r.stdout.strip().splitlines()[-1])
