@@ -254,6 +254,7 @@ class App:
             cmp.draw_overlay(imgui, self.view_logical(),
                              self._reference.spp if self._reference is not None else 0)
             self._lecture_overlay()
+            self._status_toast()
         screen.viewport = (0, 0, fw, fh)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
@@ -492,6 +493,33 @@ class App:
             self._reference.stop()
         self.dirty = True
 
+    _toast = ("", 0.0)
+    TOAST_S = 6.0
+    _ERROR_WORDS = ("not loaded", "not opened", "not changed", "not saved", "failed", "error", "unknown",
+                    "no file dialog", "skipped")
+
+    def _status_toast(self):
+        """The latest status line over the view for a few seconds (red for a refusal), so a file
+        that did not load is noticed even with the panel scrolled or hidden."""
+        now = time.perf_counter()
+        if self.status and self.status != self._toast[0]:
+            self._toast = (self.status, now)
+        text, since = self._toast
+        if not text or now - since > self.TOAST_S:
+            return
+        imgui = self.imgui
+        x, y, w, _ = self.view_logical()
+        bad = any(k in text for k in self._ERROR_WORDS)
+        dl = imgui.get_foreground_draw_list()
+        wrap = max(w - 40, 100)
+        size = imgui.calc_text_size(text, False, wrap)
+        x0, y0 = x + 12, y + 36
+        bg = imgui.ImVec4(0.45, 0.05, 0.05, 0.85) if bad else imgui.ImVec4(0, 0, 0, 0.6)
+        dl.add_rect_filled(imgui.ImVec2(x0 - 6, y0 - 4), imgui.ImVec2(x0 + size.x + 6, y0 + size.y + 4),
+                           imgui.get_color_u32(bg), 4.0)
+        dl.add_text(imgui.get_font(), imgui.get_font_size(), imgui.ImVec2(x0, y0),
+                    imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1)), text, wrap)
+
     # ------------------------------------------------------------------ UI scale, fullscreen
     def _load_font(self):
         """DroidSans from imgui-bundle's assets (imgui >= 1.92 rasterizes fonts at any size, so
@@ -696,7 +724,7 @@ class App:
         object_index = int(np.clip(object_index, 0, len(objs) - 1))
         obj = objs[object_index]
         try:
-            md = load_mesh(str(Path(path).expanduser().absolute()), None, where=f"{path}")
+            md = load_mesh(str(Path(path).expanduser().absolute()), None, where="Files > Load mesh")
         except ViewerError as e:
             self.status = f"mesh not loaded: {e}"
             return False
