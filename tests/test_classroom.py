@@ -281,13 +281,23 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
         for i in [1, 2, 3, 2, 1]:
             t = time.perf_counter(); app.lecture(i); app.frame(); again.append(1000 * (time.perf_counter() - t))
         app.lecture(None)
+        # a projector's UI scale: the panel widens with it and the view starts where it ends
+        # (no band of clear colour between them)
+        app.set_ui_scale(2.0)
+        for _ in range(2):
+            app.frame()
+        shot = app.capture_window().astype(int)
+        pw = app.panel_width
+        band = shot[100:300, 370:pw - 10]          # was the gap before the panel followed the scale
+        clear = (np.abs(band - [20, 20, 23]).sum(axis=-1) <= 3).mean()
         app.close()
-        print("RESULT " + json.dumps(dict(steps=out, again_ms=again)))
+        print("RESULT " + json.dumps(dict(steps=out, again_ms=again, pw=pw, clear=float(clear))))
         """, display, timeout=300)
     res = _result(r)
     from viewer.lecture import TOUR
 
     print(res)
+    assert res["pw"] == 720 and res["clear"] < 0.05, (res["pw"], res["clear"])
     assert len(res["steps"]) == len(TOUR)
     for i, s in enumerate(res["steps"]):
         assert s["ok"] and s["step"] == i and TOUR[i].key in s["label"], s

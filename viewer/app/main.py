@@ -348,7 +348,7 @@ class App:
         imgui = self.imgui
         _, fh = self.glfw.get_window_size(self.window)
         imgui.set_next_window_pos(imgui.ImVec2(0, 0))
-        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, fh))
+        imgui.set_next_window_size(imgui.ImVec2(self.panel_width, fh))
         flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
         imgui.begin("brdf-viewer", None, flags)
         s = self.scene
@@ -397,8 +397,7 @@ class App:
             ch, v = imgui.checkbox("BRDF plots (P)", self.plots.visible)
             if ch:
                 self.plots.visible = v
-            imgui.same_line()
-            ch, v = imgui.slider_float("UI scale", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            ch, v = imgui.slider_float("UI scale (Ctrl +/-)", float(self.ui_scale), 0.5, 3.0, "%.2f")
             if ch and np.isfinite(v):
                 self.set_ui_scale(v)
             r = s.render
@@ -611,22 +610,28 @@ class App:
         imgui = self.imgui
         step = TOUR[self.lecture_step]
         x, y, w, h = self.view_logical()
+        if w < 60 or h < 60:
+            return
         dl = imgui.get_foreground_draw_list()
-        size = imgui.get_font_size() * 1.6
-        cap = imgui.get_font_size() * 1.15
+        base = imgui.get_font_size()  # text extents scale linearly with the font size
         title = f"{self.lecture_step + 1}/{len(TOUR)}  {step.title}"
+        inner = w - 40  # the box spans the view less 8 px margins and 12 px padding
+        size = min(base * 1.6, base * inner / max(imgui.calc_text_size(title).x, 1.0))
+        cap = base * 1.15
+        k = cap / base
+        # the caption wraps to the box: measure it at the base size with the wrap width scaled back
+        cap_size = imgui.calc_text_size(step.caption, False, inner / k)
+        cw, ch = cap_size.x * k, cap_size.y * k
+        tw = imgui.calc_text_size(title).x * size / base
+        box_h = size + ch + 24
+        y0 = y + h - box_h - 8
         white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
         shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6))
         font = imgui.get_font()
-        base = imgui.get_font_size()  # text width scales with the font size
-        tw = imgui.calc_text_size(title).x * size / base
-        cw = min(imgui.calc_text_size(step.caption).x * cap / base, w - 28)
-        box_h = size + cap + 24
-        y0 = y + h - box_h - 8
         dl.add_rect_filled(imgui.ImVec2(x + 8, y0), imgui.ImVec2(x + w - 8, y0 + box_h), shade, 6.0)
         dl.add_text(font, size, imgui.ImVec2(x + (w - tw) / 2, y0 + 6), white, title)
-        dl.add_text(font, cap, imgui.ImVec2(x + max((w - cw) / 2, 14), y0 + 12 + size), white, step.caption,
-                    w - 28)
+        dl.add_text(font, cap, imgui.ImVec2(x + max((w - cw) / 2, 20), y0 + 12 + size), white, step.caption,
+                    inner)
 
     # ------------------------------------------------------------------ scenes, materials, meshes
     def _set_scene(self, scene, ref):
