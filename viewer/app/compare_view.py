@@ -239,7 +239,7 @@ class CompareView:
             dl.add_rect_filled(imgui.ImVec2(bx + bw * i / n, by), imgui.ImVec2(bx + bw * (i + 1) / n + 1, by + bh), col)
         rel = self.mode == "relative difference"
         what = "|raster - reference| / (reference + 0.01)" if rel else "|raster - reference|"
-        label(bx, by + bh + 4, f"0")
+        label(bx, by + bh + 4, "0")
         txt = f"{self.scale:.3g}"
         label(bx + bw - imgui.calc_text_size(txt).x, by + bh + 4, txt)
         label(bx + bw / 2 - imgui.calc_text_size(what).x / 2, by - 22, what)

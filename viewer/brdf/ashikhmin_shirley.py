@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (pow_one_minus, INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
-                                  normalize, pick_lobe, ratio_capped, reflect)
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, luminance, normalize,
+                                  phong_alpha, pick_lobe, pow_one_minus, ratio_capped, reflect,
+                                  sample_weight)
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -130,15 +131,11 @@ def sample(p, wo, u):
     uu = np.stack([u0, u[:, 1]], axis=-1)
     wi_spec = reflect(wo, sample_half_vector(uu, p.nu, p.nv))
     wi = normalize(np.where((k == 0)[:, None], wi_spec, cosine_hemisphere(uu)))
-    pdf_ = _pdf(p, wi, wo, ps)
-    ok = pdf_ > 0
-    f = eval(p, wi, wo)
-    weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
-    return wi, weight, np.where(ok, pdf_, 0.0)
+    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, ps))
+    return wi, weight, pdf_
 
 
 def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone (rd = 0), and the GGX alpha of an
     isotropic lobe of the geometric-mean exponent sqrt(nu nv): alpha = sqrt(2 / (n + 2))."""
-    n = float(np.sqrt(p.nu * p.nv))
-    return p.replace(rd=np.zeros(3)), float(np.sqrt(2.0 / (n + 2.0)))
+    return p.replace(rd=np.zeros(3)), phong_alpha(np.sqrt(p.nu * p.nv))

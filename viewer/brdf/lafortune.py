@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance, \
-    pick_lobe, power_cosine, to_world
+    phong_alpha, pick_lobe, power_cosine, sample_weight, to_world
 from viewer.brdf.spec import ModelSpec, Param
 
 LOG_CLAMP = 80.0  # lobe values are clamped at exp(80) ~ 5.5e34 (float32 max ~ 3.4e38)
@@ -183,19 +183,14 @@ def sample(p, wo, u):
     for j, lobe in enumerate(p.lobes):
         _, axis = lobe_axis(lobe, wo)
         wi = np.where((k == j + 1)[:, None], to_world(power_cosine(uu, lobe.n), axis), wi)
-    pdf_ = _pdf(p, wi, wo, probs)
-    ok = pdf_ > 0
-    f = eval(p, wi, wo)
-    with np.errstate(over="ignore"):
-        weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
     # f is clamped at e^80 (LOG_CLAMP) but the pdf is not: far out in a huge lobe (|C| = 10,
-    # n = 10^4, u ~ 1e-300) f cos / pdf overflows. That sample fails (CONTRACT: weight = pdf = 0).
-    ok &= np.all(np.isfinite(weight), axis=1)
-    return wi, np.where(ok[:, None], weight, 0.0), np.where(ok, pdf_, 0.0)
+    # n = 10^4, u ~ 1e-300) f cos / pdf overflows; sample_weight fails that sample.
+    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, probs))
+    return wi, weight, pdf_
 
 
 def ibl_split(p):
     """Image-based lighting proxy: the lobes alone (kd = 0), and the GGX alpha of the sharpest
-    lobe's exponent, alpha = sqrt(2 / (n + 2))."""
+    lobe's exponent (``phong_alpha``)."""
     n = max(float(l["n"]) for l in p.lobes)
-    return p.replace(kd=np.zeros(3)), float(np.sqrt(2.0 / (n + 2.0)))
+    return p.replace(kd=np.zeros(3)), phong_alpha(n)

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (energy_conserving_kd_ks, pow_one_minus, INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance,
-                                  pick_lobe, power_cosine, reflect_z, to_world)
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
+                                  energy_conserving_kd_ks, INV_PI, phong_alpha,
+                                  pick_lobe, pow_one_minus, power_cosine, reflect_z, sample_weight,
+                                  specular_probability, to_world)
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -60,8 +62,7 @@ def eval(p, wi, wo):
 
 
 def _specular_probability(p):
-    ld, ls = luminance(p.kd), luminance(p.ks)
-    return 0.5 if ld + ls <= 0 else ls / (ld + ls)
+    return specular_probability(p.kd, p.ks)
 
 
 def _pdf(p, wi, wo, ps):
@@ -81,14 +82,11 @@ def sample(p, wo, u):
     uu = np.stack([u0, u[:, 1]], axis=-1)
     wi_spec = to_world(power_cosine(uu, p.shininess), reflect_z(wo))
     wi = np.where((k == 0)[:, None], wi_spec, cosine_hemisphere(uu))
-    pdf_ = _pdf(p, wi, wo, ps)
-    ok = pdf_ > 0
-    f = eval(p, wi, wo)
-    weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf_, 1.0)[:, None], 0.0)
-    return wi, weight, np.where(ok, pdf_, 0.0)
+    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, ps))
+    return wi, weight, pdf_
 
 
 def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone, and the GGX alpha of a lobe of similar
-    width, alpha = sqrt(2 / (n + 2)) (Walter et al. 2007, the Phong-Beckmann relation below eq. 33)."""
-    return p.replace(kd=np.zeros(3)), float(np.sqrt(2.0 / (p.shininess + 2.0)))
+    width (``phong_alpha``)."""
+    return p.replace(kd=np.zeros(3)), phong_alpha(p.shininess)

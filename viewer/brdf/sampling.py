@@ -155,3 +155,26 @@ def energy_conserving_kd_ks(p):
     at most ks (normalized Phong, Blinn-Phong): kd and ks scaled by 1 / max(1, kd + ks) per channel."""
     s = np.maximum(1.0, p.kd + p.ks)
     return p.replace(kd=p.kd / s, ks=p.ks / s)
+
+
+def specular_probability(kd, ks):
+    """Probability of sampling the specular lobe of a kd + ks model: the lobes' share of the
+    albedo luminance (0.5 for a black material)."""
+    ld, ls = luminance(kd), luminance(ks)
+    return 0.5 if ld + ls <= 0 else ls / (ld + ls)
+
+
+def sample_weight(f, wi, pdf):
+    """(weight f cos / pdf, pdf) of sampled directions; a sample with pdf <= 0 or a weight that
+    overflows fails (CONTRACT: weight = pdf = 0)."""
+    ok = pdf > 0
+    with np.errstate(over="ignore"):
+        weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf, 1.0)[:, None], 0.0)
+    ok &= np.all(np.isfinite(weight), axis=1)
+    return np.where(ok[:, None], weight, 0.0), np.where(ok, pdf, 0.0)
+
+
+def phong_alpha(n):
+    """The GGX / Beckmann alpha of a lobe of similar width to a cos^n Phong lobe,
+    alpha = sqrt(2 / (n + 2)) (Walter et al. 2007, the Phong-Beckmann relation below eq. 33)."""
+    return float(np.sqrt(2.0 / (float(n) + 2.0)))
