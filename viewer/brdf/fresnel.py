@@ -51,20 +51,24 @@ def refracted_cos(cos_i, eta):
     return np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
 
 
+def _snell_sides(cos_i, eta):
+    """(|cos_i| clamped to 1, eta as seen from the incident side, sin^2 theta_t, cos theta_t
+    (0 under TIR)): light from the other side (cos_i < 0) swaps the media (pbrt-v4 FrDielectric)."""
+    cos_i = np.asarray(cos_i, dtype=np.float64)
+    eta = np.asarray(eta, dtype=np.float64)
+    eta = np.where(cos_i < 0, 1.0 / eta, eta)
+    c = np.minimum(np.abs(cos_i), 1.0)
+    sin2_t = np.maximum(0.0, 1.0 - c * c) / (eta * eta)
+    return c, eta, sin2_t, np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+
+
 def fresnel_dielectric_polarized(cos_i, eta):
     """(Rs, Rp): the perpendicular (s) and parallel (p) reflectances of a dielectric interface.
 
     Lecture: Fresnel equations r_perp, r_par with real indices; TIR when cos_t^2 < 0."""
     scalar = _is_scalar(cos_i, eta)
-    cos_i = np.asarray(cos_i, dtype=np.float64)
-    eta = np.asarray(eta, dtype=np.float64)
-    # light from the other side: swap the media (pbrt-v4 FrDielectric)
-    flip = cos_i < 0
-    eta = np.where(flip, 1.0 / eta, eta)
-    c = np.minimum(np.abs(cos_i), 1.0)
-    sin2_t = np.maximum(0.0, 1.0 - c * c) / (eta * eta)
+    c, eta, sin2_t, cos_t = _snell_sides(cos_i, eta)
     tir = sin2_t >= 1.0
-    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
     # n_i = 1, n_t = eta (only the ratio matters)
     num_s, den_s = c - eta * cos_t, c + eta * cos_t
     num_p, den_p = eta * c - cos_t, eta * c + cos_t
@@ -88,13 +92,7 @@ def fresnel_dielectric_transmittance(cos_i, eta):
     1 - r_perp^2 = 4 eta cos_i cos_t / (cos_i + eta cos_t)^2 and
     1 - r_par^2 = 4 eta cos_i cos_t / (eta cos_i + cos_t)^2. Same side convention as R."""
     scalar = _is_scalar(cos_i, eta)
-    cos_i = np.asarray(cos_i, dtype=np.float64)
-    eta = np.asarray(eta, dtype=np.float64)
-    flip = cos_i < 0
-    eta = np.where(flip, 1.0 / eta, eta)
-    c = np.minimum(np.abs(cos_i), 1.0)
-    sin2_t = np.maximum(0.0, 1.0 - c * c) / (eta * eta)
-    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    c, eta, sin2_t, cos_t = _snell_sides(cos_i, eta)
     num = 4.0 * eta * c * cos_t
     den_s = (c + eta * cos_t) ** 2
     den_p = (eta * c + cos_t) ** 2
