@@ -43,17 +43,28 @@ def _ramp(t: np.ndarray) -> np.ndarray:
     return stops[i] * (1 - f) + stops[i + 1] * f
 
 
+def error_map(raster: np.ndarray, reference: np.ndarray, relative: bool = False) -> np.ndarray:
+    """(H, W) per-pixel error: |raster - reference| averaged over channels; relative: divided
+    by the reference's mean over channels + ``REL_MSE_EPS``."""
+    ref = np.asarray(reference, np.float64)
+    err = np.abs(np.asarray(raster, np.float64) - ref).mean(axis=-1)
+    return err / (ref.mean(axis=-1) + REL_MSE_EPS) if relative else err
+
+
+def auto_scale(err: np.ndarray) -> float:
+    """The heat map's top: the 99th percentile, so a few outliers do not wash the map out."""
+    return float(np.percentile(err, 99)) or float(err.max()) or 1.0
+
+
 def heat_map(raster: np.ndarray, reference: np.ndarray, relative: bool = False, scale: float | None = None):
     """(sRGB uint8 image with a colour bar below it, the scale that maps to the top of the bar).
 
     The error per pixel is |raster - reference| averaged over channels (relative: divided by the
     reference's mean over channels + 1e-2). The scale defaults to the 99th percentile, so a few
     outliers do not wash the map out; it is printed under the bar and returned."""
-    err = np.abs(np.asarray(raster, np.float64) - np.asarray(reference, np.float64)).mean(axis=-1)
-    if relative:
-        err = err / (np.asarray(reference, np.float64).mean(axis=-1) + REL_MSE_EPS)
+    err = error_map(raster, reference, relative)
     if scale is None:
-        scale = float(np.percentile(err, 99)) or float(err.max()) or 1.0
+        scale = auto_scale(err)
     rgb = _ramp(err / scale)
     h, w = err.shape
     bar_h = max(8, h // 16)

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from viewer.compare import REL_MSE_EPS, _ramp, metrics
+from viewer.compare import _ramp, auto_scale, error_map, metrics
 
 MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
 USES_REFERENCE = frozenset(MODES[1:])
@@ -52,15 +52,6 @@ def upload_rgb(ctx, tex, img: np.ndarray):
     return tex
 
 
-def error_image(raster: np.ndarray, reference: np.ndarray, relative: bool) -> np.ndarray:
-    """Per-pixel error as in ``viewer.compare.heat_map``: |raster - reference| averaged over
-    channels, divided by the reference's mean + eps when relative."""
-    err = np.abs(raster.astype(np.float64) - reference).mean(axis=-1)
-    if relative:
-        err = err / (reference.mean(axis=-1) + REL_MSE_EPS)
-    return err
-
-
 class CompareView:
     def __init__(self, ctx):
         self.ctx = ctx
@@ -74,6 +65,8 @@ class CompareView:
         self._heat_tex = None
         self._heat_key = None
         self._raster_small = None     # (key, array): the raster box-filtered to the reference's size
+        self._pair = None             # (raster box-filtered, reference) the metrics were taken of
+        self._metrics_key = None      # (the reference pass, the raster frame) of the metrics
         self._last_metrics_t = 0.0
 
     # ------------------------------------------------------------------ layout
@@ -95,44 +88,42 @@ class CompareView:
         return view
 
     # ------------------------------------------------------------------ metrics
-    def update_metrics(self, renderer, raster_tex, raster_version, ref_view, force=False):
-        """Recompute RMSE / relMSE when the reference has new samples (rate limited)."""
+    def update_metrics(self, renderer, raster_tex, raster_version, ref_view):
+        """Recompute RMSE / relMSE when the reference has a new pass or the raster image changed
+        (at most every METRICS_INTERVAL_S)."""
         img = ref_view.latest()
         if img is None or raster_tex is None:
             self.metrics = None
             return
         ref, spp = img
+        key = (id(ref), raster_version)
         now = time.perf_counter()
-        if not force and spp == self.metrics_spp and self.metrics is not None:
+        if key == self._metrics_key or (self.metrics is not None and now - self._last_metrics_t < METRICS_INTERVAL_S):
             return
-        if not force and now - self._last_metrics_t < METRICS_INTERVAL_S and self.metrics is not None:
-            return
-        key = (raster_version, ref.shape)
-        if self._raster_small is None or self._raster_small[0] != key:
+        h, w = ref.shape[:2]
+        if self._raster_small is None or self._raster_small[0] != (raster_version, h, w):
             big = renderer.read_linear(raster_tex)
-            h, w = ref.shape[:2]
             if big.shape[0] < h or big.shape[1] < w:
                 return  # a preview-resolution raster: wait for the full-quality frame
-            self._raster_small = (key, box_down(big, (h, w)).astype(np.float32))
+            self._raster_small = ((raster_version, h, w), box_down(big, (h, w)).astype(np.float32))
         small = self._raster_small[1]
+        self._metrics_key, self._last_metrics_t = key, now
         if not (np.isfinite(small).all() and np.isfinite(ref).all()):
-            self.metrics = {"error": "non-finite pixels"}
+            self.metrics, self._pair = {"error": "non-finite pixels"}, None
             return
         self.metrics = metrics(small, ref)
         self.metrics_spp = spp
-        self._last_metrics_t = now
-        self._raster_ref = (small, ref)
+        self._pair = (small, ref)
 
     def heat_texture(self, relative: bool):
         """The heat map as a float texture (linear colours from the same ramp as `compare`)."""
-        pair = getattr(self, "_raster_ref", None)
-        if pair is None:
+        if self._pair is None:
             return None
-        key = (id(pair[1]), self.metrics_spp, relative, self.auto_scale, None if self.auto_scale else self.scale)
+        key = (self._metrics_key, relative, self.auto_scale, None if self.auto_scale else self.scale)
         if key != self._heat_key:
-            err = error_image(pair[0], pair[1], relative)
-            if self.auto_scale:  # the 99th percentile, as `brdf-viewer compare`
-                self.scale = float(np.percentile(err, 99)) or float(err.max()) or 1.0
+            err = error_map(self._pair[0], self._pair[1], relative)
+            if self.auto_scale:
+                self.scale = auto_scale(err)
             self._heat_tex = upload_rgb(self.ctx, self._heat_tex, _ramp(err / max(self.scale, 1e-30)))
             self._heat_key = key
         return self._heat_tex
@@ -197,7 +188,7 @@ class CompareView:
         return near
 
     def draw_overlay(self, imgui, view_logical, ref_spp: int):
-        dl = imgui.get_foreground_draw_list()
+        dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
         x, y, w, h = view_logical
         white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
         shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))

@@ -509,7 +509,7 @@ class App:
         imgui = self.imgui
         x, y, w, _ = self.view_logical()
         bad = any(k in text for k in self._ERROR_WORDS)
-        dl = imgui.get_foreground_draw_list()
+        dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
         wrap = max(w - 40, 100)
         size = imgui.calc_text_size(text, False, wrap)
         x0, y0 = x + 12, y + 36
@@ -612,7 +612,7 @@ class App:
         x, y, w, h = self.view_logical()
         if w < 60 or h < 60:
             return
-        dl = imgui.get_foreground_draw_list()
+        dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
         base = imgui.get_font_size()  # text extents scale linearly with the font size
         title = f"{self.lecture_step + 1}/{len(TOUR)}  {step.title}"
         inner = w - 40  # the box spans the view less 8 px margins and 12 px padding
