@@ -89,7 +89,6 @@ class App:
             self.compare.mode = self._state["compare_mode"]
         self.compare.split = float(self._state.get("split", 0.5))
         self._fullscreen_restore = None
-        self._scene_ref = None if scene_ref is None else str(scene_ref)
         self.view_mode = 0
         from viewer.gl.renderer import VIEW_MODES
 
@@ -208,7 +207,9 @@ class App:
         view = (vx, vy, vw, vh)
         cmp = self.compare
         _, _, rw_full, rh_full = cmp.raster_rect(view)
-        if rw_full > 0 and rh_full > 0 and (cmp.mode not in ("reference",) or self.hdr is None or self.dirty):
+        if cmp.mode == "reference":
+            self.dirty = False  # no raster image is shown; the reference restarts on its own key
+        elif rw_full > 0 and rh_full > 0:
             now = time.perf_counter()
             interacting = now - self._last_interaction < 0.3
             # While the user drags, render at half resolution without MSAA (software GL is slow);
@@ -574,7 +575,7 @@ class App:
         except ViewerError as e:
             self.status = f"lecture step {step + 1} not loaded: {e}"
             return False
-        self._set_scene(scene, None)
+        self._set_scene(scene)
         self.lecture_step = step
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
                "bouguer": "Bouguer"}.get(TOUR[step].plot)
@@ -634,13 +635,12 @@ class App:
                     inner)
 
     # ------------------------------------------------------------------ scenes, materials, meshes
-    def _set_scene(self, scene, ref):
+    def _set_scene(self, scene):
         from viewer.camera import OrbitCamera
 
         self.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
         self.scene = scene
         self.camera = OrbitCamera.from_scene(scene)
-        self._scene_ref = ref
         self._env_path_text = ""
         self.hdr = None
         self.dirty = True
@@ -657,7 +657,7 @@ class App:
         except Exception as e:  # noqa: BLE001 - anything unexpected keeps the running scene
             self.status = f"scene not opened: {ref}: {type(e).__name__}: {e}"
             return False
-        self._set_scene(scene, str(Path(ref).absolute()) if Path(str(ref)).exists() else str(ref))
+        self._set_scene(scene)
         self.lecture_step = -1
         self.status = f"opened {ref}"
         return True
@@ -876,8 +876,7 @@ class App:
             if w >= 64 and h >= 64:
                 st.update(window_width=w, window_height=h, window_x=x, window_y=y)
             st.update(ui_scale=self.ui_scale, show_ui=self.show_ui, compare_mode=self.compare.mode,
-                      split=self.compare.split, view_mode=self.view_mode, plots_visible=self.plots.visible,
-                      lecture_step=self.lecture_step)
+                      split=self.compare.split, view_mode=self.view_mode, plots_visible=self.plots.visible)
             state_mod.save_state(st)
             text = scene_to_toml(scene_with_camera(self.scene, self.camera))
             atomic_write_bytes(state_mod.last_scene_path(), text.encode("utf-8"))

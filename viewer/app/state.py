@@ -27,8 +27,6 @@ SCHEMA = {
     "split": (float, 0.0, 1.0),
     "view_mode": (int, 0, 64),
     "plots_visible": (bool,),
-    "lecture_step": (int, -1, 1000),
-    "scene": (str, None),
 }
 
 
