@@ -85,6 +85,9 @@ _FIXED = {
     "shadow": _Recipe("passes/shadow.vert", "passes/shadow.frag"),
     "tonemap": _Recipe("passes/fullscreen.vert", "passes/tonemap.frag"),
 }
+# programs built on first use
+_BACKGROUND = _Recipe("passes/fullscreen.vert", "passes/background.frag")
+_THICKNESS = _Recipe("passes/forward.vert", "passes/thickness.frag")
 # programs the SSR pass owns (viewer/gl/ssr.py builds them the same way): attribute names
 _SSR_PROGRAMS = {
     "ssr:trace": (_Recipe("passes/fullscreen.vert", "passes/ssr.frag"), "prog", "vao"),
@@ -140,7 +143,7 @@ class Renderer:
         self._failed: dict[str, tuple] = {}  # key -> (source texts or None, ShaderError)
         self._render_error: ShaderError | None = None
         self.last_reloaded: list[str] = []
-        self._bg_vao = None
+        self._fullscreen_vaos: dict[int, object] = {}  # id(program) -> its attribute-less vertex array
         self._meshes: dict[int, tuple[object, GpuMesh]] = {}
         self.build_programs()
         self._targets = None
@@ -174,15 +177,18 @@ class Renderer:
             self._recipes[key] = _FIXED[key]
             self._install(key, prog, text)
 
-    def _compile(self, key: str, recipe: _Recipe):
-        """(program, its source texts); a failure is remembered (``shader_errors``) and raised."""
+    def _sources(self, key: str, recipe: _Recipe):
+        """``recipe``'s preprocessed sources, read from disk now; a failure (unreadable file)
+        is remembered (``shader_errors``) and raised."""
         try:
-            sources = recipe.sources()
+            return recipe.sources()
         except ShaderError as e:
             e.program = key
             self._failed[key] = (None, e)
             raise
-        text = _texts(sources)
+
+    def _link(self, key: str, sources, text: tuple):
+        """Compile ``sources`` (whose texts are ``text``); a failure is remembered and raised."""
         try:
             prog = compile_sources(self.ctx, *sources)
         except ShaderError as e:
@@ -190,12 +196,26 @@ class Renderer:
             self._failed[key] = (text, e)
             raise
         self._failed.pop(key, None)
-        return prog, text
+        return prog
+
+    def _compile(self, key: str, recipe: _Recipe):
+        """(program, its source texts); a failure is remembered (``shader_errors``) and raised."""
+        sources = self._sources(key, recipe)
+        text = _texts(sources)
+        return self._link(key, sources, text), text
+
+    def _fullscreen_vao(self, prog):
+        """The attribute-less vertex array of a fullscreen program, made on first use."""
+        vao = self._fullscreen_vaos.get(id(prog))
+        if vao is None:
+            vao = self._fullscreen_vaos[id(prog)] = self.ctx.vertex_array(prog, [])
+        return vao
 
     def _drop_program(self, prog):
-        """Release a program and every vertex array made for it (mesh VAOs are keyed by id)."""
-        for _, gm in self._meshes.values():
-            v = gm.vaos.pop(id(prog), None)
+        """Release a program and every vertex array made for it (all are keyed by its id)."""
+        vaos = [self._fullscreen_vaos.pop(id(prog), None)] + [gm.vaos.pop(id(prog), None)
+                                                               for _, gm in self._meshes.values()]
+        for v in vaos:
             if v is not None:
                 v.release()
         prog.release()
@@ -206,14 +226,6 @@ class Renderer:
         old = self.programs.get(key)
         self.programs[key] = prog
         self._good[key] = text
-        if key == "tonemap":
-            if getattr(self, "_empty_vao", None) is not None:
-                self._empty_vao.release()
-            self._empty_vao = self.ctx.vertex_array(prog, [])
-        elif key == "background":
-            if self._bg_vao is not None:
-                self._bg_vao.release()
-            self._bg_vao = self.ctx.vertex_array(prog, [])
         if old is not None and old is not prog:
             self._drop_program(old)
 
@@ -307,10 +319,8 @@ class Renderer:
             failed = self._failed.get(key)
             good = self._good.get(key)
             try:
-                sources = recipe.sources()
-            except ShaderError as e:
-                e.program = key
-                self._failed[key] = (None, e)
+                sources = self._sources(key, recipe)
+            except ShaderError:
                 continue
             text = _texts(sources)
             if failed is not None and failed[0] == text:
@@ -321,12 +331,9 @@ class Renderer:
             if failed is None and good is None and changed is not None and not (_files(sources) & changed):
                 continue
             try:
-                prog = compile_sources(self.ctx, *sources)
-            except ShaderError as e:
-                e.program = key
-                self._failed[key] = (text, e)
+                prog = self._link(key, sources, text)
+            except ShaderError:
                 continue
-            self._failed.pop(key, None)
             self._good[key] = text
             install(prog, text)
             self.last_reloaded.append(key)
@@ -349,6 +356,9 @@ class Renderer:
         key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
                + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
                + (":const" if env_constant else ""))
+        prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
+        if prog is not None:
+            return prog
         defines = {}
         if per_sample:
             defines["SAMPLE_SHADING"] = "1"
@@ -577,12 +587,12 @@ class Renderer:
         if ssr_on:
             self._ssr.background(ibl, cam, w, h, env_map is not None, env_rad, env.rotation_deg)
         elif env_map is not None:  # draw the environment behind the scene
-            bg = self._program("background", _Recipe("passes/fullscreen.vert", "passes/background.frag"))
+            bg = self._program("background", _BACKGROUND)
             ctx.disable(ctx.DEPTH_TEST)
             _set(bg, "u_inv_view_proj", gl_bytes(np.linalg.inv(cam.projection(w / h) @ cam.view())))
             _set(bg, "u_camera_pos", tuple(float(x) for x in cam.position))
             ibl.bind(bg, env.rotation_deg)
-            self._bg_vao.render(vertices=3)
+            self._fullscreen_vao(bg).render(vertices=3)
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
         view_proj = cam.projection(w / h) @ cam.view()
@@ -683,7 +693,7 @@ class Renderer:
             depth = ctx.depth_renderbuffer((w, h))
             self._thick = (key, tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
         _, tex, _, fbo = self._thick
-        prog = self._program("thickness", _Recipe("passes/forward.vert", "passes/thickness.frag"))
+        prog = self._program("thickness", _THICKNESS)
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -714,7 +724,7 @@ class Renderer:
         _set(prog, "u_hdr", 0)
         _set(prog, "u_exposure", float(exposure))
         _set(prog, "u_tonemap", TONEMAPS.get(tonemap, 0))
-        self._empty_vao.render(vertices=3)
+        self._fullscreen_vao(prog).render(vertices=3)
 
     # ---------------------------------------------------------------- readback
     def read_linear(self, hdr) -> np.ndarray:
@@ -784,9 +794,9 @@ class Renderer:
             self._ibl.release()
         if self._ssr is not None:
             self._ssr.release()
-        self._empty_vao.release()
-        if self._bg_vao is not None:
-            self._bg_vao.release()
+        for v in self._fullscreen_vaos.values():
+            v.release()
+        self._fullscreen_vaos.clear()
         for p in self.programs.values():
             p.release()
         self.programs.clear()
