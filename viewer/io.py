@@ -5,6 +5,7 @@ files."""
 from __future__ import annotations
 
 import errno
+import functools
 import io
 import os
 import stat
@@ -38,23 +39,44 @@ def path_problem(path) -> str | None:
     """None when ``path`` is a regular file; else what is wrong with it, phrased for a message
     ("file not found", "is a folder, not a file", "the name is too long", ...). Never raises:
     ``Path.exists`` raises for a name that is too long and ``os.stat`` for a NUL character."""
+    return stat_file(path)[1]
+
+
+def stat_file(path) -> tuple[os.stat_result | None, str | None]:
+    """``(os.stat(path), None)`` for a regular file; else ``(None, problem)`` as ``path_problem``."""
     try:
         st = os.stat(path)
     except ValueError:
-        return "the name contains a NUL character"
+        return None, "the name contains a NUL character"
     except OSError as e:
         if e.errno in (errno.ENOENT, errno.ENOTDIR):
-            return "file not found"
+            return None, "file not found"
         if e.errno == errno.ELOOP:
-            return "file not found (a loop of symbolic links)"
+            return None, "file not found (a loop of symbolic links)"
         if e.errno == errno.ENAMETOOLONG:
-            return "the name is too long"
-        return f"cannot be examined ({e.strerror or e})"
+            return None, "the name is too long"
+        return None, f"cannot be examined ({e.strerror or e})"
     if stat.S_ISDIR(st.st_mode):
-        return "is a folder, not a file"
+        return None, "is a folder, not a file"
     if not stat.S_ISREG(st.st_mode):
-        return "is not a regular file (a device, pipe or socket)"
-    return None
+        return None, "is not a regular file (a device, pipe or socket)"
+    return st, None
+
+
+def one_line_errors(fn):
+    """Decorator: a ViewerError raised inside ``fn`` (by deeper code: the BRDF registry, mesh and
+    map loading) leaves with its message on one line (``one_line``): it may quote a file name,
+    key or value."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except ViewerError as e:
+            text = one_line(str(e))
+            if text == str(e):
+                raise
+            raise type(e)(text) from None
+    return wrapper
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:

@@ -46,7 +46,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer import meshgen
-from viewer.io import expand_user, path_problem
+from viewer.io import expand_user, one_line_errors, stat_file
 from viewer.resources import MODEL_DIR
 
 EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -81,22 +81,11 @@ def builtin_names() -> list[str]:
 
 # --------------------------------------------------------------------------- public loading
 
+@one_line_errors
 def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> MeshData:
     """Load a built-in mesh by name or a mesh file (relative paths against ``base_dir``,
     else the working directory). Raises ViewerError on any problem, with a one-line message
     (a line break in a file name is written as an escape)."""
-    try:
-        return _load_mesh(ref, base_dir, where)
-    except ViewerError as e:
-        from viewer.io import one_line
-
-        text = one_line(str(e))
-        if text == str(e):
-            raise
-        raise ViewerError(text) from None
-
-
-def _load_mesh(ref, base_dir, where) -> MeshData:
     if not isinstance(ref, (str, os.PathLike)) or str(ref).strip() == "":
         raise ViewerError(f"{where}: {ref!r}: expected a built-in mesh name "
                           f"({', '.join(builtin_names())}) or a mesh file path")
@@ -117,12 +106,7 @@ def _load_mesh(ref, base_dir, where) -> MeshData:
         what = f"unsupported extension '{path.suffix}'" if path.suffix else "not a built-in mesh name and no file extension"
         raise ViewerError(f"{where}: {path}: {what} (allowed: {', '.join(EXTENSIONS)}; "
                           f"or a built-in name: {', '.join(builtin_names())})")
-    problem = path_problem(path)
-    if problem is None:
-        try:
-            st = path.stat()
-        except OSError as e:  # removed in between
-            problem = f"cannot be examined ({e.strerror or e})"
+    st, problem = stat_file(path)
     if problem is not None:
         stem = Path(ref_s).stem
         if (Path(ref_s).name == ref_s and ext == ".ply" and stem in meshgen.GENERATORS):

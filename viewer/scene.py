@@ -32,7 +32,6 @@ Mesh references and environment-map paths are resolved against the scene file's 
 from __future__ import annotations
 
 import copy
-import functools
 import math
 import os
 import re
@@ -43,7 +42,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import expand_user, one_line, path_problem
+from viewer.io import expand_user, one_line, one_line_errors, path_problem
 from viewer.resources import SCENE_DIR
 
 try:  # Python >= 3.11
@@ -377,10 +376,7 @@ class _Checker:
     def number(self, value, fld, allowed, lo=None, hi=None, lo_open=False, hi_open=False) -> float:
         if not _is_num(value):
             self.fail(fld, f"expected a number, got {_describe(value)}", allowed)
-        try:
-            v = float(value)
-        except OverflowError:  # an integer beyond any float (TOML integers are unbounded)
-            v = math.inf if value > 0 else -math.inf
+        v = _to_float(value)
         if not math.isfinite(v):
             self.fail(fld, f"{_describe(value)} is not a finite number", allowed)
         if abs(v) > FLOAT32_MAX:
@@ -471,22 +467,7 @@ def _builtin_label(name: str) -> str:
     return f"<built-in {name}>"
 
 
-def _one_line_errors(fn):
-    """Re-raise a ViewerError from deeper code (the BRDF registry, mesh and map loading) with
-    its message on one line: it may quote a key or a value from the file."""
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except ViewerError as e:
-            text = one_line(str(e))
-            if text == str(e):
-                raise
-            raise type(e)(text) from None
-    return wrapper
-
-
-@_one_line_errors
+@one_line_errors
 def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
                load_meshes: bool = True) -> "Scene":
     """Load and validate a scene.
@@ -574,7 +555,6 @@ def _loads(text: str, label: str) -> dict:
         _Checker(label).fail("TOML", "arrays or inline tables nested too deeply to read", syntax)
     except ValueError as e:  # e.g. an integer of more than 4300 digits (int() refuses it)
         _Checker(label).fail("TOML", f"a value cannot be read ({_short(str(e).splitlines()[0], 80)})", syntax)
-    _check_nesting(data, label)
     return data
 
 
@@ -592,7 +572,7 @@ def _check_nesting(data, label: str) -> None:
             stack.extend((x, depth + 1) for x in v)
 
 
-@_one_line_errors
+@one_line_errors
 def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
                 label: str | None = None, base_dir: Path | None = None,
                 load_meshes: bool = True) -> "Scene":
@@ -608,6 +588,7 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
     if base_dir is None:
         base_dir = path.parent if path is not None else Path.cwd()
     base_dir = Path(base_dir).absolute()
+    _check_nesting(data, label)  # before deepcopy, which recurses (a --set value is checked as parsed)
     data = copy.deepcopy(data)
     for a in overrides:
         apply_override(data, a)

@@ -105,9 +105,7 @@ class ReferenceView:
                 self._job(gen, scene, camera, w, h)
                 del scene, camera
         finally:
-            renderer, self._renderer = self._renderer, None
-            if renderer is not None:
-                renderer.close()
+            self._drop_renderer()
             with self._cond:
                 self._busy = False
                 self._cond.notify_all()
@@ -143,14 +141,18 @@ class ReferenceView:
 
     def _fail(self, gen, message):
         # The renderer may be half-reset or its pool broken (a worker killed): start afresh next time.
+        self._drop_renderer()
+        if gen == self._generation:
+            self.error = message
+
+    def _drop_renderer(self):
+        """Close the renderer and its worker processes (background thread only)."""
         renderer, self._renderer = self._renderer, None
         if renderer is not None:
             try:
                 renderer.close()
             except Exception:  # noqa: BLE001 - closing a broken pool
                 pass
-        if gen == self._generation:
-            self.error = message
 
     # ------------------------------------------------------------------ GUI side
     def latest(self):

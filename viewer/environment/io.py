@@ -46,6 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
+from viewer.io import atomic_write_file, one_line, path_problem
+from viewer.optional import require
 
 log = logging.getLogger("viewer.environment")
 
@@ -78,14 +80,10 @@ class EnvironmentImage:
 
 
 def _fail(path, problem: str):
-    from viewer.io import one_line
-
     raise ViewerError(one_line(f"{path}: {problem}"))
 
 
 def _read_head(path: Path, n: int = 4096) -> bytes:
-    from viewer.io import path_problem
-
     problem = path_problem(path)
     if problem == "file not found":
         _fail(path, problem)
@@ -191,8 +189,6 @@ def _hdr_header(path: Path) -> tuple[float, tuple[int, int]]:
 
 
 def _read_hdr(path: Path) -> np.ndarray:
-    from viewer.optional import require
-
     cv2 = require("cv2")
 
     exposure, (h, w) = _hdr_header(path)
@@ -288,8 +284,6 @@ def _exr_library_problem(lines: list[str], path: Path) -> str | None:
 
 
 def _read_exr(path: Path) -> np.ndarray:
-    from viewer.optional import require
-
     OpenEXR = require("OpenEXR")
 
     error = None
@@ -353,11 +347,7 @@ def save_environment(path, array) -> None:
     a = np.asarray(array, dtype=np.float32)
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 1:
         _fail(path, f"cannot write an array of shape {a.shape}; expected (height, width, 3)")
-    from viewer.io import atomic_write_file
-
     def write(tmp: Path):
-        from viewer.optional import require
-
         if suffix == ".hdr":
             cv2 = require("cv2")
             bgr = np.ascontiguousarray(np.maximum(a, 0.0)[..., ::-1])

@@ -24,7 +24,6 @@ completed steps made it.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import math
 import multiprocessing as mp
 import os
 import pickle
