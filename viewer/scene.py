@@ -1058,3 +1058,22 @@ def _emit_table(lines: list, prefix: list, tbl: dict, header: str | None):
         else:
             for item in v:
                 _emit_table(lines, prefix + [k], item, "[[]]")
+
+
+def material_to_toml(name: str, params) -> str:
+    """One material as a ``[materials.NAME]`` table, the scene file's format (a material file)."""
+    return scene_to_toml({"materials": {name: _plain(params.to_plain())}})
+
+
+def load_material_file(path) -> tuple[str, Any]:
+    """(name, Params) of the first ``[materials.NAME]`` table of a TOML file (a material file or
+    a whole scene), validated like a scene's materials. Raises ViewerError (one line)."""
+    path = Path(path).expanduser()
+    label = str(path)
+    data = _read_toml(path, label)
+    mats = data.get("materials")
+    if not isinstance(mats, dict) or not mats:
+        _Checker(label).fail("materials", "no [materials.NAME] table in the file",
+                             "a file with [materials.NAME] and model = ... (or preset = ...)")
+    name = next(iter(mats))
+    return name, _parse_materials(_Checker(label), {name: mats[name]})[name]

@@ -679,14 +679,12 @@ class App:
 
     def save_material(self, name: str, path) -> bool:
         """One material as a ``[materials.NAME]`` table (the scene file's format)."""
-        import tomli_w
-
         from viewer.io import atomic_write_bytes
-        from viewer.scene import _plain
+        from viewer.scene import material_to_toml
 
         try:
-            data = {"materials": {name: _plain(self.scene.materials[name].to_plain())}}
-            atomic_write_bytes(Path(path).expanduser(), tomli_w.dumps(data).encode("utf-8"))
+            text = material_to_toml(name, self.scene.materials[name])
+            atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
         except (OSError, KeyError, ViewerError) as e:
             self.status = f"material not saved: {e}"
             return False
@@ -696,21 +694,14 @@ class App:
     def load_material(self, name: str, path) -> bool:
         """Replace material ``name`` with the first material of a TOML file (a material file or
         a whole scene), validated like a scene's; on any problem the old material stays."""
-        from viewer.scene import _Checker, _parse_materials, _read_toml
+        from viewer.scene import load_material_file
 
-        path = Path(path).expanduser()
         try:
-            data = _read_toml(path, str(path))
-            mats = data.get("materials") if isinstance(data, dict) else None
-            if not isinstance(mats, dict) or not mats:
-                _Checker(str(path)).fail("materials", "no [materials.NAME] table in the file",
-                                         "a file with [materials.NAME] and model = ... (or preset = ...)")
-            first = next(iter(mats))
-            parsed = _parse_materials(_Checker(str(path)), {first: mats[first]})
+            first, params = load_material_file(path)
         except ViewerError as e:
             self.status = f"material not loaded: {e}"
             return False
-        self.scene.materials[name] = parsed[first]
+        self.scene.materials[name] = params
         self.dirty = True
         self.status = f"material {name} <- {path} [{first}]"
         return True
