@@ -88,40 +88,14 @@ def _parser_plot() -> argparse.ArgumentParser:
     return p
 
 
-def _plot_value(text: str):
-    """A TOML value (number, array, inline table, quoted string); else the bare text."""
-    try:
-        import tomllib
-    except ImportError:  # Python < 3.11
-        import tomli as tomllib
-    try:
-        return tomllib.loads(f"v = {text.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text.strip()
-
-
-def _plain_default(v):
-    from viewer.brdf.spec import Params
-
-    if isinstance(v, Params):
-        d = v.to_plain()
-        if v.model in ("", None):
-            d.pop("model")
-        return d
-    if isinstance(v, list):
-        return [_plain_default(x) for x in v]
-    if hasattr(v, "tolist"):
-        return v.tolist()
-    return v
-
-
 def _plot_material(name: str, assignments):
     """Validated Params of a model (defaults) or preset, with --set KEY=VALUE applied; KEY is a
     parameter name, dotted into tables and nested materials (coating.ior, base.albedo,
-    lobes.0.n)."""
+    lobes.0.n). The path and the value are read by the scene's ``--set`` (``apply_override``)."""
     from viewer import brdf
     from viewer.brdf.presets import PRESETS, get_preset
     from viewer.brdf.spec import validate_params
+    from viewer.scene import _INDEX, apply_override
 
     if name in brdf.names():
         raw = {"model": name}
@@ -134,10 +108,10 @@ def _plot_material(name: str, assignments):
         if "=" not in a:
             raise ViewerError(f"--set {a}: no '=' in the assignment; allowed: KEY=VALUE with a parameter "
                               "name, e.g. alpha=0.2 or coating.ior=1.3")
-        key, text = a.split("=", 1)
-        parts = key.strip().split(".")
+        key = _INDEX.sub(r".\1", a.split("=", 1)[0].strip())  # lobes[0].n = lobes.0.n, as apply_override
+        parts = key.split(".")
         if not all(parts):
-            raise ViewerError(f"--set {a}: empty part in {key.strip()!r}; allowed: a parameter name, dotted "
+            raise ViewerError(f"--set {a}: empty part in {key!r}; allowed: a parameter name, dotted "
                               "into tables (coating.ior)")
         model_name = raw.get("model")
         spec = brdf.lookup_spec(model_name, "--set model") if isinstance(model_name, str) else None
@@ -151,26 +125,12 @@ def _plot_material(name: str, assignments):
                     v = raw.pop(alias)
                     for t in targets:
                         raw[t] = v
-        if spec is not None and len(parts) > 1 and parts[0] not in raw and parts[0] in spec.names:
-            # a table, list or nested material not given yet: start from its defaults
-            raw[parts[0]] = _plain_default(brdf.get(model_name).params()[parts[0]])
-        cur = raw
-        for depth, part in enumerate(parts):
-            last = depth == len(parts) - 1
-            if isinstance(cur, list):
-                if not part.isdigit() or int(part) >= len(cur):
-                    raise ViewerError(f"--set {a}: no item {part!r} in {'.'.join(parts[:depth])}; allowed: "
-                                      + (f"an index 0..{len(cur) - 1}" if cur else "nothing (the list is empty)"))
-                part = int(part)
-            elif not isinstance(cur, dict):
-                raise ViewerError(f"--set {a}: {'.'.join(parts[:depth])} is a value, not a table or list; "
-                                  f"allowed: {'.'.join(parts[:depth])}=VALUE")
-            if last:
-                cur[part] = _plot_value(text)
-            else:
-                if isinstance(cur, dict) and cur.get(part) is None:
-                    cur[part] = {}
-                cur = cur[part]
+        if len(parts) > 1 and raw.get(parts[0]) is None:
+            # a table, list or nested material not given yet: start from its defaults (an unknown
+            # name gets an empty table, which validation below names)
+            known = spec is not None and parts[0] in spec.names
+            raw[parts[0]] = brdf.get(model_name).params().to_plain()[parts[0]] if known else {}
+        apply_override(raw, a)
     model = raw.pop("model")
     if not isinstance(model, str):
         raise ViewerError(f"--set model: expected a model name; allowed: {', '.join(brdf.names())}")
@@ -184,10 +144,8 @@ def cmd_plot(args) -> int:
 
     out = check_output_path(args.out, (".png",), "--out")
     data = check_output_path(args.data, (".json",), "--data") if args.data else None
-    if args.kind not in plots.KINDS:
-        raise ViewerError(f"--kind: {args.kind!r} is not a plot kind; allowed: {', '.join(plots.KINDS)}")
-    if args.channel not in plots.CHANNELS:
-        raise ViewerError(f"--channel: {args.channel!r} is not a channel; allowed: {', '.join(plots.CHANNELS)}")
+    plots.check_kind_name(args.kind)
+    plots.check_channel(args.channel)
     p = _plot_material(args.model, args.overrides)
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
                        inside=args.inside, log=args.log, name=args.model)

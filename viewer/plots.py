@@ -33,11 +33,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewer import ViewerError
+from viewer.brdf.sampling import LUMINANCE_REC709, luminance, reflect_z
 
 KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 (CONTRACT: linear Rec.709 RGB)
 PNG_KEY = "brdf-viewer:plot"
+LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (CONTRACT: linear Rec.709 RGB)
 
 _CHANNEL_NAMES = ("red", "green", "blue")
 _CHANNEL_COLOURS = ((214, 39, 40), (44, 160, 44), (31, 119, 180))
@@ -134,10 +135,15 @@ def _models_with(test) -> list[str]:
     return out
 
 
-def check_kind(p, kind: str) -> None:
-    """ViewerError (one line) when ``kind`` is not a plot kind or does not apply to ``p``."""
+def check_kind_name(kind: str) -> None:
+    """ViewerError (one line) when ``kind`` is not a plot kind."""
     if kind not in KINDS:
         raise ViewerError(f"--kind: {kind!r} is not a plot kind; allowed: {', '.join(KINDS)}")
+
+
+def check_kind(p, kind: str) -> None:
+    """ViewerError (one line) when ``kind`` is not a plot kind or does not apply to ``p``."""
+    check_kind_name(kind)
     if kind in applicable_kinds(p):
         return
     what = {"fresnel": "no index of refraction (no Fresnel term)",
@@ -149,18 +155,17 @@ def check_kind(p, kind: str) -> None:
                       f"{', '.join(applicable_kinds(p))}; {kind} applies to: {', '.join(needs)}")
 
 
-def _check_channel(channel: str) -> None:
+def check_channel(channel: str) -> None:
     if channel not in CHANNELS:
         raise ViewerError(f"--channel: {channel!r} is not a channel; allowed: {', '.join(CHANNELS)}")
 
 
 def reduce_channel(rgb, channel: str) -> np.ndarray:
     """(..., 3) -> (...): one channel ('r', 'g', 'b') or the Rec.709 luminance ('lum', 'rgb')."""
-    _check_channel(channel)
-    rgb = np.asarray(rgb, dtype=np.float64)
+    check_channel(channel)
     if channel in ("lum", "rgb"):
-        return rgb @ LUMINANCE
-    return rgb[..., "rgb".index(channel)]
+        return luminance(rgb)
+    return np.asarray(rgb, dtype=np.float64)[..., "rgb".index(channel)]
 
 
 # ----------------------------------------------------------------------------- data
@@ -174,10 +179,9 @@ def direction(theta_deg, phi_deg=0.0) -> np.ndarray:
 
 
 def plane_directions(theta_o_deg, phi_deg=0.0) -> np.ndarray:
-    """wo in the plane of incidence at signed angle theta_o (> 0: the mirror side)."""
-    t = np.radians(np.asarray(theta_o_deg, dtype=np.float64))
-    ph = math.radians(float(phi_deg))
-    return np.stack([-np.sin(t) * math.cos(ph), -np.sin(t) * math.sin(ph), np.cos(t)], axis=-1)
+    """wo in the plane of incidence at signed angle theta_o (> 0: the mirror side, i.e. azimuth
+    phi + 180)."""
+    return direction(-np.asarray(theta_o_deg, dtype=np.float64), float(phi_deg))
 
 
 def _check_theta_i(theta_i: float) -> float:
@@ -242,7 +246,7 @@ def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_p
     the chosen channel of fcos ('rgb' = luminance) and the surface x, y, z = value * wo."""
     p = as_params(p)
     theta_i, phi_i = _check_theta_i(theta_i), _check_phi(phi_i)
-    _check_channel(channel)
+    check_channel(channel)
     model = _model(p)
     theta = np.linspace(0.0, 90.0, int(n_theta))
     phi = np.linspace(0.0, 360.0, int(n_phi))
@@ -256,7 +260,7 @@ def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_p
     x, y, z = (value * wo[..., i] for i in range(3))
     delta = []
     if model.spec.delta and not np.any(f > 0):
-        delta.append({"wo": np.array([-wi[0], -wi[1], wi[2]]),
+        delta.append({"wo": reflect_z(wi),
                       "reflectance": _delta_reflectance(p, float(wi[2]))})
     return {"theta": theta, "phi": phi, "wi": wi, "wo": wo, "f": f, "fcos": fcos, "value": value,
             "x": x, "y": y, "z": z, "delta": delta, "theta_i": theta_i, "phi_i": phi_i, "channel": channel}
@@ -398,6 +402,19 @@ class Figure:
     info: dict = field(default_factory=dict)  # kind-specific values (theta_i, surface, delta...)
 
 
+def _channel_groups(same) -> list[list[int]]:
+    """The channels 0..2 grouped so that ``same(first of the group, c)`` holds for each member."""
+    groups = []
+    for c in range(3):
+        for g in groups:
+            if same(g[0], c):
+                g.append(c)
+                break
+        else:
+            groups.append([c])
+    return groups
+
+
 def _rgb_curves(x, rgb, label, channel, style="solid", color=None, extra=None) -> list:
     """Curves of one RGB quantity: one per channel for 'rgb' (one only when the channels are
     equal), or the chosen channel / luminance."""
@@ -406,14 +423,8 @@ def _rgb_curves(x, rgb, label, channel, style="solid", color=None, extra=None) -
     if channel == "rgb":
         if np.allclose(rgb, rgb[:, :1], rtol=0, atol=1e-12):
             return [Curve(label, x, rgb[:, 0], color or _NEUTRAL, style, {k: v[:, 0] for k, v in extra.items()})]
-        groups = []  # channels with identical values share one curve ("green, blue")
-        for c in range(3):
-            for g in groups:
-                if np.allclose(rgb[:, g[0]], rgb[:, c], rtol=0, atol=1e-12):
-                    g.append(c)
-                    break
-            else:
-                groups.append([c])
+        # channels with identical values share one curve ("green, blue")
+        groups = _channel_groups(lambda a, c: np.allclose(rgb[:, a], rgb[:, c], rtol=0, atol=1e-12))
         return [Curve(f"{label} ({', '.join(_CHANNEL_NAMES[c] for c in g)})", x, rgb[:, g[0]],
                       _CHANNEL_COLOURS[g[0]], style, {k: v[:, g[0]] for k, v in extra.items()}) for g in groups]
     col = color or (_NEUTRAL if channel == "lum" else _CHANNEL_COLOURS["rgb".index(channel)])
@@ -462,7 +473,7 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
     """The figure of one plot kind for one material (what ``brdf-viewer plot`` draws)."""
     p = as_params(p)
     check_kind(p, kind)
-    _check_channel(channel)
+    check_channel(channel)
     label = name or p.model
     sub = f"{p.model}: {params_summary(p)}"
     transform = (lambda y: np.log10(1.0 + np.asarray(y))) if log else (lambda y: np.asarray(y))
@@ -530,14 +541,8 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
                 curves.append(Curve(lab + suffix, d["theta"], arr[:, idx], cols[lab], styles[lab]))
         marks = []
         if ch == "rgb" and not single:
-            groups = []  # channels with the same index share their marks
-            for c in range(3):
-                for g in groups:
-                    if d["eta"][g[0]] == d["eta"][c] and d["k"][g[0]] == d["k"][c]:
-                        g.append(c)
-                        break
-                else:
-                    groups.append([c])
+            # channels with the same index share their marks
+            groups = _channel_groups(lambda a, c: d["eta"][a] == d["eta"][c] and d["k"][a] == d["k"][c])
         else:
             groups = [["rgb".index(ch if ch != "rgb" else "r")]]
         for g in groups:
@@ -578,10 +583,11 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
 
 
 def _plain(v):
+    """JSON-friendly copy: arrays and numpy scalars as Python values, NaN and inf as None."""
     if isinstance(v, np.ndarray):
-        return v.tolist()
+        return _plain(v.tolist())
     if isinstance(v, (np.floating, np.integer)):
-        return v.item()
+        return _plain(v.item())
     if isinstance(v, dict):
         return {k: _plain(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
@@ -594,17 +600,7 @@ def _plain(v):
 def figure_json(fig: Figure) -> dict:
     """The plotted numbers: every curve's x and y (and extras), the marks, the parameters.
     NaN (e.g. no critical angle) is written as null."""
-    def clean(v):
-        v = _plain(v)
-        if isinstance(v, list):
-            return [clean(x) for x in v]
-        if isinstance(v, dict):
-            return {k: clean(x) for k, x in v.items()}
-        if isinstance(v, float) and not math.isfinite(v):
-            return None
-        return v
-
-    return clean({
+    return _plain({
         "kind": fig.kind, "model": fig.model, "params": fig.params.to_plain(), "title": fig.title,
         "x_label": fig.x_label, "y_label": fig.y_label, "x_range": list(fig.x_range), "y_range": list(fig.y_range),
         "curves": [dict({"label": c.label, "x": c.x, "y": c.y, "color": list(c.color), "style": c.style}, **c.extra)
@@ -753,6 +749,8 @@ def _header(cv, fig, width):
     cv.text((cv.s(width / 2), cv.s(10)), fig.title, px=17, anchor="ma")
     if fig.subtitle:
         cv.text((cv.s(width / 2), cv.s(32)), fig.subtitle, px=11, fill=(90, 90, 90), anchor="ma", unicode=False)
+    for i, note in enumerate(fig.notes):
+        cv.text((cv.s(width / 2), cv.s(50 + 14 * i)), note, px=11, fill=(70, 70, 70), anchor="ma")
 
 
 def _legend(cv, items, box, corner, px=12, draw=True):
@@ -882,8 +880,6 @@ def _draw_cartesian(cv, fig, width, height):
     d.rectangle([x0, y0, x1, y1], outline=(60, 60, 60), width=cv.s(1))
     cv.text(((x0 + x1) / 2, y1 + cv.s(28)), fig.x_label, px=14, anchor="ma")
     cv.vtext((cv.s(16), (y0 + y1) / 2), fig.y_label, px=14)
-    for i, note in enumerate(fig.notes):
-        cv.text((cv.s(width / 2), cv.s(50 + 14 * i)), note, px=11, fill=(70, 70, 70), anchor="ma")
     layer, ld = _clipped_layer(cv)
     # marks: dashed vertical lines, labels staggered from the top
     for i, m in enumerate(fig.marks):
@@ -918,8 +914,6 @@ def _arrow(cv, a, b, color, width=2.0, head=10):
 
 def _draw_polar(cv, fig, width, height):
     top = 58 + 14 * len(fig.notes)
-    for i, note in enumerate(fig.notes):
-        cv.text((cv.s(width / 2), cv.s(50 + 14 * i)), note, px=11, fill=(70, 70, 70), anchor="ma")
     radius_px = min((width - 120) / 2, height - top - 70)
     cx, cy = cv.s(width / 2), cv.s(top + 24 + radius_px)
     R = cv.s(radius_px)
@@ -989,11 +983,7 @@ def _colormap(t):
 
 
 def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
-    from PIL import Image, ImageDraw
-
     top = 58 + 14 * len(fig.notes)
-    for i, note in enumerate(fig.notes):
-        cv.text((cv.s(width / 2), cv.s(50 + 14 * i)), note, px=11, fill=(70, 70, 70), anchor="ma")
     el, az = math.radians(elevation), math.radians(azimuth)
     view = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])  # toward viewer
     right = np.array([-math.sin(az), math.cos(az), 0.0])
@@ -1031,15 +1021,14 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
     shade = np.where(nn > 0, np.abs(n @ light) / np.maximum(nn, 1e-30), 0.6)
     vmax = float(value.max()) if value.size else 0.0
     colours = _colormap(qv / vmax if vmax > 0 else qv) * (0.55 + 0.45 * shade)[:, None]
-    layer = Image.new("RGBA", cv.im.size, (0, 0, 0, 0))
-    ld = ImageDraw.Draw(layer)
+    layer, ld = _clipped_layer(cv)
     for i in np.argsort(depth):
         if qv[i] <= 0 and vmax > 0 and np.allclose(qf[i], 0):
             continue
         px, py = proj(qf[i])
         col = tuple(int(c) for c in colours[i])
         ld.polygon(list(zip(px, py)), fill=col + (235,), outline=tuple(int(c * 0.75) for c in col) + (255,))
-    cv.im.paste(layer.convert("RGB"), (0, 0), layer.getchannel("A"))
+    _paste_clipped(cv, layer, (0, 0, cv.w, cv.h))
     # incident direction (toward the light) and delta lobes
     wi = np.asarray(fig.info["wi"], float)
     a, b = proj(wi * 1.08), proj(wi * 0.05)
@@ -1090,10 +1079,10 @@ def write_plot(fig: Figure, out, data_path=None, width: int = 900, height: int =
     from viewer.io import atomic_write_bytes, write_png
 
     img = render_figure(fig, width, height)
-    text = json.dumps(figure_json(fig), separators=(",", ":"))
-    write_png(out, img, {PNG_KEY: text})
+    data = figure_json(fig)
+    write_png(out, img, {PNG_KEY: json.dumps(data, separators=(",", ":"))})
     if data_path is not None:
-        atomic_write_bytes(data_path, (json.dumps(figure_json(fig), indent=1) + "\n").encode())
+        atomic_write_bytes(data_path, (json.dumps(data, indent=1) + "\n").encode())
     return img
 
 

@@ -169,26 +169,24 @@ class PlotsPanel:
         imgui.pop_item_width()
 
     # ------------------------------------------------------------------ data (cached)
-    def _data(self, kind, name, p, *args, fn):
-        key = (kind, name, _params_key(p)) + args
+    def _cached(self, key, fn):
         if key not in self._cache:
             if len(self._cache) > _CACHE_MAX:
                 self._cache.clear()
             self._cache[key] = fn()
         return self._cache[key]
 
+    def _data(self, kind, name, p, *args, fn):
+        return self._cached((kind, name, _params_key(p)) + args, fn)
+
     def _albedo(self, name, p):
         key = ("albedo", name, _params_key(p))
-        if key in self._cache:
-            self._albedo_shown[name] = self._cache[key]
-            self._albedo_stale.discard(name)
-            return self._cache[key]
-        if imgui.is_any_item_active() and name in self._albedo_shown:
+        if key not in self._cache and imgui.is_any_item_active() and name in self._albedo_shown:
             self._albedo_stale.add(name)  # a slider is held: keep the old curve until it is released
             return self._albedo_shown[name]
-        self._cache[key] = self._albedo_shown[name] = plots.albedo_curve(p)
         self._albedo_stale.discard(name)
-        return self._cache[key]
+        self._albedo_shown[name] = self._cached(key, lambda: plots.albedo_curve(p))
+        return self._albedo_shown[name]
 
     # ------------------------------------------------------------------ tabs
     def _draw_tab(self, tab, materials):
