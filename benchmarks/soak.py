@@ -177,11 +177,13 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
 #   (SSR, IBL mode, environment kind) on first use and cached, so their count grows until every
 #   combination the actions reached was compiled (bounded: 10 models x a few variants), never by
 #   repetition; the check allows that growth only.
-# - textures, buffers, framebuffers, renderbuffers, vertex arrays: +4 (render targets are made per
-#   size and feature, e.g. SSR's when a lecture step turns it on; a leak grows without bound).
+# - vertex arrays: one per (program, mesh) and one per full-screen program, released with either,
+#   so at every snapshot VAOs <= programs x (meshes + 1), meshes = buffers / 2 (vertex + index).
+# - textures, buffers, framebuffers, renderbuffers: +4 (render targets are made per size and
+#   feature, e.g. SSR's when a lecture step turns it on; a leak grows without bound).
 RSS_DRIFT_MB = 64.0
 OBJECT_SLACK = 4
-BOUNDED = ("Program", "Shader")
+BOUNDED = ("Program", "Shader", "VertexArray")
 
 
 def drift_check(snapshots, report_at, frames, failures):
@@ -193,6 +195,11 @@ def drift_check(snapshots, report_at, frames, failures):
     for k, n in b["gl"].items():
         if k not in BOUNDED and n > a["gl"].get(k, 0) + OBJECT_SLACK:
             failures.append(f"live GL {k} objects grew {a['gl'].get(k, 0)} -> {n} (allowed +{OBJECT_SLACK})")
+    for frame, snap in snapshots.items():
+        gl = snap["gl"]
+        bound = gl.get("Program", 0) * (gl.get("Buffer", 0) // 2 + 1)
+        if gl.get("VertexArray", 0) > bound:
+            failures.append(f"frame {frame}: {gl['VertexArray']} vertex arrays > programs x (meshes + 1) = {bound}")
 
 
 def main():
