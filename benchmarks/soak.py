@@ -76,6 +76,7 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
     counts = {a: 0 for a in ACTIONS}
     failures: list[str] = []
     snapshots = {}
+    rss_series = []  # (frame, MB) every 1,000 frames: a leak climbs steadily, allocator noise does not
     t0 = time.perf_counter()
 
     def act(kind):
@@ -153,6 +154,8 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
                 if not np.isfinite(img).all() or img.min() < 0:
                     failures.append(f"frame {i}: non-finite or negative pixels "
                                     f"(model(s) {sorted({m.model for m in app.scene.materials.values()})})")
+            if i % 1000 == 0:
+                rss_series.append((i, round(rss_mb(), 1)))
             if i in (report_at, frames):
                 app.set_image_mode("raster")  # the reference's images are not GL objects; settle it
                 app.frame()
@@ -166,7 +169,8 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
     finally:
         app.close()
     drift_check(snapshots, report_at, frames, failures)
-    return {"frames": frames, "seed": seed, "actions": counts, "failures": failures, "snapshots": snapshots}
+    return {"frames": frames, "seed": seed, "actions": counts, "failures": failures, "snapshots": snapshots,
+            "rss_series": rss_series}
 
 
 # Allowed drift between the report frame (1,000) and the end:
@@ -215,6 +219,7 @@ def main():
         print(json.dumps(res))
     else:
         print(f"{res['frames']} frames, actions: {res['actions']}")
+        print("resident memory every 1,000 frames (MB): " + " ".join(f"{mb:.0f}" for _, mb in res["rss_series"]))
         print(f"failures: {len(res['failures'])}")
         for f in res["failures"][:20]:
             print("  " + f)
