@@ -193,6 +193,14 @@ def cmd_render(args) -> int:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera))
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
+    from viewer.finite import culprits, nonfinite_count, nonfinite_message, render_switches
+
+    if nonfinite_count(linear):  # a renderer bug: say where it came from and fail
+        found = culprits(scene, lambda s: renderer.render_arrays(s, camera, view_mode=VIEW_MODES[args.view],
+                                                                 supersample=args.supersample)[0])
+        print("brdf-viewer: error: " + nonfinite_message(linear, f"render {args.scene}", found,
+                                                         render_switches(scene)), file=sys.stderr)
+        return 3
     return 0
 
 

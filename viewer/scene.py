@@ -463,6 +463,31 @@ def builtin_scene_names() -> list[str]:
     return names
 
 
+LECTURE_NAME = re.compile(r"lecture:(\S*)")  # lecture:N, N = 1 .. the number of lecture steps
+
+
+def lecture_scene_names() -> list[str]:
+    """``lecture:1`` .. ``lecture:N``: the lecture tour's steps as built-in scene names."""
+    from viewer.lecture import TOUR
+
+    return [f"lecture:{i + 1}" for i in range(len(TOUR))]
+
+
+def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
+    from viewer.lecture import TOUR, step_label
+
+    n = len(TOUR)
+    text = m.group(0)
+    allowed = f"lecture:1 .. lecture:{n} (the lecture tour's steps, 1-based)"
+    if not m.group(1).isdigit():
+        _Checker(text).fail("scene", f"{m.group(1)!r} is not a step number", allowed)
+    i = int(m.group(1))
+    if not 1 <= i <= n:
+        _Checker(text).fail("scene", f"step {i} is out of range", allowed)
+    data = _loads(TOUR[i - 1].toml, step_label(i - 1))
+    return parse_scene(data, None, overrides, label=step_label(i - 1), base_dir=SCENE_DIR, load_meshes=load_meshes)
+
+
 def _builtin_label(name: str) -> str:
     return f"<built-in {name}>"
 
@@ -474,6 +499,7 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
 
     ``ref`` None loads the built-in ``default``; a string without a path separator and without
     a ``.toml`` suffix that names a built-in scene (``builtin_scene_names()``) loads that one;
+    ``lecture:N`` loads the lecture tour's step N (1-based; ``lecture_scene_names()``);
     anything else is a file path. ``overrides`` are ``KEY=VALUE`` assignments (``--set``)
     applied before validation. Raises ``ViewerError`` (one line) on any problem.
     """
@@ -483,6 +509,9 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     seps = {"/", os.sep} | ({os.altsep} if os.altsep else set())
     is_bare = isinstance(ref, str) and not any(s in text for s in seps) and not text.endswith(".toml")
     builtins = builtin_scene_names()
+    m = LECTURE_NAME.fullmatch(text) if is_bare else None
+    if m is not None:
+        return _lecture_scene(m, overrides, load_meshes)
     if is_bare and text in builtins:
         file = SCENE_DIR / f"{text}.toml"
         label = _builtin_label(text)
@@ -492,7 +521,8 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     label = text
     problem = path_problem(path)
     if problem == "file not found":
-        hint = "a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+        hint = ("a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+                + ", lecture:1 .. lecture:" + str(len(lecture_scene_names())))
         if is_bare:
             _Checker(label).fail("scene", "no such built-in scene or file", hint)
         _Checker(label).fail("file", "not found", hint)

@@ -241,6 +241,7 @@ void main() {
             radiance += rho_t * exp(-u_sigma_a * d) * ENV_PREFILTERED(normalize(t_out), u_ibl_alpha);
         }
     }
+#endif  // ENV_LIGHT
 #ifdef SSR
     {
         // the same table lookup as the environment block, also when the environment is off
@@ -254,7 +255,6 @@ void main() {
         frag_spec = vec4(rho_s, u_ibl_alpha);
         frag_geom = vec4(n, -(u_view * vec4(v_position, 1.0)).z);
     }
-#endif
 #endif
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);
