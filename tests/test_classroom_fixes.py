@@ -112,3 +112,79 @@ def test_render_cli_fails_on_nonfinite_pixels(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 3
     assert len(err) == 1 and "4 of 384 pixels" in err[0] and "'ball'" in err[0], err
+
+
+# ----------------------------------------------------------------------------- --set model / preset
+
+def test_set_preset_replaces_the_material():
+    from viewer.brdf.presets import PRESETS
+    from viewer.scene import load_scene
+
+    s = load_scene("sphere", ["materials.ball.preset=gold"], load_meshes=False)
+    m = s.materials["ball"]
+    gold = PRESETS["gold"]
+    assert m.model == gold["model"]
+    assert np.allclose(m.eta, gold["eta"]) and np.allclose(m.k, gold["k"])
+    # the other --sets apply after it, in either order
+    for order in (["materials.ball.alpha=0.3", "materials.ball.preset=copper"],
+                  ["materials.ball.preset=copper", "materials.ball.alpha=0.3"]):
+        m = load_scene("sphere", order, load_meshes=False).materials["ball"]
+        assert np.allclose(m.eta, PRESETS["copper"]["eta"]) and m.alpha_x == pytest.approx(0.3)
+
+
+def test_set_model_starts_from_its_defaults():
+    from viewer import brdf
+    from viewer.scene import load_scene
+
+    m = load_scene("sphere", ["materials.ball.model=microfacet"], load_meshes=False).materials["ball"]
+    d = brdf.get("microfacet").params()
+    assert m.model == "microfacet" and m.to_plain().keys() == d.to_plain().keys()
+    assert m.alpha_x == d.alpha_x
+    m = load_scene("sphere", ["materials.ball.model=oren_nayar", "materials.ball.sigma=20"],
+                   load_meshes=False).materials["ball"]
+    assert m.model == "oren_nayar" and m.sigma == 20
+
+
+def test_set_model_errors_stay_one_line():
+    from viewer import ViewerError
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError, match="unknown model 'bogus'"):
+        load_scene("sphere", ["materials.ball.model=bogus"], load_meshes=False)
+    with pytest.raises(ViewerError, match="nope"):
+        load_scene("sphere", ["materials.nope.preset=gold"], load_meshes=False)
+
+
+# ----------------------------------------------------------------------------- lecture:N
+
+def test_lecture_names_load_every_step():
+    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene import lecture_scene_names, load_scene, scene_to_data
+
+    names = lecture_scene_names()
+    assert names == [f"lecture:{i}" for i in range(1, len(TOUR) + 1)]
+    for i, name in enumerate(names):
+        s = load_scene(name, load_meshes=False)
+        assert scene_to_data(s) == scene_to_data(tour_scene(i, load_meshes=False))
+        assert TOUR[i].key in s.label
+    s = load_scene("lecture:1", ["render.exposure=1.5"], load_meshes=False)
+    assert s.render.exposure == 1.5
+
+
+@pytest.mark.parametrize("bad", ["lecture:0", "lecture:x", "lecture:", "lecture:999"])
+def test_lecture_name_out_of_range(bad):
+    from viewer import ViewerError
+    from viewer.lecture import TOUR
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError, match=f"lecture:1 .. lecture:{len(TOUR)}"):
+        load_scene(bad, load_meshes=False)
+
+
+def test_render_cli_takes_a_lecture_step(tmp_path):
+    from viewer import cli
+    from viewer.io import read_png_text
+
+    out = tmp_path / "tir.png"
+    assert cli.main(["render", "lecture:3", "--out", str(out), "--width", "32", "--height", "18"]) == 0
+    assert "brdf-viewer:scene" in read_png_text(out)

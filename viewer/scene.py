@@ -620,8 +620,14 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
     base_dir = Path(base_dir).absolute()
     _check_nesting(data, label)  # before deepcopy, which recurses (a --set value is checked as parsed)
     data = copy.deepcopy(data)
+    # a material's model or preset set by --set starts that material afresh (the model's defaults,
+    # the preset's values); the other assignments apply after it, whatever their order
+    firsts = [a for a in overrides if _is_material_switch(a)]
+    for a in firsts:
+        _switch_material(data, a)
     for a in overrides:
-        apply_override(data, a)
+        if a not in firsts:
+            apply_override(data, a)
     ck = _Checker(label)
     ck.table(data, "", TOP_KEYS, what="section")
 
@@ -899,6 +905,32 @@ def _parse_value(text: str):
         return text
     _check_nesting(value, f"--set value {_short(text)}")
     return value
+
+
+def _override_parts(assignment: str) -> list[str]:
+    key = assignment.split("=", 1)[0] if "=" in assignment else ""
+    return _INDEX.sub(r".\1", key.strip()).split(".")
+
+
+def _is_material_switch(assignment: str) -> bool:
+    """``materials.NAME.model=...`` or ``materials.NAME.preset=...`` (also a nested material's,
+    ``materials.NAME.base.model=...``)."""
+    parts = _override_parts(assignment)
+    return len(parts) >= 3 and parts[0] == "materials" and parts[-1] in ("model", "preset") and all(parts)
+
+
+def _switch_material(data: dict, assignment: str) -> None:
+    """Apply a model / preset assignment and drop every other value of that material table, so
+    the material becomes the model's defaults or the preset."""
+    parts = _override_parts(assignment)
+    apply_override(data, assignment)  # checks the path, sets the value
+    cur: Any = data
+    for p in parts[:-1]:
+        cur = cur[int(p)] if isinstance(cur, list) else cur[p]
+    if isinstance(cur, dict):
+        value = cur[parts[-1]]
+        cur.clear()
+        cur[parts[-1]] = value
 
 
 def apply_override(data: dict, assignment: str, where: str = "--set") -> None:

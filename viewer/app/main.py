@@ -109,6 +109,11 @@ class App:
 
         self._warm = list(brdf.names())
         self.screenshot_dir = Path.cwd()
+        from viewer.scene import LECTURE_NAME
+
+        m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
+        if m is not None:  # opened as lecture:N: lecture mode at that step
+            self._enter_step(int(m.group(1)) - 1)
 
     # ------------------------------------------------------------------ lifecycle
     def request_close(self, *_):
@@ -232,6 +237,8 @@ class App:
                 except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
                     self.status = str(e)
                 self.ctx.finish()
+                if not interacting and self.hdr is not None:
+                    self._check_finite(self.hdr)
                 self.raster_version += 1
                 self.render_ms = 1000 * (time.perf_counter() - t1)
                 self._hdr_for = (rw_full, rh_full)
@@ -270,6 +277,26 @@ class App:
             self.first_frame_s = time.perf_counter() - self.t_start
             print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
+
+    _nonfinite_said = None
+
+    def _check_finite(self, hdr):
+        """Say in one line (status toast and stderr, once per distinct message) when the view
+        holds NaN or Inf pixels: a renderer bug the class would see as holes."""
+        from viewer.finite import nonfinite_message, render_switches
+
+        try:
+            img = self.renderer.read_linear(hdr)
+        except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
+            return
+        msg = nonfinite_message(img, f"view of {self.scene.label}", (), render_switches(self.scene))
+        self.nonfinite = msg
+        if msg and msg != self._nonfinite_said:
+            self.status = msg
+            print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
+        self._nonfinite_said = msg
+
+    nonfinite = None
 
     def _handle_input(self):
         imgui = self.imgui
@@ -576,16 +603,23 @@ class App:
             self.status = f"lecture step {step + 1} not loaded: {e}"
             return False
         self._set_scene(scene)
+        self._enter_step(step)
+        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
+        return True
+
+    def _enter_step(self, step: int):
+        """Lecture mode on at ``step`` for the scene already shown: the matching plot."""
+        from viewer.lecture import TOUR
+
         self.lecture_step = step
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
                "bouguer": "Bouguer"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
+            self.plots.visible = True  # the step's plot beside its scene
         self.plots.inside = TOUR[step].key == "tir"  # the critical angle needs light from inside
-        for name in scene.materials:  # plot the step's subjects, not the floor under them
+        for name in self.scene.materials:  # plot the step's subjects, not the floor under them
             self.plots.shown[name] = name != "floor"
-        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
-        return True
 
     def _lecture_panel(self):
         from viewer.lecture import TOUR
