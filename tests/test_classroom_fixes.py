@@ -188,3 +188,36 @@ def test_render_cli_takes_a_lecture_step(tmp_path):
     out = tmp_path / "tir.png"
     assert cli.main(["render", "lecture:3", "--out", str(out), "--width", "32", "--height", "18"]) == 0
     assert "brdf-viewer:scene" in read_png_text(out)
+
+
+# ----------------------------------------------------------------------------- environment exposure
+
+def test_mean_luminance_of_a_constant_environment():
+    from viewer.scene import MID_GREY, Environment
+
+    e = Environment(constant=np.array([1.0, 0.5, 0.25]), intensity=3.0)
+    assert e.mean_luminance() == pytest.approx(0.2126 + 0.7152 * 0.5 + 0.0722 * 0.25)
+    assert e.mid_grey_intensity() * e.mean_luminance() == pytest.approx(MID_GREY)
+    assert Environment(constant=np.zeros(3)).mid_grey_intensity() is None
+
+
+@pytest.mark.parametrize("name", ["sky", "studio"])
+def test_builtin_maps_at_mid_grey_are_neither_white_nor_black(renderer, name):
+    """At intensity 1 the sky (in kcd/m^2) gives a white screen; at the mid-grey intensity the
+    picture (the map behind a white diffuse sphere) has its median in the middle of the sRGB
+    range, away from black (0) and white (255), and few pixels clip. The bounds are loose on
+    purpose: the maps' dark lower halves and bright suns make the image median differ from the
+    mean luminance the intensity is set by."""
+    from viewer.scene import load_scene
+
+    ov = [f'environment={{map = "{name}"}}', "render.msaa=0", "materials.ball.albedo=[1.0, 1.0, 1.0]"]
+    s = load_scene("sphere", ov)
+    env = s.environment
+    assert env.mean_luminance() * env.intensity == pytest.approx(env.mean_luminance())  # intensity 1
+    white, _ = renderer.render_arrays(s, width=48, height=32)
+    env.intensity = env.mid_grey_intensity()
+    lin, srgb = renderer.render_arrays(s, width=48, height=32)
+    assert 40 < np.median(srgb) < 215, np.median(srgb)
+    assert np.mean(srgb >= 254) < 0.1
+    if name == "sky":
+        assert np.mean(white >= 1.0) > 0.7  # what the class saw before: mostly white

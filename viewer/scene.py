@@ -116,6 +116,10 @@ class Light:
         return _equal(self, other)
 
 
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance of linear RGB
+MID_GREY = 0.18
+
+
 @dataclass(eq=False)
 class Environment:
     """Light from infinitely far away: ``intensity * constant`` (RGB radiance from every
@@ -166,6 +170,34 @@ class Environment:
         img.setflags(write=False)
         cache[key] = img
         return img
+
+    def mean_luminance(self) -> float:
+        """The solid-angle mean of the Rec.709 luminance over the sphere of directions, before
+        ``intensity``: the radiance a white Lambert surface facing a uniform environment of the
+        same average shows (exact for a constant environment). Lat-long rows weigh sin(theta)."""
+        if self.map is None:
+            c = np.zeros(3) if self.constant is None else np.asarray(self.constant, float)
+            return float(c @ LUMINANCE)
+        cache = self.__dict__.setdefault("_map_cache", {})
+        key = ("mean_luminance", str(self.map))
+        if key not in cache:
+            img = self.radiance_map()
+            lum = np.asarray(img, np.float64) @ LUMINANCE
+            h = lum.shape[0]
+            w = np.sin((np.arange(h) + 0.5) / h * np.pi)
+            mean = float((lum.mean(axis=1) * w).sum() / w.sum())
+            cache[key] = mean / self.intensity if self.intensity > 0 else 0.0
+        return cache[key]
+
+    def mid_grey_intensity(self) -> float | None:
+        """The ``intensity`` that puts the mean luminance at mid-grey (``MID_GREY`` = 0.18, the
+        photographic key of Reinhard et al. 2002) at exposure 0, so a diffuse white object under
+        the map reads about mid-grey. The mean rather than the median: the built-in studio is a
+        dark room (median 0.021) lit by small panels, and its median at mid-grey would put those
+        at ~170, a white screen; the sky's mean (12.2 kcd/m^2) gives 0.0148. None for a black
+        environment."""
+        m = self.mean_luminance()
+        return MID_GREY / m if m > 0 and np.isfinite(m) else None
 
     def _load_map(self, width: int, height: int) -> np.ndarray:
         from viewer.environment import procedural

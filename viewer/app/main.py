@@ -986,6 +986,13 @@ class App:
         if ch and np.isfinite(v) and v >= 0:
             env.intensity = float(v)
             self.dirty = True
+        auto = env.mid_grey_intensity() if env.map is not None else None
+        if auto is not None:
+            if imgui.button("mid-grey"):
+                env.intensity = float(auto)
+                self.dirty = True
+            imgui.same_line()
+            imgui.text_disabled(f"intensity {auto:.3g}: mean luminance -> 0.18")
         ch, v = imgui.slider_float("rotation (deg)", float(env.rotation_deg), -180.0, 180.0)
         if ch and np.isfinite(v):
             env.rotation_deg = float(v)
@@ -1029,6 +1036,12 @@ class App:
                 return False
         self.scene.environment = new
         self.status = f"environment: {ref or 'constant'}"
+        if new.map is not None:  # a map's own units (the sky is in kcd/m^2): start at mid-grey
+            auto = new.mid_grey_intensity()
+            if auto is not None:
+                new.intensity = float(auto)
+                self.status += (f" (intensity {auto:.3g}: mean luminance {new.mean_luminance():.3g} -> mid-grey "
+                                "0.18; edit it under Environment)")
         self.dirty = True
         return True
 
