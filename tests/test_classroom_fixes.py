@@ -204,10 +204,11 @@ def test_mean_luminance_of_a_constant_environment():
 @pytest.mark.parametrize("name", ["sky", "studio"])
 def test_builtin_maps_at_mid_grey_are_neither_white_nor_black(renderer, name):
     """At intensity 1 the sky (in kcd/m^2) gives a white screen; at the mid-grey intensity the
-    picture (the map behind a white diffuse sphere) has its median in the middle of the sRGB
+    white diffuse sphere (the centre of the picture) has its median in the middle of the sRGB
     range, away from black (0) and white (255), and few pixels clip. The bounds are loose on
-    purpose: the maps' dark lower halves and bright suns make the image median differ from the
-    mean luminance the intensity is set by."""
+    purpose: the sky's sun and the studio's panels light the sphere from one side, so its median
+    differs from the mean luminance the intensity is set by (the studio's room itself is meant to
+    be dark)."""
     from viewer.scene import load_scene
 
     ov = [f'environment={{map = "{name}"}}', "render.msaa=0", "materials.ball.albedo=[1.0, 1.0, 1.0]"]
@@ -217,7 +218,8 @@ def test_builtin_maps_at_mid_grey_are_neither_white_nor_black(renderer, name):
     white, _ = renderer.render_arrays(s, width=48, height=32)
     env.intensity = env.mid_grey_intensity()
     lin, srgb = renderer.render_arrays(s, width=48, height=32)
-    assert 40 < np.median(srgb) < 215, np.median(srgb)
+    centre = srgb[H // 3: 2 * H // 3, W // 3: 2 * W // 3]
+    assert 40 < np.median(centre) < 215, np.median(centre)
     assert np.mean(srgb >= 254) < 0.1
     if name == "sky":
         assert np.mean(white >= 1.0) > 0.7  # what the class saw before: mostly white
