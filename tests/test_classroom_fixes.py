@@ -223,3 +223,44 @@ def test_builtin_maps_at_mid_grey_are_neither_white_nor_black(renderer, name):
     assert np.mean(srgb >= 254) < 0.1
     if name == "sky":
         assert np.mean(white >= 1.0) > 0.7  # what the class saw before: mostly white
+
+
+# ----------------------------------------------------------------------------- small items
+
+def test_range_errors_print_plain_numbers():
+    from viewer import ViewerError
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError) as e:
+        load_scene("sphere", ["materials.ball.albedo=[2,0,0.5]"], load_meshes=False)
+    assert "[2, 0, 0.5] is out of range" in str(e.value) and "np." not in str(e.value)
+
+
+def test_progress_bar_without_a_terminal_writes_few_lines():
+    import io
+    import time
+
+    from viewer.cli import ProgressBar
+
+    out = io.StringIO()  # not a terminal
+    bar = ProgressBar("reference", time.perf_counter(), stream=out, every_s=3600.0)
+    for i in range(1001):
+        bar(i / 1000)
+    bar.end()
+    lines = out.getvalue().splitlines()
+    assert "\r" not in out.getvalue()
+    assert len(lines) == 2 and "0.0%" in lines[0] and "100.0%" in lines[1]
+
+
+def test_no_display_hint_names_every_headless_command():
+    from viewer.cli import COMMANDS, HEADLESS_HINT
+
+    for c in COMMANDS:
+        assert f"brdf-viewer {c}" in HEADLESS_HINT
+
+
+def test_counts_are_singular_and_plural():
+    from viewer.app.main import _count
+
+    assert _count(1, "light") == "1 light" and _count(2, "light") == "2 lights"
+    assert _count(12345, "triangle") == "12,345 triangles" and _count(0, "object") == "0 objects"

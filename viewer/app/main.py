@@ -25,6 +25,11 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 PANEL_WIDTH = 360
 
 
+def _count(n: int, noun: str) -> str:
+    """'1 light', '2 lights', '12,345 triangles'."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
+
+
 class App:
     def __init__(self, scene_ref=None, overrides=(), size=None, title="brdf-viewer", restore_state: bool = True):
         import glfw
@@ -44,8 +49,9 @@ class App:
         if size is None:
             size = (self._state.get("window_width", 1280), self._state.get("window_height", 720))
         if not glfw.init():
-            raise GLUnavailable("cannot initialise glfw (no display?); headless commands: "
-                                "brdf-viewer render SCENE --out img.png")
+            from viewer.cli import HEADLESS_HINT
+
+            raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")
         glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, GL_REQUIRED // 100)
         glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, (GL_REQUIRED % 100) // 10)
         glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -53,8 +59,10 @@ class App:
         self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
         if not self.window:
             glfw.terminate()
+            from viewer.cli import HEADLESS_HINT
+
             raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
-                                "(update the graphics driver); headless: brdf-viewer render SCENE --out img.png")
+                                f"(update the graphics driver); {HEADLESS_HINT}")
         if "window_x" in self._state and "window_y" in self._state:
             glfw.set_window_pos(self.window, self._state["window_x"], self._state["window_y"])
         glfw.make_context_current(self.window)
@@ -383,7 +391,8 @@ class App:
         if imgui.collapsing_header("Scene", imgui.TreeNodeFlags_.default_open):
             imgui.text(f"file: {s.label}")
             tris = sum(len(o.mesh_data.indices) for o in s.objects)
-            imgui.text(f"{len(s.objects)} objects, {tris:,} triangles, {len(s.lights)} lights")
+            imgui.text(f"{_count(len(s.objects), 'object')}, {_count(tris, 'triangle')}, "
+                       f"{_count(len(s.lights), 'light')}")
             imgui.text(f"render {self.render_ms:.1f} ms, frame {self.frame_ms:.1f} ms")
             imgui.text_wrapped(f"GL: {self.ctx.info['GL_RENDERER']}")
             if imgui.button("Reset camera (R)"):
@@ -425,7 +434,9 @@ class App:
             ch, v = imgui.checkbox("BRDF plots (P)", self.plots.visible)
             if ch:
                 self.plots.visible = v
-            ch, v = imgui.slider_float("UI scale (Ctrl +/-)", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            ch, v = imgui.slider_float("UI scale", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Ctrl + / Ctrl - / Ctrl 0")
             if ch and np.isfinite(v):
                 self.set_ui_scale(v)
             r = s.render
