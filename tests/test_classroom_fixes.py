@@ -264,3 +264,51 @@ def test_counts_are_singular_and_plural():
 
     assert _count(1, "light") == "1 light" and _count(2, "light") == "2 lights"
     assert _count(12345, "triangle") == "12,345 triangles" and _count(0, "object") == "0 objects"
+
+
+# ----------------------------------------------------------------------------- term views
+
+@pytest.mark.parametrize("view", ["F", "D", "G", "N.L", "f cos"])
+def test_term_scale_round_trips_and_ticks_are_ordered(view):
+    from viewer import termview
+
+    t = np.linspace(0.0, 1.0, 11)
+    assert np.allclose(termview.to_t(view, termview.from_t(view, t)), t)
+    ticks = termview.ticks(view)
+    assert ticks[0] == (0.0, "0") and all(b[0] > a[0] for a, b in zip(ticks, ticks[1:]))
+    assert len(ticks) >= 3
+
+
+def test_fcos_view_is_false_colour_on_its_scale(renderer):
+    """The f cos view was grey radiance; now each pixel is the ramp colour of its value's scale
+    position: the shaded image's f cos on a Lambert sphere (albedo / pi x cos) comes back from
+    the colours through the numpy twin of the ramp."""
+    from viewer import termview
+    from viewer.gl.renderer import VIEW_MODES
+    from viewer.scene import load_scene
+
+    s = load_scene("sphere", ["render.msaa=0", "render.shadows=false"])
+    lin, _ = renderer.render_arrays(s, width=W, height=H, view_mode=VIEW_MODES["f cos"])
+    ramp_t = np.linspace(0.0, 1.0, 1001)
+    ramp = termview.false_colour(ramp_t)
+    centre = lin[H // 2, W // 2]
+    t = ramp_t[np.argmin(np.sum((ramp - centre) ** 2, axis=-1))]
+    assert not np.allclose(centre, centre.mean(), atol=0.02)  # not grey
+    # the centre of the sphere faces the camera; f cos = albedo / pi * cos theta_i there
+    ndotl_lin, _ = renderer.render_arrays(s, width=W, height=H, view_mode=VIEW_MODES["N.L"])
+    ti = ramp_t[np.argmin(np.sum((ramp - ndotl_lin[H // 2, W // 2]) ** 2, axis=-1))]
+    expect = 0.8 / np.pi * termview.from_t("N.L", ti)
+    assert termview.from_t("f cos", t) == pytest.approx(expect, rel=0.05, abs=0.005)
+
+
+def test_render_term_view_has_a_colour_bar(tmp_path):
+    from PIL import Image
+
+    from viewer import cli
+
+    out = tmp_path / "f.png"
+    assert cli.main(["render", "gallery", "--view", "F", "--out", str(out), "--width", "96", "--height", "54"]) == 0
+    im = np.asarray(Image.open(out).convert("RGB"))
+    assert im.shape[0] > 54 and im.shape[1] == 96
+    bar_row = im[54 + 2 + 2]
+    assert bar_row[2, 2] < bar_row[-3, 0]  # the ramp runs from blue to red
