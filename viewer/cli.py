@@ -9,8 +9,10 @@ import time
 from viewer import ViewerError
 
 COMMANDS = ("render", "reference", "compare", "plot", "models")
-HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer plot MODEL "
-                 "--kind polar --out plot.png | brdf-viewer models (see README)")
+HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
+                 "brdf-viewer reference SCENE --spp 64 --out ref.png | brdf-viewer compare SCENE --spp 64 "
+                 "--out folder | brdf-viewer plot MODEL --kind polar --out plot.png | brdf-viewer models "
+                 "(SCENE: a .toml file, a built-in name or lecture:N; see README)")
 
 
 def _parser_window() -> argparse.ArgumentParser:
@@ -154,6 +156,42 @@ def cmd_plot(args) -> int:
     return 0
 
 
+class ProgressBar:
+    """A progress line on stderr: redrawn in place on a terminal; elsewhere (a log file, a CI
+    job) one plain line every ``every_s`` seconds and at 100%, so logs do not fill with
+    carriage-return redraws."""
+
+    def __init__(self, label: str, start: float, stream=None, every_s: float = 5.0):
+        self.label, self.start, self.every_s = label, start, every_s
+        self.stream = stream if stream is not None else sys.stderr
+        isatty = getattr(self.stream, "isatty", None)
+        self.tty = bool(isatty and isatty())
+        self._last = None
+        self._wrote = False
+
+    def __call__(self, frac: float):
+        now = time.perf_counter()
+        n = int(30 * frac)
+        text = f"{self.label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}% {now - self.start:6.1f} s"
+        if self.tty:
+            self.stream.write("\r" + text)
+            self._wrote = True
+        elif self._last is None or now - self._last >= self.every_s or frac >= 1.0:
+            if frac >= 1.0 and self._last is not None and self._done:
+                return
+            self.stream.write(text + "\n")
+            self._last = now
+            self._done = frac >= 1.0
+        self.stream.flush()
+
+    _done = False
+
+    def end(self):
+        if self.tty and self._wrote:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
 def _parser_models() -> argparse.ArgumentParser:
     return argparse.ArgumentParser(prog="brdf-viewer models",
                                    description="List every BRDF model with its parameters, ranges and defaults.")
@@ -189,10 +227,24 @@ def cmd_render(args) -> int:
         raise ViewerError(f"--supersample: {args.supersample} is out of range; allowed: 1 to 8")
     linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view],
                                           supersample=args.supersample)
+    from viewer import termview
+
+    if args.view in termview.SCALES:  # false colour: no exposure or tone mapping, a colour bar below
+        from viewer.colour import to_srgb8
+
+        srgb = termview.with_colour_bar(to_srgb8(linear, 0.0, "none"), args.view)
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera))
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
+    from viewer.finite import culprits, nonfinite_count, nonfinite_message, render_switches
+
+    if nonfinite_count(linear):  # a renderer bug: say where it came from and fail
+        found = culprits(scene, lambda s: renderer.render_arrays(s, camera, view_mode=VIEW_MODES[args.view],
+                                                                 supersample=args.supersample)[0])
+        print("brdf-viewer: error: " + nonfinite_message(linear, f"render {args.scene}", found,
+                                                         render_switches(scene)), file=sys.stderr)
+        return 3
     return 0
 
 
@@ -223,17 +275,12 @@ def cmd_reference(args) -> int:
         renderer.warm_up()
         start = time.perf_counter()
 
-        def bar(frac):
-            n = int(30 * frac)
-            sys.stderr.write(f"\rreference [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}% "
-                             f"{w}x{h} {args.spp} spp {time.perf_counter() - start:6.1f} s")
-            sys.stderr.flush()
-
+        bar = ProgressBar(f"reference {w}x{h} {args.spp} spp", start)
         bar(0.0)
         try:
             renderer.step(args.spp, progress=bar)
         finally:  # an error message starts on its own line, not after the bar
-            sys.stderr.write("\n")
+            bar.end()
         wall = time.perf_counter() - start
         linear = renderer.mean()
         bad = renderer.bad_values

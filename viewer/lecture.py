@@ -113,12 +113,15 @@ TOUR: tuple[Step, ...] = (
 )
 
 
+def step_label(index: int) -> str:
+    """How step ``index`` (0-based) is named in messages: ``<lecture 3: tir>``."""
+    i = index % len(TOUR)
+    return f"<lecture {i + 1}: {TOUR[i].key}>"
+
+
 def tour_scene(index: int, load_meshes: bool = True):
-    """The tour's step ``index`` (0-based) as a validated ``Scene``."""
-    import tomllib
+    """The tour's step ``index`` (0-based) as a validated ``Scene``; the same as the built-in
+    scene name ``lecture:{index + 1}`` (``viewer.scene.load_scene``)."""
+    from viewer.scene import load_scene
 
-    from viewer.scene import SCENE_DIR, parse_scene
-
-    step = TOUR[index % len(TOUR)]
-    label = f"<lecture {index % len(TOUR) + 1}: {step.key}>"
-    return parse_scene(tomllib.loads(step.toml), None, label=label, base_dir=SCENE_DIR, load_meshes=load_meshes)
+    return load_scene(f"lecture:{index % len(TOUR) + 1}", load_meshes=load_meshes)

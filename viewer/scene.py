@@ -116,6 +116,10 @@ class Light:
         return _equal(self, other)
 
 
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance of linear RGB
+MID_GREY = 0.18
+
+
 @dataclass(eq=False)
 class Environment:
     """Light from infinitely far away: ``intensity * constant`` (RGB radiance from every
@@ -166,6 +170,34 @@ class Environment:
         img.setflags(write=False)
         cache[key] = img
         return img
+
+    def mean_luminance(self) -> float:
+        """The solid-angle mean of the Rec.709 luminance over the sphere of directions, before
+        ``intensity``: the radiance a white Lambert surface facing a uniform environment of the
+        same average shows (exact for a constant environment). Lat-long rows weigh sin(theta)."""
+        if self.map is None:
+            c = np.zeros(3) if self.constant is None else np.asarray(self.constant, float)
+            return float(c @ LUMINANCE)
+        cache = self.__dict__.setdefault("_map_cache", {})
+        key = ("mean_luminance", str(self.map))
+        if key not in cache:
+            img = self.radiance_map()
+            lum = np.asarray(img, np.float64) @ LUMINANCE
+            h = lum.shape[0]
+            w = np.sin((np.arange(h) + 0.5) / h * np.pi)
+            mean = float((lum.mean(axis=1) * w).sum() / w.sum())
+            cache[key] = mean / self.intensity if self.intensity > 0 else 0.0
+        return cache[key]
+
+    def mid_grey_intensity(self) -> float | None:
+        """The ``intensity`` that puts the mean luminance at mid-grey (``MID_GREY`` = 0.18, the
+        photographic key of Reinhard et al. 2002) at exposure 0, so a diffuse white object under
+        the map reads about mid-grey. The mean rather than the median: the built-in studio is a
+        dark room (median 0.021) lit by small panels, and its median at mid-grey would put those
+        at ~170, a white screen; the sky's mean (12.2 kcd/m^2) gives 0.0148. None for a black
+        environment."""
+        m = self.mean_luminance()
+        return MID_GREY / m if m > 0 and np.isfinite(m) else None
 
     def _load_map(self, width: int, height: int) -> np.ndarray:
         from viewer.environment import procedural
@@ -463,6 +495,31 @@ def builtin_scene_names() -> list[str]:
     return names
 
 
+LECTURE_NAME = re.compile(r"lecture:(\S*)")  # lecture:N, N = 1 .. the number of lecture steps
+
+
+def lecture_scene_names() -> list[str]:
+    """``lecture:1`` .. ``lecture:N``: the lecture tour's steps as built-in scene names."""
+    from viewer.lecture import TOUR
+
+    return [f"lecture:{i + 1}" for i in range(len(TOUR))]
+
+
+def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
+    from viewer.lecture import TOUR, step_label
+
+    n = len(TOUR)
+    text = m.group(0)
+    allowed = f"lecture:1 .. lecture:{n} (the lecture tour's steps, 1-based)"
+    if not m.group(1).isdigit():
+        _Checker(text).fail("scene", f"{m.group(1)!r} is not a step number", allowed)
+    i = int(m.group(1))
+    if not 1 <= i <= n:
+        _Checker(text).fail("scene", f"step {i} is out of range", allowed)
+    data = _loads(TOUR[i - 1].toml, step_label(i - 1))
+    return parse_scene(data, None, overrides, label=step_label(i - 1), base_dir=SCENE_DIR, load_meshes=load_meshes)
+
+
 def _builtin_label(name: str) -> str:
     return f"<built-in {name}>"
 
@@ -474,6 +531,7 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
 
     ``ref`` None loads the built-in ``default``; a string without a path separator and without
     a ``.toml`` suffix that names a built-in scene (``builtin_scene_names()``) loads that one;
+    ``lecture:N`` loads the lecture tour's step N (1-based; ``lecture_scene_names()``);
     anything else is a file path. ``overrides`` are ``KEY=VALUE`` assignments (``--set``)
     applied before validation. Raises ``ViewerError`` (one line) on any problem.
     """
@@ -483,6 +541,9 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     seps = {"/", os.sep} | ({os.altsep} if os.altsep else set())
     is_bare = isinstance(ref, str) and not any(s in text for s in seps) and not text.endswith(".toml")
     builtins = builtin_scene_names()
+    m = LECTURE_NAME.fullmatch(text) if is_bare else None
+    if m is not None:
+        return _lecture_scene(m, overrides, load_meshes)
     if is_bare and text in builtins:
         file = SCENE_DIR / f"{text}.toml"
         label = _builtin_label(text)
@@ -492,7 +553,8 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     label = text
     problem = path_problem(path)
     if problem == "file not found":
-        hint = "a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+        hint = ("a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+                + ", lecture:1 .. lecture:" + str(len(lecture_scene_names())))
         if is_bare:
             _Checker(label).fail("scene", "no such built-in scene or file", hint)
         _Checker(label).fail("file", "not found", hint)
@@ -590,8 +652,14 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
     base_dir = Path(base_dir).absolute()
     _check_nesting(data, label)  # before deepcopy, which recurses (a --set value is checked as parsed)
     data = copy.deepcopy(data)
+    # a material's model or preset set by --set starts that material afresh (the model's defaults,
+    # the preset's values); the other assignments apply after it, whatever their order
+    firsts = [a for a in overrides if _is_material_switch(a)]
+    for a in firsts:
+        _switch_material(data, a)
     for a in overrides:
-        apply_override(data, a)
+        if a not in firsts:
+            apply_override(data, a)
     ck = _Checker(label)
     ck.table(data, "", TOP_KEYS, what="section")
 
@@ -869,6 +937,32 @@ def _parse_value(text: str):
         return text
     _check_nesting(value, f"--set value {_short(text)}")
     return value
+
+
+def _override_parts(assignment: str) -> list[str]:
+    key = assignment.split("=", 1)[0] if "=" in assignment else ""
+    return _INDEX.sub(r".\1", key.strip()).split(".")
+
+
+def _is_material_switch(assignment: str) -> bool:
+    """``materials.NAME.model=...`` or ``materials.NAME.preset=...`` (also a nested material's,
+    ``materials.NAME.base.model=...``)."""
+    parts = _override_parts(assignment)
+    return len(parts) >= 3 and parts[0] == "materials" and parts[-1] in ("model", "preset") and all(parts)
+
+
+def _switch_material(data: dict, assignment: str) -> None:
+    """Apply a model / preset assignment and drop every other value of that material table, so
+    the material becomes the model's defaults or the preset."""
+    parts = _override_parts(assignment)
+    apply_override(data, assignment)  # checks the path, sets the value
+    cur: Any = data
+    for p in parts[:-1]:
+        cur = cur[int(p)] if isinstance(cur, list) else cur[p]
+    if isinstance(cur, dict):
+        value = cur[parts[-1]]
+        cur.clear()
+        cur[parts[-1]] = value
 
 
 def apply_override(data: dict, assignment: str, where: str = "--set") -> None:

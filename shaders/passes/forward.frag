@@ -241,6 +241,7 @@ void main() {
             radiance += rho_t * exp(-u_sigma_a * d) * ENV_PREFILTERED(normalize(t_out), u_ibl_alpha);
         }
     }
+#endif  // ENV_LIGHT
 #ifdef SSR
     {
         // the same table lookup as the environment block, also when the environment is off
@@ -255,18 +256,20 @@ void main() {
         frag_geom = vec4(n, -(u_view * vec4(v_position, 1.0)).z);
     }
 #endif
-#endif
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);
     } else if (u_view_mode <= 3) {
         float v = first_terms[u_view_mode - 1];
-        // F in [0,1]; D and G shown on a log-ish scale so peaks and tails are both visible
+        // F and G in [0,1]; D on log(1 + D) / log(101) so peaks and tails are both visible
+        // (the scales and colour bars: viewer/termview.py)
         float t = u_view_mode == 2 ? log(1.0 + max(v, 0.0)) / log(1.0 + 100.0) : v;
         frag_color = vec4(v < 0.0 ? vec3(0.25) : false_colour(t), 1.0);
     } else if (u_view_mode == 4) {
         frag_color = vec4(false_colour(first_ndotl), 1.0);
     } else if (u_view_mode == 5) {
-        frag_color = vec4(first_fcos, 1.0);
+        // f cos theta_i of the first light, its luminance on a log scale up to 10 (viewer/termview.py)
+        float v = max(dot(first_fcos, vec3(0.2126, 0.7152, 0.0722)), 0.0);
+        frag_color = vec4(false_colour(log(1.0 + 10.0 * v) / log(1.0 + 100.0)), 1.0);
     } else {
         frag_color = vec4(vec3(first_visibility), 1.0);  // light 0 visibility (shadow map)
     }

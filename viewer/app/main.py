@@ -25,6 +25,11 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 PANEL_WIDTH = 360
 
 
+def _count(n: int, noun: str) -> str:
+    """'1 light', '2 lights', '12,345 triangles'."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
+
+
 class App:
     def __init__(self, scene_ref=None, overrides=(), size=None, title="brdf-viewer", restore_state: bool = True):
         import glfw
@@ -44,8 +49,9 @@ class App:
         if size is None:
             size = (self._state.get("window_width", 1280), self._state.get("window_height", 720))
         if not glfw.init():
-            raise GLUnavailable("cannot initialise glfw (no display?); headless commands: "
-                                "brdf-viewer render SCENE --out img.png")
+            from viewer.cli import HEADLESS_HINT
+
+            raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")
         glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, GL_REQUIRED // 100)
         glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, (GL_REQUIRED % 100) // 10)
         glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -53,8 +59,10 @@ class App:
         self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
         if not self.window:
             glfw.terminate()
+            from viewer.cli import HEADLESS_HINT
+
             raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
-                                "(update the graphics driver); headless: brdf-viewer render SCENE --out img.png")
+                                f"(update the graphics driver); {HEADLESS_HINT}")
         if "window_x" in self._state and "window_y" in self._state:
             glfw.set_window_pos(self.window, self._state["window_x"], self._state["window_y"])
         glfw.make_context_current(self.window)
@@ -109,6 +117,11 @@ class App:
 
         self._warm = list(brdf.names())
         self.screenshot_dir = Path.cwd()
+        from viewer.scene import LECTURE_NAME
+
+        m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
+        if m is not None:  # opened as lecture:N: lecture mode at that step
+            self._enter_step(int(m.group(1)) - 1)
 
     # ------------------------------------------------------------------ lifecycle
     def request_close(self, *_):
@@ -232,6 +245,8 @@ class App:
                 except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
                     self.status = str(e)
                 self.ctx.finish()
+                if not interacting and self.hdr is not None:
+                    self._check_finite(self.hdr)
                 self.raster_version += 1
                 self.render_ms = 1000 * (time.perf_counter() - t1)
                 self._hdr_for = (rw_full, rh_full)
@@ -270,6 +285,26 @@ class App:
             self.first_frame_s = time.perf_counter() - self.t_start
             print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
+
+    _nonfinite_said = None
+
+    def _check_finite(self, hdr):
+        """Say in one line (status toast and stderr, once per distinct message) when the view
+        holds NaN or Inf pixels: a renderer bug the class would see as holes."""
+        from viewer.finite import nonfinite_message, render_switches
+
+        try:
+            img = self.renderer.read_linear(hdr)
+        except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
+            return
+        msg = nonfinite_message(img, f"view of {self.scene.label}", (), render_switches(self.scene))
+        self.nonfinite = msg
+        if msg and msg != self._nonfinite_said:
+            self.status = msg
+            print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
+        self._nonfinite_said = msg
+
+    nonfinite = None
 
     def _handle_input(self):
         imgui = self.imgui
@@ -356,7 +391,8 @@ class App:
         if imgui.collapsing_header("Scene", imgui.TreeNodeFlags_.default_open):
             imgui.text(f"file: {s.label}")
             tris = sum(len(o.mesh_data.indices) for o in s.objects)
-            imgui.text(f"{len(s.objects)} objects, {tris:,} triangles, {len(s.lights)} lights")
+            imgui.text(f"{_count(len(s.objects), 'object')}, {_count(tris, 'triangle')}, "
+                       f"{_count(len(s.lights), 'light')}")
             imgui.text(f"render {self.render_ms:.1f} ms, frame {self.frame_ms:.1f} ms")
             imgui.text_wrapped(f"GL: {self.ctx.info['GL_RENDERER']}")
             if imgui.button("Reset camera (R)"):
@@ -398,7 +434,9 @@ class App:
             ch, v = imgui.checkbox("BRDF plots (P)", self.plots.visible)
             if ch:
                 self.plots.visible = v
-            ch, v = imgui.slider_float("UI scale (Ctrl +/-)", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            ch, v = imgui.slider_float("UI scale", float(self.ui_scale), 0.5, 3.0, "%.2f")
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Ctrl + / Ctrl - / Ctrl 0")
             if ch and np.isfinite(v):
                 self.set_ui_scale(v)
             r = s.render
@@ -576,16 +614,23 @@ class App:
             self.status = f"lecture step {step + 1} not loaded: {e}"
             return False
         self._set_scene(scene)
+        self._enter_step(step)
+        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
+        return True
+
+    def _enter_step(self, step: int):
+        """Lecture mode on at ``step`` for the scene already shown: the matching plot."""
+        from viewer.lecture import TOUR
+
         self.lecture_step = step
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
                "bouguer": "Bouguer"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
+            self.plots.visible = True  # the step's plot beside its scene
         self.plots.inside = TOUR[step].key == "tir"  # the critical angle needs light from inside
-        for name in scene.materials:  # plot the step's subjects, not the floor under them
+        for name in self.scene.materials:  # plot the step's subjects, not the floor under them
             self.plots.shown[name] = name != "floor"
-        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
-        return True
 
     def _lecture_panel(self):
         from viewer.lecture import TOUR
@@ -952,6 +997,13 @@ class App:
         if ch and np.isfinite(v) and v >= 0:
             env.intensity = float(v)
             self.dirty = True
+        auto = env.mid_grey_intensity() if env.map is not None else None
+        if auto is not None:
+            if imgui.button("mid-grey"):
+                env.intensity = float(auto)
+                self.dirty = True
+            imgui.same_line()
+            imgui.text_disabled(f"intensity {auto:.3g}: mean luminance -> 0.18")
         ch, v = imgui.slider_float("rotation (deg)", float(env.rotation_deg), -180.0, 180.0)
         if ch and np.isfinite(v):
             env.rotation_deg = float(v)
@@ -995,6 +1047,12 @@ class App:
                 return False
         self.scene.environment = new
         self.status = f"environment: {ref or 'constant'}"
+        if new.map is not None:  # a map's own units (the sky is in kcd/m^2): start at mid-grey
+            auto = new.mid_grey_intensity()
+            if auto is not None:
+                new.intensity = float(auto)
+                self.status += (f" (intensity {auto:.3g}: mean luminance {new.mean_luminance():.3g} -> mid-grey "
+                                "0.18; edit it under Environment)")
         self.dirty = True
         return True
 

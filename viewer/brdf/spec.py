@@ -197,7 +197,8 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         bad = (~np.isfinite(arr)) | ((arr < param.lo) if param.lo is not None else False) | (
             (arr > param.hi) if param.hi is not None else False)
         if np.any(bad):
-            raise ViewerError(f"{where}: {list(arr)} is out of range; allowed: {param.allowed()}")
+            shown = ", ".join(f"{float(x):g}" for x in np.ravel(arr))
+            raise ViewerError(f"{where}: [{shown}] is out of range; allowed: {param.allowed()}")
         return arr
     if k == "choice":
         if value not in param.choices:
