@@ -21,6 +21,7 @@ import pytest
 
 from viewer import brdf
 from viewer.brdf.fresnel import fresnel_dielectric
+from viewer.brdf.glsl import glsl_u
 from viewer.brdf.sampling import split_uniform
 
 from brdf_harness import chi2_test, direction, param_grid, random_upper, sidak, test_param_sets, write_chi2_images
@@ -64,14 +65,20 @@ def _is_delta(p) -> bool:
 
 
 def _uses_split(p) -> bool:
-    """The numpy sample splits u[:, 0] into (choice, continuous) with split_uniform."""
-    return p.model == "layered" or (p.model == "dielectric" and p.alpha > 0)
+    """The numpy sample splits u[:, 0] into (choice, continuous) with split_uniform (the model's
+    ``splits_u`` hook, which viewer.brdf.glsl.glsl_u follows)."""
+    hook = getattr(brdf.get(p.model).module, "splits_u", None)
+    return bool(hook and hook(p))
+
+
+# beyond the (energy-conserving) grid: a measured-fit style Lafortune lobe with |C| > 1
+EXTRA = {"lafortune": [{"kd": [0.1, 0.1, 0.1], "lobes": [{"cx": -2.0, "cy": -2.0, "cz": 2.0, "n": 3.0}]}]}
 
 
 def _grid(model, every):
     sets = param_grid(model)
     sets = sets[::every] + list(test_param_sets(model).values())
-    return sets
+    return sets + [model.params(**kw) for kw in EXTRA.get(model.name, [])]
 
 
 def _pairs(rng, n, transmissive):
@@ -129,8 +136,8 @@ def _check_twin(name, p, evaluator, sampler, rng, n=2000):
     wo = _f32(wo)
     u2 = np.minimum(_f32(rng.random((n, 2))), F32_ONE_MINUS)
     if _uses_split(p):
-        uc, u0 = split_uniform(u2[:, 0])
-        u3 = np.stack([u0, u2[:, 1], uc], axis=1)
+        u3 = glsl_u(p, u2)
+        assert np.array_equal(u3[:, [2, 0]], np.stack(split_uniform(u2[:, 0]), axis=1))
     else:
         u3 = np.concatenate([u2, rng.random((n, 1))], axis=1)  # u.z must be ignored
     u3 = np.minimum(_f32(u3), F32_ONE_MINUS)
