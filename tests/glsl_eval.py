@@ -22,13 +22,35 @@ _FRAG = """#version 410 core
 uniform sampler2D u_wi;
 uniform sampler2D u_wo;
 uniform int u_model;
-uniform int u_what;  // 0 eval, 1 terms
+uniform int u_what;  // 0 eval, 1 terms, 2 pdf
 out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec3 wi = texelFetch(u_wi, px, 0).xyz;
     vec3 wo = texelFetch(u_wo, px, 0).xyz;
-    color = vec4(u_what == 0 ? brdf_eval(u_model, 0, wi, wo) : brdf_terms(u_model, 0, wi, wo), 1.0);
+    vec3 v = u_what == 0 ? brdf_eval(u_model, 0, wi, wo)
+           : (u_what == 1 ? brdf_terms(u_model, 0, wi, wo) : vec3(brdf_pdf(u_model, 0, wi, wo)));
+    color = vec4(v, 1.0);
+}
+"""
+
+# brdf_sample: wo and u in, (wi, pdf) and (weight, discrete) out through two float32 targets.
+_FRAG_SAMPLE = """#version 410 core
+#include "brdf/dispatch.glsl"
+uniform sampler2D u_wo;
+uniform sampler2D u_u;
+uniform int u_model;
+layout(location = 0) out vec4 out_wi_pdf;
+layout(location = 1) out vec4 out_weight;
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec3 wo = texelFetch(u_wo, px, 0).xyz;
+    vec3 u = texelFetch(u_u, px, 0).xyz;
+    vec3 wi;
+    float pdf;
+    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf);
+    out_wi_pdf = vec4(wi, pdf);
+    out_weight = vec4(w, brdf_sample_is_discrete(u_model, 0, wi, wo, pdf) ? 1.0 : 0.0);
 }
 """
 
@@ -77,3 +99,61 @@ class GLSLEvaluator:
             out.release()
             twi.release()
             two.release()
+
+
+class GLSLSampler:
+    """``brdf_sample`` on the GPU path: (wo, u) in as float textures, (wi, weight, pdf,
+    discrete) back from two float32 render targets, in chunks of at most CHUNK rows."""
+
+    WIDTH = 1024
+    CHUNK = 1024 * 256
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE)
+        self.vao = ctx.vertex_array(self.prog, [])
+
+    def _tex(self, a, w, h):
+        data = np.zeros((h * w, 4), dtype="f4")
+        data[: len(a), : a.shape[1]] = a
+        t = self.ctx.texture((w, h), 4, data.tobytes(), dtype="f4")
+        t.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+        return t
+
+    def sample(self, params, wo, u):
+        """(wi (N, 3), weight (N, 3), pdf (N,), discrete (N,) bool), float64 copies of the float32
+        results for float32-rounded wo (N, 3) and u (N, 3)."""
+        wo = np.broadcast_to(np.asarray(wo, dtype=np.float64), (len(u), 3))
+        out = [self._chunk(params, wo[s:s + self.CHUNK], u[s:s + self.CHUNK])
+               for s in range(0, len(u), self.CHUNK)]
+        return tuple(np.concatenate(parts) for parts in zip(*out))
+
+    def _chunk(self, params, wo, u):
+        n = len(u)
+        w = self.WIDTH
+        h = (n + w - 1) // w
+        two, tu = self._tex(wo, w, h), self._tex(u, w, h)
+        a = self.ctx.texture((w, h), 4, dtype="f4")
+        b = self.ctx.texture((w, h), 4, dtype="f4")
+        fbo = self.ctx.framebuffer(color_attachments=[a, b])
+        try:
+            idx, block = uniform_block(params)
+            self.prog["u_model"].value = idx
+            um = self.prog["u_mat"]
+            um.write(block[: um.array_length * 4].tobytes())
+            two.use(0)
+            tu.use(1)
+            self.prog["u_wo"].value = 0
+            self.prog["u_u"].value = 1
+            fbo.use()
+            fbo.viewport = (0, 0, w, h)
+            self.vao.render(vertices=3)
+            ra = np.frombuffer(a.read(), dtype="f4").reshape(h * w, 4)[:n].astype(np.float64)
+            rb = np.frombuffer(b.read(), dtype="f4").reshape(h * w, 4)[:n].astype(np.float64)
+            return ra[:, :3], rb[:, :3], ra[:, 3], rb[:, 3] > 0.5
+        finally:
+            fbo.release()
+            a.release()
+            b.release()
+            two.release()
+            tu.release()

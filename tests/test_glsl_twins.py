@@ -108,3 +108,18 @@ def test_term_views_match_python(evaluator):
     F = fresnel_schlick(np.sum(h * wo, axis=1)[:, None], p.rs[None, :]).mean(axis=1)
     assert np.allclose(got[:, 0], F, rtol=1e-4, atol=1e-6)
     assert np.all(got[:, 2] == -1.0)
+
+
+def test_lafortune_lobe_with_c_above_one(evaluator):
+    """A lobe with |C| > 1 (measured fits are not normalized): L = 1 - |C o wo|^2 < 0, where
+    log(1 - L) must not take the small-x series (it diverges for L <= -1)."""
+    m = brdf.get("lafortune")
+    p = m.params(kd=[0.0, 0.0, 0.0], lobes=[{"cx": -2.0, "cy": -2.0, "cz": 2.0, "n": 3.0},
+                                             {"cx": -1.3, "cy": -1.1, "cz": 1.2, "n": 10.0}])
+    rng = np.random.default_rng(3)
+    wi, wo = np.abs(_random_dirs(rng, 500)), np.abs(_random_dirs(rng, 500))
+    wi = wi.astype(np.float32).astype(np.float64)
+    wo = wo.astype(np.float32).astype(np.float64)
+    ref = m.eval(p, wi, wo)
+    assert ref.max() > 1.0
+    np.testing.assert_allclose(evaluator.eval(p, wi, wo), ref, rtol=1e-4, atol=1e-6)

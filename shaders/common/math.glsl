@@ -31,11 +31,12 @@ vec3 normalize_safe(vec3 v) {
     return v * inversesqrt(dot(v, v));
 }
 
-// log(1 - x) for x in [0, 1). Near 0 (sharp lobes: x = 1 - cos tiny) the series keeps full
+// log(1 - x) for x < 1. Near 0 (sharp lobes: x = 1 - cos tiny) the series keeps full
 // relative precision, where rounding 1 - x first would cost n ulps in cos^n (6e-4 relative at
-// n = 10000 in float32). -(x + x^2/2 + ... + x^12/12); the first dropped term is < 1e-9 relative.
+// n = 10000 in float32). -(x + x^2/2 + ... + x^12/12) for |x| < 0.2 (the first dropped term is
+// < 1e-9 relative); the series diverges for x <= -1 (Lafortune's L = 1 - |C o wo|^2 < 0 when |C| > 1).
 float log1m(float x) {
-    if (x < 0.2) {
+    if (abs(x) < 0.2) {
         float s = 1.0 / 12.0;
         s = 1.0 / 11.0 + x * s; s = 1.0 / 10.0 + x * s; s = 1.0 / 9.0 + x * s;
         s = 1.0 / 8.0 + x * s;  s = 1.0 / 7.0 + x * s;  s = 1.0 / 6.0 + x * s;

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 TABLE_SIZE = 32
+N_SIDE = 24  # n_side^2 = 576 multi-jittered samples per azimuth
+PHIS = (0.0, np.pi / 4, np.pi / 2, 3 * np.pi / 4)  # azimuths of wo averaged over
 
 
 def stratified_u(n_side: int, seed: int = 0) -> np.ndarray:
@@ -26,8 +28,7 @@ def stratified_u(n_side: int, seed: int = 0) -> np.ndarray:
     return np.clip(u, 0.0, np.nextafter(1.0, 0.0))
 
 
-def directional_albedo(model, p, cos_o, n_side: int = 24, phis=(0.0, np.pi / 4, np.pi / 2, 3 * np.pi / 4),
-                       split: bool = False):
+def directional_albedo(model, p, cos_o, n_side: int = N_SIDE, phis=PHIS, split: bool = False):
     """(len(cos_o), 3) albedo averaged over the azimuths ``phis`` (anisotropic models vary with
     the azimuth of wo; isotropic ones do not). With ``split``: (reflected, transmitted) parts,
     by the side of the surface the sampled wi lies on."""

@@ -187,3 +187,9 @@ def sample(p, wo, u):
 def ibl_split(p):
     """Image-based lighting: reflection and transmission are both specular lobes of width alpha."""
     return p, float(p.alpha)
+
+
+def splits_u(p):
+    """The rough interface's sample splits u[:, 0] into the Fresnel choice and the direction
+    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.brdf.glsl.glsl_u)."""
+    return not _is_smooth(p)

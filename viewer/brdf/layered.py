@@ -211,3 +211,9 @@ def ibl_split(p):
     from viewer import brdf
 
     return p.replace(base=brdf.get("lambert").params(albedo=[0.0, 0.0, 0.0])), float(p.coating["alpha"])
+
+
+def splits_u(p):
+    """The sample splits u[:, 0] into the coat-or-base choice and the direction
+    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.brdf.glsl.glsl_u)."""
+    return True

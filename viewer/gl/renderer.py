@@ -154,6 +154,9 @@ class Renderer:
         self._shadow_mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._shadow_texel = np.zeros(MAX_LIGHTS)
         self._albedo_cache: dict[str, tuple] = {}
+        self.gpu_albedo = True  # albedo tables with the GLSL samplers (False: the numpy builder)
+        self._albedo_gpu = None
+        self.albedo_gpu_error: ShaderError | None = None
         self._thick = None
         self._ibl = None
         self._ssr = None
@@ -313,6 +316,13 @@ class Renderer:
         fails keeps the old one in use. Never raises ShaderError. ``last_reloaded`` lists the
         keys of the programs replaced."""
         changed = None if changed is None else {str(c).replace("\\", "/") for c in changed}
+        if changed is None or any(c.startswith(("brdf/", "common/")) for c in changed):
+            # the albedo tables come from the GLSL samplers: rebuild them from the new files
+            if self._albedo_gpu is not None:
+                self._albedo_gpu.release()
+                self._albedo_gpu = None
+            self._albedo_cache.clear()
+            self.albedo_gpu_error = None
         self.last_reloaded = []
         self._render_error = None  # the next render tries again
         for key, recipe, install in self._reload_slots():
@@ -502,13 +512,13 @@ class Renderer:
             from viewer import brdf
 
             model = brdf.get(params.model)
-            r, t = albedo_tables(model, params)
+            r, t = self._albedo_pair(model, params)
             split = getattr(model.module, "ibl_split", None)
             if split is None:
                 spec, alpha = np.zeros_like(r), 1.0
             else:
                 spec_params, alpha = split(params)
-                spec = r if spec_params is params else albedo_tables(model, spec_params)[0]
+                spec = r if spec_params is params else self._albedo_pair(model, spec_params)[0]
             spec = np.minimum(spec, r)
             tables = (r.astype("f4"), t.astype("f4"), spec.astype("f4"), float(alpha),
                       _ms_f0(spec[-1], alpha, (TABLE_SIZE - 0.5) / TABLE_SIZE))
@@ -516,6 +526,21 @@ class Renderer:
                 self._albedo_cache.clear()
             self._albedo_cache[key] = tables
         return tables
+
+    def _albedo_pair(self, model, params):
+        """(reflected, transmitted) albedo tables: on the GPU with the GLSL samplers
+        (viewer/gl/albedo_gpu.py, the same estimator and points as the numpy builder), or with
+        numpy where ``gpu_albedo`` is off or the sampling program fails to compile."""
+        if self.gpu_albedo:
+            try:
+                if self._albedo_gpu is None:
+                    from viewer.gl.albedo_gpu import GPUAlbedoTables
+
+                    self._albedo_gpu = GPUAlbedoTables(self.ctx)
+                return self._albedo_gpu.tables(params)
+            except ShaderError as e:  # e.g. a family file being edited: numpy still knows the model
+                self.albedo_gpu_error = e
+        return albedo_tables(model, params)
 
     # ---------------------------------------------------------------- passes
     def ibl(self):
@@ -580,6 +605,9 @@ class Renderer:
             thickness = self._thickness_pass(absorbers, cam, w, h)
         ibl = self.ibl()
         ibl.set_environment(env_map, constant=None if env_map is not None else env_rad)
+        if ssr_on or (scene.render.ibl != "off" and (env_map is not None or bool(np.any(env_rad > 0)))):
+            for obj in scene.objects:  # before the forward pass: a GPU table build binds its own targets
+                self.albedo_tables(scene.materials[obj.material])
         fbo = targets["draw_fbo"]
         fbo.use()
         fbo.viewport = (0, 0, w, h)
@@ -794,6 +822,9 @@ class Renderer:
             self._ibl.release()
         if self._ssr is not None:
             self._ssr.release()
+        if self._albedo_gpu is not None:
+            self._albedo_gpu.release()
+            self._albedo_gpu = None
         for v in self._fullscreen_vaos.values():
             v.release()
         self._fullscreen_vaos.clear()
