@@ -15,8 +15,23 @@ def gl_ctx():
     from viewer.gl.context import create_offscreen_context
 
     ctx = create_offscreen_context()
+    _SESSION_CONTEXT.append(ctx)
     yield ctx
+    _SESSION_CONTEXT.clear()
     ctx.release()
+
+
+_SESSION_CONTEXT = []
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """In-process ``cli.main(["render", ...])`` creates, uses and releases its own EGL context,
+    which leaves no context current on this thread: later draws through the session's context
+    would read uninitialised memory. Make the session context current again before each test
+    sets up its fixtures (module-scoped ones included)."""
+    for ctx in _SESSION_CONTEXT:
+        ctx.__enter__()
 
 
 @pytest.fixture(scope="session")

@@ -133,34 +133,31 @@ class GPUAlbedoTables:
         ctx = self.ctx
         prog = self._program(params)
         idx, block = uniform_block(params)
-        prev = ctx.fbo
-        try:
-            ctx.disable(ctx.BLEND)
-            # (the compiler drops what a model does not use: e.g. Lambert's weight ignores wo)
-            set_uniform(prog, "u_model", idx)
-            set_uniform(prog, "u_mat", block.tobytes())
-            set_uniform(prog, "u_size", self.size)
-            set_uniform(prog, "u_nphi", len(self.phis))
-            set_uniform(prog, "u_phi", np.array(list(self.phis) + [0.0] * (8 - len(self.phis)), dtype="f4").tobytes())
-            self._pattern(params).use(0)
-            set_uniform(prog, "u_pattern", 0)
-            self._fbo1.use()
-            self._fbo1.viewport = (0, 0, self.count, self.rows)
-            self._vao(prog).render(vertices=3)
-            red = self._reduce
-            self._t1[0].use(0)
-            self._t1[1].use(1)
-            red["u_refl"].value = 0
-            red["u_trans"].value = 1
-            red["u_count"].value = self.count
-            self._fbo2.use()
-            self._fbo2.viewport = (0, 0, 1, self.rows)
-            self._vao(red).render(vertices=3)
-            r = np.frombuffer(self._fbo2.read(components=4, dtype="f4", attachment=0), dtype="f4")
-            t = np.frombuffer(self._fbo2.read(components=4, dtype="f4", attachment=1), dtype="f4")
-        finally:
-            if prev is not None:
-                prev.use()  # the caller's framebuffer and viewport
+        # Binds its own targets and leaves them bound: the framebuffer bound before may already be
+        # released (a finished render's), so callers bind their target again after this call.
+        ctx.disable(ctx.BLEND)
+        # (the compiler drops what a model does not use: e.g. Lambert's weight ignores wo)
+        set_uniform(prog, "u_model", idx)
+        set_uniform(prog, "u_mat", block.tobytes())
+        set_uniform(prog, "u_size", self.size)
+        set_uniform(prog, "u_nphi", len(self.phis))
+        set_uniform(prog, "u_phi", np.array(list(self.phis) + [0.0] * (8 - len(self.phis)), dtype="f4").tobytes())
+        self._pattern(params).use(0)
+        set_uniform(prog, "u_pattern", 0)
+        self._fbo1.use()
+        self._fbo1.viewport = (0, 0, self.count, self.rows)
+        self._vao(prog).render(vertices=3)
+        red = self._reduce
+        self._t1[0].use(0)
+        self._t1[1].use(1)
+        red["u_refl"].value = 0
+        red["u_trans"].value = 1
+        red["u_count"].value = self.count
+        self._fbo2.use()
+        self._fbo2.viewport = (0, 0, 1, self.rows)
+        self._vao(red).render(vertices=3)
+        r = np.frombuffer(self._fbo2.read(components=4, dtype="f4", attachment=0), dtype="f4")
+        t = np.frombuffer(self._fbo2.read(components=4, dtype="f4", attachment=1), dtype="f4")
         n = self.count * len(self.phis)
         r = r.reshape(self.size, len(self.phis), 4)[:, :, :3].sum(axis=1, dtype=np.float64) / n
         t = t.reshape(self.size, len(self.phis), 4)[:, :, :3].sum(axis=1, dtype=np.float64) / n
