@@ -22,9 +22,9 @@ from run import _xvfb  # noqa: E402  (the same private Xvfb as the other figures
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def one_run(env) -> tuple[float, float | None]:
+def one_run(env, root: Path = ROOT) -> tuple[float, float | None]:
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "viewer"], cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+    proc = subprocess.Popen([sys.executable, "-m", "viewer"], cwd=root, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     whole, inside = None, None
     try:
@@ -47,7 +47,10 @@ def one_run(env) -> tuple[float, float | None]:
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--root", default=str(ROOT), help="the source tree to start (default: this one), "
+                                                      "e.g. an older checkout to compare with")
     args = ap.parse_args()
+    root = Path(args.root).resolve()
     xvfb, display = _xvfb()
     if display is None:
         print("start to first frame: skipped (no display and no Xvfb)")
@@ -58,8 +61,8 @@ def main():
             with tempfile.TemporaryDirectory() as state:
                 env = dict(os.environ, DISPLAY=display, XDG_CONFIG_HOME=state,
                            BRDF_VIEWER_STATE=os.path.join(state, "state.toml"),
-                           PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-                w, i = one_run(env)
+                           PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+                w, i = one_run(env, root)
             wholes.append(w)
             insides.append(i)
     finally:
