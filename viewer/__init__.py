@@ -1,12 +1,72 @@
 """brdf-viewer: an OpenGL teaching viewer for reflectance models.
 
-The package is split as DESIGN.md describes: ``scene`` (files and validation), ``mesh``
+The package's layers (docs/architecture.md): ``scene`` (files and validation), ``mesh``
 (trimesh loading and the built-in shapes), ``brdf`` (the registry and the numpy twins of
-every GLSL BRDF), ``gl`` (contexts, shader loading and the renderer), ``app`` (the window).
+every GLSL BRDF), ``pathtracer`` (the CPU reference), ``gl`` (contexts, shader loading and the
+renderer), ``app`` (the window).
+
+For scripts and notebooks (docs/python-api.md)::
+
+    import viewer
+    img = viewer.render("default", width=320, height=180)        # (H, W, 3) float32 radiance
+    ref = viewer.reference("default", spp=16, width=320, height=180)
+
+Importing ``viewer`` is cheap: ``render``, ``reference`` and ``__version__`` load what they need
+on first use.
 """
 
-__version__ = "0.1.0"
+from __future__ import annotations
 
 
 class ViewerError(Exception):
     """A problem with user input (file, field, value) that the CLI reports in one line, exit 2."""
+
+
+def _read_version() -> str:
+    """The version, kept in one place: pyproject.toml. A source checkout reads that file (so a
+    checkout on ``PYTHONPATH`` never reports another install's version); an installed package
+    reads its distribution metadata, which the build copied from it."""
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parent.parent / "pyproject.toml"
+    if pyproject.is_file():
+        try:
+            import tomllib
+        except ModuleNotFoundError:  # Python 3.10
+            import tomli as tomllib
+        try:
+            project = tomllib.loads(pyproject.read_text(encoding="utf-8")).get("project", {})
+            if project.get("name") == "brdf-viewer" and "version" in project:
+                return str(project["version"])
+        except (OSError, ValueError):
+            pass
+    from importlib import metadata
+
+    try:
+        return metadata.version("brdf-viewer")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def render(scene, width=None, height=None, overrides=()):
+    """Rasterize ``scene`` offscreen; (H, W, 3) float32 linear radiance (see viewer.api.render)."""
+    from viewer.api import render as _render
+
+    return _render(scene, width=width, height=height, overrides=overrides)
+
+
+def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(), *, seed=0,
+              max_depth=8, workers=None):
+    """Reference path tracing of ``scene``; (H, W, 3) float32 (see viewer.api.reference)."""
+    from viewer.api import reference as _reference
+
+    return _reference(scene, spp=spp, engine=engine, width=width, height=height, overrides=overrides,
+                      seed=seed, max_depth=max_depth, workers=workers)
+
+
+def __getattr__(name):
+    if name == "__version__":
+        value = _read_version()
+        globals()["__version__"] = value
+        return value
+    raise AttributeError(f"module 'viewer' has no attribute {name!r}")

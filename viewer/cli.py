@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 
+import viewer
 from viewer import ViewerError
 
 COMMANDS = ("render", "reference", "compare", "plot", "models")
@@ -21,6 +22,8 @@ def _parser_window() -> argparse.ArgumentParser:
         "file or a built-in scene name; the built-in default scene when omitted). Commands: "
         + ", ".join(COMMANDS) + " (brdf-viewer COMMAND --help)."))
     p.add_argument("scene", nargs="?", help="scene file (.toml) or built-in scene name")
+    p.add_argument("--version", action="version", version=f"brdf-viewer {viewer.__version__}",
+                   help="print the version and exit")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path, e.g. materials.ball.albedo=[1,0,0]")
     p.add_argument("--width", type=int, help="window width in pixels (default: the last session's, else 1280)")

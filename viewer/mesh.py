@@ -132,7 +132,14 @@ def _load_builtin(name: str, where: str) -> MeshData:
         key = ("file", str(path.resolve()), st.st_mtime_ns, st.st_size)
         cached = _cache_get(key)
         if cached is None:
-            cached = _load_file(path, name, where)
+            try:
+                own = read_own_ply(path)
+            except OSError:
+                own = None
+            if own is not None:  # the format models/generate.py writes: no trimesh needed
+                cached = build_mesh(name, *own[:2], own[3], own[2], where=where, label=str(path))
+            else:
+                cached = _load_file(path, name, where)
             _cache_put(key, cached)
         return cached.copy()
     key = ("builtin", name)
@@ -272,6 +279,41 @@ def _read_trimesh(path: Path):
         faces.append(p[3] + offset)
         offset += len(p[0])
     return positions, normals, uvs, np.concatenate(faces)
+
+
+def read_own_ply(path: Path | str):
+    """Read a PLY exactly as ``write_ply`` writes it (the built-in ``models/*.ply``): (positions,
+    normals, uvs or None, faces) as float64 / int64 arrays, or None when the file is anything
+    else (then trimesh reads it). This spares the start-up trimesh's import (about 1.5 s on a
+    slow machine) for the built-in shapes; tests/test_mesh.py checks it against trimesh."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.find(b"end_header\n", 0, 4096)
+    if end < 0:
+        return None
+    header = data[:end].decode("ascii", "replace").rstrip("\n").split("\n")
+    if header[:3] != ["ply", "format binary_little_endian 1.0", "comment brdf-viewer models/generate.py"]:
+        return None
+    try:
+        nv = int(header[3].removeprefix("element vertex "))
+        props = [h.removeprefix("property float ") for h in header[4:-2]]
+        nf = int(header[-2].removeprefix("element face "))
+    except (ValueError, IndexError):
+        return None
+    if props not in (["x", "y", "z", "nx", "ny", "nz"], ["x", "y", "z", "nx", "ny", "nz", "s", "t"]) \
+            or header[3] != f"element vertex {nv}" or header[-2] != f"element face {nf}" \
+            or header[-1] != "property list uchar uint vertex_indices":
+        return None
+    body = memoryview(data)[end + len(b"end_header\n"):]
+    vbytes = nv * len(props) * 4
+    if len(body) != vbytes + nf * 13:
+        return None
+    v = np.frombuffer(body[:vbytes], dtype="<f4").reshape(nv, len(props)).astype(np.float64)
+    fdata = np.frombuffer(body[vbytes:], dtype=[("n", "u1"), ("i", "<u4", (3,))])
+    if nf and not np.all(fdata["n"] == 3):
+        return None
+    faces = fdata["i"].astype(np.int64).reshape(nf, 3)
+    return v[:, 0:3], v[:, 3:6], (v[:, 6:8] if len(props) == 8 else None), faces
 
 
 def write_ply(path: Path | str, positions, normals, indices, uvs=None) -> None:

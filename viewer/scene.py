@@ -570,6 +570,15 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
 
 
+def load_scene_text(text: str, overrides: Sequence[str] = (), *, base_dir: str | Path | None = None,
+                    label: str = "<scene text>", load_meshes: bool = True) -> "Scene":
+    """Load and validate a scene given as TOML text (the Python API's third kind of scene).
+    Relative mesh and map paths resolve against ``base_dir`` (default: the working folder).
+    Raises ``ViewerError`` (one line) on any problem, as ``load_scene`` does."""
+    data = _loads(str(text), label)
+    return parse_scene(data, None, overrides, label=label, base_dir=base_dir, load_meshes=load_meshes)
+
+
 SCREENSHOT_KEY = "brdf-viewer:scene"
 
 

@@ -83,6 +83,16 @@ def _flip(w, s):
     return w * np.stack([np.ones_like(s), np.ones_like(s), s], axis=-1)
 
 
+def _transmittance_cos(cos_i, cos_t, eta):
+    """T = 1 - R of a dielectric interface from both cosines (no square root, no cancellation):
+    4 eta cos_i cos_t / (cos_i + eta cos_t)^2 (s) and / (eta cos_i + cos_t)^2 (p), averaged."""
+    num = 4.0 * eta * cos_i * cos_t
+    ds, dp = cos_i + eta * cos_t, eta * cos_i + cos_t
+    Ts = np.where(ds > 0, num / np.where(ds > 0, ds * ds, 1.0), 0.0)
+    Tp = np.where(dp > 0, num / np.where(dp > 0, dp * dp, 1.0), 0.0)
+    return 0.5 * (Ts + Tp)
+
+
 def _rough_eval_pdf(p, wi, wo):
     """(f (N,), pdf (N,)) of the rough interface, in the frame where wo is up (the caller flips)."""
     s, eta = _side(p, wo)
@@ -113,7 +123,11 @@ def _rough_eval_pdf(p, wi, wo):
     # transmission: Walter et al. 2007 eq. 21 with (eta_i (i.h) + eta_o (o.h))^2 written as
     # |wi etap + wo|^2 / etap^2 (no cancellation), then the radiance factor 1 / etap^2:
     # f_t = T G D |i.m| |o.m| / (|h|^2 |cos_i| |cos_o|)
-    f_t = np.minimum(np.minimum(T * np.abs(im) * np.abs(om) / safe_h2, F_MAX) * ratio_capped(G * D, aci * co),
+    # T from both facet cosines: Snell's law holds at the generalized half vector, so cos_t = |i.m|
+    # (well conditioned near total internal reflection, where sqrt(1 - sin_i^2 / eta^2) turns a
+    # 1e-7 error of the inputs' length into 1e-7 / cos_t^2; the float GLSL twin does the same)
+    T_f = _transmittance_cos(np.clip(om, 0.0, 1.0), np.minimum(np.abs(im), 1.0), eta)
+    f_t = np.minimum(np.minimum(T_f * np.abs(im) * np.abs(om) / safe_h2, F_MAX) * ratio_capped(G * D, aci * co),
                      F_MAX)
     f = np.where(valid, np.where(reflect_, f_r, f_t), 0.0)
     # pdf: visible normals times the Jacobians (eq. 14: 1 / (4 |o.m|); eq. 17 with the half-vector

@@ -16,7 +16,21 @@ Microfacet-Based BRDFs", JCGT 3(2), eq. 4).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import erfc, erfinv
+
+
+# scipy.special is imported on first use (Beckmann only): its import costs the window's start-up
+# most of a second, and the first frame rarely needs it.
+def erfc(x):
+    from scipy.special import erfc as _erfc
+
+    return _erfc(x)
+
+
+def erfinv(x):
+    from scipy.special import erfinv as _erfinv
+
+    return _erfinv(x)
+
 
 SQRT_PI = np.sqrt(np.pi)
 

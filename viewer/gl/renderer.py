@@ -45,7 +45,9 @@ def _ms_f0(spec_albedo_normal, alpha: float, nov: float) -> np.ndarray:
     global _DFG
     from viewer.environment.dfg import dfg_table, lookup_dfg
 
-    if _DFG is None:
+    if not np.any(np.asarray(spec_albedo_normal, float) > 0):
+        return np.zeros(3)  # no specular part (diffuse models): 0 whatever the table says
+    if _DFG is None:  # about a second of numpy: made the first time a compensated specular needs it
         _DFG = dfg_table()
     a, b = lookup_dfg(_DFG, nov, max(alpha, 1e-3))
     return np.clip(np.asarray(spec_albedo_normal, float) / max(float(a + b), 1e-6), 0.0, 1.0)
@@ -157,6 +159,7 @@ class Renderer:
         self.gpu_albedo = True  # albedo tables with the GLSL samplers (False: the numpy builder)
         self._albedo_gpu = None
         self.albedo_gpu_error: ShaderError | None = None
+        self._ms_cache: dict[str, np.ndarray] = {}
         self._thick = None
         self._ibl = None
         self._ssr = None
@@ -505,7 +508,25 @@ class Renderer:
         (32, 3) tables of the reflected albedo, the transmitted albedo and the reflected albedo
         of the specular part alone (the model's ``ibl_split`` hook; none for diffuse models),
         that part's lobe width alpha, and its normal-incidence Fresnel for the multiple-scattering
-        compensation."""
+        compensation (``ms_f0``; computed on first use, since only scenes with
+        ``ms_compensation`` need it and it needs the DFG table)."""
+        tables = self._base_albedo_tables(params)
+        return tables + (self.ms_f0(params),)
+
+    def ms_f0(self, params) -> np.ndarray:
+        """The normal-incidence Fresnel of a material's specular part for the multiple-scattering
+        compensation (see ``_ms_f0``), cached with the albedo tables."""
+        key = json.dumps(params.to_plain(), sort_keys=True)
+        f0 = self._ms_cache.get(key)
+        if f0 is None:
+            _, _, spec, alpha = self._base_albedo_tables(params)
+            f0 = _ms_f0(spec[-1], alpha, (TABLE_SIZE - 0.5) / TABLE_SIZE)
+            if len(self._ms_cache) > 256:
+                self._ms_cache.clear()
+            self._ms_cache[key] = f0
+        return f0
+
+    def _base_albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         key = json.dumps(params.to_plain(), sort_keys=True)
         tables = self._albedo_cache.get(key)
         if tables is None:
@@ -520,8 +541,7 @@ class Renderer:
                 spec_params, alpha = split(params)
                 spec = r if spec_params is params else self._albedo_pair(model, spec_params)[0]
             spec = np.minimum(spec, r)
-            tables = (r.astype("f4"), t.astype("f4"), spec.astype("f4"), float(alpha),
-                      _ms_f0(spec[-1], alpha, (TABLE_SIZE - 0.5) / TABLE_SIZE))
+            tables = (r.astype("f4"), t.astype("f4"), spec.astype("f4"), float(alpha))
             if len(self._albedo_cache) > 256:
                 self._albedo_cache.clear()
             self._albedo_cache[key] = tables
@@ -684,13 +704,14 @@ class Renderer:
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
             if env_on or ssr_on:
-                refl, trans, spec, alpha, ms_f0 = self.albedo_tables(params)
+                refl, trans, spec, alpha = self._base_albedo_tables(params)
                 _set(prog, "u_albedo", refl.tobytes())
                 _set(prog, "u_albedo_t", trans.tobytes())
                 _set(prog, "u_albedo_s", spec.tobytes())
                 _set(prog, "u_ibl_alpha", alpha)
                 _set(prog, "u_ibl_delta", int(brdf_spec(params).delta and alpha == 0.0))
-                _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
+                if frame_uniforms["u_ms_on"]:  # the shader reads u_ms_f0 only then
+                    _set(prog, "u_ms_f0", tuple(float(x) for x in self.ms_f0(params)))
                 absorbing = "sigma_a" in params and brdf_spec(params).transmissive
                 _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
                 _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))

@@ -34,6 +34,7 @@ import time
 import numpy as np
 
 from viewer.pathtracer.integrator import Integrator, RenderSetup
+from viewer.pathtracer.spawn_guard import check_entry_point_guarded
 
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
 TARGET_CHUNK_PATHS = 8192      # camera samples per chunk (about 60 ms on one core)
@@ -142,6 +143,7 @@ class ReferenceRenderer:
         self._version = 0
         self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image, kernel))
         if self.workers > 0:
+            check_entry_point_guarded()  # one line instead of multiprocessing's 20 in every worker
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
                                                 initializer=_init_worker, initargs=(self.setup, self._key))
 
