@@ -48,3 +48,55 @@ vec3 ashikhmin_shirley_terms(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
     vec3 F = F_Schlick_AS(p.rs, dot(h, wo));
     return vec3((F.r + F.g + F.b) / 3.0, D_AshikhminShirley(h, p.nu, p.nv), -1.0);
 }
+
+// ---- sampling twin of viewer/brdf/ashikhmin_shirley.py: cosine for the diffuse term, the
+// paper's half-vector distribution (eqs. 9-10) for the specular term, pdf eq. 8; picked in
+// proportion to luminance(rd)(1 - luminance(rs)) vs. the Schlick reflectance at wo.
+#include "common/sampling.glsl"
+
+float ashikhmin_shirley_specular_probability(ashikhmin_shirley_params p, vec3 wo) {
+    float ls = luminance(p.rs);
+    float ws = ls + (1.0 - ls) * ashikhmin_shirley_pow5(1.0 - saturate(wo.z));
+    float wd = luminance(p.rd) * (1.0 - ls);
+    float tot = ws + wd;
+    return tot > 0.0 ? ws / tot : 0.5;
+}
+
+float ashikhmin_shirley_pdf_ps(ashikhmin_shirley_params p, vec3 wi, vec3 wo, float ps) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
+    vec3 h = normalize_safe(wi + wo);
+    float hk = dot(h, wo);
+    float spec = hk > 0.0 ? D_AshikhminShirley(h, p.nu, p.nv) / (4.0 * hk) : 0.0;
+    return ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi);
+}
+
+float ashikhmin_shirley_pdf(ashikhmin_shirley_params p, vec3 wi, vec3 wo) {
+    return ashikhmin_shirley_pdf_ps(p, wi, wo, ashikhmin_shirley_specular_probability(p, wo));
+}
+
+// Ashikhmin & Shirley 2000, eqs. 9-10: u.x picks the quadrant and phi in it (atan2 form of
+// atan(sqrt((nu+1)/(nv+1)) tan(pi u / 2))), cos theta_h = (1 - u.y)^(1 / (e + 1)).
+vec3 ashikhmin_shirley_half_vector(vec2 u, float nu, float nv) {
+    float q = floor(4.0 * u.x);
+    float v = 4.0 * u.x - q;
+    float a = sqrt((nu + 1.0) / (nv + 1.0));
+    float phi = atan(a * sin(0.5 * PI * v), cos(0.5 * PI * v));
+    phi = q == 0.0 ? phi : (q == 1.0 ? PI - phi : (q == 2.0 ? PI + phi : TWO_PI - phi));
+    float c = cos(phi), s = sin(phi);
+    float e = nu * c * c + nv * s * s;
+    float t = log(1.0 - u.y) / (e + 1.0);
+    float cos_t = exp(t);
+    float sin_t = sqrt(max(0.0, one_minus_exp(2.0 * t)));
+    return vec3(sin_t * c, sin_t * s, cos_t);
+}
+
+vec3 ashikhmin_shirley_sample(ashikhmin_shirley_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    float ps = ashikhmin_shirley_specular_probability(p, wo);
+    float u0 = u.x;
+    int k = pick_lobe2(ps, u0);
+    vec2 uu = vec2(u0, u.y);
+    wi = normalize_safe(k == 0 ? reflect_about(wo, ashikhmin_shirley_half_vector(uu, p.nu, p.nv))
+                               : sample_cosine_hemisphere(uu));
+    pdf = ashikhmin_shirley_pdf_ps(p, wi, wo, ps);
+    return sample_weight(ashikhmin_shirley_eval(p, wi, wo), wi.z, pdf);
+}

@@ -23,3 +23,37 @@ vec3 blinn_phong_eval(blinn_phong_params p, vec3 wi, vec3 wo) {
     float n = p.shininess;
     return p.kd * INV_PI + p.ks * (blinn_phong_normalization_giesen(n) * blinn_phong_lobe(wi, wo, n));
 }
+
+// ---- sampling twin of viewer/brdf/blinn_phong.py: cosine for kd; h from the cos^n lobe about
+// the normal, wi = reflect(wo, h), pdf = p(h) / (4 wo.h) (Walter et al. 2007 eq. 14).
+#include "common/sampling.glsl"
+
+float blinn_phong_specular_probability(blinn_phong_params p) {
+    float ld = luminance(p.kd), ls = luminance(p.ks);
+    return ld + ls <= 0.0 ? 0.5 : ls / (ld + ls);
+}
+
+float blinn_phong_pdf_ps(blinn_phong_params p, vec3 wi, vec3 wo, float ps) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
+    float n = p.shininess;
+    vec3 h = normalize_safe(wi + wo);
+    float cos_oh = dot(wo, h);
+    float ph = (n + 1.0) / (2.0 * PI) * blinn_phong_lobe(wi, wo, n);
+    float spec = cos_oh > 0.0 ? ph / (4.0 * cos_oh) : 0.0;
+    return ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi);
+}
+
+float blinn_phong_pdf(blinn_phong_params p, vec3 wi, vec3 wo) {
+    return blinn_phong_pdf_ps(p, wi, wo, blinn_phong_specular_probability(p));
+}
+
+vec3 blinn_phong_sample(blinn_phong_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    float ps = blinn_phong_specular_probability(p);
+    float u0 = u.x;
+    int k = pick_lobe2(ps, u0);
+    vec2 uu = vec2(u0, u.y);
+    wi = normalize_safe(k == 0 ? reflect_about(wo, sample_power_cosine(uu, p.shininess))
+                               : sample_cosine_hemisphere(uu));
+    pdf = blinn_phong_pdf_ps(p, wi, wo, ps);
+    return sample_weight(blinn_phong_eval(p, wi, wo), wi.z, pdf);
+}

@@ -36,3 +36,71 @@ vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {
     f += (Ti * To / (eta * eta)) * absorb * brdf_eval_base(p.base_model, p.base_offset, wi_t, wo_t);
     return f;
 }
+
+// ---- sampling twin of viewer/brdf/layered.py: the coat lobe (GGX visible normals) with
+// probability P_c = F(cos_o), else the base's own sample with wo' (refracted in), the result
+// refracted out; pdf converted by the solid-angle Jacobian cos_i / (eta^2 cos_i'). The choice
+// is u.z (numpy: split_uniform(u[:, 0]) = (u.z, u.x)); the base gets (u.x, u.y, (u.z - P_c) /
+// (1 - P_c)). A delta base is a discrete lobe: pdf (1 - P_c) pdf_base, weight its throughput.
+// The base goes through the generated brdf_sample_base / brdf_pdf_base / brdf_is_delta_base.
+#include "common/sampling.glsl"
+
+// A direction inside the layer (z > 0) refracted out; ok = false under total internal reflection.
+vec3 layered_refract_out(vec3 w, float eta, out bool ok) {
+    vec2 xy = w.xy * eta;
+    float s2 = dot(xy, xy);
+    ok = s2 < 1.0;
+    return vec3(xy, sqrt(max(0.0, 1.0 - s2)));
+}
+
+float layered_pdf(layered_params p, vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
+    float eta = p.coating.ior;
+    float a = p.coating.alpha;
+    float pc = fresnel_dielectric(clamp(wo.z, 0.0, 1.0), eta);
+    vec3 h = normalize_safe(wi + wo);
+    float oh = dot(wo, h);
+    float coat = oh > 0.0 ? mf_D_visible(1, wo, h, a, a) / (4.0 * oh) : 0.0;
+    vec3 wi_t = layered_refract_in(wi, eta);
+    vec3 wo_t = layered_refract_in(wo, eta);
+    float pb = brdf_pdf_base(p.base_model, p.base_offset, wi_t, wo_t);
+    // solid-angle Jacobian of refraction: dw' / dw = cos_i / (eta^2 cos_i')
+    float jac = wi.z / (eta * eta * max(wi_t.z, 1.17549435e-38));
+    return pc * coat + (1.0 - pc) * pb * jac;
+}
+
+vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    bool up = wo.z > 0.0;
+    vec3 wo_s = up ? wo : vec3(0.0, 0.0, 1.0);
+    float eta = p.coating.ior;
+    float a = p.coating.alpha;
+    float pc = fresnel_dielectric(clamp(wo_s.z, 0.0, 1.0), eta);
+    bool coat = u.z < pc;
+    if (coat) {
+        wi = reflect_about(wo_s, sample_vndf_ggx(wo_s, u.xy, a, a));
+        pdf = (up && wi.z > 0.0) ? layered_pdf(p, wi, wo) : 0.0;
+        return sample_weight(layered_eval(p, wi, wo), wi.z, pdf);
+    }
+    vec3 wo_t = layered_refract_in(wo_s, eta);
+    float uz = clamp((u.z - pc) / max(1.0 - pc, 1.17549435e-38), 0.0, ONE_MINUS_EPS);
+    vec3 wi_t;
+    float pdf_b;
+    vec3 w_b = brdf_sample_base(p.base_model, p.base_offset, wo_t, vec3(u.xy, uz), wi_t, pdf_b);
+    bool ok_out;
+    wi = layered_refract_out(wi_t, eta, ok_out);
+    bool ok = up && wi.z > 0.0 && ok_out && pdf_b > 0.0 && wi_t.z > 0.0;
+    if (!ok) { pdf = 0.0; return vec3(0.0); }
+    if (brdf_is_delta_base(p.base_model, p.base_offset)) {
+        // discrete base lobe: throughput T_i T_o a w_b (the eta^2 into and out of the layer cancel)
+        vec3 wi_in = layered_refract_in(wi, eta);
+        float Ti = fresnel_dielectric_transmittance(min(wi.z, 1.0), eta);
+        float To = fresnel_dielectric_transmittance(min(wo_s.z, 1.0), eta);
+        float path = 1.0 / max(wi_in.z, 1e-12) + 1.0 / max(wo_t.z, 1e-12);
+        vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
+        pdf = (1.0 - pc) * pdf_b;
+        if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }
+        return Ti * To * absorb * w_b / max(1.0 - pc, 1.17549435e-38);
+    }
+    pdf = layered_pdf(p, wi, wo);
+    return sample_weight(layered_eval(p, wi, wo), wi.z, pdf);
+}

@@ -47,3 +47,41 @@ vec3 microfacet_eval(microfacet_params p, vec3 wi, vec3 wo) {
     }
     return f;
 }
+
+// ---- sampling twin of viewer/brdf/microfacet.py: visible normals (GGX, Beckmann) or D cos
+// (blinn_phong) for the specular lobe, cosine for the diffuse base, the diffuse lobe chosen with
+// P_d = mean(kd (1 - F(cos_o))) / (mean(kd (1 - F(cos_o))) + mean(F(cos_o))).
+#include "common/sampling.glsl"
+
+float microfacet_p_diffuse(microfacet_params p, vec3 wo) {
+    if (!any(greaterThan(p.kd, vec3(0.0)))) return 0.0;
+    vec3 Fo = microfacet_fresnel(p, wo.z);
+    float wd = dot(p.kd * (1.0 - Fo), vec3(1.0 / 3.0));
+    float ws = dot(Fo, vec3(1.0 / 3.0));
+    float tot = wd + ws;
+    return tot > 0.0 ? wd / tot : 0.0;
+}
+
+float microfacet_pdf(microfacet_params p, vec3 wi, vec3 wo) {
+    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
+    float pd = microfacet_p_diffuse(p, wo);
+    vec3 h = normalize_safe(wi + wo);
+    float oh = dot(wo, h);
+    // reflection Jacobian dm / dwi = 1 / (4 |wo.m|) (Walter et al. 2007, eq. 14)
+    float spec = oh > 0.0 ? mf_pdf_m(p.distribution, wo, h, p.alpha_x, p.alpha_y) / (4.0 * oh) : 0.0;
+    return (1.0 - pd) * spec + pd * wi.z * INV_PI;
+}
+
+vec3 microfacet_sample(microfacet_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    bool up = wo.z > 0.0;
+    vec3 wo_s = up ? wo : vec3(0.0, 0.0, 1.0);
+    float pd = microfacet_p_diffuse(p, wo_s);
+    bool choose_d = u.x < pd;
+    float u0 = choose_d ? u.x / (pd > 0.0 ? pd : 1.0) : (u.x - pd) / (pd < 1.0 ? 1.0 - pd : 1.0);
+    vec2 uu = vec2(clamp(u0, 0.0, ONE_MINUS_EPS), u.y);
+    wi = choose_d ? sample_cosine_hemisphere(uu)
+                  : reflect_about(wo_s, mf_sample_m(p.distribution, wo_s, uu, p.alpha_x, p.alpha_y));
+    pdf = microfacet_pdf(p, wi, wo);
+    if (!up || wi.z <= 0.0) pdf = 0.0;
+    return sample_weight(microfacet_eval(p, wi, wo), wi.z, pdf);
+}

@@ -13,3 +13,15 @@ vec3 mirror_reflectance(mirror_params p, float cos_o) {
 vec3 mirror_eval(mirror_params p, vec3 wi, vec3 wo) {
     return vec3(0.0);
 }
+
+// ---- sampling twin of viewer/brdf/mirror.py: the delta lobe. eval and pdf are 0 as functions;
+// sample returns the mirror direction with pdf = 1 (the probability of the only lobe), weight F.
+bool mirror_is_delta(mirror_params p) { return true; }
+
+float mirror_pdf(mirror_params p, vec3 wi, vec3 wo) { return 0.0; }
+
+vec3 mirror_sample(mirror_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    wi = vec3(-wo.x, -wo.y, wo.z);
+    pdf = wo.z > 0.0 ? 1.0 : 0.0;
+    return wo.z > 0.0 ? mirror_reflectance(p, wo.z) : vec3(0.0);
+}

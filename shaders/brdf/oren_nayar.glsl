@@ -66,3 +66,17 @@ vec3 oren_nayar_eval(oren_nayar_params p, vec3 wi, vec3 wo) {
     return p.albedo * INV_PI * oren_nayar_L1(s2, cos_dphi, alpha, beta, sc_alpha, sc_beta, elev_beta)
          + p.albedo * p.albedo * INV_PI * oren_nayar_L2(s2, cos_dphi, beta);
 }
+
+// ---- sampling twin of viewer/brdf/oren_nayar.py: cosine-weighted (common/sampling.glsl)
+#include "common/sampling.glsl"
+
+float oren_nayar_pdf(oren_nayar_params p, vec3 wi, vec3 wo) {
+    return wo.z > 0.0 ? cosine_hemisphere_pdf(wi) : 0.0;
+}
+
+vec3 oren_nayar_sample(oren_nayar_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    wi = sample_cosine_hemisphere(u.xy);
+    pdf = oren_nayar_pdf(p, wi, wo);
+    // f cos / (cos / pi) = pi f
+    return pdf > 0.0 ? PI * oren_nayar_eval(p, wi, wo) : vec3(0.0);
+}

@@ -7,8 +7,10 @@ reads the struct from the flat uniform block ``u_mat`` (vec4 array). ``pack_mate
 same layout from Python, so a slider move is a uniform upload, never a recompile.
 
 The generated ``brdf/dispatch.glsl`` includes every family file (``shaders/brdf/<name>.glsl``)
-and defines ``vec3 brdf_eval(int model, int offset, vec3 wi, vec3 wo)`` and
-``vec3 brdf_terms(...)`` (F, D, G for the term views; -1 where a model has none).
+and defines ``vec3 brdf_eval(int model, int offset, vec3 wi, vec3 wo)``,
+``vec3 brdf_terms(...)`` (F, D, G for the term views; -1 where a model has none) and the
+sampling twins ``brdf_sample(model, offset, wo, u, out wi, out pdf)`` (returns f cos / pdf),
+``brdf_pdf(model, offset, wi, wo)``, ``brdf_is_delta`` and ``brdf_sample_is_discrete``.
 """
 
 from __future__ import annotations
@@ -224,14 +226,68 @@ def generate_dispatch(only: tuple[str, ...] | None = None) -> str:
         out.append(f'#include "brdf/{n}.glsl"')
     out.append("")
     out.extend(dispatch("brdf_eval_base", plain, "vec3(0.0)", "eval"))
+    out.extend(_sampling_dispatch("base", plain, None))
     for n in nesting:
         out.append(f'#include "brdf/{n}.glsl"')
     out.append("")
     out.extend(dispatch("brdf_eval_nested", nesting, "brdf_eval_base(model, o, wi, wo)", "eval"))
+    out.extend(_sampling_dispatch("nested", nesting, "base"))
     out.append("// Evaluate the BRDF of the material packed at float offset o of u_mat (no cosine).")
     out.append("vec3 brdf_eval(int model, int o, vec3 wi, vec3 wo) { return brdf_eval_nested(model, o, wi, wo); }\n")
+    out.extend(_SAMPLING_API)
     out.extend(dispatch("brdf_terms", plain + nesting, "vec3(-1.0)", "terms"))
     return "\n".join(out)
+
+
+def _sampling_dispatch(level: str, names_, fallback: str | None) -> list[str]:
+    """brdf_sample_<level>, brdf_pdf_<level> and brdf_is_delta_<level> over the models ``names_``
+    (the families' ``<name>_sample`` / ``<name>_pdf`` / optional ``<name>_is_delta``); models
+    not listed go to the ``fallback`` level (None: a failed sample, pdf 0, not delta)."""
+    def src(n):
+        return family_source(n)
+
+    sample = [f"vec3 brdf_sample_{level}(int model, int o, vec3 wo, vec3 u, out vec3 wi, out float pdf) {{"]
+    pdf = [f"float brdf_pdf_{level}(int model, int o, vec3 wi, vec3 wo) {{"]
+    delta = [f"bool brdf_is_delta_{level}(int model, int o) {{"]
+    for n in names_:
+        i = model_index(n)
+        if f"{n}_sample(" in src(n):
+            sample.append(f"    if (model == {i}) return {n}_sample({n}_unpack(o), wo, u, wi, pdf);")
+        if f"{n}_pdf(" in src(n):
+            pdf.append(f"    if (model == {i}) return {n}_pdf({n}_unpack(o), wi, wo);")
+        if f"{n}_is_delta(" in src(n):
+            delta.append(f"    if (model == {i}) return {n}_is_delta({n}_unpack(o));")
+    if fallback is None:
+        sample.append("    wi = vec3(0.0, 0.0, 1.0);\n    pdf = 0.0;\n    return vec3(0.0);\n}\n")
+        pdf.append("    return 0.0;\n}\n")
+        delta.append("    return false;\n}\n")
+    else:
+        sample.append(f"    return brdf_sample_{fallback}(model, o, wo, u, wi, pdf);\n}}\n")
+        pdf.append(f"    return brdf_pdf_{fallback}(model, o, wi, wo);\n}}\n")
+        delta.append(f"    return brdf_is_delta_{fallback}(model, o);\n}}\n")
+    return sample + pdf + delta
+
+
+_SAMPLING_API = """// Importance sampling of the material at float offset o (twins of the numpy sample / pdf):
+// returns the weight f |cos_i| / pdf; wi, pdf out. A failed sample has weight 0 and pdf 0. A delta
+// lobe's pdf is the probability of choosing it (mirror: 1; smooth glass: R or 1 - R), and
+// brdf_pdf / brdf_eval are 0 there. u: three uniforms in [0, 1); u.x, u.y as numpy's u[:, 0],
+// u[:, 1]; u.z only where numpy splits u[:, 0] in two (rough glass, layered lobe choice).
+vec3 brdf_sample(int model, int o, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    return brdf_sample_nested(model, o, wo, u, wi, pdf);
+}
+// The pdf (per solid angle) with which brdf_sample draws wi; 0 for delta lobes.
+float brdf_pdf(int model, int o, vec3 wi, vec3 wo) { return brdf_pdf_nested(model, o, wi, wo); }
+// The material has only delta lobes (mirror, smooth glass): every sample is discrete.
+bool brdf_is_delta(int model, int o) { return brdf_is_delta_nested(model, o); }
+// A sample is discrete (a delta lobe: no light sampling, no MIS) when the material is delta or
+// its pdf is not brdf_pdf at the sampled pair (a delta base under a coating), the reference path
+// tracer's rule; 1e-4 relative tolerates float32 rounding of two evaluations of one pdf.
+bool brdf_sample_is_discrete(int model, int o, vec3 wi, vec3 wo, float pdf) {
+    if (brdf_is_delta(model, o)) return true;
+    return pdf > 0.0 && abs(pdf - brdf_pdf(model, o, wi, wo)) > 1e-4 * pdf;
+}
+""".splitlines()
 
 
 def _check() -> int:
