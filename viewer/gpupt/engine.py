@@ -43,27 +43,6 @@ _TEXTURE_MAT = ("uniform sampler2D u_mat_tex;\n"
                 "float mat_f(int i) { int t = i >> 2; return texelFetch(u_mat_tex, ivec2(t & 4095, t >> 12), 0)[i & 3]; }")
 
 
-_LAMBERT_SHIM = """
-vec3 cosine_hemisphere_shim(vec2 u) {
-    float a = 2.0 * u.x - 1.0, b = 2.0 * u.y - 1.0;
-    if (a == 0.0 && b == 0.0) return vec3(0.0, 0.0, 1.0);
-    float r, phi;
-    if (abs(a) > abs(b)) { r = a; phi = (PI / 4.0) * (b / a); }
-    else { r = b; phi = PI / 2.0 - (PI / 4.0) * (a / b); }
-    float x = r * cos(phi), y = r * sin(phi);
-    return vec3(x, y, sqrt(max(0.0, 1.0 - x * x - y * y)));
-}
-vec3 brdf_sample(int model, int o, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
-    wi = cosine_hemisphere_shim(u.xy);
-    pdf = wi.z * INV_PI;
-    if (wo.z <= 0.0 || pdf <= 0.0) { pdf = 0.0; return vec3(0.0); }
-    return lambert_unpack(o).albedo;
-}
-float brdf_pdf(int model, int o, vec3 wi, vec3 wo) { return (wi.z > 0.0 && wo.z > 0.0) ? wi.z * INV_PI : 0.0; }
-bool brdf_sample_is_discrete(int model, int o, vec3 wi, vec3 wo, float pdf) { return false; }
-"""
-
-
 def dispatch_from_texture(models: tuple[str, ...]) -> str:
     """The generated dispatch for ``models`` reading materials from the texture ``u_mat_tex``
     (every material of the scene at its own offset) instead of the uniform block."""
@@ -79,8 +58,6 @@ def dispatch_from_texture(models: tuple[str, ...]) -> str:
             out.append(_TEXTURE_MAT)
             continue
         out.append(line)
-    if "brdf_sample(" not in src:  # TEMPORARY until the GLSL sampling twins land: lambert only
-        out.append(_LAMBERT_SHIM)
     if seen != 2:  # the generator changed how it reads materials: fail loudly, never read garbage
         raise AssertionError("brdf/dispatch.glsl no longer declares u_mat / mat_f as expected")
     return "\n".join(out) + "\n"
@@ -103,6 +80,17 @@ def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     return info, (np.concatenate(data) if data else np.zeros(4, np.float32)).astype(np.float32)
 
 
+_PROGRAMS: dict = {}   # (id(ctx), recipe) -> (program, vertex array)
+
+
+def release_programs(ctx) -> None:
+    """Release the cached path-tracing programs made on ``ctx`` (before releasing it)."""
+    for key in [k for k in _PROGRAMS if k[0] == id(ctx)]:
+        prog, vao = _PROGRAMS.pop(key)
+        vao.release()
+        prog.release()
+
+
 class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here)."""
@@ -121,8 +109,6 @@ class GpuReferenceRenderer:
             ctx = create_offscreen_context()
         self.ctx = ctx
         self.spp_pass = max(1, int(spp_pass))
-        self._programs: dict = {}
-        self._vaos: dict = {}
         self._scene_tex = None
         self._textures: list = []
         self._targets: list = []
@@ -203,17 +189,19 @@ class GpuReferenceRenderer:
         return models, tuple(sorted(defines.items()))
 
     def _program(self):
-        key = self._recipe()
-        prog = self._programs.get(key)
-        if prog is None:
-            models, defines = key
+        """The pass's program for this scene's recipe, shared by every renderer on the same
+        context (compiling takes 0.2-6 s on llvmpipe; a material change of the same models
+        reuses it)."""
+        key = (id(self.ctx), self._recipe())
+        entry = _PROGRAMS.get(key)
+        if entry is None:
+            models, defines = key[1]
             prog = build_program(self.ctx, "passes/fullscreen.vert", "passes/pathtrace.frag",
                                  virtual={"brdf/dispatch.glsl": dispatch_from_texture(models)},
                                  defines=dict(defines))
-            self._programs[key] = prog
-            self._vaos[key] = self.ctx.vertex_array(prog, [])
-        self._vao = self._vaos[key]
-        return prog
+            entry = _PROGRAMS[key] = (prog, self.ctx.vertex_array(prog, []))
+        self._vao = entry[1]
+        return entry[0]
 
     def _bind(self):
         prog, s = self._prog, self.setup
@@ -342,14 +330,11 @@ class GpuReferenceRenderer:
         return np.where(n3 >= 2, var, np.inf).astype(np.float32)
 
     def close(self):
+        if self.ctx is None:
+            return
         self._release_scene()
-        for v in self._vaos.values():
-            v.release()
-        for p in self._programs.values():
-            p.release()
-        self._vaos.clear()
-        self._programs.clear()
-        if self._own_ctx and self.ctx is not None:
+        if self._own_ctx:
+            release_programs(self.ctx)
             self.ctx.release()
         self.ctx = None
 
