@@ -13,6 +13,19 @@ HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | br
                  "--kind polar --out plot.png | brdf-viewer models (see README)")
 
 
+ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
+               "GPU, else whichever measured faster here; the choice is printed)")
+
+
+def _engine(args, ctx=None):
+    """The engine for --engine, printed with the reason (auto's choice)."""
+    from viewer.gpupt.select import choose_engine
+
+    engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
+    print(f"engine: {engine} ({why})")
+    return engine
+
+
 def _parser_window() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer", description=(
         "OpenGL teaching viewer for BRDFs. With no command: open the window on SCENE (a scene "
@@ -47,7 +60,7 @@ def _parser_render() -> argparse.ArgumentParser:
 
 def _parser_reference() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer reference",
-                                description="Render a scene with the CPU reference path tracer (same meshes, "
+                                description="Render a scene with the reference path tracer (same meshes, "
                                             "same camera as render). Prints progress and samples/second.")
     p.add_argument("scene", help="scene file (.toml) or built-in scene name")
     p.add_argument("--spp", type=int, required=True, help="samples per pixel (>= 1)")
@@ -58,7 +71,8 @@ def _parser_reference() -> argparse.ArgumentParser:
                    help="scattering events per path (1 = direct light only)")
     p.add_argument("--width", type=int, help="image width (overrides camera.width)")
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
-    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--workers", type=int, help="worker processes of the cpu engine (default: every core)")
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     return p
@@ -214,11 +228,12 @@ def cmd_reference(args) -> int:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
     scene = load_scene(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
-    from viewer.pathtracer import ReferenceRenderer
+    from viewer.gpupt.select import make_renderer
 
     w, h = scene.camera.width, scene.camera.height
+    engine = _engine(args)
     t0 = time.perf_counter()
-    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -243,7 +258,7 @@ def cmd_reference(args) -> int:
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
-                                                                "max_depth": args.max_depth}}))
+                                                                "max_depth": args.max_depth, "engine": engine}}))
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
     print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
@@ -267,6 +282,7 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     return p
 
 
@@ -280,8 +296,8 @@ def cmd_compare(args) -> int:
     from viewer.compare import heat_map, metrics
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
+    from viewer.gpupt.select import make_renderer
     from viewer.io import atomic_write_bytes, write_npy, write_png
-    from viewer.pathtracer import ReferenceRenderer
     from viewer.scene import load_scene
 
     if args.spp < 1:
@@ -297,14 +313,16 @@ def cmd_compare(args) -> int:
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
+    engine = _engine(args, ctx)
     t0 = time.perf_counter()
-    with ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers) as ref:
+    with make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                       ctx=ctx) as ref:
         ref.step(args.spp)
         reference, variance = ref.mean(), ref.variance()
     wall = time.perf_counter() - t0
     m = metrics(raster, reference)
     m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
-              "raster_supersample": args.supersample, "reference_seconds": wall,
+              "raster_supersample": args.supersample, "reference_seconds": wall, "engine": engine,
               "reference_mean_variance_of_mean": float(variance.mean())})
     abs_png, abs_scale = heat_map(raster, reference)
     rel_png, rel_scale = heat_map(raster, reference, relative=True)

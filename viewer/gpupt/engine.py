@@ -300,6 +300,11 @@ class GpuReferenceRenderer:
                 break
         return added
 
+    def warm_up(self):
+        """Compile and run one tiny pass now, so the first ``step`` measures rendering only."""
+        self._pass(0, 0, 0)
+        self.ctx.finish()
+
     # ------------------------------------------------------------------ results
     def _read(self):
         a, b = self._targets[2 * self._cur: 2 * self._cur + 2]
