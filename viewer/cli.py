@@ -8,7 +8,7 @@ import time
 
 from viewer import ViewerError
 
-COMMANDS = ("render", "reference", "compare", "plot", "models")
+COMMANDS = ("render", "reference", "compare", "bake", "plot", "models")
 HEADLESS_HINT = ("headless commands: brdf-viewer render SCENE --out img.png | brdf-viewer plot MODEL "
                  "--kind polar --out plot.png | brdf-viewer models (see README)")
 
@@ -376,6 +376,77 @@ def _describe_param(p, indent="    ") -> str:
     return line
 
 
+def _parser_bake() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer bake",
+                                description="Fill the reference cache in advance (the window shows a cached "
+                                            "reference at once and keeps refining it).")
+    p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files or built-in scene names")
+    p.add_argument("--lecture", action="store_true", help="also every lecture step")
+    p.add_argument("--spp", type=int, required=True, help="samples per pixel each entry should reach")
+    p.add_argument("--width", type=int, help="reference width (default: half the scene camera's width, "
+                                             "as the window's reference view renders)")
+    p.add_argument("--height", type=int, help="reference height (default: half the scene camera's height)")
+    p.add_argument("--max-depth", type=int, default=8, dest="max_depth")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    return p
+
+
+def cmd_bake(args) -> int:
+    from viewer.camera import OrbitCamera
+    from viewer.gpupt.select import make_renderer
+    from viewer.pathtracer import cache
+    from viewer.pathtracer.integrator import RenderSetup
+    from viewer.scene import load_scene
+
+    if args.spp < 1:
+        raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
+    if args.max_depth < 1:
+        raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
+    jobs = [(str(s), lambda s=s: load_scene(s, _overrides(args))) for s in args.scenes]
+    if args.lecture:
+        from viewer.lecture import TOUR, tour_scene
+
+        jobs += [(f"lecture step {i + 1}", lambda i=i: tour_scene(i)) for i in range(len(TOUR))]
+    if not jobs:
+        raise ViewerError("bake: name at least one SCENE, or --lecture")
+    scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
+    engine = _engine(args)
+    for label, scene in scenes:
+        camera = OrbitCamera.from_scene(scene)
+        w = args.width or max(1, scene.camera.width // 2)
+        h = args.height or max(1, scene.camera.height // 2)
+        key = cache.setup_key(RenderSetup.from_scene(scene, camera, w, h, args.max_depth))
+        old = cache.load(key)
+        have = old.spp if old is not None else 0
+        if have >= args.spp:
+            print(f"{label}: {w}x{h} already cached at {have} spp ({key[:12]})")
+            continue
+        start = time.perf_counter()
+        with make_renderer(engine, scene, camera, w, h, max_depth=args.max_depth, seed=args.seed,
+                           workers=args.workers) as r:
+            if old is not None:
+                r.resume(old.sum, old.sum2, old.spp)
+
+            def bar(frac):
+                n = int(30 * frac)
+                sys.stderr.write(f"\rbake {label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}% {w}x{h} "
+                                 f"{args.spp} spp {time.perf_counter() - start:6.1f} s")
+                sys.stderr.flush()
+
+            bar(0.0)
+            try:
+                r.step(args.spp - have, progress=bar)
+            finally:
+                sys.stderr.write("\n")
+            total, total2, spp = r.state()
+        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))
+        print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
+    return 0
+
+
 def cmd_window(args) -> int:
     from viewer.gl.context import have_display
 
@@ -394,10 +465,10 @@ def main(argv=None) -> int:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
-                      "plot": _parser_plot, "models": _parser_models}[cmd]()
+                      "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models}[cmd]()
             args = parser.parse_args(rest)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
-                    "plot": cmd_plot, "models": cmd_models}[cmd](args)
+                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:

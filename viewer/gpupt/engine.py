@@ -318,6 +318,28 @@ class GpuReferenceRenderer:
         self.bad_values = int(q[:, :, 3].sum())
         return s[:, :, :3], q[:, :, :3], s[:, :, 3]
 
+    def state(self):
+        """(sum, sum of squares, spp) of the whole-image samples so far (float64; a band in
+        progress is cut back to the count every pixel has)."""
+        s, q, n = self.sums()
+        if np.any(n != self.spp):   # a time-sliced band is half done: keep the complete samples only
+            return None
+        return s, q, self.spp
+
+    def resume(self, total, total2, spp: int):
+        """Continue from stored sums of ``spp`` samples per pixel (the reference cache)."""
+        total = np.asarray(total, np.float32)
+        if total.shape != (self.height, self.width, 3):
+            raise ValueError(f"resume: sums of shape {total.shape}, the image is {(self.height, self.width, 3)}")
+        a = np.concatenate([total, np.full((self.height, self.width, 1), float(spp), np.float32)], axis=2)
+        b = np.concatenate([np.asarray(total2, np.float32), np.zeros((self.height, self.width, 1), np.float32)],
+                           axis=2)
+        src = self._targets[2 * self._cur: 2 * self._cur + 2]
+        src[0].write(np.ascontiguousarray(a).tobytes())
+        src[1].write(np.ascontiguousarray(b).tobytes())
+        self.spp = int(spp)
+        self._band_row = 0
+
     def mean(self) -> np.ndarray:
         """(H, W, 3) float32 running mean, row 0 = top (pixels with no sample yet: 0)."""
         s, _, n = self.sums()

@@ -20,12 +20,9 @@ CALIBRATION = dict(scene="default", size=128, spp=4)
 
 
 def cache_dir() -> Path:
-    """``$BRDF_VIEWER_CACHE``, else ``$XDG_CACHE_HOME/brdf-viewer``, else ``~/.cache/brdf-viewer``."""
-    env = os.environ.get("BRDF_VIEWER_CACHE")
-    if env:
-        return Path(env).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "brdf-viewer"
+    from viewer.pathtracer.cache import cache_root
+
+    return cache_root()
 
 
 def gl_renderer_name(ctx) -> str:
