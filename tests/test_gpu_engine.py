@@ -120,3 +120,31 @@ def test_gpu_agrees_with_cpu_builtin_scenes(ctx, name):
 @pytest.mark.parametrize("step", range(len(TOUR)))
 def test_gpu_agrees_with_cpu_lecture_steps(ctx, step):
     check(agreement(ctx, tour_scene(step), 512), f"lecture step {step}")
+
+
+def test_reference_view_time_slices_the_gpu_engine_and_uses_the_cache(ctx):
+    """The window's reference view with the GPU engine: each update renders about its frame
+    budget on the calling (GUI) thread, the image refines, and a view left and returned to
+    starts from the cache with the samples it had."""
+    import time
+
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+
+    sc = tour_scene(0)
+    cam = OrbitCamera.from_scene(sc)
+    rv = ReferenceView(ctx, scale=1.0, max_depth=3, engine="gpu", frame_budget_s=0.01)
+    try:
+        t0 = time.perf_counter()
+        while rv.spp < 3 and time.perf_counter() - t0 < 60:
+            rv.update(sc, cam, (24, 16))
+        assert rv.engine == "gpu" and rv.spp >= 3 and rv.error == ""
+        img, spp = rv.latest()
+        assert img.shape == (16, 24, 3) and np.all(np.isfinite(img)) and img.max() > 0
+        assert rv.samples_per_second > 0
+        other = tour_scene(1)
+        rv.update(other, OrbitCamera.from_scene(other), (24, 16))   # leave: the first view is stored
+        rv.update(sc, cam, (24, 16))                                # and back: it starts from there
+        assert rv.spp >= spp
+    finally:
+        rv.close()

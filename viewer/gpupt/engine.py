@@ -174,6 +174,12 @@ class GpuReferenceRenderer:
         self._fbos = [ctx.framebuffer(color_attachments=self._targets[0:2]),
                       ctx.framebuffer(color_attachments=self._targets[2:4])]
         self._textures.extend(self._fbos)
+        # the sums at the last whole-image sample (state() while a band of rows is half done)
+        self._snap = [ctx.texture((self.width, self.height), 4, dtype="f4") for _ in range(2)]
+        self._targets.extend(self._snap)
+        self._single = [ctx.framebuffer(color_attachments=[t]) for t in self._targets]
+        self._textures.extend(self._single)
+        self._snap_spp = 0
         self._cur = 0                       # side holding the current sums
         self._prog = self._program()
 
@@ -292,6 +298,7 @@ class GpuReferenceRenderer:
             self._band_row = 0 if r1 >= self.height else r1
             if r1 >= self.height:
                 self.spp += 1
+                self._snapshot()
             # aim for a draw of a quarter of the budget
             want = max(1e-3, 0.25 * seconds)
             scale = want / max(dt, 1e-5)
@@ -318,13 +325,24 @@ class GpuReferenceRenderer:
         self.bad_values = int(q[:, :, 3].sum())
         return s[:, :, :3], q[:, :, :3], s[:, :, 3]
 
+    def _snapshot(self):
+        """Copy the current sums to the snapshot textures (GPU-side blits)."""
+        for k in range(2):
+            self.ctx.copy_framebuffer(self._single[4 + k], self._single[2 * self._cur + k])
+        self._snap_spp = self.spp
+
     def state(self):
-        """(sum, sum of squares, spp) of the whole-image samples so far (float64; a band in
-        progress is cut back to the count every pixel has)."""
-        s, q, n = self.sums()
-        if np.any(n != self.spp):   # a time-sliced band is half done: keep the complete samples only
+        """(sum, sum of squares, spp) of the whole-image samples so far (float64). While
+        ``step_for`` is half-way through a sample, the sums as they were at the last whole one."""
+        if self._band_row == 0:
+            s, q, n = self.sums()
+            return s, q, self.spp
+        if self._snap_spp == 0:
             return None
-        return s, q, self.spp
+        a, b = self._snap
+        s = np.frombuffer(a.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        q = np.frombuffer(b.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        return s[:, :, :3], q[:, :, :3], self._snap_spp
 
     def resume(self, total, total2, spp: int):
         """Continue from stored sums of ``spp`` samples per pixel (the reference cache)."""
@@ -339,6 +357,7 @@ class GpuReferenceRenderer:
         src[1].write(np.ascontiguousarray(b).tobytes())
         self.spp = int(spp)
         self._band_row = 0
+        self._snapshot()
 
     def mean(self) -> np.ndarray:
         """(H, W, 3) float32 running mean, row 0 = top (pixels with no sample yet: 0)."""
