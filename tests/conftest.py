@@ -7,6 +7,8 @@ os.environ.setdefault("PYTHONHASHSEED", "0")
 # the window's state file (viewer.app.state) goes to a throwaway folder, never the user's ~/.config;
 # subprocesses started by the tests inherit it
 os.environ["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
+# the reference cache and the engine measurements likewise (never the user's ~/.cache)
+os.environ["BRDF_VIEWER_CACHE"] = tempfile.mkdtemp(prefix="brdf-viewer-cache-")
 
 
 @pytest.fixture(scope="session")

@@ -9,11 +9,25 @@ import time
 import viewer
 from viewer import ViewerError
 
-COMMANDS = ("render", "reference", "compare", "plot", "models")
+COMMANDS = ("render", "reference", "compare", "bake", "plot", "models")
 HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
                  "brdf-viewer reference SCENE --spp 64 --out ref.png | brdf-viewer compare SCENE --spp 64 "
-                 "--out folder | brdf-viewer plot MODEL --kind polar --out plot.png | brdf-viewer models "
-                 "(SCENE: a .toml file, a built-in name or lecture:N; see README)")
+                 "--out folder | brdf-viewer bake SCENE --spp 256 | brdf-viewer plot MODEL --kind polar "
+                 "--out plot.png | brdf-viewer models (SCENE: a .toml file, a built-in name or lecture:N; "
+                 "see README)")
+
+
+ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
+               "GPU, else whichever measured faster here; the choice is printed)")
+
+
+def _engine(args, ctx=None):
+    """The engine for --engine, printed with the reason (auto's choice)."""
+    from viewer.gpupt.select import choose_engine
+
+    engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
+    print(f"engine: {engine} ({why})")
+    return engine
 
 
 def _parser_window() -> argparse.ArgumentParser:
@@ -52,7 +66,7 @@ def _parser_render() -> argparse.ArgumentParser:
 
 def _parser_reference() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer reference",
-                                description="Render a scene with the CPU reference path tracer (same meshes, "
+                                description="Render a scene with the reference path tracer (same meshes, "
                                             "same camera as render). Prints progress and samples/second.")
     p.add_argument("scene", help="scene file (.toml) or built-in scene name")
     p.add_argument("--spp", type=int, required=True, help="samples per pixel (>= 1)")
@@ -63,7 +77,8 @@ def _parser_reference() -> argparse.ArgumentParser:
                    help="scattering events per path (1 = direct light only)")
     p.add_argument("--width", type=int, help="image width (overrides camera.width)")
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
-    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--workers", type=int, help="worker processes of the cpu engine (default: every core)")
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     return p
@@ -269,11 +284,12 @@ def cmd_reference(args) -> int:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
     scene = load_scene(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
-    from viewer.pathtracer import ReferenceRenderer
+    from viewer.gpupt.select import make_renderer
 
     w, h = scene.camera.width, scene.camera.height
+    engine = _engine(args)
     t0 = time.perf_counter()
-    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -293,7 +309,7 @@ def cmd_reference(args) -> int:
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
-                                                                "max_depth": args.max_depth}}))
+                                                                "max_depth": args.max_depth, "engine": engine}}))
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
     print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
@@ -317,6 +333,7 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     return p
 
 
@@ -330,8 +347,8 @@ def cmd_compare(args) -> int:
     from viewer.compare import heat_map, metrics
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
+    from viewer.gpupt.select import make_renderer
     from viewer.io import atomic_write_bytes, write_npy, write_png
-    from viewer.pathtracer import ReferenceRenderer
     from viewer.scene import load_scene
 
     if args.spp < 1:
@@ -347,14 +364,16 @@ def cmd_compare(args) -> int:
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
+    engine = _engine(args, ctx)
     t0 = time.perf_counter()
-    with ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers) as ref:
+    with make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                       ctx=ctx) as ref:
         ref.step(args.spp)
         reference, variance = ref.mean(), ref.variance()
     wall = time.perf_counter() - t0
     m = metrics(raster, reference)
     m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
-              "raster_supersample": args.supersample, "reference_seconds": wall,
+              "raster_supersample": args.supersample, "reference_seconds": wall, "engine": engine,
               "reference_mean_variance_of_mean": float(variance.mean())})
     abs_png, abs_scale = heat_map(raster, reference)
     rel_png, rel_scale = heat_map(raster, reference, relative=True)
@@ -408,6 +427,77 @@ def _describe_param(p, indent="    ") -> str:
     return line
 
 
+def _parser_bake() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="brdf-viewer bake",
+                                description="Fill the reference cache in advance (the window shows a cached "
+                                            "reference at once and keeps refining it).")
+    p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files or built-in scene names")
+    p.add_argument("--lecture", action="store_true", help="also every lecture step")
+    p.add_argument("--spp", type=int, required=True, help="samples per pixel each entry should reach")
+    p.add_argument("--width", type=int, help="reference width (default: half the scene camera's width, "
+                                             "as the window's reference view renders)")
+    p.add_argument("--height", type=int, help="reference height (default: half the scene camera's height)")
+    p.add_argument("--max-depth", type=int, default=8, dest="max_depth")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    return p
+
+
+def cmd_bake(args) -> int:
+    from viewer.camera import OrbitCamera
+    from viewer.gpupt.select import make_renderer
+    from viewer.pathtracer import cache
+    from viewer.pathtracer.integrator import RenderSetup
+    from viewer.scene import load_scene
+
+    if args.spp < 1:
+        raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
+    if args.max_depth < 1:
+        raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
+    jobs = [(str(s), lambda s=s: load_scene(s, _overrides(args))) for s in args.scenes]
+    if args.lecture:
+        from viewer.lecture import TOUR, tour_scene
+
+        jobs += [(f"lecture step {i + 1}", lambda i=i: tour_scene(i)) for i in range(len(TOUR))]
+    if not jobs:
+        raise ViewerError("bake: name at least one SCENE, or --lecture")
+    scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
+    engine = _engine(args)
+    for label, scene in scenes:
+        camera = OrbitCamera.from_scene(scene)
+        w = args.width or max(1, scene.camera.width // 2)
+        h = args.height or max(1, scene.camera.height // 2)
+        key = cache.setup_key(RenderSetup.from_scene(scene, camera, w, h, args.max_depth))
+        old = cache.load(key)
+        have = old.spp if old is not None else 0
+        if have >= args.spp:
+            print(f"{label}: {w}x{h} already cached at {have} spp ({key[:12]})")
+            continue
+        start = time.perf_counter()
+        with make_renderer(engine, scene, camera, w, h, max_depth=args.max_depth, seed=args.seed,
+                           workers=args.workers) as r:
+            if old is not None:
+                r.resume(old.sum, old.sum2, old.spp)
+
+            def bar(frac):
+                n = int(30 * frac)
+                sys.stderr.write(f"\rbake {label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}% {w}x{h} "
+                                 f"{args.spp} spp {time.perf_counter() - start:6.1f} s")
+                sys.stderr.flush()
+
+            bar(0.0)
+            try:
+                r.step(args.spp - have, progress=bar)
+            finally:
+                sys.stderr.write("\n")
+            total, total2, spp = r.state()
+        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))
+        print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
+    return 0
+
+
 def cmd_window(args) -> int:
     from viewer.gl.context import have_display
 
@@ -426,10 +516,10 @@ def main(argv=None) -> int:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
-                      "plot": _parser_plot, "models": _parser_models}[cmd]()
+                      "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models}[cmd]()
             args = parser.parse_args(rest)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
-                    "plot": cmd_plot, "models": cmd_models}[cmd](args)
+                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:

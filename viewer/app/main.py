@@ -425,7 +425,8 @@ class App:
                         self.compare.scale = float(v)
             if self.compare.uses_reference and self._reference is not None:
                 rv = self._reference
-                imgui.text(f"reference: {rv.spp} spp, {rv.samples_per_second / 1e3:.1f} k samples/s")
+                imgui.text(f"reference ({rv.engine or '...'}): {rv.spp} spp, "
+                           f"{rv.samples_per_second / 1e3:.1f} k samples/s")
                 m = self.compare.metrics
                 if m and "rmse" in m and self.compare.mode != "reference":
                     imgui.text(f"RMSE {m['rmse']:.4g}, relMSE {m['relative_mse']:.4g}")

@@ -11,6 +11,15 @@ of a large scene used to outlive ``stop``'s join timeout, after which a second t
 the renderer), and a thousand restarts leave one thread and one pool. A job that fails drops
 its renderer, so the next request starts a fresh pool rather than a broken one. ``close`` ends
 the thread, which closes the renderer and its worker processes.
+
+Engines: ``engine="auto"`` (default) asks ``viewer.gpupt.select.choose_engine`` once (a
+hardware GPU: gpu; software GL: the stored measurement, cpu when there is none). The GPU
+engine shares the window's GL context, so it runs on the GUI thread in time slices:
+``update`` renders bands of rows for ``frame_budget_s`` per frame (``step_for``) and reads the
+image back at most every 0.25 s. Both engines start from the reference cache
+(``viewer.pathtracer.cache``) when it holds the view, and store their sums there when the view
+changes or closes, so returning to a view, a lecture step or an earlier slider value shows the
+stored image at once and keeps refining it.
 """
 
 from __future__ import annotations
@@ -30,9 +39,41 @@ def scene_key(scene, camera, size) -> str:
     return f"{scene_to_toml(scene)}|{cam}|{size}"
 
 
+def _cached(renderer):
+    """(cache key, spp resumed from the cache) for a renderer just (re)targeted."""
+    from viewer.pathtracer import cache
+
+    key = cache.setup_key(renderer.setup)
+    e = cache.load(key)
+    if e is not None and e.sum.shape == (renderer.height, renderer.width, 3):
+        renderer.resume(e.sum, e.sum2, e.spp)
+        return key, e.spp
+    return key, 0
+
+
+def _store(renderer, key, engine, seed=0):
+    """Put a renderer's samples into the cache (when it has any and more than stored)."""
+    if renderer is None or key is None or renderer.spp < 1:
+        return
+    from viewer.pathtracer import cache
+
+    state = renderer.state()
+    if state is not None:
+        cache.store(key, cache.Entry(*state, engine, seed))
+
+
 class ReferenceView:
-    def __init__(self, ctx, scale: float = 0.5, max_depth: int = 8, workers: int | None = None):
-        self.ctx = ctx            # only texture_for_display uses it
+    def __init__(self, ctx, scale: float = 0.5, max_depth: int = 8, workers: int | None = None,
+                 engine: str = "auto", frame_budget_s: float = 0.02):
+        self.ctx = ctx            # texture_for_display and the GPU engine use it
+        self.engine_request = engine
+        self.engine = None        # "cpu" | "gpu" once chosen (first update)
+        self.engine_reason = ""
+        self.frame_budget_s = frame_budget_s
+        self._gpu = None          # GpuReferenceRenderer on the GUI thread (engine "gpu")
+        self._gpu_key = None      # its cache key
+        self._gpu_read_at = 0.0
+        self._gpu_samples = 0
         self.scale = scale
         self.max_depth = max_depth
         self.workers = workers
@@ -63,9 +104,73 @@ class ReferenceView:
         w = max(1, int(viewport_size[0] * self.scale))
         h = max(1, int(viewport_size[1] * self.scale))
         key = scene_key(scene, camera, (w, h))
+        if self.engine is None:
+            self._choose_engine()
+        if self.engine == "gpu":
+            self._gpu_update(key, scene, camera, w, h)
+            return
         if key != self._key:
             self._key = key
             self.restart(scene, camera, w, h)
+
+    def _choose_engine(self):
+        if self.ctx is None:    # no GL context to share: the CPU engine
+            self.engine, self.engine_reason = "cpu", "no OpenGL context"
+            return
+        try:
+            from viewer.gpupt.select import choose_engine
+
+            self.engine, self.engine_reason = choose_engine(self.engine_request, ctx=self.ctx,
+                                                            workers=self.workers, calibrate_if_needed=False)
+        except Exception as e:  # noqa: BLE001 - the CPU engine always works
+            self.engine, self.engine_reason = "cpu", f"gpu engine unavailable: {e}"
+
+    # ------------------------------------------------------------------ GPU engine (GUI thread)
+    def _gpu_update(self, key, scene, camera, w, h):
+        now = time.perf_counter()
+        try:
+            if key != self._key:
+                self._key = key
+                _store(self._gpu, self._gpu_key, "gpu")
+                if self._gpu is None:
+                    from viewer.gpupt.engine import GpuReferenceRenderer
+
+                    self._gpu = GpuReferenceRenderer(scene, camera, w, h, max_depth=self.max_depth, ctx=self.ctx)
+                else:
+                    self._gpu.reset(scene, camera, w, h)
+                self._gpu_key, have = _cached(self._gpu)
+                with self._lock:
+                    self._image = self._gpu.mean() if have else None
+                    self._image_spp = have
+                self.error = ""
+                self.started_at = now
+                self._gpu_samples = 0
+                self._gpu_read_at = 0.0
+            self._gpu_samples += self._gpu.step_for(self.frame_budget_s)
+            if self.ctx.screen is not None:   # leave the window's framebuffer bound, as the frame expects
+                self.ctx.screen.use()
+            elapsed = time.perf_counter() - self.started_at
+            self.samples_per_second = self._gpu_samples / max(elapsed, 1e-9)
+            if self._gpu.spp != self._image_spp and (now - self._gpu_read_at > 0.25 or self._image is None):
+                img = self._gpu.mean()
+                with self._lock:
+                    self._image, self._image_spp = img, self._gpu.spp
+                self._gpu_read_at = now
+        except Exception as e:  # noqa: BLE001 - shown in the window; fall back to the CPU engine
+            self.error = f"gpu reference failed ({type(e).__name__}: {e}); using the cpu engine"
+            self._drop_gpu(store=False)
+            self.engine, self._key = "cpu", None
+
+    def _drop_gpu(self, store=True):
+        gpu, self._gpu = self._gpu, None
+        if gpu is not None:
+            if store:
+                try:
+                    _store(gpu, self._gpu_key, "gpu")
+                except Exception:  # noqa: BLE001 - a cache that cannot be written
+                    pass
+            gpu.close()
+        self._gpu_key = None
 
     def restart(self, scene, camera, w, h):
         """Render ``scene`` seen by ``camera`` at w x h from now on (the current job is
@@ -125,15 +230,25 @@ class ReferenceView:
                 self._renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
                                                    max_depth=self.max_depth, workers=self.workers)
             r = self._renderer
-            while not cancel.is_set():
-                if not r.step(1, cancel):
-                    break
+            key, have = _cached(r)
+            if have:
                 img = r.mean()
                 with self._lock:
                     if self._current(gen):
                         self._image, self._image_spp = img, r.spp
-                        elapsed = time.perf_counter() - self.started_at
-                        self.samples_per_second = r.spp * w * h / max(elapsed, 1e-9)
+            try:
+                while not cancel.is_set():
+                    if not r.step(1, cancel):
+                        break
+                    img = r.mean()
+                    with self._lock:
+                        if self._current(gen):
+                            self._image, self._image_spp = img, r.spp
+                            elapsed = time.perf_counter() - self.started_at
+                            self.samples_per_second = (r.spp - have) * w * h / max(elapsed, 1e-9)
+            finally:
+                if r.spp > have:
+                    _store(r, key, "cpu")
         except ViewerError as e:
             self._fail(gen, str(e))
         except Exception as e:  # noqa: BLE001 - shown in the window; the raster view keeps running
@@ -184,6 +299,8 @@ class ReferenceView:
             self._generation += 1
             self._cancel.set()
             self._key = None
+            if self._gpu is not None:
+                _store(self._gpu, self._gpu_key, "gpu")
             return self._cond.wait_for(lambda: not self._busy, timeout=timeout)
 
     def close(self, timeout: float | None = None):
@@ -200,6 +317,11 @@ class ReferenceView:
             thread.join(timeout)
             if not thread.is_alive():
                 self._thread = None
+        self._drop_gpu()
+        if self.engine == "gpu":
+            from viewer.gpupt.engine import release_programs
+
+            release_programs(self.ctx)
         if self.texture is not None:
             self.texture.release()
             self.texture = None

@@ -74,11 +74,12 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
             raise AssertionError(k)
 
 
-def pack_material(params: Params, offset: int = 0) -> tuple[int, np.ndarray]:
+def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_VEC4) -> tuple[int, np.ndarray]:
     """(model index, float32 array) for the uniform block, starting at float ``offset``.
 
     Nested materials (the layered model's base) are appended after the main block; their
-    offset is stored as an absolute float index into u_mat."""
+    offset is stored as an absolute float index into u_mat. ``limit``: the floats the block
+    holds (None: no bound, for a material texture holding many materials)."""
     spec = brdf.get(params.model).spec
     main: list[float] = []
     tail: list[float] = []
@@ -86,14 +87,14 @@ def pack_material(params: Params, offset: int = 0) -> tuple[int, np.ndarray]:
 
     def base_offset(sub: Params):
         start = offset + main_size + len(tail)
-        _, arr = pack_material(sub, start)
+        _, arr = pack_material(sub, start, limit)
         tail.extend(arr.tolist())
         return start
 
     _pack_fields(spec.params, params, main, tail, base_offset)
     assert len(main) == main_size, (params.model, len(main), main_size)
     data = np.array(main + tail, dtype=np.float32)
-    if offset + data.size > 4 * MAT_VEC4:
+    if limit is not None and offset + data.size > limit:
         raise ValueError(f"material {params.model} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
     return model_index(params.model), data
 

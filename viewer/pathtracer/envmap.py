@@ -118,6 +118,15 @@ class EnvironmentLight:
         self._row_cdf[-1] = 1.0
         self._col_cdf[:, -1] = 1.0
 
+    def distribution(self):
+        """The map's sampling tables for other engines (the GPU's textures): ``(texel_p (H, W),
+        row_cdf (H + 1,), col_cdf (H, W + 1), to_map (3, 3))``: the probability of each texel,
+        the marginal CDF over rows, each row's conditional CDF over columns (both start at 0
+        and end at exactly 1) and the world -> map rotation. None for a constant environment."""
+        if self.image is None:
+            return None
+        return self._texel_p, self._row_cdf, self._col_cdf, self._to_map
+
     def _texel(self, u, v):
         h, w, _ = self.image.shape
         col = np.floor(u * w).astype(np.int64) % w

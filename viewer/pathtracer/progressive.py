@@ -241,6 +241,20 @@ class ReferenceRenderer:
         self.spp += spp
         return True
 
+    # ------------------------------------------------------------------ state (the reference cache)
+    def state(self):
+        """(sum (H, W, 3), sum of squares (H, W, 3), spp) of the samples so far (float64 copies)."""
+        return self._sum.copy(), self._sum2.copy(), self.spp
+
+    def resume(self, total, total2, spp: int):
+        """Continue from stored sums of ``spp`` samples per pixel (``viewer.pathtracer.cache``):
+        the next ``step`` draws sample indices from ``spp`` on."""
+        total = np.asarray(total, np.float64)
+        if total.shape != self._sum.shape:
+            raise ValueError(f"resume: sums of shape {total.shape}, the image is {self._sum.shape}")
+        self._sum, self._sum2 = total.copy(), np.asarray(total2, np.float64).copy()
+        self.spp = int(spp)
+
     # ------------------------------------------------------------------ results
     def mean(self) -> np.ndarray:
         """(H, W, 3) float32 running mean, row 0 = top. Radiance beyond the float32 range

@@ -1,0 +1,391 @@
+"""The GPU reference engine: the CPU engine's estimator in GLSL over the scene's BVH textures.
+
+``GpuReferenceRenderer`` has the interface of ``viewer.pathtracer.ReferenceRenderer``
+(``step(spp, cancel=)``, ``mean()``, ``variance()``, ``spp``, ``bad_values``, ``reset(scene)``,
+``close()``) plus ``step_for(seconds)``, which renders bands of rows until a time budget is
+spent (the window calls it once per frame so the raster stays interactive).
+
+How it runs (OpenGL 4.1 core): the setup is the CPU engine's (``RenderSetup.from_scene``: the
+same triangles, vertex normals, tangents, camera, lights, environment tables). The triangles
+and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
+one after another into a float texture in the layout of ``viewer.brdf.glsl.pack_material``
+(the generated ``brdf/dispatch.glsl`` reads them through ``mat_f``, here from that texture
+instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``
+over the whole target: pixels in the band of rows being rendered add ``spp_pass`` samples to
+the running sums, the rest copy theirs; two RGBA32F targets per ping-pong side hold
+(sum of radiance, sample count) and (sum of squares, bad-value count). The random numbers of
+sample ``s`` of pixel ``(x, y)`` are a hash of ``(x, y, s, seed)`` (``shaders/common/rng.glsl``),
+so an image depends on the seed and the number of samples only, never on how the passes were
+cut into bands. Programs are compiled for what the scene uses (its models, environment kind,
+number of lights, layered materials with a delta base) and cached by that recipe.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.brdf.glsl import generate_dispatch, models_used, pack_material
+from viewer.gl.scene_textures import SceneTextures, float_texture
+from viewer.gl.shaders import build_program, set_uniform
+from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
+from viewer.pathtracer.integrator import RenderSetup
+
+MAX_MATERIALS = 64                 # pathtrace.frag MAX_MATERIALS
+KIND_CODE = {"smooth": 0, "delta": 1, "mixed": 2}
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+_UNIFORM_MAT = "float mat_f(int i) { return u_mat[i >> 2][i & 3]; }"
+_TEXTURE_MAT = ("uniform sampler2D u_mat_tex;\n"
+                "float mat_f(int i) { int t = i >> 2; return texelFetch(u_mat_tex, ivec2(t & 4095, t >> 12), 0)[i & 3]; }")
+
+
+def dispatch_from_texture(models: tuple[str, ...]) -> str:
+    """The generated dispatch for ``models`` reading materials from the texture ``u_mat_tex``
+    (every material of the scene at its own offset) instead of the uniform block."""
+    src = generate_dispatch(models)
+    lines = src.splitlines()
+    out, seen = [], 0
+    for line in lines:
+        if line.startswith("uniform vec4 u_mat["):
+            seen += 1
+            continue
+        if line.strip() == _UNIFORM_MAT:
+            seen += 1
+            out.append(_TEXTURE_MAT)
+            continue
+        out.append(line)
+    if seen != 2:  # the generator changed how it reads materials: fail loudly, never read garbage
+        raise AssertionError("brdf/dispatch.glsl no longer declares u_mat / mat_f as expected")
+    return "\n".join(out) + "\n"
+
+
+def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
+    """(info (2 * MAX_MATERIALS, 4) float32 for ``u_mat_info``, floats (F,) for ``u_mat_tex``)
+    for a list of ``integrator.MaterialInfo``."""
+    if len(materials) > MAX_MATERIALS:
+        raise ViewerError(f"the GPU engine holds {MAX_MATERIALS} materials; the scene has {len(materials)}")
+    info = np.zeros((2 * MAX_MATERIALS, 4), np.float32)
+    data: list[np.ndarray] = []
+    offset = 0
+    for i, m in enumerate(materials):
+        model, arr = pack_material(m.params, offset, limit=None)
+        info[2 * i] = (model, offset, KIND_CODE[m.kind], 1.0 if m.transmissive else 0.0)
+        info[2 * i + 1, :3] = m.sigma_a
+        data.append(arr)
+        offset += arr.size
+    return info, (np.concatenate(data) if data else np.zeros(4, np.float32)).astype(np.float32)
+
+
+_PROGRAMS: dict = {}   # (id(ctx), recipe) -> (program, vertex array)
+
+
+def release_programs(ctx) -> None:
+    """Release the cached path-tracing programs made on ``ctx`` (before releasing it)."""
+    for key in [k for k in _PROGRAMS if k[0] == id(ctx)]:
+        prog, vao = _PROGRAMS.pop(key)
+        vao.release()
+        prog.release()
+
+
+class GpuReferenceRenderer:
+    """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
+    ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here)."""
+
+    engine = "gpu"
+
+    def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
+                 env_image=None, ctx=None, spp_pass: int = 1):
+        if int(max_depth) < 1:
+            raise ValueError("max_depth must be >= 1")
+        self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
+        self._own_ctx = ctx is None
+        if ctx is None:
+            from viewer.gl.context import create_offscreen_context
+
+            ctx = create_offscreen_context()
+        self.ctx = ctx
+        self.spp_pass = max(1, int(spp_pass))
+        self._scene_tex = None
+        self._textures: list = []
+        self._targets: list = []
+        self.rows_per_pass = None           # adapted by step_for
+        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image))
+
+    # ------------------------------------------------------------------ setup
+    def reset(self, scene, camera=None, width=None, height=None):
+        """Start over on a changed scene, camera or size (the programs stay cached)."""
+        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image))
+
+    def _release_scene(self):
+        for t in self._textures + self._targets:
+            t.release()
+        self._textures, self._targets = [], []
+        if self._scene_tex is not None:
+            self._scene_tex.release()
+            self._scene_tex = None
+
+    def _set_setup(self, setup: RenderSetup):
+        self._release_scene()
+        self.setup = setup
+        self.width, self.height = setup.width, setup.height
+        self.spp = 0
+        self.bad_values = 0
+        self.samples_done = 0
+        self._band_row = 0                  # next row of the band being filled by step_for
+        ctx = self.ctx
+        self._scene_tex = SceneTextures(ctx, setup.geometry)
+        info, floats = pack_materials(setup.materials)
+        self._mat_info = info
+        self._mat_tex = float_texture(ctx, as_texels(np.concatenate([floats, np.zeros((-len(floats)) % 4,
+                                                                                          np.float32)])))
+        self._textures.append(self._mat_tex)
+        env = setup.env
+        self.env_mode = 0 if env.is_black else (2 if env.is_map else 1)
+        if self.env_mode == 2:
+            texel_p, row_cdf, col_cdf, to_map = env.distribution()
+            h, w, _ = env.image.shape
+            img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
+            self._env_tex = [ctx.texture((w, h), 4, np.ascontiguousarray(img).tobytes(), dtype="f4"),
+                             ctx.texture((h + 1, 1), 1, row_cdf.astype(np.float32).tobytes(), dtype="f4"),
+                             ctx.texture((w + 1, h), 1, np.ascontiguousarray(col_cdf, np.float32).tobytes(),
+                                         dtype="f4")]
+            import moderngl
+
+            for t in self._env_tex:
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._textures.extend(self._env_tex)
+            self._env_size = (w, h)
+            self._to_map = to_map
+        else:
+            self._env_tex = []
+            self._env_size = (1, 1)
+            self._to_map = np.eye(3)
+        self._targets = []
+        for _ in range(2):
+            a = ctx.texture((self.width, self.height), 4, dtype="f4")
+            b = ctx.texture((self.width, self.height), 4, dtype="f4")
+            a.write(np.zeros((self.height, self.width, 4), np.float32).tobytes())
+            b.write(np.zeros((self.height, self.width, 4), np.float32).tobytes())
+            self._targets += [a, b]
+        self._fbos = [ctx.framebuffer(color_attachments=self._targets[0:2]),
+                      ctx.framebuffer(color_attachments=self._targets[2:4])]
+        self._textures.extend(self._fbos)
+        # the sums at the last whole-image sample (state() while a band of rows is half done)
+        self._snap = [ctx.texture((self.width, self.height), 4, dtype="f4") for _ in range(2)]
+        self._targets.extend(self._snap)
+        self._single = [ctx.framebuffer(color_attachments=[t]) for t in self._targets]
+        self._textures.extend(self._single)
+        self._snap_spp = 0
+        self._cur = 0                       # side holding the current sums
+        self._prog = self._program()
+
+    def _recipe(self):
+        s = self.setup
+        models = []
+        for m in s.materials:
+            models.extend(models_used(m.params))
+        models = tuple(dict.fromkeys(models)) or ("lambert",)
+        defines = {"ENV_MODE": str(self.env_mode), "N_LIGHTS": str(len(s.lights))}
+        if any(m.kind == "mixed" for m in s.materials):
+            defines["HAS_MIXED"] = "1"
+        return models, tuple(sorted(defines.items()))
+
+    def _program(self):
+        """The pass's program for this scene's recipe, shared by every renderer on the same
+        context (compiling takes 0.2-6 s on llvmpipe; a material change of the same models
+        reuses it)."""
+        key = (id(self.ctx), self._recipe())
+        entry = _PROGRAMS.get(key)
+        if entry is None:
+            models, defines = key[1]
+            prog = build_program(self.ctx, "passes/fullscreen.vert", "passes/pathtrace.frag",
+                                 virtual={"brdf/dispatch.glsl": dispatch_from_texture(models)},
+                                 defines=dict(defines))
+            entry = _PROGRAMS[key] = (prog, self.ctx.vertex_array(prog, []))
+        self._vao = entry[1]
+        return entry[0]
+
+    def _bind(self):
+        prog, s = self._prog, self.setup
+        unit = self._scene_tex.bind(prog, 0)
+        for name, tex in (("u_mat_tex", self._mat_tex),
+                          *zip(("u_env_map", "u_env_row_cdf", "u_env_col_cdf"), self._env_tex)):
+            tex.use(location=unit)
+            set_uniform(prog, name, unit)
+            unit += 1
+        src = self._targets[2 * self._cur: 2 * self._cur + 2]
+        for name, tex in zip(("u_prev_sum", "u_prev_sq"), src):
+            tex.use(location=unit)
+            set_uniform(prog, name, unit)
+            unit += 1
+        set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
+        set_uniform(prog, "u_seed", self.seed & 0xFFFFFFFF)
+        set_uniform(prog, "u_max_depth", s.max_depth)
+        set_uniform(prog, "u_size", (self.width, self.height))
+        set_uniform(prog, "u_cam_pos", tuple(map(float, s.cam_pos)))
+        set_uniform(prog, "u_cam_forward", tuple(map(float, s.cam_forward)))
+        set_uniform(prog, "u_cam_right", tuple(map(float, s.cam_right)))
+        set_uniform(prog, "u_cam_up", tuple(map(float, s.cam_up)))
+        set_uniform(prog, "u_tan_half_y", float(s.tan_half_y))
+        env = s.env
+        set_uniform(prog, "u_env_constant", tuple(map(float, env.constant)))
+        set_uniform(prog, "u_env_size", self._env_size)
+        # GLSL reads a mat3 column by column: the transpose's rows are the matrix's columns
+        set_uniform(prog, "u_env_to_map", np.ascontiguousarray(np.asarray(self._to_map).T, np.float32).tobytes())
+        if s.lights:
+            a = np.zeros((len(s.lights), 4), np.float32)
+            v = np.zeros((len(s.lights), 3), np.float32)
+            for j, (kind, x, val) in enumerate(s.lights):
+                a[j, :3] = x
+                a[j, 3] = 0.0 if kind == "point" else 1.0
+                v[j] = val
+            set_uniform(prog, "u_light_a", a.tobytes())
+            set_uniform(prog, "u_light_v", v.tobytes())
+
+    def _pass(self, row0: int, row1: int, spp: int):
+        """One draw: rows [row0, row1) gain ``spp`` samples each."""
+        self._bind()
+        set_uniform(self._prog, "u_row0", int(row0))
+        set_uniform(self._prog, "u_row1", int(row1))
+        set_uniform(self._prog, "u_spp_pass", int(spp))
+        dst = self._fbos[1 - self._cur]
+        dst.use()
+        dst.viewport = (0, 0, self.width, self.height)
+        self._vao.render(vertices=3)
+        self._cur = 1 - self._cur
+
+    # ------------------------------------------------------------------ work
+    def step(self, spp: int = 1, cancel: threading.Event | None = None, progress=None) -> bool:
+        """Add ``spp`` samples per pixel to every pixel. Returns False when ``cancel`` is set
+        before the pass completes (the samples already added stay: the image remains a valid
+        estimate whose ``spp`` counts only completed whole-image samples)."""
+        spp = int(spp)
+        done = 0
+        while done < spp:
+            if cancel is not None and cancel.is_set():
+                return False
+            k = min(self.spp_pass, spp - done)
+            self._pass(0, self.height, k)
+            self.ctx.finish()
+            done += k
+            self.spp += k
+            self.samples_done += k * self.width * self.height
+            if progress:
+                progress(done / spp)
+        return True
+
+    def step_for(self, seconds: float) -> int:
+        """Render bands of rows (one sample each) for about ``seconds``; returns the camera samples
+        added. ``spp`` counts the samples every pixel has; ``rows_per_pass`` adapts so that one
+        draw takes about a quarter of the budget."""
+        t0 = time.perf_counter()
+        added = 0
+        if self.rows_per_pass is None:
+            self.rows_per_pass = max(1, min(self.height, 16384 // max(self.width, 1)))
+        while True:
+            r0 = self._band_row
+            r1 = min(self.height, r0 + self.rows_per_pass)
+            t_pass = time.perf_counter()
+            self._pass(r0, r1, 1)
+            self.ctx.finish()
+            dt = time.perf_counter() - t_pass
+            added += (r1 - r0) * self.width
+            self.samples_done += (r1 - r0) * self.width
+            self._band_row = 0 if r1 >= self.height else r1
+            if r1 >= self.height:
+                self.spp += 1
+                self._snapshot()
+            # aim for a draw of a quarter of the budget
+            want = max(1e-3, 0.25 * seconds)
+            scale = want / max(dt, 1e-5)
+            self.rows_per_pass = int(max(1, min(self.height, round(self.rows_per_pass * min(2.0, max(0.5, scale))))))
+            if time.perf_counter() - t0 + dt > seconds:
+                break
+        return added
+
+    def warm_up(self):
+        """Compile and run one tiny pass now, so the first ``step`` measures rendering only."""
+        self._pass(0, 0, 0)
+        self.ctx.finish()
+
+    # ------------------------------------------------------------------ results
+    def _read(self):
+        a, b = self._targets[2 * self._cur: 2 * self._cur + 2]
+        s = np.frombuffer(a.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        q = np.frombuffer(b.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        return s, q
+
+    def sums(self):
+        """(sum (H, W, 3), sum of squares (H, W, 3), count (H, W)) as accumulated (float64 copies)."""
+        s, q = self._read()
+        self.bad_values = int(q[:, :, 3].sum())
+        return s[:, :, :3], q[:, :, :3], s[:, :, 3]
+
+    def _snapshot(self):
+        """Copy the current sums to the snapshot textures (GPU-side blits)."""
+        for k in range(2):
+            self.ctx.copy_framebuffer(self._single[4 + k], self._single[2 * self._cur + k])
+        self._snap_spp = self.spp
+
+    def state(self):
+        """(sum, sum of squares, spp) of the whole-image samples so far (float64). While
+        ``step_for`` is half-way through a sample, the sums as they were at the last whole one."""
+        if self._band_row == 0:
+            s, q, n = self.sums()
+            return s, q, self.spp
+        if self._snap_spp == 0:
+            return None
+        a, b = self._snap
+        s = np.frombuffer(a.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        q = np.frombuffer(b.read(), np.float32).reshape(self.height, self.width, 4).astype(np.float64)
+        return s[:, :, :3], q[:, :, :3], self._snap_spp
+
+    def resume(self, total, total2, spp: int):
+        """Continue from stored sums of ``spp`` samples per pixel (the reference cache)."""
+        total = np.asarray(total, np.float32)
+        if total.shape != (self.height, self.width, 3):
+            raise ValueError(f"resume: sums of shape {total.shape}, the image is {(self.height, self.width, 3)}")
+        a = np.concatenate([total, np.full((self.height, self.width, 1), float(spp), np.float32)], axis=2)
+        b = np.concatenate([np.asarray(total2, np.float32), np.zeros((self.height, self.width, 1), np.float32)],
+                           axis=2)
+        src = self._targets[2 * self._cur: 2 * self._cur + 2]
+        src[0].write(np.ascontiguousarray(a).tobytes())
+        src[1].write(np.ascontiguousarray(b).tobytes())
+        self.spp = int(spp)
+        self._band_row = 0
+        self._snapshot()
+
+    def mean(self) -> np.ndarray:
+        """(H, W, 3) float32 running mean, row 0 = top (pixels with no sample yet: 0)."""
+        s, _, n = self.sums()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = np.where(n[:, :, None] > 0, s / np.maximum(n, 1)[:, :, None], 0.0)
+        return np.minimum(m, FLOAT32_MAX).astype(np.float32)
+
+    def variance(self) -> np.ndarray:
+        """(H, W, 3) variance of the mean per pixel (unbiased sample variance / n; inf below 2)."""
+        s, q, n = self.sums()
+        n3 = n[:, :, None]
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            m = s / np.maximum(n3, 1)
+            var = np.maximum(q - n3 * m * m, 0.0) / np.maximum(n3 - 1, 1) / np.maximum(n3, 1)
+        return np.where(n3 >= 2, var, np.inf).astype(np.float32)
+
+    def close(self):
+        if self.ctx is None:
+            return
+        self._release_scene()
+        if self._own_ctx:
+            release_programs(self.ctx)
+            self.ctx.release()
+        self.ctx = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
