@@ -672,7 +672,7 @@ class Renderer:
                     _set(prog, "u_thickness", 1)
             self._gpu_mesh(obj.mesh_data).vao(prog).render()
         if ssr_on:
-            return self._ssr.resolve_and_trace(ibl, cam, w, h, env_on, env.rotation_deg, ssr_debug)
+            return self._ssr.resolve_and_trace(ibl, cam, w, h, env_on, env.rotation_deg, ssr_debug, frame_index)
         if targets["draw_fbo"] is not targets["resolved_fbo"]:
             ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
         return targets["resolved"]
