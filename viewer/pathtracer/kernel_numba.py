@@ -55,7 +55,7 @@ import time
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["NumbaKernel", "N_BINS", "MAX_LEAF"]
+__all__ = ["NumbaKernel", "build_bvh", "N_BINS", "MAX_LEAF"]
 
 N_BINS = 32          # SAH bins per axis (Wald 2007 uses 16-32)
 MAX_LEAF = 8         # a node with more triangles than this is always split
@@ -476,6 +476,21 @@ def _intersect_all(bounds, child, first, count, tris, orig, dirs, tmin, tmax, st
 
 # ------------------------------------------------------------------------------ public API
 
+def build_bvh(triangles: np.ndarray, max_leaf: int = MAX_LEAF, n_bins: int = N_BINS):
+    """The binned SAH tree of ``triangles`` ((T, 3, 3) corners, T >= 1) as flat arrays:
+    ``(bounds (M, 6) float64 [min xyz, max xyz], child (M,), first (M,), count (M,),
+    order (T,), depth)``. ``count == 0``: an inner node with children ``child`` and
+    ``child + 1``; a leaf covers the triangles ``order[first:first + count]``. Node 0 is
+    the root. (The GPU's texture layout in ``viewer.pathtracer.bvh_flat`` is made from it.)"""
+    tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    lo = tri.min(axis=1)
+    hi = tri.max(axis=1)
+    cent = 0.5 * (lo + hi)     # centroid of the triangle's box (pbrt's choice)
+    bounds, child, first, count, order, depth = _build_bvh(lo, hi, cent, int(max_leaf), int(n_bins),
+                                                           C_TRAV, C_ISECT)
+    return bounds, child, first, count, order, int(depth)
+
+
 class NumbaKernel:
     """Closest-hit and any-hit ray queries over a triangle soup (see the module docstring).
 
@@ -496,11 +511,8 @@ class NumbaKernel:
             self._prim = np.zeros(0, np.int64)
             self.depth = 0
         else:
-            lo = tri.min(axis=1)
-            hi = tri.max(axis=1)
-            cent = 0.5 * (lo + hi)     # centroid of the triangle's box (pbrt's choice)
             (self._bounds, self._child, self._first, self._count, order,
-             depth) = _build_bvh(lo, hi, cent, int(max_leaf), int(n_bins), C_TRAV, C_ISECT)
+             depth) = build_bvh(tri, max_leaf, n_bins)
             self._tris = np.ascontiguousarray(tri[order].reshape(-1, 9))
             self._prim = order.astype(np.int64)
             self.depth = int(depth)
