@@ -57,7 +57,7 @@ SCENE_VERSION = 1
 TOP_KEYS = ("version", "camera", "environment", "render", "lights", "objects", "materials")
 CAMERA_KEYS = ("position", "target", "up", "fov_y", "width", "height")
 ENV_KEYS = ("constant", "map", "intensity", "rotation_deg")
-RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation")
+RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation", "raytrace", "raytrace_depth")
 LIGHT_TYPES = ("point", "directional")
 POINT_KEYS = ("type", "position", "intensity")
 DIRECTIONAL_KEYS = ("type", "direction", "irradiance")
@@ -240,6 +240,11 @@ class RenderSettings:
     # multiple-scattering energy compensation of glossy lobes under environment light
     # (Fdez-Aguera 2019; Kulla & Conty 2017): the energy single scattering loses, put back
     ms_compensation: bool = False
+    # specular chains (mirror and smooth-glass bounces) traced through the scene's triangles on
+    # the GPU instead of the environment looked up as through a sphere; raytrace_depth = the most
+    # scattering events along a chain, the camera's hit included (the reference's max_depth)
+    raytrace: bool = False
+    raytrace_depth: int = 8
 
     def __eq__(self, other):
         return _equal(self, other)
@@ -802,6 +807,11 @@ def _parse_render(ck: _Checker, t) -> RenderSettings:
         r.tonemap = ck.choice(t["tonemap"], "render.tonemap", TONEMAPS)
     if "ms_compensation" in t:
         r.ms_compensation = ck.boolean(t["ms_compensation"], "render.ms_compensation")
+    if "raytrace" in t:
+        r.raytrace = ck.boolean(t["raytrace"], "render.raytrace")
+    if "raytrace_depth" in t:
+        r.raytrace_depth = ck.integer(t["raytrace_depth"], "render.raytrace_depth",
+                                      "an integer 1..16, the most scattering events along a traced chain", 1, 16)
     return r
 
 
@@ -1047,6 +1057,8 @@ def scene_to_data(scene: Scene) -> dict:
     d["render"] = {"ibl": r.ibl, "ssr": bool(r.ssr), "shadows": bool(r.shadows), "msaa": int(r.msaa),
                    "exposure": float(r.exposure), "tonemap": r.tonemap,
                    "ms_compensation": bool(r.ms_compensation)}
+    if r.raytrace or r.raytrace_depth != 8:
+        d["render"].update(raytrace=bool(r.raytrace), raytrace_depth=int(r.raytrace_depth))
     lights = []
     for light in scene.lights:
         if light.type == "point":

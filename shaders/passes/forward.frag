@@ -43,6 +43,14 @@ uniform int u_transmit_on;
 uniform vec3 u_sigma_a;                  // absorption inside a transmissive material [1/m]
 uniform float u_ior;
 uniform sampler2D u_thickness;           // distance to the nearest back face (0 = none)
+#ifdef RAYTRACE
+// mirrors and smooth glass trace their specular chains (common/specular_chain.glsl): every
+// material comes from u_mat_tex (MAT_TEXTURE), this object's at float offset u_mat_base
+uniform int u_mat_base;
+#define MAT_BASE u_mat_base
+#else
+#define MAT_BASE 0
+#endif
 
 #ifdef SSR
 // Screen-space reflections (viewer/gl/ssr.py): the radiance without the specular environment
@@ -55,6 +63,10 @@ const bool SSR_ON = true;
 #else
 out vec4 frag_color;
 const bool SSR_ON = false;
+#endif
+
+#ifdef RAYTRACE
+#include "common/specular_chain.glsl"
 #endif
 
 // A false-colour ramp for term views (dark blue -> cyan -> yellow -> red), t in [0, 1].
@@ -157,9 +169,9 @@ void main() {
         }
         vec3 wi = to_local * wi_w;
         float cos_i = wi.z;
-        vec3 f = brdf_eval(u_model_id, 0, wi, wo);
+        vec3 f = brdf_eval(u_model_id, MAT_BASE, wi, wo);
         if (i == 0) {
-            first_terms = brdf_terms(u_model_id, 0, wi, wo);
+            first_terms = brdf_terms(u_model_id, MAT_BASE, wi, wo);
             first_ndotl = max(cos_i, 0.0);
             first_fcos = f * max(cos_i, 0.0);
         }
@@ -178,7 +190,11 @@ void main() {
     #define ENV_IRRADIANCE(n) env_irradiance(n)
     #define ENV_PREFILTERED(r, a) env_prefiltered(r, a)
 #endif
+#ifdef RAYTRACE
+    if (false) {  // mirrors and smooth glass: the traced chain below replaces the lookups
+#else
     if (u_env_on != 0) {
+#endif
         // Environment light. Tables (viewer/brdf/albedo.py, the model's own sampler) give the
         // directional albedo rho(wo), its specular part rho_s (the model's ibl_split hook) and the
         // transmitted part; rho_d = rho - rho_s is treated as diffuse.
@@ -252,9 +268,15 @@ void main() {
         float fx = clamp(x - float(k0), 0.0, 1.0);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
         vec3 rho_s = wo.z > 0.0 ? min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho) : vec3(0.0);
+#ifdef RAYTRACE
+        rho_s = vec3(0.0);  // the traced chain has the reflections already
+#endif
         frag_spec = vec4(rho_s, u_ibl_alpha);
         frag_geom = vec4(n, -(u_view * vec4(v_position, 1.0)).z);
     }
+#endif
+#ifdef RAYTRACE
+    radiance += rt_specular(v_position, wo_w, n, v_geometric_normal);
 #endif
     if (u_view_mode == 0) {
         frag_color = vec4(radiance, 1.0);

@@ -42,6 +42,9 @@ uniform int u_hiz;            // 0: the linear DDA over every stride; 1: skip em
 uniform sampler2D u_hiz_tex;  // Hi-Z pyramid: level k = min (closest) linear depth over 2x2 of k - 1
 uniform int u_hiz_max_level;
 uniform int u_hiz_max_iter;
+uniform float u_min_coverage; // a pixel whose normals average shorter than this is no hit (silhouettes)
+uniform int u_jitter;         // 1: start each ray a random fraction of a stride along (u_frame_index's set)
+uniform int u_frame_index;
 
 in vec2 v_uv;
 out vec4 frag_color;
@@ -53,11 +56,24 @@ vec3 false_colour(float t) {
     return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
 }
 
-// Surface depth (positive, along -z of the view) at a pixel; 0 = no surface.
+float ssr_hash(uvec2 p, uint frame) {
+    uint h = p.x * 1973u + p.y * 9277u + frame * 26699u;
+    h = (h ^ 61u) ^ (h >> 16u);
+    h *= 9u;
+    h ^= h >> 4u;
+    h *= 0x27d4eb2du;
+    h ^= h >> 15u;
+    return float(h) * 2.3283064365386963e-10;
+}
+
+// Surface depth (positive, along -z of the view) at a pixel; 0 = no surface. A pixel whose
+// samples saw different surfaces (a silhouette under MSAA: the averaged normal is shorter than
+// u_min_coverage) holds a depth between them that no surface has, and a ray passing behind the
+// silhouette would hit it (dark stray pixels beside silhouettes): such pixels are no hit.
 float scene_depth(ivec2 p) {
     vec4 g = texelFetch(u_geom, p, 0);
     float cov = length(g.xyz);
-    return cov > 0.5 ? g.w / cov : 0.0;
+    return cov > u_min_coverage ? g.w / cov : 0.0;
 }
 
 vec3 view_position(vec2 px, float depth) {
@@ -181,6 +197,19 @@ bool trace(vec3 P0, vec3 R, out vec2 hit_px, out float steps) {
     r.k0 = k0;
     r.dk = (k1 - k0) * inv_dx * u_stride;
     float t_end = n_px / u_stride;
+    if (u_jitter != 0) {
+        // A fixed stride samples the depth buffer at the same phase along neighbouring rays, so
+        // where a ray grazes a surface (within the thickness for a few steps) neighbouring
+        // pixels alternate between hit and miss: comb-like streaks. Starting each ray a random
+        // fraction of a stride along, a new fraction each frame, turns that pattern into noise
+        // that the frame average (the window's accumulation while the view is still, or
+        // render_arrays(frames=K)) removes.
+        float j = ssr_hash(uvec2(gl_FragCoord.xy), uint(u_frame_index));
+        r.s0 += r.ds * j;
+        r.q0 += r.dq * j;
+        r.k0 += r.dk * j;
+        t_end -= j;
+    }
     if (u_hiz != 0) return trace_hiz(r, t_end, hit_px, steps);
     float t = 0.0;
     for (int i = 0; i < u_max_steps; ++i) {

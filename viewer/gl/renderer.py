@@ -15,6 +15,8 @@ from viewer.brdf.glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import ShaderError, compile_sources, default_virtual, program_sources
 from viewer.gl.shaders import set_uniform as _set
+from viewer.gl.raytrace import KIND_SHADED, chain_kind, dispersive, scene_models
+from viewer.gl.raytrace import MAX_SEGMENTS as RT_MAX_SEGMENTS
 
 MAX_LIGHTS = 4  # keep equal to MAX_LIGHTS in shaders/common/shadow.glsl
 SHADOW_TILE = 1024
@@ -163,6 +165,7 @@ class Renderer:
         self._thick = None
         self._ibl = None
         self._ssr = None
+        self._rt = None
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -358,17 +361,24 @@ class Renderer:
     sample_shading = False
 
     def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False,
-                        ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False):
+                        ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
+                        raytrace: tuple[str, ...] | None = None, dispersion: bool = False):
         """The forward program for a material (its model, and a nested base model if any).
         ``ibl_sampled`` compiles in the per-pixel environment sampling of the fis and
-        brute_force modes (left out otherwise: software GL pays for untaken loops)."""
+        brute_force modes (left out otherwise: software GL pays for untaken loops).
+        ``raytrace``: the models of every material in the scene, for a mirror or smooth glass
+        whose specular chain is traced (viewer/gl/raytrace.py); ``dispersion`` traces each
+        colour channel's chain apart."""
         from viewer.brdf.glsl import models_used
 
         per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
+        if raytrace is not None:
+            used = tuple(dict.fromkeys(used + tuple(raytrace)))
         key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
                + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
-               + (":const" if env_constant else ""))
+               + (":const" if env_constant else "") + (":rt" if raytrace is not None else "")
+               + (":disp" if dispersion else ""))
         prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
         if prog is not None:
             return prog
@@ -383,6 +393,11 @@ class Renderer:
             defines["ENV_LIGHT"] = "1"
         if env_constant:
             defines["ENV_CONSTANT"] = "1"
+        if raytrace is not None:
+            defines["RAYTRACE"] = "1"
+            defines["MAT_TEXTURE"] = "1"
+            if dispersion:
+                defines["RT_DISPERSION"] = "1"
         return self._program(key, _Recipe("passes/forward.vert", "passes/forward.frag", "passes/forward.geom",
                                           models=tuple(used), defines=tuple(defines.items())))
 
@@ -571,6 +586,14 @@ class Renderer:
             self._ibl = IBL(self.ctx)
         return self._ibl
 
+    def raytrace_state(self):
+        """The scene's BVH and material textures for traced chains (viewer/gl/raytrace.py)."""
+        if self._rt is None:
+            from viewer.gl.raytrace import RayTrace
+
+            self._rt = RayTrace(self.ctx)
+        return self._rt
+
     def ssr(self):
         """The screen-space reflection pass (viewer/gl/ssr.py), created on first use."""
         if self._ssr is None:
@@ -620,7 +643,8 @@ class Renderer:
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
         env_map = env.radiance_map() if env.map is not None else None
         thickness = None
-        absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])]
+        absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])
+                     and not (scene.render.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
         if absorbers and scene.render.ibl != "off" and (env_map is not None or np.any(env_rad > 0)):
             thickness = self._thickness_pass(absorbers, cam, w, h)
         ibl = self.ibl()
@@ -678,14 +702,23 @@ class Renderer:
                 "u_shadow_tile_size": float(SHADOW_TILE),
                 "u_shadow_texel_world": self._shadow_texel.astype("f4").tobytes(),
             })
+        rt = None
+        if scene.render.raytrace and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
+                                         for o in scene.objects):
+            rt = self.raytrace_state()
+            rt.update(scene, self.albedo_tables)
+            rt_models, rt_disp = scene_models(scene), dispersive(scene)
         ready = set()
         for obj in scene.objects:
             params = scene.materials[obj.material]
+            traced = rt is not None and chain_kind(params) != KIND_SHADED
             try:
                 prog = self.forward_program(params, sample_shading=self.sample_shading and targets["samples"] > 1,
                                             ssr=ssr_on,
                                             ibl_sampled=env_on and scene.render.ibl in ("fis", "brute_force"),
-                                            env_light=env_on, env_constant=env_map is None)
+                                            env_light=env_on, env_constant=env_map is None,
+                                            raytrace=rt_models if traced else None,
+                                            dispersion=traced and rt_disp)
             except ShaderError:
                 if not self.hot_reload:
                     raise
@@ -697,6 +730,13 @@ class Renderer:
                 # sampler type) is, and that makes the draw call invalid
                 ibl.bind(prog, env.rotation_deg)
                 ready.add(id(prog))
+            if traced:  # every frame: the shadow atlas and IBL share no units with these
+                rt.bind(prog, first_unit=8)
+                row = rt.rows[obj.material]
+                _set(prog, "u_rt_row", row)
+                _set(prog, "u_mat_base", row * 256)
+                _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
+                _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             m = obj.model_matrix()
             _set(prog, "u_model", gl_bytes(m))
             _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
@@ -721,7 +761,7 @@ class Renderer:
                     _set(prog, "u_thickness", 1)
             self._gpu_mesh(obj.mesh_data).vao(prog).render()
         if ssr_on:
-            return self._ssr.resolve_and_trace(ibl, cam, w, h, env_on, env.rotation_deg, ssr_debug)
+            return self._ssr.resolve_and_trace(ibl, cam, w, h, env_on, env.rotation_deg, ssr_debug, frame_index)
         if targets["draw_fbo"] is not targets["resolved_fbo"]:
             ctx.copy_framebuffer(targets["resolved_fbo"], targets["draw_fbo"])
         return targets["resolved"]
@@ -846,6 +886,8 @@ class Renderer:
         if self._albedo_gpu is not None:
             self._albedo_gpu.release()
             self._albedo_gpu = None
+        if self._rt is not None:
+            self._rt.release()
         for v in self._fullscreen_vaos.values():
             v.release()
         self._fullscreen_vaos.clear()

@@ -50,9 +50,9 @@ SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
 
 
 class SSR:
-    settings = {"max_distance": 3.0, "thickness": 0.2, "bias": 0.01, "stride": 2.0, "max_steps": 320,
+    settings = {"max_distance": 3.0, "thickness": 0.05, "bias": 0.01, "stride": 2.0, "max_steps": 320,
                 "refine_steps": 6, "max_roughness": 0.5, "edge_fade": 0.075,
-                "hiz": True, "hiz_build": "gpu", "hiz_max_iter": 2048}
+                "hiz": True, "hiz_build": "gpu", "hiz_max_iter": 2048, "jitter": True, "min_coverage": 0.97}
 
     def __init__(self, ctx):
         self.ctx = ctx
@@ -194,7 +194,8 @@ class SSR:
             out.append(np.frombuffer(t["hiz"].read(level=k), np.float32).reshape(h, w).copy())
         return out
 
-    def resolve_and_trace(self, ibl, cam, w, h, env_on: bool, rotation_deg: float, debug: int = 0):
+    def resolve_and_trace(self, ibl, cam, w, h, env_on: bool, rotation_deg: float, debug: int = 0,
+                          frame_index: int = 0):
         """Resolve the forward targets, build the colour mip chain and run the SSR pass; returns
         the output texture (linear RGBA32F)."""
         import time
@@ -240,6 +241,9 @@ class SSR:
         _set(prog, "u_max_lod", float(t["levels"] - 1))
         _set(prog, "u_env_on", int(env_on))
         _set(prog, "u_debug", int(debug))
+        _set(prog, "u_min_coverage", float(s["min_coverage"]))
+        _set(prog, "u_jitter", int(bool(s["jitter"])))
+        _set(prog, "u_frame_index", int(frame_index))
         ibl.bind(prog, rotation_deg)
         fbo = t["out_fbo"]
         fbo.use()

@@ -1,0 +1,224 @@
+// Specular chains traced through the scene's triangles ([render] raytrace = true): compiled into
+// the forward program of mirrors and smooth glass only (the RAYTRACE variant; software GL pays
+// for untaken branches). Included by passes/forward.frag after its uniforms and after every
+// other include (the light and environment uniforms, shadow maps, IBL and the BRDF dispatch
+// with MAT_TEXTURE, so brdf_eval reads any material of the scene from u_mat_tex).
+//
+// From the camera's hit the chain follows delta lobes only: a mirror reflects with its Fresnel
+// (conductor, dielectric or none); smooth glass splits into the reflected ray with weight
+// R = fresnel_dielectric (exact, both polarizations) and the refracted one with 1 - R times the
+// radiance factor 1 / eta^2 (eta the relative index seen from the incoming ray; entering and
+// leaving cancel); past the critical angle refract() is empty and R = 1 (total internal
+// reflection). A segment that ends on the inside of an absorbing dielectric is attenuated by
+// exp(-sigma_a t) over its true length t (Bouguer; objects closed and not nested, as the
+// reference assumes). Where a chain meets a surface that is not a delta lobe, that surface is
+// shaded the rasterizer's way (point / directional lights with shadow maps, split-sum IBL from
+// the material's albedo tables); where it leaves the scene it takes the environment.
+// A vertex past u_rt_depth scattering events (the camera's hit counts as one) adds nothing: the
+// reference's max_depth. Branches are kept on a small stack, the heavier one followed first;
+// a branch lighter than RT_MIN_WEIGHT or with no room on the stack ends in the environment
+// along its direction.
+//
+// Material rows of u_mat_tex (viewer/gl/raytrace.py): texels 0..63 the u_mat block (at float
+// offset 256 row), 64.. the albedo table, 96.. its specular part, 128.. the transmitted part,
+// 160 = (model index, specular alpha, kind: 0 shaded / 1 mirror / 2 smooth glass, transmits),
+// 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel 0 conductor / 1 dielectric
+// / 2 none), 163 = (mirror k, mirror dielectric ior).
+#include "common/bvh.glsl"
+#include "common/fresnel.glsl"
+
+uniform int u_rt_row;            // this object's material row
+uniform int u_rt_depth;          // most scattering events along a chain (camera hit included)
+uniform int u_rt_max_segments;   // most rays traced per pixel
+
+const int RT_STACK = 8;
+const float RT_MIN_WEIGHT = 1e-3;
+const int RT_T_ALBEDO = 64, RT_T_SPEC = 96, RT_T_TRANS = 128, RT_T_INFO = 160, RT_T_SIGMA = 161,
+          RT_T_ETA = 162, RT_T_K = 163;
+
+vec4 rt_texel(int row, int x) { return texelFetch(u_mat_tex, ivec2(x, row), 0); }
+
+vec3 rt_table(int row, int base, float cos_o) {
+    float x = clamp(cos_o, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
+    int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
+    int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
+    float fx = clamp(x - float(k0), 0.0, 1.0);
+    return mix(rt_texel(row, base + k0).rgb, rt_texel(row, base + k1).rgb, fx);
+}
+
+// the environment as the rest of the forward pass sees it (nothing when it does not light)
+#ifdef ENV_LIGHT
+#ifdef ENV_CONSTANT
+vec3 rt_env(vec3 d) { return u_env_on != 0 ? u_env_constant : vec3(0.0); }
+vec3 rt_irradiance(vec3 n) { return u_env_on != 0 ? PI * u_env_constant : vec3(0.0); }
+vec3 rt_prefiltered(vec3 r, float a) { return u_env_on != 0 ? u_env_constant : vec3(0.0); }
+#else
+vec3 rt_env(vec3 d) { return u_env_on != 0 ? env_radiance(d) : vec3(0.0); }
+vec3 rt_irradiance(vec3 n) { return u_env_on != 0 ? env_irradiance(n) : vec3(0.0); }
+vec3 rt_prefiltered(vec3 r, float a) { return u_env_on != 0 ? env_prefiltered(r, a) : vec3(0.0); }
+#endif
+#else
+vec3 rt_env(vec3 d) { return vec3(0.0); }
+vec3 rt_irradiance(vec3 n) { return vec3(0.0); }
+vec3 rt_prefiltered(vec3 r, float a) { return vec3(0.0); }
+#endif
+
+// A surface that is not a delta lobe, shaded as the forward pass shades it: the lights through
+// brdf_eval with shadow maps, the environment by the split sum of its albedo tables.
+vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
+    vec3 t = tangent.xyz - n * dot(n, tangent.xyz);
+    t = dot(t, t) > 1e-12 ? normalize(t) : normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
+    vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+    mat3 to_local = transpose(mat3(t, b, n));
+    vec3 wo = to_local * wo_w;
+    vec4 info = rt_texel(row, RT_T_INFO);
+    int model = int(info.x + 0.5);
+    int o = row << 8;  // the row's u_mat block starts at float 256 row (MAT_TEXTURE)
+    vec3 radiance = vec3(0.0);
+    for (int i = 0; i < MAX_LIGHTS; ++i) {
+        if (i >= u_num_lights) break;
+        bool is_point = u_light_type[i] == 0;
+        vec3 wi_w;
+        vec3 e;
+        if (is_point) {
+            vec3 d = u_light_pos[i] - p;
+            float r2 = max(dot(d, d), 1e-12);
+            wi_w = d * inversesqrt(r2);
+            e = u_light_value[i] / r2;
+        } else {
+            wi_w = -normalize(u_light_pos[i]);
+            e = u_light_value[i];
+        }
+        vec3 wi = to_local * wi_w;
+        if (wi.z <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
+        float vis = shadow_visibility(i, is_point, u_light_pos[i], p, ng, dot(ng, wi_w));
+        radiance += brdf_eval(model, o, wi, wo) * e * wi.z * vis;
+    }
+    if (wo.z > 0.0) {
+        vec3 rho = rt_table(row, RT_T_ALBEDO, wo.z);
+        vec3 rho_s = min(rt_table(row, RT_T_SPEC, wo.z), rho);
+        radiance += (rho - rho_s) * rt_irradiance(n) * INV_PI + rho_s * rt_prefiltered(reflect(-wo_w, n), info.y);
+        if (info.w > 0.5) {  // rough glass: the environment straight through (no chain behind it)
+            float ior = rt_texel(row, RT_T_ETA).x;
+            radiance += rt_table(row, RT_T_TRANS, wo.z) * ior * ior * rt_prefiltered(-wo_w, info.y);
+        }
+    }
+    return radiance;
+}
+
+struct RtRay { vec3 o; vec3 d; vec3 w; int depth; };
+
+// The delta scattering at p of a ray travelling along d (unit) into a surface with shading
+// normal n and winding (outward) normal ng_w: up to two rays leaving, weights w * (R, T).
+// channel: the colour channel whose index of refraction bends the rays (dispersion).
+int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, int depth, int channel,
+                 out RtRay a, out RtRay b) {
+    bool entering = dot(ng_w, d) < 0.0;
+    vec3 ngf = entering ? ng_w : -ng_w;           // faces the incoming ray
+    vec3 nf = dot(n, ngf) < 0.0 ? -n : n;
+    float cos_i = clamp(dot(-d, nf), 0.0, 1.0);
+    float eps = 1e-4 * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
+    a.o = p + eps * ngf;
+    a.d = reflect(d, nf);
+    a.depth = depth;
+    b.depth = depth;
+    b.w = vec3(0.0);
+    b.o = p;
+    b.d = d;
+    vec4 eta4 = rt_texel(row, RT_T_ETA);
+    if (kind == 1) {
+        int fr = int(eta4.w + 0.5);
+        vec4 k4 = rt_texel(row, RT_T_K);
+        vec3 R = fr == 0 ? fresnel_conductor(cos_i, eta4.xyz, k4.xyz)
+                         : (fr == 1 ? vec3(fresnel_dielectric(cos_i, k4.w)) : vec3(1.0));
+        a.w = w * R;
+        return 1;
+    }
+    float eta = eta4[channel];
+    float eta_rel = entering ? eta : 1.0 / eta;   // n_t / n_i seen from the incoming ray
+    vec3 dt = refract(d, nf, 1.0 / eta_rel);
+    if (dot(dt, dt) == 0.0) {                     // total internal reflection
+        a.w = w;
+        return 1;
+    }
+    float F = fresnel_dielectric(cos_i, eta_rel);
+    float T = fresnel_dielectric_transmittance(cos_i, eta_rel);
+    a.w = w * F;
+    b.o = p - eps * ngf;
+    b.d = normalize(dt);
+    b.w = w * (T / (eta_rel * eta_rel));
+    return 2;
+}
+
+float rt_max(vec3 v) { return max(v.x, max(v.y, v.z)); }
+
+// The radiance arriving along the rays the camera's hit (row, kind) scatters into.
+vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
+    RtRay stack[RT_STACK];
+    RtRay a, b;
+    int sp = 0;
+    vec3 total = vec3(0.0);
+    int m = rt_interface(u_rt_row, kind, p, d, n, ng_w, vec3(1.0), 1, channel, a, b);
+    // the lighter branch below the heavier, which is popped first
+    bool swap = m == 2 && rt_max(b.w) < rt_max(a.w);
+    if (m == 2) stack[sp++] = swap ? b : a;
+    stack[sp++] = (m == 2 && !swap) ? b : a;
+    int segments = 0;
+    while (sp > 0) {
+        RtRay r = stack[--sp];
+        if (segments >= u_rt_max_segments) {      // out of budget: the environment beyond
+            total += r.w * rt_env(r.d);
+            continue;
+        }
+        ++segments;
+        BvhHit h;
+        if (!bvh_closest(r.o, r.d, 0.0, BVH_INF, h)) {
+            total += r.w * rt_env(r.d);
+            continue;
+        }
+        if (r.depth + 1 > u_rt_depth) continue;
+        vec3 v0 = bvh_vertex(h.tri, 0), v1 = bvh_vertex(h.tri, 1), v2 = bvh_vertex(h.tri, 2);
+        float bu = h.uv.x, bv = h.uv.y, bw = 1.0 - bu - bv;
+        vec3 hp = bw * v0 + bu * v1 + bv * v2;
+        vec3 ng = cross(v1 - v0, v2 - v0);
+        ng = dot(ng, ng) > 0.0 ? normalize(ng) : -r.d;
+        vec3 hn = bw * bvh_vertex_normal(h.tri, 0) + bu * bvh_vertex_normal(h.tri, 1) + bv * bvh_vertex_normal(h.tri, 2);
+        hn = dot(hn, hn) > 0.0 ? normalize(hn) : ng;
+        int row = bvh_material(h.tri);
+        vec4 info = rt_texel(row, RT_T_INFO);
+        int hkind = int(info.z + 0.5);
+        bool entering = dot(ng, r.d) < 0.0;
+        if (hkind == 2 && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+        if (hkind == 0) {
+            // two-sided as in the forward pass: the side the ray arrives on
+            vec3 ngs = entering ? ng : -ng;
+            vec3 ns = dot(hn, ngs) < 0.0 ? -hn : hn;
+            vec4 tg = bw * bvh_vertex_tangent(h.tri, 0) + bu * bvh_vertex_tangent(h.tri, 1) + bv * bvh_vertex_tangent(h.tri, 2);
+            tg.w = bvh_vertex_tangent(h.tri, 0).w;
+            total += r.w * rt_shade(row, hp, ns, ngs, tg, -r.d);
+            continue;
+        }
+        m = rt_interface(row, hkind, hp, r.d, hn, ng, r.w, r.depth + 1, channel, a, b);
+        if (m == 2 && rt_max(b.w) > rt_max(a.w)) { RtRay s = a; a = b; b = s; }  // a: the heavier
+        if (m == 2 && rt_max(b.w) > 0.0) {
+            if (rt_max(b.w) >= RT_MIN_WEIGHT && sp < RT_STACK - 1) stack[sp++] = b;
+            else total += b.w * rt_env(b.d);
+        }
+        if (rt_max(a.w) > 0.0) stack[sp++] = a;
+    }
+    return total;
+}
+
+// The camera's hit on a mirror or smooth glass: the chain's radiance toward the camera. With
+// RT_DISPERSION (one index of refraction per colour channel) each channel is traced on its own.
+vec3 rt_specular(vec3 p, vec3 wo_w, vec3 n, vec3 ng_w) {
+    int kind = int(rt_texel(u_rt_row, RT_T_INFO).z + 0.5);
+    if (kind == 0) return vec3(0.0);
+#ifdef RT_DISPERSION
+    if (kind == 2) {
+        return vec3(rt_chain(kind, p, -wo_w, n, ng_w, 0).r, rt_chain(kind, p, -wo_w, n, ng_w, 1).g,
+                    rt_chain(kind, p, -wo_w, n, ng_w, 2).b);
+    }
+#endif
+    return rt_chain(kind, p, -wo_w, n, ng_w, 0);
+}

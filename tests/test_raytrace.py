@@ -1,0 +1,353 @@
+"""Traced specular chains in the rasterizer ([render] raytrace = true; viewer/gl/raytrace.py,
+shaders/common/specular_chain.glsl), against the CPU reference path tracer and analytic values.
+
+The reference follows the same delta chains exactly (its max_depth = the chain's depth, 8), so
+where a chain ends in the environment the two differ only by the pixel filter (both box-filter:
+the raster supersamples 4 x 4, the reference jitters its samples) and its Monte Carlo noise.
+Where a chain ends on a diffuse surface the raster shades it the rasterizer's way (split-sum
+environment without occlusion, shadow maps), the reference with full global illumination: the
+tolerances below leave room for that and say so.
+"""
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from viewer.camera import OrbitCamera
+from viewer import ViewerError as SceneError
+from viewer.scene import load_scene, parse_scene
+
+W = H = 64
+SS = 4
+
+
+def _scene(tmp_path, name, text):
+    p = tmp_path / f"{name}.toml"
+    p.write_text(textwrap.dedent(text))
+    return load_scene(str(p))
+
+
+def _reference(scene, spp, seed=1):
+    pathtracer = pytest.importorskip("viewer.pathtracer")
+    ref = pathtracer.ReferenceRenderer(scene, camera=OrbitCamera.from_scene(scene), width=W, height=H,
+                                       max_depth=8, seed=seed, workers=2)
+    try:
+        ref.step(spp)
+        return ref.mean()
+    finally:
+        ref.close()
+
+
+def _object_mask(gl_ctx, scene, index, erode=1):
+    """Pixels whose centre ray first hits object ``index`` (the BVH on the GPU), eroded by
+    ``erode`` pixels so silhouettes (partly covered pixels) are left out."""
+    from render_util import camera_rays
+
+    from viewer.gl.scene_textures import RayQuery, SceneTextures
+    from viewer.pathtracer.geometry import build_geometry
+
+    c = scene.camera
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, W, H).reshape(-1, 3)
+    geom = build_geometry(scene)
+    q = RayQuery(gl_ctx)
+    with SceneTextures(gl_ctx, geom) as st:
+        _, prim, _, _ = q.intersect(st, np.broadcast_to(c.position, d.shape), d)
+    q.release()
+    obj = np.where(prim >= 0, geom.object_index[np.maximum(prim, 0)], -1).reshape(H, W)
+    m = obj == index
+    for _ in range(erode):
+        e = m.copy()
+        e[1:-1, 1:-1] = m[1:-1, 1:-1] & m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+        e[0, :] = e[-1, :] = e[:, 0] = e[:, -1] = False
+        m = e
+    return m
+
+
+def _rel_mean_error(img, ref, mask):
+    """The error of the mean radiance over the mask, relative: |mean raster - mean reference| /
+    mean reference, summed over the channels (the per-pixel error of sharp refracted panels at
+    64 samples per pixel is mostly the reference's noise: 16% at 64 spp, 5% at 512 on the ball;
+    the 4x4-block errors below catch local differences)."""
+    a, b = img[mask].mean(axis=0), ref[mask].mean(axis=0)
+    return float(np.abs(a - b).sum() / b.sum())
+
+
+def _block_errors(img, ref, mask, k=4):
+    """Relative error of the mean over each k x k block lying fully inside the mask."""
+    out = []
+    for i in range(0, H - k + 1, k):
+        for j in range(0, W - k + 1, k):
+            if mask[i:i + k, j:j + k].all():
+                a = img[i:i + k, j:j + k].mean(axis=(0, 1))
+                b = ref[i:i + k, j:j + k].mean(axis=(0, 1))
+                out.append(float(np.abs(a - b).sum() / max(b.sum(), 1e-6)))
+    return np.array(out)
+
+
+def _raster(renderer, scene, raytrace):
+    scene.render.raytrace = raytrace
+    return renderer.render_arrays(scene, width=W, height=H, supersample=SS)[0]
+
+
+GLASS_BALL = """
+[camera]
+position = [0.0, 0.3, 3.0]
+target   = [0.0, 0.0, 0.0]
+up       = [0.0, 1.0, 0.0]
+fov_y    = 30.0
+width    = 64
+height   = 64
+
+[environment]
+map = "studio"
+
+[render]
+ibl = "split_sum"
+
+[[objects]]
+mesh     = "sphere"
+material = "glass"
+scale    = 0.6
+
+[materials.glass]
+preset = "lecture_air_glass"
+"""
+
+
+def test_scene_key_is_validated(tmp_path):
+    s = _scene(tmp_path, "ok", GLASS_BALL + "\n")
+    assert s.render.raytrace is False and s.render.raytrace_depth == 8
+    import tomllib
+
+    data = tomllib.loads(textwrap.dedent(GLASS_BALL))
+    data["render"]["raytrace"] = True
+    data["render"]["raytrace_depth"] = 5
+    s = parse_scene(data, None)
+    assert s.render.raytrace is True and s.render.raytrace_depth == 5
+    for key, bad, what in (("raytrace", "yes", "expected true or false"), ("raytrace_depth", 0, "out of range"),
+                           ("raytrace_depth", 2.5, "expected an integer")):
+        d = tomllib.loads(textwrap.dedent(GLASS_BALL))
+        d["render"][key] = bad
+        with pytest.raises(SceneError, match=f"render.{key}.*{what}"):
+            parse_scene(d, None)
+
+
+@pytest.mark.slow  # the block errors need a converged reference: 512 spp (~50 s on 2 cores)
+def test_glass_ball_under_studio_map(tmp_path, renderer, gl_ctx):
+    # Every chain ends in the environment (nothing else in the scene), so raster and reference
+    # integrate the same function over each pixel. Tolerances: mean < 3% and p90 of 4x4 blocks
+    # < 20% (the issue's bounds); what remains is the sphere's tessellation (the reference
+    # traces the same triangles and normals, so only the box filters' sampling differs), the
+    # reference's noise at 64 spp (~1% per block on this map) and float32 rounding near TIR.
+    scene = _scene(tmp_path, "ball", GLASS_BALL)
+    mask = _object_mask(gl_ctx, scene, 0)
+    ref = _reference(scene, 512, seed=3)
+    errs = {}
+    for rt in (False, True):
+        img = _raster(renderer, scene, rt)
+        errs[rt] = (_rel_mean_error(img, ref, mask), float(np.percentile(_block_errors(img, ref, mask), 90)))
+    print(f"glass ball ({mask.sum()} px): raytrace off mean {errs[False][0]:.4f} p90 {errs[False][1]:.4f}; "
+          f"on mean {errs[True][0]:.4f} p90 {errs[True][1]:.4f}")
+    assert errs[True][0] < 0.03
+    assert errs[True][1] < 0.20
+
+
+@pytest.mark.slow  # 512 spp: at 64 the reference's fireflies alone move the cube's mean by 3.5%
+def test_tir_glass_cube_lecture_step(renderer, gl_ctx):
+    # The lecture's total-internal-reflection step (a glass cube turned 35 degrees on a Lambert
+    # floor under the sky). Chains that end on the floor see it shaded the rasterizer's way
+    # (split-sum sky light without occlusion, no indirect light), the reference with global
+    # illumination: hence 8% (the issue's bound) rather than the 3% of the lone ball.
+    from viewer.lecture import TOUR, tour_scene
+
+    i = [s.key for s in TOUR].index("tir")
+    scene = tour_scene(i)
+    scene.camera.width, scene.camera.height = W, H
+    cube = [k for k, o in enumerate(scene.objects) if o.material == "glass"][0]
+    mask = _object_mask(gl_ctx, scene, cube)
+    ref = _reference(scene, 512, seed=5)
+    e = {rt: _rel_mean_error(_raster(renderer, scene, rt), ref, mask) for rt in (False, True)}
+    print(f"TIR cube ({mask.sum()} px): mean error raytrace off {e[False]:.4f}, on {e[True]:.4f}")
+    assert e[True] < 0.08
+
+
+MIRROR_FLOOR = """
+[camera]
+position = [0.0, 1.2, 3.2]
+target   = [0.0, 0.4, 0.0]
+up       = [0.0, 1.0, 0.0]
+fov_y    = 40.0
+width    = 64
+height   = 64
+
+[environment]
+constant = [0.2, 0.25, 0.3]
+
+[render]
+ibl     = "split_sum"
+ssr     = {ssr}
+shadows = true
+
+[[lights]]
+type      = "point"
+position  = [-2.0, 4.0, 2.5]
+intensity = [30.0, 30.0, 30.0]
+
+[[objects]]
+mesh      = "sphere"
+material  = "ball"
+translate = [0.0, 0.6, 0.0]
+scale     = 0.5
+
+[[objects]]
+mesh     = "plane"
+material = "floor"
+scale    = 3.0
+
+[materials.ball]
+model  = "lambert"
+albedo = [0.7, 0.2, 0.15]
+
+[materials.floor]
+model   = "mirror"
+fresnel = "none"
+"""
+
+
+def _reflected_region(scene):
+    """Floor pixels whose mirrored centre ray meets the sphere (analytic, numpy)."""
+    from render_util import camera_rays, hit_plane_y, hit_sphere
+
+    c = scene.camera
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, W, H)
+    t = hit_plane_y(c.position, d, 0.0)
+    p = np.asarray(c.position) + d * np.where(np.isfinite(t), t, 0.0)[..., None]
+    floor = np.isfinite(t) & (np.abs(p[..., 0]) < 2.9) & (np.abs(p[..., 2]) < 2.9)
+    floor &= ~np.isfinite(hit_sphere(c.position, d, (0.0, 0.6, 0.0), 0.5))
+    r = d * np.array([1.0, -1.0, 1.0])
+    hits = np.zeros((H, W), bool)
+    for i, j in zip(*np.nonzero(floor)):
+        hits[i, j] = np.isfinite(hit_sphere(p[i, j], r[i, j][None], (0.0, 0.6, 0.0), 0.5)[0])
+    m = floor & hits
+    e = m.copy()
+    e[1:-1, 1:-1] = m[1:-1, 1:-1] & m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+    return e
+
+
+def test_sphere_over_mirror_floor(tmp_path, renderer):
+    # In the reflected region the chain is camera -> mirror -> Lambert sphere, shaded by the
+    # point light with its shadow map and the constant environment's irradiance (no occlusion:
+    # the reference's sphere underside also sees the floor's mirror image, which the raster's
+    # split sum takes as sky; that is the remaining error). Bound: 0.15 x the RMSE without any
+    # reflection of the scene (the issue's bound).
+    scene = _scene(tmp_path, "mirror", MIRROR_FLOOR.format(ssr="false"))
+    region = _reflected_region(scene)
+    assert region.sum() > 40
+    ref = _reference(scene, 64)
+    out = {}
+    for name, rt, ssr in (("none", False, False), ("ssr", False, True), ("raytrace", True, False)):
+        scene.render.ssr = ssr
+        img = _raster(renderer, scene, rt)
+        out[name] = float(np.sqrt(np.mean((img[region] - ref[region]) ** 2)))
+    scene.render.ssr = False
+    print(f"mirror floor reflected region ({region.sum()} px) RMSE: no reflection {out['none']:.4f}, "
+          f"SSR {out['ssr']:.4f}, ray traced {out['raytrace']:.4f}")
+    assert out["raytrace"] < 0.15 * out["none"]
+
+
+ABSORBING = """
+[camera]
+position = [0.0, 0.0, 4.0]
+target   = [0.0, 0.0, 0.0]
+up       = [0.0, 1.0, 0.0]
+fov_y    = 30.0
+width    = 64
+height   = 64
+
+[environment]
+constant = [1.0, 1.0, 1.0]
+
+[render]
+ibl = "split_sum"
+
+[[objects]]
+mesh     = "sphere"
+material = "glass"
+scale    = {r}
+
+[materials.glass]
+model   = "dielectric"
+ior     = 1.5
+sigma_a = [0.5, 1.5, 3.0]
+"""
+
+
+@pytest.mark.parametrize("radius", [0.3, 0.9])
+def test_absorbing_glass_follows_bouguer(tmp_path, renderer, gl_ctx, radius):
+    # (a) The central pixels, analytically: under a constant environment L the ray through the
+    # centre runs along the diameter d = 2r and every internal reflection sends it back along
+    # it; each arrival at the surface lets (1 - R) out into the environment, so
+    # L_centre / L = R + (1 - R)^2 a / (1 - R a) with a = exp(-sigma_a d) and R the normal-
+    # incidence Fresnel reflectance (0.04), a geometric series (sigma_a = 0 gives 1: glass in a
+    # furnace is invisible; the chain's depth 8 cuts it after 6 traversals, < 1e-7 here). 0.5%
+    # covers the 2 x 2 pixels' rays being up to 1.5 pixels off the axis (shorter chords).
+    # (b) Over the whole sphere against the reference (two sizes: the colour deepens with the
+    # path length): mean error < 3% per channel; both follow the chain exactly here.
+    scene = _scene(tmp_path, f"abs{radius}", ABSORBING.format(r=radius))
+    img = _raster(renderer, scene, True)
+    sigma = np.array([0.5, 1.5, 3.0])
+    R = ((1.5 - 1.0) / (1.5 + 1.0)) ** 2
+    a = np.exp(-sigma * 2.0 * radius)
+    expect = R + (1 - R) ** 2 * a / (1 - R * a)
+    centre = img[H // 2 - 1:H // 2 + 1, W // 2 - 1:W // 2 + 1].mean(axis=(0, 1))
+    print(f"r = {radius}: centre {centre}, Bouguer series {expect}")
+    np.testing.assert_allclose(centre, expect, rtol=5e-3)
+    mask = _object_mask(gl_ctx, scene, 0)
+    ref = _reference(scene, 32)
+    err = np.abs(img[mask].mean(axis=0) - ref[mask].mean(axis=0)) / ref[mask].mean(axis=0)
+    print(f"r = {radius}: per-channel error of the mean over the sphere {err}")
+    assert np.all(err < 0.03)
+
+
+@pytest.mark.parametrize("step", ["fresnel", "tir", "absorbing_glass"])
+def test_raytrace_false_is_bit_identical(renderer, gl_ctx, step):
+    # raytrace = false compiles no traced program and binds nothing new: the image equals a
+    # renderer that never traced, bit for bit (also after traced frames on the same renderer).
+    from viewer.gl.renderer import Renderer
+    from viewer.lecture import TOUR, tour_scene
+
+    scene = tour_scene([s.key for s in TOUR].index(step))
+    fresh = Renderer(gl_ctx)
+    try:
+        before = fresh.render_arrays(scene, width=48, height=32)[0]
+    finally:
+        fresh.release()
+    scene.render.raytrace = True
+    traced = renderer.render_arrays(scene, width=48, height=32)[0]
+    scene.render.raytrace = False
+    after = renderer.render_arrays(scene, width=48, height=32)[0]
+    assert np.array_equal(before, after)
+    assert not np.array_equal(traced, after)
+
+
+def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
+    # One index per colour channel: each channel of the dispersive render equals that channel
+    # of a render whose single index is that channel's (the chain traced per channel).
+    import viewer.gl.raytrace as rtmod
+
+    scene = _scene(tmp_path, "disp", ABSORBING.format(r=0.6).replace("[1.0, 1.0, 1.0]", "[0.3, 0.5, 0.8]"))
+    scene.render.raytrace = True
+    single = {}
+    for ior in (1.4, 1.5, 1.7):
+        scene.materials["glass"]["ior"] = ior
+        single[ior] = renderer.render_arrays(scene, width=32, height=32)[0]
+    monkeypatch.setattr(rtmod, "chain_eta", lambda p: np.array([1.4, 1.5, 1.7]))
+    from viewer.gl import renderer as rmod
+
+    monkeypatch.setattr(rmod, "dispersive", lambda s: True)
+    renderer.raytrace_state()._mat_key = None  # rebuild the material rows with the new indices
+    disp = renderer.render_arrays(scene, width=32, height=32)[0]
+    for c, ior in enumerate((1.4, 1.5, 1.7)):
+        np.testing.assert_allclose(disp[..., c], single[ior][..., c], atol=1e-5)
+    assert not np.allclose(single[1.4], single[1.7])
