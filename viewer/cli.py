@@ -59,6 +59,8 @@ def _parser_reference() -> argparse.ArgumentParser:
     p.add_argument("--width", type=int, help="image width (overrides camera.width)")
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--spectral", action="store_true", default=None,
+                   help="trace wavelengths (hero-wavelength sampling; default when a material is dispersive)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     return p
@@ -218,7 +220,8 @@ def cmd_reference(args) -> int:
 
     w, h = scene.camera.width, scene.camera.height
     t0 = time.perf_counter()
-    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                                 spectral=getattr(args, "spectral", None))
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -245,7 +248,8 @@ def cmd_reference(args) -> int:
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
                                                                 "max_depth": args.max_depth}}))
     samples = w * h * args.spp
-    print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
+    print(f"wrote {out} ({w}x{h}, {args.spp} spp" + (", spectral" if renderer.is_spectral else "") + ")"
+          + (f" and {lin_path}" if lin_path else ""))
     print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
           f"{time.perf_counter() - t0 - wall:.2f} s setup)")
     if bad:
