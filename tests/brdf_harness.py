@@ -90,6 +90,13 @@ def _draw_float(prm, rng, size=None):
     return rng.uniform(lo, hi, size)
 
 
+def side_rng(rng) -> np.random.Generator:
+    """A generator seeded from ``rng``'s state without advancing it (stable across runs)."""
+    import zlib
+
+    return np.random.default_rng(zlib.crc32(repr(rng.bit_generator.state).encode()))
+
+
 def _random_fields(fields, rng, depth):
     out = {}
     for prm in fields:
@@ -99,8 +106,10 @@ def _random_fields(fields, rng, depth):
         elif k == "rgb":
             out[prm.name] = [float(x) for x in _draw_float(prm, rng, 3)]
         elif k == "choice" and prm.name == "spectral":
-            # half the sets keep the model's own Fresnel parameters in play
-            pick = prm.choices[rng.integers(1, len(prm.choices))] if rng.random() < 0.5 else "none"
+            # half the sets keep the model's own Fresnel parameters in play; drawn from a side
+            # stream so that the other parameters' draws are those they were before it existed
+            side = side_rng(rng)
+            pick = prm.choices[side.integers(1, len(prm.choices))] if side.random() < 0.5 else "none"
             out[prm.name] = str(pick)
         elif k == "choice":
             out[prm.name] = str(prm.choices[rng.integers(len(prm.choices))])

@@ -238,3 +238,30 @@ def test_glsl_spectral_fresnel_matches_numpy(gl_ctx):
     got_terms = ev.eval(p, wi, wo, what=1)
     F = terms(p, wi, wo)[0].mean(axis=1)
     np.testing.assert_allclose(got_terms[:, 0], F, rtol=1e-4, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- the spectral plot
+
+def test_spectral_plot_data_and_png(tmp_path):
+    """The plot's swatch is the spectral integral (to_rgb of R(theta, lambda)); Schlick with the
+    spectral f0 is exact at normal incidence and at grazing; the three-wavelength approximation
+    misses gold's colour by several per cent (the reason for the tables)."""
+    from viewer import plots
+    from viewer.brdf.presets import get_preset
+    from viewer.spectral_plot import spectral_data
+
+    d = spectral_data("Au")
+    np.testing.assert_allclose(d["rgb"][0], spectral.to_rgb(f0_conductor(d["n"], d["k"]), d["wavelength_nm"]),
+                               atol=1e-12)
+    np.testing.assert_allclose(d["err_schlick"][[0, -1]], 0.0, atol=1e-9)
+    assert d["max_err_three"] > 0.03
+    p = plots.as_params(get_preset("gold"))
+    assert "spectral" in plots.applicable_kinds(p)
+    out = tmp_path / "s.png"
+    plots.write_plot(plots.figure(p, "spectral", name="gold"), out)
+    data = plots.read_plot_data(out)
+    assert data["kind"] == "spectral" and data["info"]["name"] == "Au"
+    from viewer import ViewerError
+
+    with pytest.raises(ViewerError, match="no spectral table"):
+        plots.figure(plots.as_params({"model": "lambert"}), "spectral")

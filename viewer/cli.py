@@ -71,7 +71,7 @@ def _parser_plot() -> argparse.ArgumentParser:
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
