@@ -90,6 +90,13 @@ def _draw_float(prm, rng, size=None):
     return rng.uniform(lo, hi, size)
 
 
+def side_rng(rng) -> np.random.Generator:
+    """A generator seeded from ``rng``'s state without advancing it (stable across runs)."""
+    import zlib
+
+    return np.random.default_rng(zlib.crc32(repr(rng.bit_generator.state).encode()))
+
+
 def _random_fields(fields, rng, depth):
     out = {}
     for prm in fields:
@@ -98,6 +105,12 @@ def _random_fields(fields, rng, depth):
             out[prm.name] = float(_draw_float(prm, rng))
         elif k == "rgb":
             out[prm.name] = [float(x) for x in _draw_float(prm, rng, 3)]
+        elif k == "choice" and prm.name == "spectral":
+            # half the sets keep the model's own Fresnel parameters in play; drawn from a side
+            # stream so that the other parameters' draws are those they were before it existed
+            side = side_rng(rng)
+            pick = prm.choices[side.integers(1, len(prm.choices))] if side.random() < 0.5 else "none"
+            out[prm.name] = str(pick)
         elif k == "choice":
             out[prm.name] = str(prm.choices[rng.integers(len(prm.choices))])
         elif k == "table":
@@ -216,7 +229,8 @@ def param_grid(model) -> list[Params]:
         add(**lo_all)
         add(**hi_all)
         # every choice combination at the high end (e.g. oren_nayar qualitative with sigma = 90)
-        choices = [prm for prm in spec.params if prm.kind == "choice"]
+        # (a spectral material is a Fresnel table: its choices are in the grid above, not crossed)
+        choices = [prm for prm in spec.params if prm.kind == "choice" and prm.name != "spectral"]
         for combo in itertools.product(*[prm.choices for prm in choices]):
             add(**hi_all, **{prm.name: c for prm, c in zip(choices, combo)})
     return [plausible(p) for p in sets]

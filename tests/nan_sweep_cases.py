@@ -17,6 +17,8 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf.spec import Params
 
+from brdf_harness import side_rng
+
 
 def _corner_values(prm) -> list[float]:
     lo = prm.lo if prm.lo is not None else 0.0
@@ -43,6 +45,8 @@ def _corner_fields(fields, rng, depth) -> dict:
             vals = _corner_values(prm)
             out[prm.name] = [float(rng.choice(vals)) for _ in range(3)] if rng.random() < 0.5 \
                 else [float(rng.choice(vals))] * 3
+        elif k == "choice" and prm.name == "spectral":  # a side stream: see brdf_harness.side_rng
+            out[prm.name] = str(prm.choices[int(side_rng(rng).integers(len(prm.choices)))])
         elif k == "choice":
             out[prm.name] = str(prm.choices[int(rng.integers(len(prm.choices)))])
         elif k == "table":

@@ -21,11 +21,16 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
                "GPU, else whichever measured faster here; the choice is printed)")
 
 
-def _engine(args, ctx=None):
-    """The engine for --engine, printed with the reason (auto's choice)."""
-    from viewer.gpupt.select import choose_engine
+def _engine(args, ctx=None, scenes=()):
+    """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
+    render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
+    from viewer.gpupt.select import choose_engine, needs_spectral
 
-    engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
+    spectral = getattr(args, "spectral", None)
+    if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
+        engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
+    else:
+        engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
     print(f"engine: {engine} ({why})")
     return engine
 
@@ -79,6 +84,9 @@ def _parser_reference() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
     p.add_argument("--workers", type=int, help="worker processes of the cpu engine (default: every core)")
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    p.add_argument("--spectral", action="store_true", default=None,
+                   help="trace wavelengths (hero-wavelength sampling, cpu engine; default when a material "
+                        "is dispersive)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     return p
@@ -89,7 +97,7 @@ def _parser_plot() -> argparse.ArgumentParser:
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
@@ -287,9 +295,10 @@ def cmd_reference(args) -> int:
     from viewer.gpupt.select import make_renderer
 
     w, h = scene.camera.width, scene.camera.height
-    engine = _engine(args)
+    engine = _engine(args, scenes=[scene])
     t0 = time.perf_counter()
-    renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                             spectral=args.spectral)
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -311,7 +320,8 @@ def cmd_reference(args) -> int:
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
                                                                 "max_depth": args.max_depth, "engine": engine}}))
     samples = w * h * args.spp
-    print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
+    print(f"wrote {out} ({w}x{h}, {args.spp} spp" + (", spectral" if renderer.is_spectral else "") + ")"
+          + (f" and {lin_path}" if lin_path else ""))
     print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
           f"{time.perf_counter() - t0 - wall:.2f} s setup)")
     if bad:
@@ -364,7 +374,7 @@ def cmd_compare(args) -> int:
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
-    engine = _engine(args, ctx)
+    engine = _engine(args, ctx, scenes=[scene])
     t0 = time.perf_counter()
     with make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
                        ctx=ctx) as ref:
@@ -464,7 +474,7 @@ def cmd_bake(args) -> int:
     if not jobs:
         raise ViewerError("bake: name at least one SCENE, or --lecture")
     scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
-    engine = _engine(args)
+    engine = _engine(args, scenes=[s for _, s in scenes])
     for label, scene in scenes:
         camera = OrbitCamera.from_scene(scene)
         w = args.width or max(1, scene.camera.width // 2)

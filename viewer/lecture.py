@@ -110,6 +110,22 @@ TOUR: tuple[Step, ...] = (
          _scene(_camera(), _SKY, _render("split_sum"), _FLOOR, _sphere("glass_big", -0.6, 0.7),
                 _sphere("glass_small", 0.9, 0.3), _FLOOR_MAT, _mat("glass_big", "lecture_absorbing_glass"),
                 _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
+    Step("complex_ior", "Complex IOR: gold, silver, copper",
+         "n + i k measured per wavelength (Johnson & Christy 1972): gold and copper absorb the blue end "
+         "(n rises, k falls below 500-600 nm), silver reflects all; the colours are spectral integrals.",
+         _scene(_camera(fov=40.0), _SKY, _render("split_sum"), _FLOOR, _sphere("gold", -1.3, 0.55),
+                _sphere("silver", 0.0, 0.55), _sphere("copper", 1.3, 0.55), _FLOOR_MAT,
+                _mat("gold", "polished_gold"), _mat("silver", "polished_silver"),
+                _mat("copper", "polished_copper")), "spectral"),
+    Step("dispersion", "Dispersion: a flint prism and a diamond",
+         "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
+         "The raster refracts with n at 587.6 nm; the reference view traces wavelengths (colour fringes).",
+         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum"), _FLOOR,
+                '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = 0.5\n'
+                'translate = [-0.6, 0.6, 0.0]\nrotate_y_deg = 90.0\n',
+                _sphere("diamond", 0.7, 0.45), _FLOOR_MAT,
+                '[materials.flint]\nmodel = "dielectric"\nspectral = "SF11"\n',
+                '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
 )
 
 

@@ -15,6 +15,7 @@ Shapes (see ``GENERATORS``):
 - ``sphere``: icosphere of radius 1, 5 subdivisions (20480 faces), exact normals.
 - ``plane``: [-1,1]^2 in the xz plane at y = 0, facing +y, 8x8 quads.
 - ``cube``: [-1,1]^3 with split (flat) normals per face.
+- ``prism``: a 60 degree glass prism (equilateral section, circumradius 1) along z.
 - ``torus``: major radius 0.7, minor 0.3, around the y axis.
 - ``teapot``: Newell's 32 bicubic Bezier patches (rim, body, handle, spout, lid, bottom),
   rotated from the data's z-up to y-up, the body axis on the y axis, the bounding box
@@ -121,6 +122,21 @@ def plane(n: int = 8) -> Shape:
 def cube() -> Shape:
     """[-1,1]^3, 24 vertices (split normals), 12 triangles, per-face uvs."""
     return _concat(_box_faces(np.array([1.0, 1.0, 1.0])))
+
+
+def prism() -> Shape:
+    """A 60 degree prism: the equilateral triangle of circumradius 1 in the xy plane (apex at
+    (0, 1), base at y = -0.5) extruded over z in [-1, 1]; flat normals, per-face uvs."""
+    tri = np.array([[0.0, 1.0], [-np.sqrt(0.75), -0.5], [np.sqrt(0.75), -0.5]])  # counter-clockwise
+    parts = []
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        p, q = tri[a], tri[b]
+        parts.append(_quad((p[0], p[1], -1.0), (q[0] - p[0], q[1] - p[1], 0.0), (0.0, 0.0, 2.0)))
+    for z, order in ((1.0, (0, 1, 2)), (-1.0, (0, 2, 1))):
+        pos = np.array([[tri[i][0], tri[i][1], z] for i in order])
+        nrm = np.broadcast_to([0.0, 0.0, z], (3, 3)).copy()
+        parts.append(Shape(pos, nrm, np.array([[0, 1, 2]]), 0.5 * (pos[:, :2] + 1.0)))
+    return _concat(parts)
 
 
 # --------------------------------------------------------------------------- icosphere
@@ -497,6 +513,7 @@ GENERATORS: dict[str, Callable[[], Shape]] = {
     "sphere": sphere,
     "plane": plane,
     "cube": cube,
+    "prism": prism,
     "torus": torus,
     "teapot": teapot,
     "shader_ball": shader_ball,

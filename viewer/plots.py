@@ -35,7 +35,7 @@ import numpy as np
 from viewer import ViewerError
 from viewer.brdf.sampling import LUMINANCE_REC709, luminance, reflect_z
 
-KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer")
+KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
 PNG_KEY = "brdf-viewer:plot"
 LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (CONTRACT: linear Rec.709 RGB)
@@ -118,7 +118,16 @@ def applicable_kinds(p) -> tuple[str, ...]:
         kinds.append("fresnel")
     if absorption_source(p) is not None:
         kinds.append("bouguer")
+    if spectral_source(p) is not None:
+        kinds.append("spectral")
     return tuple(kinds)
+
+
+def spectral_source(p) -> str | None:
+    """The spectral table (viewer.spectral) a material names, or None."""
+    from viewer.spectral_plot import spectral_name
+
+    return spectral_name(p)
 
 
 def _models_with(test) -> list[str]:
@@ -147,12 +156,22 @@ def check_kind(p, kind: str) -> None:
     if kind in applicable_kinds(p):
         return
     what = {"fresnel": "no index of refraction (no Fresnel term)",
-            "bouguer": "no absorption coefficient sigma_a"}[kind]
+            "bouguer": "no absorption coefficient sigma_a",
+            "spectral": "no spectral table (spectral = \"NAME\")"}[kind]
     if kind == "fresnel" and p.model == "mirror":
         what = "fresnel = 'none' (R = 1 at every angle)"
+    if kind == "spectral":
+        raise ViewerError(f"spectral plot: model {p.model!r} has {what}; set spectral to one of "
+                          f"{', '.join(_spectral_names())} (or use a metal preset, e.g. gold)")
     needs = _models_with(fresnel_source if kind == "fresnel" else absorption_source)
     raise ViewerError(f"{kind} plot: model {p.model!r} has {what}; the plots of {p.model!r}: "
                       f"{', '.join(applicable_kinds(p))}; {kind} applies to: {', '.join(needs)}")
+
+
+def _spectral_names():
+    from viewer import spectral
+
+    return spectral.materials()
 
 
 def check_channel(channel: str) -> None:
@@ -568,6 +587,10 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
                       "angle of incidence (deg)", "reflectance", curves, marks, (0.0, 90.0), (0.0, 1.04), sub,
                       [medium], {"channel": ch, "inside": bool(inside), "type": d["type"],
                                  "brewster": d["brewster"], "critical": d["critical"], "eta": d["eta"], "k": d["k"]})
+    if kind == "spectral":
+        from viewer.spectral_plot import spectral_figure
+
+        return spectral_figure(p, label, sub)
     if kind == "bouguer":
         d = bouguer_curve(p)
         curves = _rgb_curves(d["d"], d["T"], "T", channel)
@@ -1068,6 +1091,10 @@ def render_figure(fig: Figure, width: int = 900, height: int = 600, ss: int = 3)
         _draw_polar(cv, fig, width, height)
     elif fig.kind == "lobe":
         _draw_lobe(cv, fig, width, height)
+    elif fig.kind == "spectral":
+        from viewer.spectral_plot import draw_spectral
+
+        draw_spectral(cv, fig, width, height)
     else:
         _draw_cartesian(cv, fig, width, height)
     return cv.image()
@@ -1094,3 +1121,11 @@ def read_plot_data(png_path) -> dict:
     if PNG_KEY not in text:
         raise ViewerError(f"{png_path}: no {PNG_KEY} text chunk (not written by brdf-viewer plot)")
     return json.loads(text[PNG_KEY])
+
+
+# shared with viewer.spectral_plot (public names for the drawing helpers it reuses)
+CHANNEL_COLOURS = _CHANNEL_COLOURS
+nice_ticks = _nice_ticks
+tick_label = _tick_label
+nice_ceil = _nice_ceil
+colormap = _colormap

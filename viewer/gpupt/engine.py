@@ -96,6 +96,7 @@ class GpuReferenceRenderer:
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here)."""
 
     engine = "gpu"
+    is_spectral = False  # RGB only: dispersive scenes go to the cpu engine (viewer.gpupt.select)
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  env_image=None, ctx=None, spp_pass: int = 1):

@@ -150,13 +150,30 @@ def choose_engine(requested: str = "auto", ctx=None, workers=None, calibrate_if_
             ctx.release()
 
 
+def needs_spectral(scene, spectral: bool | None = None) -> bool:
+    """Whether a reference of ``scene`` traces wavelengths: ``spectral`` where given, else
+    whether a material it uses is dispersive."""
+    if spectral is not None:
+        return bool(spectral)
+    from viewer.pathtracer.spectral import scene_is_dispersive
+
+    return scene_is_dispersive(scene)
+
+
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
-                  workers=None, ctx=None):
-    """A progressive reference renderer of the chosen engine ("cpu" or "gpu")."""
+                  workers=None, ctx=None, spectral: bool | None = None):
+    """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
+    trace wavelengths (None: where a material is dispersive); only the cpu engine does."""
     if engine == "gpu":
+        if needs_spectral(scene, spectral):
+            from viewer import ViewerError
+
+            raise ViewerError("--engine gpu traces RGB only, and this reference needs wavelengths (a "
+                              "dispersive material or --spectral); use --engine cpu or auto")
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx)
     from viewer.pathtracer import ReferenceRenderer
 
-    return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers)
+    return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
+                             spectral=spectral)

@@ -51,6 +51,10 @@ def _build(setup: RenderSetup) -> Integrator:
     from a worker to the caller of ``step`` intact; a bare ImportError in the pool's
     initializer would only break the pool, with a traceback per worker and no name)."""
     try:
+        if setup.extra.get("spectral"):
+            from viewer.pathtracer.spectral import SpectralIntegrator
+
+            return SpectralIntegrator(setup)
         return Integrator(setup)
     except ImportError as e:
         from viewer import ViewerError
@@ -130,22 +134,32 @@ class ReferenceRenderer:
     with position, target, up, fov_y; default ``OrbitCamera.from_scene``)."""
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
-                 workers=None, env_image=None, kernel: str = "embree"):
+                 workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _check_kernel(kernel)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
         self.seed = int(seed)
+        self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
         self._local: Integrator | None = None
         self._pool: cf.ProcessPoolExecutor | None = None
         self._setup_file: str | None = None
         self._version = 0
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image, kernel))
+        self._set_setup(self._spectral_setup(scene, RenderSetup.from_scene(
+            scene, camera, width, height, self.max_depth, env_image, kernel)))
         if self.workers > 0:
             check_entry_point_guarded()  # one line instead of multiprocessing's 20 in every worker
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
                                                 initializer=_init_worker, initargs=(self.setup, self._key))
+
+    def _spectral_setup(self, scene, setup: RenderSetup) -> RenderSetup:
+        from viewer.pathtracer.spectral import scene_is_dispersive
+
+        on = scene_is_dispersive(scene) if self.spectral is None else bool(self.spectral)
+        setup.extra["spectral"] = on
+        self.is_spectral = on
+        return setup
 
     def _set_setup(self, setup: RenderSetup):
         self.setup = setup
@@ -163,8 +177,8 @@ class ReferenceRenderer:
 
     def reset(self, scene, camera=None, width=None, height=None):
         """Start over on a changed scene, camera or size, keeping the worker processes."""
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth,
-                                               self.env_image, self.kernel))
+        self._set_setup(self._spectral_setup(scene, RenderSetup.from_scene(
+            scene, camera, width, height, self.max_depth, self.env_image, self.kernel)))
         if self._pool is not None:
             fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")
             with os.fdopen(fd, "wb") as f:
