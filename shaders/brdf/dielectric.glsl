@@ -1,7 +1,8 @@
 // Dielectric interface, twin of viewer/brdf/dielectric.py. alpha = 0 is smooth glass: two delta
 // lobes, so eval is 0 (the rasterizer handles reflection/refraction itself). alpha > 0: rough
 // GGX interface after Walter et al. 2007 (eq. 20 reflection, eq. 21 transmission, eq. 16 the
-// generalized half vector), height-correlated Smith G (Heitz 2014 eq. 99), with pbrt-v4's
+// generalized half vector), height-correlated Smith G (Heitz 2014: eq. 99 reflection, the Beta
+// function B(1 + Lambda_o, 1 + Lambda_i) of sec. 5.3 refraction), with pbrt-v4's
 // radiance-mode 1 / eta^2 on transmission. wi may be below the surface (transmission).
 // sigma_a is applied by the path tracer along the path inside, not here.
 #include "common/fresnel.glsl"
@@ -42,8 +43,10 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
     if (imd * double(ci) <= 0.0LF || omd * double(co) <= 0.0LF) return vec3(0.0);
     vec3 wm = vec3(wmd);
     float D = D_ggx(wm, p.alpha, p.alpha);
-    float G = smith_g2_height_correlated(lambda_ggx(wi, p.alpha, p.alpha),
-                                         lambda_ggx(wo, p.alpha, p.alpha), wi, wo, wm);
+    float lam_i = lambda_ggx(wi, p.alpha, p.alpha), lam_o = lambda_ggx(wo, p.alpha, p.alpha);
+    // Heitz 2014: eq. 99 for reflection, the Beta-function form (sec. 5.3) for refraction
+    float G = refl ? smith_g2_height_correlated(lam_i, lam_o, wi, wo, wm)
+                   : smith_g2_height_correlated_transmission(lam_i, lam_o, wi, wo, wm);
     float aci = abs(ci);
     double om_c = clamp(omd, 0.0LF, 1.0LF);
     // values capped at F_MAX (common/math.glsl): 1 / (|cos_i| cos_o) outgrows float32 at grazing angles

@@ -7,7 +7,10 @@
   ``pdf`` are 0 as functions.
 * ``alpha > 0``: rough interface, GGX microfacets with height-correlated Smith G (Walter et al.
   2007, 'Microfacet Models for Refraction through Rough Surfaces': eq. 20 reflection, eq. 21
-  transmission, eq. 16 generalized half vector, eqs. 14 and 17 the Jacobians). Sampling: GGX
+  transmission, eq. 16 generalized half vector, eqs. 14 and 17 the Jacobians). G2 for reflection
+  is Heitz 2014 eq. 99, 1 / (1 + Lambda_i + Lambda_o); for refraction it is Heitz 2014's
+  height-correlated form B(1 + Lambda_o, 1 + Lambda_i) (Beta function; sec. 5.3), which is
+  smaller: the points seen from above are the high ones, those seen from below the low ones. Sampling: GGX
   visible normals for wo (Heitz 2018), then reflect with probability F(wo.m) or refract.
 
 Sides and eta: the relative index seen from wo is eta = ior when wo is outside (wo.z > 0) and
@@ -45,7 +48,7 @@ SPEC = ModelSpec(
               "applied by the path tracer along the path inside)", unit="1/m", lo=0.0, hi=1000.0),
     ),
     source="Fresnel equations and Snell's law (lecture); Walter et al. 2007 eqs. 14-21 (rough); "
-           "Heitz 2014 eq. 99 (G2); Heitz 2018 (VNDF); pbrt-v4 radiance-mode eta^2 scaling",
+           "Heitz 2014 eq. 99 and sec. 5.3 (G2 reflection / refraction); Heitz 2018 (VNDF); pbrt-v4 radiance-mode eta^2 scaling",
     reciprocal=False,
     reciprocal_why="radiance changes by (n_t / n_i)^2 across a refraction (L / n^2 is invariant), "
                    "so f_t(wi, wo) = f_t(wo, wi) (eta_o / eta_i)^2",
@@ -102,7 +105,9 @@ def _rough_eval_pdf(p, wi, wo):
     valid &= (im * ci > 0) & (om * co > 0)
     dist = Distribution("ggx", p.alpha, p.alpha)
     D = dist.D(wm)
-    G = dist.G2(wi, wo, wm)
+    # height-correlated Smith G2: Heitz 2014 eq. 99 for reflection, the Beta-function form of
+    # sec. 5.3 for refraction
+    G = np.where(reflect_, dist.G2(wi, wo, wm), dist.G2_transmission(wi, wo, wm))
     F = fresnel_dielectric(np.clip(om, 0.0, 1.0), eta)
     T = fresnel_dielectric_transmittance(np.clip(om, 0.0, 1.0), eta)
     aci = np.where(valid, np.abs(ci), 1.0)

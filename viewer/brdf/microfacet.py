@@ -4,8 +4,9 @@ Cook & Torrance 1981, Walter et al. 2007 eq. 20), plus an optional Lambertian ba
   * D: beckmann | ggx | blinn_phong (see ``microfacet_dist``); anisotropic alpha_x along the
     tangent +x and alpha_y along +y (blinn_phong is isotropic and uses alpha_x).
   * G: smith = height-correlated Smith G2 (Heitz 2014 eq. 99), v_cavity = Cook-Torrance 1981.
-    blinn_phong + smith uses Beckmann's Lambda (Walter 2007 sec. 5.2) capped by the V-cavity G
-    (see ``terms``), since the borrowed Lambda breaks energy conservation near alpha = 1.
+    blinn_phong + smith uses Beckmann's Lambda (Walter 2007 sec. 5.2), blended toward the V-cavity
+    G only where the borrowed Lambda would let the albedo exceed 1 (grazing wo, alpha >= 0.2; see
+    ``microfacet_dist.BLINN_SMITH_CAP``); elsewhere it is the plain Smith G2.
   * F at the microfacet: F(wi . h) with h = normalize(wi + wo): dielectric (ior, exact),
     conductor (eta + i k, exact) or Schlick (f0).
   * kd: the diffuse base, f_d = kd / pi (1 - F(cos_i)) (1 - F(cos_o)), F evaluated with the
@@ -26,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
-from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_v_cavity
+from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_blinn_smith, G_v_cavity
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
 from viewer.brdf.spec import ModelSpec, Param
@@ -93,10 +94,9 @@ def terms(p, wi, wo):
         G = dist.G2(wi, wo, h)
         if p.distribution == "blinn_phong":
             # Beckmann's Lambda is only an approximation for the Phong distribution (Walter et al.
-            # 2007 sec. 5.2), far off as alpha -> 1 (n -> 0), where it lets the albedo exceed 1.
-            # Capping by the V-cavity G, which satisfies the projected-area constraint for any D
-            # (Heitz 2014 sec. 4.3), bounds the albedo by 1.
-            G = np.minimum(G, G_v_cavity(wi, wo, h))
+            # 2007 sec. 5.2): near grazing wo it lets the albedo exceed 1. The V-cavity cap (valid
+            # for any D, Heitz 2014 sec. 4.3) is blended in only as far as that requires.
+            G = G_blinn_smith(dist, wi, wo, h)
     else:
         G = G_v_cavity(wi, wo, h)
     F = fresnel_rgb(p, np.sum(wi * h, axis=-1))
