@@ -98,6 +98,10 @@ def _random_fields(fields, rng, depth):
             out[prm.name] = float(_draw_float(prm, rng))
         elif k == "rgb":
             out[prm.name] = [float(x) for x in _draw_float(prm, rng, 3)]
+        elif k == "choice" and prm.name == "spectral":
+            # half the sets keep the model's own Fresnel parameters in play
+            pick = prm.choices[rng.integers(1, len(prm.choices))] if rng.random() < 0.5 else "none"
+            out[prm.name] = str(pick)
         elif k == "choice":
             out[prm.name] = str(prm.choices[rng.integers(len(prm.choices))])
         elif k == "table":
@@ -216,7 +220,8 @@ def param_grid(model) -> list[Params]:
         add(**lo_all)
         add(**hi_all)
         # every choice combination at the high end (e.g. oren_nayar qualitative with sigma = 90)
-        choices = [prm for prm in spec.params if prm.kind == "choice"]
+        # (a spectral material is a Fresnel table: its choices are in the grid above, not crossed)
+        choices = [prm for prm in spec.params if prm.kind == "choice" and prm.name != "spectral"]
         for combo in itertools.product(*[prm.choices for prm in choices]):
             add(**hi_all, **{prm.name: c for prm, c in zip(choices, combo)})
     return [plausible(p) for p in sets]

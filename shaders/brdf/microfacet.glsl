@@ -5,8 +5,10 @@
 // fresnel 0 dielectric, 1 conductor, 2 schlick.
 #include "common/fresnel.glsl"
 #include "common/microfacet.glsl"
+#include "common/spectral.glsl"
 
 vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
+    if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_i);
     if (p.fresnel == 0) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
     if (p.fresnel == 1) return fresnel_conductor(cos_i, p.eta, p.k);
     return fresnel_schlick(cos_i, p.f0);

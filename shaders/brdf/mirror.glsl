@@ -3,8 +3,10 @@
 // mirror_reflectance() instead. Twin of viewer/brdf/mirror.py.
 // fresnel: 0 = conductor, 1 = dielectric, 2 = none.
 #include "common/fresnel.glsl"
+#include "common/spectral.glsl"
 
 vec3 mirror_reflectance(mirror_params p, float cos_o) {
+    if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_o);
     if (p.fresnel == 0) return fresnel_conductor(cos_o, p.eta, p.k);
     if (p.fresnel == 1) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));
     return vec3(1.0);

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.brdf import spectral_fresnel
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
 from viewer.brdf.sampling import F_MAX, normalize, ratio_capped, reflect, reflect_z, split_uniform
@@ -46,6 +47,7 @@ SPEC = ModelSpec(
               lo=0.0, hi=1.0),
         Param("sigma_a", "rgb", [0.0, 0.0, 0.0], "absorption coefficient inside (Bouguer's law, "
               "applied by the path tracer along the path inside)", unit="1/m", lo=0.0, hi=1000.0),
+        spectral_fresnel.param(dielectric_only=True),
     ),
     source="Fresnel equations and Snell's law (lecture); Walter et al. 2007 eqs. 14-21 (rough); "
            "Heitz 2014 eq. 99 and sec. 5.3 (G2 reflection / refraction); Heitz 2018 (VNDF); pbrt-v4 radiance-mode eta^2 scaling",

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import brdf
+from viewer.brdf import spectral_fresnel
 from viewer.brdf.spec import ModelSpec, Param, Params
 
 MAT_VEC4 = 64  # size of the uniform block u_mat in vec4s (256 floats)
@@ -26,6 +27,8 @@ def _size(param: Param) -> int:
     k = param.kind
     if k == "rgb":
         return 3
+    if k == "choice" and param.spectral_table:
+        return 2
     if k in ("float", "choice"):
         return 1
     if k == "table":
@@ -55,6 +58,8 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
             out.append(float(v))
         elif k == "choice":
             out.append(float(p.choices.index(v)))
+            if p.spectral_table:  # the material's RGB Fresnel table, appended after the block
+                out.append(float(base_offset_fn(spectral_fresnel.packed(v))) if v != "none" else 0.0)
         elif k == "table":
             _pack_fields(p.fields, v, out, tail, base_offset_fn)
         elif k == "lobes":
@@ -82,8 +87,11 @@ def pack_material(params: Params, offset: int = 0) -> tuple[int, np.ndarray]:
     tail: list[float] = []
     main_size = block_size(spec)
 
-    def base_offset(sub: Params):
+    def base_offset(sub):
         start = offset + main_size + len(tail)
+        if isinstance(sub, np.ndarray):  # a table (spectral Fresnel)
+            tail.extend(sub.tolist())
+            return start
         _, arr = pack_material(sub, start)
         tail.extend(arr.tolist())
         return start
@@ -119,6 +127,8 @@ def _glsl_decls(struct_name: str, params_spec, structs: list[str]) -> list[str]:
             lines.append(f"    float {p.name};")
         elif k == "choice":
             lines.append(f"    int {p.name}; // " + ", ".join(f"{i} = {c}" for i, c in enumerate(p.choices)))
+            if p.spectral_table:
+                lines.append(f"    int {p.name}_offset; // its RGB Fresnel table in u_mat")
         elif k == "table":
             sub = f"{struct_name}_{p.name}_t"
             structs.append(_struct(sub, p.fields, structs))
@@ -148,6 +158,8 @@ def _glsl_reads(params_spec, target: str, o: list[int]) -> list[str]:
             lines.append(f"    {target}.{p.name} = mat_f(o + {at});")
         elif k == "choice":
             lines.append(f"    {target}.{p.name} = int(mat_f(o + {at}) + 0.5);")
+            if p.spectral_table:
+                lines.append(f"    {target}.{p.name}_offset = int(mat_f(o + {at + 1}) + 0.5);")
         elif k == "table":
             lines.extend(_glsl_reads(p.fields, f"{target}.{p.name}", o))
             continue

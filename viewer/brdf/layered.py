@@ -58,6 +58,7 @@ import functools
 
 import numpy as np
 
+from viewer.brdf import spectral_fresnel
 from viewer.brdf.fresnel import fresnel_dielectric
 from viewer.brdf.microfacet_dist import Distribution
 from viewer.brdf.sampling import normalize, ratio_capped, reflect, split_uniform
@@ -74,6 +75,7 @@ SPEC = ModelSpec(
             Param("thickness", "float", 10.0, "coating thickness", unit="um", lo=0.0, hi=1000.0),
             Param("sigma_a", "rgb", [0.0, 0.0, 0.0], "absorption coefficient in the coating",
                   unit="1/um", lo=0.0, hi=10.0),
+            spectral_fresnel.param(dielectric_only=True),
         )),
         Param("base", "material", {"model": "lambert", "albedo": [0.5, 0.1, 0.1]},
               "the material under the coating (any non-layered model)"),

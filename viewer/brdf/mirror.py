@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.fresnel import fresnel_conductor, fresnel_dielectric
+from viewer.brdf import spectral_fresnel
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import reflect_z
 from viewer.brdf.spec import ModelSpec, Param
@@ -28,6 +29,7 @@ SPEC = ModelSpec(
               lo=0.01, hi=10.0),
         Param("k", "rgb", list(_GOLD_K), "extinction coefficient (conductor)", lo=0.0, hi=20.0),
         Param("ior", "float", 1.5, "index of refraction (dielectric)", lo=1.0, hi=3.0),
+        spectral_fresnel.param(),
     ),
     source="Law of reflection; Fresnel equations (lecture: 'Reflectance of perfectly specular "
            "materials')",
@@ -37,6 +39,8 @@ SPEC = ModelSpec(
 
 def reflectance(p, cos):
     """F(cos) as (N, 3)."""
+    if p.spectral != spectral_fresnel.NONE:
+        return spectral_fresnel.lookup(p.spectral, cos)
     c = np.clip(cos, 0.0, 1.0)[:, None]
     if p.fresnel == "conductor":
         return fresnel_conductor(c, p.eta[None, :], p.k[None, :])

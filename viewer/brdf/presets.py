@@ -50,10 +50,17 @@ def metal_f0(name: str) -> np.ndarray:
     return ((eta - 1.0) ** 2 + k * k) / ((eta + 1.0) ** 2 + k * k)
 
 
+# the measured table (viewer.spectral) of each metal: presets are spectral, their Fresnel colour
+# the spectral integral at every angle; eta and k above stay as the three-wavelength comparison
+SPECTRAL_METALS = {"gold": "Au", "silver": "Ag", "copper": "Cu", "aluminium": "Al",
+                   "chromium": "Cr", "iron": "Fe", "titanium": "Ti"}
+
+
 def _metal(name, alpha=0.2, distribution="ggx"):
     eta, k = METALS[name]
     return {"model": "microfacet", "distribution": distribution, "shadowing": "smith",
-            "fresnel": "conductor", "alpha": alpha, "eta": list(eta), "k": list(k)}
+            "fresnel": "conductor", "alpha": alpha, "eta": list(eta), "k": list(k),
+            "spectral": SPECTRAL_METALS[name]}
 
 
 def _glass(ior, alpha=0.0):
@@ -68,7 +75,8 @@ PRESETS: dict[str, dict] = {
 for _name, (_eta, _k) in METALS.items():
     PRESETS[_name] = _metal(_name)
     PRESETS[f"polished_{_name}"] = {"model": "mirror", "fresnel": "conductor",
-                                    "eta": list(_eta), "k": list(_k)}
+                                    "eta": list(_eta), "k": list(_k),
+                                    "spectral": SPECTRAL_METALS[_name]}
 PRESETS["brushed_aluminium"] = dict(_metal("aluminium"), alpha_x=0.4, alpha_y=0.05)
 del PRESETS["brushed_aluminium"]["alpha"]
 

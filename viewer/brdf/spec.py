@@ -47,6 +47,8 @@ class Param:
     ui_lo: float | None = None
     ui_hi: float | None = None
     log: bool = False
+    # a choice of viewer.spectral material whose RGB Fresnel table the GLSL block carries
+    spectral_table: bool = False
 
     def __post_init__(self):
         assert self.kind in KINDS, self.kind
@@ -259,6 +261,13 @@ def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, loo
             out[f.name] = validate_value(f, raw[f.name], f"{where}.{f.name}", lookup_spec)
         else:
             out[f.name] = _default(f, lookup_spec)
+    if out.get("spectral", "none") != "none":
+        # a spectral material's scalar indices follow its table unless the file gives them
+        from viewer.brdf.spectral_fresnel import rgb_defaults
+
+        for key, value in rgb_defaults(out["spectral"]).items():
+            if key in names and key not in raw:
+                out[key] = value
     return Params(model, out)
 
 

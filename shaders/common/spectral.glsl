@@ -1,0 +1,15 @@
+// The RGB Fresnel table of a spectral material (twin of viewer/brdf/spectral_fresnel.py):
+// SPECTRAL_TABLE_N RGB samples at cos theta_j = (j / (N - 1))^2, stored in u_mat from float
+// offset o (r, g, b per sample), interpolated linearly in sqrt(cos theta).
+// Needs mat_f() (brdf/dispatch.glsl defines it before including the family files).
+#define SPECTRAL_TABLE_N 24
+
+vec3 spectral_fresnel(int o, float cos_i) {
+    float x = sqrt(clamp(cos_i, 0.0, 1.0)) * float(SPECTRAL_TABLE_N - 1);
+    int i = min(int(floor(x)), SPECTRAL_TABLE_N - 2);
+    float f = x - float(i);
+    int a = o + 3 * i;
+    vec3 r0 = vec3(mat_f(a), mat_f(a + 1), mat_f(a + 2));
+    vec3 r1 = vec3(mat_f(a + 3), mat_f(a + 4), mat_f(a + 5));
+    return r0 * (1.0 - f) + r1 * f;
+}
