@@ -50,10 +50,20 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
     float aci = abs(ci);
     double om_c = clamp(omd, 0.0LF, 1.0LF);
     // values capped at F_MAX (common/math.glsl): 1 / (|cos_i| cos_o) outgrows float32 at grazing angles
-    if (refl) return vec3(fresnel_dielectric(float(om_c), float(eta)) * ratio_capped(G * D, 4.0 * aci * co));
+    bool film = p.thin_film.thickness_nm > 0.0;  // a thin film: RGB R and T = 1 - R
+    vec3 Rf = film ? thin_film_dielectric_rgb(float(om_c), float(eta), p.thin_film.ior, p.thin_film.thickness_nm)
+                   : vec3(0.0);
+    if (refl) {
+        float rc = ratio_capped(G * D, 4.0 * aci * co);
+        return film ? Rf * rc : vec3(fresnel_dielectric(float(om_c), float(eta)) * rc);
+    }
     // eq. 21 with (eta_i (i.m) + eta_o (o.m))^2 = |h|^2 / etap^2, then radiance's 1 / etap^2
+    float r = ratio_capped(G * D, aci * co);
+    if (film) {
+        vec3 t3 = min((1.0 - Rf) * float(abs(imd) * abs(omd) / hlen2), vec3(F_MAX));
+        return min(t3 * r, vec3(F_MAX));
+    }
     double T = dielectric_transmittance_d(om_c, eta);
     float t = float(min(T * abs(imd) * abs(omd) / hlen2, double(F_MAX)));
-    float r = ratio_capped(G * D, aci * co);
     return vec3(t <= 1.0 || r < F_MAX / t ? t * r : F_MAX);
 }

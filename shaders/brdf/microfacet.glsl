@@ -8,6 +8,10 @@
 #include "common/spectral.glsl"
 
 vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
+    // a thin film on the dielectric or conductor (common/fresnel.glsl; Schlick has none)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != 2)
+        return p.fresnel == 1 ? thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+                              : thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
     if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_i);
     if (p.fresnel == 0) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
     if (p.fresnel == 1) return fresnel_conductor(cos_i, p.eta, p.k);

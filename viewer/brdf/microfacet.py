@@ -28,7 +28,7 @@ import numpy as np
 
 from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
 from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_blinn_smith, G_v_cavity
-from viewer.brdf import spectral_fresnel
+from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
 from viewer.brdf.spec import ModelSpec, Param
@@ -59,6 +59,7 @@ SPEC = ModelSpec(
               lo=0.0, hi=1.0),
         Param("kd", "rgb", [0.0, 0.0, 0.0], "diffuse base albedo, weighted by the Fresnel "
               "transmittances (1 - F(cos_i)) (1 - F(cos_o))", lo=0.0, hi=1.0),
+        thin_film.param(),
         spectral_fresnel.param(),
     ),
     source="Torrance & Sparrow 1967; Blinn 1977; Cook & Torrance 1981; Walter et al. 2007 eq. 20 "
@@ -74,7 +75,12 @@ def distribution(p) -> Distribution:
 
 
 def fresnel_rgb(p, cos):
-    """F(cos) as (N, 3) for the chosen Fresnel variant."""
+    """F(cos) as (N, 3) for the chosen Fresnel variant (a thin film on the dielectric or
+    conductor first: viewer/brdf/thin_film.py; Schlick has no film)."""
+    if thin_film.active(p) and p.fresnel != "schlick":
+        if p.fresnel == "conductor":
+            return thin_film.reflectance_rgb(p, cos, p.eta, p.k)
+        return thin_film.reflectance_rgb(p, cos, p.ior)
     if p.spectral != spectral_fresnel.NONE:
         return spectral_fresnel.lookup(p.spectral, cos)
     c = np.clip(cos, 0.0, 1.0)[:, None]
