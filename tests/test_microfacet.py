@@ -206,3 +206,68 @@ def test_extremes_are_finite():
                     assert np.all(np.isfinite(MODEL.pdf(p, wi, wo)))
                     s_wi, w, pdf = MODEL.sample(p, wo, rng.random((5000, 2)))
                     assert np.all(np.isfinite(w)) and np.all(np.isfinite(pdf)) and np.all(np.isfinite(s_wi))
+
+
+def _bp_albedo(alpha, mu, G_fn, n=300):
+    """F = 1 albedo of the blinn_phong microfacet lobe at cos_o = mu, midpoint quadrature over wi."""
+    d = Distribution("blinn_phong", alpha)
+    t = (np.arange(n) + 0.5) / n * np.pi / 2
+    ph = (np.arange(n) + 0.5) / n * np.pi
+    T, P = np.meshgrid(t, ph, indexing="ij")
+    wi = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+    wo = np.broadcast_to(np.array([np.sqrt(1 - mu * mu), 0.0, mu]), wi.shape)
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    w = d.D(h) / (4 * mu) * np.sin(T.ravel()) * (np.pi / 2 / n) * (np.pi / n) * 2
+    return float(np.sum(G_fn(d, wi, wo, h) * w))
+
+
+def _g_smith(d, wi, wo, h):
+    return d.G2(wi, wo, h)
+
+
+def _g_capped(d, wi, wo, h):
+    from viewer.brdf.microfacet_dist import G_v_cavity
+    return np.minimum(d.G2(wi, wo, h), G_v_cavity(wi, wo, h))
+
+
+@pytest.mark.parametrize("alpha,mu", [(0.5, 0.05), (1.0, 0.1), (0.8, 0.15)])
+def test_blinn_smith_cap_table_recomputed(alpha, mu):
+    # the table's t = (A_s - 1) / (A_s - A_c) recomputed by an independent (coarser) quadrature
+    from viewer.brdf.microfacet_dist import blinn_smith_cap_weight
+    a_s, a_c = _bp_albedo(alpha, mu, _g_smith), _bp_albedo(alpha, mu, _g_capped)
+    assert a_s > 1.0
+    assert float(blinn_smith_cap_weight(alpha, mu)) == pytest.approx((a_s - 1) / (a_s - a_c), abs=0.01)
+
+
+def test_blinn_smith_cap_only_where_albedo_exceeds_one():
+    from viewer.brdf.microfacet_dist import G_blinn_smith
+    # uncapped albedo below 1 (0.99 at alpha 0.3, cos 0.05): G is the plain Smith G (the old
+    # everywhere-cap gave 0.75 here)
+    a_s = _bp_albedo(0.3, 0.05, _g_smith)
+    assert a_s < 1.0
+    assert _bp_albedo(0.3, 0.05, G_blinn_smith) == pytest.approx(a_s, rel=1e-9)
+    assert _bp_albedo(0.3, 0.05, _g_capped) < 0.8
+    # where it would exceed 1 (1.3-1.5 at alpha 1, grazing) the blended cap brings it to ~1:
+    # at most 1 + 0.01 (the table's bilinear interpolation between its nodes), and the loss of
+    # the old cap is gone (0.73)
+    for alpha, mu in [(1.0, 0.05), (0.75, 0.0625), (0.45, 0.01), (0.9, 0.2)]:
+        a = _bp_albedo(alpha, mu, G_blinn_smith)
+        assert 0.97 < a < 1.01, (alpha, mu, a)
+
+
+def test_transmission_g2_is_the_beta_function():
+    # Heitz 2014 sec. 5.3: G2 = integral_0^1 C^lam_o (1 - C)^lam_i dC, checked by quadrature;
+    # it reduces to G1 = 1 / (1 + lam_i) when lam_o = 0 and is below the reflection form
+    from viewer.brdf.microfacet_dist import smith_g2_height_correlated_transmission as g2t
+    wo = np.array([[0.2, 0.0, 0.98]])
+    wo /= np.linalg.norm(wo)
+    wi = np.array([[0.3, 0.1, -0.9]])
+    wi /= np.linalg.norm(wi)
+    m = np.array([[0.0, 0.0, 1.0]])
+    for lo, li in [(0.0, 0.7), (0.3, 0.3), (2.5, 0.05), (40.0, 3.0)]:
+        ref, _ = integrate.quad(lambda c: c ** lo * (1 - c) ** li, 0, 1, epsabs=1e-13)
+        got = float(g2t(np.array([li]), np.array([lo]), wi, wo, m)[0])
+        assert got == pytest.approx(ref, rel=1e-9)
+        assert got <= 1.0 / (1.0 + lo + li) + 1e-15
+    assert float(g2t(np.array([0.7]), np.array([0.0]), wi, wo, m)[0]) == pytest.approx(1 / 1.7)

@@ -126,6 +126,11 @@ TOUR: tuple[Step, ...] = (
                 _sphere("diamond", 0.7, 0.45), _FLOOR_MAT,
                 '[materials.flint]\nmodel = "dielectric"\nspectral = "SF11"\n',
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
+    Step("soap_bubble", "Soap bubbles: thin-film interference",
+         "A 400 nm water film in air: the waves reflected at its two faces interfere, so the colour changes with the viewing angle (Fresnel with a phase).",
+         _scene(_camera(), _STUDIO, _render("split_sum"), _FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
+                _sphere("thin", 0.75, 0.6, 0.8), _FLOOR_MAT, _mat("bubble", "lecture_soap_bubble"),
+                _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel"),
 )
 
 

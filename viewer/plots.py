@@ -310,6 +310,19 @@ def _pseudo_brewster(eta, k) -> np.ndarray:
     return t[np.argmin(rp, axis=0)]
 
 
+def _thin_film_curve(p, src, cos, inside):
+    """(n, 3) RGB reflectance of the material's thin film (viewer/brdf/thin_film.py) against the
+    angle, or None when it has none."""
+    from viewer.brdf import thin_film
+
+    if "thin_film" not in p or not thin_film.active(p) or src["type"] == "schlick":
+        return None
+    if src["type"] == "conductor":
+        return thin_film.reflectance_rgb(p, cos, src["eta"], src["k"])
+    ior = src["ior"]
+    return thin_film.dielectric_reflectance_rgb(p, cos, 1.0 / ior if inside else ior)
+
+
 def fresnel_curves(p, inside: bool = False, n: int = 181) -> dict:
     """R_s, R_p and R = (R_s + R_p) / 2 vs the angle of incidence theta (0..90 degrees, n points),
     each (n, 3), from ``viewer.brdf.fresnel``.
@@ -334,6 +347,9 @@ def fresnel_curves(p, inside: bool = False, n: int = 181) -> dict:
         theta = np.unique(np.concatenate([theta, crit - np.geomspace(1e-4, 2.0, 60), [crit]]))
     cos = np.cos(np.radians(theta))[:, None]
     out = {"theta": theta, "type": src["type"], "field": src["field"], "inside": bool(inside)}
+    film = _thin_film_curve(p, src, cos[:, 0], inside)
+    if film is not None:
+        out["thin_film"] = film
     if src["type"] == "conductor":
         if inside:
             raise ViewerError(f"--inside: model {p.model!r} has a conductor Fresnel term (eta + i k, seen "
@@ -558,6 +574,8 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
                 idx = "rgb".index(c)
                 suffix = "" if single else f" ({_CHANNEL_NAMES[idx]})"
                 curves.append(Curve(lab + suffix, d["theta"], arr[:, idx], cols[lab], styles[lab]))
+        if "thin_film" in d:  # the film's interference reflectance, one curve per channel
+            curves += _rgb_curves(d["theta"], d["thin_film"], "thin film R", "rgb" if ch in ("rgb", "lum") else ch)
         marks = []
         if ch == "rgb" and not single:
             # channels with the same index share their marks
@@ -583,6 +601,9 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
             n = 1.0 / d["eta"][0] if inside else d["eta"][0]
             medium = (f"from inside n = {n:.4g} to air (n2/n1 = {d['eta'][0]:.4g})" if inside
                       else f"from air to n = {n:.4g}")
+        if "thin_film" in d:
+            medium += (f"; thin film n = {p.thin_film.ior:.4g}, {p.thin_film.thickness_nm:g} nm "
+                       "(Airy summation, RGB from 32 wavelengths); R_s, R_p, R: without the film")
         return Figure("fresnel", p.model, p, f"{label}: Fresnel reflectance ({d['field']})",
                       "angle of incidence (deg)", "reflectance", curves, marks, (0.0, 90.0), (0.0, 1.04), sub,
                       [medium], {"channel": ch, "inside": bool(inside), "type": d["type"],

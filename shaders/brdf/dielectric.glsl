@@ -1,7 +1,8 @@
 // Dielectric interface, twin of viewer/brdf/dielectric.py. alpha = 0 is smooth glass: two delta
 // lobes, so eval is 0 (the rasterizer handles reflection/refraction itself). alpha > 0: rough
 // GGX interface after Walter et al. 2007 (eq. 20 reflection, eq. 21 transmission, eq. 16 the
-// generalized half vector), height-correlated Smith G (Heitz 2014 eq. 99), with pbrt-v4's
+// generalized half vector), height-correlated Smith G (Heitz 2014: eq. 99 reflection, the Beta
+// function B(1 + Lambda_o, 1 + Lambda_i) of sec. 5.3 refraction), with pbrt-v4's
 // radiance-mode 1 / eta^2 on transmission. wi may be below the surface (transmission).
 // sigma_a is applied by the path tracer along the path inside, not here.
 #include "common/fresnel.glsl"
@@ -47,19 +48,30 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
     float imd = dot(wi, wm), omd = dot(wo, wm);
     if (imd * ci <= 0.0 || omd * co <= 0.0) return vec3(0.0);
     float D = D_ggx(wm, p.alpha, p.alpha);
-    float G = smith_g2_height_correlated(lambda_ggx(wi, p.alpha, p.alpha),
-                                         lambda_ggx(wo, p.alpha, p.alpha), wi, wo, wm);
+    float lam_i = lambda_ggx(wi, p.alpha, p.alpha), lam_o = lambda_ggx(wo, p.alpha, p.alpha);
+    // Heitz 2014: eq. 99 for reflection, the Beta-function form (sec. 5.3) for refraction
+    float G = refl ? smith_g2_height_correlated(lam_i, lam_o, wi, wo, wm)
+                   : smith_g2_height_correlated_transmission(lam_i, lam_o, wi, wo, wm);
     float aci = abs(ci);
     float om_c = clamp(omd, 0.0, 1.0);
     // values capped at F_MAX (common/math.glsl): 1 / (|cos_i| cos_o) outgrows float32 at grazing angles
-    if (refl) return vec3(fresnel_dielectric(om_c, eta) * ratio_capped(G * D, 4.0 * aci * co));
+    bool film = p.thin_film.thickness_nm > 0.0;  // a thin film: RGB R and T = 1 - R
+    vec3 Rf = film ? thin_film_dielectric_rgb(om_c, eta, p.thin_film.ior, p.thin_film.thickness_nm) : vec3(0.0);
+    if (refl) {
+        float rc = ratio_capped(G * D, 4.0 * aci * co);
+        return film ? Rf * rc : vec3(fresnel_dielectric(om_c, eta) * rc);
+    }
     // eq. 21 with (eta_i (i.m) + eta_o (o.m))^2 = |h|^2 / etap^2, then radiance's 1 / etap^2.
+    float r = ratio_capped(G * D, aci * co);
+    if (film) {
+        vec3 t3 = min((1.0 - Rf) * (abs(imd) * abs(omd) / hlen2), vec3(F_MAX));
+        return min(t3 * r, vec3(F_MAX));
+    }
     // T from the two facet cosines (see dielectric_transmittance_cos): cos_t = |wi . m|.
     float T = dielectric_transmittance_cos(om_c, min(abs(imd), 1.0), eta);
     // |i.m| |o.m| / |h|^2 <= 1 / (1 - eta)^2 is finite; the product is formed in this order so
     // that no intermediate leaves the float range
     float t = min(T * (abs(imd) * abs(omd) / hlen2), F_MAX);
-    float r = ratio_capped(G * D, aci * co);
     return vec3(t <= 1.0 || r < F_MAX / t ? t * r : F_MAX);
 }
 
@@ -71,6 +83,13 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
 #include "common/sampling.glsl"
 
 bool dielectric_is_delta(dielectric_params p) { return p.alpha <= 0.0; }
+
+// A thin film's RGB reflectance averaged over the channels: the probability of the reflection
+// branch (the numpy twin chooses with the same mean; the weight carries R / mean R).
+float dielectric_film_mean_r(dielectric_params p, float cos_o, float eta) {
+    vec3 R = thin_film_dielectric_rgb(cos_o, eta, p.thin_film.ior, p.thin_film.thickness_nm);
+    return (R.x + R.y + R.z) / 3.0;
+}
 
 // Refract w (pointing away, on the side m points to) through the facet m, eta = n_t / n_i (Snell's
 // law in vector form); ok = false under total internal reflection.
@@ -104,6 +123,10 @@ float dielectric_pdf(dielectric_params p, vec3 wi, vec3 wo) {
     if (im * ci <= 0.0 || om * co <= 0.0) return 0.0;
     float pm = mf_D_visible(1, wo, wm, p.alpha, p.alpha);
     float oc = clamp(om, 0.0, 1.0);
+    if (p.thin_film.thickness_nm > 0.0) {  // the sampler's branch probabilities: mean R, 1 - mean R
+        float R = dielectric_film_mean_r(p, oc, eta);
+        return refl ? pm / (4.0 * abs(om)) * R : pm * abs(im) * etap * etap / hlen2 * (1.0 - R);
+    }
     if (refl) return pm / (4.0 * abs(om)) * fresnel_dielectric(oc, eta);
     return pm * abs(im) * etap * etap / hlen2 * fresnel_dielectric_transmittance(oc, eta);
 }
@@ -115,7 +138,10 @@ vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out fl
     bool ok_t;
     if (p.alpha <= 0.0) {
         float co = wo_u.z;
-        float R = fresnel_dielectric(co, eta);
+        bool film = p.thin_film.thickness_nm > 0.0;
+        vec3 R3 = film ? thin_film_dielectric_rgb(clamp(co, 0.0, 1.0), eta, p.thin_film.ior, p.thin_film.thickness_nm)
+                       : vec3(fresnel_dielectric(co, eta));
+        float R = (R3.x + R3.y + R3.z) / 3.0;
         float T = 1.0 - R;
         bool choose_r = u.x < R;
         vec3 wt = dielectric_refract(wo_u, vec3(0.0, 0.0, 1.0), eta, ok_t);
@@ -124,14 +150,18 @@ vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out fl
         pdf = choose_r ? R : T;
         bool ok = co > 0.0 && (choose_r || ok_t) && pdf > 0.0;
         if (!ok) pdf = 0.0;
-        // throughput f cos / pdf: 1 for reflection, 1 / eta^2 for transmission (radiance mode)
-        return ok ? vec3(choose_r ? 1.0 : 1.0 / (eta * eta)) : vec3(0.0);
+        // throughput f cos / pdf: 1 for reflection, 1 / eta^2 for transmission (radiance mode);
+        // with a film R is RGB and the branch was chosen with its mean: R / mean R, (1 - R) / T
+        if (!ok) return vec3(0.0);
+        if (!film) return vec3(choose_r ? 1.0 : 1.0 / (eta * eta));
+        return choose_r ? R3 / R : (1.0 - R3) / (T * eta * eta);
     }
     bool up = wo_u.z > 0.0;
     vec3 wo_s = up ? wo_u : vec3(0.0, 0.0, 1.0);
     vec3 m = sample_vndf_ggx(wo_s, u.xy, p.alpha, p.alpha);
     float om = dot(wo_s, m);
-    float F = fresnel_dielectric(clamp(om, 0.0, 1.0), eta);
+    float F = p.thin_film.thickness_nm > 0.0 ? dielectric_film_mean_r(p, clamp(om, 0.0, 1.0), eta)
+                                             : fresnel_dielectric(clamp(om, 0.0, 1.0), eta);
     bool choose_r = u.z < F;
     vec3 wt = dielectric_refract(wo_s, m, eta, ok_t);
     vec3 wi_u = choose_r ? reflect_about(wo_s, m) : normalize_safe(wt);

@@ -8,6 +8,10 @@
 #include "common/spectral.glsl"
 
 vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
+    // a thin film on the dielectric or conductor (common/fresnel.glsl; Schlick has none)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != 2)
+        return p.fresnel == 1 ? thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+                              : thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
     if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_i);
     if (p.fresnel == 0) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
     if (p.fresnel == 1) return fresnel_conductor(cos_i, p.eta, p.k);
@@ -18,11 +22,10 @@ float microfacet_G(microfacet_params p, vec3 wi, vec3 wo, vec3 h) {
     if (p.shadowing == 1) return G_v_cavity(wi, wo, h);
     float lam_i = mf_lambda(p.distribution, wi, p.alpha_x, p.alpha_y);
     float lam_o = mf_lambda(p.distribution, wo, p.alpha_x, p.alpha_y);
-    float G = smith_g2_height_correlated(lam_i, lam_o, wi, wo, h);
-    // blinn_phong borrows Beckmann's Lambda (Walter 2007 sec. 5.2); capped by the V-cavity G so
-    // that the albedo stays <= 1 near alpha = 1 (Heitz 2014 sec. 4.3); see microfacet.py
-    if (p.distribution == 2) G = min(G, G_v_cavity(wi, wo, h));
-    return G;
+    // blinn_phong borrows Beckmann's Lambda (Walter 2007 sec. 5.2); the V-cavity cap (Heitz 2014
+    // sec. 4.3) is blended in only where the albedo would exceed 1; see microfacet_dist.py
+    if (p.distribution == 2) return G_blinn_smith(p.alpha_x, lam_i, lam_o, wi, wo, h);
+    return smith_g2_height_correlated(lam_i, lam_o, wi, wo, h);
 }
 
 // (F averaged over RGB, D, G) for the term views; zero below the surface.

@@ -6,6 +6,9 @@
 #include "common/spectral.glsl"
 
 vec3 mirror_reflectance(mirror_params p, float cos_o) {
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != 2)
+        return p.fresnel == 0 ? thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+                              : thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
     if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_o);
     if (p.fresnel == 0) return fresnel_conductor(cos_o, p.eta, p.k);
     if (p.fresnel == 1) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));

@@ -134,3 +134,71 @@ float G_v_cavity(vec3 wi, vec3 wo, vec3 m) {
     float g = min(1.0, min(2.0 * m.z * wo.z / om, 2.0 * m.z * wi.z / im));
     return max(g, 0.0);
 }
+
+// Blinn-Phong distribution + Smith: the V-cavity cap blended in only where Beckmann's borrowed
+// Lambda would let the albedo exceed 1 (grazing cos, alpha >= 0.2); table t(alpha, cos) with
+// alpha = 0, 0.1, .., 1 (rows), cos = 0, 0.025, .., 0.3 (columns), bilinear. Twin of
+// BLINN_SMITH_CAP / G_blinn_smith in viewer/brdf/microfacet_dist.py, which says how it is made.
+const float MF_BLINN_CAP[143] = float[143](
+    0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.0409, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.1015, 0.0458, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.1781, 0.1381, 0.0891, 0.0328, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.2673, 0.2360, 0.1987, 0.1573, 0.1109, 0.0582, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.3644, 0.3378, 0.3065, 0.2722, 0.2344, 0.1923, 0.1450, 0.0914, 0.0304, 0.0000, 0.0000, 0.0000, 0.0000,
+    0.4646, 0.4393, 0.4094, 0.3766, 0.3404, 0.3001, 0.2550, 0.2042, 0.1465, 0.0807, 0.0054, 0.0000, 0.0000,
+    0.5633, 0.5353, 0.5021, 0.4654, 0.4247, 0.3792, 0.3281, 0.2704, 0.2050, 0.1305, 0.0453, 0.0000, 0.0000,
+    0.6565, 0.6204, 0.5790, 0.5336, 0.4833, 0.4269, 0.3635, 0.2919, 0.2105, 0.1179, 0.0121, 0.0000, 0.0000,
+    0.7403, 0.6901, 0.6369, 0.5794, 0.5156, 0.4440, 0.3631, 0.2714, 0.1670, 0.0480, 0.0000, 0.0000, 0.0000);
+
+float mf_blinn_cap_weight(float alpha, float c) {
+    float fa = clamp(alpha / 0.1, 0.0, 10.0);
+    float fm = clamp(abs(c) / 0.025, 0.0, 12.0);
+    int ia = min(int(floor(fa)), 9);
+    int im = min(int(floor(fm)), 11);
+    float ta = fa - float(ia), tm = fm - float(im);
+    int k = ia * 13 + im;
+    return mix(mix(MF_BLINN_CAP[k], MF_BLINN_CAP[k + 1], tm),
+               mix(MF_BLINN_CAP[k + 13], MF_BLINN_CAP[k + 14], tm), ta);
+}
+
+float G_blinn_smith(float alpha, float lam_i, float lam_o, vec3 wi, vec3 wo, vec3 m) {
+    float g = smith_g2_height_correlated(lam_i, lam_o, wi, wo, m);
+    float gc = min(g, G_v_cavity(wi, wo, m));
+    float t = max(mf_blinn_cap_weight(alpha, wi.z), mf_blinn_cap_weight(alpha, wo.z));
+    return g - t * (g - gc);
+}
+
+// Height-correlated Smith masking-shadowing for refraction (wo above, wi below the surface),
+// Heitz 2014 sec. 5.3: the points at height h visible from wo and, from below, from wi give
+// G2 = integral_0^1 C^Lambda(wo) (1 - C)^Lambda(wi) dC = B(1 + Lambda(wo), 1 + Lambda(wi)) with
+// the Beta function B (C: the height distribution's CDF). Computed in the log domain: both
+// arguments shifted to >= 8 with B(x, y) = B(x + 1, y) (x + y) / x, then Stirling's series for
+// ln Gamma written with ratios (ln(x / (x + y)) by log1p), so that nothing cancels in float32
+// however large Lambda is. Twin of smith_g2_height_correlated_transmission in microfacet_dist.py.
+float mf_beta_1p(float a, float b) {
+    float x = 1.0 + a, y = 1.0 + b;
+    float lf = 0.0;
+    for (int k = 0; k < 7; ++k) {
+        if (x < 8.0) { lf += log((x + y) / x); x += 1.0; }
+    }
+    for (int k = 0; k < 7; ++k) {
+        if (y < 8.0) { lf += log((x + y) / y); y += 1.0; }
+    }
+    float s = x + y;
+    // ln(x / s) and ln(y / s): log1p of the small ratio when the other one is near 1
+    float lxs = y < 0.25 * s ? mf_log1p(-y / s) : log(x / s);
+    float lys = x < 0.25 * s ? mf_log1p(-x / s) : log(y / s);
+    float lb = (x - 0.5) * lxs + (y - 0.5) * lys - 0.5 * log(s)
+             + 0.91893853320467274;  // 0.5 ln(2 pi)
+    // Stirling's corrections 1/(12 z) - 1/(360 z^3) of ln Gamma(x) + ln Gamma(y) - ln Gamma(s)
+    lb += (1.0 / 12.0) * (1.0 / x + 1.0 / y - 1.0 / s)
+        - (1.0 / 360.0) * (1.0 / (x * x * x) + 1.0 / (y * y * y) - 1.0 / (s * s * s));
+    return exp(lb + lf);
+}
+
+float smith_g2_height_correlated_transmission(float lam_i, float lam_o, vec3 wi, vec3 wo, vec3 m) {
+    if (dot(wi, m) * wi.z <= 0.0 || dot(wo, m) * wo.z <= 0.0) return 0.0;
+    return mf_beta_1p(lam_o, lam_i);
+}

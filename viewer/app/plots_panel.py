@@ -344,6 +344,10 @@ class PlotsPanel:
                     implot.plot_line(f"{n} R_p", d["theta"], np.ascontiguousarray(d["Rp"][:, c]),
                                      implot.Spec(line_color=_vec4(col, 0.7), line_weight=1.0,
                                                  marker=implot.Marker_.circle, marker_size=1.5))
+                if "thin_film" in d:
+                    implot.plot_line(f"{n} thin film R", d["theta"], np.ascontiguousarray(d["thin_film"][:, c]),
+                                     implot.Spec(line_color=_vec4(col, 0.9), line_weight=2.0,
+                                                 marker=implot.Marker_.square, marker_size=1.5))
                 if "schlick" in d:
                     implot.plot_line(f"{n} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
                                      implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.0,

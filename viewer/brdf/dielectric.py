@@ -7,7 +7,10 @@
   ``pdf`` are 0 as functions.
 * ``alpha > 0``: rough interface, GGX microfacets with height-correlated Smith G (Walter et al.
   2007, 'Microfacet Models for Refraction through Rough Surfaces': eq. 20 reflection, eq. 21
-  transmission, eq. 16 generalized half vector, eqs. 14 and 17 the Jacobians). Sampling: GGX
+  transmission, eq. 16 generalized half vector, eqs. 14 and 17 the Jacobians). G2 for reflection
+  is Heitz 2014 eq. 99, 1 / (1 + Lambda_i + Lambda_o); for refraction it is Heitz 2014's
+  height-correlated form B(1 + Lambda_o, 1 + Lambda_i) (Beta function; sec. 5.3), which is
+  smaller: the points seen from above are the high ones, those seen from below the low ones. Sampling: GGX
   visible normals for wo (Heitz 2018), then reflect with probability F(wo.m) or refract.
 
 Sides and eta: the relative index seen from wo is eta = ior when wo is outside (wo.z > 0) and
@@ -29,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf import spectral_fresnel
+from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
 from viewer.brdf.sampling import F_MAX, normalize, ratio_capped, reflect, reflect_z, split_uniform
@@ -45,9 +48,10 @@ SPEC = ModelSpec(
         Param("sigma_a", "rgb", [0.0, 0.0, 0.0], "absorption coefficient inside (Bouguer's law, "
               "applied by the path tracer along the path inside)", unit="1/m", lo=0.0, hi=1000.0),
         spectral_fresnel.param(dielectric_only=True),
+        thin_film.param(),
     ),
     source="Fresnel equations and Snell's law (lecture); Walter et al. 2007 eqs. 14-21 (rough); "
-           "Heitz 2014 eq. 99 (G2); Heitz 2018 (VNDF); pbrt-v4 radiance-mode eta^2 scaling",
+           "Heitz 2014 eq. 99 and sec. 5.3 (G2 reflection / refraction); Heitz 2018 (VNDF); pbrt-v4 radiance-mode eta^2 scaling",
     reciprocal=False,
     reciprocal_why="radiance changes by (n_t / n_i)^2 across a refraction (L / n^2 is invariant), "
                    "so f_t(wi, wo) = f_t(wo, wi) (eta_o / eta_i)^2",
@@ -114,24 +118,28 @@ def _rough_eval_pdf(p, wi, wo):
     valid &= (im * ci > 0) & (om * co > 0)
     dist = Distribution("ggx", p.alpha, p.alpha)
     D = dist.D(wm)
-    G = dist.G2(wi, wo, wm)
-    F = fresnel_dielectric(np.clip(om, 0.0, 1.0), eta)
-    T = fresnel_dielectric_transmittance(np.clip(om, 0.0, 1.0), eta)
+    # height-correlated Smith G2: Heitz 2014 eq. 99 for reflection, the Beta-function form of
+    # sec. 5.3 for refraction
+    G = np.where(reflect_, dist.G2(wi, wo, wm), dist.G2_transmission(wi, wo, wm))
+    F, T = _film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)  # (N, 3) each
     aci = np.where(valid, np.abs(ci), 1.0)
     co = np.where(valid, co, 1.0)
     safe_h2 = np.where(valid, hlen2, 1.0)
     # reflection: Walter et al. 2007 eq. 20, f = F G D / (4 |cos_i| |cos_o|)
-    f_r = F * ratio_capped(G * D, 4.0 * aci * co)  # capped at F_MAX (sampling.py)
+    f_r = F * ratio_capped(G * D, 4.0 * aci * co)[:, None]  # capped at F_MAX (sampling.py)
     # transmission: Walter et al. 2007 eq. 21 with (eta_i (i.h) + eta_o (o.h))^2 written as
     # |wi etap + wo|^2 / etap^2 (no cancellation), then the radiance factor 1 / etap^2:
     # f_t = T G D |i.m| |o.m| / (|h|^2 |cos_i| |cos_o|)
     # T from both facet cosines: Snell's law holds at the generalized half vector, so cos_t = |i.m|
     # (well conditioned near total internal reflection, where sqrt(1 - sin_i^2 / eta^2) turns a
-    # 1e-7 error of the inputs' length into 1e-7 / cos_t^2; the float GLSL twin does the same)
-    T_f = _transmittance_cos(np.clip(om, 0.0, 1.0), np.minimum(np.abs(im), 1.0), eta)
-    f_t = np.minimum(np.minimum(T_f * np.abs(im) * np.abs(om) / safe_h2, F_MAX) * ratio_capped(G * D, aci * co),
-                     F_MAX)
-    f = np.where(valid, np.where(reflect_, f_r, f_t), 0.0)
+    # 1e-7 error of the inputs' length into 1e-7 / cos_t^2; the float GLSL twin does the same).
+    # A thin film's RGB transmittance is 1 - R (thin_film.py).
+    T_f = T if thin_film.active(p) else \
+        _transmittance_cos(np.clip(om, 0.0, 1.0), np.minimum(np.abs(im), 1.0), eta)[:, None]
+    f_t = np.minimum(np.minimum(T_f * (np.abs(im) * np.abs(om) / safe_h2)[:, None], F_MAX)
+                     * ratio_capped(G * D, aci * co)[:, None], F_MAX)
+    f = np.where(valid[:, None], np.where(reflect_[:, None], f_r, f_t), 0.0)
+    F, T = F.mean(axis=1), T.mean(axis=1)  # the lobe probabilities of the sampler
     # pdf: visible normals times the Jacobians (eq. 14: 1 / (4 |o.m|); eq. 17 with the half-vector
     # length: |i.m| etap^2 / |h|^2), times the probability of the branch
     pm = dist.D_visible(wo, wm)
@@ -141,11 +149,22 @@ def _rough_eval_pdf(p, wi, wo):
     return f, pdf
 
 
+def _film_or_fresnel(p, cos, eta):
+    """(R, T), each (N, 3), at cos on the side with relative index eta: a thin film's RGB
+    reflectance and 1 - R (thin_film.py), or the plain Fresnel R and T."""
+    if thin_film.active(p):
+        R = thin_film.dielectric_reflectance_rgb(p, cos, eta)
+        return R, 1.0 - R
+    R = fresnel_dielectric(cos, eta)
+    T = fresnel_dielectric_transmittance(cos, eta)
+    return np.repeat(R[:, None], 3, axis=1), np.repeat(T[:, None], 3, axis=1)
+
+
 def eval(p, wi, wo):
     if _is_smooth(p):
         return np.zeros((wi.shape[0], 3))
     f, _ = _rough_eval_pdf(p, wi, wo)
-    return np.repeat(f[:, None], 3, axis=1)
+    return f
 
 
 def pdf(p, wi, wo):
@@ -158,7 +177,8 @@ def _sample_smooth(p, wo, u):
     s, eta = _side(p, wo)
     wo_u = _flip(wo, s)
     co = wo_u[:, 2]
-    R = fresnel_dielectric(co, eta)
+    R3, T3 = _film_or_fresnel(p, np.clip(co, 0.0, 1.0), eta)
+    R = R3.mean(axis=1)
     T = 1.0 - R
     choose_r = u[:, 0] < R
     n = np.array([0.0, 0.0, 1.0])
@@ -167,9 +187,11 @@ def _sample_smooth(p, wo, u):
     ok = (co > 0) & (choose_r | ok_t)
     pdf_ = np.where(choose_r, R, T)
     # throughput f cos / pdf: 1 for reflection, 1 / eta^2 for transmission (radiance mode)
-    wgt = np.where(choose_r, 1.0, 1.0 / (eta * eta))
+    # (with a film, R is RGB: the lobe is chosen with the mean R, weight R / mean R)
+    safe = np.where(pdf_ > 0, pdf_, 1.0)
+    wgt = np.where(choose_r[:, None], R3 / safe[:, None], T3 / (safe * eta * eta)[:, None])
     ok &= pdf_ > 0
-    return _flip(wi_u, s), np.where(ok[:, None], wgt[:, None] * np.ones(3), 0.0), np.where(ok, pdf_, 0.0)
+    return _flip(wi_u, s), np.where(ok[:, None], wgt, 0.0), np.where(ok, pdf_, 0.0)
 
 
 def _sample_rough(p, wo, u):
@@ -181,7 +203,7 @@ def _sample_rough(p, wo, u):
     dist = Distribution("ggx", p.alpha, p.alpha)
     m = dist.sample_m(wo_s, np.stack([u0, u[:, 1]], axis=-1))
     om = np.sum(wo_s * m, axis=-1)
-    F = fresnel_dielectric(np.clip(om, 0.0, 1.0), eta)
+    F = _film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)[0].mean(axis=1)
     choose_r = uc < F
     wr = reflect(wo_s, m)
     wt, ok_t = refract(wo_s, m, eta)
@@ -190,8 +212,8 @@ def _sample_rough(p, wo, u):
     wi = _flip(wi_u, s)
     f, pdf_ = _rough_eval_pdf(p, wi, wo)
     ok &= pdf_ > 0
-    w = f * np.abs(wi[:, 2]) / np.where(ok, pdf_, 1.0)
-    return wi, np.where(ok[:, None], w[:, None] * np.ones(3), 0.0), np.where(ok, pdf_, 0.0)
+    w = f * (np.abs(wi[:, 2]) / np.where(ok, pdf_, 1.0))[:, None]
+    return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pdf_, 0.0)
 
 
 def sample(p, wo, u):

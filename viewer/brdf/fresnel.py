@@ -27,6 +27,8 @@ __all__ = [
     "fresnel_conductor",
     "fresnel_conductor_polarized",
     "fresnel_schlick",
+    "fresnel_thin_film",
+    "fresnel_thin_film_polarized",
     "refracted_cos",
 ]
 
@@ -153,3 +155,54 @@ def f0_conductor(eta, k):
     eta = np.asarray(eta, dtype=np.float64)
     k = np.asarray(k, dtype=np.float64)
     return ((eta - 1.0) ** 2 + k * k) / ((eta + 1.0) ** 2 + k * k)
+
+
+def fresnel_thin_film_polarized(cos_i, wavelength_nm, film_ior, thickness_nm, base_ior):
+    """(Rs, Rp) of a thin film (real index film_ior, thickness_nm) on a base of index base_ior
+    (real, or complex n + i k with k >= 0), seen from index 1: the Airy summation of the waves
+    reflected back and forth inside the film (Born & Wolf, Principles of Optics, sec. 7.6.1;
+    Hecht, Optics, sec. 9.7):
+
+      r = (r01 + r12 e^{i phi}) / (1 + r01 r12 e^{i phi}),  phi = (2 pi / lambda) 2 d n1 cos_1,
+
+    with the amplitude coefficients of the two interfaces written with w_j = n_j cos_j =
+    sqrt(n_j^2 - sin_0^2) (principal root: a decaying wave when w_j is complex):
+    s: r_ij = (w_i - w_j) / (w_i + w_j);  p: r_ij = (n_j^2 w_i - n_i^2 w_j) / (n_j^2 w_i + n_i^2 w_j).
+    Zero thickness gives r = r02, the plain Fresnel coefficient of the base."""
+    scalar = _is_scalar(cos_i, wavelength_nm, film_ior, thickness_nm, base_ior)
+    c = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
+    lam = np.asarray(wavelength_nm, dtype=np.float64)
+    n1 = np.asarray(film_ior, dtype=np.complex128)
+    n2 = np.asarray(base_ior, dtype=np.complex128)
+    d = np.asarray(thickness_nm, dtype=np.float64)
+    sin2 = 1.0 - c * c
+    w0 = c.astype(np.complex128)
+    w1 = np.sqrt(n1 * n1 - sin2)
+    w2 = np.sqrt(n2 * n2 - sin2)
+    e = np.exp(1j * (4.0 * np.pi / lam) * d * w1)
+    out = []
+    for pol in ("s", "p"):
+        if pol == "s":
+            r01 = _ratio(w0 - w1, w0 + w1)
+            r12 = _ratio(w1 - w2, w1 + w2)
+        else:
+            r01 = _ratio(n1 * n1 * w0 - w1, n1 * n1 * w0 + w1)
+            r12 = _ratio(n2 * n2 * w1 - n1 * n1 * w2, n2 * n2 * w1 + n1 * n1 * w2)
+        num = r01 + r12 * e
+        den = 1.0 + r01 * r12 * e
+        R = np.where(np.abs(den) > 1e-300, np.abs(num) ** 2 / np.maximum(np.abs(den) ** 2, 1e-300), 1.0)
+        out.append(np.clip(R, 0.0, 1.0))
+    return _out(out[0], scalar), _out(out[1], scalar)
+
+
+def _ratio(a, b):
+    """a / b, and -1 where b = 0 (grazing incidence on an interface of equal indices: the limit)."""
+    ok = np.abs(b) > 0
+    return np.where(ok, a / np.where(ok, b, 1.0), -1.0)
+
+
+def fresnel_thin_film(cos_i, wavelength_nm, film_ior, thickness_nm, base_ior):
+    """Unpolarized reflectance (Rs + Rp) / 2 of a thin film on a base, from index 1 (see
+    ``fresnel_thin_film_polarized``). Arrays broadcast; wavelength and thickness in nm."""
+    rs, rp = fresnel_thin_film_polarized(cos_i, wavelength_nm, film_ior, thickness_nm, base_ior)
+    return 0.5 * (rs + rp)

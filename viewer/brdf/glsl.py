@@ -43,7 +43,7 @@ def _size(param: Param) -> int:
 
 
 def block_size(spec: ModelSpec) -> int:
-    return sum(_size(p) for p in spec.params)
+    return sum(_size(p) for p in spec.params) + spec.derived_size
 
 
 def model_index(name: str) -> int:
@@ -100,6 +100,10 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
         return start
 
     _pack_fields(spec.params, params, main, tail, base_offset)
+    if spec.derived_size:
+        extra = [float(x) for x in spec.derived(params)]
+        assert len(extra) == spec.derived_size, (params.model, len(extra))
+        main.extend(extra)
     assert len(main) == main_size, (params.model, len(main), main_size)
     data = np.array(main + tail, dtype=np.float32)
     if limit is not None and offset + data.size > limit:
@@ -154,6 +158,8 @@ def _glsl_reads(params_spec, target: str, o: list[int], fixed: dict | None = Non
         if k == "choice" and fixed and p.name in fixed:
             # a compile-time constant: the compiler drops the branches of the other choices
             lines.append(f"    {target}.{p.name} = {int(fixed[p.name])}; // fixed: {p.choices[fixed[p.name]]}")
+            if p.spectral_table:
+                lines.append(f"    {target}.{p.name}_offset = int(mat_f(o + {at + 1}) + 0.5);")
         elif k == "rgb":
             lines.append(f"    {target}.{p.name} = vec3(mat_f(o + {at}), mat_f(o + {at + 1}), mat_f(o + {at + 2}));")
         elif k == "float":
@@ -232,7 +238,10 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
            f"uniform vec4 u_mat[{MAT_VEC4}];",
            "float mat_f(int i) { return u_mat[i >> 2][i & 3]; }",
            "#define MAT_ROW(o) 0",
-           "#endif", ""]
+           "#endif"]
+    # model ids by name (every registered model, so a nesting model can test its base's model)
+    out.extend(f"#define BRDF_MODEL_{name.upper()} {model_index(name)}" for name in brdf.names())
+    out.append("")
     plain, nesting = [], []
     for name in brdf.names():
         if only is not None and name not in only:
@@ -241,11 +250,16 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
         (nesting if spec.nests_material else plain).append(name)
         structs: list[str] = []
         main = _struct(f"{name}_params", spec.params, structs)
+        if spec.derived_size:
+            main = main[:-3] + f"    float derived[{spec.derived_size}];\n}};\n"
         out.extend(structs)
         out.append(main)
         out.append(f"{name}_params {name}_unpack(int o) {{")
         out.append(f"    {name}_params p;")
-        out.extend(_glsl_reads(spec.params, "p", [0], (fixed or {}).get(name)))
+        o = [0]
+        out.extend(_glsl_reads(spec.params, "p", o, (fixed or {}).get(name)))
+        if spec.derived_size:
+            out.append(f"    for (int i = 0; i < {spec.derived_size}; ++i) p.derived[i] = mat_f(o + {o[0]} + i);")
         out.append("    return p;\n}\n")
 
     def has_terms(n):

@@ -4,8 +4,9 @@ Cook & Torrance 1981, Walter et al. 2007 eq. 20), plus an optional Lambertian ba
   * D: beckmann | ggx | blinn_phong (see ``microfacet_dist``); anisotropic alpha_x along the
     tangent +x and alpha_y along +y (blinn_phong is isotropic and uses alpha_x).
   * G: smith = height-correlated Smith G2 (Heitz 2014 eq. 99), v_cavity = Cook-Torrance 1981.
-    blinn_phong + smith uses Beckmann's Lambda (Walter 2007 sec. 5.2) capped by the V-cavity G
-    (see ``terms``), since the borrowed Lambda breaks energy conservation near alpha = 1.
+    blinn_phong + smith uses Beckmann's Lambda (Walter 2007 sec. 5.2), blended toward the V-cavity
+    G only where the borrowed Lambda would let the albedo exceed 1 (grazing wo, alpha >= 0.2; see
+    ``microfacet_dist.BLINN_SMITH_CAP``); elsewhere it is the plain Smith G2.
   * F at the microfacet: F(wi . h) with h = normalize(wi + wo): dielectric (ior, exact),
     conductor (eta + i k, exact) or Schlick (f0).
   * kd: the diffuse base, f_d = kd / pi (1 - F(cos_i)) (1 - F(cos_o)), F evaluated with the
@@ -26,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
-from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_v_cavity
-from viewer.brdf import spectral_fresnel
+from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_blinn_smith, G_v_cavity
+from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
 from viewer.brdf.spec import ModelSpec, Param
@@ -58,6 +59,7 @@ SPEC = ModelSpec(
               lo=0.0, hi=1.0),
         Param("kd", "rgb", [0.0, 0.0, 0.0], "diffuse base albedo, weighted by the Fresnel "
               "transmittances (1 - F(cos_i)) (1 - F(cos_o))", lo=0.0, hi=1.0),
+        thin_film.param(),
         spectral_fresnel.param(),
     ),
     source="Torrance & Sparrow 1967; Blinn 1977; Cook & Torrance 1981; Walter et al. 2007 eq. 20 "
@@ -73,7 +75,12 @@ def distribution(p) -> Distribution:
 
 
 def fresnel_rgb(p, cos):
-    """F(cos) as (N, 3) for the chosen Fresnel variant."""
+    """F(cos) as (N, 3) for the chosen Fresnel variant (a thin film on the dielectric or
+    conductor first: viewer/brdf/thin_film.py; Schlick has no film)."""
+    if thin_film.active(p) and p.fresnel != "schlick":
+        if p.fresnel == "conductor":
+            return thin_film.reflectance_rgb(p, cos, p.eta, p.k)
+        return thin_film.reflectance_rgb(p, cos, p.ior)
     if p.spectral != spectral_fresnel.NONE:
         return spectral_fresnel.lookup(p.spectral, cos)
     c = np.clip(cos, 0.0, 1.0)[:, None]
@@ -97,10 +104,9 @@ def terms(p, wi, wo):
         G = dist.G2(wi, wo, h)
         if p.distribution == "blinn_phong":
             # Beckmann's Lambda is only an approximation for the Phong distribution (Walter et al.
-            # 2007 sec. 5.2), far off as alpha -> 1 (n -> 0), where it lets the albedo exceed 1.
-            # Capping by the V-cavity G, which satisfies the projected-area constraint for any D
-            # (Heitz 2014 sec. 4.3), bounds the albedo by 1.
-            G = np.minimum(G, G_v_cavity(wi, wo, h))
+            # 2007 sec. 5.2): near grazing wo it lets the albedo exceed 1. The V-cavity cap (valid
+            # for any D, Heitz 2014 sec. 4.3) is blended in only as far as that requires.
+            G = G_blinn_smith(dist, wi, wo, h)
     else:
         G = G_v_cavity(wi, wo, h)
     F = fresnel_rgb(p, np.sum(wi * h, axis=-1))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.fresnel import fresnel_conductor, fresnel_dielectric
-from viewer.brdf import spectral_fresnel
+from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import reflect_z
 from viewer.brdf.spec import ModelSpec, Param
@@ -30,6 +30,7 @@ SPEC = ModelSpec(
         Param("k", "rgb", list(_GOLD_K), "extinction coefficient (conductor)", lo=0.0, hi=20.0),
         Param("ior", "float", 1.5, "index of refraction (dielectric)", lo=1.0, hi=3.0),
         spectral_fresnel.param(),
+        thin_film.param(),
     ),
     source="Law of reflection; Fresnel equations (lecture: 'Reflectance of perfectly specular "
            "materials')",
@@ -38,7 +39,11 @@ SPEC = ModelSpec(
 
 
 def reflectance(p, cos):
-    """F(cos) as (N, 3)."""
+    """F(cos) as (N, 3); a thin film on the conductor or dielectric first (thin_film.py)."""
+    if thin_film.active(p) and p.fresnel != "none":
+        if p.fresnel == "conductor":
+            return thin_film.reflectance_rgb(p, cos, p.eta, p.k)
+        return thin_film.reflectance_rgb(p, cos, p.ior)
     if p.spectral != spectral_fresnel.NONE:
         return spectral_fresnel.lookup(p.spectral, cos)
     c = np.clip(cos, 0.0, 1.0)[:, None]

@@ -128,6 +128,11 @@ PRESETS["lecture_ashikhmin_shirley"] = {"model": "ashikhmin_shirley", "rd": [0.3
                                         "rs": [0.5, 0.5, 0.5], "nu": 10.0, "nv": 1000.0}
 # Bouguer's law: glass that absorbs red and blue over its path inside (sigma_a per metre)
 PRESETS["lecture_absorbing_glass"] = dict(PRESETS["green_glass"])
+# a soap bubble (Glassner 2000, "Soap bubbles", IEEE CG&A): no refraction (air on both sides,
+# ior 1), a water film (n 1.33) a few hundred nanometres thick; its colour is interference only
+PRESETS["soap_bubble"] = {"model": "dielectric", "ior": 1.0, "alpha": 0.0,
+                          "thin_film": {"ior": 1.33, "thickness_nm": 400.0}}
+PRESETS["lecture_soap_bubble"] = dict(PRESETS["soap_bubble"])
 
 
 def get_preset(name: str) -> dict:

@@ -92,6 +92,10 @@ class ModelSpec:
     transmissive: bool = False
     # aliases: a key a user may write that sets several parameters, e.g. alpha -> alpha_x, alpha_y
     aliases: dict = field(default_factory=dict)
+    # values derived from the parameters that the GLSL twin reads as ``float derived[N]`` after
+    # the parameters (e.g. a table precomputed in numpy): derived(params) -> N floats
+    derived: object = None
+    derived_size: int = 0
 
     def param(self, name: str) -> Param:
         for p in self.params:
