@@ -61,7 +61,25 @@ def _parser_reference() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
+    _add_estimator_options(p)
     return p
+
+
+def _add_estimator_options(p: argparse.ArgumentParser) -> None:
+    """The reference estimator's options (reference and compare)."""
+    p.add_argument("--strategy", default="mis", choices=("mis", "bsdf", "light"),
+                   help="how the environment is reached: BSDF sampling only, light (environment) sampling "
+                        "only, or both with multiple importance sampling (default); point and directional "
+                        "lights are always next-event estimated")
+    p.add_argument("--mis-heuristic", dest="mis_heuristic", default="power", choices=("power", "balance"),
+                   help="MIS weights: power (beta = 2, default) or balance heuristic")
+    p.add_argument("--no-roulette", dest="russian_roulette", action="store_false",
+                   help="trace every path to --max-depth (no Russian roulette)")
+
+
+def _estimator(args) -> dict:
+    return {"strategy": args.strategy, "mis_heuristic": args.mis_heuristic,
+            "russian_roulette": args.russian_roulette}
 
 
 def _parser_plot() -> argparse.ArgumentParser:
@@ -218,7 +236,8 @@ def cmd_reference(args) -> int:
 
     w, h = scene.camera.width, scene.camera.height
     t0 = time.perf_counter()
-    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers)
+    renderer = ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                                 **_estimator(args))
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -243,7 +262,7 @@ def cmd_reference(args) -> int:
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
-                                                                "max_depth": args.max_depth}}))
+                                                                "max_depth": args.max_depth, **_estimator(args)}}))
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp)" + (f" and {lin_path}" if lin_path else ""))
     print(f"{samples / max(wall, 1e-9):.0f} samples/second ({samples} camera samples in {wall:.2f} s; "
@@ -267,6 +286,7 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--workers", type=int, default=None)
+    _add_estimator_options(p)
     return p
 
 
@@ -298,12 +318,14 @@ def cmd_compare(args) -> int:
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
     t0 = time.perf_counter()
-    with ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers) as ref:
+    with ReferenceRenderer(scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
+                           **_estimator(args)) as ref:
         ref.step(args.spp)
         reference, variance = ref.mean(), ref.variance()
     wall = time.perf_counter() - t0
     m = metrics(raster, reference)
     m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
+              **_estimator(args),
               "raster_supersample": args.supersample, "reference_seconds": wall,
               "reference_mean_variance_of_mean": float(variance.mean())})
     abs_png, abs_scale = heat_map(raster, reference)
