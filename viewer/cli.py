@@ -87,7 +87,7 @@ def _parser_plot() -> argparse.ArgumentParser:
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | sampling")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
@@ -100,6 +100,9 @@ def _parser_plot() -> argparse.ArgumentParser:
     p.add_argument("--inside", action="store_true",
                    help="fresnel: light inside the denser medium (eta = 1/ior): critical angle, total internal reflection")
     p.add_argument("--log", action="store_true", help="polar, lobe: plot log10(1 + f cos)")
+    p.add_argument("--samples", type=int, default=200_000,
+                   help="sampling: directions drawn from the sampler for the histogram (default 200000)")
+    p.add_argument("--seed", type=int, default=0, help="sampling: random seed (default 0)")
     p.add_argument("--data", metavar="JSON", help="also write the plotted numbers as JSON")
     p.add_argument("--width", type=int, default=900, help="image width (default 900)")
     p.add_argument("--height", type=int, default=600, help="image height (default 600)")
@@ -166,7 +169,7 @@ def cmd_plot(args) -> int:
     plots.check_channel(args.channel)
     p = _plot_material(args.model, args.overrides)
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
-                       inside=args.inside, log=args.log, name=args.model)
+                       inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed)
     plots.write_plot(fig, out, data, args.width, args.height)
     print(f"wrote {out} ({args.kind} plot of {args.model})" + (f" and {data}" if data else ""))
     return 0
