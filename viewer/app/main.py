@@ -78,6 +78,9 @@ class App:
         from viewer.app.shader_overlay import HotReload
 
         self.compare = CompareView(self.ctx)
+        from viewer.app.monte_carlo import MonteCarloPanel
+
+        self.mc = MonteCarloPanel(self.ctx)  # reference settings, error views, convergence
         self.hot_reload = HotReload(self.renderer)
         self.plots = PlotsPanel()
         self.plots.visible = bool(self._state.get("plots_visible", False))
@@ -144,6 +147,7 @@ class App:
         if self._reference is not None:
             self._reference.close()
         self.compare.release()
+        self.mc.release()
         self.plots.close()
         if self._bf_tex is not None:
             self._bf_tex.release()
@@ -202,6 +206,7 @@ class App:
         if self.show_ui:
             self._panel()
             self.plots.draw(self.scene.materials)
+            self.mc.draw_windows(self._reference)
         self.hot_reload.draw_overlay()
         vx, vy, vw, vh = self.viewport()
         view = (vx, vy, vw, vh)
@@ -238,7 +243,7 @@ class App:
                 self._quality = "preview" if interacting else "full"
                 self.dirty = False
         ref_tex = None
-        if cmp.uses_reference and vw > 0 and vh > 0:
+        if (cmp.uses_reference or self.mc.active) and vw > 0 and vh > 0:
             _, _, ref_w, ref_h = cmp.reference_rect(view)
             rv = self.reference_view()
             rv.update(self.scene, self.camera, (ref_w, ref_h))
@@ -252,8 +257,10 @@ class App:
         if vw > 0 and vh > 0:
             r = self.scene.render
             cmp.draw(self.renderer, screen, view, self.hdr, ref_tex, r.exposure, r.tonemap)
+            self.mc.draw_view(self.renderer, screen, cmp.reference_rect(view), self._reference)
             cmp.draw_overlay(imgui, self.view_logical(),
                              self._reference.spp if self._reference is not None else 0)
+            self.mc.draw_overlay(imgui, cmp.reference_rect(self.view_logical()))
             self._lecture_overlay()
             self._status_toast()
         screen.viewport = (0, 0, fw, fh)
@@ -418,6 +425,7 @@ class App:
             if ch:
                 r.shadows = v
                 self.dirty = True
+        self.mc.draw_settings(self.reference_view(), self.compare.uses_reference)
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self._environment_panel()
             if s.render.ibl == "brute_force":
@@ -489,7 +497,7 @@ class App:
         if mode not in MODES:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
         self.compare.mode = mode
-        if not self.compare.uses_reference and self._reference is not None:
+        if not self.compare.uses_reference and not self.mc.active and self._reference is not None:
             self._reference.stop()
         self.dirty = True
 
