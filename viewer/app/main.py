@@ -585,8 +585,10 @@ class App:
             return False
         self._set_scene(scene)
         self.lecture_step = step
+        if TOUR[step].image:  # a step about the reference shows it
+            self.set_image_mode(TOUR[step].image)
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
-               "bouguer": "Bouguer"}.get(TOUR[step].plot)
+               "bouguer": "Bouguer", "sampling": "Sampling"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
         self.plots.inside = TOUR[step].key == "tir"  # the critical angle needs light from inside
