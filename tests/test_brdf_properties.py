@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from viewer import brdf
+from viewer.brdf.chi2 import chi2_test
 
-from brdf_harness import (albedo_sampler, albedo_uniform, chi2_test, direction, param_grid,
+from brdf_harness import (albedo_sampler, albedo_uniform, direction, param_grid,
                           random_params, random_upper, sidak, test_param_sets, write_chi2_images)
 
 NAMES = brdf.names()

@@ -9,8 +9,9 @@ from scipy import integrate
 
 from viewer import brdf
 from viewer.brdf.microfacet_dist import G1_v_cavity, Distribution
+from viewer.brdf.chi2 import chi2_test
 
-from brdf_harness import chi2_test, direction
+from brdf_harness import direction
 
 CASES = [("ggx", 0.05, 0.05), ("ggx", 0.3, 0.3), ("ggx", 1.0, 1.0), ("ggx", 0.1, 0.5),
          ("beckmann", 0.05, 0.05), ("beckmann", 0.3, 0.3), ("beckmann", 1.0, 1.0), ("beckmann", 0.6, 0.15),

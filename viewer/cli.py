@@ -24,11 +24,13 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import choose_engine, needs_spectral
+    from viewer.gpupt.select import DEFAULT_ESTIMATOR, choose_engine, needs_spectral
 
     spectral = getattr(args, "spectral", None)
     if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
         engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
+    elif args.engine == "auto" and hasattr(args, "strategy") and _estimator(args) != DEFAULT_ESTIMATOR:
+        engine, why = "cpu", "only the cpu engine has the estimator options (--strategy, --mis-heuristic, --no-roulette)"
     else:
         engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
     print(f"engine: {engine} ({why})")
@@ -89,7 +91,25 @@ def _parser_reference() -> argparse.ArgumentParser:
                         "is dispersive)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
+    _add_estimator_options(p)
     return p
+
+
+def _add_estimator_options(p: argparse.ArgumentParser) -> None:
+    """The reference estimator's options (reference and compare)."""
+    p.add_argument("--strategy", default="mis", choices=("mis", "bsdf", "light"),
+                   help="how the environment is reached: BSDF sampling only, light (environment) sampling "
+                        "only, or both with multiple importance sampling (default); point and directional "
+                        "lights are always next-event estimated")
+    p.add_argument("--mis-heuristic", dest="mis_heuristic", default="power", choices=("power", "balance"),
+                   help="MIS weights: power (beta = 2, default) or balance heuristic")
+    p.add_argument("--no-roulette", dest="russian_roulette", action="store_false",
+                   help="trace every path to --max-depth (no Russian roulette)")
+
+
+def _estimator(args) -> dict:
+    return {"strategy": args.strategy, "mis_heuristic": args.mis_heuristic,
+            "russian_roulette": args.russian_roulette}
 
 
 def _parser_plot() -> argparse.ArgumentParser:
@@ -97,7 +117,7 @@ def _parser_plot() -> argparse.ArgumentParser:
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
@@ -110,6 +130,9 @@ def _parser_plot() -> argparse.ArgumentParser:
     p.add_argument("--inside", action="store_true",
                    help="fresnel: light inside the denser medium (eta = 1/ior): critical angle, total internal reflection")
     p.add_argument("--log", action="store_true", help="polar, lobe: plot log10(1 + f cos)")
+    p.add_argument("--samples", type=int, default=200_000,
+                   help="sampling: directions drawn from the sampler for the histogram (default 200000)")
+    p.add_argument("--seed", type=int, default=0, help="sampling: random seed (default 0)")
     p.add_argument("--data", metavar="JSON", help="also write the plotted numbers as JSON")
     p.add_argument("--width", type=int, default=900, help="image width (default 900)")
     p.add_argument("--height", type=int, default=600, help="image height (default 600)")
@@ -176,7 +199,7 @@ def cmd_plot(args) -> int:
     plots.check_channel(args.channel)
     p = _plot_material(args.model, args.overrides)
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
-                       inside=args.inside, log=args.log, name=args.model)
+                       inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed)
     plots.write_plot(fig, out, data, args.width, args.height)
     print(f"wrote {out} ({args.kind} plot of {args.model})" + (f" and {data}" if data else ""))
     return 0
@@ -298,7 +321,7 @@ def cmd_reference(args) -> int:
     engine = _engine(args, scenes=[scene])
     t0 = time.perf_counter()
     renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
-                             spectral=args.spectral)
+                             spectral=args.spectral, **_estimator(args))
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -318,7 +341,8 @@ def cmd_reference(args) -> int:
     if lin_path:
         write_npy(lin_path, linear)
     write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
-                                                                "max_depth": args.max_depth, "engine": engine}}))
+                                                                "max_depth": args.max_depth, "engine": engine,
+                                                                **_estimator(args)}}))
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp" + (", spectral" if renderer.is_spectral else "") + ")"
           + (f" and {lin_path}" if lin_path else ""))
@@ -344,6 +368,7 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    _add_estimator_options(p)
     return p
 
 
@@ -377,12 +402,13 @@ def cmd_compare(args) -> int:
     engine = _engine(args, ctx, scenes=[scene])
     t0 = time.perf_counter()
     with make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
-                       ctx=ctx) as ref:
+                       ctx=ctx, **_estimator(args)) as ref:
         ref.step(args.spp)
         reference, variance = ref.mean(), ref.variance()
     wall = time.perf_counter() - t0
     m = metrics(raster, reference)
     m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
+              **_estimator(args),
               "raster_supersample": args.supersample, "reference_seconds": wall, "engine": engine,
               "reference_mean_variance_of_mean": float(variance.mean())})
     abs_png, abs_scale = heat_map(raster, reference)

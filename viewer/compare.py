@@ -34,8 +34,9 @@ def metrics(raster: np.ndarray, reference: np.ndarray) -> dict:
     return out
 
 
-def _ramp(t: np.ndarray) -> np.ndarray:
-    """A perceptually ordered ramp (black -> blue -> magenta -> orange -> white), t in [0, 1]."""
+def ramp(t: np.ndarray) -> np.ndarray:
+    """A perceptually ordered ramp (black -> blue -> magenta -> orange -> white), t in [0, 1]:
+    every heat map (differences, Monte Carlo error views) uses it."""
     stops = np.array([[0.0, 0.0, 0.0], [0.1, 0.1, 0.6], [0.7, 0.1, 0.6], [1.0, 0.6, 0.1], [1.0, 1.0, 1.0]])
     x = np.clip(t, 0.0, 1.0) * (len(stops) - 1)
     i = np.minimum(x.astype(int), len(stops) - 2)
@@ -65,10 +66,10 @@ def heat_map(raster: np.ndarray, reference: np.ndarray, relative: bool = False, 
     err = error_map(raster, reference, relative)
     if scale is None:
         scale = auto_scale(err)
-    rgb = _ramp(err / scale)
+    rgb = ramp(err / scale)
     h, w = err.shape
     bar_h = max(8, h // 16)
-    bar = _ramp(np.linspace(0.0, 1.0, w))[None, :, :].repeat(bar_h, axis=0)
+    bar = ramp(np.linspace(0.0, 1.0, w))[None, :, :].repeat(bar_h, axis=0)
     img = np.concatenate([rgb, np.ones((2, w, 3)), bar], axis=0)
     srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.power(img, 1 / 2.4) - 0.055)
     out = (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)

@@ -17,6 +17,10 @@ so what is plotted is exactly what ``viewer.brdf`` computes:
 * ``fresnel_curves``: R_s, R_p and R vs the angle of incidence from ``viewer.brdf.fresnel``, with
   Brewster's angle atan(n2/n1) and, leaving the denser medium, the critical angle asin(n2/n1).
 * ``bouguer_curve``: Bouguer's (Beer-Lambert) law T(d) = exp(-sigma_a d).
+* ``sampling_histogram``: the model's importance sampler at a fixed direction: the histogram of
+  sampled directions in (cos theta, phi) cells beside the pdf integrated over the same cells,
+  their difference in standard deviations and the chi-square p-value, all from
+  ``viewer.brdf.chi2`` (the test suite's chi-square test), plus a point cloud of samples.
 
 ``figure`` turns one of them into a ``Figure`` (labelled curves and marks), ``render_figure``
 draws it as an RGB image and ``figure_json`` gives the plotted numbers (the PNG's
@@ -35,7 +39,7 @@ import numpy as np
 from viewer import ViewerError
 from viewer.brdf.sampling import LUMINANCE_REC709, luminance, reflect_z
 
-KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral")
+KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
 PNG_KEY = "brdf-viewer:plot"
 LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (CONTRACT: linear Rec.709 RGB)
@@ -120,6 +124,8 @@ def applicable_kinds(p) -> tuple[str, ...]:
         kinds.append("bouguer")
     if spectral_source(p) is not None:
         kinds.append("spectral")
+    if sampling_delta(p) is None:
+        kinds.append("sampling")
     return tuple(kinds)
 
 
@@ -128,6 +134,21 @@ def spectral_source(p) -> str | None:
     from viewer.spectral_plot import spectral_name
 
     return spectral_name(p)
+
+
+def sampling_delta(p) -> str | None:
+    """Why ``p``'s sampler has no density to histogram (a delta lobe: mirror, smooth glass, or
+    a layered model over one), else None."""
+    from viewer import brdf
+
+    spec = brdf.get(p.model).spec
+    rough_glass = spec.name == "dielectric" and float(p.get("alpha", 0.0)) > 0.0
+    if spec.delta and not rough_glass:
+        return f"model {p.model!r} samples a delta lobe (a discrete direction, no density)"
+    for prm in spec.params:
+        if prm.kind == "material" and sampling_delta(p[prm.name]) is not None:
+            return f"its {prm.name} ({p[prm.name].model}) samples a delta lobe (a discrete direction, no density)"
+    return None
 
 
 def _models_with(test) -> list[str]:
@@ -155,6 +176,9 @@ def check_kind(p, kind: str) -> None:
     check_kind_name(kind)
     if kind in applicable_kinds(p):
         return
+    if kind == "sampling":
+        raise ViewerError(f"sampling plot: {sampling_delta(p)}; the plots of {p.model!r}: "
+                          f"{', '.join(applicable_kinds(p))}")
     what = {"fresnel": "no index of refraction (no Fresnel term)",
             "bouguer": "no absorption coefficient sigma_a",
             "spectral": "no spectral table (spectral = \"NAME\")"}[kind]
@@ -412,6 +436,46 @@ class Curve:
     extra: dict = field(default_factory=dict)  # more arrays at the same x (e.g. f without cos)
 
 
+SAMPLING_ROWS, SAMPLING_COLS = 25, 50     # the chi-square test's cells (cos theta rows, phi columns)
+
+
+def sampling_histogram(p, theta_i: float = 45.0, phi: float = 0.0, samples: int = 200_000, seed: int = 0,
+                       points: int = 1500, rows: int = SAMPLING_ROWS, cols: int = SAMPLING_COLS) -> dict:
+    """The sampler of ``p`` at the fixed direction ``wo`` = (theta_i, phi) against its pdf, with
+    the test suite's chi-square functions (``viewer.brdf.chi2``) and the same cells: rows of
+    cos theta (top row cos = 1; on the sphere for transmissive models, 2 rows + 1 from cos = 1
+    down to -1) by columns of phi in [0, 360). Returns observed counts, expected counts (samples
+    x the integrated pdf), their difference in standard deviations (o - e) / sqrt(max(e, 1)),
+    the chi-square statistic, degrees of freedom and p-value, failed samples (pdf = 0), and
+    ``points`` sampled directions (a second stream) for the point cloud. The histogram and pdf
+    are what ``chi2_test(model, p, wo, samples, default_rng(seed), ...)`` computes."""
+    from viewer import brdf
+    from viewer.brdf.chi2 import chi2_from_counts, histogram, integrate_pdf
+
+    p = as_params(p)
+    theta_i, phi = _check_theta_i(theta_i), _check_phi(phi)
+    samples, points = int(samples), int(points)
+    if not 1000 <= samples <= 50_000_000:
+        raise ViewerError(f"--samples: {samples} is out of range; allowed: 1000 to 50000000")
+    model = brdf.get(p.model)
+    sphere = bool(model.spec.transmissive)
+    wo = direction(theta_i, phi)
+    rng = np.random.default_rng(seed)
+    r = 2 * rows + 1 if sphere else rows
+    observed, failed, problems = histogram(model, p, wo, samples, rng, r, cols, sphere)
+    expected = samples * integrate_pdf(model, p, wo, r, cols, sphere, n_samples=samples)
+    res = chi2_from_counts(observed, failed, problems, expected, samples, alpha=0.0)
+    o = observed.astype(np.float64)
+    wi, _, pdf = model.sample(p, np.broadcast_to(wo, (points, 3)), np.random.default_rng([seed, 1]).random((points, 2)))
+    cloud = wi[pdf > 0]
+    # row 0 of the chi-square cells is cos theta = c0 (bottom): flip so row 0 = the pole
+    return {"wo": wo, "theta_i": theta_i, "phi": phi, "sphere": sphere, "samples": samples, "seed": int(seed),
+            "rows": r, "cols": cols, "observed": o[::-1], "expected": expected[::-1],
+            "difference": ((o - expected) / np.sqrt(np.maximum(expected, 1.0)))[::-1],
+            "chi2": res.stat, "dof": res.dof, "p_value": res.p_value, "failed": int(failed),
+            "message": res.message, "points": cloud}
+
+
 @dataclass
 class Mark:
     """A labelled vertical line at x (Brewster, critical angle, thickness...)."""
@@ -504,8 +568,10 @@ def _nice_ceil(v: float) -> float:
 
 
 def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: str = "rgb",
-           inside: bool = False, log: bool = False, name: str | None = None) -> Figure:
-    """The figure of one plot kind for one material (what ``brdf-viewer plot`` draws)."""
+           inside: bool = False, log: bool = False, name: str | None = None, samples: int = 200_000,
+           seed: int = 0) -> Figure:
+    """The figure of one plot kind for one material (what ``brdf-viewer plot`` draws);
+    ``samples`` and ``seed`` are the sampling plot's."""
     p = as_params(p)
     check_kind(p, kind)
     check_channel(channel)
@@ -623,6 +689,14 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
                       f"distance d ({unit})", "transmittance T", curves, marks, (0.0, float(d["d"][-1])),
                       (0.0, 1.0), sub, [f"sigma_a = {_fmt_value(d['sigma_a'])} 1/{unit} ({d['field']})"],
                       {"channel": channel, "sigma_a": d["sigma_a"], "unit": unit})
+    if kind == "sampling":
+        d = sampling_histogram(p, theta_i, phi, samples=samples, seed=seed)
+        span = "cos theta from 1 (top) to -1" if d["sphere"] else "cos theta from 1 (top) to 0"
+        notes = [f"wo at theta = {theta_i:g} deg, phi = {phi:g} deg; {d['samples']} samples (seed {seed}); cells: "
+                 f"{d['rows']} rows ({span}) x {d['cols']} columns of phi",
+                 f"chi-square {d['chi2']:.1f}, {d['dof']} dof: p = {d['p_value']:.3g}; failed samples {d['failed']}"]
+        return Figure("sampling", p.model, p, f"{label}: importance sampling against the pdf",
+                      "phi (deg)", span, [], [], (0.0, 360.0), (0.0, 1.0), sub, notes, d)
     raise AssertionError(kind)
 
 
@@ -1100,6 +1174,84 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
              px=12)
 
 
+def _draw_grid(cv, a, box, signed=False, vmax=None):
+    """An (rows, cols) array as cells in ``box`` (canvas pixels): grey ramp from 0 to vmax, or
+    red (positive) / blue (negative) up to +-vmax."""
+    x0, y0, x1, y1 = box
+    rows, cols = a.shape
+    if vmax is None:
+        vmax = float(np.abs(a).max()) or 1.0
+    t = np.clip(a / vmax, -1.0, 1.0)
+    if signed:
+        rgb = np.stack([1 - np.clip(-t, 0, 1), 1 - np.abs(t), 1 - np.clip(t, 0, 1)], axis=-1)
+    else:
+        rgb = np.repeat((1.0 - t)[..., None], 3, axis=-1)
+    from PIL import Image
+
+    img = Image.fromarray((rgb * 255 + 0.5).astype(np.uint8)).resize((int(x1 - x0), int(y1 - y0)), Image.NEAREST)
+    cv.im.paste(img, (int(x0), int(y0)))
+    cv.draw.rectangle([x0, y0, x1, y1], outline=(90, 90, 90), width=cv.s(1))
+    return vmax
+
+
+def _draw_sampling(cv, fig, width, height):
+    """Two by two: histogram | integrated pdf, difference | point cloud."""
+    d = fig.info
+    top = cv.s(62 + 14 * len(fig.notes))
+    gap_x, gap_y = cv.s(36), cv.s(44)
+    left = cv.s(40)
+    gw = (cv.s(width) - left - cv.s(16) - gap_x) / 2
+    gh = (cv.s(height) - top - cv.s(16) - gap_y - cv.s(30)) / 2
+    vmax = max(float(np.max(d["observed"])), float(np.max(d["expected"])), 1e-12)
+    panels = (("histogram of samples", d["observed"], False, vmax),
+              ("integrated pdf x samples", d["expected"], False, vmax),
+              ("difference (o - e) / sqrt(e)", d["difference"], True, max(3.0, float(np.abs(d["difference"]).max()))))
+    for i, (title, a, signed, vm) in enumerate(panels):
+        x0 = left + (i % 2) * (gw + gap_x)
+        y0 = top + cv.s(16) + (i // 2) * (gh + gap_y)
+        box = (x0, y0, x0 + gw, y0 + gh)
+        _draw_grid(cv, np.asarray(a, float), box, signed, vm)
+        cv.text((x0 + gw / 2, y0 - cv.s(15)), title, px=12, anchor="la" if False else "ma")
+        scale = f"white 0 .. black {vm:.3g} samples" if not signed else f"blue -{vm:.3g} .. red +{vm:.3g} sigma"
+        cv.text((x0 + gw / 2, box[3] + cv.s(4)), scale + "; phi 0 .. 360 deg across", px=10, fill=(80, 80, 80),
+                anchor="ma")
+        if i % 2 == 0:
+            cv.vtext((x0 - cv.s(14), y0 + gh / 2), fig.y_label, px=10)
+    # point cloud: the hemisphere (sphere) seen obliquely, as the 3D lobe
+    x0 = left + gw + gap_x
+    y0 = top + cv.s(16) + gh + gap_y
+    el, az = math.radians(25.0), math.radians(-75.0)
+    view = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    right = np.array([-math.sin(az), math.cos(az), 0.0])
+    up = np.cross(view, right)
+    scale = min(gw / 2.3, gh / (2.2 if d["sphere"] else 1.45))
+    cx, cy = x0 + gw / 2, y0 + (gh / 2 if d["sphere"] else gh * 0.68)
+
+    def proj(q):
+        q = np.asarray(q, float)
+        return cx + scale * (q @ right), cy - scale * (q @ up)
+
+    ang = np.linspace(0, 2 * np.pi, 181)
+    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], -1)
+    gx, gy = proj(ring)
+    cv.draw.polygon(list(zip(gx, gy)), fill=(242, 242, 242), outline=(170, 170, 170))
+    pts = np.asarray(d["points"], float).reshape(-1, 3)
+    depth = pts @ view
+    px, py = proj(pts)
+    r = cv.s(1.5)
+    near = (depth - depth.min()) / max(float(np.ptp(depth)), 1e-12) if len(pts) else depth
+    for j in np.argsort(depth):
+        base = np.array((31, 119, 180) if pts[j, 2] >= 0 else (214, 39, 40), float)
+        col = tuple(int(c) for c in base * (0.55 + 0.45 * near[j]) + 255 * 0.0)
+        cv.draw.ellipse([px[j] - r, py[j] - r, px[j] + r, py[j] + r], fill=col)
+    wo = np.asarray(d["wo"], float)
+    a, b = proj(wo * 1.15), proj(np.zeros(3))
+    _arrow(cv, (a[0], a[1]), (b[0], b[1]), (230, 120, 0), 2.0, 12)
+    cv.text((a[0], a[1] - cv.s(4)), "wo", px=12, fill=(200, 100, 0), anchor="md")
+    cv.text((x0 + gw / 2, y0 - cv.s(15)), f"{len(pts)} sampled directions wi"
+            + (" (red: transmitted)" if d["sphere"] else ""), px=12, anchor="ma")
+
+
 def render_figure(fig: Figure, width: int = 900, height: int = 600, ss: int = 3) -> np.ndarray:
     """The figure drawn with Pillow as (height, width, 3) uint8 sRGB, anti-aliased by drawing at
     ``ss`` x the size and box-filtering down."""
@@ -1116,6 +1268,8 @@ def render_figure(fig: Figure, width: int = 900, height: int = 600, ss: int = 3)
         from viewer.spectral_plot import draw_spectral
 
         draw_spectral(cv, fig, width, height)
+    elif fig.kind == "sampling":
+        _draw_sampling(cv, fig, width, height)
     else:
         _draw_cartesian(cv, fig, width, height)
     return cv.image()

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from viewer.compare import _ramp, auto_scale, error_map, metrics
+from viewer.compare import auto_scale, error_map, metrics, ramp
 
 MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
 USES_REFERENCE = frozenset(MODES[1:])
@@ -124,7 +124,7 @@ class CompareView:
             err = error_map(self._pair[0], self._pair[1], relative)
             if self.auto_scale:
                 self.scale = auto_scale(err)
-            self._heat_tex = upload_rgb(self.ctx, self._heat_tex, _ramp(err / max(self.scale, 1e-30)))
+            self._heat_tex = upload_rgb(self.ctx, self._heat_tex, ramp(err / max(self.scale, 1e-30)))
             self._heat_key = key
         return self._heat_tex
 
@@ -219,23 +219,29 @@ class CompareView:
                       f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)")
 
     def _colour_bar(self, imgui, dl, view_logical, label):
-        x, y, w, h = view_logical
-        bw, bh = min(360.0, w * 0.5), 14.0
-        bx, by = x + (w - bw) / 2, y + h - bh - 30
-        n = 48
-        for i in range(n):
-            c = _ramp(np.array([(i + 0.5) / n]))[0]
-            srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
-            col = imgui.get_color_u32(imgui.ImVec4(float(srgb[0]), float(srgb[1]), float(srgb[2]), 1.0))
-            dl.add_rect_filled(imgui.ImVec2(bx + bw * i / n, by), imgui.ImVec2(bx + bw * (i + 1) / n + 1, by + bh), col)
         rel = self.mode == "relative difference"
         what = "|raster - reference| / (reference + 0.01)" if rel else "|raster - reference|"
-        label(bx, by + bh + 4, "0")
-        txt = f"{self.scale:.3g}"
-        label(bx + bw - imgui.calc_text_size(txt).x, by + bh + 4, txt)
-        label(bx + bw / 2 - imgui.calc_text_size(what).x / 2, by - 22, what)
+        draw_colour_bar(imgui, dl, view_logical, label, self.scale, what)
 
     def release(self):
         if self._heat_tex is not None:
             self._heat_tex.release()
             self._heat_tex = None
+
+
+def draw_colour_bar(imgui, dl, view_logical, label, scale: float, what: str, low: str = "0"):
+    """The heat maps' colour bar (``viewer.compare.ramp``) at the bottom of the view, ``low``
+    and ``scale`` at its ends and ``what`` above it; ``label(x, y, text)`` draws a text box."""
+    x, y, w, h = view_logical
+    bw, bh = min(360.0, w * 0.5), 14.0
+    bx, by = x + (w - bw) / 2, y + h - bh - 30
+    n = 48
+    for i in range(n):
+        c = ramp(np.array([(i + 0.5) / n]))[0]
+        srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+        col = imgui.get_color_u32(imgui.ImVec4(float(srgb[0]), float(srgb[1]), float(srgb[2]), 1.0))
+        dl.add_rect_filled(imgui.ImVec2(bx + bw * i / n, by), imgui.ImVec2(bx + bw * (i + 1) / n + 1, by + bh), col)
+    label(bx, by + bh + 4, low)
+    txt = f"{scale:.3g}"
+    label(bx + bw - imgui.calc_text_size(txt).x, by + bh + 4, txt)
+    label(bx + bw / 2 - imgui.calc_text_size(what).x / 2, by - 22, what)

@@ -86,6 +86,9 @@ class App:
         from viewer.app.shader_overlay import HotReload
 
         self.compare = CompareView(self.ctx)
+        from viewer.app.monte_carlo import MonteCarloPanel
+
+        self.mc = MonteCarloPanel(self.ctx)  # reference settings, error views, convergence
         self.hot_reload = HotReload(self.renderer)
         self.plots = PlotsPanel()
         self.plots.visible = bool(self._state.get("plots_visible", False))
@@ -157,6 +160,7 @@ class App:
         if self._reference is not None:
             self._reference.close()
         self.compare.release()
+        self.mc.release()
         self.plots.close()
         if self._bf_tex is not None:
             self._bf_tex.release()
@@ -215,6 +219,7 @@ class App:
         if self.show_ui:
             self._panel()
             self.plots.draw(self.scene.materials)
+            self.mc.draw_windows(self._reference)
         self.hot_reload.draw_overlay()
         vx, vy, vw, vh = self.viewport()
         view = (vx, vy, vw, vh)
@@ -253,7 +258,7 @@ class App:
                 self._quality = "preview" if interacting else "full"
                 self.dirty = False
         ref_tex = None
-        if cmp.uses_reference and vw > 0 and vh > 0:
+        if (cmp.uses_reference or self.mc.active) and vw > 0 and vh > 0:
             _, _, ref_w, ref_h = cmp.reference_rect(view)
             rv = self.reference_view()
             rv.update(self.scene, self.camera, (ref_w, ref_h))
@@ -267,8 +272,10 @@ class App:
         if vw > 0 and vh > 0:
             r = self.scene.render
             cmp.draw(self.renderer, screen, view, self.hdr, ref_tex, r.exposure, r.tonemap)
+            self.mc.draw_view(self.renderer, screen, cmp.reference_rect(view), self._reference)
             cmp.draw_overlay(imgui, self.view_logical(),
                              self._reference.spp if self._reference is not None else 0)
+            self.mc.draw_overlay(imgui, cmp.reference_rect(self.view_logical()))
             self._lecture_overlay()
             self._status_toast()
         screen.viewport = (0, 0, fw, fh)
@@ -457,6 +464,7 @@ class App:
             if ch:
                 r.shadows = v
                 self.dirty = True
+        self.mc.draw_settings(self.reference_view(), self.compare.uses_reference)
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self._environment_panel()
             if s.render.ibl == "brute_force":
@@ -528,7 +536,7 @@ class App:
         if mode not in MODES:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
         self.compare.mode = mode
-        if not self.compare.uses_reference and self._reference is not None:
+        if not self.compare.uses_reference and not self.mc.active and self._reference is not None:
             self._reference.stop()
         self.dirty = True
 
@@ -624,8 +632,10 @@ class App:
         from viewer.lecture import TOUR
 
         self.lecture_step = step
+        if TOUR[step].image:  # a step about the reference shows it
+            self.set_image_mode(TOUR[step].image)
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
-               "bouguer": "Bouguer"}.get(TOUR[step].plot)
+               "bouguer": "Bouguer", "sampling": "Sampling"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
             self.plots.visible = True  # the step's plot beside its scene

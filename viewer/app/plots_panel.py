@@ -1,5 +1,5 @@
-"""The window's "BRDF plots" panel: polar lobe, 3D lobe, directional albedo, Fresnel and Bouguer
-plots of the scene's materials, overlaid (implot / implot3d), from the data functions of
+"""The window's "BRDF plots" panel: polar lobe, 3D lobe, directional albedo, Fresnel, Bouguer and
+sampling (histogram against pdf) plots of the scene's materials, overlaid (implot / implot3d), from the data functions of
 ``viewer.plots`` (the same numbers ``brdf-viewer plot`` draws).
 
 Each material keeps one colour in every tab (BRDF Explorer's convention); a checkbox shows or
@@ -26,7 +26,7 @@ from imgui_bundle import imgui, implot
 
 from viewer import ViewerError, plots
 
-TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer")
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Sampling")
 CHANNELS = ("lum", "r", "g", "b")
 CHANNEL_LABELS = ("luminance", "red", "green", "blue")
 # one colour per material, in the order materials are first seen (Tableau 10, then lighter tints)
@@ -195,9 +195,19 @@ class PlotsPanel:
             imgui.text("no material shown: tick one above")
             return
         {"Polar": self._polar, "3D lobe": self._lobe, "Albedo": self._albedo_tab,
-         "Fresnel": self._fresnel, "Bouguer": self._bouguer}[tab](names, materials)
+         "Fresnel": self._fresnel, "Bouguer": self._bouguer, "Sampling": self._sampling_tab}[tab](names, materials)
         for m in self.messages:
             imgui.text_wrapped(m)
+
+    _sampling = None
+
+    def _sampling_tab(self, names, materials):
+        """The sampler against its pdf (``viewer.app.monte_carlo.SamplingTab``) at theta_i, phi."""
+        if self._sampling is None:
+            from viewer.app.monte_carlo import SamplingTab
+
+            self._sampling = SamplingTab()
+        self._sampling.draw(names, materials, self.theta_i, self.phi)
 
     def _plot_size(self):
         """The rest of the window, less room for the messages under the plot."""

@@ -94,6 +94,10 @@ class ReferenceView:
         self.error = ""
         self.samples_per_second = 0.0
         self.started_at = 0.0
+        # the estimator (ReferenceRenderer's options); a change restarts the render
+        self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
+        self._variance = None     # latest variance of the mean, (H, W, 3) float32
+        self.curve = None         # ConvergenceCurve of the current render (RMSE estimate per pass)
 
     @property
     def spp(self) -> int:
@@ -103,12 +107,17 @@ class ReferenceView:
         """Restart when anything the image depends on changed; called once per frame."""
         w = max(1, int(viewport_size[0] * self.scale))
         h = max(1, int(viewport_size[1] * self.scale))
-        key = scene_key(scene, camera, (w, h))
+        key = f"{scene_key(scene, camera, (w, h))}|{sorted(self.options.items())}"
         if self.engine is None:
             self._choose_engine()
         if self.engine == "gpu":
-            self._gpu_update(key, scene, camera, w, h)
-            return
+            from viewer.gpupt.select import DEFAULT_ESTIMATOR
+
+            if self.options == DEFAULT_ESTIMATOR:
+                self._cancel.set()   # a cpu job of other options stops (its samples are stored)
+                self._gpu_update(key, scene, camera, w, h)
+                return
+            self._drop_gpu()   # the other estimators: the cpu engine, until the options are back
         if key != self._key:
             self._key = key
             self.restart(scene, camera, w, h)
@@ -139,9 +148,13 @@ class ReferenceView:
                 else:
                     self._gpu.reset(scene, camera, w, h)
                 self._gpu_key, have = _cached(self._gpu)
+                from viewer.variance import ConvergenceCurve
+
                 with self._lock:
                     self._image = self._gpu.mean() if have else None
+                    self._variance = self._gpu.variance() if have else None
                     self._image_spp = have
+                    self.curve = ConvergenceCurve(self.options["strategy"])
                 self.error = ""
                 self.started_at = now
                 self._gpu_samples = 0
@@ -152,9 +165,12 @@ class ReferenceView:
             elapsed = time.perf_counter() - self.started_at
             self.samples_per_second = self._gpu_samples / max(elapsed, 1e-9)
             if self._gpu.spp != self._image_spp and (now - self._gpu_read_at > 0.25 or self._image is None):
-                img = self._gpu.mean()
+                from viewer.variance import rmse_estimate
+
+                img, var = self._gpu.mean(), self._gpu.variance()
                 with self._lock:
-                    self._image, self._image_spp = img, self._gpu.spp
+                    self._image, self._image_spp, self._variance = img, self._gpu.spp, var
+                    self.curve.add(self._gpu.spp, rmse_estimate(var))
                 self._gpu_read_at = now
         except Exception as e:  # noqa: BLE001 - shown in the window; fall back to the CPU engine
             self.error = f"gpu reference failed ({type(e).__name__}: {e}); using the cpu engine"
@@ -177,14 +193,17 @@ class ReferenceView:
         cancelled; returns at once)."""
         snapshot = copy.deepcopy(scene)  # the GUI keeps editing its own copy
         cam = copy.deepcopy(camera)
+        from viewer.variance import ConvergenceCurve
+
         with self._cond:
             if self._closing:
                 return
             self._generation += 1
-            self._request = (self._generation, snapshot, cam, int(w), int(h))
+            self._request = (self._generation, snapshot, cam, int(w), int(h), dict(self.options))
             self._cancel.set()
             with self._lock:
-                self._image, self._image_spp = None, 0
+                self._image, self._image_spp, self._variance = None, 0, None
+                self.curve = ConvergenceCurve(self.options["strategy"])
             self.error = ""
             self.started_at = time.perf_counter()
             self._cond.notify_all()
@@ -203,11 +222,11 @@ class ReferenceView:
                         self._cond.wait()
                     if self._closing:
                         return
-                    gen, scene, camera, w, h = self._request
+                    gen, scene, camera, w, h, options = self._request
                     self._request = None
                     self._cancel.clear()  # a later restart sets it again
                     self._busy = True
-                self._job(gen, scene, camera, w, h)
+                self._job(gen, scene, camera, w, h, options)
                 del scene, camera
         finally:
             self._drop_renderer()
@@ -218,32 +237,34 @@ class ReferenceView:
     def _current(self, gen) -> bool:
         return gen == self._generation and not self._cancel.is_set()
 
-    def _job(self, gen, scene, camera, w, h):
+    def _job(self, gen, scene, camera, w, h, options):
         from viewer import ViewerError
         from viewer.pathtracer import ReferenceRenderer
+        from viewer.variance import rmse_estimate
 
         cancel = self._cancel
         try:
             if self._renderer is not None:
-                self._renderer.reset(scene, camera=camera, width=w, height=h)  # keeps its workers
+                self._renderer.reset(scene, camera=camera, width=w, height=h, **options)  # keeps its workers
             else:
                 self._renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
-                                                   max_depth=self.max_depth, workers=self.workers)
+                                                   max_depth=self.max_depth, workers=self.workers, **options)
             r = self._renderer
             key, have = _cached(r)
             if have:
-                img = r.mean()
+                img, var = r.mean(), r.variance()
                 with self._lock:
                     if self._current(gen):
-                        self._image, self._image_spp = img, r.spp
+                        self._image, self._image_spp, self._variance = img, r.spp, var
             try:
                 while not cancel.is_set():
                     if not r.step(1, cancel):
                         break
-                    img = r.mean()
+                    img, var = r.mean(), r.variance()
                     with self._lock:
                         if self._current(gen):
-                            self._image, self._image_spp = img, r.spp
+                            self._image, self._image_spp, self._variance = img, r.spp, var
+                            self.curve.add(r.spp, rmse_estimate(var))
                             elapsed = time.perf_counter() - self.started_at
                             self.samples_per_second = (r.spp - have) * w * h / max(elapsed, 1e-9)
             finally:
@@ -276,6 +297,13 @@ class ReferenceView:
             if self._image is None:
                 return None
             return self._image, self._image_spp
+
+    def latest_variance(self):
+        """(mean, variance of the mean, spp) of the newest pass, or None before the first."""
+        with self._lock:
+            if self._image is None or self._variance is None:
+                return None
+            return self._image, self._variance, self._image_spp
 
     def texture_for_display(self):
         """The latest image as a float texture (None until the first pass is done)."""

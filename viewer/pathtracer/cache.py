@@ -71,6 +71,9 @@ def setup_key(setup) -> str:
     add("camera", tuple(round(float(x), 12) for x in (*setup.cam_pos, *setup.cam_forward, *setup.cam_right,
                                                        *setup.cam_up, setup.tan_half_y)))
     add("size", (setup.width, setup.height, setup.max_depth))
+    # the estimator: its mean is the same for every option, its variance (sum2) is not
+    add("estimator", (setup.strategy, setup.mis_heuristic, bool(setup.russian_roulette),
+                      bool(setup.extra.get("spectral", False))))
     return h.hexdigest()
 
 

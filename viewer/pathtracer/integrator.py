@@ -10,9 +10,14 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   (directional) where the shadow ray is unoccluded and the rasterizer's test passes:
   ``cos_i`` (shading) > 0 and ``dot(n_g, wi) > 0``; a transmissive surface also takes light
   from behind (both cosines negative), which the rasterizer has no path for.
-* The environment is sampled (``EnvironmentLight.sample``) and reached by BSDF sampling; the
-  two strategies are combined with the power heuristic (beta = 2). A path whose last bounce
-  was a delta lobe, and a camera ray, take the full environment radiance.
+* The environment is reached by one of three strategies (``RenderSetup.strategy``): ``"mis"``
+  (default) samples it (``EnvironmentLight.sample``) and reaches it by BSDF sampling, the two
+  combined by multiple importance sampling with the power heuristic (beta = 2) or the balance
+  heuristic (``mis_heuristic``); ``"bsdf"`` only by BSDF sampling (weight 1); ``"light"`` only
+  by sampling the environment (a BSDF-sampled ray that escapes adds nothing). Each alone is
+  unbiased wherever its density covers the integrand (the map's is zero only where the map is
+  black). A path whose last bounce was a delta lobe, and a camera ray, take the full
+  environment radiance under every strategy (light sampling cannot find a delta direction).
 * Delta lobes (``spec.delta`` models, i.e. mirror and smooth dielectric; a layered model with a
   delta base is "mixed": a sample is discrete when ``sample``'s pdf differs from ``pdf`` at the
   sampled pair) skip next-event estimation and MIS.
@@ -20,7 +25,8 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   NEE and samples a direction; the ray of the last one is traced only to see whether it
   reaches the environment. ``max_depth = 1`` is direct light only.
 * Russian roulette from the fourth scattering event on: survival probability
-  ``clamp(max(throughput), 0.05, 0.95)``, survivors divided by it.
+  ``clamp(max(throughput), 0.05, 0.95)``, survivors divided by it; ``russian_roulette = False``
+  traces every path to ``max_depth`` (unbiased either way; roulette trades variance for time).
 * Dielectrics: a transmissive material sets the path's medium from the side its new direction
   leaves on: against the triangle's winding normal (entering or reflecting inside) =
   the material's ``sigma_a``, else none; each segment travelled inside is attenuated by
@@ -56,6 +62,8 @@ RR_MIN, RR_MAX = 0.05, 0.95
 EPS_REL = 1e-4
 DIMS_PER_BOUNCE = 5         # bsdf (2), environment (2), roulette (1)
 KEY_SALT = 0x9E3779B97F4A7C15
+STRATEGIES = ("mis", "bsdf", "light")   # how the environment is reached
+STRATEGY_LABELS = {"mis": "MIS (BSDF + light)", "bsdf": "BSDF sampling", "light": "light sampling"}
 
 
 # ----------------------------------------------------------------------------- setup
@@ -113,10 +121,14 @@ class RenderSetup:
     max_depth: int = 8
     kernel: str = "embree"
     extra: dict = field(default_factory=dict)
+    strategy: str = "mis"          # environment: "mis" | "bsdf" | "light" (every engine reads it)
+    mis_heuristic: str = "power"   # "power" (beta = 2) | "balance"
+    russian_roulette: bool = True
 
     @classmethod
     def from_scene(cls, scene, camera=None, width=None, height=None, max_depth: int = 8,
-                   env_image=None, kernel: str = "embree") -> "RenderSetup":
+                   env_image=None, kernel: str = "embree", strategy: str = "mis",
+                   mis_heuristic: str = "power", russian_roulette: bool = True) -> "RenderSetup":
         if camera is None:
             from viewer.camera import OrbitCamera
 
@@ -142,9 +154,11 @@ class RenderSetup:
             else:
                 d = np.asarray(light.direction, float)
                 lights.append(("directional", d / np.linalg.norm(d), np.asarray(light.irradiance, float)))
+        check_options(strategy, mis_heuristic)
         env = EnvironmentLight.from_scene(scene, env_image)
         return cls(geom, mats, lights, env, pos, fwd, right, cam_up,
-                   math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel)
+                   math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel,
+                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
 
 
 def make_kernel(triangles, kind: str = "embree"):
@@ -173,14 +187,81 @@ def _power(a, b):
     return np.where(s > 0, a2 / np.where(s > 0, s, 1.0), 0.0)
 
 
+def _balance(a, b):
+    """Balance heuristic weight of strategy a against b (Veach 1997, eq. 9.10)."""
+    s = a + b
+    return np.where(s > 0, a / np.where(s > 0, s, 1.0), 0.0)
+
+
+HEURISTICS = {"power": _power, "balance": _balance}
+
+
+def check_options(strategy: str, mis_heuristic: str = "power") -> None:
+    """One-line ViewerError for an unknown strategy or MIS heuristic."""
+    from viewer import ViewerError
+
+    if strategy not in STRATEGIES:
+        raise ViewerError(f"strategy: {strategy!r} is not a sampling strategy; allowed: {', '.join(STRATEGIES)}")
+    if mis_heuristic not in HEURISTICS:
+        raise ViewerError(f"MIS heuristic: {mis_heuristic!r} is not a heuristic; allowed: {', '.join(HEURISTICS)}")
+
+
 def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
 # ----------------------------------------------------------------------------- integrator
 
+class _Group:
+    """The hits of one material at one bounce: indices ``sel`` into the bounce's hits, the
+    material, and its shading frames (n, tx, ty), geometric normals ``ng`` and local ``wo``."""
+
+    def __init__(self, sel, info: MaterialInfo, model, wo_l, n, tx, ty, ng):
+        self.sel, self.info, self.model, self.prm = sel, info, model, info.params
+        self.k = sel.size
+        self.two = info.transmissive
+        self.wo = wo_l[sel]
+        self.n, self.tx, self.ty, self.ng = n[sel], tx[sel], ty[sel], ng[sel]
+
+    def local(self, w):
+        """World directions (r k, 3) (r stacked sets of k) in the group's shading frames."""
+        k = self.k
+        r = w.shape[0] // k
+        if r == 1:
+            return np.stack([_dot(w, self.tx), _dot(w, self.ty), _dot(w, self.n)], axis=1)
+        w3 = w.reshape(r, k, 3)
+        return np.stack([np.einsum("rij,ij->ri", w3, self.tx), np.einsum("rij,ij->ri", w3, self.ty),
+                         np.einsum("rij,ij->ri", w3, self.n)], axis=-1).reshape(-1, 3)
+
+    def world(self, wl):
+        return wl[:, :1] * self.tx + wl[:, 1:2] * self.ty + wl[:, 2:3] * self.n
+
+    def valid(self, wl, ww):
+        """The rasterizer's light test: shading and geometric cosine on the same side (both
+        positive for a reflection-only surface)."""
+        g = _dot(self.ng, ww)
+        if self.two:
+            return wl[:, 2] * g > 0
+        return (wl[:, 2] > 0) & (g > 0)
+
+
+class _Shadows:
+    """Shadow rays collected over the materials of one bounce, traced together."""
+
+    def __init__(self):
+        self.idx, self.o, self.d, self.tmax, self.c = [], [], [], [], []
+
+    def add(self, idx, o, d, tmax, c):
+        self.idx.append(idx)
+        self.o.append(o)
+        self.d.append(d)
+        self.tmax.append(tmax)
+        self.c.append(c)
+
+
 class Integrator:
     def __init__(self, setup: RenderSetup):
+        check_options(setup.strategy, setup.mis_heuristic)
         self.s = setup
         self.geom = setup.geometry
         self.kernel = make_kernel(self.geom.triangles, setup.kernel)
@@ -188,6 +269,11 @@ class Integrator:
         self.trans_table = np.array([m.transmissive for m in setup.materials] or [False], dtype=bool)
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
+        self.heuristic = HEURISTICS[setup.mis_heuristic]
+        env_on = not setup.env.is_black
+        # which strategies reach the environment (point / directional lights: always NEE)
+        self.env_by_light = env_on and setup.strategy in ("mis", "light")
+        self.env_by_bsdf = env_on and setup.strategy in ("mis", "bsdf")
 
     # -- helpers
     def _clean(self, a, allow_negative=False):
@@ -229,13 +315,133 @@ class Integrator:
         L = L.reshape(ns, row1 - row0, W, 3)
         return L.sum(axis=0), (L * L).sum(axis=0)
 
+    # -- the steps of one bounce
+    def _bsdf_hits_environment(self, L, T, idx, d, prev_pdf, prev_lpdf, prev_delta):
+        """BSDF sampling's part: radiance of the environment reached by rays ``d`` of paths
+        ``idx``, weighted against light sampling (MIS), fully (BSDF sampling only) or not at all
+        (light sampling only: the environment was reached by NEE). A camera ray or a delta
+        lobe's discrete sample, which light sampling cannot find, always takes it fully."""
+        Le = self.s.env.eval(d)
+        strategy = self.s.strategy
+        if strategy == "mis":
+            w = np.where(prev_delta[idx], 1.0, self.heuristic(prev_pdf[idx], prev_lpdf[idx]))
+        elif strategy == "bsdf":
+            w = np.ones(idx.size)
+        else:
+            w = np.where(prev_delta[idx], 1.0, 0.0)
+        L[idx] += T[idx] * Le * w[:, None]
+
+    def _delta_lights(self, p, eps):
+        """Per point / directional light: directions to it (M, 3), its arriving radiance term
+        (intensity / r^2 or irradiance) and the shadow ray's length."""
+        M = p.shape[0]
+        dirs, vals, tmax = [], [], []
+        for kind, a, val in self.s.lights:
+            if kind == "point":
+                dv = a - p
+                r2 = np.maximum(_dot(dv, dv), 1e-300)
+                r = np.sqrt(r2)
+                dirs.append(dv / r[:, None])
+                vals.append(val[None, :] / r2[:, None])
+                tmax.append(r - eps)
+            else:
+                dirs.append(np.broadcast_to(-a, (M, 3)))
+                vals.append(np.broadcast_to(val, (M, 3)))
+                tmax.append(np.full(M, np.inf))
+        return dirs, vals, tmax
+
+    def _light_sample_environment(self, rnd, n, trans):
+        """Light sampling's directions toward the environment: (wi, radiance, pdf) per hit."""
+        e_dir, e_val, e_pdf = self.s.env.sample(rnd[:, 2:4], n, trans)
+        return e_dir, e_val, self._clean(e_pdf)
+
+    def _next_event(self, g: _Group, Tg, act_g, p, eps, lights, env_sample, shadows: _Shadows):
+        """Next-event estimation at the hits of group ``g``: every delta light, and the
+        environment sample when light sampling is on (weighted against BSDF sampling under MIS).
+        Adds one shadow ray per candidate with a non-zero contribution."""
+        sel, k, model, prm = g.sel, g.k, g.model, g.prm
+        light_dirs, light_vals, light_tmax = lights
+        dirs_w = [ld[sel] for ld in light_dirs]
+        if env_sample is not None:
+            dirs_w.append(env_sample[0][sel])
+        dw = np.concatenate(dirs_w)
+        dl = g.local(dw)
+        f = self._clean(model.eval(prm, dl, np.tile(g.wo, (len(dirs_w), 1))))
+        for j in range(len(dirs_w)):
+            sl = slice(j * k, (j + 1) * k)
+            wl, ww, fj = dl[sl], dw[sl], f[sl]
+            ok = g.valid(wl, ww)
+            c = Tg * fj * np.abs(wl[:, 2])[:, None]
+            if j < len(light_dirs):
+                c = c * light_vals[j][sel]
+                tmax = light_tmax[j][sel]
+            else:
+                pe = env_sample[2][sel]
+                ok &= pe > 0
+                if self.s.strategy == "mis":
+                    pb = self._clean(model.pdf(prm, wl, g.wo))
+                    wmis = self.heuristic(pe, pb) / np.where(pe > 0, pe, 1.0)
+                else:
+                    wmis = 1.0 / np.where(pe > 0, pe, 1.0)
+                c = c * env_sample[1][sel] * wmis[:, None]
+                tmax = np.full(k, np.inf)
+            ok &= np.any(c > 0, axis=1)
+            if np.any(ok):
+                ngs = g.ng[ok]
+                side = np.where(_dot(ngs, ww[ok]) < 0, -1.0, 1.0)
+                shadows.add(act_g[ok], p[sel[ok]] + (eps[sel[ok]] * side)[:, None] * ngs, ww[ok],
+                            tmax[ok], c[ok])
+
+    def _sample_bsdf(self, g: _Group, rnd_g):
+        """BSDF sampling at the hits of group ``g``: (world direction, weight f cos / pdf with
+        failed samples 0, pdf, discrete flag: the sample came from a delta lobe)."""
+        model, prm, k = g.model, g.prm, g.k
+        wi_l, wgt, pdf_s = model.sample(prm, g.wo, rnd_g)
+        wgt = self._clean(np.asarray(wgt, dtype=np.float64))
+        pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
+        bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
+        if np.any(bad_dir):
+            self.bad_values += int(np.count_nonzero(bad_dir))
+            wi_l = np.where(bad_dir[:, None], np.array([0.0, 0.0, 1.0]), wi_l)
+            wgt = np.where(bad_dir[:, None], 0.0, wgt)
+        if g.info.kind == "delta":
+            disc = np.ones(k, dtype=bool)
+        elif g.info.kind == "mixed":
+            pe_ = self._clean(model.pdf(prm, wi_l, g.wo))
+            disc = np.abs(pdf_s - pe_) > 1e-6 * np.maximum(pdf_s, 1e-300)
+        else:
+            disc = np.zeros(k, dtype=bool)
+        wi_w = g.world(wi_l)
+        ok = g.valid(wi_l, wi_w) & (pdf_s > 0) & np.any(wgt > 0, axis=1)
+        return wi_w, np.where(ok[:, None], wgt, 0.0), pdf_s, disc
+
+    def _trace_shadows(self, L, shadows: _Shadows):
+        """Trace every collected shadow ray at once; unoccluded ones add their contribution."""
+        if not shadows.idx:
+            return
+        idx = np.concatenate(shadows.idx)
+        blocked = self.kernel.occluded(np.concatenate(shadows.o), np.concatenate(shadows.d), 0.0,
+                                       np.concatenate(shadows.tmax))
+        c = np.concatenate(shadows.c)
+        free = ~blocked
+        np.add.at(L, idx[free], c[free])
+
+    def _roulette(self, Tn, alive, u, depth):
+        """Russian roulette from ``RR_START_DEPTH`` on (when enabled): survival probability
+        clamp(max throughput), survivors divided by it."""
+        if self.s.russian_roulette and depth >= RR_START_DEPTH:
+            q = np.clip(Tn.max(axis=1), RR_MIN, RR_MAX)
+            survive = u < q
+            Tn = Tn / q[:, None]
+            alive &= survive
+        return Tn, alive
+
     def trace(self, o, d, draw):
         """Radiance (N, 3) along the rays (o, d); ``draw()`` returns the random numbers
         (N, DIMS_PER_BOUNCE) of the next bounce for all N paths."""
         s = self.s
         geom = self.geom
         env = s.env
-        env_on = not env.is_black
         N = o.shape[0]
         L = np.zeros((N, 3))
         T = np.ones((N, 3))
@@ -244,7 +450,8 @@ class Integrator:
         prev_lpdf = np.zeros(N)
         prev_delta = np.ones(N, dtype=bool)   # camera rays count as "delta": full environment
         act = np.arange(N)
-        lights = s.lights
+        # a camera ray or delta bounce reaches the environment even with BSDF sampling off
+        env_on = not env.is_black
         for depth in range(1, s.max_depth + 2):
             if act.size == 0:
                 break
@@ -252,10 +459,7 @@ class Integrator:
             t, prim, bu, bv = self.kernel.intersect(o, d, 0.0, np.inf)
             miss = prim < 0
             if env_on and np.any(miss):
-                idx = act[miss]
-                Le = env.eval(d[miss])
-                w = np.where(prev_delta[idx], 1.0, _power(prev_pdf[idx], prev_lpdf[idx]))
-                L[idx] += T[idx] * Le * w[:, None]
+                self._bsdf_hits_environment(L, T, act[miss], d[miss], prev_pdf, prev_lpdf, prev_delta)
             if depth > s.max_depth:
                 break
             hit = ~miss
@@ -284,29 +488,14 @@ class Integrator:
             M = act.size
             Ta = T[act]
 
-            # light directions for every hit (delta lights), and the environment sample
-            light_dirs, light_vals, light_tmax = [], [], []
-            for kind, a, val in lights:
-                if kind == "point":
-                    dv = a - p
-                    r2 = np.maximum(_dot(dv, dv), 1e-300)
-                    r = np.sqrt(r2)
-                    light_dirs.append(dv / r[:, None])
-                    light_vals.append(val[None, :] / r2[:, None])
-                    light_tmax.append(r - eps)
-                else:
-                    light_dirs.append(np.broadcast_to(-a, (M, 3)))
-                    light_vals.append(np.broadcast_to(val, (M, 3)))
-                    light_tmax.append(np.full(M, np.inf))
-            if env_on:
-                e_dir, e_val, e_pdf = env.sample(rnd[:, 2:4], n, trans)
-                e_pdf = self._clean(e_pdf)
+            lights = self._delta_lights(p, eps)
+            env_sample = self._light_sample_environment(rnd, n, trans) if self.env_by_light else None
             new_dir = np.zeros((M, 3))
             new_w = np.zeros((M, 3))
             new_pdf = np.zeros(M)
             new_lpdf = np.zeros(M)
             new_delta = np.zeros(M, dtype=bool)
-            sh_idx, sh_o, sh_d, sh_tmax, sh_c = [], [], [], [], []
+            shadows = _Shadows()
 
             order = np.argsort(mat, kind="stable")
             bounds = np.flatnonzero(np.diff(mat[order])) + 1
@@ -314,105 +503,26 @@ class Integrator:
                 if sel.size == 0:
                     continue
                 mi = int(mat[sel[0]])
-                info = s.materials[mi]
-                model = self.models[mi]
-                prm = info.params
-                k = sel.size
-                wo_s = wo_l[sel]
-                ns_, txs, tys, ngs = n[sel], tx[sel], ty[sel], ng[sel]
-                two = info.transmissive
-
-                def local(w):
-                    r = w.shape[0] // k
-                    if r == 1:
-                        return np.stack([_dot(w, txs), _dot(w, tys), _dot(w, ns_)], axis=1)
-                    w3 = w.reshape(r, k, 3)
-                    return np.stack([np.einsum("rij,ij->ri", w3, txs), np.einsum("rij,ij->ri", w3, tys),
-                                     np.einsum("rij,ij->ri", w3, ns_)], axis=-1).reshape(-1, 3)
-
-                def valid(wl, ww):
-                    g = _dot(ngs, ww)
-                    if two:
-                        return wl[:, 2] * g > 0
-                    return (wl[:, 2] > 0) & (g > 0)
-
-                # ---- next-event estimation (not for pure delta lobes)
-                if info.kind != "delta" and (lights or env_on):
-                    dirs_w = [ld[sel] for ld in light_dirs]
-                    if env_on:
-                        dirs_w.append(e_dir[sel])
-                    dw = np.concatenate(dirs_w)
-                    dl = local(dw)
-                    f = self._clean(model.eval(prm, dl, np.tile(wo_s, (len(dirs_w), 1))))
-                    for j in range(len(dirs_w)):
-                        sl = slice(j * k, (j + 1) * k)
-                        wl, ww, fj = dl[sl], dw[sl], f[sl]
-                        ok = valid(wl, ww)
-                        c = Ta[sel] * fj * np.abs(wl[:, 2])[:, None]
-                        if j < len(lights):
-                            c = c * light_vals[j][sel]
-                            tmax = light_tmax[j][sel]
-                        else:
-                            pb = self._clean(model.pdf(prm, wl, wo_s))
-                            pe = e_pdf[sel]
-                            ok &= pe > 0
-                            wmis = _power(pe, pb) / np.where(pe > 0, pe, 1.0)
-                            c = c * e_val[sel] * wmis[:, None]
-                            tmax = np.full(k, np.inf)
-                        ok &= np.any(c > 0, axis=1)
-                        if np.any(ok):
-                            side = np.where(_dot(ngs[ok], ww[ok]) < 0, -1.0, 1.0)
-                            sh_idx.append(act[sel[ok]])
-                            sh_o.append(p[sel[ok]] + (eps[sel[ok]] * side)[:, None] * ngs[ok])
-                            sh_d.append(ww[ok])
-                            sh_tmax.append(tmax[ok])
-                            sh_c.append(c[ok])
-
-                # ---- BSDF sampling
-                wi_l, wgt, pdf_s = model.sample(prm, wo_s, rnd[sel, 0:2])
-                wgt = self._clean(np.asarray(wgt, dtype=np.float64))
-                pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
-                bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
-                if np.any(bad_dir):
-                    self.bad_values += int(np.count_nonzero(bad_dir))
-                    wi_l = np.where(bad_dir[:, None], np.array([0.0, 0.0, 1.0]), wi_l)
-                    wgt = np.where(bad_dir[:, None], 0.0, wgt)
-                if info.kind == "delta":
-                    disc = np.ones(k, dtype=bool)
-                elif info.kind == "mixed":
-                    pe_ = self._clean(model.pdf(prm, wi_l, wo_s))
-                    disc = np.abs(pdf_s - pe_) > 1e-6 * np.maximum(pdf_s, 1e-300)
-                else:
-                    disc = np.zeros(k, dtype=bool)
-                wi_w = wi_l[:, :1] * txs + wi_l[:, 1:2] * tys + wi_l[:, 2:3] * ns_
-                ok = valid(wi_l, wi_w) & (pdf_s > 0) & np.any(wgt > 0, axis=1)
+                g = _Group(sel, s.materials[mi], self.models[mi], wo_l, n, tx, ty, ng)
+                if g.info.kind != "delta" and (s.lights or env_sample is not None):
+                    self._next_event(g, Ta[sel], act[sel], p, eps, lights, env_sample, shadows)
+                wi_w, wgt, pdf_s, disc = self._sample_bsdf(g, rnd[sel, 0:2])
                 new_dir[sel] = wi_w
-                new_w[sel] = np.where(ok[:, None], wgt, 0.0)
+                new_w[sel] = wgt
                 new_pdf[sel] = pdf_s
                 new_delta[sel] = disc
-                if env_on:
-                    new_lpdf[sel] = np.where(disc, 0.0, env.pdf(wi_w, ns_, np.full(k, two)))
-                if two:
+                if self.env_by_light and self.env_by_bsdf:  # MIS: light sampling's density there
+                    new_lpdf[sel] = np.where(disc, 0.0, env.pdf(wi_w, g.n, np.full(g.k, g.two)))
+                if g.two:
                     inside_next = _dot(ng_raw[sel], wi_w) < 0
-                    sigma[act[sel]] = np.where(inside_next[:, None], info.sigma_a, 0.0)
+                    sigma[act[sel]] = np.where(inside_next[:, None], g.info.sigma_a, 0.0)
 
-            # ---- shadow rays, all lights and materials at once
-            if sh_idx:
-                idx = np.concatenate(sh_idx)
-                blocked = self.kernel.occluded(np.concatenate(sh_o), np.concatenate(sh_d), 0.0,
-                                               np.concatenate(sh_tmax))
-                c = np.concatenate(sh_c)
-                free = ~blocked
-                np.add.at(L, idx[free], c[free])
+            self._trace_shadows(L, shadows)
 
             # ---- continue
             Tn = Ta * new_w
             alive = np.any(Tn > 0, axis=1)
-            if depth >= RR_START_DEPTH:
-                q = np.clip(Tn.max(axis=1), RR_MIN, RR_MAX)
-                survive = rnd[:, 4] < q
-                Tn = Tn / q[:, None]
-                alive &= survive
+            Tn, alive = self._roulette(Tn, alive, rnd[:, 4], depth)
             T[act] = Tn
             prev_pdf[act] = new_pdf
             prev_lpdf[act] = new_lpdf

@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from viewer.pathtracer.integrator import Integrator, RenderSetup
+from viewer.pathtracer.integrator import Integrator, RenderSetup, check_options
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
 
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
@@ -131,14 +131,20 @@ def block_layout(width: int, height: int) -> list[tuple[int, int]]:
 
 class ReferenceRenderer:
     """Progressive reference rendering of ``scene`` (``camera``: an ``OrbitCamera`` or anything
-    with position, target, up, fov_y; default ``OrbitCamera.from_scene``)."""
+    with position, target, up, fov_y; default ``OrbitCamera.from_scene``). ``strategy`` says how
+    the environment is reached ("mis" default, "bsdf", "light"), ``mis_heuristic`` weights MIS
+    ("power" default, "balance"), ``russian_roulette`` turns roulette on (default) or off."""
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
-                 workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None):
+                 workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None,
+                 strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _check_kernel(kernel)
+        check_options(strategy, mis_heuristic)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
+        self.strategy, self.mis_heuristic = strategy, mis_heuristic
+        self.russian_roulette = bool(russian_roulette)
         self.seed = int(seed)
         self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
@@ -146,8 +152,7 @@ class ReferenceRenderer:
         self._pool: cf.ProcessPoolExecutor | None = None
         self._setup_file: str | None = None
         self._version = 0
-        self._set_setup(self._spectral_setup(scene, RenderSetup.from_scene(
-            scene, camera, width, height, self.max_depth, env_image, kernel)))
+        self._set_setup(self._make_setup(scene, camera, width, height))
         if self.workers > 0:
             check_entry_point_guarded()  # one line instead of multiprocessing's 20 in every worker
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
@@ -175,10 +180,21 @@ class ReferenceRenderer:
             self._local = None
             self._local = _build(setup)
 
-    def reset(self, scene, camera=None, width=None, height=None):
-        """Start over on a changed scene, camera or size, keeping the worker processes."""
-        self._set_setup(self._spectral_setup(scene, RenderSetup.from_scene(
-            scene, camera, width, height, self.max_depth, self.env_image, self.kernel)))
+    def _make_setup(self, scene, camera, width, height) -> RenderSetup:
+        return self._spectral_setup(scene, RenderSetup.from_scene(
+            scene, camera, width, height, self.max_depth, self.env_image, self.kernel, strategy=self.strategy,
+            mis_heuristic=self.mis_heuristic, russian_roulette=self.russian_roulette))
+
+    def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
+              russian_roulette=None):
+        """Start over on a changed scene, camera or size, keeping the worker processes; the
+        estimator's options change where given (None: as before)."""
+        check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
+        self.strategy = strategy or self.strategy
+        self.mis_heuristic = mis_heuristic or self.mis_heuristic
+        if russian_roulette is not None:
+            self.russian_roulette = bool(russian_roulette)
+        self._set_setup(self._make_setup(scene, camera, width, height))
         if self._pool is not None:
             fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")
             with os.fdopen(fd, "wb") as f:

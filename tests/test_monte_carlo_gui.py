@@ -1,0 +1,80 @@
+"""The window's Monte Carlo views under Xvfb: the reference's strategy from the *Reference*
+settings reaches the renderer, the error views are the running variance's maps (drawn with a
+colour bar), the convergence curve grows and is stored for comparison, and the plots window's
+Sampling tab draws."""
+
+import textwrap
+import subprocess
+import sys
+
+from test_gui import _env, display  # noqa: F401 - the private Xvfb fixture
+
+import pytest
+
+pytestmark = pytest.mark.skipif(__import__("shutil").which("Xvfb") is None
+                                and not __import__("os").environ.get("DISPLAY"), reason="needs Xvfb")
+
+
+def test_error_views_convergence_and_sampling_tab(display, tmp_path):
+    from test_strategies import GLOSSY_STUDIO
+
+    scene = tmp_path / "glossy.toml"
+    scene.write_text(GLOSSY_STUDIO)
+    code = f"""
+        import time
+        import numpy as np
+        from viewer.app.main import App
+        from viewer.variance import standard_error, relative_error, samples_needed
+        app = App({str(scene)!r}, size=(480, 300))
+        app.frame()
+        raster = app.capture_window()
+        rv = app.reference_view()
+        app.mc.set_options(rv, strategy="bsdf")
+        app.mc.view = "standard error"
+        app.mc.show_convergence = True
+        app.plots.visible = True
+        app.plots.select_tab("Sampling")
+        t0 = time.time()
+        while (rv.latest_variance() is None or rv.spp < 4) and time.time() - t0 < 120:
+            app.frame()
+        assert rv.spp >= 4, rv.error
+        assert rv._renderer.setup.strategy == "bsdf"
+        app.frame()
+        mean, var, spp = rv.latest_variance()
+        for view, expect in (("standard error", standard_error(var)), ("relative error", relative_error(mean, var)),
+                             ("samples needed", samples_needed(mean, var, spp, app.mc.target))):
+            app.mc.view = view
+            err, rgb = app.mc.heat_map(rv)
+            np.testing.assert_allclose(err, np.where(np.isfinite(expect), expect, 0.0), rtol=1e-12)
+        app.mc.view = "relative error"
+        times = []
+        for _ in range(4):
+            app.mc._key = None  # force a recompute, to time it
+            app.frame()
+            times.append(app.mc.view_ms)
+        shot = app.capture_window()
+        assert np.abs(shot.astype(float) - raster).mean() > 1.0
+        from PIL import Image
+        Image.fromarray(shot).save({str(tmp_path / 'mc.png')!r})
+        n = len(rv.curve)
+        assert n >= 2 and rv.curve.label == "bsdf"
+        assert app.mc.store_curve(rv) and app.mc.stored.label.startswith("BSDF sampling")
+        app.mc.set_options(rv, strategy="mis")
+        app.frame()
+        assert rv.curve.label == "mis" and len(app.mc.stored) == n
+        t0 = time.time()
+        while len(rv.curve) < 2 and time.time() - t0 < 60:
+            app.frame()
+        assert rv._renderer.setup.strategy == "mis"
+        app.frame()
+        Image.fromarray(app.capture_window()).save({str(tmp_path / 'mc2.png')!r})
+        print("VIEW_MS", " ".join(f"{{t:.2f}}" for t in times), "size", mean.shape)
+        app.glfw.set_window_should_close(app.window, True)
+        app.run()
+        print("MC OK")
+    """
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display), capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:] + r.stdout
+    assert "MC OK" in r.stdout
+    print(r.stdout)

@@ -1,0 +1,312 @@
+"""Monte Carlo made visible in the window: the reference's estimator settings (strategy, MIS
+heuristic, Russian roulette), error views from its running per-pixel variance (standard error,
+relative error, samples needed for a target error) as heat maps with a colour bar, a
+convergence plot (estimated RMSE against spp, log-log, with the -1/2 slope and a stored curve of
+another strategy), and the plots window's *Sampling* tab (the sampler's histogram beside its
+integrated pdf, their difference, the chi-square p-value, a point cloud of sampled directions).
+
+The numbers come from ``viewer.variance`` and ``viewer.plots.sampling_histogram``; this module
+only draws them. Use from the app::
+
+    mc = MonteCarloPanel(ctx)
+    mc.draw_settings(reference_view, compare_uses_reference)   # in the side panel
+    mc.draw_windows(reference_view)                            # the convergence window
+    mc.draw_view(renderer, fbo, rect, reference_view)          # after the compare view
+    mc.draw_overlay(imgui, rect_logical)                       # its colour bar
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from viewer.compare import auto_scale, ramp
+from viewer.pathtracer.integrator import STRATEGIES, STRATEGY_LABELS
+from viewer.variance import ERROR_VIEWS, error_view
+
+VIEWS = ("off",) + ERROR_VIEWS
+HEURISTICS = ("power", "balance")
+_LUT = ramp(np.linspace(0.0, 1.0, 1024)).astype(np.float32)   # the ramp, 1024 steps (4x faster per frame)
+_WHAT = {"standard error": "standard error of the mean (radiance)",
+         "relative error": "relative error: standard error / (mean + 0.01)",
+         "samples needed": "samples per pixel for the target relative error"}
+
+
+class MonteCarloPanel:
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.view = "off"            # one of VIEWS
+        self.target = 0.01           # relative error the 'samples needed' view aims at
+        self.auto_scale = True
+        self.scale = 1.0
+        self.show_convergence = False
+        self.stored = None           # a ConvergenceCurve kept for comparison
+        self.view_ms = 0.0           # last error map's compute + upload time
+        self.map_stats: dict = {}    # of the last map: min, median, max
+        self._tex = None
+        self._key = None
+
+    # ------------------------------------------------------------------ state
+    @property
+    def active(self) -> bool:
+        """The reference must run (an error view or the convergence plot is shown)."""
+        return self.view != "off" or self.show_convergence
+
+    def set_options(self, ref_view, **options) -> None:
+        """Change the reference's estimator (strategy, mis_heuristic, russian_roulette); the
+        reference restarts on its next update."""
+        for k, v in options.items():
+            if k not in ref_view.options:
+                raise ValueError(f"unknown reference option {k!r}; allowed: {', '.join(ref_view.options)}")
+            ref_view.options[k] = v
+
+    def store_curve(self, ref_view) -> bool:
+        curve = ref_view.curve
+        if curve is None or len(curve) < 2:
+            return False
+        self.stored = curve.copy(f"{STRATEGY_LABELS.get(curve.label, curve.label)} (stored)")
+        return True
+
+    # ------------------------------------------------------------------ side panel
+    def draw_settings(self, ref_view, compare_uses_reference: bool) -> None:
+        from imgui_bundle import imgui
+
+        if not imgui.collapsing_header("Reference"):
+            return
+        was_active = self.active
+        o = ref_view.options
+        labels = [STRATEGY_LABELS[s] for s in STRATEGIES]
+        ch, i = imgui.combo("strategy", STRATEGIES.index(o["strategy"]), labels)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("how the environment is reached; point and directional lights are always "
+                              "next-event estimated")
+        if ch:
+            self.set_options(ref_view, strategy=STRATEGIES[i])
+        if o["strategy"] == "mis":
+            ch, i = imgui.combo("MIS heuristic", HEURISTICS.index(o["mis_heuristic"]), list(HEURISTICS))
+            if ch:
+                self.set_options(ref_view, mis_heuristic=HEURISTICS[i])
+        ch, v = imgui.checkbox("Russian roulette", bool(o["russian_roulette"]))
+        if ch:
+            self.set_options(ref_view, russian_roulette=v)
+        ch, i = imgui.combo("error view", VIEWS.index(self.view), list(VIEWS))
+        if ch:
+            self.view = VIEWS[i]
+        if self.view == "samples needed":
+            ch, v = imgui.slider_float("target rel. error", float(self.target), 0.001, 0.2, "%.3f",
+                                       imgui.SliderFlags_.logarithmic)
+            if ch and np.isfinite(v) and v > 0:
+                self.target = float(v)
+        if self.view != "off":
+            ch, v = imgui.checkbox("auto scale (99th pct)##mc", self.auto_scale)
+            if ch:
+                self.auto_scale = v
+            if not self.auto_scale:
+                ch, v = imgui.slider_float("scale##mc", float(self.scale), 1e-4, 1e6, "%.4g",
+                                           imgui.SliderFlags_.logarithmic)
+                if ch and np.isfinite(v) and v > 0:
+                    self.scale = float(v)
+            if self.map_stats:
+                s = self.map_stats
+                imgui.text(f"median {s['median']:.3g}, max {s['max']:.3g} ({self.view_ms:.1f} ms)")
+        _, self.show_convergence = imgui.checkbox("convergence plot", self.show_convergence)
+        curve = ref_view.curve
+        if curve is not None and len(curve):
+            imgui.text(f"est. RMSE {curve.rmse[-1]:.4g} at {curve.spp[-1]} spp, slope {curve.fitted_slope():.2f}")
+        if imgui.button("store curve"):
+            self.store_curve(ref_view)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("keep this strategy's convergence curve, then switch strategy to compare")
+        if self.stored is not None:
+            imgui.same_line()
+            if imgui.button("clear stored"):
+                self.stored = None
+        if was_active and not self.active and not compare_uses_reference:
+            ref_view.stop()
+
+    # ------------------------------------------------------------------ convergence window
+    def draw_windows(self, ref_view) -> None:
+        if not self.show_convergence or ref_view is None:
+            return
+        from imgui_bundle import imgui, implot
+
+        imgui.set_next_window_size(imgui.ImVec2(460, 340), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_pos(imgui.ImVec2(420, 60), imgui.Cond_.first_use_ever)
+        expanded, opened = imgui.begin("Convergence", self.show_convergence)
+        if opened is False:
+            self.show_convergence = False
+        if expanded:
+            curves = [c for c in (ref_view.curve, self.stored) if c is not None and len(c)]
+            if implot.begin_plot("##convergence", imgui.ImVec2(-1, -1)):
+                implot.setup_axes("samples per pixel", "estimated RMSE")
+                implot.setup_axis_scale(implot.ImAxis_.x1, implot.Scale_.log10)
+                implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
+                implot.setup_legend(implot.Location_.north_east)
+                if curves:  # log axes do not fit themselves to data that arrive over time
+                    xs = [v for c in curves for v in c.spp]
+                    ys = [v for c in curves for v in c.rmse]
+                    implot.setup_axes_limits(min(xs) / 1.2, max(max(xs), min(xs) * 4) * 1.2, min(ys) / 1.5,
+                                             max(ys) * 1.5, implot.Cond_.always)
+                for j, c in enumerate(curves):
+                    x = np.asarray(c.spp, np.float64)
+                    y = np.asarray(c.rmse, np.float64)
+                    label = c.label if j else STRATEGY_LABELS.get(c.label, c.label)
+                    col = (0.12, 0.47, 0.71) if j == 0 else (0.84, 0.15, 0.16)
+                    implot.plot_line(label, x, y, implot.Spec(line_color=imgui.ImVec4(*col, 1.0), line_weight=2.0))
+                    sx, sy = c.slope_line()
+                    implot.plot_line(f"slope -1/2##{j}", sx, sy,
+                                     implot.Spec(line_color=imgui.ImVec4(*col, 0.5), line_weight=1.0))
+                implot.end_plot()
+        imgui.end()
+
+    # ------------------------------------------------------------------ the view
+    def heat_map(self, ref_view):
+        """(map (H, W), linear RGB heat image) of the current error view, or None."""
+        got = ref_view.latest_variance() if ref_view is not None else None
+        if got is None or self.view == "off":
+            return None
+        mean, var, spp = got
+        err = error_view(self.view, mean, var, spp, self.target)
+        err = np.where(np.isfinite(err), err, 0.0)
+        if self.auto_scale:
+            self.scale = auto_scale(err)
+        t = np.clip(err * (1023.0 / max(self.scale, 1e-30)), 0.0, 1023.0)
+        return err, _LUT[t.astype(np.int32)]
+
+    def draw_view(self, renderer, fbo, rect, ref_view) -> None:
+        """Draw the error view into ``rect`` (framebuffer pixels) of ``fbo``, recomputed when the
+        reference has a new pass or a setting changed."""
+        if self.view == "off" or ref_view is None:
+            return
+        got = ref_view.latest_variance()
+        if got is None:
+            return
+        key = (id(got[1]), got[2], self.view, self.target, self.auto_scale, None if self.auto_scale else self.scale)
+        if key != self._key or self._tex is None:
+            t0 = time.perf_counter()
+            err, rgb = self.heat_map(ref_view)
+            from viewer.app.compare_view import upload_rgb
+
+            self._tex = upload_rgb(self.ctx, self._tex, rgb)
+            self.map_stats = {"median": float(np.median(err)), "max": float(err.max())}
+            self.view_ms = 1000 * (time.perf_counter() - t0)
+            self._key = key
+        renderer.tonemap_to(fbo, self._tex, 0.0, "none", viewport=rect)  # a display colour already
+
+    def draw_overlay(self, imgui, view_logical) -> None:
+        if self.view == "off" or self._tex is None:
+            return
+        from viewer.app.compare_view import draw_colour_bar
+
+        dl = imgui.get_background_draw_list()
+        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
+        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))
+
+        def label(px, py, text):
+            size = imgui.calc_text_size(text)
+            dl.add_rect_filled(imgui.ImVec2(px - 3, py - 2), imgui.ImVec2(px + size.x + 3, py + size.y + 2), shade)
+            dl.add_text(imgui.ImVec2(px, py), white, text)
+
+        what = _WHAT[self.view]
+        if self.view == "samples needed":
+            what += f" ({100 * self.target:g}%)"
+        draw_colour_bar(imgui, dl, view_logical, label, self.scale, what)
+
+    def release(self) -> None:
+        if self._tex is not None:
+            self._tex.release()
+            self._tex = None
+
+
+# ---------------------------------------------------------------------- plots window: sampling tab
+
+SAMPLING_SAMPLES = 50_000   # per histogram in the window (about 0.2-1 s; `plot` takes --samples)
+_sampling_cache: dict = {}
+
+
+def sampling_data(p, theta_i: float, phi: float):
+    """``plots.sampling_histogram`` for the window, cached per (parameters, angles)."""
+    import json
+
+    from viewer import plots
+
+    key = (json.dumps(p.to_plain(), sort_keys=True, default=str), round(theta_i, 3), round(phi, 3))
+    if key not in _sampling_cache:
+        if len(_sampling_cache) > 32:
+            _sampling_cache.clear()
+        _sampling_cache[key] = plots.sampling_histogram(p, theta_i, phi, samples=SAMPLING_SAMPLES, seed=0)
+    return _sampling_cache[key]
+
+
+class SamplingTab:
+    """The plots window's *Sampling* tab: ``draw(names, materials, theta_i, phi)``."""
+
+    def __init__(self):
+        self.material = None
+        self._shown = None   # the last data drawn (kept while a slider is held)
+
+    def draw(self, names, materials, theta_i: float, phi: float) -> None:
+        from imgui_bundle import imgui, implot
+
+        from viewer import plots
+
+        ok = [n for n in names if "sampling" in plots.applicable_kinds(materials[n])]
+        skipped = [n for n in names if n not in ok]
+        if not ok:
+            imgui.text_wrapped("no shown material has a sampled density (delta lobes only): "
+                               + ", ".join(skipped))
+            return
+        if self.material not in ok:
+            self.material = ok[0]
+        ch, i = imgui.combo("material##sampling", ok.index(self.material), ok)
+        if ch:
+            self.material = ok[i]
+        p = materials[self.material]
+        if imgui.is_any_item_active() and self._shown is not None:
+            d = self._shown  # a slider is held: recompute when it is released
+        else:
+            d = self._shown = sampling_data(p, theta_i, phi)
+        imgui.text(f"wo at theta {d['theta_i']:.1f} deg, phi {d['phi']:.0f} deg; {d['samples']} samples; "
+                   f"chi-square {d['chi2']:.1f}, {d['dof']} dof: p = {d['p_value']:.3g}")
+        if skipped:
+            imgui.same_line()
+            imgui.text_disabled(f"(delta lobes, not sampled: {', '.join(skipped)})")
+        avail = imgui.get_content_region_avail()
+        w = max(120.0, (avail.x - 16) / 3)
+        h = max(120.0, avail.y * 0.48)
+        lo = -1.0 if d["sphere"] else 0.0
+        vmax = max(float(np.max(d["observed"])), float(np.max(d["expected"])), 1e-12)
+        dmax = max(3.0, float(np.abs(d["difference"]).max()))
+        grids = (("histogram", d["observed"], 0.0, vmax, implot.Colormap_.viridis),
+                 ("integrated pdf", d["expected"], 0.0, vmax, implot.Colormap_.viridis),
+                 ("difference (sigma)", d["difference"], -dmax, dmax, implot.Colormap_.rd_bu))
+        for j, (title, a, vmin, vm, cmap) in enumerate(grids):
+            if j:
+                imgui.same_line()
+            implot.push_colormap(cmap)
+            if implot.begin_plot(f"{title}##samp{j}", imgui.ImVec2(w, h)):
+                implot.setup_axes("phi (deg)", "cos theta")
+                implot.setup_axes_limits(0.0, 360.0, lo, 1.0, implot.Cond_.always)
+                implot.plot_heatmap(f"##h{j}", np.ascontiguousarray(a, np.float64), vmin, vm, "",
+                                    implot.Point(0.0, lo), implot.Point(360.0, 1.0))
+                implot.end_plot()
+            implot.pop_colormap()
+        pts = np.asarray(d["points"], np.float64)
+        size = min(avail.x, max(120.0, imgui.get_content_region_avail().y))
+        if implot.begin_plot("sampled directions (top view; red: below the surface)##cloud",
+                             imgui.ImVec2(size, size), implot.Flags_.equal):
+            implot.setup_axes("x (tangent)", "y")
+            implot.setup_axes_limits(-1.05, 1.05, -1.05, 1.05, implot.Cond_.always)
+            t = np.linspace(0.0, 2 * np.pi, 121)
+            implot.plot_line("##horizon", np.cos(t), np.sin(t))
+            up = pts[:, 2] >= 0
+            for sel, col, lab in ((up, (0.12, 0.47, 0.71), "above"), (~up, (0.84, 0.15, 0.16), "below")):
+                if np.any(sel):
+                    implot.plot_scatter(lab, np.ascontiguousarray(pts[sel, 0]), np.ascontiguousarray(pts[sel, 1]),
+                                        implot.Spec(marker_fill_color=imgui.ImVec4(*col, 0.7),
+                                                    marker_line_color=imgui.ImVec4(*col, 0.7), marker_size=1.5))
+            wo = np.asarray(d["wo"], np.float64)
+            implot.plot_line("wo", np.array([0.0, wo[0]]), np.array([0.0, wo[1]]),
+                             implot.Spec(line_color=imgui.ImVec4(0.95, 0.55, 0.1, 1.0), line_weight=2.5))
+            implot.end_plot()
