@@ -24,7 +24,8 @@ from viewer.brdf.fresnel import fresnel_dielectric
 from viewer.brdf.glsl import glsl_u
 from viewer.brdf.sampling import split_uniform
 
-from brdf_harness import chi2_test, direction, param_grid, random_upper, sidak, test_param_sets, write_chi2_images
+from brdf_harness import direction, param_grid, random_upper, sidak, test_param_sets, write_chi2_images
+from viewer.brdf.chi2 import chi2_test
 from glsl_eval import GLSLEvaluator, GLSLSampler
 
 NAMES = brdf.names()
