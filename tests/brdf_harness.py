@@ -114,6 +114,9 @@ def _random_fields(fields, rng, depth):
             out[prm.name] = str(pick)
         elif k == "choice":
             out[prm.name] = str(prm.choices[rng.integers(len(prm.choices))])
+        elif k == "table" and prm.name == "thin_film" and depth > 0:
+            _random_fields(prm.fields, rng, depth)  # the same draws; a nested base takes no film
+            out[prm.name] = {"thickness_nm": 0.0}
         elif k == "table":
             out[prm.name] = _random_fields(prm.fields, rng, depth)
         elif k == "lobes":

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.glsl import uniform_block
+from viewer.brdf.glsl import generate_dispatch, models_used, uniform_block, uses_thin_film
 from viewer.gl.shaders import build_program
 
 _VERT = """#version 410 core
@@ -55,13 +55,42 @@ void main() {
 """
 
 
-class GLSLEvaluator:
+def _set(prog, name, value):
+    if name in prog:  # the compiler drops uniforms a program does not use (mirror's eval ignores wi)
+        prog[name].value = value
+
+
+class _FilmPrograms:
+    """One program of every model without THIN_FILM, and for a material with a film one of its
+    models with THIN_FILM (common/fresnel.glsl compiles the film's wavelength loop only then, as
+    the renderers do; every model with the loop takes software GL more than 10 minutes to
+    compile), built on first use; ``use(params)`` sets ``prog`` and ``vao`` to the one the
+    material needs."""
+
+    def _init_programs(self, ctx, fragment):
+        self.ctx = ctx
+        self._fragment = fragment
+        self._programs = {}
+        self.use(None)
+
+    def use(self, params):
+        key = models_used(params) if params is not None and uses_thin_film(params) else None
+        if key not in self._programs:
+            if key is None:
+                prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=self._fragment)
+            else:
+                prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=self._fragment,
+                                     virtual={"brdf/dispatch.glsl": generate_dispatch(key)},
+                                     defines={"THIN_FILM": "1"})
+            self._programs[key] = (prog, self.ctx.vertex_array(prog, []))
+        self.prog, self.vao = self._programs[key]
+
+
+class GLSLEvaluator(_FilmPrograms):
     WIDTH = 128
 
     def __init__(self, ctx):
-        self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG)
-        self.vao = ctx.vertex_array(self.prog, [])
+        self._init_programs(ctx, _FRAG)
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -79,16 +108,19 @@ class GLSLEvaluator:
         out = self.ctx.texture((w, h), 4, dtype="f4")
         fbo = self.ctx.framebuffer(color_attachments=[out])
         try:
+            self.use(params)
             idx, block = uniform_block(params)
-            self.prog["u_model"].value = idx
-            u = self.prog["u_mat"]
-            u.write(block[: u.array_length * 4].tobytes())
+            _set(self.prog, "u_model", idx)
+            if "u_mat" in self.prog:
+                u = self.prog["u_mat"]
+                u.write(block[: u.array_length * 4].tobytes())
             twi.use(0)
             two.use(1)
-            self.prog["u_wi"].value = 0
-            self.prog["u_wo"].value = 1
+            for name, unit in (("u_wi", 0), ("u_wo", 1)):
+                if name in self.prog:  # a model whose value ignores wi (mirror: 0) drops it
+                    self.prog[name].value = unit
             if "u_what" in self.prog:
-                self.prog["u_what"].value = what
+                _set(self.prog, "u_what", what)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)
@@ -101,7 +133,7 @@ class GLSLEvaluator:
             two.release()
 
 
-class GLSLSampler:
+class GLSLSampler(_FilmPrograms):
     """``brdf_sample`` on the GPU path: (wo, u) in as float textures, (wi, weight, pdf,
     discrete) back from two float32 render targets, in chunks of at most CHUNK rows."""
 
@@ -109,9 +141,7 @@ class GLSLSampler:
     CHUNK = 1024 * 256
 
     def __init__(self, ctx):
-        self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE)
-        self.vao = ctx.vertex_array(self.prog, [])
+        self._init_programs(ctx, _FRAG_SAMPLE)
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -137,14 +167,16 @@ class GLSLSampler:
         b = self.ctx.texture((w, h), 4, dtype="f4")
         fbo = self.ctx.framebuffer(color_attachments=[a, b])
         try:
+            self.use(params)
             idx, block = uniform_block(params)
-            self.prog["u_model"].value = idx
-            um = self.prog["u_mat"]
-            um.write(block[: um.array_length * 4].tobytes())
+            _set(self.prog, "u_model", idx)
+            if "u_mat" in self.prog:
+                um = self.prog["u_mat"]
+                um.write(block[: um.array_length * 4].tobytes())
             two.use(0)
             tu.use(1)
-            self.prog["u_wo"].value = 0
-            self.prog["u_u"].value = 1
+            _set(self.prog, "u_wo", 0)
+            _set(self.prog, "u_u", 1)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)

@@ -205,6 +205,20 @@ def models_used(params: Params) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
+def uses_thin_film(params: Params) -> bool:
+    """Whether a material or a material nested in it has a thin film of positive thickness."""
+    film = params.get("thin_film") if hasattr(params, "get") else None
+    if film is not None and float(film.get("thickness_nm", 0.0)) > 0.0:
+        return True
+    return any(isinstance(v, Params) and v.model and uses_thin_film(v) for v in params.values())
+
+
+def program_defines(materials) -> dict[str, str]:
+    """The ``#define``s a program needs for ``materials`` (an iterable of Params): THIN_FILM
+    where one has a film (common/fresnel.glsl compiles the film's wavelength loop only then)."""
+    return {"THIN_FILM": "1"} if any(uses_thin_film(p) for p in materials) else {}
+
+
 def choice_constants(params: Params) -> dict[str, dict[str, int]]:
     """{model: {choice parameter: index}} of a material and its nested base, for
     ``generate_dispatch(fixed=...)``."""

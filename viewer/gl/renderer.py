@@ -362,14 +362,16 @@ class Renderer:
 
     def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
-                        raytrace: tuple[str, ...] | None = None, dispersion: bool = False):
+                        raytrace: tuple[str, ...] | None = None, dispersion: bool = False,
+                        thin_film: bool | None = None):
         """The forward program for a material (its model, and a nested base model if any).
         ``ibl_sampled`` compiles in the per-pixel environment sampling of the fis and
         brute_force modes (left out otherwise: software GL pays for untaken loops).
         ``raytrace``: the models of every material in the scene, for a mirror or smooth glass
         whose specular chain is traced (viewer/gl/raytrace.py); ``dispersion`` traces each
-        colour channel's chain apart."""
-        from viewer.brdf.glsl import models_used
+        colour channel's chain apart. ``thin_film``: compile the film's wavelength loop (None: where
+        this material has a film)."""
+        from viewer.brdf.glsl import models_used, uses_thin_film
 
         per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
@@ -379,6 +381,10 @@ class Renderer:
                + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
                + (":const" if env_constant else "") + (":rt" if raytrace is not None else "")
                + (":disp" if dispersion else ""))
+        if thin_film is None:
+            thin_film = uses_thin_film(params)
+        if thin_film:
+            key += ":film"
         prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
         if prog is not None:
             return prog
@@ -398,6 +404,8 @@ class Renderer:
             defines["MAT_TEXTURE"] = "1"
             if dispersion:
                 defines["RT_DISPERSION"] = "1"
+        if thin_film:
+            defines["THIN_FILM"] = "1"
         return self._program(key, _Recipe("passes/forward.vert", "passes/forward.frag", "passes/forward.geom",
                                           models=tuple(used), defines=tuple(defines.items())))
 
@@ -708,6 +716,9 @@ class Renderer:
             rt = self.raytrace_state()
             rt.update(scene, self.albedo_tables)
             rt_models, rt_disp = scene_models(scene), dispersive(scene)
+            from viewer.brdf.glsl import uses_thin_film
+
+            rt_film = any(uses_thin_film(scene.materials[o.material]) for o in scene.objects)
         ready = set()
         for obj in scene.objects:
             params = scene.materials[obj.material]
@@ -718,7 +729,8 @@ class Renderer:
                                             ibl_sampled=env_on and scene.render.ibl in ("fis", "brute_force"),
                                             env_light=env_on, env_constant=env_map is None,
                                             raytrace=rt_models if traced else None,
-                                            dispersion=traced and rt_disp)
+                                            dispersion=traced and rt_disp,
+                                            thin_film=True if traced and rt_film else None)
             except ShaderError:
                 if not self.hot_reload:
                     raise

@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf.glsl import generate_dispatch, models_used, pack_material
+from viewer.brdf.glsl import generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
@@ -193,6 +193,7 @@ class GpuReferenceRenderer:
         defines = {"ENV_MODE": str(self.env_mode), "N_LIGHTS": str(len(s.lights))}
         if any(m.kind == "mixed" for m in s.materials):
             defines["HAS_MIXED"] = "1"
+        defines.update(program_defines([m.params for m in s.materials]))
         return models, tuple(sorted(defines.items()))
 
     def _program(self):
