@@ -64,7 +64,13 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
     // eq. 21 with (eta_i (i.m) + eta_o (o.m))^2 = |h|^2 / etap^2, then radiance's 1 / etap^2.
     float r = ratio_capped(G * D, aci * co);
     if (film) {
-        vec3 t3 = min((1.0 - Rf) * (abs(imd) * abs(omd) / hlen2), vec3(F_MAX));
+        // T = 1 - R of the film at the outside cosine, which for a transmission pair is a facet
+        // cosine (Snell's law holds at m): |wi.m| when wo is inside, |wo.m| when outside; no
+        // ill-conditioned sqrt(1 - sin^2) near the critical angle (see above)
+        float c_out = eta < 1.0 ? min(abs(imd), 1.0) : om_c;
+        float ior_f = eta < 1.0 ? 1.0 / eta : eta;
+        vec3 Tf = 1.0 - thin_film_rgb(c_out, p.thin_film.ior, p.thin_film.thickness_nm, vec3(ior_f), vec3(0.0));
+        vec3 t3 = min(Tf * (abs(imd) * abs(omd) / hlen2), vec3(F_MAX));
         return min(t3 * r, vec3(F_MAX));
     }
     // T from the two facet cosines (see dielectric_transmittance_cos): cos_t = |wi . m|.

@@ -134,8 +134,14 @@ def _rough_eval_pdf(p, wi, wo):
     # (well conditioned near total internal reflection, where sqrt(1 - sin_i^2 / eta^2) turns a
     # 1e-7 error of the inputs' length into 1e-7 / cos_t^2; the float GLSL twin does the same).
     # A thin film's RGB transmittance is 1 - R (thin_film.py).
-    T_f = T if thin_film.active(p) else \
-        _transmittance_cos(np.clip(om, 0.0, 1.0), np.minimum(np.abs(im), 1.0), eta)[:, None]
+    # A film's T = 1 - R at the outside cosine, for a transmission pair also a facet cosine:
+    # |i.m| when wo is inside, |o.m| when outside (the same conditioning argument).
+    if thin_film.active(p):
+        inside = eta < 1.0
+        c_out = np.where(inside, np.minimum(np.abs(im), 1.0), np.clip(om, 0.0, 1.0))
+        T_f = 1.0 - thin_film.dielectric_reflectance_rgb(p, c_out, np.where(inside, 1.0 / eta, eta))
+    else:
+        T_f = _transmittance_cos(np.clip(om, 0.0, 1.0), np.minimum(np.abs(im), 1.0), eta)[:, None]
     f_t = np.minimum(np.minimum(T_f * (np.abs(im) * np.abs(om) / safe_h2)[:, None], F_MAX)
                      * ratio_capped(G * D, aci * co)[:, None], F_MAX)
     f = np.where(valid[:, None], np.where(reflect_[:, None], f_r, f_t), 0.0)
