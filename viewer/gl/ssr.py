@@ -20,7 +20,7 @@ maximum roughness; misses take the environment. With SSR on, environment lightin
 split sum (the ``ibl`` mode's sampled variants mix the specular part into their estimate).
 
 Parameters (published defaults): bias 0.01 and maximum distance 3 (Filament),
-thickness 0.2, maximum roughness 0.5, edge fade 0.075 (EEVEE); a stride of 2 pixels stands for
+thickness 0.05 (0.2 streaked), maximum roughness 0.5, edge fade 0.075 (EEVEE); a stride of 2 pixels stands for
 EEVEE's trace precision, with 6 bisection steps after the stride.
 
 Hi-Z (``settings["hiz"]``, on by default; 0 = the plain DDA, kept for comparison): each frame a
