@@ -32,6 +32,22 @@ def test_every_scene_key_is_documented():
     assert docgen.check_fields_cover_the_code() == []
 
 
+def test_the_key_check_can_fail(monkeypatch):
+    """Leaving out a render key and a shared material sub-key is reported, naming each."""
+    kept = tuple(f for f in docgen.SCENE_FIELDS if f.key not in ("raytrace_depth", "thin_film.ior"))
+    monkeypatch.setattr(docgen, "SCENE_FIELDS", kept)
+    problems = docgen.check_fields_cover_the_code()
+    assert len(problems) == 2
+    assert problems[0].startswith("render.raytrace_depth: accepted by viewer/scene.py")
+    assert problems[1].startswith("materials.NAME.thin_film.ior: accepted by viewer/scene.py")
+
+
+def test_shared_material_keys_are_the_registrys():
+    shared = docgen.shared_material_params()
+    assert {"spectral", "thin_film"} <= set(shared)
+    assert set(shared["thin_film"]) == {"microfacet", "mirror", "dielectric"}
+
+
 @pytest.mark.parametrize("f", docgen.SCENE_FIELDS, ids=lambda f: f"{f.section}.{f.key}")
 def test_documented_default_is_what_the_validator_fills_in(f):
     """Writing the documented default explicitly gives the same scene as leaving the key out,

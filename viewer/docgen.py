@@ -4,7 +4,10 @@
   (``viewer.scene.TOP_KEYS``, ``CAMERA_KEYS``, ...), each default is what the validator fills in
   when the key is absent, and each "allowed" text is the validator's own message for a bad value
   (the generator feeds it one and copies the text after ``allowed:``). Only the type and the
-  meaning of a key are written here, in ``SCENE_FIELDS``.
+  meaning of a key are written here, in ``SCENE_FIELDS``. For ``[materials.NAME]`` the keys are
+  the parser's own (``model``, ``preset``) and the parameters several models share
+  (``shared_material_params``: table parameters such as ``thin_film`` and choices over the
+  ``viewer.spectral`` library), with their sub-keys; each model's own parameters are in brdfs.md.
 * ``docs/brdfs.md``: every BRDF model, parameter, range, default, unit and paper, from the
   registry (``viewer.brdf``) and the material presets.
 
