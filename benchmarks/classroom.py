@@ -1,4 +1,4 @@
-"""Classroom-viewer figures (issue 7), in a real window:
+"""Classroom-viewer figures, in a real window:
 
     xvfb-run -a -s "-screen 0 1600x1000x24" python benchmarks/classroom.py
 

@@ -43,7 +43,7 @@ def hit_plane_y(origin, dirs, y0):
 
 
 def lambert_point(albedo, intensity, light_pos, p, n):
-    """albedo/pi * I * max(0, n.l) / r^2 (CONTRACT section 1), per pixel (H, W, 3)."""
+    """albedo/pi * I * max(0, n.l) / r^2 (docs/conventions.md), per pixel (H, W, 3)."""
     d = np.asarray(light_pos, float) - p
     r2 = np.sum(d * d, axis=-1, keepdims=True)
     l = d / np.sqrt(r2)

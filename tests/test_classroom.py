@@ -1,4 +1,4 @@
-"""The classroom viewer (issue 7) driven through the window app's own API under Xvfb: compare
+"""The classroom viewer driven through the window app's own API under Xvfb: compare
 views, every model with a slider move, shader hot reload with the error overlay, saving and
 reopening scenes and screenshots, the lecture tour, the window state and loading meshes.
 

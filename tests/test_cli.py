@@ -1,4 +1,4 @@
-"""The command line (CONTRACT section 2): outputs, exit status, one-line errors and no partial
+"""The command line (README.md, "Commands"): outputs, exit status, one-line errors and no partial
 files on bad input."""
 
 import subprocess

@@ -32,6 +32,22 @@ def test_every_scene_key_is_documented():
     assert docgen.check_fields_cover_the_code() == []
 
 
+def test_the_key_check_can_fail(monkeypatch):
+    """Leaving out a render key and a shared material sub-key is reported, naming each."""
+    kept = tuple(f for f in docgen.SCENE_FIELDS if f.key not in ("raytrace_depth", "thin_film.ior"))
+    monkeypatch.setattr(docgen, "SCENE_FIELDS", kept)
+    problems = docgen.check_fields_cover_the_code()
+    assert len(problems) == 2
+    assert problems[0].startswith("render.raytrace_depth: accepted by viewer/scene.py")
+    assert problems[1].startswith("materials.NAME.thin_film.ior: accepted by viewer/scene.py")
+
+
+def test_shared_material_keys_are_the_registrys():
+    shared = docgen.shared_material_params()
+    assert {"spectral", "thin_film"} <= set(shared)
+    assert set(shared["thin_film"]) == {"microfacet", "mirror", "dielectric"}
+
+
 @pytest.mark.parametrize("f", docgen.SCENE_FIELDS, ids=lambda f: f"{f.section}.{f.key}")
 def test_documented_default_is_what_the_validator_fills_in(f):
     """Writing the documented default explicitly gives the same scene as leaving the key out,
@@ -121,3 +137,49 @@ def test_the_import_check_can_fail(tmp_path):
 
 def _offenders_outside_root(f: Path) -> list[str]:
     return [m for m in sorted(_imports(f)) if any(m == b or m.startswith(b + ".") for b in GL_MODULES)]
+
+
+# ----------------------------------------------------------------------------- self-contained
+
+# References to documents outside the repository: planning documents, a sibling folder, and issue or
+# work-item numbers (the pieces are joined so that this file does not match itself).
+OUTSIDE_REFERENCE = re.compile("|".join((
+    "CON" + "TRACT",
+    "DES" + r"IGN\.md",
+    r"\.\./sha" + "red",
+    r"[Ii]ss" + r"ue [0-9]",
+    "#" + r"[0-9]{2}\b",
+)))
+
+
+def outside_references(root: Path, files) -> list[str]:
+    """'file:line: text' for every line of ``files`` (paths relative to ``root``) that points
+    outside the repository."""
+    bad = []
+    for rel in files:
+        try:
+            text = (root / rel).read_text(encoding="utf-8")
+        except (UnicodeDecodeError, OSError):
+            continue  # binary files (PNG, PLY, .npy) hold no prose
+        for n, line in enumerate(text.splitlines(), 1):
+            if OUTSIDE_REFERENCE.search(line):
+                bad.append(f"{rel}:{n}: {line.strip()[:100]}")
+    return bad
+
+
+def test_nothing_points_outside_the_repository():
+    try:
+        out = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
+                             capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip("not a git checkout (e.g. an unpacked sdist)")
+    files = [f for f in out.splitlines() if f and (ROOT / f).is_file()]
+    assert len(files) > 100
+    assert outside_references(ROOT, files) == []
+
+
+def test_the_outside_reference_check_can_fail(tmp_path):
+    lines = ["fine", "see " + "CON" + "TRACT section 1", "as in " + "DES" + "IGN.md", "../sha" + "red/x",
+             "fixed in " + "iss" + "ue 7", "PR " + "#" + "12", "colour #fff and 3 # 4"]
+    (tmp_path / "a.py").write_text("\n".join(lines))
+    assert [b.split(":")[1] for b in outside_references(tmp_path, ["a.py"])] == ["2", "3", "4", "5", "6"]

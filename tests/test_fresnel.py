@@ -92,7 +92,7 @@ def test_broadcasting_and_scalars():
     r = fresnel_conductor(COS[:, None], np.array([0.14, 0.43, 1.38]), np.array([3.7, 2.46, 1.91]))
     assert r.shape == (COS.size, 3)
     assert fresnel_dielectric(COS[:, None], np.array([1.2, 1.5])).shape == (COS.size, 2)
-    # the registry re-exports them (CONTRACT section 4)
+    # the registry re-exports them (the public BRDF interface of docs/python-api.md)
     assert brdf.fresnel_dielectric(1.0, 1.5) == pytest.approx(0.04)
     assert brdf.fresnel_conductor(1.0, 1.5, 0.0) == pytest.approx(0.04)
 

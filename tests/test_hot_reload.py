@@ -215,7 +215,7 @@ def test_deep_include_error_keeps_last_image_and_a_fix_takes_effect(tmp_path, ho
               f"+ first frame {t_frame * 1000:.0f} ms; math.glsl edit ({len(programs)} programs: "
               f"{', '.join(programs)}): programs {t_all * 1000:.0f} ms (reload {hr.last_reload_ms:.0f} ms), "
               f"+ first frame {t_frame_all * 1000:.0f} ms")
-        # figures belong in the report, not in assertions (DESIGN.md); this only catches a hang
+        # figures belong in the report, not in assertions (no timing assertions); this only catches a hang
         assert t_fix + t_frame < 10.0 and t_all + t_frame_all < 10.0
     finally:
         _edit(math_glsl, math_ok)

@@ -3,7 +3,7 @@ agree per pixel within the reference's standard errors, for every BRDF family. B
 the same BRDF (GLSL twin vs numpy twin, proven equal elsewhere), so any disagreement is a
 transport or geometry bug (camera, normals, frames, light falloff, shadows).
 
-Both images are box-filtered pixels (CONTRACT section 1): the reference jitters its camera
+Both images are box-filtered pixels (docs/conventions.md): the reference jitters its camera
 samples over the pixel square, and the raster is rendered with supersample=4 (a 4 x 4 grid of
 shading points per pixel, averaged). With MSAA the raster shades once at the pixel centre, which
 differs from the box average by curvature (measured here: +6.5e-4 relative on a Lambert sphere,

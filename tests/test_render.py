@@ -55,7 +55,7 @@ def _interior_mask(cam, radius=1.0, center=(0, 0, 0), margin_px=2):
     """Pixels whose whole square (all four corners) sees the sphere, eroded by margin_px.
 
     Silhouette pixels are excluded because (a) MSAA averages sphere and background there (the
-    box filter of CONTRACT section 1), and (b) the icosphere's facets lie inside the true sphere,
+    box filter of docs/conventions.md), and (b) the icosphere's facets lie inside the true sphere,
     so the tessellated silhouette sits up to a fraction of a pixel inside the analytic one."""
     W, H = cam.width, cam.height
     inside = np.ones((H, W), bool)

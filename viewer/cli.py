@@ -1,4 +1,4 @@
-"""Command line (CONTRACT section 2). Argument parsing only; the work is done elsewhere."""
+"""Command line (the commands of README.md). Argument parsing only; the work is done elsewhere."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Raster against reference: difference maps and error metrics (CONTRACT section 2, `compare`).
+"""Raster against reference: difference maps and error metrics (`brdf-viewer compare`).
 
 Both images are linear radiance (H, W, 3). Metrics, per channel and as the mean over channels:
   RMSE          sqrt(mean((raster - reference)^2))

@@ -4,7 +4,10 @@
   (``viewer.scene.TOP_KEYS``, ``CAMERA_KEYS``, ...), each default is what the validator fills in
   when the key is absent, and each "allowed" text is the validator's own message for a bad value
   (the generator feeds it one and copies the text after ``allowed:``). Only the type and the
-  meaning of a key are written here, in ``SCENE_FIELDS``.
+  meaning of a key are written here, in ``SCENE_FIELDS``. For ``[materials.NAME]`` the keys are
+  the parser's own (``model``, ``preset``) and the parameters several models share
+  (``shared_material_params``: table parameters such as ``thin_film`` and choices over the
+  ``viewer.spectral`` library), with their sub-keys; each model's own parameters are in brdfs.md.
 * ``docs/brdfs.md``: every BRDF model, parameter, range, default, unit and paper, from the
   registry (``viewer.brdf``) and the material presets.
 
@@ -73,6 +76,13 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "x"),
     Field("render", "ms_compensation", "boolean",
           "adds the energy that single scattering loses on glossy lobes under environment light", 1),
+    Field("render", "raytrace", "boolean",
+          "traces specular chains (mirror bounces, smooth-glass refraction, total internal reflection, "
+          "absorption inside) through the scene's triangles on the GPU instead of looking the environment up "
+          "as through a sphere; rough lobes keep the prefiltered environment and SSR", 1),
+    Field("render", "raytrace_depth", "integer",
+          "with `raytrace`: the most scattering events along a traced chain, the camera's hit included "
+          "(the reference's path depth)", 0),
     Field("lights[0]", "type", "string", "the kind of light: `point` or `directional`", "spot"),
     Field("lights[0]", "position", "[x, y, z]", "point light: where it is (m); required", "x"),
     Field("lights[0]", "intensity", "[r, g, b] or number",
@@ -88,7 +98,26 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("objects[0]", "scale", "number or [sx, sy, sz]", "scales the object about its origin", 0),
     Field("objects[0]", "rotate_y_deg", "number", "turns the object about +y (degrees), before the translation",
           "x"),
+    Field("materials.NAME", "model", "string", "the BRDF model ([brdfs.md](brdfs.md)); required unless "
+          "`preset` gives it", "no_such_model"),
+    Field("materials.NAME", "preset", "string", "starts from a named preset; every key beside it overrides the "
+          "preset's value", "no_such_preset"),
+    Field("materials.NAME", "spectral", "string",
+          "a tabulated material of `viewer.spectral` (n(lambda) + i k(lambda)): a conductor's Fresnel colour "
+          "becomes the spectral integral at every angle, a dielectric's `ior` its n at 587.56 nm and the "
+          "spectral reference traces n(lambda) (dispersion); `dielectric` takes only the dielectrics",
+          "unobtainium"),
+    Field("materials.NAME", "thin_film", "table",
+          "a thin film on the surface: its Fresnel reflectance replaces the plain one (interference colours "
+          "of a soap bubble, oil on water, an oxide, an anti-reflection coating)", {"no_such_key": 1}),
+    Field("materials.NAME", "thin_film.ior", "number", "the film's index of refraction (water 1.33, oil 1.47, "
+          "MgF2 1.38)", 0.5),
+    Field("materials.NAME", "thin_film.thickness_nm", "number", "the film's thickness (nm); 0 is no film",
+          -1),
 )
+
+# The model a material probe uses: one that takes every key documented for ``materials.NAME``.
+_MATERIAL_PROBE_MODEL = "microfacet"
 
 _LIGHT_KEYS = {"type": "both", "position": "point", "intensity": "point", "direction": "directional",
                "irradiance": "directional"}
@@ -103,6 +132,17 @@ def probe_data(f: Field, value=None, remove: bool = False) -> dict:
         target = data["lights"][0]
     elif f.section.startswith("objects"):
         target = data["objects"][0]
+    elif f.section.startswith("materials"):
+        data["materials"]["NAME"] = {"model": _MATERIAL_PROBE_MODEL}
+        target = data["materials"]["NAME"]
+        *outer, key = f.key.split(".")
+        for k in outer:
+            target = target.setdefault(k, {})
+        if remove:
+            target.pop(key, None)
+        else:
+            target[key] = value
+        return data
     elif f.section:
         target = data.setdefault(f.section, {})
     else:
@@ -135,8 +175,11 @@ def allowed_text(f: Field) -> str:
 
 def default_value(f: Field):
     """What the validator fills in when ``f``'s key is absent (None: nothing), or ``REQUIRED``."""
-    if f.key in ("mesh", "material") or (f.section.startswith("lights") and f.key in ("position", "direction")):
+    if f.key in ("mesh", "material", "model") or (f.section.startswith("lights")
+                                                  and f.key in ("position", "direction")):
         return REQUIRED
+    if f.key == "preset":
+        return None
     if f.key == "version":
         from viewer.scene import SCENE_VERSION
 
@@ -148,6 +191,11 @@ def default_value(f: Field):
         return getattr(scene.lights[0], f.key)
     if f.section.startswith("objects"):
         return getattr(scene.objects[0], f.key)
+    if f.section.startswith("materials"):
+        value = scene.materials["NAME"]
+        for k in f.key.split("."):
+            value = value[k]
+        return dict(value) if isinstance(value, dict) else value
     return getattr({"camera": scene.camera, "environment": scene.environment, "render": scene.render}[f.section],
                    f.key)
 
@@ -195,7 +243,35 @@ def code_key_lists() -> dict[str, tuple[str, ...]]:
                                                          "materials")),
             "camera": tuple(sc.CAMERA_KEYS), "environment": tuple(sc.ENV_KEYS), "render": tuple(sc.RENDER_KEYS),
             "lights[0]": tuple(dict.fromkeys(sc.POINT_KEYS + sc.DIRECTIONAL_KEYS)),
-            "objects[0]": tuple(sc.OBJECT_KEYS)}
+            "objects[0]": tuple(sc.OBJECT_KEYS), "materials.NAME": material_keys()}
+
+
+def shared_material_params() -> dict[str, list[str]]:
+    """Parameters that several models take in the same sense, by name -> the models: every table
+    parameter (e.g. ``thin_film``) and every choice over the ``viewer.spectral`` library that two or
+    more models have. The per-model parameters are documented in brdfs.md from the registry."""
+    from viewer import brdf, spectral
+
+    library = set(spectral.materials())
+    out: dict[str, list[str]] = {}
+    for name in brdf.names():
+        for p in brdf.get(name).spec.params:
+            if p.kind == "table" or (p.kind == "choice" and library & set(p.choices)):
+                out.setdefault(p.name, []).append(name)
+    return {k: v for k, v in out.items() if len(v) > 1}
+
+
+def material_keys() -> tuple[str, ...]:
+    """The material keys documented in scene-format.md: the parser's own (``model``, ``preset``)
+    and the shared parameters with their sub-keys, as the registry defines them."""
+    from viewer import brdf
+
+    keys = ["model", "preset"]
+    for pname, models in shared_material_params().items():
+        keys.append(pname)
+        p = brdf.get(models[0]).spec.param(pname)
+        keys += [f"{pname}.{sub.name}" for sub in p.fields]
+    return tuple(keys)
 
 
 def check_fields_cover_the_code() -> list[str]:
@@ -226,6 +302,12 @@ _SECTION_TITLES = {
                                   "\"point\"`, the default) or a directional light (`type = \"directional\"`)."),
     "objects[0]": ("`[[objects]]`", "One or more objects, each a mesh with a material. The model matrix is "
                                     "T(translate) R_y(rotate_y_deg) S(scale)."),
+    "materials.NAME": ("`[materials.NAME]`", "One table per material, named by the objects that use it. `model` is "
+                                             "a registry name; the other keys are that model's parameters, listed "
+                                             "with their ranges, defaults and units in [brdfs.md](brdfs.md). Keys "
+                                             "left out take the model's defaults. The keys below are the parser's "
+                                             "own and those several models share (defaults as for `"
+                                             + _MATERIAL_PROBE_MODEL + "`)."),
 }
 
 
@@ -248,19 +330,23 @@ def scene_format_md() -> str:
            "Numbers must lie within the float32 range (|x| <= 3.4e38) the renderers compute in.\n\n"]
     for section, (title, intro) in _SECTION_TITLES.items():
         out.append(f"## {title}\n\n{intro}\n\n| key | type | default | allowed | meaning |\n|---|---|---|---|---|\n")
+        shared = shared_material_params() if section == "materials.NAME" else {}
         for f in SCENE_FIELDS:
             if f.section == section:
+                meaning = f.meaning
+                models = shared.get(f.key.split(".")[0])
+                if models and "." not in f.key:
+                    meaning += "; models: " + ", ".join(f"`{m}`" for m in models)
                 out.append(f"| `{f.key}` | {_cell(f.type)} | {_cell(_fmt(default_value(f)))} | "
-                           f"{_cell(allowed_text(f))} | {_cell(f.meaning)} |\n")
+                           f"{_cell(allowed_text(f))} | {_cell(meaning)} |\n")
         out.append("\n")
-    out.append("## `[materials.NAME]`\n\n"
-               "One table per material, named by the objects that use it. `model` is a registry name ("
-               + ", ".join(f"`{n}`" for n in names()) + "); the other keys are that model's parameters, listed "
-               "with their ranges, defaults and units in [brdfs.md](brdfs.md). Keys left out take the model's "
-               "defaults. `preset = \"NAME\"` starts from a preset (list in brdfs.md) and any key beside it "
-               f"overrides the preset's value; {len(PRESETS)} presets exist.\n\n"
+    out.append(f"The registry's models: {', '.join(f'`{n}`' for n in names())}; {len(PRESETS)} presets (listed "
+               "in brdfs.md).\n\n"
                "```toml\n[materials.ball]\nmodel = \"microfacet\"\ndistribution = \"ggx\"\nalpha = 0.2\n\n"
-               "[materials.ring]\npreset = \"gold\"\nalpha = 0.05\n```\n\n")
+               "[materials.ring]\npreset = \"gold\"\nalpha = 0.05\n\n"
+               "[materials.bubble]\nmodel = \"dielectric\"\nior = 1.0\n"
+               "thin_film = { ior = 1.33, thickness_nm = 400 }\n\n"
+               "[materials.prism]\nmodel = \"dielectric\"\nspectral = \"SF11\"\n```\n\n")
     out.append("## Overrides (`--set`)\n\n"
                "`--set KEY=VALUE` (command line) and `overrides=[...]` (Python API) change any value by dotted "
                "path before validation: `camera.fov_y=30`, `lights.0.intensity=[5,5,5]` (arrays of tables by "

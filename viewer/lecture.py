@@ -3,7 +3,7 @@ Absorption"), one scene each with a one-line caption saying what to notice.
 
 The window steps through them with the number and arrow keys (lecture mode); ``tour_scene(i)``
 builds the same scenes anywhere (tests render every step offscreen). Each step is a complete
-scene in the CONTRACT's TOML format, built from the lecture presets of ``viewer.brdf.presets``,
+scene in the scene-file TOML format, built from the lecture presets of ``viewer.brdf.presets``,
 so what the tour shows is exactly what a student gets by loading that TOML.
 """
 

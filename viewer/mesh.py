@@ -21,7 +21,7 @@ vertex normals, same tangents). What loading does, in order:
    triangle's area as weight, then Gram-Schmidt against the normal), else the fallback
    t = normalize(cross(+y, n)), or +x projected where n is parallel to y, with w = +1.
    The tangent is the +x axis of the shading frame, along which an anisotropic BRDF's
-   ``nu`` / ``alpha_x`` runs (CONTRACT section 1).
+   ``nu`` / ``alpha_x`` runs (docs/conventions.md).
 
 Built-in names load ``models/<name>.ply`` when present, else the same shape generated in
 memory by :mod:`viewer.meshgen`; both go through the same steps from float32 data, so the

@@ -42,7 +42,7 @@ from viewer.brdf.sampling import LUMINANCE_REC709, luminance, reflect_z
 KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
 PNG_KEY = "brdf-viewer:plot"
-LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (CONTRACT: linear Rec.709 RGB)
+LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (docs/conventions.md: linear Rec.709 RGB)
 
 _CHANNEL_NAMES = ("red", "green", "blue")
 _CHANNEL_COLOURS = ((214, 39, 40), (44, 160, 44), (31, 119, 180))

@@ -1,5 +1,5 @@
 // Colour encoding for display: exposure, optional tone mapping, sRGB.
-// The piecewise sRGB transfer function (IEC 61966-2-1), not a 2.2 gamma (CONTRACT section 1).
+// The piecewise sRGB transfer function (IEC 61966-2-1), not a 2.2 gamma (docs/conventions.md).
 vec3 srgb_encode(vec3 c) {
     c = max(c, vec3(0.0));
     vec3 lo = 12.92 * c;

@@ -3,7 +3,7 @@
 //
 // Every public function takes WORLD-space directions; the environment rotation is applied here:
 // u_env_rot = R_y(-rotation_deg) takes a world direction to the map's own frame, so
-// L(d) = map(R_y(-rotation_deg) d) (CONTRACT section 1, viewer/environment/latlong.py).
+// L(d) = map(R_y(-rotation_deg) d) (docs/conventions.md, viewer/environment/latlong.py).
 // Lat-long orientation: u = 0.5 + atan2(d.x, -d.z) / (2 pi), v = acos(d.y) / pi; the maps are
 // uploaded with row 0 (the zenith) first, so the texture coordinate t equals v.
 //

@@ -7,7 +7,7 @@
 #include "common/ibl.glsl"
 
 // With MSAA, shade at every sample (GLSL 4.00 'sample' inputs) so a pixel is the average over
-// its square (CONTRACT section 1, box filter) rather than the value at its centre; defined by
+// its square (the box filter of docs/conventions.md) rather than the value at its centre; defined by
 // the renderer when sample shading is on.
 #ifdef SAMPLE_SHADING
 sample in vec3 v_position;
@@ -141,7 +141,7 @@ void main() {
     // Two-sided surfaces: shade the side the viewer sees.
     if (!gl_FrontFacing) n = -n;
     if (dot(ng, n) < 0.0) ng = -ng;
-    // Shading frame: x = tangent (anisotropy axis), z = normal (CONTRACT section 1).
+    // Shading frame: x = tangent (anisotropy axis), z = normal (docs/conventions.md).
     vec3 t = v_tangent.xyz - n * dot(n, v_tangent.xyz);
     t = dot(t, t) > 1e-12 ? normalize(t) : normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
     vec3 b = cross(n, t) * (v_tangent.w < 0.0 ? -1.0 : 1.0);
@@ -162,7 +162,7 @@ void main() {
             vec3 d = u_light_pos[i] - v_position;
             float r2 = max(dot(d, d), 1e-12);
             wi_w = d * inversesqrt(r2);
-            e = u_light_value[i] / r2;            // I / r^2 (CONTRACT section 1)
+            e = u_light_value[i] / r2;            // I / r^2 (docs/conventions.md)
         } else {
             wi_w = -normalize(u_light_pos[i]);
             e = u_light_value[i];

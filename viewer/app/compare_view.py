@@ -5,7 +5,7 @@ the live RMSE and relative MSE.
 Both halves go through the same exposure / tone-mapping pass (``Renderer.tonemap_to``), so
 they are shown alike. The metrics compare the reference (rendered at half the view's
 resolution) with the raster image box-filtered 2 x 2 down to the same pixels, the filter of
-CONTRACT section 1 (``brdf-viewer compare`` does the same with a supersampled raster).
+docs/conventions.md (``brdf-viewer compare`` does the same with a supersampled raster).
 """
 
 from __future__ import annotations

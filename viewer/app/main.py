@@ -719,7 +719,7 @@ class App:
         return True
 
     def save_scene(self, path) -> bool:
-        """The current scene (camera as seen) as TOML in the CONTRACT format, written atomically."""
+        """The current scene (camera as seen) as TOML in the scene-file format, written atomically."""
         from viewer.io import atomic_write_bytes
         from viewer.screenshot import scene_with_camera
         from viewer.scene import scene_to_toml

@@ -2,7 +2,7 @@
 
 Where: ``$BRDF_VIEWER_STATE`` if set (a file path), else ``$XDG_CONFIG_HOME/brdf-viewer/state.toml``
 (``~/.config`` when XDG_CONFIG_HOME is unset). Next to it, ``last_scene.toml`` holds the last
-session's scene in the CONTRACT format (the window's "Reopen last session" loads it).
+session's scene in the scene-file format (the window's "Reopen last session" loads it).
 
 The state is a small TOML table; anything unreadable, of the wrong type or out of range is
 ignored key by key (with one line on stderr), so a damaged state file never stops the viewer.

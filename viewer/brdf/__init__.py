@@ -26,7 +26,7 @@ _REGISTRY: dict[str, "Model"] | None = None
 
 
 class Model:
-    """A registered model: its spec and vectorized numpy functions (CONTRACT section 4)."""
+    """A registered model: its spec and vectorized numpy functions (docs/architecture.md)."""
 
     def __init__(self, module):
         self.module = module

@@ -8,7 +8,7 @@ Ashikhmin & Shirley 2000, "An Anisotropic Phong BRDF Model", Journal of Graphics
   sampling (eqs. 9-10) phi_h = atan(sqrt((nu + 1) / (nv + 1)) tan(pi u1 / 2)) (per quadrant),
                        cos theta_h = (1 - u2)^(1 / (nu cos^2 phi_h + nv sin^2 phi_h + 1)),
   pdf      (eq. 8) p(k2) = p_h(h) / (4 k1.h), p_h = sqrt((nu + 1)(nv + 1)) / (2 pi) (n.h)^(...).
-nu acts along the tangent x (CONTRACT: anisotropic nu runs along x), nv along y. The model is
+nu acts along the tangent x (docs/conventions.md: anisotropic nu runs along x), nv along y. The model is
 reciprocal (every factor is symmetric in k1, k2).
 """
 

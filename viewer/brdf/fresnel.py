@@ -1,6 +1,6 @@
 """Fresnel reflectance (numpy; broadcasting; scalars in give scalars out).
 
-Conventions (CONTRACT section 4):
+Conventions (docs/conventions.md):
   * ``cos_i`` is the cosine of the angle of incidence measured on the incident side
     (``cos_i >= 0``). A negative ``cos_i`` means the light arrives from the other side of the
     interface: the dielectric functions then swap the media (eta -> 1/eta, cos_i -> -cos_i),

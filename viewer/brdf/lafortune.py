@@ -5,7 +5,7 @@ Lafortune, Foo, Torrance & Greenberg 1997, "Non-linear approximation of reflecta
 Each lobe is (C o wo) . wi raised to n, i.e. |v|^n cos^n(angle(wi, v)) with v = (Cx wo.x, Cy wo.y, Cz wo.z):
 Cx = Cy = -Cz gives a Phong lobe about the mirror direction, Cx = Cy > 0 retro-reflection, Cx = Cy = 0
 an off-specular lobe toward the normal, Cx != Cy anisotropy. The specular albedo is folded into C
-(CONTRACT): Cx = Cy = -C, Cz = C behaves like the normalized Phong lobe of ks = C^n 2 pi / (n + 2).
+(by convention): Cx = Cy = -C, Cz = C behaves like the normalized Phong lobe of ks = C^n 2 pi / (n + 2).
 
 Energy: a lobe's directional albedo is at most max|C|^n 2 pi / (n + 1); with max(kd) plus the sum of
 these bounds <= 1 the BRDF conserves energy. Other values are accepted (measured fits often are not

@@ -2,7 +2,7 @@
 F(cos_o) (lecture: 'Reflectance of perfectly specular materials', L_r,s = rho_s L_i with
 rho_s = R the Fresnel reflectance).
 
-Delta-lobe conventions (CONTRACT section 4): ``eval`` and ``pdf`` are 0 for every pair of
+Delta-lobe conventions (docs/conventions.md): ``eval`` and ``pdf`` are 0 for every pair of
 directions; ``sample`` returns the mirror direction with pdf = 1 (the probability of choosing
 the only lobe) and weight = F.
 """

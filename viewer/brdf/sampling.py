@@ -166,7 +166,7 @@ def specular_probability(kd, ks):
 
 def sample_weight(f, wi, pdf):
     """(weight f cos / pdf, pdf) of sampled directions; a sample with pdf <= 0 or a weight that
-    overflows fails (CONTRACT: weight = pdf = 0)."""
+    overflows fails (the sampling convention: weight = pdf = 0)."""
     ok = pdf > 0
     with np.errstate(over="ignore"):
         weight = np.where(ok[:, None], f * wi[:, 2:3] / np.where(ok, pdf, 1.0)[:, None], 0.0)

@@ -9,7 +9,7 @@ harmonics irradiance and the split-sum DFG table.
 * ``dfg``: the (NoV, alpha) -> (A, B) table of Karis 2013 and Fdez-Agüera 2019's
   multiple-scattering compensation.
 
-Orientation everywhere (CONTRACT section 1): u = 0.5 + atan2(d.x, -d.z) / (2 pi),
+Orientation everywhere (docs/conventions.md): u = 0.5 + atan2(d.x, -d.z) / (2 pi),
 v = acos(d.y) / pi, row 0 = zenith.
 """
 

@@ -9,11 +9,11 @@ the BRDF, and with Schlick's Fresnel F = F0 + (1 - F0) Fc, Fc = (1 - v.h)^5, tha
     A = integral (f / F) (1 - Fc) cos(theta_i) dwi,   B = integral (f / F) Fc cos(theta_i) dwi.
 
 The table convention, once and for all (the axis and channel mix-ups are the most common IBL
-bug, see DESIGN.md "IBL pitfalls"):
+bug):
 
 * array ``table[i, j, c]`` of shape (size, size, 2), float32;
 * axis 0 (i): NoV = cos(theta_o) = (i + 0.5) / size (texel centres, 0 < NoV < 1);
-* axis 1 (j): alpha = (j + 0.5) / size, Walter et al. 2007's GGX alpha (CONTRACT section 1),
+* axis 1 (j): alpha = (j + 0.5) / size, Walter et al. 2007's GGX alpha (docs/conventions.md),
   *not* perceptual roughness (alpha = r^2 only in the GUI);
 * channel 0: A, the scale on F0; channel 1: B, the bias; E_ss = F0 * A + B (F90 = 1).
 

@@ -1,6 +1,6 @@
 """Lat-long (equirectangular) environment maps: directions, texels, lookups, cube maps.
 
-Orientation (CONTRACT section 1): a world direction d (right-handed, +y up) maps to
+Orientation (docs/conventions.md): a world direction d (right-handed, +y up) maps to
 
     u = 0.5 + atan2(d.x, -d.z) / (2 pi)        (u = 0.5 looks along -z, u = 0.75 along +x)
     v = acos(d.y) / pi                         (v = 0 at the zenith = row 0, the top row)

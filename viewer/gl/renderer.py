@@ -829,7 +829,7 @@ class Renderer:
 
     # ---------------------------------------------------------------- readback
     def read_linear(self, hdr) -> np.ndarray:
-        """(H, W, 3) float32 radiance, row 0 = top (CONTRACT section 1)."""
+        """(H, W, 3) float32 radiance, row 0 = top (docs/conventions.md)."""
         w, h = hdr.size
         a = np.frombuffer(hdr.read(), dtype="f4").reshape(h, w, 4)  # exact texels, no filtering
         return np.ascontiguousarray(a[::-1, :, :3])
@@ -852,7 +852,7 @@ class Renderer:
         """(linear float32, sRGB uint8) images, (H, W, 3), row 0 = top.
 
         ``supersample`` k > 1 renders k x k shading points per pixel on a regular grid (no MSAA)
-        and averages them: the box filter of CONTRACT section 1 up to 1/k^2 of the error of
+        and averages them: the box filter of docs/conventions.md up to 1/k^2 of the error of
         shading at the pixel centre (what MSAA does), at k^2 times the cost."""
         if supersample <= 1 and frames <= 1:
             hdr = self.render(scene, camera, width, height, view_mode)

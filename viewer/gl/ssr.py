@@ -1,4 +1,4 @@
-"""Screen-space reflections (issue 6): the forward pass's specular environment term replaced by
+"""Screen-space reflections: the forward pass's specular environment term replaced by
 the scene's own radiance where the reflected ray hits something visible on screen.
 
 When ``scene.render.ssr`` is on, the renderer draws the forward pass (compiled with ``SSR``
@@ -19,8 +19,8 @@ colour's mip chain, blurred by roughness) faded toward the prefiltered environme
 maximum roughness; misses take the environment. With SSR on, environment lighting is always the
 split sum (the ``ibl`` mode's sampled variants mix the specular part into their estimate).
 
-Parameters (DESIGN.md, "SSR parameter sets"): bias 0.01 and maximum distance 3 (Filament),
-thickness 0.2, maximum roughness 0.5, edge fade 0.075 (EEVEE); a stride of 2 pixels stands for
+Parameters (published defaults): bias 0.01 and maximum distance 3 (Filament),
+thickness 0.05 (0.2 streaked), maximum roughness 0.5, edge fade 0.075 (EEVEE); a stride of 2 pixels stands for
 EEVEE's trace precision, with 6 bisection steps after the stride.
 
 Hi-Z (``settings["hiz"]``, on by default; 0 = the plain DDA, kept for comparison): each frame a

@@ -1,4 +1,4 @@
-"""The CPU reference path tracer (DESIGN.md: ``pathtracer/``). It never imports GL.
+"""The CPU reference path tracer. It never imports GL.
 
 * ``geometry``       the scene as one world-space triangle soup + shading data
 * ``kernel_embree``  ray queries with Embree (``EmbreeKernel``); ``kernel_numba`` the same

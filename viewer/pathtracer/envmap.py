@@ -2,7 +2,7 @@
 lat-long radiance map, with the light-sampling strategies the integrator combines with BSDF
 sampling by multiple importance sampling (Veach 1997, ch. 9).
 
-Orientation (CONTRACT section 1): a world direction d looks up the map at
+Orientation (docs/conventions.md): a world direction d looks up the map at
 ``u = 0.5 + atan2(d.x, -d.z) / (2 pi)``, ``v = acos(d.y) / pi`` (v = 0 at the zenith = row 0),
 after the scene's rotation: ``L(d) = intensity * map(R_y(-rotation_deg) d)``.
 
@@ -39,7 +39,7 @@ def _rot_y(deg: float) -> np.ndarray:
 
 
 def direction_to_uv(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CONTRACT mapping of unit directions (N, 3) to lat-long (u, v) in [0, 1]."""
+    """Unit directions (N, 3) to lat-long (u, v) in [0, 1], as docs/conventions.md maps them."""
     u = 0.5 + np.arctan2(d[:, 0], -d[:, 2]) / (2.0 * math.pi)
     v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / math.pi
     return u, v
