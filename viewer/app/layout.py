@@ -22,6 +22,7 @@ PLOTS_FRACTION = 0.38  # ... and this fraction of what the panel leaves (outside
 LECTURE_VIEW_MIN = 0.70  # lecture mode: the 3D view keeps at least this fraction of the window width
 FONT_PX = 16.0         # the UI font at scale 1
 TITLE_K, CAPTION_K = 1.5, 1.15  # lecture title and caption sizes, times the UI font
+CAPTION_MAX = 0.35     # the lecture caption box's share of the view's height it shrinks its text to keep
 
 
 @dataclass(frozen=True)
@@ -53,9 +54,11 @@ class Rect:
 
 def window_layout(win_w: float, win_h: float, ui_scale: float, *, show_ui: bool = True, lecture: bool = False,
                   plots: bool = False, panel_open: bool = False) -> dict[str, Rect]:
-    """{"panel", "view", "plots"} in window points (y down). ``panel`` is the full side panel, or in
-    lecture mode the strip (``panel_open``: the full panel floats over the view at the lecturer's
-    request; it is then the only part allowed over the view). ``plots`` is absent when hidden."""
+    """{"panel" or "strip", "view", "plots"} in window points (y down). ``panel``: the side panel
+    (its width follows the UI scale); in lecture mode a narrow ``strip`` instead, and with
+    ``panel_open`` the full panel floating over the view at the lecturer's request (the only part
+    allowed over the view). ``plots``: the docked plots window, beside the view; absent when
+    hidden or when the view leaves no room for it (the plots window then floats)."""
     s = max(float(ui_scale), 0.1)
     out: dict[str, Rect] = {}
     left = 0.0
@@ -67,7 +70,7 @@ def window_layout(win_w: float, win_h: float, ui_scale: float, *, show_ui: bool 
             if panel_open:
                 out["panel"] = Rect(strip, 0.0, min(PANEL_WIDTH * s, 0.6 * win_w), win_h)
         else:
-            left = min(PANEL_WIDTH * s, 0.4 * win_w)
+            left = min(PANEL_WIDTH * s, 0.9 * win_w)
             out["panel"] = Rect(0.0, 0.0, left, win_h)
     right = float(win_w)
     if show_ui and plots:
@@ -75,7 +78,7 @@ def window_layout(win_w: float, win_h: float, ui_scale: float, *, show_ui: bool 
         if lecture:
             pw = max(0.0, win_w * (1.0 - LECTURE_VIEW_MIN) - left)
         else:
-            pw = min(max(PLOTS_MIN * s, PLOTS_FRACTION * rest), 0.55 * rest)
+            pw = min(max(PLOTS_MIN * s, PLOTS_FRACTION * rest), 0.5 * rest)
         if pw >= 160:  # narrower than this a plot says nothing: the view keeps the room
             right = win_w - pw
             out["plots"] = Rect(right, 0.0, pw, win_h)
@@ -111,10 +114,12 @@ def overlay_layout(view: Rect, font_px: float, measure, *, labels=(), toast: str
     ``pad`` around it). ``labels``: [(anchor_x, text)] in one row at the top, each moved right of
     the one before it when they would touch (a split divider at the left edge), wrapping to a new
     row at the view's right edge. ``bars``: [(owner Rect, what)] colour bars, each centred in its
-    owner. ``title`` / ``caption``: the lecture box at the bottom (title at TITLE_K x the font,
+    owner. Where the view is too small for all, the RMSE and then the colour bars are left out
+    (the caption never: it shrinks its text), and the toast is cut. ``title`` / ``caption``: the lecture box at the bottom (title at TITLE_K x the font,
     caption at CAPTION_K x, both wrapped to the box). Keys: "label0".., "toast", "rmse",
-    "bar0".. (the ramp), "bar0_what", "bar0_lo", "bar0_hi", "caption", plus "pad" and the text
-    sizes "title_px" / "caption_px" (as 0-size rects' x, to keep one return type)."""
+    "bar0".. (the ramp), "bar0_what", "bar0_lo", "bar0_hi", "caption" (with "caption_title" and
+    "caption_text" inside it, "caption_px": their font sizes as x, y), plus "pad" and "wrap" (the padding and the width the RMSE and
+    toast texts wrap at, as 0-size rects' x, to keep one return type)."""
     k = font_px / FONT_PX
     m, pad = 8.0 * k, 4.0 * k
     line = measure("Ag", font_px, None)[1]
@@ -131,7 +136,7 @@ def overlay_layout(view: Rect, font_px: float, measure, *, labels=(), toast: str
         if prev_right is not None and bx + w + 2 * pad > x1:  # no room on this row
             row_y += row_h + m
             row_h, bx = 0.0, x0
-        r = Rect(bx, row_y, w + 2 * pad, h + 2 * pad)
+        r = Rect(bx, row_y, max(min(w + 2 * pad, x1 - bx), 0.0), h + 2 * pad)  # clipped to the view
         out[f"label{i}"] = r
         prev_right, row_h = r.right, max(row_h, r.h)
     top = row_y + row_h + (m if row_h else 0.0)
@@ -139,12 +144,16 @@ def overlay_layout(view: Rect, font_px: float, measure, *, labels=(), toast: str
     bottom = view.bottom - m
     inner = max(view.w - 2 * m - 2 * 3 * pad, 40.0)
     if title or caption:
-        tpx, cpx = TITLE_K * font_px, CAPTION_K * font_px
-        _, th = measure(title, tpx, inner) if title else (0.0, 0.0)
-        _, ch = measure(caption, cpx, inner) if caption else (0.0, 0.0)
-        box_h = 3 * pad + th + pad + ch + 3 * pad
+        for shrink in (1.0, 0.9, 0.8, 0.7, 0.6):  # a long caption on a small view: smaller text, up
+            tpx, cpx = TITLE_K * font_px * shrink, CAPTION_K * font_px * shrink  # to CAPTION_MAX of it
+            _, th = measure(title, tpx, inner) if title else (0.0, 0.0)
+            _, ch = measure(caption, cpx, inner) if caption else (0.0, 0.0)
+            box_h = 3 * pad + th + pad + ch + 3 * pad
+            if box_h <= CAPTION_MAX * view.h or cpx * 0.9 < FONT_PX:
+                break
         r = Rect(x0, bottom - box_h, x1 - x0, box_h)
         out["caption"] = r
+        out["caption_px"] = Rect(tpx, cpx, 0.0, 0.0)  # (title size, caption size) as drawn
         out["caption_title"] = Rect(r.x + 3 * pad, r.y + 3 * pad, inner, th)
         out["caption_text"] = Rect(r.x + 3 * pad, r.y + 4 * pad + th, inner, ch)
         bottom = r.y - m
@@ -156,31 +165,36 @@ def overlay_layout(view: Rect, font_px: float, measure, *, labels=(), toast: str
         bar_y = lo_y - pad - bh
         ww, wh = measure(what, font_px, None)
         what_y = bar_y - pad - (wh + 2 * pad)
+        if what_y < top:  # no room left between the top row and the bottom stack: left out
+            break
         out[f"bar{j}"] = Rect(bx, bar_y, bw, bh)
         out[f"bar{j}_lo"] = Rect(bx, lo_y, bw * 0.3, line + 2 * pad)  # end labels share one row under the ramp
         out[f"bar{j}_hi"] = Rect(bx + bw * 0.7, lo_y, bw * 0.3, line + 2 * pad)
-        wx = max(bx + bw / 2 - ww / 2 - pad, x0)
-        out[f"bar{j}_what"] = Rect(wx, what_y, ww + 2 * pad, wh + 2 * pad)
+        wbox = min(ww + 2 * pad, x1 - x0)  # wider than the view: clipped when drawn
+        wx = max(min(bx + bw / 2 - wbox / 2, x1 - wbox), x0)
+        out[f"bar{j}_what"] = Rect(wx, what_y, wbox, wh + 2 * pad)
         bottom = what_y - m
+    wrap = max(x1 - x0 - 2 * pad, 60.0)  # the width long texts (RMSE, toast) wrap at
     if rmse:
-        w, h = measure(rmse, font_px, None)
-        r = Rect(x0, bottom - h - 2 * pad, w + 2 * pad, h + 2 * pad)
-        out["rmse"] = r
-        bottom = r.y - m
+        w, h = measure(rmse, font_px, wrap)
+        r = Rect(x0, bottom - h - 2 * pad, min(w + 2 * pad, x1 - x0), h + 2 * pad)
+        if r.y >= top:  # else no room: left out (the panel shows it too)
+            out["rmse"] = r
+            bottom = r.y - m
     # ---- the toast: under the labels, clipped above the bottom stack
     if toast:
-        wrap = max(x1 - x0 - 2 * pad, 60.0)
         w, h = measure(toast, font_px, wrap)
         h = max(0.0, min(h + 2 * pad, bottom - top))
         out["toast"] = Rect(x0, top, min(w + 2 * pad, x1 - x0), h)
     out["pad"] = Rect(pad, 0.0, 0.0, 0.0)
+    out["wrap"] = Rect(wrap, 0.0, 0.0, 0.0)
     return out
 
 
 def boxes(layout: dict[str, Rect]) -> dict[str, Rect]:
     """The drawn boxes of an ``overlay_layout`` (the parts that must not overlap): everything but
     the bookkeeping entries and the caption's inner text rects (inside the caption box)."""
-    return {k: r for k, r in layout.items() if k not in ("pad", "caption_title", "caption_text")}
+    return {k: r for k, r in layout.items() if k not in ("pad", "wrap", "caption_title", "caption_text", "caption_px")}
 
 
 def fit_rect(img_w: int, img_h: int, box: tuple) -> tuple[int, int, int, int]:

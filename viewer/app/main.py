@@ -681,42 +681,44 @@ class App:
         font, base = imgui.get_font(), imgui.get_font_size()
 
         def label(r, text, align_right=False):
-            tw = imgui.calc_text_size(text).x
+            tw = min(imgui.calc_text_size(text).x, r.w - 2 * pad) if not align_right else imgui.calc_text_size(text).x
             bx = r.right - tw - 2 * pad if align_right else r.x
+            dl.push_clip_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + w, y + h), True)  # never past the view
             dl.add_rect_filled(imgui.ImVec2(bx, r.y), imgui.ImVec2(bx + tw + 2 * pad, r.bottom), shade)
             dl.add_text(imgui.ImVec2(bx + pad, r.y + pad), white, text)
+            dl.pop_clip_rect()
 
         self.compare.draw_overlay(imgui, (x, y, w, h), lay, label)
         for i, (_, text) in enumerate(t["labels"]):
             label(lay[f"label{i}"], text)
         j = 0
-        if self.compare.overlay_bars((x, y, w, h)):
+        if self.compare.overlay_bars((x, y, w, h)) and "bar0" in lay:
             from viewer.app.compare_view import draw_colour_bar
 
             draw_colour_bar(imgui, dl, lay, 0, label, self.compare.scale, t["bars"][0][1])
             j = 1
-        if len(t["bars"]) > j:
+        if len(t["bars"]) > j and f"bar{j}" in lay:
             self.mc.draw_overlay(imgui, lay, j, label)
-        if t["rmse"]:
-            label(lay["rmse"], t["rmse"])
+        if t["rmse"] and "rmse" in lay:
+            r = lay["rmse"]
+            dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), shade)
+            dl.add_text(font, base, imgui.ImVec2(r.x + pad, r.y + pad), white, t["rmse"], lay["wrap"].x)
         if "caption" in lay:
             r = lay["caption"]
             dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom),
                                imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6)), 6.0 * base / 16)
-            from viewer.app.layout import CAPTION_K, TITLE_K
-
-            for key, text, k in (("caption_title", t["title"], TITLE_K), ("caption_text", t["caption"], CAPTION_K)):
+            px = lay["caption_px"]
+            for key, text, size in (("caption_title", t["title"], px.x), ("caption_text", t["caption"], px.y)):
                 rr = lay[key]
-                tw, _ = self._measure()(text, k * base, rr.w)
-                dl.add_text(font, k * base, imgui.ImVec2(rr.x + max((rr.w - tw) / 2, 0.0), rr.y), white, text, rr.w)
+                tw, _ = self._measure()(text, size, rr.w)
+                dl.add_text(font, size, imgui.ImVec2(rr.x + max((rr.w - tw) / 2, 0.0), rr.y), white, text, rr.w)
         if t["toast"] and "toast" in lay:
             r = lay["toast"]
             bad = any(k in t["toast"] for k in self._ERROR_WORDS)
             bg = imgui.ImVec4(0.45, 0.05, 0.05, 0.85) if bad else imgui.ImVec4(0, 0, 0, 0.6)
             dl.push_clip_rect(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), True)
             dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), imgui.get_color_u32(bg), 4.0)
-            wrap = max(w - 2 * 8.0 * base / 16 - 2 * pad, 60.0)  # as overlay_layout wrapped it
-            dl.add_text(font, base, imgui.ImVec2(r.x + pad, r.y + pad), white, t["toast"], wrap)
+            dl.add_text(font, base, imgui.ImVec2(r.x + pad, r.y + pad), white, t["toast"], lay["wrap"].x)
             dl.pop_clip_rect()
 
     # ------------------------------------------------------------------ UI scale, fullscreen
