@@ -41,6 +41,7 @@ LIGHT = (1.00, 0.92, 0.20)
 # Fresnel components: hues of their own (R keeps the material's colour), as the CLI plot's
 R_S_COLOUR, R_P_COLOUR = (0.30, 0.80, 1.00), (1.00, 0.30, 0.65)
 _CACHE_MAX = 256
+DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
 
 
 def _vec4(rgb, a=1.0):
@@ -134,7 +135,15 @@ class PlotsPanel:
         for name in materials:
             self.colour(name)
         flags = 0
+        pushed = False
         if rect is not None:
+            # docked narrow beside a projector-scaled view: the plots' text no larger than lets
+            # a plot about 380 points wide fit (never below the scale-1 size)
+            main = max(imgui.get_style().font_scale_main, 1e-6)
+            want = max(1.0, min(main, rect.w / DOCK_POINTS))
+            if want < main:
+                imgui.push_font(None, 16.0 * want / main)
+                pushed = True
             imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y))
             imgui.set_next_window_size(imgui.ImVec2(rect.w, rect.h))
             flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -161,6 +170,8 @@ class PlotsPanel:
                 imgui.end_tab_bar()
             self._select = None
         imgui.end()
+        if pushed:
+            imgui.pop_font()
 
     # ------------------------------------------------------------------ controls
     def _controls(self, materials):
