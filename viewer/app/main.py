@@ -151,8 +151,9 @@ class App:
             while not self.should_close():
                 self.frame()
                 if frames and self.frame_count >= frames:
-                    if screenshot:
-                        self.take_screenshot(screenshot)
+                    if screenshot and self.take_screenshot(screenshot) is None:
+                        print(f"brdf-viewer: error: {self.status}", file=sys.stderr)
+                        return 2
                     break
         finally:
             signal.signal(signal.SIGTERM, old)
@@ -262,7 +263,7 @@ class App:
             self.dirty = True
         self._poll_dialogs()
         self._handle_input()
-        if self.show_ui:
+        if self.show_ui and not self._view_only:
             lay = self.layout()
             if self.lecture_step >= 0:
                 self._strip(lay["strip"])
@@ -271,7 +272,8 @@ class App:
             self.plots.extents = self._extents()
             self.plots.draw(self.scene.materials, lay.get("plots"))
             self.mc.draw_windows(self._reference)
-        self.hot_reload.draw_overlay()
+        if not self._view_only:
+            self.hot_reload.draw_overlay()
         vx, vy, vw, vh = self.viewport()
         view = (vx, vy, vw, vh)
         cmp = self.compare
@@ -656,8 +658,10 @@ class App:
         toast = self._toast[0] if now - self._toast[1] <= self.TOAST_S else ""
         labels = cmp.overlay_labels(view, self._reference.spp if self._reference is not None else 0)
         bars = cmp.overlay_bars(view) + self.mc.overlay_bars(cmp.reference_rect(view))
+        if self._view_only:
+            toast = ""
         title = caption = ""
-        if self.lecture_step >= 0:
+        if self.lecture_step >= 0 and not self._view_only:
             from viewer.lecture import TOUR
 
             title = f"{self.lecture_step + 1}/{len(TOUR)}  {TOUR[self.lecture_step].title}"
@@ -1094,6 +1098,19 @@ class App:
         data = self.ctx.screen.read(viewport=(0, 0, fw, fh), components=3, alignment=1)
         return np.frombuffer(data, np.uint8).reshape(fh, fw, 3)[::-1].copy()
 
+    _view_only = False  # one frame of the view alone: no windows, no caption, no toast
+
+    def capture_view(self) -> np.ndarray:
+        """The 3D view as shown (compare view, heat maps, their labels and colour bars), without
+        the panels, the lecture caption and the status toast: (H, W, 3) uint8, row 0 = top."""
+        self._view_only = True
+        try:
+            img = self.capture_window()
+        finally:
+            self._view_only = False
+        vx, _, vw, vh = self.viewport()
+        return img[img.shape[0] - vh:, vx:vx + vw].copy()
+
     def capture_window(self) -> np.ndarray:
         """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top."""
         out = []
@@ -1246,10 +1263,17 @@ class App:
             self.status = "screenshot skipped: the window is minimized"
             return None
         try:
-            hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
-            srgb = self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
             view = list(VIEW_MODES)[self.view_mode]
-            write_png(path, srgb, png_text(self.scene, self.camera, {"view": view}))
+            extra = {"view": view, "image": self.compare.mode}
+            if self.compare.mode == "raster" and not self.mc.active:
+                # the raster alone: rendered afresh at the view's size (no overlay to keep)
+                hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
+                srgb = self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
+            else:  # what the view shows: split, side by side, heat map with its colour bar, labels
+                srgb = self.capture_view()
+                if self.compare.metrics_text():
+                    extra["metrics"] = self.compare.metrics_text()
+            write_png(path, srgb, png_text(self.scene, self.camera, extra))
         except (OSError, ViewerError) as e:
             self.status = f"screenshot failed: {e}"
             return None
@@ -1259,6 +1283,27 @@ class App:
         return Path(path)
 
 
+def check_writable(path) -> Path:
+    """``path``'s folder exists and is writable, or a ViewerError in one line (checked before the
+    window opens, so a typo in ``--screenshot`` does not cost the start-up)."""
+    p = Path(path).expanduser()
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise ViewerError(f"--screenshot {path}: the folder {folder} does not exist")
+    if p.is_dir():
+        raise ViewerError(f"--screenshot {path}: is a folder; give a file name ending in .png")
+    import tempfile
+
+    try:  # a real probe: permissions, read-only or pseudo file systems, a full disk's quota
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".brdf-viewer-probe-"):
+            pass
+    except OSError as e:
+        raise ViewerError(f"--screenshot {path}: the folder {folder} is not writable ({e.strerror or e})") from None
+    return p
+
+
 def run_app(scene_ref=None, overrides=(), size=None, frames=0, screenshot=None) -> int:
+    if screenshot:
+        check_writable(screenshot)
     app = App(scene_ref, overrides, size)
     return app.run(frames=frames, screenshot=screenshot)
