@@ -218,6 +218,7 @@ class App:
         return int(r.w) if r is not None else 0
 
     _extents_for = None
+    _said_no_room = False
 
     def _extents(self) -> dict:
         """material -> [(object, diameter)]: the smallest side of each solid object's bounding box
@@ -270,7 +271,11 @@ class App:
             if "panel" in lay:
                 self._panel(lay["panel"])
             self.plots.extents = self._extents()
-            self.plots.draw(self.scene.materials, lay.get("plots"))
+            if "plots" in lay or self.lecture_step < 0:
+                self.plots.draw(self.scene.materials, lay.get("plots"))
+            elif self.plots.visible and not self._said_no_room:  # never over the lecture's view
+                self.status = "the plots need a wider window beside the view (or a smaller UI scale, Ctrl -)"
+                self._said_no_room = True
             self.mc.draw_windows(self._reference)
         if not self._view_only:
             self.hot_reload.draw_overlay()
