@@ -60,6 +60,7 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
         import numpy as np
         from PIL import Image
         from viewer.app.main import App
+        T0 = time.time(); times = dict()
         app = App("lecture:1", size=(800, 450), restore_state=False)
         app.set_ui_scale(2.0)
         for _ in range(2):
@@ -84,6 +85,7 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
         time.sleep(0.2)
         for _ in range(2):
             app.frame()
+        times["taps"] = time.time() - T0
         out["step_after_taps"] = app.lecture_step
         out["status"] = app.status
         # a split view: the screenshot is the view as drawn (divider, labels, RMSE)
@@ -91,13 +93,15 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
         app.set_ui_scale(1.0)
         app.show_ui = False
         import glfw; glfw.set_window_size(app.window, 640, 360)
+        app.reference_view().engine_request = "cpu"  # the GPU engine's first compile takes a minute on llvmpipe
         app.set_image_mode("split")
         t0 = time.time()
         while (app._reference is None or app._reference.spp < 2) and time.time() - t0 < 120:
             app.frame(); time.sleep(0.02)
+        times["ref"] = time.time() - T0; out["engine"] = app._reference.engine
         rv = app._reference            # a still reference: the view does not change between frames
         rv.stop(); rv.update = lambda *a, **k: None  # (stop alone lets the next update restart it)
-        for _ in range(3):             # and metrics caught up with its last pass (they refresh every 0.5 s)
+        for _ in range(2):             # and metrics caught up with its last pass (they refresh every 0.5 s)
             time.sleep(0.6); app.frame()
         app.status = ""; app.TOAST_S = 0.0
         view = app.capture_view().astype(int)
@@ -112,7 +116,10 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
         app.set_image_mode("side by side")
         vx, vy, vw, vh = app.viewport()
         rr = app.compare.raster_rect((vx, vy, vw, vh)); ref = app.compare.reference_rect((vx, vy, vw, vh))
+        times["shot"] = time.time() - T0
         app.close()
+        times["closed"] = time.time() - T0
+        out["times"] = times
         out.update(shape=list(png.shape), view_shape=list(view.shape),
                    diff=float(np.abs(png - view).max()), mean=float(np.abs(png - view).mean()),
                    scene="brdf-viewer:scene" in text, image=state.get("image"), divider=int(col),
