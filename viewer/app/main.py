@@ -468,7 +468,7 @@ class App:
             self.plots.visible = not self.plots.visible
         if imgui.is_item_hovered():
             imgui.set_tooltip("BRDF plots (P)")
-        if self._prefetch is not None and not self._prefetch.done:
+        if self._prefetch is not None and not self._prefetch.done and self._prefetch.total:
             imgui.text_disabled(f"{self._prefetch.finished}/{self._prefetch.total}")
             if imgui.is_item_hovered():
                 imgui.set_tooltip(self._prefetch.progress_text())

@@ -356,10 +356,12 @@ class PlotsPanel:
                 d = data[n]
                 v = self._y(d["value"])
                 col = self.colour(n)
-                for k, (level, (xs, ys, zs)) in enumerate(shaded_quads(v[..., None] * d["wo"])):
-                    implot3d.plot_quad(label if k == 0 else f"##{label}{k}", xs, ys, zs,
-                                       implot3d.Spec(fill_color=_vec4(np.asarray(col) * level, 0.9),
-                                                     line_color=_vec4(col, 0.25), line_weight=1.0))
+                quads = shaded_quads(v[..., None] * d["wo"])
+                top = len(quads) - 1  # the legend's swatch: the brightest level, the material's colour
+                for k, (level, (xs, ys, zs)) in enumerate(quads):
+                    implot3d.plot_quad(label if k == top else f"##{label}{k}", xs, ys, zs,
+                                       implot3d.Spec(fill_color=_vec4(np.asarray(col) * level, 0.95),
+                                                     line_color=_vec4(col, 0.0), line_weight=0.0))
                 for x in d["delta"]:
                     rr = float(self._y(plots.reduce_channel(x["reflectance"], self.channel)))
                     w = x["wo"] * rr
