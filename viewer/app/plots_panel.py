@@ -489,7 +489,7 @@ class PlotsPanel:
                 implot.drag_line_x(2000 + k, dia, _vec4(col, 0.8), 1.5, implot.DragToolFlags_.no_inputs)
                 implot.tag_x(dia, _vec4(col), f"d{k + 1}")
                 if len(marks) <= 4:
-                    _label(text.split(":")[0], dia, 0.97 - 0.07 * k, left=dia > 0.5 * xmax)
+                    _label(text.split(":")[0], dia, 0.08 + 0.07 * k, left=dia > 0.5 * xmax)  # under the legend
             implot.end_plot()
 
 
