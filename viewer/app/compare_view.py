@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from viewer.app.layout import fit_rect
 from viewer.compare import auto_scale, error_map, metrics, ramp
 
 MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
@@ -75,16 +76,17 @@ class CompareView:
         return self.mode in USES_REFERENCE
 
     def raster_rect(self, view):
-        """Where the raster image goes (framebuffer pixels) and the size to render it at."""
+        """Where the raster image goes (framebuffer pixels) and the size to render it at. Side by
+        side fits the whole view's framing into each half (letterboxed), so nothing is cropped."""
         x, y, w, h = view
         if self.mode == "side by side":
-            return (x, y, w // 2, h)
+            return fit_rect(w, h, (x, y, w // 2, h))
         return view
 
     def reference_rect(self, view):
         x, y, w, h = view
         if self.mode == "side by side":
-            return (x + w // 2, y, w - w // 2, h)
+            return fit_rect(w, h, (x + w // 2, y, w - w // 2, h))
         return view
 
     # ------------------------------------------------------------------ metrics
@@ -187,41 +189,45 @@ class CompareView:
             return True
         return near
 
-    def draw_overlay(self, imgui, view_logical, ref_spp: int):
+    def metrics_text(self) -> str:
+        """The RMSE read-out, the same words in the panel and over the image (with the samples
+        per pixel of the reference the metrics were taken of); empty when there is none."""
+        m = self.metrics
+        if not (self.uses_reference and self.mode != "reference" and m and "rmse" in m):
+            return ""
+        return f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)"
+
+    def overlay_labels(self, view_logical, ref_spp: int) -> list:
+        """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``)."""
+        x, y, w, h = view_logical
+        ref_label = f"reference ({ref_spp} spp)" if ref_spp else "reference (starting...)"
+        if self.mode == "split":
+            return [(x, "raster"), (self.divider_x(view_logical), ref_label)]
+        if self.mode == "side by side":
+            return [(x, "raster"), (x + w / 2, ref_label)]
+        if self.mode == "reference":
+            return [(x, ref_label)]
+        return []
+
+    def overlay_bars(self, view_logical) -> list:
+        """[(owner rect, what)] of the colour bar of a difference view."""
+        if self.mode not in ("difference", "relative difference"):
+            return []
+        from viewer.app.layout import Rect
+
+        rel = self.mode == "relative difference"
+        return [(Rect(*view_logical), "|raster - reference| / (reference + 0.01)" if rel else "|raster - reference|")]
+
+    def draw_overlay(self, imgui, view_logical, lay: dict, label) -> None:
+        """The divider and the labels into the boxes of ``lay`` (``layout.overlay_layout``)."""
         dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
         x, y, w, h = view_logical
         white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
-        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))
-
-        def label(px, py, text):
-            size = imgui.calc_text_size(text)
-            dl.add_rect_filled(imgui.ImVec2(px - 3, py - 2), imgui.ImVec2(px + size.x + 3, py + size.y + 2), shade)
-            dl.add_text(imgui.ImVec2(px, py), white, text)
-
-        ref_label = f"reference ({ref_spp} spp)" if ref_spp else "reference (starting...)"
         if self.mode == "split":
             dx = self.divider_x(view_logical)
-            dl.add_line(imgui.ImVec2(dx, y), imgui.ImVec2(dx, y + h), white, 2.0)
-            dl.add_circle_filled(imgui.ImVec2(dx, y + h / 2), 7.0, white)
-            label(x + 8, y + 8, "raster")
-            label(max(dx + 8, x + 8), y + 8, ref_label)
-        elif self.mode == "side by side":
-            label(x + 8, y + 8, "raster")
-            label(x + w / 2 + 8, y + 8, ref_label)
-        elif self.mode == "reference":
-            label(x + 8, y + 8, ref_label)
-        if self.mode in ("difference", "relative difference"):
-            self._colour_bar(imgui, dl, view_logical, label)
-        if self.uses_reference and self.mode != "reference":
-            m = self.metrics
-            if m and "rmse" in m:
-                label(x + 8, y + h - 26 if self.mode not in ("difference", "relative difference") else y + 8,
-                      f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)")
-
-    def _colour_bar(self, imgui, dl, view_logical, label):
-        rel = self.mode == "relative difference"
-        what = "|raster - reference| / (reference + 0.01)" if rel else "|raster - reference|"
-        draw_colour_bar(imgui, dl, view_logical, label, self.scale, what)
+            k = imgui.get_font_size() / 16.0
+            dl.add_line(imgui.ImVec2(dx, y), imgui.ImVec2(dx, y + h), white, 2.0 * k)
+            dl.add_circle_filled(imgui.ImVec2(dx, y + h / 2), 7.0 * k, white)
 
     def release(self):
         if self._heat_tex is not None:
@@ -229,19 +235,18 @@ class CompareView:
             self._heat_tex = None
 
 
-def draw_colour_bar(imgui, dl, view_logical, label, scale: float, what: str, low: str = "0"):
-    """The heat maps' colour bar (``viewer.compare.ramp``) at the bottom of the view, ``low``
-    and ``scale`` at its ends and ``what`` above it; ``label(x, y, text)`` draws a text box."""
-    x, y, w, h = view_logical
-    bw, bh = min(360.0, w * 0.5), 14.0
-    bx, by = x + (w - bw) / 2, y + h - bh - 30
+def draw_colour_bar(imgui, dl, lay: dict, j: int, label, scale: float, what: str, low: str = "0"):
+    """Colour bar ``j`` of an overlay layout (``viewer.compare.ramp``): the ramp in ``bar{j}``,
+    ``low`` and ``scale`` at its ends, ``what`` above it; ``label(rect, text)`` draws a text box."""
+    r = lay[f"bar{j}"]
     n = 48
     for i in range(n):
         c = ramp(np.array([(i + 0.5) / n]))[0]
         srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
         col = imgui.get_color_u32(imgui.ImVec4(float(srgb[0]), float(srgb[1]), float(srgb[2]), 1.0))
-        dl.add_rect_filled(imgui.ImVec2(bx + bw * i / n, by), imgui.ImVec2(bx + bw * (i + 1) / n + 1, by + bh), col)
-    label(bx, by + bh + 4, low)
+        dl.add_rect_filled(imgui.ImVec2(r.x + r.w * i / n, r.y), imgui.ImVec2(r.x + r.w * (i + 1) / n + 1, r.bottom), col)
+    lo, hi = lay[f"bar{j}_lo"], lay[f"bar{j}_hi"]
+    label(lo, low)
     txt = f"{scale:.3g}"
-    label(bx + bw - imgui.calc_text_size(txt).x, by + bh + 4, txt)
-    label(bx + bw / 2 - imgui.calc_text_size(what).x / 2, by - 22, what)
+    label(hi, txt, align_right=True)
+    label(lay[f"bar{j}_what"], what)

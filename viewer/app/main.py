@@ -22,7 +22,12 @@ import numpy as np
 from viewer import ViewerError
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
-PANEL_WIDTH = 360
+from viewer.app.layout import PANEL_WIDTH  # noqa: F401 - the side panel's width at UI scale 1
+
+# single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
+# clicker) is never lost: a slow frame only delays it
+_TAP_KEYS = ("h", "f11", "c", "p", "l", "right", "page_down", "space", "left", "page_up", "escape",
+             "1", "2", "3", "4", "5", "6", "7", "8", "9", "0", "r", "f12")
 
 
 def _count(n: int, noun: str) -> str:
@@ -74,6 +79,9 @@ class App:
         implot.create_context()
         io = imgui.get_io()
         io.set_ini_filename("")  # no imgui.ini in the user's working folder
+        self._taps: list[str] = []
+        self._tap_codes = {getattr(glfw, "KEY_" + k.upper()): k for k in _TAP_KEYS}
+        glfw.set_key_callback(self.window, self._on_key)  # before imgui's backend, which chains to it
         addr = ctypes.cast(self.window, ctypes.c_void_p).value
         imgui.backends.glfw_init_for_opengl(addr, True)
         imgui.backends.opengl3_init("#version 410")
@@ -143,8 +151,9 @@ class App:
             while not self.should_close():
                 self.frame()
                 if frames and self.frame_count >= frames:
-                    if screenshot:
-                        self.take_screenshot(screenshot)
+                    if screenshot and self.take_screenshot(screenshot) is None:
+                        print(f"brdf-viewer: error: {self.status}", file=sys.stderr)
+                        return 2
                     break
         finally:
             signal.signal(signal.SIGTERM, old)
@@ -159,6 +168,8 @@ class App:
             self.save_state()
         if self._reference is not None:
             self._reference.close()
+        if self._prefetch is not None:
+            self._prefetch.stop()
         self.compare.release()
         self.mc.release()
         self.plots.close()
@@ -177,22 +188,59 @@ class App:
         self.window = None
 
     # ------------------------------------------------------------------ frame
+    panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
+
+    def layout(self):
+        """The window's parts (``viewer.app.layout.window_layout``) in window points."""
+        from viewer.app.layout import window_layout
+
+        ww, wh = self.glfw.get_window_size(self.window)
+        return window_layout(ww, wh, self.ui_scale, show_ui=self.show_ui, lecture=self.lecture_step >= 0,
+                             plots=self.plots.visible, panel_open=self.panel_open)
+
     def viewport(self):
+        """The 3D view in framebuffer pixels (x, y from the bottom-left, w, h)."""
         fw, fh = self.glfw.get_framebuffer_size(self.window)
         ww, _ = self.glfw.get_window_size(self.window)
         scale = fw / ww if ww else 1.0
-        panel = int(self.panel_width * scale) if self.show_ui else 0
-        return panel, 0, max(fw - panel, 0), fh
+        v = self.layout()["view"]
+        x0, x1 = int(round(v.x * scale)), int(round(v.right * scale))
+        return x0, 0, max(min(x1, fw) - x0, 0), fh
 
     def view_logical(self):
         """The 3D view in imgui's coordinates (window points, y down)."""
-        ww, wh = self.glfw.get_window_size(self.window)
-        panel = self.panel_width if self.show_ui else 0
-        return float(panel), 0.0, float(max(ww - panel, 0)), float(wh)
+        return self.layout()["view"].tuple()
 
     @property
     def panel_width(self) -> int:
-        return int(PANEL_WIDTH * self.ui_scale)
+        lay = self.layout()
+        r = lay.get("strip") or lay.get("panel")
+        return int(r.w) if r is not None else 0
+
+    _extents_for = None
+    _said_no_room = False
+
+    def _extents(self) -> dict:
+        """material -> [(object, diameter)]: the smallest side of each solid object's bounding box
+        (a sphere's diameter, the path through its centre), for the plots' Bouguer tab."""
+        if self._extents_for is not None and self._extents_for[0] is self.scene:
+            return self._extents_for[1]
+        out: dict = {}
+        for i, o in enumerate(self.scene.objects):
+            if o.mesh == "plane":
+                continue
+            p = o.world_positions()
+            d = float((p.max(axis=0) - p.min(axis=0)).min())
+            if d > 0:
+                label = Path(o.mesh).stem if o.mesh not in ("sphere", "cube") else f"{o.mesh} {i}"
+                out.setdefault(o.material, []).append((label, d))
+        self._extents_for = (self.scene, out)
+        return out
+
+    def _on_key(self, window, key, scancode, action, mods):
+        if action == self.glfw.PRESS and key in self._tap_codes:
+            if not mods & (self.glfw.MOD_CONTROL | self.glfw.MOD_ALT | self.glfw.MOD_SUPER):
+                self._taps.append(self._tap_codes[key])
 
     ui_scale = 1.0
 
@@ -216,11 +264,21 @@ class App:
             self.dirty = True
         self._poll_dialogs()
         self._handle_input()
-        if self.show_ui:
-            self._panel()
-            self.plots.draw(self.scene.materials)
+        if self.show_ui and not self._view_only:
+            lay = self.layout()
+            if self.lecture_step >= 0:
+                self._strip(lay["strip"])
+            if "panel" in lay:
+                self._panel(lay["panel"])
+            self.plots.extents = self._extents()
+            if "plots" in lay or self.lecture_step < 0:
+                self.plots.draw(self.scene.materials, lay.get("plots"))
+            elif self.plots.visible and not self._said_no_room:  # never over the lecture's view
+                self.status = "the plots need a wider window beside the view (or a smaller UI scale, Ctrl -)"
+                self._said_no_room = True
             self.mc.draw_windows(self._reference)
-        self.hot_reload.draw_overlay()
+        if not self._view_only:
+            self.hot_reload.draw_overlay()
         vx, vy, vw, vh = self.viewport()
         view = (vx, vy, vw, vh)
         cmp = self.compare
@@ -257,6 +315,8 @@ class App:
                 self._hdr_for = (rw_full, rh_full)
                 self._quality = "preview" if interacting else "full"
                 self.dirty = False
+                if self._step_timer is not None and not interacting:
+                    self._step_shown()
         ref_tex = None
         if (cmp.uses_reference or self.mc.active) and vw > 0 and vh > 0:
             _, _, ref_w, ref_h = cmp.reference_rect(view)
@@ -273,11 +333,7 @@ class App:
             r = self.scene.render
             cmp.draw(self.renderer, screen, view, self.hdr, ref_tex, r.exposure, r.tonemap)
             self.mc.draw_view(self.renderer, screen, cmp.reference_rect(view), self._reference)
-            cmp.draw_overlay(imgui, self.view_logical(),
-                             self._reference.spp if self._reference is not None else 0)
-            self.mc.draw_overlay(imgui, cmp.reference_rect(self.view_logical()))
-            self._lecture_overlay()
-            self._status_toast()
+            self._overlays()
         screen.viewport = (0, 0, fw, fh)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
@@ -337,17 +393,9 @@ class App:
                 self.camera.dolly(io.mouse_wheel)
                 self.dirty = True
                 self._last_interaction = time.perf_counter()
-        if not io.want_capture_keyboard:
-            if imgui.is_key_pressed(imgui.Key.r, False):
-                self.camera.reset()
-                self.dirty = True
-            if imgui.is_key_pressed(imgui.Key.f12, False):
-                self.take_screenshot()
-            self._handle_keys(imgui, io)
-
-    def _handle_keys(self, imgui, io):
-        from viewer.app.compare_view import MODES
-
+        taps, self._taps = self._taps, []
+        if io.want_capture_keyboard:  # typing into a field: the keys are the field's
+            return
         K = imgui.Key
         pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
         if io.key_ctrl:
@@ -357,41 +405,85 @@ class App:
                 self.set_ui_scale(self.ui_scale / 1.25)
             if pressed(K._0):
                 self.set_ui_scale(1.0)
-            return
-        if pressed(K.h):
+        for key in taps:
+            self.key_action(key)
+
+    def key_action(self, key: str) -> None:
+        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...)."""
+        from viewer.app.compare_view import MODES
+
+        if key == "r":
+            self.camera.reset()
+            self.dirty = True
+        elif key == "f12":
+            self.take_screenshot()
+        elif key == "h":
             self.show_ui = not self.show_ui
             self.dirty = True
-        if pressed(K.f11):
+        elif key == "f11":
             self.toggle_fullscreen()
-        if pressed(K.c):
+        elif key == "c":
             self.set_image_mode(MODES[(MODES.index(self.compare.mode) + 1) % len(MODES)])
-        if pressed(K.p):
+        elif key == "p":
             self.plots.visible = not self.plots.visible
-        if pressed(K.l):
+            self.dirty = True
+        elif key == "l":
             self.lecture(0 if self.lecture_step < 0 else None)
-        if self.lecture_step >= 0:
+        elif self.lecture_step >= 0:
             from viewer.lecture import TOUR
 
-            if pressed(K.right_arrow) or pressed(K.page_down) or pressed(K.space):
+            if key in ("right", "page_down", "space"):
                 self.lecture((self.lecture_step + 1) % len(TOUR))
-            if pressed(K.left_arrow) or pressed(K.page_up):
+            elif key in ("left", "page_up"):
                 self.lecture((self.lecture_step - 1) % len(TOUR))
-            digits = [K._1, K._2, K._3, K._4, K._5, K._6, K._7, K._8, K._9, K._0]
-            for i, k in enumerate(digits[:len(TOUR)]):
-                if pressed(k):
-                    self.lecture(i)
-            if pressed(K.escape):
+            elif key.isdigit() and (int(key) - 1) % 10 < len(TOUR):
+                self.lecture((int(key) - 1) % 10)
+            elif key == "escape":
                 self.lecture(None)
 
     # ------------------------------------------------------------------ panel
-    def _panel(self):
+    def _strip(self, rect):
+        """Lecture mode's narrow strip instead of the side panel: menu (the full panel over the
+        view), previous / next step, the step number, plots on / off."""
+        from viewer.lecture import TOUR
+
+        imgui = self.imgui
+        imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y))
+        imgui.set_next_window_size(imgui.ImVec2(rect.w, rect.h))
+        flags = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+                 | imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar)
+        imgui.push_style_var(imgui.StyleVar_.window_padding, imgui.ImVec2(2, 6))
+        imgui.begin("##lecture_strip", None, flags)
+        bw = imgui.ImVec2(rect.w - 4, 0)
+        if imgui.button("=##menu", bw):
+            self.panel_open = not self.panel_open
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("the full panel (settings, materials) over the view")
+        if imgui.button("<##prev", bw):
+            self.lecture((self.lecture_step - 1) % len(TOUR))
+        imgui.text(f"{self.lecture_step + 1}")
+        if imgui.button(">##next", bw):
+            self.lecture((self.lecture_step + 1) % len(TOUR))
+        if imgui.button("P##plots", bw):
+            self.plots.visible = not self.plots.visible
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("BRDF plots (P)")
+        if self._prefetch is not None and not self._prefetch.done and self._prefetch.total:
+            imgui.text_disabled(f"{self._prefetch.finished}/{self._prefetch.total}")
+            if imgui.is_item_hovered():
+                imgui.set_tooltip(self._prefetch.progress_text())
+        imgui.end()
+        imgui.pop_style_var()
+
+    def _panel(self, rect=None):
         from viewer.app import ui
         from viewer.gl.renderer import TONEMAPS, VIEW_MODES
 
         imgui = self.imgui
-        _, fh = self.glfw.get_window_size(self.window)
-        imgui.set_next_window_pos(imgui.ImVec2(0, 0))
-        imgui.set_next_window_size(imgui.ImVec2(self.panel_width, fh))
+        if rect is None:
+            rect = self.layout()["panel"]
+        imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y))
+        imgui.set_next_window_size(imgui.ImVec2(rect.w, rect.h))
         flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
         imgui.begin("brdf-viewer", None, flags)
         s = self.scene
@@ -434,9 +526,8 @@ class App:
                 rv = self._reference
                 imgui.text(f"reference ({rv.engine or '...'}): {rv.spp} spp, "
                            f"{rv.samples_per_second / 1e3:.1f} k samples/s")
-                m = self.compare.metrics
-                if m and "rmse" in m and self.compare.mode != "reference":
-                    imgui.text(f"RMSE {m['rmse']:.4g}, relMSE {m['relative_mse']:.4g}")
+                if self.compare.metrics_text():  # the same words as over the image
+                    imgui.text_wrapped(self.compare.metrics_text())
                 if rv.error:
                     imgui.text_wrapped(rv.error)
             ch, v = imgui.checkbox("BRDF plots (P)", self.plots.visible)
@@ -545,27 +636,99 @@ class App:
     _ERROR_WORDS = ("not loaded", "not opened", "not changed", "not saved", "failed", "error", "unknown",
                     "no file dialog", "skipped")
 
-    def _status_toast(self):
-        """The latest status line over the view for a few seconds (red for a refusal), so a file
-        that did not load is noticed even with the panel scrolled or hidden."""
+    def _measure(self):
+        """Text extents for ``layout.overlay_layout``: imgui's, at the size drawn."""
+        imgui = self.imgui
+        unscaled = imgui.get_style().font_scale_main
+
+        def measure(text, size, wrap=None):  # at the size itself: glyph advances are not linear in it
+            imgui.push_font(None, size / max(unscaled, 1e-6))
+            try:
+                v = imgui.calc_text_size(text, False, wrap if wrap else -1.0)
+            finally:
+                imgui.pop_font()
+            return v.x, v.y
+
+        return measure
+
+    def overlay_plan(self):
+        """The view's overlays as drawn this frame: (layout, texts); see ``layout.overlay_layout``."""
+        from viewer.app.layout import overlay_layout
+
+        view = self.view_logical()
+        cmp = self.compare
         now = time.perf_counter()
         if self.status and self.status != self._toast[0]:
             self._toast = (self.status, now)
-        text, since = self._toast
-        if not text or now - since > self.TOAST_S:
-            return
+        toast = self._toast[0] if now - self._toast[1] <= self.TOAST_S else ""
+        labels = cmp.overlay_labels(view, self._reference.spp if self._reference is not None else 0)
+        bars = cmp.overlay_bars(view) + self.mc.overlay_bars(cmp.reference_rect(view))
+        if self._view_only:
+            toast = ""
+        title = caption = ""
+        if self.lecture_step >= 0 and not self._view_only:
+            from viewer.lecture import TOUR
+
+            title = f"{self.lecture_step + 1}/{len(TOUR)}  {TOUR[self.lecture_step].title}"
+            caption = TOUR[self.lecture_step].caption
+        from viewer.app.layout import Rect
+
+        texts = dict(labels=labels, toast=toast, rmse=cmp.metrics_text(), bars=bars, title=title, caption=caption)
+        return overlay_layout(Rect(*view), self.imgui.get_font_size(), self._measure(), **texts), texts
+
+    def _overlays(self):
+        """Every overlay of the view, laid out by ``overlay_plan`` so none covers another."""
         imgui = self.imgui
-        x, y, w, _ = self.view_logical()
-        bad = any(k in text for k in self._ERROR_WORDS)
+        x, y, w, h = self.view_logical()
+        if w < 60 or h < 60:
+            return
+        lay, t = self.overlay_plan()
         dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
-        wrap = max(w - 40, 100)
-        size = imgui.calc_text_size(text, False, wrap)
-        x0, y0 = x + 12, y + 36
-        bg = imgui.ImVec4(0.45, 0.05, 0.05, 0.85) if bad else imgui.ImVec4(0, 0, 0, 0.6)
-        dl.add_rect_filled(imgui.ImVec2(x0 - 6, y0 - 4), imgui.ImVec2(x0 + size.x + 6, y0 + size.y + 4),
-                           imgui.get_color_u32(bg), 4.0)
-        dl.add_text(imgui.get_font(), imgui.get_font_size(), imgui.ImVec2(x0, y0),
-                    imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1)), text, wrap)
+        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
+        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))
+        pad = lay["pad"].x
+        font, base = imgui.get_font(), imgui.get_font_size()
+
+        def label(r, text, align_right=False):
+            tw = min(imgui.calc_text_size(text).x, r.w - 2 * pad) if not align_right else imgui.calc_text_size(text).x
+            bx = r.right - tw - 2 * pad if align_right else r.x
+            dl.push_clip_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + w, y + h), True)  # never past the view
+            dl.add_rect_filled(imgui.ImVec2(bx, r.y), imgui.ImVec2(bx + tw + 2 * pad, r.bottom), shade)
+            dl.add_text(imgui.ImVec2(bx + pad, r.y + pad), white, text)
+            dl.pop_clip_rect()
+
+        self.compare.draw_overlay(imgui, (x, y, w, h), lay, label)
+        for i, (_, text) in enumerate(t["labels"]):
+            label(lay[f"label{i}"], text)
+        j = 0
+        if self.compare.overlay_bars((x, y, w, h)) and "bar0" in lay:
+            from viewer.app.compare_view import draw_colour_bar
+
+            draw_colour_bar(imgui, dl, lay, 0, label, self.compare.scale, t["bars"][0][1])
+            j = 1
+        if len(t["bars"]) > j and f"bar{j}" in lay:
+            self.mc.draw_overlay(imgui, lay, j, label)
+        if t["rmse"] and "rmse" in lay:
+            r = lay["rmse"]
+            dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), shade)
+            dl.add_text(font, base, imgui.ImVec2(r.x + pad, r.y + pad), white, t["rmse"], lay["wrap"].x)
+        if "caption" in lay:
+            r = lay["caption"]
+            dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom),
+                               imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6)), 6.0 * base / 16)
+            px = lay["caption_px"]
+            for key, text, size in (("caption_title", t["title"], px.x), ("caption_text", t["caption"], px.y)):
+                rr = lay[key]
+                tw, _ = self._measure()(text, size, rr.w)
+                dl.add_text(font, size, imgui.ImVec2(rr.x + max((rr.w - tw) / 2, 0.0), rr.y), white, text, rr.w)
+        if t["toast"] and "toast" in lay:
+            r = lay["toast"]
+            bad = any(k in t["toast"] for k in self._ERROR_WORDS)
+            bg = imgui.ImVec4(0.45, 0.05, 0.05, 0.85) if bad else imgui.ImVec4(0, 0, 0, 0.6)
+            dl.push_clip_rect(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), True)
+            dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), imgui.get_color_u32(bg), 4.0)
+            dl.add_text(font, base, imgui.ImVec2(r.x + pad, r.y + pad), white, t["toast"], lay["wrap"].x)
+            dl.pop_clip_rect()
 
     # ------------------------------------------------------------------ UI scale, fullscreen
     def _load_font(self):
@@ -613,6 +776,7 @@ class App:
 
         if step is None:
             self.lecture_step = -1
+            self.panel_open = False
             self.status = "lecture mode off"
             return True
         step %= len(TOUR)
@@ -624,14 +788,37 @@ class App:
             return False
         self._set_scene(scene)
         self._enter_step(step)
-        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({1000 * (time.perf_counter() - t0):.0f} ms)"
+        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} (loading...)"
+        self._step_timer = (step, t0)  # the true time: until the step's first full frame is drawn
         return True
+
+    _step_timer = None
+    _prefetch = None
+
+    def _step_shown(self):
+        """The step's first full frame is drawn: say how long the key press took to show it."""
+        from viewer.lecture import TOUR
+
+        step, t0 = self._step_timer
+        self._step_timer = None
+        if step != self.lecture_step:
+            return
+        dt = time.perf_counter() - t0
+        why = ""
+        st = getattr(self.renderer.ibl(), "stats", {})
+        if st.get("prefilter_passes"):
+            why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
+        self.status = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})"
 
     def _enter_step(self, step: int):
         """Lecture mode on at ``step`` for the scene already shown: the matching plot."""
         from viewer.lecture import TOUR
 
         self.lecture_step = step
+        if self._prefetch is None:  # the tour's other maps, prefiltered in the background
+            from viewer.app.prefetch import Prefetch
+
+            self._prefetch = Prefetch(step)
         if TOUR[step].image:  # a step about the reference shows it
             self.set_image_mode(TOUR[step].image)
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
@@ -658,37 +845,8 @@ class App:
             if imgui.button("next >"):
                 self.lecture((self.lecture_step + 1) % len(TOUR))
             imgui.text_disabled("keys: L on/off, 1-9 0, arrows, PgUp/PgDn, Esc")
-
-    def _lecture_overlay(self):
-        if self.lecture_step < 0:
-            return
-        from viewer.lecture import TOUR
-
-        imgui = self.imgui
-        step = TOUR[self.lecture_step]
-        x, y, w, h = self.view_logical()
-        if w < 60 or h < 60:
-            return
-        dl = imgui.get_background_draw_list()  # over the 3D view, under imgui windows
-        base = imgui.get_font_size()  # text extents scale linearly with the font size
-        title = f"{self.lecture_step + 1}/{len(TOUR)}  {step.title}"
-        inner = w - 40  # the box spans the view less 8 px margins and 12 px padding
-        size = min(base * 1.6, base * inner / max(imgui.calc_text_size(title).x, 1.0))
-        cap = base * 1.15
-        k = cap / base
-        # the caption wraps to the box: measure it at the base size with the wrap width scaled back
-        cap_size = imgui.calc_text_size(step.caption, False, inner / k)
-        cw, ch = cap_size.x * k, cap_size.y * k
-        tw = imgui.calc_text_size(title).x * size / base
-        box_h = size + ch + 24
-        y0 = y + h - box_h - 8
-        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
-        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6))
-        font = imgui.get_font()
-        dl.add_rect_filled(imgui.ImVec2(x + 8, y0), imgui.ImVec2(x + w - 8, y0 + box_h), shade, 6.0)
-        dl.add_text(font, size, imgui.ImVec2(x + (w - tw) / 2, y0 + 6), white, title)
-        dl.add_text(font, cap, imgui.ImVec2(x + max((w - cw) / 2, 20), y0 + 12 + size), white, step.caption,
-                    inner)
+            if self._prefetch is not None:
+                imgui.text_wrapped(self._prefetch.progress_text())
 
     # ------------------------------------------------------------------ scenes, materials, meshes
     def _set_scene(self, scene):
@@ -945,6 +1103,19 @@ class App:
         data = self.ctx.screen.read(viewport=(0, 0, fw, fh), components=3, alignment=1)
         return np.frombuffer(data, np.uint8).reshape(fh, fw, 3)[::-1].copy()
 
+    _view_only = False  # one frame of the view alone: no windows, no caption, no toast
+
+    def capture_view(self) -> np.ndarray:
+        """The 3D view as shown (compare view, heat maps, their labels and colour bars), without
+        the panels, the lecture caption and the status toast: (H, W, 3) uint8, row 0 = top."""
+        self._view_only = True
+        try:
+            img = self.capture_window()
+        finally:
+            self._view_only = False
+        vx, _, vw, vh = self.viewport()
+        return img[img.shape[0] - vh:, vx:vx + vw].copy()
+
     def capture_window(self) -> np.ndarray:
         """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top."""
         out = []
@@ -1097,10 +1268,17 @@ class App:
             self.status = "screenshot skipped: the window is minimized"
             return None
         try:
-            hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
-            srgb = self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
             view = list(VIEW_MODES)[self.view_mode]
-            write_png(path, srgb, png_text(self.scene, self.camera, {"view": view}))
+            extra = {"view": view, "image": self.compare.mode}
+            if self.compare.mode == "raster" and not self.mc.active:
+                # the raster alone: rendered afresh at the view's size (no overlay to keep)
+                hdr = self.renderer.render(self.scene, self.camera, vw, vh, self.view_mode)
+                srgb = self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
+            else:  # what the view shows: split, side by side, heat map with its colour bar, labels
+                srgb = self.capture_view()
+                if self.compare.metrics_text():
+                    extra["metrics"] = self.compare.metrics_text()
+            write_png(path, srgb, png_text(self.scene, self.camera, extra))
         except (OSError, ViewerError) as e:
             self.status = f"screenshot failed: {e}"
             return None
@@ -1110,6 +1288,27 @@ class App:
         return Path(path)
 
 
+def check_writable(path) -> Path:
+    """``path``'s folder exists and is writable, or a ViewerError in one line (checked before the
+    window opens, so a typo in ``--screenshot`` does not cost the start-up)."""
+    p = Path(path).expanduser()
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise ViewerError(f"--screenshot {path}: the folder {folder} does not exist")
+    if p.is_dir():
+        raise ViewerError(f"--screenshot {path}: is a folder; give a file name ending in .png")
+    import tempfile
+
+    try:  # a real probe: permissions, read-only or pseudo file systems, a full disk's quota
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".brdf-viewer-probe-"):
+            pass
+    except OSError as e:
+        raise ViewerError(f"--screenshot {path}: the folder {folder} is not writable ({e.strerror or e})") from None
+    return p
+
+
 def run_app(scene_ref=None, overrides=(), size=None, frames=0, screenshot=None) -> int:
+    if screenshot:
+        check_writable(screenshot)
     app = App(scene_ref, overrides, size)
     return app.run(frames=frames, screenshot=screenshot)

@@ -12,7 +12,7 @@ only draws them. Use from the app::
     mc.draw_settings(reference_view, compare_uses_reference)   # in the side panel
     mc.draw_windows(reference_view)                            # the convergence window
     mc.draw_view(renderer, fbo, rect, reference_view)          # after the compare view
-    mc.draw_overlay(imgui, rect_logical)                       # its colour bar
+    mc.draw_overlay(imgui, layout, j, label)                   # its colour bar (bar j)
 """
 
 from __future__ import annotations
@@ -194,24 +194,25 @@ class MonteCarloPanel:
             self._key = key
         renderer.tonemap_to(fbo, self._tex, 0.0, "none", viewport=rect)  # a display colour already
 
-    def draw_overlay(self, imgui, view_logical) -> None:
+    def overlay_bars(self, view_logical) -> list:
+        """[(owner rect, what)]: the error view's colour bar, for ``layout.overlay_layout``."""
         if self.view == "off" or self._tex is None:
-            return
-        from viewer.app.compare_view import draw_colour_bar
-
-        dl = imgui.get_background_draw_list()
-        white = imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1))
-        shade = imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.55))
-
-        def label(px, py, text):
-            size = imgui.calc_text_size(text)
-            dl.add_rect_filled(imgui.ImVec2(px - 3, py - 2), imgui.ImVec2(px + size.x + 3, py + size.y + 2), shade)
-            dl.add_text(imgui.ImVec2(px, py), white, text)
+            return []
+        from viewer.app.layout import Rect
 
         what = _WHAT[self.view]
         if self.view == "samples needed":
             what += f" ({100 * self.target:g}%)"
-        draw_colour_bar(imgui, dl, view_logical, label, self.scale, what)
+        return [(Rect(*view_logical), what)]
+
+    def draw_overlay(self, imgui, lay: dict, j: int, label) -> None:
+        """Its colour bar into bar ``j`` of an overlay layout."""
+        if self.view == "off" or self._tex is None:
+            return
+        from viewer.app.compare_view import draw_colour_bar
+
+        draw_colour_bar(imgui, imgui.get_background_draw_list(), lay, j, label, self.scale,
+                        self.overlay_bars((0, 0, 1, 1))[0][1])
 
     def release(self) -> None:
         if self._tex is not None:

@@ -36,17 +36,39 @@ PALETTE = ((0.12, 0.47, 0.71), (1.00, 0.50, 0.05), (0.17, 0.63, 0.17), (0.84, 0.
            (0.68, 0.78, 0.91), (1.00, 0.73, 0.47), (0.60, 0.87, 0.54), (1.00, 0.60, 0.59),
            (0.77, 0.69, 0.84), (0.77, 0.61, 0.58), (0.97, 0.71, 0.82), (0.78, 0.78, 0.78),
            (0.86, 0.86, 0.55), (0.62, 0.85, 0.90))
-LIGHT = (0.95, 0.55, 0.10)
+# the incident direction: a colour of its own, far from every material's (a test checks it)
+LIGHT = (1.00, 0.92, 0.20)
+# Fresnel components: hues of their own (R keeps the material's colour), as the CLI plot's
+R_S_COLOUR, R_P_COLOUR = (0.30, 0.80, 1.00), (1.00, 0.30, 0.65)
 _CACHE_MAX = 256
+DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
 
 
 def _vec4(rgb, a=1.0):
     return imgui.ImVec4(float(rgb[0]), float(rgb[1]), float(rgb[2]), float(a))
 
 
-def _label(text, x, y):
-    """Text in a plot starting just right of (x, y) (plot_text centres it)."""
-    implot.plot_text(text, x, y, imgui.ImVec2(imgui.calc_text_size(text).x / 2 + 4, 0))
+def _label(text, x, y, left: bool = False):
+    """Text in a plot starting just right of (x, y), or ending just left of it (plot_text
+    centres it)."""
+    half = imgui.calc_text_size(text).x / 2 + 4
+    implot.plot_text(text, x, y, imgui.ImVec2(-half if left else half, 0))
+
+
+def same_data(a, b) -> bool:
+    """Two plot data (dicts of arrays, lists, numbers, strings) hold the same curves."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same_data(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(same_data(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return False
+        if a.dtype.kind in "fc" or b.dtype.kind in "fc":
+            return bool(np.allclose(a, b, rtol=1e-9, atol=1e-12, equal_nan=True))
+        return bool(np.array_equal(a, b))
+    return a == b
 
 
 def _params_key(p) -> str:
@@ -61,6 +83,7 @@ class PlotsPanel:
 
     def __init__(self):
         self.visible = True
+        self.extents: dict[str, list] = {}  # material -> [(object label, diameter in m)] (Bouguer tab)
         self.theta_i = 45.0  # degrees (polar, 3D lobe)
         self.phi = 0.0  # azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z)
         self.channel = "lum"
@@ -104,14 +127,30 @@ class PlotsPanel:
             implot3d.destroy_context()
             self._own_implot3d = False
 
-    def draw(self, materials: dict) -> None:
+    def draw(self, materials: dict, rect=None) -> None:
+        """The window; ``rect`` (x, y, w, h attributes, window points): docked there (beside the
+        3D view, not over it), else a free window."""
         if not self.visible:
             return
         for name in materials:
             self.colour(name)
-        imgui.set_next_window_pos(imgui.ImVec2(380, 20), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size(imgui.ImVec2(860, 700), imgui.Cond_.first_use_ever)
-        expanded, opened = imgui.begin("BRDF plots", self.visible)
+        flags = 0
+        pushed = False
+        if rect is not None:
+            # docked narrow beside a projector-scaled view: the plots' text no larger than lets
+            # a plot about 380 points wide fit (never below the scale-1 size)
+            main = max(imgui.get_style().font_scale_main, 1e-6)
+            want = max(1.0, min(main, rect.w / DOCK_POINTS))
+            if want < main:
+                imgui.push_font(None, 16.0 * want / main)
+                pushed = True
+            imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y))
+            imgui.set_next_window_size(imgui.ImVec2(rect.w, rect.h))
+            flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+        else:
+            imgui.set_next_window_pos(imgui.ImVec2(380, 20), imgui.Cond_.first_use_ever)
+            imgui.set_next_window_size(imgui.ImVec2(860, 700), imgui.Cond_.first_use_ever)
+        expanded, opened = imgui.begin("BRDF plots", self.visible, flags)
         if opened is False:
             self.visible = False
         if expanded:
@@ -131,10 +170,14 @@ class PlotsPanel:
                 imgui.end_tab_bar()
             self._select = None
         imgui.end()
+        if pushed:
+            imgui.pop_font()
 
     # ------------------------------------------------------------------ controls
     def _controls(self, materials):
-        cols = 3 if len(materials) > 4 else max(1, len(materials))
+        k = imgui.get_font_size() / 16.0
+        avail = imgui.get_content_region_avail().x
+        cols = max(1, min(len(materials), 3, int(avail // (150 * k))))
         if materials and imgui.begin_table("##plot_materials", cols, imgui.TableFlags_.sizing_stretch_same):
             for name in materials:
                 imgui.table_next_column()
@@ -155,16 +198,19 @@ class PlotsPanel:
                     imgui.set_tooltip(f"{name}: {materials[name].model}")
                 imgui.pop_id()
             imgui.end_table()
-        imgui.push_item_width(180)
+        wide = avail > 640 * k  # two controls a row when there is room
+        imgui.push_item_width(min(180 * k, max(avail - 130 * k, 60 * k)))
         _, self.theta_i = imgui.slider_float("theta_i (deg)", self.theta_i, 0.0, 89.0, "%.1f")
-        imgui.same_line()
+        if wide:
+            imgui.same_line()
         _, self.phi = imgui.slider_float("plane phi (deg)", self.phi, 0.0, 90.0, "%.0f")
         if imgui.is_item_hovered():
             imgui.set_tooltip("azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z)")
         ch, i = imgui.combo("channel", CHANNELS.index(self.channel), list(CHANNEL_LABELS))
         if ch:
             self.channel = CHANNELS[i]
-        imgui.same_line()
+        if wide:
+            imgui.same_line()
         _, self.log = imgui.checkbox("log10(1 + f cos)", self.log)
         imgui.pop_item_width()
 
@@ -216,7 +262,30 @@ class PlotsPanel:
         return imgui.ImVec2(-1, max(150.0, avail.y - lines * imgui.get_text_line_height_with_spacing()))
 
     def _legend(self):
-        implot.setup_legend(implot.Location_.north_east, implot.LegendFlags_.outside)
+        """Outside the plot when the window is wide, inside (top left, where the curves rarely
+        are) when it is docked narrow."""
+        if imgui.get_content_region_avail().x > 560 * imgui.get_font_size() / 16.0:
+            implot.setup_legend(implot.Location_.north_east, implot.LegendFlags_.outside)
+        else:
+            implot.setup_legend(implot.Location_.north_west)
+
+    def groups(self, names, data, same) -> list[tuple[str, list[str]]]:
+        """Materials whose curves are identical drawn once: [(label "a = b", [a, b])], so one
+        does not hide under the other; a message says which were merged."""
+        out: list[tuple[str, list[str]]] = []
+        for n in names:
+            for _, members in out:
+                if same(data[members[0]], data[n]):
+                    members.append(n)
+                    break
+            else:
+                out.append((n, [n]))
+        res = []
+        for _, members in out:
+            res.append((" = ".join(members), members))
+            if len(members) > 1:
+                self.messages.append(f"{', '.join(members[1:])}: the same curve as {members[0]} (drawn once)")
+        return res
 
     def _y(self, v):
         v = np.asarray(v, dtype=np.float64)
@@ -249,14 +318,15 @@ class PlotsPanel:
             implot.plot_line("light (wi)", np.array([-rmax * math.sin(ti), 0.0]), np.array([rmax * math.cos(ti), 0.0]),
                              implot.Spec(line_color=_vec4(LIGHT), line_weight=2.5))
             implot.plot_line("##mirror", np.array([0.0, rmax * math.sin(ti)]), np.array([0.0, rmax * math.cos(ti)]), grey)
-            for n in names:
+            for label, members in self.groups(names, data, same_data):
+                n = members[0]
                 d, r = data[n], curves[n]
                 t = np.radians(d["theta_o"])
-                implot.plot_line(n, r * np.sin(t), r * np.cos(t),
+                implot.plot_line(label, r * np.sin(t), r * np.cos(t),
                                  implot.Spec(line_color=_vec4(self.colour(n)), line_weight=2.0))
                 for x in d["delta"]:
                     rr = float(self._y(plots.reduce_channel(x["reflectance"], self.channel)))
-                    implot.plot_line(f"{n} (delta, R = {rr:.3g})##delta", np.array([0.0, rr * math.sin(ti)]),
+                    implot.plot_line(f"{label} (delta, R = {rr:.3g})##delta", np.array([0.0, rr * math.sin(ti)]),
                                      np.array([0.0, rr * math.cos(ti)]),
                                      implot.Spec(line_color=_vec4(self.colour(n)), line_weight=5.0))
             implot.end_plot()
@@ -281,18 +351,21 @@ class PlotsPanel:
             wi = plots.direction(self.theta_i, self.phi) * rmax
             implot3d.plot_line("light (wi)", np.array([wi[0], 0.0]), np.array([wi[1], 0.0]), np.array([wi[2], 0.0]),
                                implot3d.Spec(line_color=_vec4(LIGHT), line_weight=2.5))
-            for n in names:
+            for label, members in self.groups(names, data, same_data):
+                n = members[0]
                 d = data[n]
                 v = self._y(d["value"])
-                xs, ys, zs = (np.ascontiguousarray((v * d["wo"][..., i]).ravel()) for i in range(3))
                 col = self.colour(n)
-                implot3d.plot_surface(n, xs, ys, zs, v.shape[1], v.shape[0], 0.0, 0.0,
-                                      implot3d.Spec(fill_color=_vec4(col, 0.55), line_color=_vec4(col, 0.9),
-                                                    line_weight=1.0))
+                quads = shaded_quads(v[..., None] * d["wo"])
+                top = len(quads) - 1  # the legend's swatch: the brightest level, the material's colour
+                for k, (level, (xs, ys, zs)) in enumerate(quads):
+                    implot3d.plot_quad(label if k == top else f"##{label}{k}", xs, ys, zs,
+                                       implot3d.Spec(fill_color=_vec4(np.asarray(col) * level, 0.95),
+                                                     line_color=_vec4(col, 0.0), line_weight=0.0))
                 for x in d["delta"]:
                     rr = float(self._y(plots.reduce_channel(x["reflectance"], self.channel)))
                     w = x["wo"] * rr
-                    implot3d.plot_line(f"{n} (delta)", np.array([0.0, w[0]]), np.array([0.0, w[1]]),
+                    implot3d.plot_line(f"{label} (delta)", np.array([0.0, w[0]]), np.array([0.0, w[1]]),
                                        np.array([0.0, w[2]]), implot3d.Spec(line_color=_vec4(col), line_weight=5.0))
             implot3d.end_plot()
 
@@ -301,26 +374,32 @@ class PlotsPanel:
         ymax = max([1.0] + [float(plots.reduce_channel(d["albedo"], self.channel).max()) for d in data.values()])
         if self._albedo_stale:
             self.messages.append("(updating when the slider is released: " + ", ".join(sorted(self._albedo_stale)) + ")")
+        for n in names:
+            note = albedo_note(materials[n], data[n])
+            if note:
+                self.messages.append(f"{n}: {note}")
         size = self._plot_size()
         if implot.begin_plot("##albedo", size):
             implot.setup_axes("theta (deg) of wo", "directional albedo")
             self._legend()
             implot.setup_axes_limits(0.0, 90.0, 0.0, ymax * 1.05, implot.Cond_.always)
-            for n in names:
+            for label, members in self.groups(names, data, same_data):
+                n = members[0]
                 d = data[n]
                 col = self.colour(n)
                 stale = n in self._albedo_stale
-                implot.plot_line(n, d["theta"], plots.reduce_channel(d["albedo"], self.channel),
+                implot.plot_line(label, d["theta"], plots.reduce_channel(d["albedo"], self.channel),
                                  implot.Spec(line_color=_vec4(col, 0.4 if stale else 1.0), line_weight=2.0))
                 if d["transmissive"]:
-                    implot.plot_line(f"{n} reflected", d["theta"], plots.reduce_channel(d["reflected"], self.channel),
+                    implot.plot_line(f"{label} reflected", d["theta"], plots.reduce_channel(d["reflected"], self.channel),
                                      implot.Spec(line_color=_vec4(col, 0.6), line_weight=1.0,
                                                  marker=implot.Marker_.square, marker_size=2.0))
             implot.end_plot()
 
     def _fresnel(self, names, materials):
         _, self.inside = imgui.checkbox("light inside the denser medium (critical angle)", self.inside)
-        imgui.same_line()
+        if imgui.get_content_region_avail().x > 560 * imgui.get_font_size() / 16.0:
+            imgui.same_line()
         _, self.show_components = imgui.checkbox("R_s, R_p", self.show_components)
         ch = "g" if self.channel == "lum" else self.channel
         data, missing = {}, []
@@ -338,43 +417,43 @@ class PlotsPanel:
             self.messages.append("no Fresnel term (no index of refraction): " + ", ".join(missing))
         if self.channel == "lum" and any(not np.allclose(d["eta"], d["eta"][0]) for d in data.values()):
             self.messages.append("channel: green (a Fresnel curve is per wavelength)")
+        keys = ("type", "R", "Rs", "Rp", "thin_film", "schlick")  # the curves, not where they came from
+        groups = self.groups(list(data), data, lambda a, b: same_data({k: a[k] for k in keys if k in a},
+                                                                      {k: b[k] for k in keys if k in b}))
+        marks = fresnel_marks([(label, data[members[0]]) for label, members in groups], "rgb".index(ch))
         size = self._plot_size()
         if implot.begin_plot("##fresnel", size):
             implot.setup_axes("angle of incidence (deg)", "reflectance")
             self._legend()
             implot.setup_axes_limits(0.0, 90.0, 0.0, 1.05, implot.Cond_.always)
             c = "rgb".index(ch)
-            for k, (n, d) in enumerate(data.items()):
+            for label, members in groups:
+                n, d = members[0], data[members[0]]
                 col = self.colour(n)
-                implot.plot_line(f"{n} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
-                                 implot.Spec(line_color=_vec4(col), line_weight=2.5))
+                implot.plot_line(f"{label} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
+                                 implot.Spec(line_color=_vec4(col), line_weight=3.0))
                 if self.show_components:
-                    implot.plot_line(f"{n} R_s", d["theta"], np.ascontiguousarray(d["Rs"][:, c]),
-                                     implot.Spec(line_color=_vec4(col, 0.7), line_weight=1.0))
-                    implot.plot_line(f"{n} R_p", d["theta"], np.ascontiguousarray(d["Rp"][:, c]),
-                                     implot.Spec(line_color=_vec4(col, 0.7), line_weight=1.0,
+                    implot.plot_line(f"{label} R_s", d["theta"], np.ascontiguousarray(d["Rs"][:, c]),
+                                     implot.Spec(line_color=_vec4(R_S_COLOUR), line_weight=1.5,
+                                                 marker=implot.Marker_.square, marker_size=1.5))
+                    implot.plot_line(f"{label} R_p", d["theta"], np.ascontiguousarray(d["Rp"][:, c]),
+                                     implot.Spec(line_color=_vec4(R_P_COLOUR), line_weight=1.5,
                                                  marker=implot.Marker_.circle, marker_size=1.5))
                 if "thin_film" in d:
-                    implot.plot_line(f"{n} thin film R", d["theta"], np.ascontiguousarray(d["thin_film"][:, c]),
+                    implot.plot_line(f"{label} thin film R", d["theta"], np.ascontiguousarray(d["thin_film"][:, c]),
                                      implot.Spec(line_color=_vec4(col, 0.9), line_weight=2.0,
                                                  marker=implot.Marker_.square, marker_size=1.5))
                 if "schlick" in d:
-                    implot.plot_line(f"{n} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
+                    implot.plot_line(f"{label} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
                                      implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.0,
                                                  marker=implot.Marker_.diamond, marker_size=2.0))
-                b = float(d["brewster"][c])
-                implot.drag_line_x(1000 + 2 * k, b, _vec4(col, 0.8), 1.0, implot.DragToolFlags_.no_inputs)
-                implot.tag_x(b, _vec4(col), "B" if d["type"] != "conductor" else "pB")
-                if len(data) <= 3:  # more would overlap: the tags on the axis remain
-                    _label(f"{'Brewster' if d['type'] != 'conductor' else 'pseudo-Brewster'} {b:.1f}°",
-                           b, 1.0 - 0.07 * k)
-                crit = float(d["critical"][c])
-                if math.isfinite(crit):
-                    implot.drag_line_x(1001 + 2 * k, crit, _vec4((0.85, 0.15, 0.15)), 1.5,
-                                       implot.DragToolFlags_.no_inputs)
-                    implot.tag_x(crit, _vec4((0.85, 0.15, 0.15)), "C")
-                    if len(data) <= 3:
-                        _label(f"critical {crit:.1f}°", crit, 0.965 - 0.07 * k)
+            for k, (angle, tag, text, who) in enumerate(marks):
+                col = (0.85, 0.15, 0.15) if tag == "C" else self.colour(who)
+                implot.drag_line_x(1000 + k, angle, _vec4(col, 0.8), 1.5 if tag == "C" else 1.0,
+                                   implot.DragToolFlags_.no_inputs)
+                implot.tag_x(angle, _vec4(col), tag)
+                if len(marks) <= 4:  # more would overlap: the tags on the axis remain
+                    _label(text, angle, 0.55 - 0.07 * k, left=angle > 45.0)  # clear of the legend and curves
             implot.end_plot()
 
     def _bouguer(self, names, materials):
@@ -387,17 +466,99 @@ class PlotsPanel:
             data[n] = self._data("bouguer", n, p, fn=lambda p=p: plots.bouguer_curve(p))
         if missing:
             self.messages.append("no absorption coefficient sigma_a: " + ", ".join(missing))
+        groups = self.groups(list(data), data, same_data)
         units = sorted({d["unit"] for d in data.values()})
+        marks = bouguer_marks(data, self.extents, self.channel)
+        for _, _, text in marks:
+            self.messages.append(text)
         size = self._plot_size()
         if implot.begin_plot("##bouguer", size):
             implot.setup_axes(f"distance d ({' | '.join(units) or 'm'})", "transmittance T = exp(-sigma_a d)")
             self._legend()
-            xmax = max([float(d["d"][-1]) for d in data.values()] + [1e-9])
-            implot.setup_axes_limits(0.0, xmax, 0.0, 1.05, implot.Cond_.always)
-            for n, d in data.items():
+            xmax = max([float(d["d"][-1]) for d in data.values()] + [m[0] for m in marks] + [1e-9])
+            implot.setup_axes_limits(0.0, xmax * 1.02, 0.0, 1.05, implot.Cond_.always)
+            for label, members in groups:
+                n, d = members[0], data[members[0]]
                 col = self.colour(n)
-                implot.plot_line(f"{n} ({d['unit']})", d["d"], plots.reduce_channel(d["T"], self.channel),
+                implot.plot_line(f"{label} ({d['unit']})", d["d"], plots.reduce_channel(d["T"], self.channel),
                                  implot.Spec(line_color=_vec4(col), line_weight=2.0))
                 if d["thickness"]:
                     implot.tag_x(float(d["thickness"]), _vec4(col), "layer")
+            for k, (dia, who, text) in enumerate(marks):
+                col = self.colour(who)
+                implot.drag_line_x(2000 + k, dia, _vec4(col, 0.8), 1.5, implot.DragToolFlags_.no_inputs)
+                implot.tag_x(dia, _vec4(col), f"d{k + 1}")
+                if len(marks) <= 4:
+                    _label(text.split(":")[0], dia, 0.08 + 0.07 * k, left=dia > 0.5 * xmax)  # under the legend
             implot.end_plot()
+
+
+def fresnel_marks(curves, c: int) -> list[tuple[float, str, str, str]]:
+    """The Fresnel tab's angle marks for [(label, fresnel data)] at channel index ``c``:
+    [(angle, axis tag, text, material)], one per distinct angle and kind (two materials with the
+    same Brewster angle share one mark: no label printed twice)."""
+    out, seen = [], set()
+    for label, d in curves:
+        who = label.split(" = ")[0]
+        b = float(d["brewster"][c])
+        name = "Brewster" if d["type"] != "conductor" else "pseudo-Brewster"
+        key = (name, round(b, 1))
+        if key not in seen:
+            seen.add(key)
+            out.append((b, "B" if d["type"] != "conductor" else "pB", f"{name} {b:.1f}°", who))
+        crit = float(d["critical"][c])
+        if math.isfinite(crit) and ("critical", round(crit, 1)) not in seen:
+            seen.add(("critical", round(crit, 1)))
+            out.append((crit, "C", f"critical {crit:.1f}°", who))
+    return out
+
+
+def bouguer_marks(data: dict, extents: dict, channel: str) -> list[tuple[float, str, str]]:
+    """The Bouguer tab's marks at the diameters of the objects made of each material (the path
+    through a sphere's centre): [(diameter, material, text with T there)]."""
+    out = []
+    for n, d in data.items():
+        if d["unit"] != "m":  # a coating's thickness is in um: the objects' size is not its path
+            continue
+        for obj, dia in extents.get(n, []):
+            t = float(plots.reduce_channel(np.exp(-np.asarray(d["sigma_a"], float) * dia)[None, :], channel)[0])
+            out.append((float(dia), n, f"{obj}: diameter {dia:.3g} m, T = {t:.3g} through its centre"))
+    return out
+
+
+def albedo_note(p, d) -> str:
+    """Why a transmissive material's albedo is below 1 although it absorbs nothing: the albedo
+    adds radiance, and radiance entering a denser medium is compressed by 1/eta^2."""
+    if not d.get("transmissive") or "ior" not in p:
+        return ""
+    eta = float(p["ior"])
+    if eta <= 1.0:
+        return ""
+    a0 = float(np.mean(d["albedo"][0]))
+    flux = float(np.mean(d["reflected"][0] + eta * eta * d["transmitted"][0]))
+    return (f"albedo {a0:.2f} at normal incidence counts radiance: the transmitted radiance is scaled by "
+            f"1/eta^2 = {1 / eta ** 2:.2f} (the beam narrows entering n = {eta:g}); the energy balance "
+            f"R + eta^2 T = {flux:.2f}")
+
+
+def shaded_quads(points: np.ndarray, levels: int = 8, light=(0.35, -0.45, 0.82)):
+    """The lobe surface (grid of points (rows, cols, 3)) as quads grouped by Lambert shading
+    under a fixed light, so a few draw calls give a shaded surface: [(brightness, (xs, ys, zs))],
+    brightness in [0.35, 1]. Degenerate quads (at the lobe's tip) are kept at mid brightness."""
+    p = np.asarray(points, np.float64)
+    a, b, c, e = p[:-1, :-1], p[1:, :-1], p[1:, 1:], p[:-1, 1:]
+    n = np.cross(c - a, e - b)
+    nn = np.linalg.norm(n, axis=-1)
+    lv = np.asarray(light, float) / np.linalg.norm(light)
+    shade = np.where(nn > 1e-20, np.abs(n @ lv) / np.maximum(nn, 1e-30), 0.5)
+    bright = 0.35 + 0.65 * shade
+    idx = np.minimum((bright - 0.35) / 0.65 * levels, levels - 1).astype(int)
+    quads = np.stack([a, b, c, e], axis=-2)  # (rows-1, cols-1, 4, 3)
+    out = []
+    for k in range(levels):
+        sel = quads[idx == k]
+        if len(sel):
+            q = sel.reshape(-1, 3)
+            out.append((0.35 + 0.65 * (k + 0.5) / levels,
+                        tuple(np.ascontiguousarray(q[:, i], dtype=np.float64) for i in range(3))))
+    return out

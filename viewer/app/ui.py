@@ -74,21 +74,122 @@ def param_widget(param: Param, value, label_prefix: str = ""):
     return False, value
 
 
+# Fresnel-dependent parameters: shown only under the Fresnel variant that uses them
+FRESNEL_USES = {"ior": ("dielectric",), "eta": ("conductor",), "k": ("conductor",), "f0": ("schlick",)}
+PRESET_NONE = "(preset...)"
+_anisotropic: dict[str, bool] = {}  # per material (editor prefix): the alpha_x / alpha_y sliders open
+
+
+def preset_names(nested: bool = False) -> list[str]:
+    """The presets the picker offers (a nested material cannot be one that nests another)."""
+    from viewer.brdf.presets import PRESETS
+
+    return sorted(n for n in PRESETS if not (nested and brdf.get(PRESETS[n]["model"]).spec.nests_material))
+
+
+def preset_params(name: str) -> Params:
+    """A preset's material as validated parameters, the same as ``preset = "name"`` in a scene."""
+    from viewer.brdf.presets import get_preset
+    from viewer.brdf.spec import validate_params
+
+    raw = get_preset(name)
+    model = raw.pop("model")
+    return validate_params(brdf.get(model).spec, raw, f"preset {name}", brdf.lookup_spec)
+
+
+def shown_params(params: Params) -> list[str]:
+    """The parameter names the editor shows for ``params``: those that do something in the
+    chosen variant (``ior`` only under a dielectric Fresnel, ``eta`` / ``k`` only under a
+    conductor one and not when a measured spectral table replaces them, ``f0`` only under
+    Schlick; ``alpha_y`` not for the isotropic Blinn-Phong distribution)."""
+    spec = brdf.get(params.model).spec
+    names = [p.name for p in spec.params]
+    fresnel = params["fresnel"] if "fresnel" in names else None
+    out = []
+    for n in names:
+        if fresnel is not None and n in FRESNEL_USES and fresnel not in FRESNEL_USES[n]:
+            continue
+        if n in ("eta", "k") and "spectral" in names and params["spectral"] != "none":
+            continue
+        if n == "alpha_y" and "distribution" in names and params["distribution"] == "blinn_phong":
+            continue
+        out.append(n)
+    return out
+
+
+def perceptual(alpha: float) -> float:
+    """Perceptual roughness r of a Walter alpha (alpha = r^2)."""
+    return math.sqrt(max(float(alpha), 0.0))
+
+
+def _roughness_slider(label: str, alpha: float, lo: float, hi: float):
+    """One slider in perceptual roughness r = sqrt(alpha), labelled as such; returns (changed, alpha)."""
+    r_lo, r_hi = perceptual(max(lo, 1e-4)), perceptual(hi)
+    changed, r = imgui.slider_float(label, perceptual(alpha), r_lo, r_hi, "%.3f")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip(f"perceptual roughness r; the model's alpha = r^2 = {alpha:.4g}")
+    return changed, float(min(max(r, r_lo), r_hi)) ** 2
+
+
 def material_editor(params: Params, prefix: str, nested: bool = False):
-    """Model switch plus the model's sliders. Returns (changed, params); messages via last_error."""
+    """Preset picker, model switch and the model's sliders. Returns (changed, params); messages
+    via last_error. A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
+    an *anisotropic* toggle that reveals alpha_x / alpha_y; parameters that do nothing in the
+    chosen variant are hidden (``shown_params``)."""
     global last_error
+    presets = [PRESET_NONE] + preset_names(nested)
+    ch, i = imgui.combo(f"preset##{prefix}preset", 0, presets)
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("start this material from a preset (gold, copper, glass...): its model and values")
+    if ch and i > 0:
+        try:
+            return True, preset_params(presets[i])
+        except ViewerError as e:
+            last_error = str(e)
     names = [n for n in brdf.names() if not (nested and brdf.get(n).spec.nests_material)]
     idx = names.index(params.model) if params.model in names else 0
     changed, idx = imgui.combo(f"model##{prefix}model", idx, names)
     if changed and names[idx] != params.model:
         return True, brdf.get(names[idx]).params()
     spec = brdf.get(params.model).spec
+    by_name = {p.name: p for p in spec.params}
+    shown = shown_params(params)
     new = params
     any_change = False
+    pair = "alpha_x" in shown and "alpha_y" in by_name
+    if pair:
+        # open when asked, and always for a lobe that is anisotropic already
+        aniso = _anisotropic.get(prefix, False) or not math.isclose(params.alpha_x, params.alpha_y, rel_tol=1e-9)
+        _anisotropic[prefix] = aniso
+        if "alpha_y" not in shown:  # an isotropic distribution: one slider, no toggle
+            aniso = False
+        px = by_name["alpha_x"]
+        lo, hi = px.slider_range
+        if not aniso:
+            c, a = _roughness_slider(f"roughness r (perceptual, alpha = r^2)##{prefix}r", params.alpha_x, lo, hi)
+            if c:
+                new = new.replace(alpha_x=a, alpha_y=a)
+                any_change = True
+        if "alpha_y" in shown:
+            c, aniso = imgui.checkbox(f"anisotropic##{prefix}aniso", aniso)
+            if c:
+                _anisotropic[prefix] = aniso
+                if not aniso and not math.isclose(params.alpha_x, params.alpha_y, rel_tol=1e-9):
+                    a = math.sqrt(params.alpha_x * params.alpha_y)  # the same mean roughness, isotropic
+                    new = new.replace(alpha_x=a, alpha_y=a)
+                    any_change = True
     for p in spec.params:
-        c, v = param_widget(p, params[p.name], prefix)
-        if imgui.is_item_hovered() and p.doc:
-            imgui.set_tooltip(f"{p.doc}\n{p.allowed()}" + (f" [{p.unit}]" if p.unit else ""))
+        if p.name not in shown:
+            continue
+        if pair and p.name in ("alpha_x", "alpha_y") and not _anisotropic.get(prefix, False):
+            continue
+        if p.name == "alpha" and p.kind == "float":
+            lo, hi = p.slider_range
+            c, v = _roughness_slider(f"roughness r (perceptual, alpha = r^2)##{prefix}alpha", params[p.name], lo, hi)
+        else:
+            c, v = param_widget(p, params[p.name], prefix)
+            if imgui.is_item_hovered() and p.doc:
+                imgui.set_tooltip(f"{p.doc}\n{p.allowed()}" + (f" [{p.unit}]" if p.unit else ""))
         if c:
             try:
                 v = validate_value(p, v if p.kind != "rgb" else list(v), f"{params.model}.{p.name}", brdf.lookup_spec) \
