@@ -464,6 +464,7 @@ class App:
             if ch:
                 r.shadows = v
                 self.dirty = True
+            self._reflections_widget(r)
         self.mc.draw_settings(self.reference_view(), self.compare.uses_reference)
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self._environment_panel()
@@ -604,6 +605,23 @@ class App:
             self._fullscreen_restore = None
             glfw.set_window_monitor(self.window, None, x, y, w, h, 0)
         self.dirty = True
+
+    def _reflections_widget(self, r):
+        """Display panel: reflections / refraction (off, SSR, ray traced; viewer/app/reflections.py)."""
+        from viewer.app.reflections import MODES, TOOLTIPS, reflection_mode, set_reflection_mode
+
+        imgui = self.imgui
+        mode = reflection_mode(r)
+        imgui.text("reflections / refraction")
+        ch, i = imgui.combo("##reflections", MODES.index(mode), list(MODES))
+        if imgui.is_item_hovered():
+            imgui.set_tooltip(TOOLTIPS[MODES[i]])
+        if ch and set_reflection_mode(r, MODES[i]):
+            self.dirty = True
+        if reflection_mode(r) == "ray traced":
+            ch, v = imgui.checkbox("+ SSR on glossy lobes", bool(r.ssr))
+            if ch and set_reflection_mode(r, "ray traced", ssr_on_glossy=v):
+                self.dirty = True
 
     # ------------------------------------------------------------------ lecture mode
     def lecture(self, step: int | None):
