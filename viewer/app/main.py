@@ -653,7 +653,7 @@ class App:
         if TOUR[step].image:  # a step about the reference shows it
             self.set_image_mode(TOUR[step].image)
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
-               "bouguer": "Bouguer", "sampling": "Sampling"}.get(TOUR[step].plot)
+               "bouguer": "Bouguer", "spectral": "Spectral", "sampling": "Sampling"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
             self.plots.visible = True  # the step's plot beside its scene
