@@ -126,8 +126,9 @@ TOUR: tuple[Step, ...] = (
                 _mat("copper", "polished_copper")), "spectral"),
     Step("dispersion", "Dispersion: a flint prism and a diamond",
          "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
-         "The raster refracts with n at 587.6 nm; the reference view traces wavelengths (colour fringes).",
-         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum"), _FLOOR,
+         "The raster traces each colour channel with its own n (R 1.777, G 1.792, B 1.822): red and "
+         "blue part at the edges of what the prism and the diamond show; the reference view traces wavelengths.",
+         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True), _FLOOR,
                 '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = 0.5\n'
                 'translate = [-0.6, 0.6, 0.0]\nrotate_y_deg = 90.0\n',
                 _sphere("diamond", 0.7, 0.45), _FLOOR_MAT,
