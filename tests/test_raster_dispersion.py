@@ -47,7 +47,7 @@ def test_chain_eta_of_spectral_glass():
 
 PRISM = """
 [camera]
-position = [0.0, 0.15, 2.6]
+position = [0.0, 0.1, 3.0]
 target = [0.0, 0.0, 0.0]
 up = [0.0, 1.0, 0.0]
 fov_y = 30.0
@@ -55,7 +55,8 @@ width = 40
 height = 40
 
 [environment]
-map = "studio"
+map = "sky"
+intensity = 0.006
 
 [render]
 ibl = "split_sum"
@@ -64,7 +65,7 @@ raytrace = true
 [[objects]]
 mesh = "prism"
 material = "flint"
-scale = 0.6
+scale = 0.4
 rotate_y_deg = 90.0
 
 [materials.flint]
@@ -89,8 +90,71 @@ def test_each_channel_refracts_with_its_own_index(renderer):
         one = _scene(PRISM.replace('spectral = "SF11"', f"ior = {float(n_rgb[c])!r}"))
         singles.append(renderer.render_arrays(one, width=40, height=40)[0])
         np.testing.assert_allclose(disp[..., c], singles[-1][..., c], atol=1e-5)
-    part = np.abs(singles[2] - singles[0]).max(axis=-1)
-    assert (part > 0.05).sum() > 10, "no pixel where red and blue leave the prism differently"
-    d_line = _scene(PRISM.replace('spectral = "SF11"', "ior = 1.78472"))
-    grey = renderer.render_arrays(d_line, width=40, height=40)[0]
-    assert np.abs(disp - grey).max() > 0.05  # the fringes the single-index raster lacks
+    # the horizon seen through the prism sits higher for blue than for red: 20 pixels differ by
+    # more than 10% between the blue-index and the red-index image (measured; a tenth of that
+    # would still say the channels part)
+    rel = (np.abs(singles[2] - singles[0]) / (0.5 * (singles[2] + singles[0]) + 1e-3)).max(axis=-1)
+    assert (rel > 0.1).sum() >= 5, "no pixel where red and blue leave the prism differently"
+
+
+def _object_mask(gl_ctx, scene, w, h):
+    """Pixels whose centre ray hits the prism, eroded by one pixel (silhouettes left out)."""
+    from render_util import camera_rays
+
+    from viewer.gl.scene_textures import RayQuery, SceneTextures
+    from viewer.pathtracer.geometry import build_geometry
+
+    c = scene.camera
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, w, h).reshape(-1, 3)
+    q = RayQuery(gl_ctx)
+    with SceneTextures(gl_ctx, build_geometry(scene)) as st:
+        _, prim, _, _ = q.intersect(st, np.broadcast_to(c.position, d.shape), d)
+    q.release()
+    m = (prim >= 0).reshape(h, w)
+    e = m.copy()
+    e[1:-1, 1:-1] = m[1:-1, 1:-1] & m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+    e[0, :] = e[-1, :] = e[:, 0] = e[:, -1] = False
+    return e
+
+
+def _block_errors(img, ref, mask, k=4):
+    h, w = mask.shape
+    out = []
+    for i in range(0, h - k + 1, k):
+        for j in range(0, w - k + 1, k):
+            if mask[i:i + k, j:j + k].all():
+                a, b = img[i:i + k, j:j + k].mean(axis=(0, 1)), ref[i:i + k, j:j + k].mean(axis=(0, 1))
+                out.append(float(np.abs(a - b).sum() / max(b.sum(), 1e-6)))
+    return np.array(out)
+
+
+@pytest.mark.slow  # the spectral reference at 256 spp: minutes on 2 cores
+def test_prism_against_the_spectral_reference(renderer, gl_ctx):
+    # The SF11 prism under the studio map: every chain ends in the environment, so the raster's
+    # per-channel chains and the reference's hero wavelengths integrate the same light, and what
+    # differs is (a) one ray per channel instead of a spectrum (second order in n's spread over
+    # a channel; it shows as three offset images where the reference has a continuous fringe),
+    # (b) the box filters' sampling and (c) the reference's colour noise (four wavelengths per
+    # path). Bounds: the mean over the prism within 3% per channel (as the glass ball's bound:
+    # nothing but sampling separates them there) and the 4x4 blocks' p90 within BLOCK_P90.
+    from viewer.camera import OrbitCamera
+    from viewer.pathtracer import ReferenceRenderer
+
+    w = h = 40
+    s = _scene(PRISM)
+    mask = _object_mask(gl_ctx, s, w, h)
+    img = renderer.render_arrays(s, width=w, height=h, supersample=4)[0]
+    ref = ReferenceRenderer(s, camera=OrbitCamera.from_scene(s), width=w, height=h, max_depth=8, seed=3,
+                            workers=2)
+    try:
+        assert ref.is_spectral
+        ref.step(256)
+        r = ref.mean()
+    finally:
+        ref.close()
+    mean_err = np.abs(img[mask].mean(axis=0) - r[mask].mean(axis=0)) / r[mask].mean(axis=0)
+    blocks = _block_errors(img, r, mask)
+    print(f"prism ({mask.sum()} px): per-channel error of the mean {np.round(mean_err, 4)}, "
+          f"4x4 blocks mean {blocks.mean():.4f} p90 {np.percentile(blocks, 90):.4f}")
+    assert np.all(mean_err < 0.03)
+    assert np.percentile(blocks, 90) < BLOCK_P90
