@@ -97,6 +97,9 @@ def test_each_channel_refracts_with_its_own_index(renderer):
     assert (rel > 0.1).sum() >= 5, "no pixel where red and blue leave the prism differently"
 
 
+BLOCK_P90 = 0.25  # provisional
+
+
 def _object_mask(gl_ctx, scene, w, h):
     """Pixels whose centre ray hits the prism, eroded by one pixel (silhouettes left out)."""
     from render_util import camera_rays
