@@ -97,7 +97,12 @@ def test_each_channel_refracts_with_its_own_index(renderer):
     assert (rel > 0.1).sum() >= 5, "no pixel where red and blue leave the prism differently"
 
 
-BLOCK_P90 = 0.25  # provisional
+# The 4x4-block bound is set by the reference's noise, not by the approximation: at 40 x 40 and
+# 256 spp two spectral references with different seeds differ by p90 0.088 per block (four
+# wavelengths per path: colour noise), the raster against one of them by 0.057 (measured). 0.12
+# is that noise floor with a third more; a raster that bent every channel alike would still
+# pass it (the fringes cover a few pixels at this size), which the per-channel test above catches.
+BLOCK_P90 = 0.12
 
 
 def _object_mask(gl_ctx, scene, w, h):

@@ -49,7 +49,7 @@ def test_glass_steps_trace_and_render_finite(renderer, key):
     scene = tour_scene(i)
     assert scene.render.raytrace, key
     assert any(chain_kind(scene.materials[o.material]) != KIND_SHADED for o in scene.objects)
-    assert "reference view" not in TOUR[i].caption  # says what to see in the raster itself
+    assert "compare with the reference" not in TOUR[i].caption  # says what to see in the raster itself
     lin, _ = renderer.render_arrays(scene, width=48, height=32)
     msg = nonfinite_message(lin, f"lecture {key}")
     assert msg is None, msg
