@@ -59,6 +59,7 @@ def test_glass_steps_trace_and_render_finite(renderer, key):
     assert not np.allclose(lin, off)  # the traced glass is a different picture
 
 
+@pytest.mark.slow  # a window process with traced glass: minutes on a loaded 2-core software-GL machine
 @pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
                     reason="needs Xvfb or a display")
 def test_window_draws_the_choice(tmp_path):
