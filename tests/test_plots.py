@@ -243,6 +243,12 @@ assert panel.messages == [], panel.messages  # green glass absorbs
 panel.solo = None
 app.frame()
 assert any("ball" in m and "absorption" in m for m in panel.messages), panel.messages  # lambert does not
+panel.select_tab("Spectral")  # n, k, R(theta, lambda) of the spectral material (gold's table)
+app.frame()
+app.frame()  # the tab bar switches on the frame after the request; its content draws on this one
+assert panel.tab == "Spectral", panel.tab
+assert panel.spectral_material == "gold", panel.spectral_material
+assert any("ball" in m and "glass" in m and "spectral table" in m for m in panel.messages), panel.messages
 for tab, img in shots.items():
     assert img.std() > 10, tab
 for a, b in zip(TABS, TABS[1:]):

@@ -318,6 +318,8 @@ def test_raytrace_false_is_bit_identical(renderer, gl_ctx, step):
     from viewer.lecture import TOUR, tour_scene
 
     scene = tour_scene([s.key for s in TOUR].index(step))
+    assert scene.render.raytrace  # these steps trace their glass; the test turns it off first
+    scene.render.raytrace = False
     fresh = Renderer(gl_ctx)
     try:
         before = fresh.render_arrays(scene, width=48, height=32)[0]

@@ -42,8 +42,9 @@ def _env(spec: str) -> str:
     return f"[environment]\n{spec}\n"
 
 
-def _render(ibl: str = "split_sum", ssr: bool = False) -> str:
-    return f'[render]\nibl = "{ibl}"\nssr = {str(ssr).lower()}\nshadows = true\nmsaa = 4\n'
+def _render(ibl: str = "split_sum", ssr: bool = False, raytrace: bool = False) -> str:
+    rt = "raytrace = true\n" if raytrace else ""
+    return f'[render]\nibl = "{ibl}"\nssr = {str(ssr).lower()}\nshadows = true\nmsaa = 4\n{rt}'
 
 
 def _mat(name: str, preset: str, **extra) -> str:
@@ -68,14 +69,18 @@ TOUR: tuple[Step, ...] = (
          _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
                 _mat("ball", "lecture_lambert")), "polar"),
     Step("fresnel", "Mirror and glass with Fresnel",
-         "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (look at the rims).",
-         _scene(_camera(), _SKY, _render("split_sum"), _FLOOR, _sphere("black_glass", -0.75),
+         "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (the black glass's "
+         "rims). The clear ball refracts what lies behind it: "
+         "floor and sky upside down.",
+         _scene(_camera(), _SKY, _render("split_sum", raytrace=True), _FLOOR, _sphere("black_glass", -0.75),
                 _sphere("glass", 0.75), _FLOOR_MAT,
                 '[materials.black_glass]\nmodel = "mirror"\nfresnel = "dielectric"\nior = 1.5\n',
                 _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("tir", "Total internal reflection",
-         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects: faces turn to mirrors (compare with the reference view).",
-         _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY, _render("split_sum"), _FLOOR,
+         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects. Rays entering "
+         "the lower half of the near faces meet the bottom beyond it: the bottom turns into a mirror, "
+         "and there the cube shows the sky instead of the floor behind it.",
+         _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY, _render("split_sum", raytrace=True), _FLOOR,
                 '[[objects]]\nmesh = "cube"\nmaterial = "glass"\nscale = 0.55\n'
                 'translate = [0.0, 0.56, 0.0]\nrotate_y_deg = 35.0\n',
                 _FLOOR_MAT, _mat("glass", "lecture_air_glass")), "fresnel"),
@@ -107,8 +112,9 @@ TOUR: tuple[Step, ...] = (
          _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
                 _mat("ball", "lecture_layered")), "albedo"),
     Step("absorbing_glass", "Absorbing glass (Bouguer / Beer-Lambert)",
-         "Transmittance exp(-sigma_a d): the big sphere's longer paths come out a deeper colour than the small one's.",
-         _scene(_camera(), _SKY, _render("split_sum"), _FLOOR, _sphere("glass_big", -0.6, 0.7),
+         "Transmittance exp(-sigma_a d) over each traced path: the floor and sky seen through the big "
+         "sphere come out a deeper green than through the small one, darkest where the path is longest.",
+         _scene(_camera(), _SKY, _render("split_sum", raytrace=True), _FLOOR, _sphere("glass_big", -0.6, 0.7),
                 _sphere("glass_small", 0.9, 0.3), _FLOOR_MAT, _mat("glass_big", "lecture_absorbing_glass"),
                 _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
     Step("complex_ior", "Complex IOR: gold, silver, copper",
@@ -120,8 +126,9 @@ TOUR: tuple[Step, ...] = (
                 _mat("copper", "polished_copper")), "spectral"),
     Step("dispersion", "Dispersion: a flint prism and a diamond",
          "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
-         "The raster refracts with n at 587.6 nm; the reference view traces wavelengths (colour fringes).",
-         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum"), _FLOOR,
+         "The raster traces each colour channel with its own n (R 1.777, G 1.792, B 1.822): red and "
+         "blue part at the edges of what the prism and the diamond show; the reference view traces wavelengths.",
+         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True), _FLOOR,
                 '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = 0.5\n'
                 'translate = [-0.6, 0.6, 0.0]\nrotate_y_deg = 90.0\n',
                 _sphere("diamond", 0.7, 0.45), _FLOOR_MAT,

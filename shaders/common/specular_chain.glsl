@@ -210,15 +210,14 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
 }
 
 // The camera's hit on a mirror or smooth glass: the chain's radiance toward the camera. With
-// RT_DISPERSION (one index of refraction per colour channel) each channel is traced on its own.
+// RT_DISPERSION (a glass of the scene has one index of refraction per colour channel) each
+// channel is traced on its own, from mirrors too (a dispersive glass may be seen in one).
 vec3 rt_specular(vec3 p, vec3 wo_w, vec3 n, vec3 ng_w) {
     int kind = int(rt_texel(u_rt_row, RT_T_INFO).z + 0.5);
     if (kind == 0) return vec3(0.0);
 #ifdef RT_DISPERSION
-    if (kind == 2) {
-        return vec3(rt_chain(kind, p, -wo_w, n, ng_w, 0).r, rt_chain(kind, p, -wo_w, n, ng_w, 1).g,
-                    rt_chain(kind, p, -wo_w, n, ng_w, 2).b);
-    }
+    return vec3(rt_chain(kind, p, -wo_w, n, ng_w, 0).r, rt_chain(kind, p, -wo_w, n, ng_w, 1).g,
+                rt_chain(kind, p, -wo_w, n, ng_w, 2).b);
 #endif
     return rt_chain(kind, p, -wo_w, n, ng_w, 0);
 }

@@ -555,6 +555,7 @@ class App:
             if ch:
                 r.shadows = v
                 self.dirty = True
+            self._reflections_widget(r)
         self.mc.draw_settings(self.reference_view(), self.compare.uses_reference)
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self._environment_panel()
@@ -768,6 +769,23 @@ class App:
             glfw.set_window_monitor(self.window, None, x, y, w, h, 0)
         self.dirty = True
 
+    def _reflections_widget(self, r):
+        """Display panel: reflections / refraction (off, SSR, ray traced; viewer/app/reflections.py)."""
+        from viewer.app.reflections import MODES, TOOLTIPS, reflection_mode, set_reflection_mode
+
+        imgui = self.imgui
+        mode = reflection_mode(r)
+        imgui.text("reflections / refraction")
+        ch, i = imgui.combo("##reflections", MODES.index(mode), list(MODES))
+        if imgui.is_item_hovered():
+            imgui.set_tooltip(TOOLTIPS[MODES[i]])
+        if ch and set_reflection_mode(r, MODES[i]):
+            self.dirty = True
+        if reflection_mode(r) == "ray traced":
+            ch, v = imgui.checkbox("+ SSR on glossy lobes", bool(r.ssr))
+            if ch and set_reflection_mode(r, "ray traced", ssr_on_glossy=v):
+                self.dirty = True
+
     # ------------------------------------------------------------------ lecture mode
     def lecture(self, step: int | None):
         """Show the lecture tour's ``step`` (0-based; None ends lecture mode). The step's scene
@@ -822,7 +840,7 @@ class App:
         if TOUR[step].image:  # a step about the reference shows it
             self.set_image_mode(TOUR[step].image)
         tab = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
-               "bouguer": "Bouguer", "sampling": "Sampling"}.get(TOUR[step].plot)
+               "bouguer": "Bouguer", "spectral": "Spectral", "sampling": "Sampling"}.get(TOUR[step].plot)
         if tab:
             self.plots.select_tab(tab)
             self.plots.visible = True  # the step's plot beside its scene

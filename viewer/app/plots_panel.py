@@ -1,4 +1,5 @@
-"""The window's "BRDF plots" panel: polar lobe, 3D lobe, directional albedo, Fresnel, Bouguer and
+"""The window's "BRDF plots" panel: polar lobe, 3D lobe, directional albedo, Fresnel, Bouguer,
+spectral (n, k and R(theta, lambda) of a spectral material, as ``plot --kind spectral``) and
 sampling (histogram against pdf) plots of the scene's materials, overlaid (implot / implot3d), from the data functions of
 ``viewer.plots`` (the same numbers ``brdf-viewer plot`` draws).
 
@@ -26,7 +27,7 @@ from imgui_bundle import imgui, implot
 
 from viewer import ViewerError, plots
 
-TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Sampling")
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling")
 CHANNELS = ("lum", "r", "g", "b")
 CHANNEL_LABELS = ("luminance", "red", "green", "blue")
 # one colour per material, in the order materials are first seen (Tableau 10, then lighter tints)
@@ -241,11 +242,95 @@ class PlotsPanel:
             imgui.text("no material shown: tick one above")
             return
         {"Polar": self._polar, "3D lobe": self._lobe, "Albedo": self._albedo_tab,
-         "Fresnel": self._fresnel, "Bouguer": self._bouguer, "Sampling": self._sampling_tab}[tab](names, materials)
+         "Fresnel": self._fresnel, "Bouguer": self._bouguer, "Spectral": self._spectral,
+         "Sampling": self._sampling_tab}[tab](names, materials)
         for m in self.messages:
             imgui.text_wrapped(m)
 
     _sampling = None
+    spectral_material: str | None = None  # the Spectral tab's material (the first one with a table)
+
+    def _spectral(self, names, materials):
+        """One spectral material (``spectral = "NAME"``): n(lambda) and k(lambda); R(theta, lambda)
+        as an image with the RGB colour per angle beside it; the errors of Schlick (with the
+        spectral f0) and of the three-wavelength RGB Fresnel against the spectral integral, per
+        channel. The data are ``viewer.spectral_plot.spectral_data``, as in ``plot --kind spectral``."""
+        from viewer.spectral_plot import spectral_data
+
+        have = [n for n in names if plots.spectral_source(materials[n]) is not None]
+        missing = [n for n in names if n not in have]
+        if missing:
+            self.messages.append("no spectral table (spectral = \"NAME\"): " + ", ".join(missing))
+        if not have:
+            for m in self.messages:
+                imgui.text_wrapped(m)
+            self.messages = []
+            return
+        if self.spectral_material not in have:
+            self.spectral_material = have[0]
+        if len(have) > 1:
+            imgui.push_item_width(180)
+            ch, i = imgui.combo("material##spectral", have.index(self.spectral_material), have)
+            imgui.pop_item_width()
+            if ch:
+                self.spectral_material = have[i]
+        name = self.spectral_material
+        p = materials[name]
+        d = self._data("spectral", name, p, fn=lambda p=p: spectral_data(p))
+        imgui.text(f"{name}: {d['name']} ({d['description']}); max |error| Schlick {d['max_err_schlick']:.3f}, "
+                   f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}")
+        imgui.text_disabled(f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}; {d['source'][:90]}")
+        size = self._plot_size()
+        half = imgui.ImVec2(max(150.0, (size.x if size.x > 0 else imgui.get_content_region_avail().x) / 2 - 4),
+                            max(140.0, size.y * 0.5 - 4))
+        lam = np.ascontiguousarray(d["wavelength_nm"], dtype=np.float64)
+        if implot.begin_plot("##spectral_nk", half):
+            implot.setup_axes("wavelength (nm)", "n (solid), k (dots)")
+            self._legend()
+            ymax = max(float(np.max(d["n"])), float(np.max(d["k"])), 1.0) * 1.05
+            implot.setup_axes_limits(float(lam[0]), float(lam[-1]), 0.0, ymax, implot.Cond_.always)
+            col = self.colour(name)
+            implot.plot_line("n", lam, np.ascontiguousarray(d["n"], dtype=np.float64),
+                             implot.Spec(line_color=_vec4(col), line_weight=2.5))
+            if np.any(np.asarray(d["k"]) > 0):
+                implot.plot_line("k", lam, np.ascontiguousarray(d["k"], dtype=np.float64),
+                                 implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.5,
+                                             marker=implot.Marker_.circle, marker_size=2.0))
+            implot.end_plot()
+        imgui.same_line()
+        if implot.begin_plot("##spectral_R", half):
+            implot.setup_axes("wavelength (nm); RGB at the right", "angle of incidence (deg)")
+            x_sw0, x_sw1 = float(lam[-1]) + 10.0, float(lam[-1]) + 60.0  # the swatch column
+            implot.setup_axes_limits(float(lam[0]), x_sw1, 0.0, 90.0, implot.Cond_.always)
+            implot.push_colormap(implot.Colormap_.viridis)
+            R = np.ascontiguousarray(np.asarray(d["R"], dtype=np.float64)[::-1])  # row 0 = 90 deg, drawn on top
+            implot.plot_heatmap("R", R, 0.0, 1.0, "", implot.Point(float(lam[0]), 0.0),
+                                implot.Point(float(lam[-1]), 90.0))
+            implot.pop_colormap()
+            from viewer.colour import to_srgb8
+
+            rgb = to_srgb8(np.clip(np.asarray(d["rgb"], dtype=np.float32), 0.0, 1.0))
+            theta = np.asarray(d["theta"], dtype=np.float64)
+            dl = implot.get_plot_draw_list()
+            step = (theta[1] - theta[0]) / 2 if len(theta) > 1 else 0.5
+            for t, c in zip(theta, rgb):
+                a = implot.plot_to_pixels(x_sw0, float(min(t + step, 90.0)))
+                b = implot.plot_to_pixels(x_sw1, float(max(t - step, 0.0)))
+                dl.add_rect_filled(a, b, imgui.get_color_u32(imgui.ImVec4(*(c / 255.0), 1.0)))
+            implot.end_plot()
+        if implot.begin_plot("##spectral_err", imgui.ImVec2(-1, max(140.0, size.y * 0.5 - 4))):
+            implot.setup_axes("angle of incidence (deg)", "RGB error against the spectral integral")
+            self._legend()
+            emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3) * 1.1
+            implot.setup_axes_limits(0.0, 90.0, -emax, emax, implot.Cond_.always)
+            th = np.ascontiguousarray(d["theta"], dtype=np.float64)
+            for c, cc in enumerate(((0.85, 0.15, 0.15), (0.15, 0.65, 0.15), (0.15, 0.3, 0.9))):
+                implot.plot_line(f"Schlick ({'rgb'[c]})", th, np.ascontiguousarray(d["err_schlick"][:, c]),
+                                 implot.Spec(line_color=_vec4(cc), line_weight=2.0))
+                implot.plot_line(f"3 wavelengths ({'rgb'[c]})", th, np.ascontiguousarray(d["err_three"][:, c]),
+                                 implot.Spec(line_color=_vec4(cc, 0.8), line_weight=1.0,
+                                             marker=implot.Marker_.diamond, marker_size=2.0))
+            implot.end_plot()
 
     def _sampling_tab(self, names, materials):
         """The sampler against its pdf (``viewer.app.monte_carlo.SamplingTab``) at theta_i, phi."""

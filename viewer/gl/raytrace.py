@@ -36,8 +36,14 @@ def chain_kind(params) -> int:
 
 
 def chain_eta(params) -> np.ndarray:
-    """The index of refraction per colour channel along a chain (one value for every channel
-    today; a dispersive material gives three, and the chain traces each channel apart)."""
+    """The index of refraction per colour channel along a chain: a spectral dielectric
+    (``spectral = "NAME"``) gives its three channel centroids (``viewer.spectral.channel_ior``)
+    and the chain traces each channel apart (dispersion); any other material its one ``ior``."""
+    name = params.get("spectral", "none")
+    if params.model == "dielectric" and name not in (None, "none"):
+        from viewer import spectral
+
+        return spectral.channel_ior(name)
     return np.full(3, float(params.get("ior", 1.0)))
 
 

@@ -5,6 +5,8 @@
     ior(name, wavelength_nm)       complex n + i k (k >= 0 absorbs; 0 for the dielectrics)
     to_rgb(values, wavelength_nm)  spectrum -> linear Rec.709 RGB (CIE 1931 2 deg, D65;
                                    a flat 1 gives (1, 1, 1))
+    channel_ior(name)              one real index per RGB channel: n(lambda) averaged with the
+                                   channel's colour-matching weights (the rasterizer's dispersion)
 
 Wavelengths are in nanometres. Metals are measured tables (``data/<name>.csv``, each naming its
 source), interpolated linearly in wavelength and held constant beyond their ends; dielectrics
@@ -22,7 +24,7 @@ from viewer.spectral import colorimetry, dispersion, upsampling
 from viewer.spectral.colorimetry import rgb_weight, to_rgb
 from viewer.spectral.upsampling import rgb_to_spectrum
 
-__all__ = ["materials", "ior", "to_rgb", "is_conductor", "describe", "source", "rgb_weight",
+__all__ = ["materials", "ior", "to_rgb", "channel_ior", "is_conductor", "describe", "source", "rgb_weight",
            "rgb_to_spectrum", "colorimetry", "dispersion", "upsampling", "LAMBDA_MIN", "LAMBDA_MAX"]
 
 METALS = ("Au", "Ag", "Cu", "Al", "Cr", "Fe", "Ti")
@@ -83,3 +85,29 @@ def ior(name: str, wavelength_nm):
     else:
         out = dispersion.sellmeier(name, lam).astype(np.complex128)
     return complex(out) if np.ndim(out) == 0 else out
+
+
+@functools.lru_cache(maxsize=None)
+def _channel_ior(name: str) -> tuple[float, float, float]:
+    wl = colorimetry.tables()[0]
+    w = colorimetry.weights()                    # (3, N), each row sums to 1 (a flat spectrum is white)
+    n = np.real(ior(name, wl))
+    return tuple(float(x) for x in (w @ n) / w.sum(axis=1))
+
+
+def channel_ior(name: str) -> np.ndarray:
+    """(3,) real index of refraction per linear Rec.709 channel (R, G, B): the spectral centroid
+    of n(lambda) weighted by that channel's colour-matching response,
+
+        n_c = sum_l W_c(l) n(l) / sum_l W_c(l)      (1 nm grid, W = ``colorimetry.weights()``,
+                                                      the CIE 1931 observer under D65 in Rec.709)
+
+    the weights the channel's value is made of (RGB_c = sum_l W_c(l) v(l)). Why this average: a
+    channel renders sum_l W_c(l) L(n(l)); with L expanded to first order about n_c the linear
+    term is sum_l W_c(l) (n(l) - n_c) L'(n_c) = 0, so tracing the channel with n_c alone errs
+    only at second order in the spread of n over the channel (W is signed: the red channel's
+    negative lobe near 500 nm is kept, as it is in ``to_rgb``). For normal dispersion n falls
+    with wavelength, so n_B > n_G > n_R. The real part only: for a metal this is no model of
+    its colour (the Fresnel tables are), only of how a refracting ray would bend."""
+    _check(name)
+    return np.array(_channel_ior(name))

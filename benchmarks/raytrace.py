@@ -1,0 +1,133 @@
+"""Cost of traced specular chains: `python benchmarks/raytrace.py [--frames 3] [--quick]`
+(prints numbers, asserts nothing).
+
+Frame time of the offscreen renderer (the one the window draws with) with ``[render] raytrace``
+on and off, on three scenes: a smooth glass ball under the studio map, the lecture's glass cube
+turned 35 degrees (total internal reflection) and a Lambert sphere over a mirror floor. Sizes:
+1280 x 720 with the scene's MSAA; the window's 3D view at full quality (a 1280 x 720 window less
+its 360 px panel: 920 x 720, MSAA); and its preview while the camera moves (half that, no MSAA:
+460 x 360), which is what must stay interactive. The first frame of each configuration
+(shader compilation, BVH upload, IBL prefiltering) is rendered at 64 x 36 first and left out.
+``--quick``: the preview size only. The preview comes first, so a cut-short run still says it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+GLASS_BALL = """
+[camera]
+position = [0.0, 0.3, 3.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 30.0
+[environment]
+map = "studio"
+[render]
+ibl = "split_sum"
+[[objects]]
+mesh = "sphere"
+material = "glass"
+scale = 0.6
+[materials.glass]
+preset = "lecture_air_glass"
+"""
+
+MIRROR_FLOOR = """
+[camera]
+position = [0.0, 1.2, 3.2]
+target = [0.0, 0.4, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 40.0
+[environment]
+constant = [0.2, 0.25, 0.3]
+[render]
+ibl = "split_sum"
+shadows = true
+[[lights]]
+type = "point"
+position = [-2.0, 4.0, 2.5]
+intensity = [30.0, 30.0, 30.0]
+[[objects]]
+mesh = "sphere"
+material = "ball"
+translate = [0.0, 0.6, 0.0]
+scale = 0.5
+[[objects]]
+mesh = "plane"
+material = "floor"
+scale = 3.0
+[materials.ball]
+model = "lambert"
+albedo = [0.7, 0.2, 0.15]
+[materials.floor]
+model = "mirror"
+fresnel = "none"
+"""
+
+SIZES = (("window preview 460x360, no MSAA", 460, 360, 0), ("window view 920x720, MSAA", 920, 720, None),
+         ("1280x720, MSAA", 1280, 720, None))
+
+
+def _scenes():
+    import tomllib
+
+    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene import parse_scene
+
+    return {"glass ball": parse_scene(tomllib.loads(GLASS_BALL), None),
+            "TIR cube (lecture)": tour_scene([s.key for s in TOUR].index("tir")),
+            "mirror floor": parse_scene(tomllib.loads(MIRROR_FLOOR), None)}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=2, help="timed frames per configuration (median)")
+    ap.add_argument("--quick", action="store_true", help="the preview size only")
+    args = ap.parse_args(argv)
+
+    from viewer.camera import OrbitCamera
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+
+    ctx = create_offscreen_context()
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"GL: {ctx.info['GL_RENDERER']} | {os.cpu_count()} CPU cores | load average {load:.1f} at start | "
+          f"median of {args.frames} frames")
+    r = Renderer(ctx)
+    sizes = SIZES[:1] if args.quick else SIZES
+    print(f"{'size':34s} {'scene':20s} {'raytrace off':>14s} {'raytrace on':>14s} {'ratio':>6s}")
+    scenes = _scenes()
+    try:
+        for label, w, h, msaa in sizes:
+            for name, scene in scenes.items():
+                cam = OrbitCamera.from_scene(scene)
+                scene.render.ssr = False
+                med = {}
+                for rt in (False, True):
+                    scene.render.raytrace = rt
+                    r.render(scene, cam, 64, 36, msaa=msaa)  # compile, upload, prefilter
+                    ctx.finish()
+                    ts = []
+                    for _ in range(args.frames):
+                        t = time.perf_counter()
+                        r.render(scene, cam, w, h, msaa=msaa)
+                        ctx.finish()
+                        ts.append(time.perf_counter() - t)
+                    med[rt] = statistics.median(ts)
+                print(f"{label:34s} {name:20s} {1000 * med[False]:11.1f} ms {1000 * med[True]:11.1f} ms "
+                      f"{med[True] / med[False]:5.1f}x", flush=True)
+    finally:
+        r.release()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

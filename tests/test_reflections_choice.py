@@ -1,0 +1,98 @@
+"""The window's reflections / refraction choice (viewer/app/reflections.py) and the lecture steps
+that trace their glass: the choice maps to the scene's [render] keys and back, the steps render
+finite with ray tracing on, and the choice changes what the window draws."""
+
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from viewer.scene import RenderSettings
+
+
+def test_choice_maps_to_scene_keys():
+    from viewer.app.reflections import MODES, reflection_mode, set_reflection_mode
+
+    r = RenderSettings()
+    assert reflection_mode(r) == "off" and (r.ssr, r.raytrace) == (False, False)
+    expect = {"off": (False, False), "SSR": (True, False), "ray traced": (False, True)}
+    for mode in MODES:
+        for start in MODES:  # from every other mode
+            set_reflection_mode(r, start)
+            set_reflection_mode(r, mode)
+            assert (r.ssr, r.raytrace) == expect[mode], (start, mode)
+            assert reflection_mode(r) == mode
+    # ray traced with SSR kept for the glossy lobes the chain does not trace
+    assert set_reflection_mode(r, "ray traced", ssr_on_glossy=True)
+    assert (r.ssr, r.raytrace) == (True, True) and reflection_mode(r) == "ray traced"
+    assert not set_reflection_mode(r, "ray traced")  # unchanged: keeps its SSR box
+    assert (r.ssr, r.raytrace) == (True, True)
+    # a scene file with both keys reads as ray traced
+    r2 = RenderSettings()
+    r2.ssr, r2.raytrace = True, True
+    assert reflection_mode(r2) == "ray traced"
+    with pytest.raises(ValueError, match="unknown mode"):
+        set_reflection_mode(r, "path traced")
+
+
+TRACED_STEPS = ("fresnel", "tir", "absorbing_glass", "dispersion")
+
+
+@pytest.mark.parametrize("key", TRACED_STEPS)
+def test_glass_steps_trace_and_render_finite(renderer, key):
+    from viewer.finite import nonfinite_message
+    from viewer.gl.raytrace import KIND_SHADED, chain_kind
+    from viewer.lecture import TOUR, tour_scene
+
+    i = [s.key for s in TOUR].index(key)
+    scene = tour_scene(i)
+    assert scene.render.raytrace, key
+    assert any(chain_kind(scene.materials[o.material]) != KIND_SHADED for o in scene.objects)
+    assert "compare with the reference" not in TOUR[i].caption  # says what to see in the raster itself
+    lin, _ = renderer.render_arrays(scene, width=48, height=32)
+    msg = nonfinite_message(lin, f"lecture {key}")
+    assert msg is None, msg
+    assert lin.min() >= 0.0
+    scene.render.raytrace = False
+    off, _ = renderer.render_arrays(scene, width=48, height=32)
+    assert not np.allclose(lin, off)  # the traced glass is a different picture
+
+
+@pytest.mark.slow  # a window process with traced glass: minutes on a loaded 2-core software-GL machine
+@pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
+                    reason="needs Xvfb or a display")
+def test_window_draws_the_choice(tmp_path):
+    # The window on the TIR step: switching the choice from ray traced to off changes the keys
+    # and the image (the cube goes from mirrors of the sky to one dim panel).
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent(f"""
+        import numpy as np
+        from viewer.app.main import App
+        from viewer.app.reflections import reflection_mode, set_reflection_mode
+        # small (a 200 x 300 view beside the panel) and no MSAA: software GL traces every pixel
+        app = App("lecture:3", ["render.msaa=0"], size=(560, 300), restore_state=False)
+        try:
+            app.plots.visible = False
+            app.frame()
+            assert reflection_mode(app.scene.render) == "ray traced"
+            a = app.capture_window()
+            set_reflection_mode(app.scene.render, "off"); app.dirty = True
+            b = app.capture_window()
+            assert (app.scene.render.raytrace, app.scene.render.ssr) == (False, False)
+            print("DIFF", float(np.abs(a.astype(float) - b.astype(float)).mean()))
+        finally:
+            app.close()
+    """)
+    env = dict(os.environ)
+    env["BRDF_VIEWER_STATE"] = str(tmp_path / "state.toml")
+    cmd = [sys.executable, "-c", code]
+    if not env.get("DISPLAY"):
+        cmd = ["xvfb-run", "-a"] + cmd
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=400)
+    assert r.returncode == 0, r.stderr[-2000:]
+    diff = float(r.stdout.split("DIFF")[1])
+    assert diff > 0.5, diff
