@@ -17,7 +17,9 @@ the running sums, the rest copy theirs; two RGBA32F targets per ping-pong side h
 sample ``s`` of pixel ``(x, y)`` are a hash of ``(x, y, s, seed)`` (``shaders/common/rng.glsl``),
 so an image depends on the seed and the number of samples only, never on how the passes were
 cut into bands. Programs are compiled for what the scene uses (its models, environment kind,
-number of lights, layered materials with a delta base) and cached by that recipe.
+number of lights, layered materials with a delta base) and for the estimator's options
+(``strategy``, ``mis_heuristic``, ``russian_roulette``, as ``ReferenceRenderer`` takes them:
+each a compile-time variant of the pass), and cached by that recipe.
 """
 
 from __future__ import annotations
@@ -32,9 +34,10 @@ from viewer.brdf.glsl import generate_dispatch, models_used, pack_material
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.pathtracer.integrator import RenderSetup, check_options
 
 MAX_MATERIALS = 64                 # pathtrace.frag MAX_MATERIALS
+STRATEGY_CODE = {"mis": 0, "bsdf": 1, "light": 2}   # pathtrace.frag STRATEGY
 KIND_CODE = {"smooth": 0, "delta": 1, "mixed": 2}
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
@@ -93,15 +96,21 @@ def release_programs(ctx) -> None:
 
 class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
-    ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here)."""
+    ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
+    ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
+    ``ReferenceRenderer``."""
 
     engine = "gpu"
     is_spectral = False  # RGB only: dispersive scenes go to the cpu engine (viewer.gpupt.select)
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
-                 env_image=None, ctx=None, spp_pass: int = 1):
+                 env_image=None, ctx=None, spp_pass: int = 1, strategy: str = "mis",
+                 mis_heuristic: str = "power", russian_roulette: bool = True):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
+        check_options(strategy, mis_heuristic)
+        self.strategy, self.mis_heuristic = strategy, mis_heuristic
+        self.russian_roulette = bool(russian_roulette)
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
         if ctx is None:
@@ -114,12 +123,24 @@ class GpuReferenceRenderer:
         self._textures: list = []
         self._targets: list = []
         self.rows_per_pass = None           # adapted by step_for
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image))
+        self._set_setup(self._make_setup(scene, camera, width, height))
 
     # ------------------------------------------------------------------ setup
-    def reset(self, scene, camera=None, width=None, height=None):
-        """Start over on a changed scene, camera or size (the programs stay cached)."""
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image))
+    def _make_setup(self, scene, camera, width, height) -> RenderSetup:
+        return RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
+                                      strategy=self.strategy, mis_heuristic=self.mis_heuristic,
+                                      russian_roulette=self.russian_roulette)
+
+    def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
+              russian_roulette=None):
+        """Start over on a changed scene, camera or size (the programs stay cached); the
+        estimator's options change where given (None: as before)."""
+        check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
+        self.strategy = strategy or self.strategy
+        self.mis_heuristic = mis_heuristic or self.mis_heuristic
+        if russian_roulette is not None:
+            self.russian_roulette = bool(russian_roulette)
+        self._set_setup(self._make_setup(scene, camera, width, height))
 
     def _release_scene(self):
         for t in self._textures + self._targets:
@@ -193,6 +214,12 @@ class GpuReferenceRenderer:
         defines = {"ENV_MODE": str(self.env_mode), "N_LIGHTS": str(len(s.lights))}
         if any(m.kind == "mixed" for m in s.materials):
             defines["HAS_MIXED"] = "1"
+        if s.strategy != "mis" and self.env_mode != 0:   # strategies differ only in reaching the environment
+            defines["STRATEGY"] = str(STRATEGY_CODE[s.strategy])
+        if s.strategy == "mis" and s.mis_heuristic == "balance" and self.env_mode != 0:   # the heuristic matters only to MIS
+            defines["BALANCE_HEURISTIC"] = "1"
+        if not s.russian_roulette:
+            defines["NO_ROULETTE"] = "1"
         return models, tuple(sorted(defines.items()))
 
     def _program(self):
