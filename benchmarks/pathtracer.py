@@ -392,29 +392,42 @@ def save_diff_png(path, ours, ref):
 
 # ----------------------------------------------------------------------------- e. engines
 
-def _timed_engine(make, seconds):
-    """(samples/s, per-sample variance mean, image mean, spp timed, warm-up s) of a renderer
-    made by ``make()``: one warm-up sample (compiles, starts the pool), then whole samples per
-    pixel until ``seconds`` have passed (at least one)."""
+def _timed_engine(make, seconds, min_spp=0):
+    """(samples/s, per-sample variance (mean over pixels and channels) or None, image mean,
+    samples timed, warm-up s) of a renderer made by ``make()``. Warm-up: ``warm_up()`` (programs
+    compiled, worker pool up). The gpu engine is timed by ``step_for`` (bands of rows, as the
+    window runs it) for ``seconds``; the cpu engine by whole samples per pixel until ``seconds``
+    have passed (at least one). ``min_spp``: then render up to that many samples per pixel, for
+    the variance (not timed)."""
     t0 = time.perf_counter()
     r = make()
     try:
-        r.step(1)
+        r.warm_up()
         warm = time.perf_counter() - t0
-        n = 0
         t1 = time.perf_counter()
-        while n == 0 or time.perf_counter() - t1 < seconds:
-            r.step(1)
-            n += 1
+        if hasattr(r, "step_for"):
+            n = 0
+            while time.perf_counter() - t1 < seconds:
+                n += r.step_for(min(0.5, seconds))
+        else:
+            spp0 = r.spp
+            while r.spp == spp0 or time.perf_counter() - t1 < seconds:
+                r.step(1)
+            n = (r.spp - spp0) * r.width * r.height
         dt = time.perf_counter() - t1
-        m, v, spp = r.mean().astype(np.float64), r.variance().astype(np.float64), r.spp
+        var = mean = None
+        if min_spp:
+            if r.spp < min_spp:
+                r.step(min_spp - r.spp)
+            m, v = r.mean().astype(np.float64), r.variance().astype(np.float64)
+            v = np.where(np.isfinite(v), v, 0.0)
+            var, mean = float(np.mean(v)) * r.spp, float(np.mean(m))
     finally:
         r.close()
-    v = np.where(np.isfinite(v), v, 0.0)
-    return r.width * r.height * n / dt, float(np.mean(v)) * spp, float(np.mean(m)), n, warm
+    return n / dt, var, mean, n, warm
 
 
-def section_engines(seconds: float, skip_mitsuba: bool):
+def section_engines(seconds: float, skip_mitsuba: bool, var_spp: int = 8):
     from viewer.gl.context import GLUnavailable, create_offscreen_context
     from viewer.gpupt.engine import GpuReferenceRenderer, release_programs
     from viewer.gpupt.select import gl_renderer_name, is_software
@@ -433,6 +446,7 @@ def section_engines(seconds: float, skip_mitsuba: bool):
     cases = [("bench.toml", bench, 256, 256), ("bench.toml", bench, 1280, 720),
              ("gallery", load_scene("gallery"), 640, 360)]
     rows = {}
+    variance = None
     for label, scene, w, h in cases:
         for engine in ("cpu", "gpu"):
             if engine == "gpu" and ctx is None:
@@ -443,14 +457,19 @@ def section_engines(seconds: float, skip_mitsuba: bool):
                     return ReferenceRenderer(scene, width=w, height=h, max_depth=8, seed=1)
                 return GpuReferenceRenderer(scene, width=w, height=h, max_depth=8, seed=1, ctx=ctx)
 
+            # the variance (for the time to 1%) from the cpu engine at 256x256: the same estimator
+            # as the gpu engine's, with the same variance (tests/test_gpu_strategies)
+            want = var_spp if (engine, w) == ("cpu", 256) and label == "bench.toml" else 0
             try:
-                sps, var, mean, n, warm = _timed_engine(make, seconds)
+                sps, var, mean, n, warm = _timed_engine(make, seconds, want)
             except Exception as e:  # noqa: BLE001
                 print(f"   {label} {w}x{h} {engine}: failed ({type(e).__name__}: {e})")
                 continue
-            rows[(label, w, h, engine)] = (sps, var, mean)
-            print(f"   {label:<10} {w:>4}x{h:<4} {engine}: {sps / 1e3:8.1f} k samples/s ({n} spp timed; "
-                  f"warm-up {warm:.1f} s)")
+            rows[(label, w, h, engine)] = sps
+            if var is not None:
+                variance = (var, mean, want)
+            print(f"   {label:<10} {w:>4}x{h:<4} {engine}: {sps / 1e3:8.1f} k samples/s ({n} camera samples "
+                  f"timed; warm-up {warm:.1f} s)")
     if ctx is not None:
         release_programs(ctx)
         ctx.release()
@@ -471,16 +490,20 @@ def section_engines(seconds: float, skip_mitsuba: bool):
     if mi_rows:
         print("   ratio to Mitsuba 3 scalar_rgb (samples/s, same scene, same run):")
         for (w, h), (msps, _, _) in mi_rows.items():
-            print(f"     {w}x{h}: " + ", ".join(f"{e} {rows[('bench.toml', w, h, e)][0] / msps:.2f}x"
+            print(f"     {w}x{h}: " + ", ".join(f"{e} {rows[('bench.toml', w, h, e)] / msps:.2f}x"
                                               for e in ("cpu", "gpu") if ("bench.toml", w, h, e) in rows))
-    print("   seconds to 1% relative RMSE at 256x256 on bench.toml, estimated from the measured variance "
-          "(spp = per-sample variance / (0.01 mean)^2, at the measured samples/s):")
-    entries = [(e, rows[("bench.toml", 256, 256, e)]) for e in ("cpu", "gpu") if ("bench.toml", 256, 256, e) in rows]
-    if (256, 256) in mi_rows:
-        entries.append(("Mitsuba scalar_rgb", mi_rows[(256, 256)]))
-    for name, (sps, var, mean) in entries:
-        spp = var / (0.01 * mean) ** 2
-        print(f"     {name:<18} ~{spp:6.0f} spp = ~{spp * 65536 / sps:6.1f} s")
+    if variance is not None:
+        var, mean, n = variance
+        print(f"   seconds to 1% relative RMSE at 256x256 on bench.toml, estimated from the measured variance "
+              f"(ours: the cpu engine's at {n} spp, the same estimator in both engines; spp = per-sample "
+              "variance / (0.01 mean)^2, at each one's measured samples/s):")
+        entries = [(e, rows[("bench.toml", 256, 256, e)], var, mean) for e in ("cpu", "gpu")
+                   if ("bench.toml", 256, 256, e) in rows]
+        if (256, 256) in mi_rows:
+            entries.append(("Mitsuba scalar_rgb", *mi_rows[(256, 256)]))
+        for name, sps, v, m in entries:
+            spp = v / (0.01 * m) ** 2
+            print(f"     {name:<18} ~{spp:6.0f} spp = ~{spp * 65536 / sps:6.1f} s")
     return rows, mi_rows
 
 

@@ -96,3 +96,30 @@ def test_cache_key_is_the_same_in_both_engines(ctx):
     for (engine, opts), key in keys.items():
         assert key == keys[("cpu", opts)], (engine, opts)
     assert len(set(keys.values())) == 3
+
+
+def test_reference_view_keeps_the_gpu_engine_for_every_option(ctx):
+    """The window's reference view with the GPU engine renders the options of the *Reference*
+    settings on the GPU (no fall-back to the cpu engine), and a change of option restarts it."""
+    import time
+
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+
+    sc = glossy_studio()
+    cam = OrbitCamera.from_scene(sc)
+    rv = ReferenceView(ctx, scale=1.0, max_depth=1, engine="gpu", frame_budget_s=0.01)
+    try:
+        for opts in (dict(strategy="light", mis_heuristic="power", russian_roulette=True),
+                     dict(strategy="mis", mis_heuristic="balance", russian_roulette=False)):
+            rv.options.update(opts)
+            rv.update(sc, cam, (12, 12))
+            assert rv.engine == "gpu" and rv._renderer is None, rv.engine_reason
+            t0 = time.perf_counter()
+            while rv.spp < 2 and time.perf_counter() - t0 < 30:
+                rv.update(sc, cam, (12, 12))
+            assert rv.spp >= 2 and rv.error == ""
+            s = rv._gpu.setup
+            assert (s.strategy, s.mis_heuristic, s.russian_roulette) == tuple(opts.values())
+    finally:
+        rv.close()
