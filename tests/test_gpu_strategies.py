@@ -123,3 +123,24 @@ def test_reference_view_keeps_the_gpu_engine_for_every_option(ctx):
             assert (s.strategy, s.mis_heuristic, s.russian_roulette) == tuple(opts.values())
     finally:
         rv.close()
+
+
+def test_cli_gpu_engine_takes_the_estimator_options(tmp_path):
+    """``reference --engine gpu`` with every option renders on the gpu engine and records the
+    options in the PNG; ``auto`` is no longer sent to the cpu engine by them."""
+    import json
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    out = tmp_path / "r.png"
+    r = subprocess.run([sys.executable, "-m", "viewer", "reference", "sphere", "--engine", "gpu", "--strategy",
+                        "light", "--mis-heuristic", "balance", "--no-roulette", "--spp", "2", "--width", "12",
+                        "--height", "8", "--max-depth", "2", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "engine: gpu (asked for)" in r.stdout
+    meta = json.loads(Image.open(out).text["brdf-viewer:state"])["reference"]
+    assert meta["engine"] == "gpu" and meta["strategy"] == "light" and meta["mis_heuristic"] == "balance"
+    assert meta["russian_roulette"] is False
