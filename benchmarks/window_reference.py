@@ -53,13 +53,22 @@ def child(engine: str) -> None:
             if m not in spp_at and el >= m:
                 spp_at[m] = rv.spp
     vw, vh = app.viewport()[2:]
-    ft = np.array([f for t, f in frames if t > 2.0])   # after the first frames (program compiles)
+    first = max((f for t, f in frames[:3]), default=0.0)
+    ft = np.array([f for t, f in frames[3:]] or [np.nan])   # after the first frames (programs compile)
+    # the variance views need a variance: at least 2 whole samples per pixel (5 minutes at most)
+    t1 = time.perf_counter()
+    while rv.latest_variance() is None and time.perf_counter() - t1 < 300:
+        app.frame()
+    t_var = time.perf_counter() - t0
     print(f"engine {engine!r} -> {rv.engine} ({rv.engine_reason})")
     print(f"   gallery, split view, window 1280x720 (view {vw}x{vh}, reference {rv.scale:g} x the view's resolution)")
     print("   reference spp after " + ", ".join(f"{m:.0f} s: {spp_at[m]}" for m in MARKS)
           + f"; {rv.samples_per_second / 1e3:.0f} k samples/s")
     print(f"   frame time while the reference runs: median {np.median(ft):.0f} ms, 90th percentile "
-          f"{np.percentile(ft, 90):.0f} ms ({len(ft)} frames)")
+          f"{np.percentile(ft, 90):.0f} ms ({len(ft)} frames after the first 3; the longest of those "
+          f"{first:.0f} ms)")
+    got = rv.latest_variance()
+    print(f"   a variance (>= 2 spp) after {t_var:.0f} s" if got else "   no variance after 5 more minutes")
     # the variance views
     app.mc.show_convergence = True
     for view in ERROR_VIEWS:

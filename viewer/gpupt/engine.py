@@ -309,11 +309,13 @@ class GpuReferenceRenderer:
     def step_for(self, seconds: float) -> int:
         """Render bands of rows (one sample each) for about ``seconds``; returns the camera samples
         added. ``spp`` counts the samples every pixel has; ``rows_per_pass`` adapts so that one
-        draw takes about a quarter of the budget."""
+        draw takes about a quarter of the budget, starting from about 1,000 pixels (a first draw
+        of unknown cost must not hold a slow or busy machine's frame for seconds; the doubling
+        reaches the budget within a frame or two)."""
         t0 = time.perf_counter()
         added = 0
         if self.rows_per_pass is None:
-            self.rows_per_pass = max(1, min(self.height, 16384 // max(self.width, 1)))
+            self.rows_per_pass = max(1, min(self.height, 1024 // max(self.width, 1)))
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)
