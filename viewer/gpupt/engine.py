@@ -281,8 +281,18 @@ class GpuReferenceRenderer:
         set_uniform(self._prog, "u_row1", int(row1))
         set_uniform(self._prog, "u_spp_pass", int(spp))
         dst = self._fbos[1 - self._cur]
-        dst.use()
-        dst.viewport = (0, 0, self.width, self.height)
+        if row0 <= 0 and row1 >= self.height:
+            dst.use()
+            dst.viewport = (0, 0, self.width, self.height)
+        else:
+            # a band: the other side gets the current sums by a blit (a copy), then only the
+            # band's fragments run (on software GL the shader over every other pixel cost as
+            # much as 30 rows of samples)
+            for k in range(2):
+                self.ctx.copy_framebuffer(self._single[2 * (1 - self._cur) + k], self._single[2 * self._cur + k])
+            dst.use()
+            r0, r1 = max(0, int(row0)), min(self.height, int(row1))
+            dst.viewport = (0, r0, self.width, max(0, r1 - r0))
         self._vao.render(vertices=3)
         self._cur = 1 - self._cur
 
