@@ -10,9 +10,10 @@ same triangles, vertex normals, tangents, camera, lights, environment tables). T
 and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
 one after another into a float texture in the layout of ``viewer.brdf.glsl.pack_material``
 (the generated ``brdf/dispatch.glsl`` reads them through ``mat_f``, here from that texture
-instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``
-over the whole target: pixels in the band of rows being rendered add ``spp_pass`` samples to
-the running sums, the rest copy theirs; two RGBA32F targets per ping-pong side hold
+instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``:
+a whole-image pass over the whole target, a band of rows (``step_for``) only over the band after
+the current sums are blitted to the other side; pixels in the band add ``spp_pass`` samples to
+the running sums; two RGBA32F targets per ping-pong side hold
 (sum of radiance, sample count) and (sum of squares, bad-value count). The random numbers of
 sample ``s`` of pixel ``(x, y)`` are a hash of ``(x, y, s, seed)`` (``shaders/common/rng.glsl``),
 so an image depends on the seed and the number of samples only, never on how the passes were
