@@ -19,12 +19,24 @@ d. Seconds for our renderer to reach 1% relative RMSE against a high-spp referen
    4096 spp when Mitsuba is installed and agrees with us, else our own 1024 spp), cached in
    ``benchmarks/.cache/``.
 
+e. The two reference engines side by side (``--engines`` runs only this part, a few minutes):
+   samples/s of the cpu engine (``ReferenceRenderer``, every core) and the gpu engine
+   (``GpuReferenceRenderer`` on this machine's OpenGL, named in the output) on bench.toml at
+   256x256 and 1280x720 and on the built-in gallery at 640x360 (the window's half-resolution
+   reference of a 1280x720 view; Mitsuba has no translation of its materials), each a short
+   timed run after a warm-up sample; Mitsuba 3 scalar_rgb on bench.toml at both sizes in the same
+   run (a child process, scene loading excluded) and each engine's ratio to it; and the seconds
+   each needs for 1% relative RMSE at 256x256, *estimated from the measured variance* (unbiased
+   estimators: RMSE^2 = mean per-sample variance / spp; spp for 1% = that variance /
+   (0.01 mean)^2, at the measured samples/s; Mitsuba's variance from two seeds' difference).
+   Part d measures the cpu engine's time against a long reference instead.
+
 Relative RMSE = sqrt(mean over pixels and channels of (ours - ref)^2) / mean(ref). The
 reference is rendered as two independent halves A, B; mean((A - B)^2) / 4 estimates its own
 noise variance, which part d subtracts ("corrected" RMSE: an estimate of the RMSE against the
 converged image; the 1% criterion), since the raw RMSE cannot fall below the reference's noise.
 Flags: --quick (1024-spp reference, 90 s budget for d), --skip-kernels, --skip-mitsuba,
---ref-spp N, --budget S.
+--ref-spp N, --budget S, --engines (part e only), --seconds S (length of each timed run in e).
 """
 
 from __future__ import annotations
@@ -290,8 +302,11 @@ def mitsuba_child(variant: str, spps: list[int], seeds: list[int], out: str) -> 
     the benchmark down)."""
     import mitsuba as mi
 
+    variant, _, size = variant.partition("@")     # "scalar_rgb@1280x720": another image size
     mi.set_variant(variant)
     scene = load_bench_scene()
+    if size:
+        scene.camera.width, scene.camera.height = (int(x) for x in size.split("x"))
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         sd = mitsuba_scene_dict(mi, scene, Path(tmp))
@@ -375,6 +390,123 @@ def save_diff_png(path, ours, ref):
     write_png(path, np.round(rgb * 255).astype(np.uint8))
 
 
+# ----------------------------------------------------------------------------- e. engines
+
+def _timed_engine(make, seconds, min_spp=0):
+    """(samples/s, per-sample variance (mean over pixels and channels) or None, image mean,
+    samples timed, warm-up s) of a renderer made by ``make()``. Warm-up: ``warm_up()`` (programs
+    compiled, worker pool up). The gpu engine is timed by ``step_for`` (bands of rows, as the
+    window runs it) for ``seconds``; the cpu engine by whole samples per pixel until ``seconds``
+    have passed (at least one). ``min_spp``: then render up to that many samples per pixel, for
+    the variance (not timed)."""
+    t0 = time.perf_counter()
+    r = make()
+    try:
+        r.warm_up()
+        warm = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        if hasattr(r, "step_for"):
+            n = 0
+            while time.perf_counter() - t1 < seconds:
+                n += r.step_for(min(0.5, seconds))
+        else:
+            spp0 = r.spp
+            while r.spp == spp0 or time.perf_counter() - t1 < seconds:
+                r.step(1)
+            n = (r.spp - spp0) * r.width * r.height
+        dt = time.perf_counter() - t1
+        var = mean = None
+        if min_spp:
+            if r.spp < min_spp:
+                r.step(min_spp - r.spp)
+            m, v = r.mean().astype(np.float64), r.variance().astype(np.float64)
+            v = np.where(np.isfinite(v), v, 0.0)
+            var, mean = float(np.mean(v)) * r.spp, float(np.mean(m))
+    finally:
+        r.close()
+    return n / dt, var, mean, n, warm
+
+
+def section_engines(seconds: float, skip_mitsuba: bool, var_spp: int = 8):
+    from viewer.gl.context import GLUnavailable, create_offscreen_context
+    from viewer.gpupt.engine import GpuReferenceRenderer, release_programs
+    from viewer.gpupt.select import gl_renderer_name, is_software
+    from viewer.pathtracer.progressive import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    try:
+        ctx = create_offscreen_context()
+        gl_name = gl_renderer_name(ctx)
+    except GLUnavailable as e:
+        ctx, gl_name = None, f"none ({e})"
+    kind = "no OpenGL" if ctx is None else ("software OpenGL, no GPU" if is_software(gl_name) else "hardware GPU")
+    print(f"\n== e. reference engines: cpu ({os.cpu_count()} worker processes) and gpu (OpenGL: {gl_name}; "
+          f"{kind}), max depth 8, {seconds:.0f} s timed runs after one warm-up sample ==")
+    bench = load_bench_scene()
+    cases = [("bench.toml", bench, 256, 256), ("bench.toml", bench, 1280, 720),
+             ("gallery", load_scene("gallery"), 640, 360)]
+    rows = {}
+    variance = None
+    for label, scene, w, h in cases:
+        for engine in ("cpu", "gpu"):
+            if engine == "gpu" and ctx is None:
+                continue
+
+            def make(engine=engine, scene=scene, w=w, h=h):
+                if engine == "cpu":
+                    return ReferenceRenderer(scene, width=w, height=h, max_depth=8, seed=1)
+                return GpuReferenceRenderer(scene, width=w, height=h, max_depth=8, seed=1, ctx=ctx)
+
+            # the variance (for the time to 1%) from the cpu engine at 256x256: the same estimator
+            # as the gpu engine's, with the same variance (tests/test_gpu_strategies)
+            want = var_spp if (engine, w) == ("cpu", 256) and label == "bench.toml" else 0
+            try:
+                sps, var, mean, n, warm = _timed_engine(make, seconds, want)
+            except Exception as e:  # noqa: BLE001
+                print(f"   {label} {w}x{h} {engine}: failed ({type(e).__name__}: {e})")
+                continue
+            rows[(label, w, h, engine)] = sps
+            if var is not None:
+                variance = (var, mean, want)
+            print(f"   {label:<10} {w:>4}x{h:<4} {engine}: {sps / 1e3:8.1f} k samples/s ({n} camera samples "
+                  f"timed; warm-up {warm:.1f} s)")
+    if ctx is not None:
+        release_programs(ctx)
+        ctx.release()
+    mi_rows = {}
+    if not skip_mitsuba:
+        for w, h in ((256, 256), (1280, 720)):
+            spp = 16 if w * h <= 65536 else 2
+            r, imgs = run_mitsuba(f"scalar_rgb@{w}x{h}", [spp, spp], [1, 2], timeout=900)
+            if r is None:
+                print(f"   Mitsuba scalar_rgb {w}x{h}: does not run here")
+                continue
+            dt = r["renders"][0]["seconds"]
+            a, b = imgs[f"s{spp}_1"].astype(np.float64), imgs[f"s{spp}_2"].astype(np.float64)
+            var = float(np.mean((a - b) ** 2) / 2) * spp        # per-sample variance, mean over pixels
+            mi_rows[(w, h)] = (w * h * spp / dt, var, float(0.5 * (a.mean() + b.mean())))
+            print(f"   {'bench.toml':<10} {w:>4}x{h:<4} Mitsuba {r['version']} scalar_rgb: "
+                  f"{mi_rows[(w, h)][0] / 1e3:8.1f} k samples/s ({spp} spp in {dt:.2f} s, scene load excluded)")
+    if mi_rows:
+        print("   ratio to Mitsuba 3 scalar_rgb (samples/s, same scene, same run):")
+        for (w, h), (msps, _, _) in mi_rows.items():
+            print(f"     {w}x{h}: " + ", ".join(f"{e} {rows[('bench.toml', w, h, e)] / msps:.2f}x"
+                                              for e in ("cpu", "gpu") if ("bench.toml", w, h, e) in rows))
+    if variance is not None:
+        var, mean, n = variance
+        print(f"   seconds to 1% relative RMSE at 256x256 on bench.toml, estimated from the measured variance "
+              f"(ours: the cpu engine's at {n} spp, the same estimator in both engines; spp = per-sample "
+              "variance / (0.01 mean)^2, at each one's measured samples/s):")
+        entries = [(e, rows[("bench.toml", 256, 256, e)], var, mean) for e in ("cpu", "gpu")
+                   if ("bench.toml", 256, 256, e) in rows]
+        if (256, 256) in mi_rows:
+            entries.append(("Mitsuba scalar_rgb", *mi_rows[(256, 256)]))
+        for name, sps, v, m in entries:
+            spp = v / (0.01 * m) ** 2
+            print(f"     {name:<18} ~{spp:6.0f} spp = ~{spp * 65536 / sps:6.1f} s")
+    return rows, mi_rows
+
+
 # ----------------------------------------------------------------------------- main
 
 def main():
@@ -384,6 +516,8 @@ def main():
     ap.add_argument("--skip-mitsuba", action="store_true")
     ap.add_argument("--ref-spp", type=int, default=None, help="reference spp (default 4096, --quick 1024)")
     ap.add_argument("--budget", type=float, default=None, help="seconds allowed for part d (default 300, --quick 90)")
+    ap.add_argument("--engines", action="store_true", help="only part e: the cpu and gpu engines and Mitsuba")
+    ap.add_argument("--seconds", type=float, default=5.0, help="length of each timed run of part e (default 5)")
     # internal: child processes
     ap.add_argument("--_kernels", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--_compile-probe", action="store_true", help=argparse.SUPPRESS)
@@ -410,6 +544,10 @@ def main():
     print(f"brdf-viewer path-tracer benchmark; scene {SCENE.relative_to(ROOT.parent)}; "
           f"{len(os.sched_getaffinity(0))} CPUs; python {sys.version.split()[0]}")
 
+    if args.engines:
+        section_engines(args.seconds, args.skip_mitsuba)
+        print(f"\ntotal {time.perf_counter() - t_all:.0f} s")
+        return
     if not args.skip_kernels:
         section_kernels()
 
@@ -569,6 +707,7 @@ def main():
         print(f"   difference map: {(CACHE / 'diff_ours_vs_reference.png').relative_to(ROOT.parent)} "
               "(red: ours brighter, blue: darker, full colour at 5% of the mean)")
 
+    section_engines(args.seconds, args.skip_mitsuba)
     print(f"\ntotal {time.perf_counter() - t_all:.0f} s")
 
 

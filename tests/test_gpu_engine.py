@@ -25,14 +25,17 @@ def ctx(gl_ctx):
     return gl_ctx
 
 
-def agreement(ctx, scene, spp, max_depth=8, size=SIZE, seed=1):
+def agreement(ctx, scene, spp, max_depth=8, size=SIZE, seed=1, **estimator):
+    """Block z-scores and image means of the two engines (``estimator``: the options both take)."""
     from viewer.gpupt import GpuReferenceRenderer
     from viewer.pathtracer import ReferenceRenderer
 
-    with GpuReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, ctx=ctx) as g:
+    with GpuReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, ctx=ctx,
+                              **estimator) as g:
         g.step(spp)
         mg, vg, bad_g = g.mean().astype(np.float64), g.variance().astype(np.float64), g.bad_values
-    with ReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, workers=0) as c:
+    with ReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, workers=0,
+                           **estimator) as c:
         c.step(spp)
         mc, vc, bad_c = c.mean().astype(np.float64), c.variance().astype(np.float64), c.bad_values
     nb = size // BLOCK
@@ -50,7 +53,8 @@ def agreement(ctx, scene, spp, max_depth=8, size=SIZE, seed=1):
     return dict(z2=float(np.mean(z * z)), zmax=float(np.abs(z).max()),
                 rel=float(mg.sum() / total_c - 1.0) if total_c > 0 else 0.0,
                 sigma=float(np.sqrt(vg.sum() + vc.sum()) / total_c) if total_c > 0 else 0.0,
-                bad=(bad_g, bad_c), mean_gpu=float(mg.mean()), mean_cpu=float(mc.mean()))
+                bad=(bad_g, bad_c), mean_gpu=float(mg.mean()), mean_cpu=float(mc.mean()),
+                var_gpu=float(vg.sum()), var_cpu=float(vc.sum()))
 
 
 def check(a, name, mean_tol=0.005):

@@ -142,7 +142,7 @@ def test_reference_cli_strategy(tmp_path):
     p.write_text(GLOSSY_STUDIO)
     out = tmp_path / "a.png"
     cmd = [sys.executable, "-m", "viewer", "reference", str(p), "--spp", "2", "--out", str(out), "--workers", "0",
-           "--width", "8", "--height", "8", "--strategy", "light", "--mis-heuristic", "balance", "--no-roulette"]
+           "--engine", "cpu", "--width", "8", "--height", "8", "--strategy", "light", "--mis-heuristic", "balance", "--no-roulette"]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert out.exists() and "samples/second" in r.stdout

@@ -5,15 +5,21 @@
 //
 // The estimator is the CPU engine's (viewer/pathtracer/integrator.py) term for term: camera box
 // filter; next-event estimation of point and directional lights (delta lights, no MIS); the
-// environment sampled by env_sample and reached by BSDF sampling, combined by the power
-// heuristic (Veach 1997, eq. 9.13, beta 2); delta lobes skip NEE and MIS and take the full
-// environment; max_depth scattering events; Russian roulette from the 4th event on (survival
-// clamp(max(throughput), 0.05, 0.95)); Bouguer exp(-sigma_a t) inside dielectrics. Shading: the
+// environment reached by one of three strategies: MIS (sampled by env_sample and reached by BSDF
+// sampling, combined by the power heuristic, Veach 1997, eq. 9.13, beta 2, or the balance
+// heuristic, eq. 9.10), BSDF sampling only (weight 1) or light sampling only (an escaping BSDF
+// ray adds nothing); delta lobes skip NEE and MIS and take the full environment under every
+// strategy, as camera rays do; max_depth scattering events; Russian roulette from the 4th event
+// on (survival clamp(max(throughput), 0.05, 0.95)) unless NO_ROULETTE; Bouguer exp(-sigma_a t) inside dielectrics. Shading: the
 // rasterizer's interpolated normals, back faces flipped for opaque surfaces, light counted where
 // both the shading and the geometric cosine are positive (either sign on transmissive surfaces).
 // Rays start at p + 1e-4 (1 + max|p|) n_g on the side they leave.
 //
-// Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, HAS_MIXED.
+// Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, HAS_MIXED, and the
+// estimator's options: STRATEGY (0 MIS, default; 1 BSDF sampling only; 2 light sampling only),
+// BALANCE_HEURISTIC (MIS weights by the balance heuristic instead of the power one),
+// NO_ROULETTE (every path to max_depth). llvmpipe runs branches a uniform disables, so these
+// are variants, compiled only for the options in use.
 #include "brdf/dispatch.glsl"
 #include "common/bvh.glsl"
 #include "common/rng.glsl"
@@ -22,6 +28,12 @@
 #ifndef N_LIGHTS
 #define N_LIGHTS 0
 #endif
+#ifndef STRATEGY
+#define STRATEGY 0
+#endif
+#define STRATEGY_MIS 0
+#define STRATEGY_BSDF 1
+#define STRATEGY_LIGHT 2
 #define MAX_MATERIALS 64
 
 uniform sampler2D u_prev_sum;     // rgb = sum of radiance, a = number of samples
@@ -69,6 +81,21 @@ float power_heuristic(float a, float b) {
     return r * r / (1.0 + r * r);
 }
 
+// balance heuristic a / (a + b) without overflowing float32
+float balance_heuristic(float a, float b) {
+    if (!(a > 0.0)) return 0.0;
+    if (!(b > 0.0)) return 1.0;
+    if (a >= b) return 1.0 / (1.0 + b / a);
+    float r = a / b;
+    return r / (1.0 + r);
+}
+
+#ifdef BALANCE_HEURISTIC
+#define mis_weight balance_heuristic
+#else
+#define mis_weight power_heuristic
+#endif
+
 float max3(vec3 v) { return max(max(v.x, v.y), v.z); }
 bool any_pos(vec3 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0; }
 
@@ -82,7 +109,13 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
 #if ENV_MODE != 0
-            float w = prev_delta ? 1.0 : power_heuristic(prev_pdf, prev_lpdf);
+#if STRATEGY == STRATEGY_MIS
+            float w = prev_delta ? 1.0 : mis_weight(prev_pdf, prev_lpdf);
+#elif STRATEGY == STRATEGY_BSDF
+            float w = 1.0;
+#else
+            float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
+#endif
             L += T * env_eval(d) * w;
 #endif
             break;
@@ -148,7 +181,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
                 if (!bvh_occluded(so, wi, 0.0, tmax)) L += c;
             }
 #endif
-#if ENV_MODE != 0
+#if ENV_MODE != 0 && STRATEGY != STRATEGY_BSDF
             {
                 vec3 wi;
                 float pe;
@@ -159,8 +192,12 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
                 bool ok = (trans ? wl.z * g > 0.0 : (wl.z > 0.0 && g > 0.0)) && pe > 0.0;
                 if (ok) {
                     vec3 f = clean(brdf_eval(model, moff, wl, wo_l));
+#if STRATEGY == STRATEGY_MIS
                     float pb = clean(brdf_pdf(model, moff, wl, wo_l));
-                    vec3 c = T * f * abs(wl.z) * ev * (power_heuristic(pe, pb) / pe);
+                    vec3 c = T * f * abs(wl.z) * ev * (mis_weight(pe, pb) / pe);
+#else
+                    vec3 c = T * f * abs(wl.z) * ev * (1.0 / pe);
+#endif
                     if (any_pos(c)) {
                         vec3 so = p + eps * (g < 0.0 ? -1.0 : 1.0) * ng;
                         if (!bvh_occluded(so, wi, 0.0, BVH_INF)) L += c;
@@ -184,18 +221,20 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         float gw = dot(ng, wi_w);
         bool ok = (trans ? wi_l.z * gw > 0.0 : (wi_l.z > 0.0 && gw > 0.0)) && pdf_s > 0.0 && any_pos(wgt);
         vec3 Tn = T * (ok ? wgt : vec3(0.0));
-#if ENV_MODE != 0
+#if ENV_MODE != 0 && STRATEGY == STRATEGY_MIS
         prev_lpdf = disc ? 0.0 : env_pdf(wi_w, n, trans);
 #endif
         prev_pdf = pdf_s;
         prev_delta = disc;
         if (trans) sigma = dot(ng_raw, wi_w) < 0.0 ? u_mat_info[2 * mi + 1].xyz : vec3(0.0);
         bool alive = any_pos(Tn);
+#ifndef NO_ROULETTE
         if (depth >= RR_START_DEPTH) {
             float q = clamp(max3(Tn), RR_MIN, RR_MAX);
             alive = alive && r0.w < q;
             Tn /= q;
         }
+#endif
         if (!alive) break;
         T = Tn;
         o = p + eps * (gw < 0.0 ? -1.0 : 1.0) * ng;

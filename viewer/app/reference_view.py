@@ -111,13 +111,8 @@ class ReferenceView:
         if self.engine is None:
             self._choose_engine()
         if self.engine == "gpu":
-            from viewer.gpupt.select import DEFAULT_ESTIMATOR
-
-            if self.options == DEFAULT_ESTIMATOR:
-                self._cancel.set()   # a cpu job of other options stops (its samples are stored)
-                self._gpu_update(key, scene, camera, w, h)
-                return
-            self._drop_gpu()   # the other estimators: the cpu engine, until the options are back
+            self._gpu_update(key, scene, camera, w, h)
+            return
         if key != self._key:
             self._key = key
             self.restart(scene, camera, w, h)
@@ -144,9 +139,10 @@ class ReferenceView:
                 if self._gpu is None:
                     from viewer.gpupt.engine import GpuReferenceRenderer
 
-                    self._gpu = GpuReferenceRenderer(scene, camera, w, h, max_depth=self.max_depth, ctx=self.ctx)
+                    self._gpu = GpuReferenceRenderer(scene, camera, w, h, max_depth=self.max_depth, ctx=self.ctx,
+                                                     **self.options)
                 else:
-                    self._gpu.reset(scene, camera, w, h)
+                    self._gpu.reset(scene, camera, w, h, **self.options)
                 self._gpu_key, have = _cached(self._gpu)
                 from viewer.variance import ConvergenceCurve
 

@@ -10,14 +10,17 @@ same triangles, vertex normals, tangents, camera, lights, environment tables). T
 and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
 one after another into a float texture in the layout of ``viewer.brdf.glsl.pack_material``
 (the generated ``brdf/dispatch.glsl`` reads them through ``mat_f``, here from that texture
-instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``
-over the whole target: pixels in the band of rows being rendered add ``spp_pass`` samples to
-the running sums, the rest copy theirs; two RGBA32F targets per ping-pong side hold
+instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``:
+a whole-image pass over the whole target, a band of rows (``step_for``) only over the band after
+the current sums are blitted to the other side; pixels in the band add ``spp_pass`` samples to
+the running sums; two RGBA32F targets per ping-pong side hold
 (sum of radiance, sample count) and (sum of squares, bad-value count). The random numbers of
 sample ``s`` of pixel ``(x, y)`` are a hash of ``(x, y, s, seed)`` (``shaders/common/rng.glsl``),
 so an image depends on the seed and the number of samples only, never on how the passes were
 cut into bands. Programs are compiled for what the scene uses (its models, environment kind,
-number of lights, layered materials with a delta base) and cached by that recipe.
+number of lights, layered materials with a delta base) and for the estimator's options
+(``strategy``, ``mis_heuristic``, ``russian_roulette``, as ``ReferenceRenderer`` takes them:
+each a compile-time variant of the pass), and cached by that recipe.
 """
 
 from __future__ import annotations
@@ -32,9 +35,10 @@ from viewer.brdf.glsl import generate_dispatch, models_used, pack_material, prog
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.pathtracer.integrator import RenderSetup, check_options
 
 MAX_MATERIALS = 64                 # pathtrace.frag MAX_MATERIALS
+STRATEGY_CODE = {"mis": 0, "bsdf": 1, "light": 2}   # pathtrace.frag STRATEGY
 KIND_CODE = {"smooth": 0, "delta": 1, "mixed": 2}
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
@@ -93,15 +97,21 @@ def release_programs(ctx) -> None:
 
 class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
-    ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here)."""
+    ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
+    ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
+    ``ReferenceRenderer``."""
 
     engine = "gpu"
     is_spectral = False  # RGB only: dispersive scenes go to the cpu engine (viewer.gpupt.select)
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
-                 env_image=None, ctx=None, spp_pass: int = 1):
+                 env_image=None, ctx=None, spp_pass: int = 1, strategy: str = "mis",
+                 mis_heuristic: str = "power", russian_roulette: bool = True):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
+        check_options(strategy, mis_heuristic)
+        self.strategy, self.mis_heuristic = strategy, mis_heuristic
+        self.russian_roulette = bool(russian_roulette)
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
         if ctx is None:
@@ -114,12 +124,24 @@ class GpuReferenceRenderer:
         self._textures: list = []
         self._targets: list = []
         self.rows_per_pass = None           # adapted by step_for
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, env_image))
+        self._set_setup(self._make_setup(scene, camera, width, height))
 
     # ------------------------------------------------------------------ setup
-    def reset(self, scene, camera=None, width=None, height=None):
-        """Start over on a changed scene, camera or size (the programs stay cached)."""
-        self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image))
+    def _make_setup(self, scene, camera, width, height) -> RenderSetup:
+        return RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
+                                      strategy=self.strategy, mis_heuristic=self.mis_heuristic,
+                                      russian_roulette=self.russian_roulette)
+
+    def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
+              russian_roulette=None):
+        """Start over on a changed scene, camera or size (the programs stay cached); the
+        estimator's options change where given (None: as before)."""
+        check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
+        self.strategy = strategy or self.strategy
+        self.mis_heuristic = mis_heuristic or self.mis_heuristic
+        if russian_roulette is not None:
+            self.russian_roulette = bool(russian_roulette)
+        self._set_setup(self._make_setup(scene, camera, width, height))
 
     def _release_scene(self):
         for t in self._textures + self._targets:
@@ -194,6 +216,12 @@ class GpuReferenceRenderer:
         if any(m.kind == "mixed" for m in s.materials):
             defines["HAS_MIXED"] = "1"
         defines.update(program_defines([m.params for m in s.materials]))
+        if s.strategy != "mis" and self.env_mode != 0:   # strategies differ only in reaching the environment
+            defines["STRATEGY"] = str(STRATEGY_CODE[s.strategy])
+        if s.strategy == "mis" and s.mis_heuristic == "balance" and self.env_mode != 0:   # the heuristic matters only to MIS
+            defines["BALANCE_HEURISTIC"] = "1"
+        if not s.russian_roulette:
+            defines["NO_ROULETTE"] = "1"
         return models, tuple(sorted(defines.items()))
 
     def _program(self):
@@ -255,8 +283,18 @@ class GpuReferenceRenderer:
         set_uniform(self._prog, "u_row1", int(row1))
         set_uniform(self._prog, "u_spp_pass", int(spp))
         dst = self._fbos[1 - self._cur]
-        dst.use()
-        dst.viewport = (0, 0, self.width, self.height)
+        if row0 <= 0 and row1 >= self.height:
+            dst.use()
+            dst.viewport = (0, 0, self.width, self.height)
+        else:
+            # a band: the other side gets the current sums by a blit (a copy), then only the
+            # band's fragments run (on software GL the shader over every other pixel cost as
+            # much as 30 rows of samples)
+            for k in range(2):
+                self.ctx.copy_framebuffer(self._single[2 * (1 - self._cur) + k], self._single[2 * self._cur + k])
+            dst.use()
+            r0, r1 = max(0, int(row0)), min(self.height, int(row1))
+            dst.viewport = (0, r0, self.width, max(0, r1 - r0))
         self._vao.render(vertices=3)
         self._cur = 1 - self._cur
 
@@ -283,11 +321,13 @@ class GpuReferenceRenderer:
     def step_for(self, seconds: float) -> int:
         """Render bands of rows (one sample each) for about ``seconds``; returns the camera samples
         added. ``spp`` counts the samples every pixel has; ``rows_per_pass`` adapts so that one
-        draw takes about a quarter of the budget."""
+        draw takes about a quarter of the budget, starting from about 1,000 pixels (a first draw
+        of unknown cost must not hold a slow or busy machine's frame for seconds; the doubling
+        reaches the budget within a frame or two)."""
         t0 = time.perf_counter()
         added = 0
         if self.rows_per_pass is None:
-            self.rows_per_pass = max(1, min(self.height, 16384 // max(self.width, 1)))
+            self.rows_per_pass = max(1, min(self.height, 1024 // max(self.width, 1)))
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)

@@ -160,22 +160,13 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
     return scene_is_dispersive(scene)
 
 
-# the estimator of the gpu engine (shaders/passes/pathtrace.frag); the cpu engine has every option
-DEFAULT_ESTIMATOR = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
-
-
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
-    trace wavelengths (None: where a material is dispersive); only the cpu engine does, and only
-    it takes ``estimator`` options other than DEFAULT_ESTIMATOR (strategy, mis_heuristic,
-    russian_roulette)."""
+    trace wavelengths (None: where a material is dispersive); only the cpu engine does.
+    ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette), which
+    both engines take."""
     if engine == "gpu":
-        if {**DEFAULT_ESTIMATOR, **estimator} != DEFAULT_ESTIMATOR:
-            from viewer import ViewerError
-
-            raise ViewerError("--engine gpu has the default estimator only (MIS, power heuristic, Russian "
-                              "roulette); --strategy, --mis-heuristic and --no-roulette need --engine cpu or auto")
         if needs_spectral(scene, spectral):
             from viewer import ViewerError
 
@@ -183,7 +174,8 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
                               "dispersive material or --spectral); use --engine cpu or auto")
         from viewer.gpupt.engine import GpuReferenceRenderer
 
-        return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx)
+        return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
+                                    **estimator)
     from viewer.pathtracer import ReferenceRenderer
 
     return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
