@@ -271,10 +271,16 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
         for i in range(len(TOUR)):
             t = time.perf_counter()
             ok = app.lecture(i)
+            # the glass steps trace their specular chains; on software GL a traced glass ball at
+            # this size takes minutes a frame, so here they render untraced (the traced steps are
+            # rendered at small sizes in tests/test_reflections_choice.py)
+            app.scene.render.raytrace = False
             app.frame()
             dt = time.perf_counter() - t
-            img = app.renderer.read_linear(app.hdr)
-            out.append(dict(ok=ok, step=app.lecture_step, label=app.scene.label, ms=1000 * dt,
+            # the importance-sampling step opens the reference view: no raster frame to read
+            raster = app.hdr is not None
+            img = app.renderer.read_linear(app.hdr) if raster else np.zeros((1, 1, 3))
+            out.append(dict(ok=ok, step=app.lecture_step, label=app.scene.label, ms=1000 * dt, raster=raster,
                             finite=bool(np.isfinite(img).all()), neg=float(img.min()), std=float(img.std())))
         # stepping back and forth again (programs warm): the time a lecturer waits per key press
         again = []
@@ -301,7 +307,10 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
     assert len(res["steps"]) == len(TOUR)
     for i, s in enumerate(res["steps"]):
         assert s["ok"] and s["step"] == i and TOUR[i].key in s["label"], s
-        assert s["finite"] and s["neg"] >= 0.0 and s["std"] > 1e-3, s
+        if s["raster"]:
+            assert s["finite"] and s["neg"] >= 0.0 and s["std"] > 1e-3, s
+        else:
+            assert TOUR[i].image == "reference", s
 
 
 def test_window_state_is_restored(display, tmp_path):  # noqa: F811
