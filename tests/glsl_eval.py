@@ -6,7 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.glsl import uniform_block
+from viewer.gl.measured_tex import MeasuredTextures
 from viewer.gl.shaders import build_program
+
+# the measured model reads its table from a 3D texture (bound per material below)
+_DEFINES = {"MEASURED_TEXTURE": "1"}
 
 _VERT = """#version 410 core
 out vec2 v_uv;
@@ -60,8 +64,9 @@ class GLSLEvaluator:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG)
+        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG, defines=_DEFINES)
         self.vao = ctx.vertex_array(self.prog, [])
+        self.measured = MeasuredTextures(ctx)
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -89,6 +94,7 @@ class GLSLEvaluator:
             self.prog["u_wo"].value = 1
             if "u_what" in self.prog:
                 self.prog["u_what"].value = what
+            self.measured.bind(self.prog, params)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)
@@ -110,8 +116,9 @@ class GLSLSampler:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE)
+        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE, defines=_DEFINES)
         self.vao = ctx.vertex_array(self.prog, [])
+        self.measured = MeasuredTextures(ctx)
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -145,6 +152,7 @@ class GLSLSampler:
             tu.use(1)
             self.prog["u_wo"].value = 0
             self.prog["u_u"].value = 1
+            self.measured.bind(self.prog, params)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)
