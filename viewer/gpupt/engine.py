@@ -102,6 +102,7 @@ class GpuReferenceRenderer:
                  env_image=None, ctx=None, spp_pass: int = 1):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
+        _refuse_measured(scene)
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
         if ctx is None:
@@ -119,6 +120,7 @@ class GpuReferenceRenderer:
     # ------------------------------------------------------------------ setup
     def reset(self, scene, camera=None, width=None, height=None):
         """Start over on a changed scene, camera or size (the programs stay cached)."""
+        _refuse_measured(scene)
         self._set_setup(RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image))
 
     def _release_scene(self):
@@ -390,3 +392,11 @@ class GpuReferenceRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _refuse_measured(scene):
+    from viewer import ViewerError
+    from viewer.gpupt.select import MEASURED_REFUSAL, uses_measured
+
+    if uses_measured(scene):
+        raise ViewerError(MEASURED_REFUSAL)

@@ -160,6 +160,18 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
     return scene_is_dispersive(scene)
 
 
+def uses_measured(scene) -> bool:
+    """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
+    engine renders (the gpu engine's programs bind no per-material 3D textures)."""
+    from viewer.brdf.glsl import models_used
+
+    return any("measured" in models_used(m) for m in scene.materials.values())
+
+
+MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use --engine cpu or auto "
+                    "(auto takes the cpu engine for them)")
+
+
 # the estimator of the gpu engine (shaders/passes/pathtrace.frag); the cpu engine has every option
 DEFAULT_ESTIMATOR = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
 
@@ -176,6 +188,10 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
             raise ViewerError("--engine gpu has the default estimator only (MIS, power heuristic, Russian "
                               "roulette); --strategy, --mis-heuristic and --no-roulette need --engine cpu or auto")
+        if uses_measured(scene):
+            from viewer import ViewerError
+
+            raise ViewerError(MEASURED_REFUSAL)
         if needs_spectral(scene, spectral):
             from viewer import ViewerError
 
