@@ -1084,11 +1084,14 @@ def _draw_polar(cv, fig, width, height):
                 fill=(120, 120, 120), anchor="lt")
     # lobe curves
     layer, ld = _clipped_layer(cv)
-    for c in fig.curves:
+    lines = []
+    for c in fig.curves:  # every fill first: a fill drawn later would overwrite the lines it covers
         t = np.radians(np.asarray(c.x))
         r = R * np.clip(np.asarray(c.y), 0, None) / rmax
         pts = list(zip(cx + r * np.sin(t), cy - r * np.cos(t)))
         ld.polygon(pts, fill=tuple(c.color) + (28,))
+        lines.append((pts, c))
+    for pts, c in lines:
         cv.polyline(pts, tuple(c.color) + (255,), 2.2, c.style, draw=ld)
     _paste_clipped(cv, layer, (0, 0, cv.w, cy + 1))
     for dl in fig.info.get("delta", []):
