@@ -247,12 +247,12 @@ def test_reference_and_engines(lambert_file):
         make_renderer("gpu", a)
     means = []
     for s in (a, b):
-        r = ReferenceRenderer(s, width=24, height=24, max_depth=2, seed=1, workers=1)
+        r = ReferenceRenderer(s, width=24, height=24, max_depth=2, seed=1, workers=0)
         try:
             r.step(16)
             means.append(r.mean().astype(np.float64))
         finally:
             r.close()
-    assert means[1].mean() > 0.02
+    assert means[1].mean() > 0.005
     # direct light is next-event estimated identically; only the bounce's sampling differs
     assert abs(means[0].mean() - means[1].mean()) < 0.02 * means[1].mean()
