@@ -6,11 +6,18 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.glsl import uniform_block
-from viewer.gl.measured_tex import MeasuredTextures
-from viewer.gl.shaders import build_program
+from viewer.gl.measured_tex import MeasuredTextures, measured_params
+from viewer.gl.shaders import build_program, default_virtual
 
-# the measured model reads its table from a 3D texture (bound per material below)
+# The measured model reads its table from a 3D texture: it is evaluated by a program of its own
+# (the one-model dispatch with MEASURED_TEXTURE, as the renderer compiles it); software GL takes
+# minutes to compile the every-model program with it.
 _DEFINES = {"MEASURED_TEXTURE": "1"}
+
+
+def _measured_program(ctx, frag):
+    return build_program(ctx, vertex_source=_VERT, fragment_source=frag, defines=_DEFINES,
+                         virtual=default_virtual(("measured",)))
 
 _VERT = """#version 410 core
 out vec2 v_uv;
@@ -64,9 +71,21 @@ class GLSLEvaluator:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG, defines=_DEFINES)
-        self.vao = ctx.vertex_array(self.prog, [])
+        self.all_prog = self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG)
+        self.all_vao = self.vao = ctx.vertex_array(self.prog, [])
         self.measured = MeasuredTextures(ctx)
+        self._m = None
+        self._frag = _FRAG
+
+    def _use(self, params):
+        """Point self.prog / self.vao at the program for ``params``."""
+        if measured_params(params) is not None:
+            if self._m is None:
+                p = _measured_program(self.ctx, self._frag)
+                self._m = (p, self.ctx.vertex_array(p, []))
+            self.prog, self.vao = self._m
+        else:
+            self.prog, self.vao = self.all_prog, self.all_vao
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -83,6 +102,7 @@ class GLSLEvaluator:
         twi, two = self._tex(wi, w, h), self._tex(wo, w, h)
         out = self.ctx.texture((w, h), 4, dtype="f4")
         fbo = self.ctx.framebuffer(color_attachments=[out])
+        self._use(params)
         try:
             idx, block = uniform_block(params)
             self.prog["u_model"].value = idx
@@ -116,9 +136,13 @@ class GLSLSampler:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE, defines=_DEFINES)
-        self.vao = ctx.vertex_array(self.prog, [])
+        self.all_prog = self.prog = build_program(ctx, vertex_source=_VERT, fragment_source=_FRAG_SAMPLE)
+        self.all_vao = self.vao = ctx.vertex_array(self.prog, [])
         self.measured = MeasuredTextures(ctx)
+        self._m = None
+        self._frag = _FRAG_SAMPLE
+
+    _use = GLSLEvaluator._use
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -143,6 +167,7 @@ class GLSLSampler:
         a = self.ctx.texture((w, h), 4, dtype="f4")
         b = self.ctx.texture((w, h), 4, dtype="f4")
         fbo = self.ctx.framebuffer(color_attachments=[a, b])
+        self._use(params)
         try:
             idx, block = uniform_block(params)
             self.prog["u_model"].value = idx

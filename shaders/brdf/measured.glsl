@@ -11,8 +11,11 @@
 #ifdef MEASURED_TEXTURE
 uniform sampler3D u_measured;
 vec3 measured_texel(int h, int d, int p) { return texelFetch(u_measured, ivec3(p, d, h), 0).rgb; }
+// the sampler's data, layer z = 90: the CDF of the 90 theta_h bins at x = 0..89, the cosine weight at 90
+float measured_aux(int i) { return texelFetch(u_measured, ivec3(i, 0, 90), 0).r; }
 #else
 vec3 measured_texel(int h, int d, int p) { return vec3(0.0); }
+float measured_aux(int i) { return 0.0; }
 #endif
 
 const float MEASURED_HALF_PI = 1.57079632679489661923;
@@ -58,8 +61,8 @@ vec3 measured_eval(measured_params p, vec3 wi, vec3 wo) {
     return p.scale * measured_lookup(measured_half_diff(wi, wo));
 }
 
-// ---- sampling twin: cosine + tabulated half-vector mixture; derived[0] = cosine weight,
-// derived[1 + i] = the CDF of the 90 theta_h bins (edges ((i / 90)^2) pi / 2)
+// ---- sampling twin: cosine + tabulated half-vector mixture; measured_aux(90) = cosine weight,
+// measured_aux(i) = the CDF of the 90 theta_h bins (edges ((i / 90)^2) pi / 2)
 float measured_edge(int i) { float u = float(i) / 90.0; return u * u * MEASURED_HALF_PI; }
 
 // 1 - cos(edge i) without cancellation
@@ -69,8 +72,8 @@ float measured_h_pdf(measured_params p, vec3 h) {
     if (h.z <= 0.0) return 0.0;
     float th = atan(length(h.xy), h.z);
     int i = clamp(int(floor(sqrt(clamp(th, 0.0, MEASURED_HALF_PI) / MEASURED_HALF_PI) * 90.0)), 0, 89);
-    float lo = i > 0 ? p.derived[i] : 0.0;
-    float mass = p.derived[1 + i] - lo;
+    float lo = i > 0 ? measured_aux(i - 1) : 0.0;
+    float mass = measured_aux(i) - lo;
     // solid angle of the bin: 2 pi (cos a - cos b) = 4 pi sin((a + b) / 2) sin((b - a) / 2)
     float a = measured_edge(i), b = measured_edge(i + 1);
     float d_omega = 4.0 * PI * sin(0.5 * (a + b)) * sin(0.5 * (b - a));
@@ -82,12 +85,12 @@ float measured_pdf(measured_params p, vec3 wi, vec3 wo) {
     vec3 h = normalize(wi + wo);
     float cos_oh = dot(wo, h);
     float ph = cos_oh > 0.0 ? measured_h_pdf(p, h) / (4.0 * cos_oh) : 0.0;
-    float w = p.derived[0];
+    float w = measured_aux(90);
     return w * cosine_hemisphere_pdf(wi) + (1.0 - w) * ph;
 }
 
 vec3 measured_sample(measured_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
-    float w = p.derived[0];
+    float w = measured_aux(90);
     bool use_cos = u.x < w;
     float uc = min(use_cos ? u.x / w : (u.x - w) / (1.0 - w), ONE_MINUS_EPS);
     if (use_cos) {
@@ -98,11 +101,11 @@ vec3 measured_sample(measured_params p, vec3 wo, vec3 u, out vec3 wi, out float 
         for (int k = 0; k < 7; ++k) {
             if (lo_i >= hi_i) break;
             int mid = (lo_i + hi_i) / 2;
-            if (uc >= p.derived[1 + mid]) lo_i = mid + 1; else hi_i = mid;
+            if (uc >= measured_aux(mid)) lo_i = mid + 1; else hi_i = mid;
         }
         int i = min(lo_i, 89);
-        float lo = i > 0 ? p.derived[i] : 0.0;
-        float width = p.derived[1 + i] - lo;
+        float lo = i > 0 ? measured_aux(i - 1) : 0.0;
+        float width = measured_aux(i) - lo;
         float t = clamp(width > 0.0 ? (uc - lo) / width : 0.0, 0.0, 1.0);
         float a = measured_one_minus_cos(i), b = measured_one_minus_cos(i + 1);
         float x = a + t * (b - a);

@@ -59,10 +59,6 @@ def _check_file(value, where):
             raise ViewerError(f"{where}: {e}") from None
 
 
-def _derived(p):
-    return data(p).derived()
-
-
 SPEC = ModelSpec(
     name="measured",
     title="Measured (MERL)",
@@ -72,8 +68,6 @@ SPEC = ModelSpec(
     ),
     source="Matusik, Pfister, Brand, McMillan 2003, A Data-Driven Reflectance Model (MERL BRDF database); "
            "Rusinkiewicz 1998 half/difference coordinates",
-    derived=_derived,
-    derived_size=1 + merl.N_TH,
 )
 
 

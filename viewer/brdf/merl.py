@@ -242,13 +242,17 @@ class Measured:
         share = float(profile.min() / mean) if mean > 0 else 1.0
         self.w_cos = float(np.clip(share, 0.1, 0.9))
 
-    def derived(self) -> list[float]:
-        """The floats the GLSL sampler reads: the cosine weight, then the 90 bins' CDF."""
-        return [self.w_cos] + [float(x) for x in self.cdf]
-
     def texture_data(self) -> np.ndarray:
-        """float32 RGB data of a 3D texture, x = phi_d (180), y = theta_d, z = theta_h."""
-        return np.ascontiguousarray(self.table.astype(np.float32))
+        """float32 RGB data of a 3D texture 180 x 90 x 91: x = phi_d, y = theta_d, z = theta_h for
+        z < 90; the layer z = 90 holds the sampler's data in its red channel, row y = 0: the 90
+        bins' CDF at x = 0..89 and the cosine weight at x = 90 (read with texelFetch: a table
+        in an array of the uniform block would be indexed dynamically, which software GL
+        compiles into long chains of selects)."""
+        out = np.zeros((N_TH + 1, N_TD, N_PD, 3), dtype=np.float32)
+        out[:N_TH] = self.table
+        out[N_TH, 0, :N_TH, 0] = self.cdf
+        out[N_TH, 0, N_TH, 0] = self.w_cos
+        return out
 
 
 _CACHE: dict = {}

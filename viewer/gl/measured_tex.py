@@ -2,7 +2,7 @@
 
 A program that includes the measured model with ``MEASURED_TEXTURE`` defined reads the table of
 the material it draws from ``u_measured``; ``MeasuredTextures.bind`` uploads each file once
-(float32 RGB, 180 x 90 x 90, about 17 MiB) and binds the one a material names."""
+(float32 RGB, 180 x 90 x 91 with the sampler's CDF, about 17 MiB) and binds the one a material names."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ class MeasuredTextures:
                 self._tex.pop(next(iter(self._tex))).release()
             from viewer.brdf import merl
 
-            tex = self.ctx.texture3d((merl.N_PD, merl.N_TD, merl.N_TH), 3, d.texture_data().tobytes(), dtype="f4")
+            tex = self.ctx.texture3d((merl.N_PD, merl.N_TD, merl.N_TH + 1), 3, d.texture_data().tobytes(), dtype="f4")
             tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
             self._tex[key] = tex
         return tex

@@ -569,9 +569,7 @@ class Renderer:
         """(reflected, transmitted) albedo tables: on the GPU with the GLSL samplers
         (viewer/gl/albedo_gpu.py, the same estimator and points as the numpy builder), or with
         numpy where ``gpu_albedo`` is off or the sampling program fails to compile."""
-        from viewer.brdf.glsl import models_used
-
-        if self.gpu_albedo and "measured" not in models_used(params):  # its table is not bound there
+        if self.gpu_albedo:
             try:
                 if self._albedo_gpu is None:
                     from viewer.gl.albedo_gpu import GPUAlbedoTables
