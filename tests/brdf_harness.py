@@ -126,6 +126,8 @@ def _random_fields(fields, rng, depth):
             bases = [n for n in brdf.names() if not brdf.get(n).spec.nests_material]
             base = bases[rng.integers(len(bases))]
             out[prm.name] = random_params(brdf.get(base).spec, rng, _depth=depth + 1)
+        elif k == "path":
+            out[prm.name] = prm.default  # a file (measured: the built-in example table)
         else:
             raise AssertionError(k)
     return out

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.glsl import generate_dispatch, models_used, uniform_block, uses_thin_film
+from viewer.gl.measured_tex import MeasuredTextures, measured_params
 from viewer.gl.shaders import build_program
 
 _VERT = """#version 410 core
@@ -61,27 +62,33 @@ def _set(prog, name, value):
 
 
 class _FilmPrograms:
-    """One program of every model without THIN_FILM, and for a material with a film one of its
-    models with THIN_FILM (common/fresnel.glsl compiles the film's wavelength loop only then, as
-    the renderers do; every model with the loop takes software GL more than 10 minutes to
-    compile), built on first use; ``use(params)`` sets ``prog`` and ``vao`` to the one the
-    material needs."""
+    """One program of every model, and programs of a material's own models where it needs a
+    variant: THIN_FILM for a film (common/fresnel.glsl compiles the film's wavelength loop only
+    then, as the renderers do; every model with the loop takes software GL more than 10 minutes
+    to compile), MEASURED_TEXTURE for a measured table (a 3D texture). Built on first use;
+    ``use(params)`` sets ``prog`` and ``vao`` to the one the material needs."""
 
     def _init_programs(self, ctx, fragment):
         self.ctx = ctx
         self._fragment = fragment
         self._programs = {}
+        self.measured = MeasuredTextures(ctx)
         self.use(None)
 
     def use(self, params):
-        key = models_used(params) if params is not None and uses_thin_film(params) else None
+        defines = {}
+        if params is not None and uses_thin_film(params):
+            defines["THIN_FILM"] = "1"
+        if params is not None and measured_params(params) is not None:
+            defines["MEASURED_TEXTURE"] = "1"
+        key = (models_used(params), tuple(sorted(defines))) if defines else None
         if key not in self._programs:
             if key is None:
                 prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=self._fragment)
             else:
                 prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=self._fragment,
-                                     virtual={"brdf/dispatch.glsl": generate_dispatch(key)},
-                                     defines={"THIN_FILM": "1"})
+                                     virtual={"brdf/dispatch.glsl": generate_dispatch(key[0])},
+                                     defines=defines)
             self._programs[key] = (prog, self.ctx.vertex_array(prog, []))
         self.prog, self.vao = self._programs[key]
 
@@ -121,6 +128,7 @@ class GLSLEvaluator(_FilmPrograms):
                     self.prog[name].value = unit
             if "u_what" in self.prog:
                 _set(self.prog, "u_what", what)
+            self.measured.bind(self.prog, params)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)
@@ -177,6 +185,7 @@ class GLSLSampler(_FilmPrograms):
             tu.use(1)
             _set(self.prog, "u_wo", 0)
             _set(self.prog, "u_u", 1)
+            self.measured.bind(self.prog, params)
             fbo.use()
             fbo.viewport = (0, 0, w, h)
             self.vao.render(vertices=3)

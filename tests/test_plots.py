@@ -186,7 +186,7 @@ def test_bouguer_is_exp_minus_sigma_d():
 
 
 def test_kinds_that_apply():
-    assert plots.applicable_kinds(brdf.get("lambert").params()) == ("polar", "lobe", "albedo", "sampling")
+    assert plots.applicable_kinds(brdf.get("lambert").params()) == ("polar", "lobe", "albedo", "sampling", "slice")
     assert "fresnel" in plots.applicable_kinds(brdf.get("layered").params())
     assert "bouguer" in plots.applicable_kinds(brdf.get("dielectric").params())
     with pytest.raises(ViewerError, match="fresnel = 'none'"):

@@ -9,12 +9,12 @@ import time
 import viewer
 from viewer import ViewerError
 
-COMMANDS = ("render", "reference", "compare", "bake", "plot", "models")
+COMMANDS = ("render", "reference", "compare", "bake", "plot", "models", "fit")
 HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
                  "brdf-viewer reference SCENE --spp 64 --out ref.png | brdf-viewer compare SCENE --spp 64 "
                  "--out folder | brdf-viewer bake SCENE --spp 256 | brdf-viewer plot MODEL --kind polar "
-                 "--out plot.png | brdf-viewer models (SCENE: a .toml file, a built-in name or lecture:N; "
-                 "see README)")
+                 "--out plot.png | brdf-viewer fit FILE.binary --model MODEL | brdf-viewer models (SCENE: a "
+                 ".toml file, a built-in name or lecture:N; see README)")
 
 
 ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
@@ -24,11 +24,13 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import choose_engine, needs_spectral
+    from viewer.gpupt.select import choose_engine, needs_spectral, uses_measured
 
     spectral = getattr(args, "spectral", None)
     if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
         engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
+    elif args.engine == "auto" and any(uses_measured(s) for s in scenes):
+        engine, why = "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
     else:
         engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
     print(f"engine: {engine} ({why})")
@@ -115,7 +117,9 @@ def _parser_plot() -> argparse.ArgumentParser:
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling")
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling | slice")
+    p.add_argument("--overlay", metavar="MODEL", help="polar, albedo, slice: a second material drawn over it (a model, "
+                   "preset, .binary file or material .toml, e.g. one written by brdf-viewer fit)")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
@@ -146,7 +150,13 @@ def _plot_material(name: str, assignments):
     from viewer.brdf.spec import validate_params
     from viewer.scene import _INDEX, apply_override
 
-    if name in brdf.names():
+    if name.endswith(".binary"):  # a measured BRDF file (MERL format)
+        raw = {"model": "measured", "file": name}
+    elif name.endswith(".toml"):
+        from viewer.scene import load_material_file
+
+        raw = load_material_file(name)[1].to_plain()
+    elif name in brdf.names():
         raw = {"model": name}
     elif name in PRESETS:
         raw = get_preset(name)
@@ -187,6 +197,9 @@ def _plot_material(name: str, assignments):
     return validate_params(spec, raw, model, brdf.lookup_spec)
 
 
+plot_material = _plot_material  # public: the fit command reads its --set the same way
+
+
 def cmd_plot(args) -> int:
     from viewer import plots
     from viewer.io import check_output_path
@@ -196,8 +209,10 @@ def cmd_plot(args) -> int:
     plots.check_kind_name(args.kind)
     plots.check_channel(args.channel)
     p = _plot_material(args.model, args.overrides)
+    overlay = _plot_material(args.overlay, []) if args.overlay else None
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
-                       inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed)
+                       inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed,
+                       overlay=overlay)
     plots.write_plot(fig, out, data, args.width, args.height)
     print(f"wrote {out} ({args.kind} plot of {args.model})" + (f" and {data}" if data else ""))
     return 0
@@ -549,11 +564,14 @@ def main(argv=None) -> int:
     try:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
+            from viewer import measured_cli
+
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
-                      "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models}[cmd]()
+                      "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models,
+                      "fit": measured_cli.parser}[cmd]()
             args = parser.parse_args(rest)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
-                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models}[cmd](args)
+                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except ViewerError as e:

@@ -39,7 +39,7 @@ import numpy as np
 from viewer import ViewerError
 from viewer.brdf.sampling import LUMINANCE_REC709, luminance, reflect_z
 
-KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling")
+KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling", "slice")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
 PNG_KEY = "brdf-viewer:plot"
 LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (docs/conventions.md: linear Rec.709 RGB)
@@ -126,6 +126,7 @@ def applicable_kinds(p) -> tuple[str, ...]:
         kinds.append("spectral")
     if sampling_delta(p) is None:
         kinds.append("sampling")
+        kinds.append("slice")  # the Rusinkiewicz slice (viewer/measured_plot.py)
     return tuple(kinds)
 
 
@@ -176,8 +177,8 @@ def check_kind(p, kind: str) -> None:
     check_kind_name(kind)
     if kind in applicable_kinds(p):
         return
-    if kind == "sampling":
-        raise ViewerError(f"sampling plot: {sampling_delta(p)}; the plots of {p.model!r}: "
+    if kind in ("sampling", "slice"):
+        raise ViewerError(f"{kind} plot: {sampling_delta(p)}; the plots of {p.model!r}: "
                           f"{', '.join(applicable_kinds(p))}")
     what = {"fresnel": "no index of refraction (no Fresnel term)",
             "bouguer": "no absorption coefficient sigma_a",
@@ -569,10 +570,13 @@ def _nice_ceil(v: float) -> float:
 
 def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: str = "rgb",
            inside: bool = False, log: bool = False, name: str | None = None, samples: int = 200_000,
-           seed: int = 0) -> Figure:
+           seed: int = 0, overlay=None) -> Figure:
     """The figure of one plot kind for one material (what ``brdf-viewer plot`` draws);
-    ``samples`` and ``seed`` are the sampling plot's."""
+    ``samples`` and ``seed`` are the sampling plot's. ``overlay``: a second material drawn dashed
+    over the polar and albedo plots (e.g. an analytic model over a measured one) and, for the
+    slice, the residual image."""
     p = as_params(p)
+    overlay = None if overlay is None else as_params(overlay)
     check_kind(p, kind)
     check_channel(channel)
     label = name or p.model
@@ -582,6 +586,10 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
     if kind == "polar":
         d = polar_lobe(p, theta_i, phi)
         curves = _rgb_curves(d["theta_o"], transform(d["fcos"]), "f cos", channel, extra={"f": d["f"]})
+        if overlay is not None:
+            d2 = polar_lobe(overlay, theta_i, phi)
+            curves += _rgb_curves(d2["theta_o"], transform(d2["fcos"]), f"{overlay.model} f cos", channel, "dashed",
+                                  extra={"f": d2["f"]})
         vmax = max([float(np.max(c.y)) for c in curves] + [float(np.max(transform(x["reflectance"])))
                                                          for x in d["delta"]] + [0.0])
         plane = "x-z (tangent)" if phi % 180 == 0 else ("y-z (bitangent)" if phi % 180 == 90 else f"phi = {phi:g} deg")
@@ -612,6 +620,9 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
     if kind == "albedo":
         d = albedo_curve(p)
         curves = _rgb_curves(d["theta"], d["albedo"], "albedo", channel)
+        if overlay is not None:
+            d2 = albedo_curve(overlay)
+            curves += _rgb_curves(d2["theta"], d2["albedo"], f"{overlay.model} albedo", channel, "dashed")
         if d["transmissive"]:
             curves += _rgb_curves(d["theta"], d["reflected"], "reflected", channel, "dashed")
             curves += _rgb_curves(d["theta"], d["transmitted"], "transmitted", channel, "dotted")
@@ -674,6 +685,10 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
                       "angle of incidence (deg)", "reflectance", curves, marks, (0.0, 90.0), (0.0, 1.04), sub,
                       [medium], {"channel": ch, "inside": bool(inside), "type": d["type"],
                                  "brewster": d["brewster"], "critical": d["critical"], "eta": d["eta"], "k": d["k"]})
+    if kind == "slice":
+        from viewer.measured_plot import slice_figure
+
+        return slice_figure(p, label, sub, overlay)
     if kind == "spectral":
         from viewer.spectral_plot import spectral_figure
 
@@ -1069,11 +1084,14 @@ def _draw_polar(cv, fig, width, height):
                 fill=(120, 120, 120), anchor="lt")
     # lobe curves
     layer, ld = _clipped_layer(cv)
-    for c in fig.curves:
+    lines = []
+    for c in fig.curves:  # every fill first: a fill drawn later would overwrite the lines it covers
         t = np.radians(np.asarray(c.x))
         r = R * np.clip(np.asarray(c.y), 0, None) / rmax
         pts = list(zip(cx + r * np.sin(t), cy - r * np.cos(t)))
         ld.polygon(pts, fill=tuple(c.color) + (28,))
+        lines.append((pts, c))
+    for pts, c in lines:
         cv.polyline(pts, tuple(c.color) + (255,), 2.2, c.style, draw=ld)
     _paste_clipped(cv, layer, (0, 0, cv.w, cy + 1))
     for dl in fig.info.get("delta", []):
@@ -1270,6 +1288,10 @@ def render_figure(fig: Figure, width: int = 900, height: int = 600, ss: int = 3)
         draw_spectral(cv, fig, width, height)
     elif fig.kind == "sampling":
         _draw_sampling(cv, fig, width, height)
+    elif fig.kind == "slice":
+        from viewer.measured_plot import draw_slice
+
+        draw_slice(cv, fig, width, height)
     else:
         _draw_cartesian(cv, fig, width, height)
     return cv.image()

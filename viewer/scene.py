@@ -682,7 +682,7 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
     camera = _parse_camera(ck, data.get("camera", {}))
     environment = _parse_environment(ck, data.get("environment"), base_dir)
     render = _parse_render(ck, data.get("render", {}))
-    materials = _parse_materials(ck, data.get("materials", {}))
+    materials = _parse_materials(ck, data.get("materials", {}), base_dir)
     lights = _parse_lights(ck, data.get("lights", []))
     objects = _parse_objects(ck, data.get("objects"), materials)
 
@@ -901,7 +901,7 @@ def _parse_objects(ck: _Checker, lst, materials: dict) -> list[SceneObject]:
     return out
 
 
-def _parse_materials(ck: _Checker, t) -> dict:
+def _parse_materials(ck: _Checker, t, base_dir: Path | None = None) -> dict:
     from viewer import brdf
     from viewer.brdf.presets import PRESETS
     from viewer.brdf.spec import validate_params
@@ -938,6 +938,8 @@ def _parse_materials(ck: _Checker, t) -> dict:
         if not isinstance(model, str):
             ck.fail(f"{fld}.model", f"expected a string, got {_describe(model)}", ", ".join(brdf.names()))
         spec = brdf.lookup_spec(model, f"{ck.label}: {fld}.model")
+        if model == "measured" and isinstance(raw.get("file"), str) and raw["file"] and base_dir is not None:
+            raw["file"] = str(Path(base_dir) / Path(raw["file"]).expanduser())  # relative to the scene file
         out[name] = validate_params(spec, raw, f"{ck.label}: {fld}", brdf.lookup_spec)
     return out
 
@@ -1191,4 +1193,4 @@ def load_material_file(path) -> tuple[str, Any]:
         _Checker(label).fail("materials", "no [materials.NAME] table in the file",
                              "a file with [materials.NAME] and model = ... (or preset = ...)")
     name = next(iter(mats))
-    return name, _parse_materials(_Checker(label), {name: mats[name]})[name]
+    return name, _parse_materials(_Checker(label), {name: mats[name]}, path.parent.absolute())[name]

@@ -39,6 +39,8 @@ def _size(param: Param) -> int:
         return 4 * param.max_items + 1
     if k == "material":
         return 2
+    if k == "path":
+        return 0
     raise AssertionError(k)
 
 
@@ -75,7 +77,7 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
         elif k == "material":
             out.append(float(model_index(v.model)))
             out.append(float(base_offset_fn(v)))
-        else:
+        elif k != "path":
             raise AssertionError(k)
 
 

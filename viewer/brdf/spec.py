@@ -16,7 +16,7 @@ import numpy as np
 
 from viewer import ViewerError
 
-KINDS = ("rgb", "float", "choice", "lobes", "table", "material")
+KINDS = ("rgb", "float", "choice", "lobes", "table", "material", "path")
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,7 @@ class Param:
       lobes    a list of up to ``max_items`` tables whose fields are ``fields``
       table    a sub-table whose fields are ``fields`` (e.g. the layered model's coating)
       material another material table (any model except those with a ``material`` param)
+      path     a file name (a string; no GLSL field: the renderer binds what the file holds)
     lo, hi: the allowed range (inclusive) of a float and of each rgb component.
     ui_lo, ui_hi: the slider range when narrower than the allowed range; log: log-scale slider.
     """
@@ -49,6 +50,8 @@ class Param:
     log: bool = False
     # a choice of viewer.spectral material whose RGB Fresnel table the GLSL block carries
     spectral_table: bool = False
+    # path: check(value, where) raises ViewerError when the file is unusable
+    check: object = None
 
     def __post_init__(self):
         assert self.kind in KINDS, self.kind
@@ -70,6 +73,8 @@ class Param:
             return f"a list of up to {self.max_items} tables with keys " + ", ".join(f.name for f in self.fields)
         if self.kind == "table":
             return "a table with keys " + ", ".join(f.name for f in self.fields)
+        if self.kind == "path":
+            return "a file name (a string)"
         return "a material table with a 'model' key"
 
 
@@ -206,6 +211,12 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
             shown = ", ".join(f"{float(x):g}" for x in np.ravel(arr))
             raise ViewerError(f"{where}: [{shown}] is out of range; allowed: {param.allowed()}")
         return arr
+    if k == "path":
+        if not isinstance(value, str):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
+        if param.check is not None:
+            param.check(value, where)
+        return value
     if k == "choice":
         if value not in param.choices:
             raise ViewerError(f"{where}: {_show(value)} is not allowed; allowed: {param.allowed()}")

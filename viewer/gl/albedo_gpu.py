@@ -95,6 +95,8 @@ class GPUAlbedoTables:
         self._fbo1 = ctx.framebuffer(color_attachments=self._t1)
         self._fbo2 = ctx.framebuffer(color_attachments=self._t2)
 
+    _measured = None  # MeasuredTextures, made for the first measured material
+
     def _program(self, params):
         """The sampling program of the material's models with its choices compiled in (a
         choice switch compiles once; a slider move reuses it)."""
@@ -105,6 +107,8 @@ class GPUAlbedoTables:
         prog = self._programs.get(key)
         if prog is None:
             virtual = {"brdf/dispatch.glsl": generate_dispatch(models, fixed)}
+            if "measured" in models:
+                defines["MEASURED_TEXTURE"] = "1"  # its table's texture
             prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=_SAMPLE_FRAG, virtual=virtual,
                                  defines=defines or None)
             self._programs[key] = prog
@@ -141,6 +145,12 @@ class GPUAlbedoTables:
         # (the compiler drops what a model does not use: e.g. Lambert's weight ignores wo)
         set_uniform(prog, "u_model", idx)
         set_uniform(prog, "u_mat", block.tobytes())
+        if "u_measured" in prog:
+            if self._measured is None:
+                from viewer.gl.measured_tex import MeasuredTextures
+
+                self._measured = MeasuredTextures(ctx)
+            self._measured.bind(prog, params)
         set_uniform(prog, "u_size", self.size)
         set_uniform(prog, "u_nphi", len(self.phis))
         set_uniform(prog, "u_phi", np.array(list(self.phis) + [0.0] * (8 - len(self.phis)), dtype="f4").tobytes())
@@ -166,6 +176,9 @@ class GPUAlbedoTables:
         return r, t
 
     def release(self):
+        if self._measured is not None:
+            self._measured.release()
+            self._measured = None
         for obj in [self._fbo1, self._fbo2, *self._t1, *self._t2, *self._pattern_tex.values(),
                     *self._vaos.values(), *self._programs.values(), self._reduce]:
             obj.release()

@@ -166,6 +166,7 @@ class Renderer:
         self._ibl = None
         self._ssr = None
         self._rt = None
+        self._measured = None
 
     # ---------------------------------------------------------------- programs
     def build_programs(self):
@@ -399,6 +400,8 @@ class Renderer:
             defines["ENV_LIGHT"] = "1"
         if env_constant:
             defines["ENV_CONSTANT"] = "1"
+        if "measured" in used:  # the measured model's table texture (shaders/brdf/measured.glsl)
+            defines["MEASURED_TEXTURE"] = "1"
         if raytrace is not None:
             defines["RAYTRACE"] = "1"
             defines["MAT_TEXTURE"] = "1"
@@ -594,6 +597,14 @@ class Renderer:
             self._ibl = IBL(self.ctx)
         return self._ibl
 
+    def _measured_textures(self):
+        """The 3D textures of measured BRDF tables (viewer/gl/measured_tex.py), made on first use."""
+        if self._measured is None:
+            from viewer.gl.measured_tex import MeasuredTextures
+
+            self._measured = MeasuredTextures(self.ctx)
+        return self._measured
+
     def raytrace_state(self):
         """The scene's BVH and material textures for traced chains (viewer/gl/raytrace.py)."""
         if self._rt is None:
@@ -755,6 +766,8 @@ class Renderer:
             idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
             _set(prog, "u_mat", block.tobytes())
+            if "u_measured" in prog:
+                self._measured_textures().bind(prog, params)
             if env_on or ssr_on:
                 refl, trans, spec, alpha = self._base_albedo_tables(params)
                 _set(prog, "u_albedo", refl.tobytes())
@@ -900,6 +913,8 @@ class Renderer:
             self._albedo_gpu = None
         if self._rt is not None:
             self._rt.release()
+        if self._measured is not None:
+            self._measured.release()
         for v in self._fullscreen_vaos.values():
             v.release()
         self._fullscreen_vaos.clear()

@@ -109,6 +109,7 @@ class GpuReferenceRenderer:
                  mis_heuristic: str = "power", russian_roulette: bool = True):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
+        _refuse_measured(scene)
         check_options(strategy, mis_heuristic)
         self.strategy, self.mis_heuristic = strategy, mis_heuristic
         self.russian_roulette = bool(russian_roulette)
@@ -136,6 +137,7 @@ class GpuReferenceRenderer:
               russian_roulette=None):
         """Start over on a changed scene, camera or size (the programs stay cached); the
         estimator's options change where given (None: as before)."""
+        _refuse_measured(scene)
         check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
         self.strategy = strategy or self.strategy
         self.mis_heuristic = mis_heuristic or self.mis_heuristic
@@ -431,3 +433,11 @@ class GpuReferenceRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _refuse_measured(scene):
+    from viewer import ViewerError
+    from viewer.gpupt.select import MEASURED_REFUSAL, uses_measured
+
+    if uses_measured(scene):
+        raise ViewerError(MEASURED_REFUSAL)

@@ -156,6 +156,18 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
     return scene_is_dispersive(scene)
 
 
+def uses_measured(scene) -> bool:
+    """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
+    engine renders (the gpu engine's programs bind no per-material 3D textures)."""
+    from viewer.brdf.glsl import models_used
+
+    return any("measured" in models_used(m) for m in scene.materials.values())
+
+
+MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use --engine cpu or auto "
+                    "(auto takes the cpu engine for them)")
+
+
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
@@ -163,6 +175,10 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
     ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette), which
     both engines take."""
     if engine == "gpu":
+        if uses_measured(scene):
+            from viewer import ViewerError
+
+            raise ViewerError(MEASURED_REFUSAL)
         if needs_spectral(scene, spectral):
             from viewer import ViewerError
 

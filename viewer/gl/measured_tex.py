@@ -1,0 +1,63 @@
+"""3D textures of measured (MERL) BRDF tables for the GLSL twin ``shaders/brdf/measured.glsl``.
+
+A program that includes the measured model with ``MEASURED_TEXTURE`` defined reads the table of
+the material it draws from ``u_measured``; ``MeasuredTextures.bind`` uploads each file once
+(float32 RGB, 180 x 90 x 91 with the sampler's CDF, about 17 MiB) and binds the one a material names."""
+
+from __future__ import annotations
+
+from viewer.brdf.spec import Params
+
+UNIT = 15  # a texture unit no other pass uses (OpenGL 4.1 guarantees 16 per stage)
+
+
+def measured_params(params: Params) -> Params | None:
+    """The measured material inside ``params`` (itself or a nested base), or None."""
+    if params.model == "measured":
+        return params
+    for v in params.values():
+        if isinstance(v, Params) and v.model:
+            hit = measured_params(v)
+            if hit is not None:
+                return hit
+    return None
+
+
+class MeasuredTextures:
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._tex: dict[str, object] = {}
+
+    def texture(self, params: Params):
+        from viewer.brdf import measured
+
+        d = measured.data(params)
+        key = d.path
+        tex = self._tex.get(key)
+        if tex is None:
+            if len(self._tex) >= 4:
+                self._tex.pop(next(iter(self._tex))).release()
+            from viewer.brdf import merl
+
+            tex = self.ctx.texture3d((merl.N_PD, merl.N_TD, merl.N_TH + 1), 3, d.texture_data().tobytes(), dtype="f4")
+            tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+            self._tex[key] = tex
+        return tex
+
+    def bind(self, prog, params: Params, unit: int = UNIT) -> bool:
+        """Bind the table of the measured material in ``params`` (if any) for ``prog``; always
+        points ``u_measured`` at ``unit`` (a sampler left at unit 0 would clash with the
+        program's 2D samplers). True when a table was bound."""
+        if "u_measured" not in prog:
+            return False
+        prog["u_measured"].value = unit
+        m = measured_params(params)
+        if m is None:
+            return False
+        self.texture(m).use(unit)
+        return True
+
+    def release(self):
+        for t in self._tex.values():
+            t.release()
+        self._tex.clear()
