@@ -33,6 +33,9 @@ def param_widget(param: Param, value, label_prefix: str = ""):
         fmt = "%.4g" if param.log or hi - lo < 0.1 else "%.3f"
         changed, out = imgui.slider_float(label, float(value), lo, hi, fmt, flags)
         return changed, float(out)
+    if k == "bool":
+        changed, out = imgui.checkbox(label, bool(value))
+        return changed, bool(out)
     if k == "choice":
         idx = param.choices.index(value)
         changed, idx = imgui.combo(label, idx, list(param.choices))

@@ -21,7 +21,7 @@ from viewer.brdf.spec import ModelSpec, Param, Params, validate_params
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film"}
+_HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from viewer import ViewerError
 
-KINDS = ("rgb", "float", "choice", "lobes", "table", "material")
+KINDS = ("rgb", "float", "choice", "lobes", "table", "material", "bool")
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,7 @@ class Param:
       rgb      3 floats (linear RGB); a scalar in a scene file means grey
       float    1 float
       choice   one of ``choices`` (strings); the GLSL side gets its index as an int
+      bool     true or false (the GLSL side gets a bool)
       lobes    a list of up to ``max_items`` tables whose fields are ``fields``
       table    a sub-table whose fields are ``fields`` (e.g. the layered model's coating)
       material another material table (any model except those with a ``material`` param)
@@ -70,6 +71,8 @@ class Param:
             return f"a list of up to {self.max_items} tables with keys " + ", ".join(f.name for f in self.fields)
         if self.kind == "table":
             return "a table with keys " + ", ".join(f.name for f in self.fields)
+        if self.kind == "bool":
+            return "true or false"
         return "a material table with a 'model' key"
 
 
@@ -206,6 +209,10 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
             shown = ", ".join(f"{float(x):g}" for x in np.ravel(arr))
             raise ViewerError(f"{where}: [{shown}] is out of range; allowed: {param.allowed()}")
         return arr
+    if k == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
+        return bool(value)
     if k == "choice":
         if value not in param.choices:
             raise ViewerError(f"{where}: {_show(value)} is not allowed; allowed: {param.allowed()}")
