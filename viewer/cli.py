@@ -24,11 +24,13 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import DEFAULT_ESTIMATOR, choose_engine, needs_spectral
+    from viewer.gpupt.select import RANDOM_WALK_REASON, DEFAULT_ESTIMATOR, choose_engine, needs_spectral, uses_random_walk
 
     spectral = getattr(args, "spectral", None)
     if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
         engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
+    elif args.engine == "auto" and any(uses_random_walk(s) for s in scenes):
+        engine, why = "cpu", RANDOM_WALK_REASON
     elif args.engine == "auto" and hasattr(args, "strategy") and _estimator(args) != DEFAULT_ESTIMATOR:
         engine, why = "cpu", "only the cpu engine has the estimator options (--strategy, --mis-heuristic, --no-roulette)"
     else:

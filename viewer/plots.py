@@ -612,6 +612,13 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
     if kind == "albedo":
         d = albedo_curve(p)
         curves = _rgb_curves(d["theta"], d["albedo"], "albedo", channel)
+        from viewer import ms_compare
+
+        if ms_compare.applies(p):  # single scattering, the raster's compensation, the random walk
+            ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])))
+            curves += _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
+            curves += _rgb_curves(d["theta"], ms["compensated"], "compensated (raster)", channel, "dashed")
+            curves += _rgb_curves(d["theta"], ms["walk"], "random walk (reference)", channel)
         if d["transmissive"]:
             curves += _rgb_curves(d["theta"], d["reflected"], "reflected", channel, "dashed")
             curves += _rgb_curves(d["theta"], d["transmitted"], "transmitted", channel, "dotted")

@@ -111,9 +111,10 @@ class ReferenceView:
         if self.engine is None:
             self._choose_engine()
         if self.engine == "gpu":
-            from viewer.gpupt.select import DEFAULT_ESTIMATOR
+            from viewer.gpupt.select import DEFAULT_ESTIMATOR, uses_random_walk
 
-            if self.options == DEFAULT_ESTIMATOR:
+            # the microfacet random walk: the cpu engine, while a material has it
+            if self.options == DEFAULT_ESTIMATOR and not uses_random_walk(scene):
                 self._cancel.set()   # a cpu job of other options stops (its samples are stored)
                 self._gpu_update(key, scene, camera, w, h)
                 return

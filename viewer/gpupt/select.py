@@ -160,6 +160,24 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
     return scene_is_dispersive(scene)
 
 
+def uses_random_walk(scene) -> bool:
+    """Whether a material some object uses (or its nested base) has the microfacet model's
+    multiple-scattering random walk, which only the cpu engine traces."""
+    from viewer.brdf.microfacet import walks
+    from viewer.brdf.spec import Params
+
+    def has(p) -> bool:
+        if p.model == "microfacet" and walks(p):
+            return True
+        return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
+
+    used = {o.material for o in scene.objects}
+    return any(has(p) for name, p in scene.materials.items() if name in used)
+
+
+RANDOM_WALK_REASON = "a microfacet material has multiple_scattering: only the cpu engine has the random walk"
+
+
 # the estimator of the gpu engine (shaders/passes/pathtrace.frag); the cpu engine has every option
 DEFAULT_ESTIMATOR = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
 
@@ -181,6 +199,11 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
             raise ViewerError("--engine gpu traces RGB only, and this reference needs wavelengths (a "
                               "dispersive material or --spectral); use --engine cpu or auto")
+        if uses_random_walk(scene):
+            from viewer import ViewerError
+
+            raise ViewerError("--engine gpu has no multiple-scattering random walk (a microfacet material has "
+                              "multiple_scattering = true); use --engine cpu or auto")
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx)
