@@ -35,17 +35,24 @@ def _dfg(nov, alpha):
     return lookup_dfg(_DFG, nov, max(float(alpha), 1e-3))
 
 
-def albedos(p, cos_o, n_side: int = 24) -> dict:
-    """{"single", "compensated", "walk"}: (len(cos_o), 3) directional albedos of ``p``."""
+def albedos(p, cos_o, n_side: int = 24, known: dict | None = None) -> dict:
+    """{"single", "compensated", "walk"}: (len(cos_o), 3) directional albedos of ``p``.
+    ``known``: any of "single" / "walk" already computed at these cos_o with this n_side."""
     model = brdf.get("microfacet")
     cos_o = np.asarray(cos_o, dtype=np.float64)
+    known = known or {}
     off = p.replace(multiple_scattering=False)
     on = p.replace(multiple_scattering=True)
-    single = directional_albedo(model, off, cos_o, n_side=n_side)
-    walk = directional_albedo(model, on, cos_o, n_side=n_side)
+    single = known.get("single")
+    if single is None:
+        single = directional_albedo(model, off, cos_o, n_side=n_side)
+    walk = known.get("walk")
+    if walk is None:
+        walk = directional_albedo(model, on, cos_o, n_side=n_side)
     spec_p, alpha = model.module.ibl_split(off)
     nov_n = (TABLE_SIZE - 0.5) / TABLE_SIZE
-    spec_single = directional_albedo(model, spec_p, cos_o, n_side=n_side)
+    has_kd = bool(np.any(np.asarray(p.kd) > 0))
+    spec_single = directional_albedo(model, spec_p, cos_o, n_side=n_side) if has_kd else single
     spec_normal = directional_albedo(model, spec_p, np.array([nov_n]), n_side=n_side)[0]
     a_n, b_n = _dfg(nov_n, alpha)
     f0 = np.clip(spec_normal / max(float(a_n + b_n), 1e-6), 0.0, 1.0)

@@ -615,8 +615,11 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
         from viewer import ms_compare
 
         if ms_compare.applies(p):  # single scattering, the raster's compensation, the random walk
-            ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])))
-            curves += _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
+            from viewer.brdf.microfacet import walks
+
+            ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])), known={
+                "walk" if walks(p) else "single": d["albedo"]})
+            curves = _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
             curves += _rgb_curves(d["theta"], ms["compensated"], "compensated (raster)", channel, "dashed")
             curves += _rgb_curves(d["theta"], ms["walk"], "random walk (reference)", channel)
         if d["transmissive"]:
