@@ -244,3 +244,38 @@ def test_albedo_plot_shows_three_albedos():
     # the compensation overshoots slightly at grazing view (1.017 at 89.5 degrees: the DFG table is
     # read at its edge texels there, and F0 is derived from albedos, not given)
     assert np.all(by["compensated"] > by["single scattering"]) and np.all(by["compensated"] < 1.03)
+
+
+def _ms_scene(tmp_path):
+    from viewer.scene import load_scene
+
+    path = tmp_path / "ms.toml"
+    path.write_text(textwrap.dedent("""
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "layered"
+        base = { model = "microfacet", alpha = 0.7, multiple_scattering = true }
+        """))
+    return load_scene(path)
+
+
+def test_engines_only_cpu_has_the_walk(tmp_path, capsys):
+    """auto takes the cpu engine for a scene with the walk (also nested in a layered base) and
+    prints why; --engine gpu refuses with one line."""
+    from types import SimpleNamespace
+
+    from viewer import cli
+    from viewer.gpupt.select import make_renderer, uses_random_walk
+
+    sc = _ms_scene(tmp_path)
+    assert uses_random_walk(sc)
+    assert cli._engine(SimpleNamespace(engine="auto", workers=0), scenes=[sc]) == "cpu"
+    out = capsys.readouterr().out
+    assert "engine: cpu (a microfacet material has multiple_scattering" in out
+    with pytest.raises(ViewerError, match="--engine gpu has no multiple-scattering random walk") as e:
+        make_renderer("gpu", sc)
+    assert "\n" not in str(e.value)
+    sc.materials["m"]["base"]["multiple_scattering"] = False
+    assert not uses_random_walk(sc)
