@@ -166,6 +166,18 @@ def eval(p, wi, wo):
     return f
 
 
+def eval_mean(p, wi, wo, n_walks: int = 48):
+    """``eval`` with the random walk's part averaged over ``n_walks`` walks (plots: a smoother
+    curve than one walk per point); equal to ``eval`` without the walk."""
+    if not walks(p):
+        return eval(p, wi, wo)
+    f = eval_specular(p, wi, wo) + microfacet_walk.eval_multiple_mean(
+        distribution(p), _fresnel_fn(p), wi, wo, walks=n_walks)
+    if np.any(p.kd > 0):
+        f = f + eval_diffuse(p, wi, wo)
+    return f
+
+
 def _p_diffuse(p, wo):
     """Probability of sampling the diffuse lobe for each wo."""
     if not np.any(p.kd > 0):
