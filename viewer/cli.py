@@ -456,6 +456,8 @@ def _describe_param(p, indent="    ") -> str:
         dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
     elif p.kind in ("table", "lobes", "material"):
         dv = "see below" if p.kind != "material" else d.model
+    elif p.kind == "bool":
+        dv = "true" if d else "false"
     else:
         dv = repr(d) if isinstance(d, str) else f"{d:g}"
     unit = f" {p.unit}" if p.unit else ""

@@ -6,6 +6,8 @@ shares the CPU cores with the CPU engine, so it is whichever measured faster on 
 a stored measurement (``engine.toml`` in the cache folder, keyed by the GL renderer string and
 the number of cores) or, the first time, a short calibration (the built-in default scene at
 128 x 128, 4 spp, both engines, warm) whose result is stored. No OpenGL at all -> cpu.
+Scenes only the cpu engine can trace (wavelengths: ``needs_spectral``; the microfacet model's
+multiple-scattering random walk: ``uses_random_walk``) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
