@@ -49,6 +49,8 @@ def _corner_fields(fields, rng, depth) -> dict:
             out[prm.name] = str(prm.choices[int(side_rng(rng).integers(len(prm.choices)))])
         elif k == "choice":
             out[prm.name] = str(prm.choices[int(rng.integers(len(prm.choices)))])
+        elif k == "bool":  # a side stream, so that the other parameters' corners stay as they were
+            out[prm.name] = bool(side_rng(rng).random() < 0.5)
         elif k == "table":
             out[prm.name] = _corner_fields(prm.fields, rng, depth)
         elif k == "lobes":

@@ -327,3 +327,8 @@ def test_multiple_scattering_compensation_white_furnace(tmp_path, renderer):
     # table's interpolation and sampling (<1e-2), and grazing pixels use the table's last node
     assert np.abs(comp[mask] - 1.0).max() < 0.03, np.abs(comp[mask] - 1.0).max()
     assert plain[mask].mean() < 0.92
+    # a material with the reference's random walk gets the compensation on its own
+    scene.render.ms_compensation = False
+    scene.materials["m"]["multiple_scattering"] = True
+    own = _render(renderer, scene)
+    assert np.abs(own[mask] - comp[mask]).max() < 1e-5

@@ -24,13 +24,15 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import choose_engine, needs_spectral, uses_measured
+    from viewer.gpupt.select import RANDOM_WALK_REASON, choose_engine, needs_spectral, uses_measured, uses_random_walk
 
     spectral = getattr(args, "spectral", None)
     if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
         engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
     elif args.engine == "auto" and any(uses_measured(s) for s in scenes):
         engine, why = "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
+    elif args.engine == "auto" and any(uses_random_walk(s) for s in scenes):
+        engine, why = "cpu", RANDOM_WALK_REASON
     else:
         engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
     print(f"engine: {engine} ({why})")
@@ -467,6 +469,8 @@ def _describe_param(p, indent="    ") -> str:
         dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
     elif p.kind in ("table", "lobes", "material"):
         dv = "see below" if p.kind != "material" else d.model
+    elif p.kind == "bool":
+        dv = "true" if d else "false"
     else:
         dv = repr(d) if isinstance(d, str) else f"{d:g}"
     unit = f" {p.unit}" if p.unit else ""

@@ -256,6 +256,12 @@ def _delta_reflectance(p, cos_i: float) -> np.ndarray:
     return np.asarray(fresnel_schlick(cos_i, src["f0"]), float)
 
 
+def _eval(model, p, wi, wo):
+    """f for a plot: a model's ``eval_mean`` where it has one (a stochastic eval averaged), else eval."""
+    fn = getattr(model.module, "eval_mean", None)
+    return model.eval(p, wi, wo) if fn is None else fn(p, np.ascontiguousarray(wi), np.ascontiguousarray(wo))
+
+
 def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict:
     """The lobe in the plane of incidence (see the module docstring for the angles).
 
@@ -271,7 +277,7 @@ def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict
     theta_o = np.unique(np.concatenate([grid, dense[(dense > -90.0) & (dense < 90.0)]]))
     wi = direction(theta_i, phi)
     wo = plane_directions(theta_o, phi)
-    f = np.asarray(model.eval(p, np.broadcast_to(wi, wo.shape), wo), dtype=np.float64)
+    f = np.asarray(_eval(model, p, np.broadcast_to(wi, wo.shape), wo), dtype=np.float64)
     cos_o = np.maximum(np.cos(np.radians(theta_o)), 0.0)
     fcos = f * cos_o[:, None]
     delta = []
@@ -298,7 +304,7 @@ def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_p
     wo = direction(T, P)
     wi = direction(theta_i, phi_i)
     flat = wo.reshape(-1, 3)
-    f = np.asarray(model.eval(p, np.broadcast_to(wi, flat.shape), flat), dtype=np.float64).reshape(T.shape + (3,))
+    f = np.asarray(_eval(model, p, np.broadcast_to(wi, flat.shape), flat), dtype=np.float64).reshape(T.shape + (3,))
     fcos = f * np.maximum(wo[..., 2], 0.0)[..., None]
     value = reduce_channel(fcos, channel)
     x, y, z = (value * wo[..., i] for i in range(3))
@@ -620,6 +626,16 @@ def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: st
     if kind == "albedo":
         d = albedo_curve(p)
         curves = _rgb_curves(d["theta"], d["albedo"], "albedo", channel)
+        from viewer import ms_compare
+
+        if ms_compare.applies(p):  # single scattering, the raster's compensation, the random walk
+            from viewer.brdf.microfacet import walks
+
+            ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])), known={
+                "walk" if walks(p) else "single": d["albedo"]})
+            curves = _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
+            curves += _rgb_curves(d["theta"], ms["compensated"], "compensated (raster)", channel, "dashed")
+            curves += _rgb_curves(d["theta"], ms["walk"], "random walk (reference)", channel)
         if overlay is not None:
             d2 = albedo_curve(overlay)
             curves += _rgb_curves(d2["theta"], d2["albedo"], f"{overlay.model} albedo", channel, "dashed")

@@ -111,8 +111,14 @@ class ReferenceView:
         if self.engine is None:
             self._choose_engine()
         if self.engine == "gpu":
-            self._gpu_update(key, scene, camera, w, h)
-            return
+            from viewer.gpupt.select import uses_measured, uses_random_walk
+
+            # the microfacet random walk and measured tables: the cpu engine, while a material has one
+            if not uses_random_walk(scene) and not uses_measured(scene):
+                self._cancel.set()   # a cpu job stops (its samples are stored)
+                self._gpu_update(key, scene, camera, w, h)
+                return
+            self._drop_gpu()
         if key != self._key:
             self._key = key
             self.restart(scene, camera, w, h)

@@ -36,6 +36,9 @@ def param_widget(param: Param, value, label_prefix: str = ""):
     if k == "path":
         imgui.text(f"{param.name}: {value or '(built-in example)'}")
         return False, value
+    if k == "bool":
+        changed, out = imgui.checkbox(label, bool(value))
+        return changed, bool(out)
     if k == "choice":
         idx = param.choices.index(value)
         changed, idx = imgui.combo(label, idx, list(param.choices))

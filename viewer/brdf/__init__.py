@@ -21,8 +21,8 @@ from viewer.brdf.spec import ModelSpec, Param, Params, validate_params
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film",
-            "merl", "fit"}
+_HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
+            "spectral_fresnel", "thin_film", "merl", "fit"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 

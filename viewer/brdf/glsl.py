@@ -31,7 +31,7 @@ def _size(param: Param) -> int:
         return 3
     if k == "choice" and param.spectral_table:
         return 2
-    if k in ("float", "choice"):
+    if k in ("float", "choice", "bool"):
         return 1
     if k == "table":
         return sum(_size(f) for f in param.fields)
@@ -58,7 +58,7 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
         k = p.kind
         if k == "rgb":
             out.extend(float(x) for x in np.asarray(v).reshape(3))
-        elif k == "float":
+        elif k in ("float", "bool"):
             out.append(float(v))
         elif k == "choice":
             out.append(float(p.choices.index(v)))
@@ -130,6 +130,8 @@ def _glsl_decls(struct_name: str, params_spec, structs: list[str]) -> list[str]:
             lines.append(f"    vec3 {p.name};")
         elif k == "float":
             lines.append(f"    float {p.name};")
+        elif k == "bool":
+            lines.append(f"    bool {p.name};")
         elif k == "choice":
             lines.append(f"    int {p.name}; // " + ", ".join(f"{i} = {c}" for i, c in enumerate(p.choices)))
             if p.spectral_table:
@@ -166,6 +168,8 @@ def _glsl_reads(params_spec, target: str, o: list[int], fixed: dict | None = Non
             lines.append(f"    {target}.{p.name} = vec3(mat_f(o + {at}), mat_f(o + {at + 1}), mat_f(o + {at + 2}));")
         elif k == "float":
             lines.append(f"    {target}.{p.name} = mat_f(o + {at});")
+        elif k == "bool":
+            lines.append(f"    {target}.{p.name} = mat_f(o + {at}) > 0.5;")
         elif k == "choice":
             lines.append(f"    {target}.{p.name} = int(mat_f(o + {at}) + 0.5);")
             if p.spectral_table:

@@ -16,6 +16,13 @@ Cook & Torrance 1981, Walter et al. 2007 eq. 20), plus an optional Lambertian ba
     not a proof of energy conservation, but the directional albedo stays <= 1 over the full
     parameter grid checked in tests/test_microfacet.py (kd <= 1).
 
+multiple_scattering = true (GGX or Beckmann with Smith G): the light scattered between microfacets
+too, by the random walk on the microsurface of Heitz et al. 2016 (``microfacet_walk``): sampling
+is the walk itself (weight = the product of the Fresnel terms), eval = the analytic
+single-scattering lobe + a one-walk unbiased estimate of the higher orders (so f is a random
+variable: mean-correct, noisy), pdf = a heuristic used only as an MIS weight. The rasterizer has no
+walk; it approximates the same light with its multiple-scattering compensation (Fdez-Aguera 2019).
+
 Sampling: visible normals (GGX, Beckmann) or D cos (blinn_phong) for the specular lobe, cosine
 for the diffuse lobe, chosen with probability P_d = mean(kd (1 - F(cos_o))) /
 (mean(kd (1 - F(cos_o))) + mean(F(cos_o))); the pdf is the matching mixture and the weight is
@@ -28,7 +35,7 @@ import numpy as np
 
 from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielectric, fresnel_schlick
 from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_blinn_smith, G_v_cavity
-from viewer.brdf import spectral_fresnel, thin_film
+from viewer.brdf import microfacet_walk, spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
 from viewer.brdf.spec import ModelSpec, Param
@@ -61,6 +68,9 @@ SPEC = ModelSpec(
               "transmittances (1 - F(cos_i)) (1 - F(cos_o))", lo=0.0, hi=1.0),
         thin_film.param(),
         spectral_fresnel.param(),
+        Param("multiple_scattering", "bool", False, "light scattered between microfacets too: the "
+              "reference's random walk on the microsurface (Heitz et al. 2016; GGX or Beckmann with "
+              "Smith G); the rasterizer approximates it with its compensation (Fdez-Aguera 2019)"),
     ),
     source="Torrance & Sparrow 1967; Blinn 1977; Cook & Torrance 1981; Walter et al. 2007 eq. 20 "
            "(f = F G D / (4 cos_i cos_o)); Heitz 2014 eq. 99 (Smith G2); Heitz 2018 (GGX VNDF); "
@@ -128,8 +138,41 @@ def eval_diffuse(p, wi, wo):
     return np.where(ok[:, None], fd, 0.0)
 
 
+def walks(p) -> bool:
+    """Whether the random walk is on (multiple_scattering with GGX or Beckmann and Smith G; the
+    flag is ignored for blinn_phong, which has no visible-normal sampling, and V-cavity G, which is
+    not a Smith microsurface)."""
+    return bool(p.get("multiple_scattering", False)) and p.distribution != "blinn_phong" \
+        and p.shadowing == "smith"
+
+
+def _fresnel_fn(p):
+    return lambda cos: fresnel_rgb(p, cos)
+
+
+def eval_multiple(p, wi, wo):
+    """One random-walk estimate of the orders >= 2 (zero unless ``walks(p)``)."""
+    if not walks(p):
+        return np.zeros((wi.shape[0], 3))
+    return microfacet_walk.eval_multiple(distribution(p), _fresnel_fn(p), wi, wo)
+
+
 def eval(p, wi, wo):
     f = eval_specular(p, wi, wo)
+    if walks(p):
+        f = f + eval_multiple(p, wi, wo)
+    if np.any(p.kd > 0):
+        f = f + eval_diffuse(p, wi, wo)
+    return f
+
+
+def eval_mean(p, wi, wo, n_walks: int = 48):
+    """``eval`` with the random walk's part averaged over ``n_walks`` walks (plots: a smoother
+    curve than one walk per point); equal to ``eval`` without the walk."""
+    if not walks(p):
+        return eval(p, wi, wo)
+    f = eval_specular(p, wi, wo) + microfacet_walk.eval_multiple_mean(
+        distribution(p), _fresnel_fn(p), wi, wo, walks=n_walks)
     if np.any(p.kd > 0):
         f = f + eval_diffuse(p, wi, wo)
     return f
@@ -158,11 +201,44 @@ def _pdf_specular(p, wi, wo):
 def pdf(p, wi, wo):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     pd = _p_diffuse(p, wo)
-    out = (1.0 - pd) * _pdf_specular(p, wi, wo) + pd * np.maximum(wi[:, 2], 0.0) * INV_PI
+    ps = _pdf_specular(p, wi, wo)
+    if walks(p):  # the walk's density has no closed form: a heuristic, an MIS weight only
+        q = microfacet_walk.ms_fraction(np.sqrt(p.alpha_x * p.alpha_y))
+        ps = (1.0 - q) * ps + q * np.maximum(wi[:, 2], 0.0) * INV_PI
+    out = (1.0 - pd) * ps + pd * np.maximum(wi[:, 2], 0.0) * INV_PI
     return np.where(ok, out, 0.0)
 
 
+def _sample_walk(p, wo, u):
+    """Lobe choice as in ``sample``, then the random walk or the cosine lobe, each weighted by
+    its own ratio (no one-sample MIS over the lobes: the walk has no closed-form density)."""
+    n = wo.shape[0]
+    up = wo[:, 2] > 0
+    wo_s = np.where(up[:, None], wo, np.array([0.0, 0.0, 1.0]))
+    pd = _p_diffuse(p, wo_s)
+    choose_d = u[:, 0] < pd
+    u0 = np.where(choose_d, u[:, 0] / np.where(pd > 0, pd, 1.0),
+                  (u[:, 0] - pd) / np.where(pd < 1, 1.0 - pd, 1.0))
+    uu = np.stack([np.clip(u0, 0.0, 1.0 - 1e-16), u[:, 1]], axis=-1)
+    wi = np.empty((n, 3))
+    weight = np.zeros((n, 3))
+    s = ~choose_d
+    if np.any(s):
+        wi_s, w_s, _ = microfacet_walk.sample(distribution(p), _fresnel_fn(p), wo_s[s], uu[s])
+        wi[s] = wi_s
+        weight[s] = w_s / (1.0 - pd[s])[:, None]
+    if np.any(choose_d):
+        d = choose_d
+        wi[d] = cosine_hemisphere(uu[d])
+        weight[d] = eval_diffuse(p, wi[d], wo_s[d]) * (np.pi / np.where(pd[d] > 0, pd[d], 1.0))[:, None]
+    pdf_ = pdf(p, wi, wo)
+    ok = up & (wi[:, 2] > 0) & (pdf_ > 0)
+    return wi, np.where(ok[:, None], weight, 0.0), np.where(ok, pdf_, 0.0)
+
+
 def sample(p, wo, u):
+    if walks(p):
+        return _sample_walk(p, wo, u)
     n = wo.shape[0]
     up = wo[:, 2] > 0
     wo_s = np.where(up[:, None], wo, np.array([0.0, 0.0, 1.0]))

@@ -16,7 +16,7 @@ import numpy as np
 
 from viewer import ViewerError
 
-KINDS = ("rgb", "float", "choice", "lobes", "table", "material", "path")
+KINDS = ("rgb", "float", "choice", "lobes", "table", "material", "path", "bool")
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,7 @@ class Param:
       rgb      3 floats (linear RGB); a scalar in a scene file means grey
       float    1 float
       choice   one of ``choices`` (strings); the GLSL side gets its index as an int
+      bool     true or false (the GLSL side gets a bool)
       lobes    a list of up to ``max_items`` tables whose fields are ``fields``
       table    a sub-table whose fields are ``fields`` (e.g. the layered model's coating)
       material another material table (any model except those with a ``material`` param)
@@ -75,6 +76,8 @@ class Param:
             return "a table with keys " + ", ".join(f.name for f in self.fields)
         if self.kind == "path":
             return "a file name (a string)"
+        if self.kind == "bool":
+            return "true or false"
         return "a material table with a 'model' key"
 
 
@@ -217,6 +220,10 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         if param.check is not None:
             param.check(value, where)
         return value
+    if k == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
+        return bool(value)
     if k == "choice":
         if value not in param.choices:
             raise ViewerError(f"{where}: {_show(value)} is not allowed; allowed: {param.allowed()}")

@@ -775,7 +775,11 @@ class Renderer:
                 _set(prog, "u_albedo_s", spec.tobytes())
                 _set(prog, "u_ibl_alpha", alpha)
                 _set(prog, "u_ibl_delta", int(brdf_spec(params).delta and alpha == 0.0))
-                if frame_uniforms["u_ms_on"]:  # the shader reads u_ms_f0 only then
+                # compensation for the whole scene, or for a material whose reference has the
+                # multiple-scattering random walk (the raster's approximation of the same light)
+                ms_on = bool(frame_uniforms["u_ms_on"]) or bool(params.get("multiple_scattering", False))
+                _set(prog, "u_ms_on", int(ms_on))
+                if ms_on:  # the shader reads u_ms_f0 only then
                     _set(prog, "u_ms_f0", tuple(float(x) for x in self.ms_f0(params)))
                 absorbing = "sigma_a" in params and brdf_spec(params).transmissive
                 _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))

@@ -6,6 +6,8 @@ shares the CPU cores with the CPU engine, so it is whichever measured faster on 
 a stored measurement (``engine.toml`` in the cache folder, keyed by the GL renderer string and
 the number of cores) or, the first time, a short calibration (the built-in default scene at
 128 x 128, 4 spp, both engines, warm) whose result is stored. No OpenGL at all -> cpu.
+Scenes only the cpu engine can trace (wavelengths: ``needs_spectral``; the microfacet model's
+multiple-scattering random walk: ``uses_random_walk``) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
@@ -168,6 +170,26 @@ MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use
                     "(auto takes the cpu engine for them)")
 
 
+def uses_random_walk(scene) -> bool:
+    """Whether a material some object uses (or its nested base) has the microfacet model's
+    multiple-scattering random walk, which only the cpu engine traces."""
+    from viewer.brdf.microfacet import walks
+    from viewer.brdf.spec import Params
+
+    def has(p) -> bool:
+        if p.model == "microfacet" and walks(p):
+            return True
+        return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
+
+    used = {o.material for o in scene.objects}
+    return any(has(p) for name, p in scene.materials.items() if name in used)
+
+
+RANDOM_WALK_REASON = "a microfacet material has multiple_scattering: only the cpu engine has the random walk"
+
+
+
+
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
@@ -184,6 +206,11 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
             raise ViewerError("--engine gpu traces RGB only, and this reference needs wavelengths (a "
                               "dispersive material or --spectral); use --engine cpu or auto")
+        if uses_random_walk(scene):
+            from viewer import ViewerError
+
+            raise ViewerError("--engine gpu has no multiple-scattering random walk (a microfacet material has "
+                              "multiple_scattering = true); use --engine cpu or auto")
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,

@@ -1,0 +1,281 @@
+"""Multiple scattering on the microsurface (viewer/brdf/microfacet_walk.py, the random walk of
+Heitz et al. 2016) behind ``multiple_scattering = true`` on the microfacet model: white furnaces
+of both estimators (the walk's sampling, the next-event eval), eval against sampling bin by bin,
+the single-scattering limit, reciprocity within noise, the below-horizon visible normals, the
+scene key and the reference renderer's furnace sphere."""
+
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from viewer import ViewerError, brdf
+from viewer.brdf import microfacet, microfacet_walk as W
+from viewer.brdf.microfacet_dist import Distribution
+
+MF = brdf.get("microfacet")
+
+
+def _white(dist, alpha, **kw):
+    # Schlick with f0 = 1 is F = 1 at every angle: the white furnace
+    return MF.params(distribution=dist, alpha=alpha, fresnel="schlick", f0=1.0, multiple_scattering=True, **kw)
+
+
+def _wo(cos, n, phi=0.3):
+    s = math.sqrt(1 - cos * cos)
+    return np.repeat([[s * math.cos(phi), s * math.sin(phi), cos]], n, axis=0)
+
+
+def _cosine_dirs(rng, n):
+    u = rng.random((n, 2))
+    r = np.sqrt(u[:, 0])
+    ph = 2 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(ph), r * np.sin(ph), np.sqrt(1 - u[:, 0])], axis=1)
+
+
+@pytest.mark.parametrize("dist", ["ggx", "beckmann"])
+@pytest.mark.parametrize("alpha", [0.5, 1.0])
+def test_white_furnace_both_estimators(dist, alpha):
+    """F = 1: nothing is absorbed, so the albedo is 1 at every wo. By sampling (the walk's weight)
+    it is 1 up to the walks cut at MAX_EVENTS; by eval (single scattering analytic + the walk's
+    next-event estimate of the rest, integrated over cosine-sampled wi) within 4 standard errors
+    (+ 2e-3 for cells of the quadrature near grazing wi). Single scattering alone loses 5-70 %
+    (its albedo is printed: the figure the reference was missing)."""
+    rng = np.random.default_rng(7)
+    p = _white(dist, alpha)
+    n = 20000
+    for cos in (1.0, 0.5, 0.15):
+        wo = _wo(cos, n)
+        wi, wt, pdf = MF.sample(p, wo, rng.random((n, 2)))
+        assert np.all(pdf > 0) and np.all(wi[:, 2] > 0)
+        assert abs(wt[:, 0].mean() - 1.0) < 1e-3, (cos, wt[:, 0].mean())
+        wl = _cosine_dirs(rng, n)
+        f = MF.eval(p, wl, wo)[:, 0] * np.pi
+        fss = microfacet.eval_specular(p, wl, wo)[:, 0] * np.pi
+        se = f.std() / math.sqrt(n)
+        print(f"{dist} alpha {alpha} cos {cos}: single {fss.mean():.3f}, walk {f.mean():.4f} +- {se:.4f}")
+        assert abs(f.mean() - 1.0) < 4 * se + 2e-3, (cos, f.mean(), se)
+        assert fss.mean() < 0.97
+
+
+def test_single_scattering_limit():
+    """As alpha -> 0 the walk leaves after one event: eval equals the single-scattering BRDF, the
+    sampled albedo of a conductor equals the single-scattering one."""
+    rng = np.random.default_rng(3)
+    p = MF.params(distribution="ggx", alpha=0.02, multiple_scattering=True)
+    p0 = p.replace(multiple_scattering=False)
+    n = 20000
+    wo = _wo(0.6, n)
+    wi, wt, _ = MF.sample(p, wo, rng.random((n, 2)))
+    wi0, wt0, _ = MF.sample(p0, wo, rng.random((n, 2)))
+    assert np.allclose(wt.mean(axis=0), wt0.mean(axis=0), rtol=2e-3)
+    f = MF.eval(p, wi, wo)
+    f0 = MF.eval(p0, wi, wo)
+    assert np.median(np.abs(f - f0) / np.maximum(f0, 1e-12)) < 1e-6
+    # walks that needed a second event are rare: 1 - single-scattering F = 1 albedo (~1e-4)
+    _, _, events = W.sample(Distribution("ggx", 0.02), lambda c: np.ones((c.size, 3)), wo, rng.random((n, 2)))
+    assert np.mean(events > 1) < 2e-3
+
+
+@pytest.mark.parametrize("dist", ["ggx", "beckmann"])
+def test_eval_matches_sampling_per_bin(dist):
+    """The walk's exit directions (sampling) against the next-event eval, in 6 x 6 cells of
+    (cos^2 theta_i, phi_i): the F = 1 density of the walk's exits per cell (counts / n) and the
+    integral of f cos over the cell by eval (cosine-sampled wi) are two independent unbiased
+    estimates of the same numbers; their squared differences over the summed variances follow a
+    chi-square with 36 dof: rejected at p < 1e-4 (a 2-cell shift of 1 % would fail)."""
+    from scipy.stats import chi2
+
+    rng = np.random.default_rng(11)
+    p = _white(dist, 0.7).replace(alpha_y=0.4)  # anisotropic too
+    n = 60000
+    wo = _wo(0.4, n, phi=0.9)
+    nb = 6
+
+    def cell(w):
+        a = np.minimum((w[:, 2] ** 2 * nb).astype(int), nb - 1)
+        b = np.minimum(((np.arctan2(w[:, 1], w[:, 0]) % (2 * np.pi)) / (2 * np.pi) * nb).astype(int), nb - 1)
+        return a * nb + b
+
+    wi, wt, _ = MF.sample(p, wo, rng.random((n, 2)))
+    cnt = np.bincount(cell(wi), weights=wt[:, 0], minlength=nb * nb)
+    pa = cnt / n
+    wl = _cosine_dirs(rng, n)
+    g = MF.eval(p, wl, wo)[:, 0] * np.pi
+    c = cell(wl)
+    s1 = np.bincount(c, weights=g, minlength=nb * nb) / n
+    s2 = np.bincount(c, weights=g * g, minlength=nb * nb) / n
+    vb = np.maximum(s2 - s1 * s1, 0) / n
+    # the walk's count variance from the pooled estimate (a cell the walk never reached has
+    # observed variance 0, which would make any eval sample there look significant)
+    pbar = np.clip(0.5 * (pa + s1), 0.0, 1.0)
+    va = pbar * (1 - pbar) / n
+    stat = float(np.sum((pa - s1) ** 2 / np.maximum(va + vb, 1e-300)))
+    assert chi2.sf(stat, nb * nb) > 1e-4, stat
+    assert abs(pa.sum() - 1) < 1e-3 and abs(s1.sum() - 1) < 0.02
+
+
+def test_reciprocity_within_noise():
+    """f(wi, wo) = f(wo, wi): the walk runs from wo, so the two orders are different estimators
+    of one value (gold, GGX alpha 0.8): equal within 4 standard errors of 4000 walks each."""
+    p = MF.params(distribution="ggx", alpha=0.8, multiple_scattering=True)
+    d = microfacet.distribution(p)
+    fr = lambda c: microfacet.fresnel_rgb(p, c)  # noqa: E731
+    pairs = [((0.3, 0.1, 0.95), (-0.7, 0.2, 0.5)), ((0.9, 0.0, 0.2), (0.1, 0.6, 0.7)),
+             ((0.5, 0.5, 0.4), (0.5, -0.5, 0.4))]
+    for a, b in pairs:
+        a = np.array(a) / np.linalg.norm(a)
+        b = np.array(b) / np.linalg.norm(b)
+        n = 4000
+        A, B = np.repeat(a[None], n, 0), np.repeat(b[None], n, 0)
+        rng = np.random.default_rng(5)
+        x = W.eval_multiple(d, fr, A, B, rng)
+        y = W.eval_multiple(d, fr, B, A, rng)
+        se = np.sqrt(x.var(axis=0) / n + y.var(axis=0) / n)
+        assert np.all(np.abs(x.mean(axis=0) - y.mean(axis=0)) < 4 * se + 1e-6), (a, b)
+        assert np.all(x.mean(axis=0) > 0)
+
+
+@pytest.mark.parametrize("dist", ["ggx", "beckmann"])
+def test_visible_normals_below_the_horizon(dist):
+    """The walk's rays going up hit normals seen from below: the sampled normals' mean equals the
+    quadrature of m D_w(m) over the hemisphere, and D_w integrates to 1 (w.z < 0)."""
+    rng = np.random.default_rng(2)
+    d = Distribution(dist, 0.7, 0.4)
+    for wz in (-0.3, -0.8):
+        s = math.sqrt(1 - wz * wz)
+        w = np.array([[0.6 * s, 0.8 * s, wz]])
+        m = W.sample_visible_normal(d, np.repeat(w, 100000, 0), rng.random((100000, 2)))
+        assert np.all(np.sum(m * w, axis=1) > -1e-9) and np.all(m[:, 2] > 0)
+        q = rng.normal(size=(400000, 3))
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        q[:, 2] = np.abs(q[:, 2])
+        dv = W.d_visible(d, np.repeat(w, q.shape[0], 0), q) * 2 * np.pi
+        assert abs(dv.mean() - 1) < 0.03   # uniform-direction quadrature of a peaked density
+        # the ratio estimator cancels most of the quadrature's own error
+        assert np.allclose(m.mean(axis=0), (dv[:, None] * q).mean(axis=0) / dv.mean(), atol=0.008)
+
+
+def test_scene_key_and_messages(tmp_path):
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError, match="multiple_scattering: expected true or false"):
+        MF.params(multiple_scattering="yes")
+    path = tmp_path / "s.toml"
+    path.write_text(textwrap.dedent("""
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "microfacet"
+        alpha = 0.6
+        multiple_scattering = true
+        """))
+    sc = load_scene(path)
+    assert sc.materials["m"]["multiple_scattering"] is True
+    assert microfacet.walks(sc.materials["m"])
+    assert not microfacet.walks(sc.materials["m"].replace(distribution="blinn_phong"))
+
+
+def test_reference_furnace_sphere(tmp_path):
+    """The CPU reference, a rough F = 1 sphere (GGX alpha 1) in a white environment: with the walk
+    every pixel of the sphere is 1 within noise (4 standard errors + 5e-3 for the tessellation's
+    cut directions); with single scattering alone the sphere's mean is below 0.8."""
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    path = tmp_path / "f.toml"
+    path.write_text(textwrap.dedent("""
+        [camera]
+        position = [0.0, 0.0, 4.0]
+        target = [0.0, 0.0, 0.0]
+        fov_y = 40.0
+        width = 24
+        height = 24
+        [environment]
+        constant = [1.0, 1.0, 1.0]
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "microfacet"
+        distribution = "ggx"
+        alpha = 1.0
+        fresnel = "schlick"
+        f0 = 1.0
+        multiple_scattering = true
+        """))
+    sc = load_scene(path)
+    means = {}
+    for ms in (True, False):
+        sc.materials["m"]["multiple_scattering"] = ms
+        r = ReferenceRenderer(sc, width=24, height=24, max_depth=4, seed=1, workers=0)
+        r.step(16)
+        m, var = r.mean()[..., 0], r.variance()[..., 0]
+        r.close()
+        assert r.bad_values == 0
+        yy, xx = np.mgrid[0:24, 0:24]
+        inner = (yy - 11.5) ** 2 + (xx - 11.5) ** 2 < 6.0 ** 2   # well inside the sphere's disc
+        means[ms] = float(m[inner].mean())
+        if ms:
+            assert np.all(np.abs(m[inner] - 1.0) <= 4 * np.sqrt(var[inner]) + 5e-3)
+            se = math.sqrt(float(var[inner].sum())) / inner.sum()   # of the mean over the disc
+            assert abs(means[ms] - 1.0) <= 4 * se + 5e-3, (means[ms], se)
+    print("furnace sphere mean, walk / single scattering:", means)
+    assert means[False] < 0.8
+
+
+def test_albedo_plot_shows_three_albedos():
+    """plot --kind albedo of a microfacet material: single scattering, the raster's compensation
+    and the random walk. White GGX alpha 1: single scattering at normal incidence is
+    1 - ln 2 = 0.307 (f cos integrates in closed form: D = 1/pi, Lambda(wi) = (1/cos - 1)/2),
+    the walk 1 (nothing is absorbed), the compensation between the two."""
+    from viewer import plots
+
+    p = _white("ggx", 1.0)
+    fig = plots.figure(p, "albedo", channel="r")
+    by = {c.label.split(" (")[0]: c.y for c in fig.curves}
+    assert set(by) == {"single scattering", "compensated", "random walk"}
+    assert abs(by["single scattering"][0] - (1 - math.log(2))) < 0.01
+    assert np.all(np.abs(by["random walk"] - 1.0) < 2e-3)
+    # the compensation overshoots slightly at grazing view (1.017 at 89.5 degrees: the DFG table is
+    # read at its edge texels there, and F0 is derived from albedos, not given)
+    assert np.all(by["compensated"] > by["single scattering"]) and np.all(by["compensated"] < 1.03)
+
+
+def _ms_scene(tmp_path):
+    from viewer.scene import load_scene
+
+    path = tmp_path / "ms.toml"
+    path.write_text(textwrap.dedent("""
+        [[objects]]
+        mesh = "sphere"
+        material = "m"
+        [materials.m]
+        model = "layered"
+        base = { model = "microfacet", alpha = 0.7, multiple_scattering = true }
+        """))
+    return load_scene(path)
+
+
+def test_engines_only_cpu_has_the_walk(tmp_path, capsys):
+    """auto takes the cpu engine for a scene with the walk (also nested in a layered base) and
+    prints why; --engine gpu refuses with one line."""
+    from types import SimpleNamespace
+
+    from viewer import cli
+    from viewer.gpupt.select import make_renderer, uses_random_walk
+
+    sc = _ms_scene(tmp_path)
+    assert uses_random_walk(sc)
+    assert cli._engine(SimpleNamespace(engine="auto", workers=0), scenes=[sc]) == "cpu"
+    out = capsys.readouterr().out
+    assert "engine: cpu (a microfacet material has multiple_scattering" in out
+    with pytest.raises(ViewerError, match="--engine gpu has no multiple-scattering random walk") as e:
+        make_renderer("gpu", sc)
+    assert "\n" not in str(e.value)
+    sc.materials["m"]["base"]["multiple_scattering"] = False
+    assert not uses_random_walk(sc)
