@@ -83,7 +83,7 @@ def test_reference_equals_the_cli_for_the_same_seed(tmp_path):
 
 
 @pytest.mark.parametrize("call, needle", [
-    (lambda: viewer.reference("sphere", spp=1, engine="gpu-fast"), "engine: 'gpu-fast' is not a reference engine; allowed: cpu, auto"),
+    (lambda: viewer.reference("sphere", spp=1, engine="gpu-fast"), "engine: 'gpu-fast' is not a reference engine; allowed: cpu, gpu, auto"),
     (lambda: viewer.reference("sphere", spp=0), "spp: 0 is out of range"),
     (lambda: viewer.reference("sphere", spp=1, max_depth=0), "max_depth: 0 is out of range"),
     (lambda: viewer.render("no_such_scene"), "no such built-in scene or file"),
@@ -100,8 +100,12 @@ def test_bad_input_is_one_viewer_error(call, needle):
 def test_reference_engine_choice():
     from viewer.api import REFERENCE_ENGINES, reference_engine
 
-    assert reference_engine("auto") == "cpu" and reference_engine("cpu") == "cpu"
-    assert "auto" in REFERENCE_ENGINES
+    from viewer.gpupt.select import choose_engine
+
+    # the CLI's choice (cpu on software OpenGL, gpu on a hardware GPU)
+    assert reference_engine("auto") == choose_engine("auto")[0] and reference_engine("cpu") == "cpu"
+    assert reference_engine("gpu") == "gpu"
+    assert set(REFERENCE_ENGINES) == {"cpu", "gpu", "auto"}
 
 
 SCRIPT = """

@@ -21,10 +21,9 @@ import numpy as np
 
 from viewer import ViewerError
 
-# The reference engines. "auto" picks the faster engine available on this machine; with the
-# CPU engine the only one so far, that is "cpu". A new engine is one more name here and one
-# more branch in ``_make_reference_renderer``.
-REFERENCE_ENGINES = ("cpu", "auto")
+# The reference engines (viewer.gpupt.select): "cpu", "gpu" and "auto", which takes the GPU engine
+# on a hardware GPU and the CPU engine on software OpenGL or for a scene only it renders.
+from viewer.gpupt.select import ENGINES as REFERENCE_ENGINES  # noqa: E402
 
 _raster = None  # (context, renderer), made on the first render() call
 
@@ -75,22 +74,22 @@ def render(scene, width=None, height=None, overrides=()) -> np.ndarray:
     return linear
 
 
-def reference_engine(engine: str) -> str:
-    """The engine ``engine`` names on this machine ("auto" resolved); ``ViewerError`` for an
-    unknown name."""
+def reference_engine(engine: str, scene=None) -> str:
+    """The engine ``engine`` names on this machine for ``scene`` (a loaded Scene, or None) with
+    "auto" resolved; ``ViewerError`` for an unknown name."""
     if engine not in REFERENCE_ENGINES:
         raise ViewerError(f"engine: {engine!r} is not a reference engine; allowed: "
                           + ", ".join(REFERENCE_ENGINES))
-    return "cpu"
+    from viewer.gpupt.select import choose_for_scenes
+
+    return choose_for_scenes(engine, [] if scene is None else [scene])[0]
 
 
 def _make_reference_renderer(engine: str, scene, camera, max_depth: int, seed: int, workers):
     """Start the reference renderer of the (resolved) ``engine``."""
-    if engine == "cpu":
-        from viewer.pathtracer import ReferenceRenderer
+    from viewer.gpupt.select import make_renderer
 
-        return ReferenceRenderer(scene, camera, max_depth=max_depth, seed=seed, workers=workers)
-    raise ViewerError(f"engine: {engine!r} is not available")  # reference_engine() never returns it
+    return make_renderer(engine, scene, camera, max_depth=max_depth, seed=seed, workers=workers)
 
 
 def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(), *, seed=0,
@@ -101,7 +100,8 @@ def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(
     (default: every core; 0 = render in this process, same image)."""
     from viewer.camera import OrbitCamera
 
-    resolved = reference_engine(engine)
+    if engine not in REFERENCE_ENGINES:
+        reference_engine(engine)  # the one-line error
     if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
         raise ViewerError(f"spp: {spp!r} is out of range; allowed: an integer >= 1")
     if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or max_depth < 1:
@@ -110,6 +110,7 @@ def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(
     if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 0):
         raise ViewerError(f"workers: {workers!r} is out of range; allowed: an integer >= 0 (0 = no pool)")
     sc = load(scene, overrides, width, height)
+    resolved = reference_engine(engine, sc)
     renderer = _make_reference_renderer(resolved, sc, OrbitCamera.from_scene(sc), int(max_depth),
                                         int(seed), workers)
     try:

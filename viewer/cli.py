@@ -24,17 +24,10 @@ ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) o
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import RANDOM_WALK_REASON, choose_engine, needs_spectral, uses_measured, uses_random_walk
+    from viewer.gpupt.select import choose_for_scenes
 
-    spectral = getattr(args, "spectral", None)
-    if args.engine == "auto" and any(needs_spectral(s, spectral) for s in scenes):
-        engine, why = "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
-    elif args.engine == "auto" and any(uses_measured(s) for s in scenes):
-        engine, why = "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
-    elif args.engine == "auto" and any(uses_random_walk(s) for s in scenes):
-        engine, why = "cpu", RANDOM_WALK_REASON
-    else:
-        engine, why = choose_engine(args.engine, ctx=ctx, workers=args.workers)
+    engine, why = choose_for_scenes(args.engine, scenes, spectral=getattr(args, "spectral", None), ctx=ctx,
+                                    workers=args.workers)
     print(f"engine: {engine} ({why})")
     return engine
 

@@ -219,3 +219,17 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
     return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
                              spectral=spectral, **estimator)
+
+
+def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, ctx=None, workers=None):
+    """(engine, reason) for ``requested`` and the scenes it will render: ``auto`` takes the cpu
+    engine for a scene only it renders (wavelengths, measured tables, the microfacet random walk),
+    else ``choose_engine``'s choice (``gpu`` asked for such a scene fails in ``make_renderer``)."""
+    if requested == "auto":
+        if any(needs_spectral(s, spectral) for s in scenes):
+            return "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
+        if any(uses_measured(s) for s in scenes):
+            return "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
+        if any(uses_random_walk(s) for s in scenes):
+            return "cpu", RANDOM_WALK_REASON
+    return choose_engine(requested, ctx=ctx, workers=workers)
