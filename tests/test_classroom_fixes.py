@@ -312,3 +312,25 @@ def test_render_term_view_has_a_colour_bar(tmp_path):
     assert im.shape[0] > 54 and im.shape[1] == 96
     bar_row = im[54 + 2 + 2]
     assert bar_row[2, 2] < bar_row[-3, 0]  # the ramp runs from blue to red
+
+
+def test_render_of_a_screenshot_takes_its_size(tmp_path):
+    """`render shot.png` renders at the screenshot's size unless --width / --height say otherwise."""
+    from PIL import Image
+
+    from viewer import cli
+
+    import numpy as np
+
+    from viewer.io import read_png_text, write_png
+
+    first = tmp_path / "first.png"
+    assert cli.main(["render", "sphere", "--out", str(first), "--width", "30", "--height", "18"]) == 0
+    # a window screenshot: the scene chunk says 30 x 18, the image is the window's 40 x 24
+    shot = tmp_path / "shot.png"
+    write_png(shot, np.zeros((24, 40, 3), np.uint8), read_png_text(first))
+    out = tmp_path / "again.png"
+    assert cli.main(["render", str(shot), "--out", str(out)]) == 0
+    assert Image.open(out).size == (40, 24)
+    assert cli.main(["render", str(shot), "--out", str(out), "--width", "20", "--height", "12"]) == 0
+    assert Image.open(out).size == (20, 12)

@@ -263,6 +263,24 @@ def _overrides(args) -> list[str]:
     return out
 
 
+def _screenshot_size(args) -> list[str]:
+    """A screenshot named as the scene renders at the screenshot's size (camera overrides, before
+    --width / --height and --set, which win)."""
+    from pathlib import Path
+
+    path = Path(str(args.scene))
+    if path.suffix.lower() != ".png" or not path.is_file():
+        return []
+    try:
+        from PIL import Image
+
+        with Image.open(path) as im:
+            w, h = im.size
+    except OSError:
+        return []  # load_scene names the problem
+    return [f"camera.width={w}", f"camera.height={h}"]
+
+
 def cmd_render(args) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import VIEW_MODES, Renderer
@@ -274,7 +292,7 @@ def cmd_render(args) -> int:
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
-    scene = load_scene(args.scene, _overrides(args))
+    scene = load_scene(args.scene, _screenshot_size(args) + _overrides(args))
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
