@@ -128,6 +128,10 @@ def _random_fields(fields, rng, depth):
             out[prm.name] = random_params(brdf.get(base).spec, rng, _depth=depth + 1)
         elif k == "path":
             out[prm.name] = prm.default  # a file (measured: the built-in example table)
+        elif k == "bool":
+            # the default (no draw, so the other parameters' draws stay as they were): a switch such
+            # as multiple_scattering makes eval a stochastic estimate, checked in its own tests
+            out[prm.name] = bool(prm.default)
         else:
             raise AssertionError(k)
     return out
