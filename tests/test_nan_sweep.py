@@ -163,22 +163,15 @@ def test_reference_finite_and_nonnegative(name):
         assert r.bad_values == 0, (name, p.to_plain())
         assert np.all(np.isfinite(img)), (name, p.to_plain())
         if r.is_spectral:
+            from viewer.spectral.colorimetry import rgb_to_xyz
+
             # a spectral estimate's Rec.709 RGB is negative for colours outside the gamut (one
             # wavelength, a saturated dispersion colour); its XYZ is not, the CIE functions being
             # non-negative: the check moves there (1e-6 relative: float32 round trip)
-            assert _xyz(img).min() >= -1e-6 * max(1.0, float(np.abs(img).max())), (name, p.to_plain())
+            assert rgb_to_xyz(img).min() >= -1e-6 * max(1.0, float(np.abs(img).max())), (name, p.to_plain())
         else:
             assert img.min() >= 0, (name, p.to_plain())
         assert not np.any(np.isnan(var)) and var.min() >= 0, (name, p.to_plain())
-
-
-def _xyz(rgb):
-    """Linear Rec.709 (viewer.spectral's white: the flat spectrum) back to CIE XYZ."""
-    from viewer.spectral import colorimetry as c
-
-    _, cmf, d65 = c.tables()
-    white = (cmf * d65[:, None]).sum(axis=0) / np.sum(cmf[:, 1] * d65)
-    return np.asarray(rgb, np.float64) @ c.rgb_to_xyz_matrix(white).T
 
 
 @pytest.fixture(scope="module")

@@ -225,7 +225,7 @@ panel = PlotsPanel()
 materials = {"ball": app.scene.materials["ball"], "glass": plots.as_params(get_preset("green_glass")),
              "gold": plots.as_params(get_preset("gold"))}
 draw = app._panel
-app._panel = lambda: (draw(), panel.draw(materials))
+app._panel = lambda *a: (draw(*a), panel.draw(materials))
 app.frame()
 shots = {}
 for tab in TABS:

@@ -22,7 +22,7 @@ ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortu
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
 _HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
-            "spectral_fresnel", "thin_film", "merl", "fit"}
+            "spectral_fresnel", "thin_film", "merl", "fit", "chi2"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 

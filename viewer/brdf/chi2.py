@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 
 def sample_chunks(model, p, wo, n, rng, chunk=250_000):
@@ -148,6 +147,8 @@ def chi2_from_counts(observed, failed, problems, expected, n, alpha, min_expecte
     dof = int(exp_pos.sum()) - 1
     if dof < 1:
         return Chi2Result(True, 1.0, stat, dof, "all mass in one cell", observed, expected)
+    from scipy import stats  # on first use: its import costs the window's start-up
+
     p_value = float(stats.chi2.sf(stat, dof))
     ok = p_value > alpha
     msg = f"chi2 = {stat:.1f}, dof = {dof}, p = {p_value:.3g} (alpha = {alpha:.3g}), failed samples {failed}"

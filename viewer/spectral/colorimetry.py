@@ -47,6 +47,13 @@ def rgb_to_xyz_matrix(white_xyz) -> np.ndarray:
     return prim * s[None, :]
 
 
+def rgb_to_xyz(rgb) -> np.ndarray:
+    """Linear Rec.709 RGB (..., 3) of this package (white: the flat spectrum) back to CIE XYZ."""
+    _, cmf, d65 = tables()
+    white = (cmf * d65[:, None]).sum(axis=0) / np.sum(cmf[:, 1] * d65)
+    return np.asarray(rgb, np.float64) @ rgb_to_xyz_matrix(white).T
+
+
 @functools.lru_cache(maxsize=None)
 def _weights() -> np.ndarray:
     wl, cmf, d65 = tables()
