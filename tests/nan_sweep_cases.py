@@ -51,6 +51,11 @@ def _corner_fields(fields, rng, depth) -> dict:
             out[prm.name] = str(prm.choices[int(rng.integers(len(prm.choices)))])
         elif k == "bool":  # a side stream, so that the other parameters' corners stay as they were
             out[prm.name] = bool(side_rng(rng).random() < 0.5)
+        elif k == "path":
+            out[prm.name] = prm.default  # a file (measured: the built-in example table)
+        elif k == "table" and prm.name == "thin_film" and depth > 0:
+            _corner_fields(prm.fields, rng, depth)  # the same draws; a nested base takes no film
+            out[prm.name] = {"thickness_nm": 0.0}
         elif k == "table":
             out[prm.name] = _corner_fields(prm.fields, rng, depth)
         elif k == "lobes":
