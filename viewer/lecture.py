@@ -77,9 +77,8 @@ TOUR: tuple[Step, ...] = (
                 '[materials.black_glass]\nmodel = "mirror"\nfresnel = "dielectric"\nior = 1.5\n',
                 _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("tir", "Total internal reflection",
-         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects. Rays entering "
-         "the lower half of the near faces meet the bottom beyond it: the bottom turns into a mirror, "
-         "and there the cube shows the sky instead of the floor behind it.",
+         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects: the bottom "
+         "turns into a mirror, so the near faces' lower half shows the sky, not the floor.",
          _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY, _render("split_sum", raytrace=True), _FLOOR,
                 '[[objects]]\nmesh = "cube"\nmaterial = "glass"\nscale = 0.55\n'
                 'translate = [0.0, 0.56, 0.0]\nrotate_y_deg = 35.0\n',
@@ -126,8 +125,7 @@ TOUR: tuple[Step, ...] = (
                 _mat("copper", "polished_copper")), "spectral"),
     Step("dispersion", "Dispersion: a flint prism and a diamond",
          "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
-         "The raster traces each colour channel with its own n (R 1.777, G 1.792, B 1.822): red and "
-         "blue part at the edges of what the prism and the diamond show; the reference view traces wavelengths.",
+         "The raster traces each colour channel with its own n: red and blue part at the edges.",
          _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True), _FLOOR,
                 '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = 0.5\n'
                 'translate = [-0.6, 0.6, 0.0]\nrotate_y_deg = 90.0\n',

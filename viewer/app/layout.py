@@ -144,7 +144,7 @@ def overlay_layout(view: Rect, font_px: float, measure, *, labels=(), toast: str
     bottom = view.bottom - m
     inner = max(view.w - 2 * m - 2 * 3 * pad, 40.0)
     if title or caption:
-        for shrink in (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4):  # a long caption on a small view: smaller text, up
+        for shrink in (1.0, 0.9, 0.8, 0.7, 0.6):  # a long caption on a small view: smaller text, up
             tpx, cpx = TITLE_K * font_px * shrink, CAPTION_K * font_px * shrink  # to CAPTION_MAX of it
             _, th = measure(title, tpx, inner) if title else (0.0, 0.0)
             _, ch = measure(caption, cpx, inner) if caption else (0.0, 0.0)
