@@ -8,7 +8,7 @@
 #include "common/fresnel.glsl"
 #include "common/microfacet.glsl"
 
-// Float only (no double: Apple's OpenGL 4.1 on Apple silicon has no fp64). The care needed:
+// Float only (32-bit throughout: Apple's OpenGL 4.1 on Apple silicon has no fp64). The care needed:
 // T = 1 - R is ill-conditioned near total internal reflection. The textbook route,
 // cos_t = sqrt(1 - (1 - cos_i^2) / eta^2), subtracts two numbers of size ~eta^2 whose difference
 // cos_t^2 is tiny there: an absolute rounding error of ~1e-7 in cos_i^2 becomes a relative error

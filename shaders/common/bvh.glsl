@@ -14,7 +14,7 @@
 // "Robust BVH Ray Traversal", JCGT 2(2)), so rounding never culls a box the ray touches; a zero
 // direction component is replaced by +-1e-30 (no division by zero, whose result GLSL leaves
 // undefined). Triangle test: the watertight test of Woop, Benthin and Wald 2013 (JCGT 2(1)), as
-// in the CPU numba kernel, in float32 (no double-precision fallback for exactly-zero edge
+// in the CPU numba kernel, in float32 (no 64-bit fallback for exactly-zero edge
 // functions: that costs at most a hit exactly on an edge, which the neighbour then takes).
 
 uniform sampler2D u_bvh_nodes;    // 2 texels per node
