@@ -473,9 +473,9 @@ def cmd_models(args) -> int:
 
 
 def _describe_param(p, indent="    ") -> str:
-    from viewer.brdf.spec import _default
+    from viewer.brdf.spec import default_value
 
-    d = _default(p)
+    d = default_value(p)
     if p.kind == "rgb":
         dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
     elif p.kind in ("table", "lobes", "material"):

@@ -387,7 +387,7 @@ class PlotsPanel:
             curves[n] = r
             rmax = max(rmax, float(r.max()) if r.size else 0.0,
                        *[float(self._y(plots.reduce_channel(x["reflectance"], self.channel))) for x in d["delta"]])
-        rmax = plots._nice_ceil(rmax * 1.05) if rmax > 0 else 1.0
+        rmax = plots.nice_ceil(rmax * 1.05) if rmax > 0 else 1.0
         size = self._plot_size()
         if implot.begin_plot("##polar", size, implot.Flags_.equal):
             implot.setup_axes("x (theta_o > 0: mirror side)", "z (normal)")
@@ -395,7 +395,7 @@ class PlotsPanel:
             implot.setup_axes_limits(-rmax * 1.05, rmax * 1.05, -0.02 * rmax, rmax * 1.05, implot.Cond_.always)
             grey = implot.Spec(line_color=_vec4((0.5, 0.5, 0.5), 0.5), line_weight=1.0)
             t = np.radians(np.linspace(-90.0, 90.0, 91))
-            for k, v in enumerate(plots._nice_ticks(0.0, rmax, 4)[1:]):
+            for k, v in enumerate(plots.nice_ticks(0.0, rmax, 4)[1:]):
                 implot.plot_line(f"##ring{k}", v * np.sin(t), v * np.cos(t), grey)
             implot.plot_line("##surface", np.array([-rmax, rmax]), np.array([0.0, 0.0]),
                              implot.Spec(line_color=_vec4((0.7, 0.7, 0.7)), line_weight=2.0))
@@ -427,7 +427,7 @@ class PlotsPanel:
                                                            n_phi=61, channel=self.channel))
                 for n in names}
         rmax = max([float(self._y(d["value"]).max()) for d in data.values()] + [1e-6])
-        rmax = plots._nice_ceil(rmax * 1.05)
+        rmax = plots.nice_ceil(rmax * 1.05)
         size = self._plot_size()
         if implot3d.begin_plot("##lobe3d", size):
             implot3d.setup_axes("x (tangent)", "y", "z (normal)")

@@ -286,7 +286,7 @@ def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, loo
         if f.name in raw:
             out[f.name] = validate_value(f, raw[f.name], f"{where}.{f.name}", lookup_spec)
         else:
-            out[f.name] = _default(f, lookup_spec)
+            out[f.name] = default_value(f, lookup_spec)
     if out.get("spectral", "none") != "none":
         # a spectral material's scalar indices follow its table unless the file gives them
         from viewer.brdf.spectral_fresnel import rgb_defaults
@@ -297,7 +297,8 @@ def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, loo
     return Params(model, out)
 
 
-def _default(f: Param, lookup_spec=None):
+def default_value(f: Param, lookup_spec=None):
+    """The validated default of one parameter (an array for rgb, tables validated)."""
     d = f.default
     if f.kind == "rgb":
         return np.array(d if isinstance(d, (list, tuple)) else [d] * 3, dtype=np.float64)
