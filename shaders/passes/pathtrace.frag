@@ -106,6 +106,12 @@ bool any_pos(vec3 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0; }
 vec3 mul_sat(vec3 a, vec3 b) { return min(min(a, vec3(F_MAX)) * min(b, vec3(F_MAX)), vec3(F_MAX)); }
 vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
 
+// SPECTRAL (a define): the hero-wavelength estimator of pathtrace/spectral.glsl replaces trace_path
+// in main (the RGB program is unchanged without it)
+#ifdef SPECTRAL
+#include "pathtrace/spectral.glsl"
+#endif
+
 vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
     vec3 L = vec3(0.0);
     vec3 T = vec3(1.0);
@@ -270,7 +276,11 @@ void main() {
         float x = (2.0 * (float(px.x) + cam.x) / W - 1.0) * u_tan_half_y * (W / H);
         float y = (1.0 - 2.0 * (float(px.y) + cam.y) / H) * u_tan_half_y;
         vec3 d = normalize(u_cam_forward + x * u_cam_right + y * u_cam_up);
+#ifdef SPECTRAL
+        vec3 L = trace_spectral(u_cam_pos, d, cam.zw, rng);   // the path's wavelengths from cam.zw
+#else
         vec3 L = trace_path(u_cam_pos, d, rng);
+#endif
         sum = vec4(min(sum.rgb + L, vec3(3.40282347e38)), sum.a + 1.0);   // the float32 maximum
         sq.rgb += L * L;
     }

@@ -20,7 +20,10 @@ so an image depends on the seed and the number of samples only, never on how the
 cut into bands. Programs are compiled for what the scene uses (its models, environment kind,
 number of lights, layered materials with a delta base) and for the estimator's options
 (``strategy``, ``mis_heuristic``, ``russian_roulette``, as ``ReferenceRenderer`` takes them:
-each a compile-time variant of the pass), and cached by that recipe.
+each a compile-time variant of the pass), and cached by that recipe. ``spectral`` (None: when
+a material is dispersive, as ``ReferenceRenderer``): the CPU engine's hero-wavelength estimator
+instead of RGB, the compile-time variant ``SPECTRAL`` (``shaders/pathtrace/spectral.glsl``,
+its data from ``viewer.gpupt.spectral``).
 """
 
 from __future__ import annotations
@@ -102,17 +105,18 @@ class GpuReferenceRenderer:
     ``ReferenceRenderer``."""
 
     engine = "gpu"
-    is_spectral = False  # RGB only: dispersive scenes go to the cpu engine (viewer.gpupt.select)
+    is_spectral = False  # set per setup: wavelengths (the SPECTRAL variant) or RGB
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  env_image=None, ctx=None, spp_pass: int = 1, strategy: str = "mis",
-                 mis_heuristic: str = "power", russian_roulette: bool = True):
+                 mis_heuristic: str = "power", russian_roulette: bool = True, spectral: bool | None = None):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _refuse_measured(scene)
         check_options(strategy, mis_heuristic)
         self.strategy, self.mis_heuristic = strategy, mis_heuristic
         self.russian_roulette = bool(russian_roulette)
+        self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
         if ctx is None:
@@ -129,9 +133,13 @@ class GpuReferenceRenderer:
 
     # ------------------------------------------------------------------ setup
     def _make_setup(self, scene, camera, width, height) -> RenderSetup:
-        return RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
-                                      strategy=self.strategy, mis_heuristic=self.mis_heuristic,
-                                      russian_roulette=self.russian_roulette)
+        setup = RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
+                                       strategy=self.strategy, mis_heuristic=self.mis_heuristic,
+                                       russian_roulette=self.russian_roulette)
+        from viewer.gpupt.select import needs_spectral
+
+        setup.extra["spectral"] = needs_spectral(scene, self.spectral)   # as the CPU engine (the cache key reads it)
+        return setup
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
               russian_roulette=None):
@@ -165,6 +173,14 @@ class GpuReferenceRenderer:
         self._scene_tex = SceneTextures(ctx, setup.geometry)
         info, floats = pack_materials(setup.materials)
         self._mat_info = info
+        self.is_spectral = bool(setup.extra.get("spectral", False))
+        if self.is_spectral:   # the materials' parameter sets per wavelength after the RGB ones
+            from viewer.gpupt.spectral import pack_spectral_materials, spectral_table
+
+            self._mat_spec, more = pack_spectral_materials(setup.materials, len(floats), MAX_MATERIALS)
+            floats = np.concatenate([floats, more])
+            self._spec_tex = float_texture(ctx, spectral_table())
+            self._textures.append(self._spec_tex)
         self._mat_tex = float_texture(ctx, as_texels(np.concatenate([floats, np.zeros((-len(floats)) % 4,
                                                                                           np.float32)])))
         self._textures.append(self._mat_tex)
@@ -224,6 +240,8 @@ class GpuReferenceRenderer:
             defines["BALANCE_HEURISTIC"] = "1"
         if not s.russian_roulette:
             defines["NO_ROULETTE"] = "1"
+        if self.is_spectral:
+            defines["SPECTRAL"] = "1"
         return models, tuple(sorted(defines.items()))
 
     def _program(self):
@@ -255,6 +273,11 @@ class GpuReferenceRenderer:
             set_uniform(prog, name, unit)
             unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
+        if self.is_spectral:
+            self._spec_tex.use(location=unit)
+            set_uniform(prog, "u_spec_tab", unit)
+            unit += 1
+            set_uniform(prog, "u_mat_spec", self._mat_spec.tobytes())
         set_uniform(prog, "u_seed", self.seed & 0xFFFFFFFF)
         set_uniform(prog, "u_max_depth", s.max_depth)
         set_uniform(prog, "u_size", (self.width, self.height))
