@@ -20,10 +20,11 @@ so an image depends on the seed and the number of samples only, never on how the
 cut into bands. Programs are compiled for what the scene uses (its models, environment kind,
 number of lights, layered materials with a delta base) and for the estimator's options
 (``strategy``, ``mis_heuristic``, ``russian_roulette``, as ``ReferenceRenderer`` takes them:
-each a compile-time variant of the pass), and cached by that recipe. ``spectral`` (None: when
-a material is dispersive, as ``ReferenceRenderer``): the CPU engine's hero-wavelength estimator
-instead of RGB, the compile-time variant ``SPECTRAL`` (``shaders/pathtrace/spectral.glsl``,
-its data from ``viewer.gpupt.spectral``).
+each a compile-time variant of the pass), and cached by that recipe. ``spectral``: the CPU
+engine's hero-wavelength estimator instead of RGB, the compile-time variant ``SPECTRAL``
+(``shaders/pathtrace/spectral.glsl``, its data from ``viewer.gpupt.spectral``); None: where a
+material is dispersive, as ``ReferenceRenderer`` decides (``viewer.gpupt.select.make_renderer``
+passes its ``spectral`` so); the default False keeps RGB.
 """
 
 from __future__ import annotations
@@ -102,21 +103,23 @@ class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
     ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
-    ``ReferenceRenderer``."""
+    ``ReferenceRenderer`` (the spectral estimator, like the CPU one, has no strategy switches).
+    ``spectral``: trace wavelengths (True), RGB (False, the default) or, None, wavelengths where
+    a material is dispersive (``ReferenceRenderer``'s default)."""
 
     engine = "gpu"
     is_spectral = False  # set per setup: wavelengths (the SPECTRAL variant) or RGB
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  env_image=None, ctx=None, spp_pass: int = 1, strategy: str = "mis",
-                 mis_heuristic: str = "power", russian_roulette: bool = True, spectral: bool | None = None):
+                 mis_heuristic: str = "power", russian_roulette: bool = True, spectral: bool | None = False):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _refuse_measured(scene)
         check_options(strategy, mis_heuristic)
         self.strategy, self.mis_heuristic = strategy, mis_heuristic
         self.russian_roulette = bool(russian_roulette)
-        self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
+        self.spectral = spectral    # trace wavelengths; None: where a material is dispersive
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
         if ctx is None:

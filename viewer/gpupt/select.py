@@ -6,7 +6,9 @@ shares the CPU cores with the CPU engine, so it is whichever measured faster on 
 a stored measurement (``engine.toml`` in the cache folder, keyed by the GL renderer string and
 the number of cores) or, the first time, a short calibration (the built-in default scene at
 128 x 128, 4 spp, both engines, warm) whose result is stored. No OpenGL at all -> cpu.
-Scenes only the cpu engine can trace (wavelengths: ``needs_spectral``; the microfacet model's
+Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
+the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
+cpu engine can trace (measured tables: ``uses_measured``; the microfacet model's
 multiple-scattering random walk: ``uses_random_walk``) take it under ``auto``; ``gpu`` refuses them.
 """
 
@@ -193,7 +195,7 @@ RANDOM_WALK_REASON = "a microfacet material has multiple_scattering: only the cp
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
-    trace wavelengths (None: where a material is dispersive); only the cpu engine does.
+    trace wavelengths (None: where a material is dispersive); both engines do.
     ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette), which
     both engines take."""
     if engine == "gpu":
@@ -201,11 +203,6 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
             from viewer import ViewerError
 
             raise ViewerError(MEASURED_REFUSAL)
-        if needs_spectral(scene, spectral):
-            from viewer import ViewerError
-
-            raise ViewerError("--engine gpu traces RGB only, and this reference needs wavelengths (a "
-                              "dispersive material or --spectral); use --engine cpu or auto")
         if uses_random_walk(scene):
             from viewer import ViewerError
 
@@ -214,7 +211,7 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
-                                    **estimator)
+                                    spectral=spectral, **estimator)
     from viewer.pathtracer import ReferenceRenderer
 
     return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
@@ -223,11 +220,11 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
 def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, ctx=None, workers=None):
     """(engine, reason) for ``requested`` and the scenes it will render: ``auto`` takes the cpu
-    engine for a scene only it renders (wavelengths, measured tables, the microfacet random walk),
-    else ``choose_engine``'s choice (``gpu`` asked for such a scene fails in ``make_renderer``)."""
+    engine for a scene only it renders (measured tables, the microfacet random walk), else
+    ``choose_engine``'s choice (``gpu`` asked for such a scene fails in ``make_renderer``); a scene
+    that needs wavelengths takes the ordinary choice (both engines trace them). ``spectral`` is
+    kept for the callers' sake."""
     if requested == "auto":
-        if any(needs_spectral(s, spectral) for s in scenes):
-            return "cpu", "the scene has dispersive materials: only the cpu engine traces wavelengths"
         if any(uses_measured(s) for s in scenes):
             return "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
         if any(uses_random_walk(s) for s in scenes):

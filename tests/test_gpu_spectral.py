@@ -1,0 +1,189 @@
+"""The GPU engine's spectral variant (``#define SPECTRAL``) against the CPU engine's spectral
+reference (the oracle), the RGB GPU engine (the upsampling round trip) and a white furnace.
+
+Random numbers differ (pcg4d on the GPU, Philox on the CPU), so only statistics can agree:
+block z-scores and image means (tests/spectral_harness.py). Images are tiny (24 x 16: 24
+blocks x 3 channels = 72 z-scores) with 64-128 samples, to keep the default run short; the sweep
+over the built-in scenes and lecture steps is marked slow.
+"""
+
+import numpy as np
+import pytest
+
+import spectral_harness as h
+from viewer.lecture import TOUR, tour_scene
+from viewer.scene import builtin_scene_names, load_scene
+
+
+@pytest.fixture(scope="module")
+def ctx(gl_ctx):
+    return gl_ctx
+
+
+def test_gpu_spectral_agrees_with_cpu_spectral_on_an_rgb_scene(ctx):
+    """RGB materials traced as spectra (``spectral=True``) through three bounces, where spectra
+    multiply (not the RGB image any more): both engines estimate the same spectral image."""
+    sc = h.toml_scene(h.RGB_SCENE, "rgb")
+    g = h.gpu(ctx, sc, 64, max_depth=3, spectral=True)
+    c = h.cpu(sc, 64, max_depth=3, spectral=True)
+    assert g.spectral and c.spectral
+    # the mean: within 1% or 4 standard errors (about 1.8% at 64 spp; the block z-scores are the
+    # sharper test here)
+    h.check(h.agreement(g, c), "rgb scene, spectral", mean_tol=0.01)
+
+
+def test_gpu_spectral_agrees_with_cpu_spectral_on_a_dispersive_scene(ctx):
+    """Every spectral category at once (tests/spectral_harness.py DISPERSIVE_SCENE): a dispersive
+    prism and rough absorbing glass (hero only), rough and varnished gold (tables at four
+    wavelengths, a nested spectral base). Both engines switch to wavelengths by themselves."""
+    sc = h.toml_scene(h.DISPERSIVE_SCENE, "dispersive")
+    g = h.gpu(ctx, sc, 64, max_depth=6)
+    c = h.cpu(sc, 64, max_depth=6)
+    assert g.spectral and c.spectral
+    # the mean: within 1% or 4 standard errors (about 2% at 64 spp: colour noise of the hero-only
+    # paths through the glass)
+    h.check(h.agreement(g, c), "dispersive scene", mean_tol=0.01)
+
+
+def test_spectral_gpu_round_trips_the_rgb_gpu_engine_under_white_direct_light(ctx):
+    """RGB albedos under white point and directional light, one bounce: the upsampled spectra
+    round-trip exactly (the basis maps back to the unit colours under the CIE weights), so the
+    spectral image is the RGB one within noise (the spectral one has the colour noise of four
+    wavelengths on top)."""
+    sc = h.toml_scene(h.RGB_SCENE, "rgb")
+    s = h.gpu(ctx, sc, 128, max_depth=1, spectral=True)
+    r = h.gpu(ctx, sc, 128, max_depth=1, spectral=False)
+    assert s.spectral and not r.spectral
+    a = h.agreement(s, r)
+    # the mean: within 0.5% or 4 standard errors (~1.2% here)
+    h.check(a, "round trip", mean_tol=0.005)
+    # and per channel: the image means within 4 of their standard errors
+    n = s.mean.shape[0] * s.mean.shape[1]
+    se = np.sqrt((s.var + r.var).sum(axis=(0, 1))) / n
+    diff = s.mean.mean(axis=(0, 1)) - r.mean.mean(axis=(0, 1))
+    assert np.all(np.abs(diff) < 4 * se), (diff, se)
+
+
+def test_white_furnace_is_one_at_every_pixel(ctx):
+    """Lossless white Lambert and dispersive smooth glass (SF11, diamond) in a constant white
+    environment: radiance 1 at every wavelength, so RGB 1 in every pixel, within noise (the
+    colour noise of four sampled wavelengths, the 4x hero weight past the glass). max_depth 32:
+    paths trapped longer inside a sphere (internal reflection near grazing) are rarer than the
+    noise at this spp."""
+    sc = h.toml_scene(h.FURNACE_SCENE, "furnace")
+    g = h.gpu(ctx, sc, 128, max_depth=32)
+    assert g.spectral
+    one = h.Estimate(np.ones_like(g.mean), np.zeros_like(g.var), 0, True, 0)
+    a = h.agreement(g, one)
+    # the mean: within 0.5% or 4 standard errors (~1% here); z-scores per block as against the CPU
+    h.check(a, "white furnace", mean_tol=0.005)
+    assert a["n_z"] == g.mean.size // h.BLOCK**2   # every block is noisy: wavelengths vary everywhere
+
+
+def test_dispersion_lecture_step_renders_without_bad_values(ctx):
+    """The lecture's dispersion step (an SF11 prism and a diamond under the sky map) as it is:
+    the GPU engine takes wavelengths by itself, and no radiance is NaN, infinite or negative."""
+    g = h.gpu(ctx, tour_scene(11), 8, max_depth=8)
+    assert g.spectral
+    assert g.bad == 0
+    assert np.all(np.isfinite(g.mean)) and g.mean.max() > 0
+
+
+def test_spectral_bands_are_bit_identical_to_whole_passes(ctx):
+    """Wavelengths are drawn from the camera sample's hash: time-sliced bands (``step_for``) and
+    whole passes give bit-identical spectral sums, and another seed another image."""
+    from viewer.gpupt import GpuReferenceRenderer
+
+    sc = h.toml_scene(h.FURNACE_SCENE, "furnace")
+    with GpuReferenceRenderer(sc, width=24, height=16, max_depth=3, seed=4, ctx=ctx) as a:
+        a.step(3)
+        ref = a.mean()
+    with GpuReferenceRenderer(sc, width=24, height=16, max_depth=3, seed=4, ctx=ctx) as b:
+        b.rows_per_pass = 5
+        while b.spp < 3:
+            b.step_for(1e-4)
+        assert np.array_equal(b.mean(), ref)
+    with GpuReferenceRenderer(sc, width=24, height=16, max_depth=3, seed=5, ctx=ctx) as c:
+        c.step(3)
+        assert not np.array_equal(c.mean(), ref)
+
+
+def test_make_renderer_builds_the_spectral_gpu_engine(ctx):
+    """``make_renderer("gpu", ...)`` traces wavelengths where the scene needs them (dispersive,
+    or ``spectral=True``) instead of refusing; the setup says so, so the reference cache keys a
+    GPU spectral image as the CPU engine's spectral image of the same scene, apart from RGB."""
+    from viewer.gpupt.select import make_renderer
+    from viewer.pathtracer import cache
+
+    disp = h.toml_scene(h.FURNACE_SCENE, "furnace")
+    with make_renderer("gpu", disp, width=24, height=16, max_depth=3, ctx=ctx) as g:
+        assert g.engine == "gpu" and g.is_spectral
+        key_gpu = cache.setup_key(g.setup)
+    with make_renderer("cpu", disp, width=24, height=16, max_depth=3, workers=0) as c:
+        assert c.is_spectral
+        assert cache.setup_key(c.setup) == key_gpu
+    rgb = h.toml_scene(h.RGB_SCENE, "rgb")
+    with make_renderer("gpu", rgb, width=24, height=16, max_depth=3, ctx=ctx) as g:
+        assert not g.is_spectral
+        key_rgb = cache.setup_key(g.setup)
+    with make_renderer("gpu", rgb, width=24, height=16, max_depth=3, ctx=ctx, spectral=True) as g:
+        assert g.is_spectral
+        assert cache.setup_key(g.setup) != key_rgb
+        g.reset(rgb)                       # a reset keeps the mode
+        assert g.is_spectral
+
+
+def test_auto_follows_the_gl_for_dispersive_scenes(ctx):
+    """``auto`` no longer sends a dispersive scene to the CPU engine for being dispersive: it is
+    the ordinary choice (software GL: the CPU engine; a hardware GPU: the GPU engine)."""
+    from viewer.gpupt.select import choose_for_scenes, gl_renderer_name, is_software
+
+    engine, why = choose_for_scenes("auto", [tour_scene(11)], ctx=ctx)
+    assert engine == ("cpu" if is_software(gl_renderer_name(ctx)) else "gpu"), why
+    assert "wavelength" not in why and "dispersive" not in why, why
+
+
+def test_gpu_still_refuses_what_it_cannot_trace():
+    """Measured tables and the microfacet random walk: the same one-line refusals, spectral or not."""
+    from viewer import ViewerError
+    from viewer.gpupt.select import make_renderer
+
+    walk = h.toml_scene(h.FURNACE_SCENE.replace('material = "flint"', 'material = "walker"')
+                        + '\n[materials.walker]\nmodel = "microfacet"\nmultiple_scattering = true\n', "walk")
+    with pytest.raises(ViewerError, match="random walk"):
+        make_renderer("gpu", walk, width=8, height=8, spectral=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("step", [10, 11])
+def test_gpu_spectral_agrees_with_cpu_spectral_lecture_steps(ctx, step):
+    """The lecture's spectral steps (complex IOR: gold, silver, copper mirrors; dispersion),
+    under a grey sky (the sky map's sun seen in a mirror or through glass from the floor is a
+    caustic neither engine samples well at this spp), both engines spectral."""
+    sc = tour_scene(step)
+    sc.lights = []
+    sc.environment.map = None
+    sc.environment.constant = np.array([0.6, 0.65, 0.7])
+    sc.environment.intensity = 1.0
+    g = h.gpu(ctx, sc, 256, size=(32, 32), spectral=True)
+    c = h.cpu(sc, 256, size=(32, 32), spectral=True)
+    # the mean: within 0.5% or 4 standard errors
+    h.check(h.agreement(g, c), f"lecture step {step}", mean_tol=0.005)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", builtin_scene_names())
+def test_gpu_spectral_builtin_scenes_agree_with_cpu(ctx, name):
+    """Every built-in scene traced as spectra by both engines (RGB materials upsampled, the
+    metals of the gallery as tables, the soap film evaluated in RGB and upsampled)."""
+    sc = load_scene(name)
+    g = h.gpu(ctx, sc, 128, size=(32, 32), spectral=True)
+    c = h.cpu(sc, 128, size=(32, 32), spectral=True)
+    h.check(h.agreement(g, c), name, mean_tol=0.01)   # the mean: within 1% or 4 standard errors
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("step", range(len(TOUR)))
+def test_gpu_spectral_lecture_steps_have_no_bad_values(ctx, step):
+    g = h.gpu(ctx, tour_scene(step), 4, size=(24, 16), spectral=True)
+    assert g.bad == 0 and np.all(np.isfinite(g.mean)), step
