@@ -48,29 +48,47 @@ bool any_pos4(vec4 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0 || v.w > 0.0;
 vec4 mul_sat4(vec4 a, vec4 b) { return min(min(a, vec4(F_MAX)) * min(b, vec4(F_MAX)), vec4(F_MAX)); }
 vec4 add_sat4(vec4 a, vec4 b) { return min(a + b, vec4(F_MAX)); }
 
-// f at the four wavelengths (the CPU's _eval4): o_s the set sampling uses, o_3 the set at lam_3
+// f at the four wavelengths (the CPU's _eval4): o_s the set sampling uses, o_3 the set at lam_3.
+// Every call site of the dispatch inlines every model of the program (compile time on software
+// GL), so the two sets of a table material go through one call in a loop that is not unrolled.
 vec4 spec_eval(int cat, int model, int o_s, int o_3, vec4 hmask, vec3 wi, vec3 wo) {
-    if (cat == 0) return spec_up(clean(brdf_eval(model, o_s, wi, wo)));
-    if (cat == 1) return vec4(clean(brdf_eval(model, o_s, wi, wo)), clean(brdf_eval(model, o_3, wi, wo)).x);
-    return clean(brdf_eval(model, o_s, wi, wo)).x * hmask;
+    vec4 f4 = vec4(0.0);
+    int n_sets = cat == 1 ? 2 : 1;
+    for (int s = 0; s < n_sets; ++s) {
+        vec3 f = clean(brdf_eval(model, s == 0 ? o_s : o_3, wi, wo));
+        if (s == 0) f4 = cat == 0 ? spec_up(f) : (cat == 2 ? f.x * hmask : vec4(f, 0.0));
+        else f4.w = f.x;
+    }
+    return f4;
 }
 
-// the sampled weight at the four wavelengths (the CPU's _sample4); wi, pdf from the set o_s
+// the sampled weight at the four wavelengths (the CPU's _sample4); wi, pdf from the set o_s. A
+// table material weights lam_3 by its value at the same direction over the same pdf, or, a delta
+// lobe (a mirror: the same direction at every wavelength), by the set o_3 sampled with the same
+// numbers (one call site in a loop, as spec_eval).
 vec4 spec_sample(int cat, int kind, int model, int o_s, int o_3, vec4 hmask, vec3 wo, vec3 u,
                  out vec3 wi, out float pdf) {
-    vec3 w = clean(brdf_sample(model, o_s, wo, u, wi, pdf));
-    if (cat == 0) return spec_up(w);
-    if (cat == 2) return w.x * hmask;
-    float w3;
-    if (kind == 1) {   // a delta lobe: the same direction at every wavelength (a mirror)
-        vec3 wi3;
-        float pdf3;
-        w3 = clean(brdf_sample(model, o_3, wo, u, wi3, pdf3)).x;
-    } else {
-        float f3 = clean(brdf_eval(model, o_3, wi, wo)).x;
-        w3 = pdf > 0.0 ? f3 * abs(wi.z) / pdf : 0.0;
+    vec4 w4 = vec4(0.0);
+    wi = vec3(0.0, 0.0, 1.0);
+    pdf = 0.0;
+    int n_sets = cat == 1 && kind == 1 ? 2 : 1;
+    for (int s = 0; s < n_sets; ++s) {
+        vec3 wi_s;
+        float pdf_s;
+        vec3 w = clean(brdf_sample(model, s == 0 ? o_s : o_3, wo, u, wi_s, pdf_s));
+        if (s == 0) {
+            wi = wi_s;
+            pdf = pdf_s;
+            w4 = cat == 0 ? spec_up(w) : (cat == 2 ? w.x * hmask : vec4(w, 0.0));
+        } else {
+            w4.w = w.x;
+        }
     }
-    return vec4(w, w3);
+    if (cat == 1 && kind != 1) {
+        float f3 = clean(brdf_eval(model, o_3, wi, wo)).x;
+        w4.w = pdf > 0.0 ? f3 * abs(wi.z) / pdf : 0.0;
+    }
+    return w4;
 }
 
 vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
