@@ -187,3 +187,23 @@ def test_gpu_spectral_builtin_scenes_agree_with_cpu(ctx, name):
 def test_gpu_spectral_lecture_steps_have_no_bad_values(ctx, step):
     g = h.gpu(ctx, tour_scene(step), 4, size=(24, 16), spectral=True)
     assert g.bad == 0 and np.all(np.isfinite(g.mean)), step
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["microfacet", "mirror", "dielectric", "layered"])
+def test_gpu_spectral_parameter_corners_have_no_bad_values(ctx, name):
+    """The NaN sweep's parameter corners of the models that take spectral tables, traced as
+    spectra (their spectral choice at the corners' values: dispersive glass and coatings, metal
+    tables, over the corners' extreme parameters): no NaN, infinite or negative radiance at any
+    wavelength, and the image's XYZ non-negative (Rec.709 RGB of a spectral estimate is negative
+    outside the gamut; 1e-6 relative: float32 rounding)."""
+    import nan_sweep_cases as nc
+    from viewer.spectral.colorimetry import rgb_to_xyz
+
+    scene = h.toml_scene(h.CORNER_SCENE, "corners")
+    for k, p in enumerate(nc.corner_sets(name, 4, 20240614)):   # the NaN sweep's reference corners
+        scene.materials["ball"] = p
+        g = h.gpu(ctx, scene, 2, size=(10, 8), max_depth=4, seed=k, spectral=True)
+        assert g.bad == 0, (name, p.to_plain())
+        assert np.all(np.isfinite(g.mean)), (name, p.to_plain())
+        assert rgb_to_xyz(g.mean).min() >= -1e-6 * max(1.0, float(np.abs(g.mean).max())), (name, p.to_plain())

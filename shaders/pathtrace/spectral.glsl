@@ -246,7 +246,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
     for (int j = 0; j < 4; ++j) {
         if (isnan(L[j]) || isinf(L[j]) || L[j] < 0.0) { g_bad += 1.0; L[j] = 0.0; }
     }
+    // no clamp here: L <= F_MAX and |W| < 0.022 keep |RGB| below 5e35 (float32 holds 3.4e38), and a
+    // clamp of the positive channels alone would turn the colour's XYZ negative
     vec3 rgb = vec3(0.0);
     for (int j = 0; j < 4; ++j) rgb += L[j] * texelFetch(u_spec_tab, ivec2(lam[j], 1), 0).rgb;
-    return min(rgb * (SPEC_N_BINS / 4.0), vec3(F_MAX));
+    return rgb * (SPEC_N_BINS / 4.0);
 }
