@@ -175,11 +175,14 @@ def test_gpu_spectral_agrees_with_cpu_spectral_lecture_steps(ctx, step):
 @pytest.mark.parametrize("name", builtin_scene_names())
 def test_gpu_spectral_builtin_scenes_agree_with_cpu(ctx, name):
     """Every built-in scene traced as spectra by both engines (RGB materials upsampled, the
-    metals of the gallery as tables, the soap film evaluated in RGB and upsampled)."""
+    metals of the gallery as tables, the soap film evaluated in RGB and upsampled), at the RGB
+    engines' sweep's 512 spp: at 64 spp the Cornell box's ceiling next to its point light (1/r^2)
+    has heavy-tailed samples whose variance estimate is too low (its means then differ by 3.7
+    standard errors in RGB too, both engines; at 512 they agree)."""
     sc = load_scene(name)
-    g = h.gpu(ctx, sc, 128, size=(32, 32), spectral=True)
-    c = h.cpu(sc, 128, size=(32, 32), spectral=True)
-    h.check(h.agreement(g, c), name, mean_tol=0.01)   # the mean: within 1% or 4 standard errors
+    g = h.gpu(ctx, sc, 512, size=(32, 32), spectral=True)
+    c = h.cpu(sc, 512, size=(32, 32), spectral=True)
+    h.check(h.agreement(g, c), name, mean_tol=0.005)   # the mean: within 0.5% or 4 standard errors
 
 
 @pytest.mark.slow
