@@ -148,11 +148,11 @@ def test_reference_view_renders_in_background_and_restarts(display):
         from viewer import brdf
         from viewer.app.main import App
         app = App("sphere", size=(520, 300))
-        app.set_image_mode("reference")
+        app.session.set_image_mode("reference")
         t0 = time.time()
-        while (app._reference is None or app._reference.spp < 2) and time.time() - t0 < 60:
+        while (app.session.reference is None or app.session.reference.spp < 2) and time.time() - t0 < 60:
             app.frame()
-        rv = app._reference
+        rv = app.session.reference
         assert rv.spp >= 2, rv.error
         img = app.capture_window()
         assert img[:, 360:].std() > 5  # the sphere is there (not a blank view)
@@ -162,8 +162,8 @@ def test_reference_view_renders_in_background_and_restarts(display):
             app.frame()
         assert app.frame_count == frames_before + 5 and time.time() - t1 < 10  # raster stays live
         key_before = rv._key
-        app.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
-        app.dirty = True
+        app.session.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
+        app.session.dirty = True
         app.frame()
         assert rv._key != key_before and rv.spp < 2  # restarted on the change
         t0 = time.time()
@@ -187,15 +187,15 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
         app = App(None, size=(640, 360))
         app.frame()
         before = app.capture_window()
-        assert app.set_environment("studio")
+        assert app.session.set_environment("studio")
         app.frame()
         after = app.capture_window()
         assert np.abs(after.astype(float) - before).mean() > 1.0  # the image changed
-        env = app.scene.environment
-        assert not app.set_environment({str(bad)!r})
-        assert app.scene.environment is env and "broken.hdr" in app.status
-        app._on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
-        assert "scene not opened" in app.status and "photo.png" in app.status  # a .png opens as a scene
+        env = app.session.scene.environment
+        assert not app.session.set_environment({str(bad)!r})
+        assert app.session.scene.environment is env and "broken.hdr" in app.session.status
+        app.on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
+        assert "scene not opened" in app.session.status and "photo.png" in app.session.status  # a .png opens as a scene
         app.frame()
         app.glfw.set_window_should_close(app.window, True)
         app.run()
@@ -211,12 +211,12 @@ def test_brute_force_ibl_accumulates_in_the_window(display):
         app = App(None, ['environment={map="studio"}', 'render.ibl="brute_force"'], size=(400, 240))
         for _ in range(6):
             app.frame()
-        assert app._bf_count >= 4, app._bf_count
-        n = app._bf_count
-        app.camera.orbit(5.0, 0.0, 240.0)
-        app.dirty = True
+        assert app.session.bf_count >= 4, app.session.bf_count
+        n = app.session.bf_count
+        app.session.camera.orbit(5.0, 0.0, 240.0)
+        app.session.dirty = True
         app.frame()
-        assert app._bf_count <= 1  # a change starts the average over
+        assert app.session.bf_count <= 1  # a change starts the average over
         app.glfw.set_window_should_close(app.window, True)
         app.run()
         print("BF OK", n)
