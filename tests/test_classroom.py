@@ -2,7 +2,7 @@
 views, every model with a slider move, shader hot reload with the error overlay, saving and
 reopening scenes and screenshots, the lecture tour, the window state and loading meshes.
 
-Each test runs the app in a subprocess (a private Xvfb from test_gui's fixture) and prints one
+Each test runs the app in a subprocess (a private Xvfb, the ``display`` fixture of conftest.py) and prints one
 JSON line of measurements that the test checks; the app is never imported into pytest itself."""
 
 import json
@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from test_gui import _run_py, display  # noqa: F401 - the fixture is used by name
+from gui_harness import run_py
 
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb (apt-get install xvfb)")
 
@@ -48,10 +48,10 @@ SCENE = textwrap.dedent("""
     """)
 
 
-def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: F811
+def test_every_model_and_a_slider_change_the_image(display, tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE)
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, numpy as np
         from viewer import brdf
         from viewer.brdf.spec import Params
@@ -109,12 +109,12 @@ def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: 
     assert all(v["switched"] > 1e-3 for n, v in res.items() if n != "lambert"), res
 
 
-def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):  # noqa: F811
+def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):
     # The raster side shows a term view (the Fresnel term F, unlike any shading) and the
     # reference side its shaded image, so each half can be told apart from the other.
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE.replace('map = "studio"', "constant = [0.3, 0.3, 0.3]").replace("split_sum", "off"))
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, time, numpy as np
         from viewer.app.main import App
         from viewer.gl.renderer import VIEW_MODES
@@ -162,12 +162,12 @@ def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):  #
     assert res["left_vs_ref"] > 2 * res["left_vs_raster"], res
 
 
-def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp_path):  # noqa: F811
+def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp_path):
     from viewer.gl.shaders import shader_root
 
     root = tmp_path / "shaders"
     shutil.copytree(shader_root(), root)
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, os, time, numpy as np
         from viewer.gl.shaders import set_shader_root
         set_shader_root({str(root)!r})
@@ -216,8 +216,8 @@ def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp
     assert res["fixed"], res
 
 
-def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_path):  # noqa: F811
-    r = _run_py(f"""
+def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_path):
+    r = run_py(f"""
         import json, numpy as np
         from viewer.app.main import App
         app = App("default", size=(640, 360), restore_state=False)
@@ -260,8 +260,8 @@ def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_p
     assert res["still"] == "<built-in default>"
 
 
-def test_lecture_tour_visits_every_step(display):  # noqa: F811
-    r = _run_py("""
+def test_lecture_tour_visits_every_step(display):
+    r = run_py("""
         import json, time, numpy as np
         from viewer.app.main import App
         from viewer.lecture import TOUR
@@ -313,7 +313,7 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
             assert TOUR[i].image == "reference", s
 
 
-def test_window_state_is_restored(display, tmp_path):  # noqa: F811
+def test_window_state_is_restored(display, tmp_path):
     state = tmp_path / "state.toml"
     code = f"""
         import json, os
@@ -338,27 +338,27 @@ def test_window_state_is_restored(display, tmp_path):  # noqa: F811
 
     os.environ["STEP"] = "1"
     try:
-        first = _result(_run_py(code, display))
+        first = _result(run_py(code, display))
     finally:
         os.environ.pop("STEP")
-    second = _result(_run_py(code, display))
+    second = _result(run_py(code, display))
     assert first["size"] == [1280, 720] and first["mode"] == "raster"
     assert second == dict(size=[900, 500], scale=1.5, mode="side by side", split=0.3, plots=True), second
     assert (tmp_path / "last_scene.toml").exists()
     # a damaged state file is ignored (with a message), never fatal
     state.write_text("ui_scale = 'huge'\nwindow_width = -5\n[[[")
-    third = _run_py(code, display)
+    third = run_py(code, display)
     assert third.returncode == 0 and "window state ignored" in third.stderr, third.stderr
 
 
-def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, tmp_path):  # noqa: F811
+def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, tmp_path):
     import trimesh
 
     good = tmp_path / "box.obj"
     trimesh.creation.box(extents=(2.0, 1.0, 1.0)).export(good)
     bad = tmp_path / "broken.ply"
     bad.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n0 0")
-    r = _run_py(f"""
+    r = run_py(f"""
         import json
         from viewer.app.main import App
         app = App("sphere", size=(640, 360), restore_state=False)
@@ -381,7 +381,7 @@ def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, t
     assert "unknown kind" in res["s3"] and ".toml" in res["s3"], res
 
 
-def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):  # noqa: F811
+def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):
     """Mutated scenes, meshes and environment maps (tests/fuzz_cases.py) opened in the running
     window: each either loads or leaves the scene exactly as it was, with one line of status."""
     import fuzz_cases as fc
@@ -400,7 +400,7 @@ def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, t
         meshes.append(str(fc.make_mesh_case(rng, tmp_path, fc.MESH_KINDS[i % len(fc.MESH_KINDS)], i)[1]))
     for i in range(13):
         envs.append(str(fc.make_env_case(rng, tmp_path, fc.ENV_KINDS[i % len(fc.ENV_KINDS)], i)[1]))
-    r = _run_py(f"""
+    r = run_py(f"""
         import json
         from viewer.app.main import App
         from viewer.scene import scene_to_toml

@@ -7,54 +7,21 @@ import shutil
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 
 import numpy as np
 import pytest
 
+from gui_harness import run_py, window_env
+
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
                                 reason="needs Xvfb (apt-get install xvfb) or a display")
-
-
-@pytest.fixture(scope="module")
-def display():
-    """A private Xvfb server (its number chosen by Xvfb itself), or the existing DISPLAY."""
-    if shutil.which("Xvfb") is None:
-        yield os.environ["DISPLAY"]
-        return
-    r, w = os.pipe()
-    proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.close(w)
-    with os.fdopen(r) as f:
-        num = f.readline().strip()
-    yield f":{num}"
-    proc.terminate()
-    proc.wait(10)
-
-
-def _env(display):
-    env = dict(os.environ)
-    env["DISPLAY"] = display
-    # each app run starts from no saved window state (one run's compare view or window size
-    # must not leak into the next test); test_classroom checks the restoring itself
-    import tempfile
-
-    env["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
-    env.pop("WAYLAND_DISPLAY", None)
-    return env
-
-
-def _run_py(code, display, timeout=120):
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display),
-                          capture_output=True, text=True, timeout=timeout)
 
 
 def test_starts_renders_and_screenshots(display, tmp_path):
     shot = tmp_path / "shot.png"
     r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "4", "--screenshot", str(shot)],
-                       env=_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                       env=window_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "first frame" in r.stderr
     from PIL import Image
@@ -75,7 +42,7 @@ def test_starts_renders_and_screenshots(display, tmp_path):
 
 
 def test_window_close_resize_and_zero_framebuffer(display):
-    r = _run_py("""
+    r = run_py("""
         import numpy as np
         from viewer.app.main import App
         app = App(None, size=(800, 500))
@@ -110,7 +77,7 @@ def test_window_close_resize_and_zero_framebuffer(display):
 
 
 def test_sigterm_exits_cleanly(display, tmp_path):
-    p = subprocess.Popen([sys.executable, "-m", "viewer"], env=_env(display), stderr=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "viewer"], env=window_env(display), stderr=subprocess.PIPE,
                          stdout=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         t0 = time.time()
@@ -142,7 +109,7 @@ def test_no_display_message(tmp_path):
 
 
 def test_reference_view_renders_in_background_and_restarts(display):
-    r = _run_py("""
+    r = run_py("""
         import time
         import numpy as np
         from viewer import brdf
@@ -181,7 +148,7 @@ def test_reference_view_renders_in_background_and_restarts(display):
 def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
     bad = tmp_path / "broken.hdr"
     bad.write_bytes(b"#?RADIANCE\\nFORMAT=32-bit_rle_rgbe\\n\\n-Y 4 +X 8\\n\\x02")  # truncated
-    r = _run_py(f"""
+    r = run_py(f"""
         import numpy as np
         from viewer.app.main import App
         app = App(None, size=(640, 360))
@@ -206,7 +173,7 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
 
 
 def test_brute_force_ibl_accumulates_in_the_window(display):
-    r = _run_py("""
+    r = run_py("""
         from viewer.app.main import App
         app = App(None, ['environment={map="studio"}', 'render.ibl="brute_force"'], size=(400, 240))
         for _ in range(6):

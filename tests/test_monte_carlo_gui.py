@@ -7,7 +7,7 @@ import textwrap
 import subprocess
 import sys
 
-from test_gui import _env, display  # noqa: F401 - the private Xvfb fixture
+from gui_harness import window_env
 
 import pytest
 
@@ -73,7 +73,7 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app.run()
         print("MC OK")
     """
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display), capture_output=True,
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=window_env(display), capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:] + r.stdout
     assert "MC OK" in r.stdout

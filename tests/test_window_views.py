@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from test_gui import _env, _run_py, display  # noqa: F401 - the fixture is used by name
+from gui_harness import run_py, window_env
 
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb (apt-get install xvfb)")
 
@@ -51,11 +51,11 @@ def _result(r):
     return json.loads(line[-1][len("RESULT "):])
 
 
-def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  # noqa: F811
+def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):
     """One window (its start-up is the slow part): lecture mode at UI scale 2, three key taps
     shorter than a frame, then a split view whose screenshot must equal the view."""
     shot = tmp_path / "split.png"
-    r = _run_py(f"""
+    r = run_py(f"""
         import ctypes, json, time, os
         import numpy as np
         from PIL import Image
@@ -142,11 +142,11 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
     assert abs(a_raster - a_view) < 0.02 and abs(a_ref - a_view) < 0.02, res
 
 
-def test_screenshot_to_an_unwritable_path_fails_in_one_line(display, tmp_path):  # noqa: F811
+def test_screenshot_to_an_unwritable_path_fails_in_one_line(display, tmp_path):
     (tmp_path / "file.txt").write_text("x")
     for bad in (tmp_path / "no" / "such" / "folder" / "s.png", "/proc/s.png", tmp_path / "file.txt" / "s.png"):
         r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "2", "--screenshot", str(bad)],
-                           env=_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                           env=window_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
         assert r.returncode == 2, (r.returncode, r.stderr)
         lines = [x for x in r.stderr.splitlines() if x.strip()]
         assert len(lines) == 1 and "--screenshot" in lines[0] and "error" in lines[0], r.stderr
