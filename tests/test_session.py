@@ -246,3 +246,24 @@ def test_brute_force_accumulation_restarts_on_a_change(session):
     session.set_material_param("ball", "albedo", [0.7, 0.7, 0.2])
     session.render_view(SIZE)
     assert session.bf_count == 1  # a change starts the average over
+
+
+def test_the_session_imports_no_window_library():
+    """Neither imgui nor glfw, not even inside a function (an AST check of the session's modules),
+    and importing it loads neither (the session runs where no window can open)."""
+    import ast
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    app = Path(__file__).resolve().parents[1] / "viewer" / "app"
+    for f in ("session.py", "file_actions.py"):
+        for node in ast.walk(ast.parse((app / f).read_text("utf-8"))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            assert not any(n.split(".")[0] in ("imgui_bundle", "glfw") for n in names), (f, names)
+    code = ("import sys, viewer.app.session; "
+            "print(sorted(m for m in ('imgui_bundle', 'glfw') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                         cwd=app.parents[1])
+    assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr[-2000:])
