@@ -366,19 +366,23 @@ def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, t
         app.on_drop(None, [{str(bad)!r}])
         s1, m1 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
+        red1 = app.overlay_plan()[1]["toast_error"]  # the toast of an error notification is red
         app.on_drop(None, [{str(good)!r}])
         s2, m2 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
+        red2 = app.overlay_plan()[1]["toast_error"]
         app.on_drop(None, [{str(tmp_path / "notes.txt")!r}])
         s3 = app.session.status
+        red3 = app.overlay_plan()[1]["toast_error"]
         tri = len(app.session.scene.objects[0].mesh_data.indices)
         app.close()
-        print("RESULT " + json.dumps(dict(s1=s1, m1=m1, s2=s2, m2=m2, s3=s3, tri=tri)))
+        print("RESULT " + json.dumps(dict(s1=s1, m1=m1, s2=s2, m2=m2, s3=s3, tri=tri, red=[red1, red2, red3])))
         """, display)
     res = _result(r)
     assert res["m1"] == "sphere" and "mesh not loaded" in res["s1"] and "broken.ply" in res["s1"], res
     assert res["m2"].endswith("box.obj") and res["tri"] == 12, res
     assert "unknown kind" in res["s3"] and ".toml" in res["s3"], res
+    assert res["red"] == [True, False, True], res  # errors red, the loaded mesh's line not
 
 
 def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):
