@@ -1,6 +1,6 @@
 """``brdf-viewer fit MEASURED_FILE --model MODEL``: fit an analytic model to a measured BRDF
 (viewer/brdf/fit.py), print the parameters and the error, write the material table (atomically)
-and, optionally, the residual slice (viewer/measured_plot.py)."""
+and, optionally, the residual slice (viewer/plots/measured.py)."""
 
 from __future__ import annotations
 
