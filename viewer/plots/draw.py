@@ -123,12 +123,17 @@ def _draw_polar(cv, fig, width, height):
     draw_legend(cv, items, box, "tr" if fig.info["theta_i"] > 20 else "tl")
 
 
-def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
-    top = 58 + 14 * len(fig.notes)
+def _view_basis(elevation: float, azimuth: float):
+    """(view, right, up) of an oblique view of the hemisphere: ``view`` points toward the viewer."""
     el, az = math.radians(elevation), math.radians(azimuth)
     view = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])  # toward viewer
     right = np.array([-math.sin(az), math.cos(az), 0.0])
-    up = np.cross(view, right)
+    return view, right, np.cross(view, right)
+
+
+def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
+    top = 58 + 14 * len(fig.notes)
+    view, right, up = _view_basis(elevation, azimuth)
     x, y, z = (np.asarray(fig.info[k], float) for k in "xyz")
     value = np.asarray(fig.info["value"], float)
     rmax = fig.y_range[1]
@@ -140,17 +145,27 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
         q = np.asarray(q, float)
         return cx + scale * (q @ right), cy - scale * (q @ up)
 
-    d = cv.draw
-    # ground disc, axes
+    _lobe_ground(cv, proj)
+    vmax = float(value.max()) if value.size else 0.0
+    _lobe_surface(cv, proj, P, value, view, vmax)
+    _lobe_arrows(cv, fig, proj, rmax)
+    _lobe_colour_bar(cv, fig, width, height, top, vmax)
+
+
+def _lobe_ground(cv, proj):
+    """The ground disc and the x, y, z axes."""
     ring = np.stack([np.cos(np.linspace(0, 2 * np.pi, 181)), np.sin(np.linspace(0, 2 * np.pi, 181)),
                      np.zeros(181)], -1)
     gx, gy = proj(ring)
-    d.polygon(list(zip(gx, gy)), fill=(240, 240, 240), outline=(170, 170, 170))
+    cv.draw.polygon(list(zip(gx, gy)), fill=(240, 240, 240), outline=(170, 170, 170))
     for lab, vec in (("x (tangent)", [1.15, 0, 0]), ("y", [0, 1.15, 0]), ("z (normal)", [0, 0, 1.15])):
         a, b = proj(np.zeros(3)), proj(np.array(vec, float))
         arrow(cv, (a[0], a[1]), (b[0], b[1]), (110, 110, 110), 1.2, 8)
         cv.text((b[0] + cv.s(4), b[1]), lab, px=11, fill=(90, 90, 90), anchor="lm")
-    # shaded quads, far to near (painter's algorithm)
+
+
+def _lobe_surface(cv, proj, P, value, view, vmax):
+    """The lobe's shaded quads, far to near (painter's algorithm), coloured by value."""
     quads = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)  # (nt-1, np-1, 4, 3)
     qv = (value[:-1, :-1] + value[1:, :-1] + value[1:, 1:] + value[:-1, 1:]) / 4
     qf = quads.reshape(-1, 4, 3)
@@ -160,7 +175,6 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
     nn = np.linalg.norm(n, axis=-1)
     light = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
     shade = np.where(nn > 0, np.abs(n @ light) / np.maximum(nn, 1e-30), 0.6)
-    vmax = float(value.max()) if value.size else 0.0
     colours = colormap(qv / vmax if vmax > 0 else qv) * (0.55 + 0.45 * shade)[:, None]
     layer, ld = clipped_layer(cv)
     for i in np.argsort(depth):
@@ -170,7 +184,10 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
         col = tuple(int(c) for c in colours[i])
         ld.polygon(list(zip(px, py)), fill=col + (235,), outline=tuple(int(c * 0.75) for c in col) + (255,))
     paste_clipped(cv, layer, (0, 0, cv.w, cv.h))
-    # incident direction (toward the light) and delta lobes
+
+
+def _lobe_arrows(cv, fig, proj, rmax):
+    """The incident direction (toward the light) and the delta lobes."""
     wi = np.asarray(fig.info["wi"], float)
     a, b = proj(wi * 1.08), proj(wi * 0.05)
     arrow(cv, (a[0], a[1]), (b[0], b[1]), (230, 120, 0), 2.0, 12)
@@ -182,7 +199,10 @@ def _draw_lobe(cv, fig, width, height, elevation=25.0, azimuth=-75.0):
         arrow(cv, (o[0], o[1]), (tip[0], tip[1]), (120, 40, 160), 3.0, 14)
         cv.text((tip[0] + cv.s(6), tip[1]), "delta lobe, R = " + fmt_value(np.asarray(dl["reflectance"])), px=12,
                 fill=(120, 40, 160), anchor="lm")
-    # colour bar
+
+
+def _lobe_colour_bar(cv, fig, width, height, top, vmax):
+    d = cv.draw
     bx0, bx1 = cv.s(width - 70), cv.s(width - 52)
     by0, by1 = cv.s(top + 30), cv.s(height - 50)
     for j in range(int(by1 - by0)):
@@ -223,10 +243,7 @@ def _draw_sampling(cv, fig, width, height):
     # point cloud: the hemisphere (sphere) seen obliquely, as the 3D lobe
     x0 = left + gw + gap_x
     y0 = top + cv.s(16) + gh + gap_y
-    el, az = math.radians(25.0), math.radians(-75.0)
-    view = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    right = np.array([-math.sin(az), math.cos(az), 0.0])
-    up = np.cross(view, right)
+    view, right, up = _view_basis(25.0, -75.0)
     scale = min(gw / 2.3, gh / (2.2 if d["sphere"] else 1.45))
     cx, cy = x0 + gw / 2, y0 + (gh / 2 if d["sphere"] else gh * 0.68)
 
