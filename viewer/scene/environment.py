@@ -12,8 +12,7 @@ from viewer import ViewerError
 from viewer.scene.model import equal
 
 MAP_ALLOWED = ("a built-in name (sky, studio) or a lat-long image file (Radiance .hdr, OpenEXR .exr) "
-                "relative to the scene file")
-
+               "relative to the scene file")
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance of linear RGB
 MID_GREY = 0.18
