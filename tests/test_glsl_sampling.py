@@ -114,6 +114,30 @@ def _tir_rtol(p, wi, wo):
     return np.where(trans, 1e-6 / np.maximum(cos_t2, 1e-12), 0.0)
 
 
+# A measured material's half-vector density is piecewise constant over theta_h bins: a half vector
+# within float32 rounding of a bin edge may land in either bin in the two twins (the pdf then jumps
+# by the ratio of neighbouring bins, ~4%). Measured: a pair under a layered coat (two refractions)
+# came 3.6e-5 bin widths from an edge and flipped; such pairs (within 1e-4 bin widths) are left out
+# of the pdf comparison, and they must stay rare.
+BIN_EDGE = 1e-4
+
+
+def _near_bin_edge(p, wi, wo):
+    from viewer.brdf import layered, merl
+    from viewer.brdf.sampling import normalize
+
+    near = np.zeros(len(wi), dtype=bool)
+    if p.model == "layered" and p.base.model == "measured":
+        wi, wo = layered.refract_in(wi, p.coating.ior), layered.refract_in(wo, p.coating.ior)
+    elif p.model != "measured":
+        return near
+    h = normalize(wi + wo)
+    th = np.arctan2(np.hypot(h[:, 0], h[:, 1]), h[:, 2])
+    x = np.sqrt(np.clip(th, 0.0, merl.HALF_PI) / merl.HALF_PI) * merl.N_TH
+    k = np.round(x)   # interior edges only: below bin 0 and above the last one both twins clamp
+    return (np.abs(x - k) < BIN_EDGE) & (k >= 1) & (k <= merl.N_TH - 1)
+
+
 def _check_pdf(name, p, evaluator, rng, n=2000):
     model = brdf.get(name)
     wi, wo = _pairs(rng, n, model.spec.transmissive)
@@ -121,7 +145,9 @@ def _check_pdf(name, p, evaluator, rng, n=2000):
     got = evaluator.eval(p, wi, wo, what=2)[:, 0]
     assert np.all(np.isfinite(got)) and np.all(got >= 0), f"{name}: GLSL pdf NaN/Inf/negative for {p.to_plain()}"
     tol = (PDF_RTOL + _tir_rtol(p, wi, wo)) * np.abs(ref) + PDF_ATOL
-    bad = np.abs(got - ref) > tol
+    edge = _near_bin_edge(p, wi, wo)
+    assert edge.mean() <= 0.01, f"{name}: {edge.sum()} of {n} pairs at a bin edge (expected ~{2 * BIN_EDGE:.0e})"
+    bad = (np.abs(got - ref) > tol) & ~edge
     if bad.any():
         i = int(np.argmax(bad))
         pytest.fail(f"{name}: {bad.sum()} of {n} GLSL pdfs differ; first wi={wi[i]}, wo={wo[i]}, "
@@ -194,10 +220,7 @@ def _grid_cases(every):
     return [(n, every) for n in NAMES]
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=(
-        "known defect: 1 of 1000 layered pdfs (coat alpha 0.1) differs by 4% between the twins")))
-    if n == "layered" else n for n in NAMES])
+@pytest.mark.parametrize("name", NAMES)
 def test_glsl_pdf_and_sample_twins(name, evaluator, sampler):
     model = brdf.get(name)
     rng = np.random.default_rng(_seed(name, "twins"))

@@ -179,15 +179,7 @@ def gpu_engine_ctx(gl_ctx):
     return gl_ctx
 
 
-# Known defects, kept visible (strict: the test reports when they are fixed): the GPU engine's
-# float32 Lafortune sampler gives a few non-finite or negative values for a lobe with |C| = 10 and
-# n = 10^4 (the CPU engine's float64 twin gives none), alone and as a layered base.
-_GPU_KNOWN = {n: pytest.mark.xfail(strict=True, reason="float32 Lafortune sampler at |C| = 10, n = 1e4")
-              for n in ("lafortune", "layered")}
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=_GPU_KNOWN[n]) if n in _GPU_KNOWN else n
-                                  for n in NAMES if n != "measured"])  # the GPU engine refuses measured
+@pytest.mark.parametrize("name", [n for n in NAMES if n != "measured"])  # the GPU engine refuses measured
 def test_gpu_reference_finite_and_nonnegative(name, gpu_engine_ctx):
     """The GPU engine at the same corners: it counts NaN / Inf / negative model outputs (and
     radiance) per pixel the way the CPU engine does; the count must stay 0."""

@@ -1,4 +1,4 @@
-"""BRDF plots (viewer/plots.py, ``brdf-viewer plot``): the plotted numbers are the Python
+"""BRDF plots (viewer/plots/, ``brdf-viewer plot``): the plotted numbers are the Python
 functions' values, the lecture's Fresnel angles come out, and the command fails cleanly."""
 
 import json

@@ -99,6 +99,13 @@ float balance_heuristic(float a, float b) {
 float max3(vec3 v) { return max(max(v.x, v.y), v.z); }
 bool any_pos(vec3 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0; }
 
+// float32 range guards. A model value is capped at F_MAX = e^80 (common/math.glsl), but a path's
+// throughput is a product of such values and overflows float32 (the CPU engine carries float64 and
+// saturates only its output): products and sums of radiance saturate at F_MAX instead, so inf * 0
+// never makes a NaN. Both operands are finite and non-negative here, and nothing below F_MAX changes.
+vec3 mul_sat(vec3 a, vec3 b) { return min(min(a, vec3(F_MAX)) * min(b, vec3(F_MAX)), vec3(F_MAX)); }
+vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
+
 vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
     vec3 L = vec3(0.0);
     vec3 T = vec3(1.0);
@@ -116,7 +123,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 #else
             float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
 #endif
-            L += T * env_eval(d) * w;
+            L = add_sat(L, mul_sat(T, env_eval(d) * w));
 #endif
             break;
         }
@@ -175,10 +182,10 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
                 float g = dot(ng, wi);
                 bool ok = trans ? wl.z * g > 0.0 : (wl.z > 0.0 && g > 0.0);
                 if (!ok) continue;
-                vec3 c = T * clean(brdf_eval(model, moff, wl, wo_l)) * abs(wl.z) * val;
+                vec3 c = mul_sat(T, clean(brdf_eval(model, moff, wl, wo_l)) * (abs(wl.z) * val));
                 if (!any_pos(c)) continue;
                 vec3 so = p + eps * (g < 0.0 ? -1.0 : 1.0) * ng;
-                if (!bvh_occluded(so, wi, 0.0, tmax)) L += c;
+                if (!bvh_occluded(so, wi, 0.0, tmax)) L = add_sat(L, c);
             }
 #endif
 #if ENV_MODE != 0 && STRATEGY != STRATEGY_BSDF
@@ -194,13 +201,13 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
                     vec3 f = clean(brdf_eval(model, moff, wl, wo_l));
 #if STRATEGY == STRATEGY_MIS
                     float pb = clean(brdf_pdf(model, moff, wl, wo_l));
-                    vec3 c = T * f * abs(wl.z) * ev * (mis_weight(pe, pb) / pe);
+                    vec3 c = mul_sat(T, mul_sat(f, abs(wl.z) * ev * (mis_weight(pe, pb) / pe)));
 #else
-                    vec3 c = T * f * abs(wl.z) * ev * (1.0 / pe);
+                    vec3 c = mul_sat(T, mul_sat(f, abs(wl.z) * ev * (1.0 / pe)));
 #endif
                     if (any_pos(c)) {
                         vec3 so = p + eps * (g < 0.0 ? -1.0 : 1.0) * ng;
-                        if (!bvh_occluded(so, wi, 0.0, BVH_INF)) L += c;
+                        if (!bvh_occluded(so, wi, 0.0, BVH_INF)) L = add_sat(L, c);
                     }
                 }
             }
@@ -220,7 +227,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);
         bool ok = (trans ? wi_l.z * gw > 0.0 : (wi_l.z > 0.0 && gw > 0.0)) && pdf_s > 0.0 && any_pos(wgt);
-        vec3 Tn = T * (ok ? wgt : vec3(0.0));
+        vec3 Tn = ok ? mul_sat(T, wgt) : vec3(0.0);
 #if ENV_MODE != 0 && STRATEGY == STRATEGY_MIS
         prev_lpdf = disc ? 0.0 : env_pdf(wi_w, n, trans);
 #endif
@@ -264,7 +271,7 @@ void main() {
         float y = (1.0 - 2.0 * (float(px.y) + cam.y) / H) * u_tan_half_y;
         vec3 d = normalize(u_cam_forward + x * u_cam_right + y * u_cam_up);
         vec3 L = trace_path(u_cam_pos, d, rng);
-        sum += vec4(L, 1.0);
+        sum = vec4(min(sum.rgb + L, vec3(3.40282347e38)), sum.a + 1.0);   // the float32 maximum
         sq.rgb += L * L;
     }
     sq.a += g_bad;

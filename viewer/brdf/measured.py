@@ -132,3 +132,11 @@ def sample(p, wo, u):
     f = eval(p, wi, wo)
     weight, pdf_ = sample_weight(f, wi, pdf_)
     return wi, weight, pdf_
+
+
+def ibl_split(p):
+    """Image-based lighting (split sum): the table less its diffuse floor, as a lobe of width
+    alpha (``merl.Measured.split_sum_fit``); the third value is the diffuse albedo that the
+    renderer subtracts from the table's albedo to leave the specular part."""
+    kd, alpha = data(p).split_sum_fit()
+    return p, alpha, kd * p.scale

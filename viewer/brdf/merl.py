@@ -242,6 +242,34 @@ class Measured:
         share = float(profile.min() / mean) if mean > 0 else 1.0
         self.w_cos = float(np.clip(share, 0.1, 0.9))
 
+    def split_sum_fit(self) -> tuple[np.ndarray, float]:
+        """(diffuse albedo (3,), alpha) for the rasterizer's split-sum environment lighting. The
+        table near the specular plane (theta_d < 10 degrees, where cos_i ~ cos_o ~ cos_h) is read
+        as rho_d / pi plus a microfacet peak c D(theta_h) / (4 cos_h^2) (F and G taken constant
+        there). Given alpha, rho_d and c follow by linear least squares over theta_h < 60 degrees
+        (beyond, both directions graze and measurements are least reliable); given rho_d, alpha
+        = 1 / sqrt(pi D(0)) of the peak normalised to integral D cos_h = 1, exact for GGX and
+        Beckmann (both have D(0) = 1 / (pi alpha^2)). Two rounds from rho_d = 0."""
+        profile = np.maximum(self.table[:, : max(1, N_TD // 9)].mean(axis=(1, 2)), 0.0)  # (90, 3)
+        centre = 0.5 * (self.edges[:-1] + self.edges[1:])
+        ch = np.cos(centre)
+        fit = centre < np.radians(60.0)
+        rho_d, alpha = np.zeros(3), 1.0
+        for _ in range(3):
+            peak = np.maximum(profile - rho_d / np.pi, 0.0) @ LUM * ch * ch
+            mass = float(np.sum(peak * ch * self.d_omega))
+            if not (mass > 0 and peak[0] > 0):
+                return np.pi * profile.min(axis=0), 1.0
+            alpha = float(np.clip(1.0 / np.sqrt(np.pi * peak[0] / mass), 1e-3, 1.0))
+            a2, t2 = alpha * alpha, np.tan(centre) ** 2
+            g = a2 / (np.pi * ch ** 4 * (a2 + t2) ** 2) / (4.0 * ch * ch)  # GGX D / (4 cos_h^2)
+            # relative residuals (weights 1 / value): the floor is small beside the peak
+            w = 1.0 / np.maximum(profile[fit] @ LUM, 1e-12)
+            basis = np.stack([np.full(fit.sum(), 1.0 / np.pi), g[fit]], axis=1) * w[:, None]
+            coef = np.linalg.lstsq(basis, profile[fit] * w[:, None], rcond=None)[0]
+            rho_d = np.maximum(coef[0], 0.0)
+        return rho_d, alpha
+
     def texture_data(self) -> np.ndarray:
         """float32 RGB data of a 3D texture 180 x 90 x 91: x = phi_d, y = theta_d, z = theta_h for
         z < 90; the layer z = 90 holds the sampler's data in its red channel, row y = 0: the 90

@@ -564,8 +564,11 @@ class Renderer:
             if split is None:
                 spec, alpha = np.zeros_like(r), 1.0
             else:
-                spec_params, alpha = split(params)
+                # (specular params, alpha[, diffuse albedo to take away from their albedo])
+                spec_params, alpha, *diffuse = split(params)
                 spec = r if spec_params is params else self._albedo_pair(model, spec_params)[0]
+                if diffuse:
+                    spec = np.maximum(spec - np.asarray(diffuse[0])[None, :], 0.0)
             spec = np.minimum(spec, r)
             tables = (r.astype("f4"), t.astype("f4"), spec.astype("f4"), float(alpha))
             if len(self._albedo_cache) > 256:
