@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.app.file_actions import MESH_SUFFIXES, FileActions  # noqa: F401 - MESH_SUFFIXES is public here too
+from viewer.app.file_actions import FileActions
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 
