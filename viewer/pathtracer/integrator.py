@@ -55,7 +55,7 @@ import numpy as np
 
 from viewer import brdf
 from viewer.pathtracer.envmap import EnvironmentLight
-from viewer.pathtracer.geometry import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
+from viewer.geometry.soup import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
 
 RR_START_DEPTH = 4          # Russian roulette from the 4th scattering event on ("after 3 bounces")
 RR_MIN, RR_MAX = 0.05, 0.95

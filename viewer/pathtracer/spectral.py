@@ -36,7 +36,7 @@ from viewer import spectral
 from viewer.brdf.spec import Params
 from viewer.pathtracer.integrator import (
     DIMS_PER_BOUNCE, EPS_REL, RR_MAX, RR_MIN, RR_START_DEPTH, Integrator, _dot, _power, philox)
-from viewer.pathtracer.geometry import hit_points, interpolate_shading, shading_frame
+from viewer.geometry.soup import hit_points, interpolate_shading, shading_frame
 
 N_BINS = 420
 STRIDE = N_BINS // 4
