@@ -20,6 +20,7 @@ from viewer.camera import OrbitCamera
 from viewer.scene import load_scene
 
 from render_util import camera_rays, hit_plane_y, hit_sphere, sphere_interior
+from scene_text import camera, material, point_light, scene, sphere_on_floor
 
 pathtracer = pytest.importorskip("viewer.pathtracer")
 
@@ -97,34 +98,10 @@ def test_direct_light_agrees_per_pixel(tmp_path, renderer, name):
     _compare(raster, mean, var, mask, name)
 
 
-SHADOW_SCENE = """
-[camera]
-position = [0.0, 3.0, 4.5]
-target = [0.0, 0.3, 0.0]
-fov_y = 45.0
-width = 64
-height = 48
-
-[[lights]]
-type = "point"
-position = [1.0, 4.0, 0.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[objects]]
-mesh = "sphere"
-material = "white"
-scale = 0.5
-translate = [0.0, 0.8, 0.0]
-
-[[objects]]
-mesh = "plane"
-material = "white"
-scale = 3.0
-
-[materials.white]
-model = "lambert"
-albedo = [0.7, 0.7, 0.7]
-"""
+SHADOW_SCENE = scene(camera([0.0, 3.0, 4.5], [0.0, 0.3, 0.0], 45.0, 64, 48),
+                     point_light([1.0, 4.0, 0.5], [30.0, 30.0, 30.0]),
+                     sphere_on_floor("white", "white", height=0.8),
+                     material("white", model="lambert", albedo=[0.7, 0.7, 0.7]))
 
 
 def test_shadows_agree_with_reference(tmp_path, renderer):
