@@ -43,26 +43,6 @@ def _half_area(x0, y0, z0, x1, y1, z1):
 
 
 @njit(cache=True, error_model="numpy")
-def _box_half_area(box):
-    return _half_area(box[0], box[1], box[2], box[3], box[4], box[5])
-
-
-@njit(cache=True, error_model="numpy")
-def _empty_box(box):
-    for k in range(3):
-        box[k] = np.inf
-        box[3 + k] = -np.inf
-
-
-@njit(cache=True, error_model="numpy")
-def _grow(box, other):
-    """box := the union of box and other ((6,) each: min xyz, max xyz)."""
-    for k in range(3):
-        box[k] = min(box[k], other[k])
-        box[3 + k] = max(box[3 + k], other[3 + k])
-
-
-@njit(cache=True, error_model="numpy")
 def _bin_of(c, cmin, scale, n_bins):
     b = int((c - cmin) * scale)
     if b >= n_bins:
@@ -72,32 +52,50 @@ def _bin_of(c, cmin, scale, n_bins):
     return b
 
 
-@njit(cache=True, error_model="numpy")
-def _node_bounds(order, start, end, lo, hi, cent, box, cmin, cmax):
-    """box := the bounds of triangles order[start:end]; cmin, cmax := those of their centroids."""
-    _empty_box(box)
+@njit(cache=True, error_model="numpy", inline="always")
+def _node_bounds(order, start, end, lo, hi, cent, bounds, node, cmin, cmax):
+    """bounds[node] := the bounds of triangles order[start:end]; cmin, cmax := those of their centroids.
+    (The box is kept in scalars in the loop: it runs over every triangle at every level.)"""
+    bx0 = np.inf
+    by0 = np.inf
+    bz0 = np.inf
+    bx1 = -np.inf
+    by1 = -np.inf
+    bz1 = -np.inf
     for a in range(3):
         cmin[a] = np.inf
         cmax[a] = -np.inf
     for i in range(start, end):
         p = order[i]
+        bx0 = min(bx0, lo[p, 0])
+        by0 = min(by0, lo[p, 1])
+        bz0 = min(bz0, lo[p, 2])
+        bx1 = max(bx1, hi[p, 0])
+        by1 = max(by1, hi[p, 1])
+        bz1 = max(bz1, hi[p, 2])
         for a in range(3):
-            box[a] = min(box[a], lo[p, a])
-            box[3 + a] = max(box[3 + a], hi[p, a])
             c = cent[p, a]
             if c < cmin[a]:
                 cmin[a] = c
             if c > cmax[a]:
                 cmax[a] = c
+    bounds[node, 0] = bx0
+    bounds[node, 1] = by0
+    bounds[node, 2] = bz0
+    bounds[node, 3] = bx1
+    bounds[node, 4] = by1
+    bounds[node, 5] = bz1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _fill_bins(order, start, end, lo, hi, cent, a, cmin_a, scale, n_bins, bin_cnt, bin_box):
     """Count the centroids of order[start:end] per bin along axis a and bound each bin's
     triangles (bin_cnt (n_bins,), bin_box (n_bins, 6))."""
     for b in range(n_bins):
         bin_cnt[b] = 0
-        _empty_box(bin_box[b])
+        for k in range(3):
+            bin_box[b, k] = np.inf
+            bin_box[b, 3 + k] = -np.inf
     for i in range(start, end):
         p = order[i]
         b = _bin_of(cent[p, a], cmin_a, scale, n_bins)
@@ -109,44 +107,54 @@ def _fill_bins(order, start, end, lo, hi, cent, a, cmin_a, scale, n_bins, bin_cn
                 bin_box[b, 3 + k] = hi[p, k]
 
 
-@njit(cache=True, error_model="numpy")
-def _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area, acc):
+@njit(cache=True, error_model="numpy", inline="always")
+def _grown(x0, y0, z0, x1, y1, z1, bins, b):
+    """The union of the box (x0, y0, z0)-(x1, y1, z1) and bins[b] (min xyz, max xyz), as six
+    scalars (kept in registers: this runs for every bin of every node)."""
+    return (min(x0, bins[b, 0]), min(y0, bins[b, 1]), min(z0, bins[b, 2]),
+            max(x1, bins[b, 3]), max(y1, bins[b, 4]), max(z1, bins[b, 5]))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area):
     """right_cnt[b], right_area[b] := count and box half-area of bins b .. n_bins - 1 (b >= 1)."""
-    _empty_box(acc)
+    x0 = y0 = z0 = np.inf
+    x1 = y1 = z1 = -np.inf
     rc = 0
     for b in range(n_bins - 1, 0, -1):
         rc += bin_cnt[b]
         if bin_cnt[b] > 0:
-            _grow(acc, bin_box[b])
+            x0, y0, z0, x1, y1, z1 = _grown(x0, y0, z0, x1, y1, z1, bin_box, b)
         right_cnt[b] = rc
-        right_area[b] = _box_half_area(acc) if rc > 0 else 0.0
+        right_area[b] = _half_area(x0, y0, z0, x1, y1, z1) if rc > 0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
-def _best_plane(bin_cnt, bin_box, n_bins, right_cnt, right_area, parent_area, c_trav, c_isect,
-                acc):
+@njit(cache=True, error_model="numpy", inline="always")
+def _best_plane(bin_cnt, bin_box, n_bins, right_cnt, right_area, parent_area, c_trav, c_isect):
     """Sweep from the left and score every plane s (bins < s on the left) with the SAH.
     Returns (best cost, best s); (inf, -1) when no plane has triangles on both sides."""
     best_cost = np.inf
     best_split = -1
-    _empty_box(acc)
+    x0 = y0 = z0 = np.inf
+    x1 = y1 = z1 = -np.inf
     lc = 0
     for s in range(1, n_bins):
         b = s - 1
         lc += bin_cnt[b]
         if bin_cnt[b] > 0:
-            _grow(acc, bin_box[b])
+            x0, y0, z0, x1, y1, z1 = _grown(x0, y0, z0, x1, y1, z1, bin_box, b)
         nr = right_cnt[s]
         if lc == 0 or nr == 0:
             continue
-        cost = c_trav + (_box_half_area(acc) * lc + right_area[s] * nr) / parent_area * c_isect
+        al = _half_area(x0, y0, z0, x1, y1, z1)
+        cost = c_trav + (al * lc + right_area[s] * nr) / parent_area * c_isect
         if cost < best_cost:
             best_cost = cost
             best_split = s
     return best_cost, best_split
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _partition(order, start, end, cent, a, cmin_a, scale, n_bins, split):
     """Reorder order[start:end] so the triangles whose centroid bin on axis a is < split come
     first. Returns the first index of the right part (the median when one side is empty)."""
@@ -165,15 +173,16 @@ def _partition(order, start, end, cent, a, cmin_a, scale, n_bins, split):
     return i
 
 
-@njit(cache=True, error_model="numpy")
-def _split_node(order, start, end, lo, hi, cent, box, cmin, cmax, max_leaf, n_bins, c_trav,
-                c_isect, bin_cnt, bin_box, right_cnt, right_area, acc):
-    """The node over order[start:end] with bounds box: returns the index where its right child
-    starts, or -1 when it stays a leaf (steps 2-4 of the module docstring)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _split_node(order, start, end, lo, hi, cent, bounds, node, cmin, cmax, max_leaf, n_bins, c_trav,
+                c_isect, bin_cnt, bin_box, right_cnt, right_area):
+    """The node over order[start:end] (its box in bounds[node]): returns the index where its
+    right child starts, or -1 when it stays a leaf (steps 2-4 of the module docstring)."""
     cnt = end - start
     if cnt <= 1:
         return -1
-    parent_area = _box_half_area(box)
+    parent_area = _half_area(bounds[node, 0], bounds[node, 1], bounds[node, 2], bounds[node, 3],
+                             bounds[node, 4], bounds[node, 5])
     best_cost = np.inf
     best_axis = -1
     best_split = -1
@@ -184,9 +193,9 @@ def _split_node(order, start, end, lo, hi, cent, box, cmin, cmax, max_leaf, n_bi
                 continue
             scale = n_bins / ext
             _fill_bins(order, start, end, lo, hi, cent, a, cmin[a], scale, n_bins, bin_cnt, bin_box)
-            _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area, acc)
+            _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area)
             cost, split = _best_plane(bin_cnt, bin_box, n_bins, right_cnt, right_area, parent_area,
-                                      c_trav, c_isect, acc)
+                                      c_trav, c_isect)
             if cost < best_cost:
                 best_cost = cost
                 best_axis = a
@@ -203,7 +212,7 @@ def _split_node(order, start, end, lo, hi, cent, box, cmin, cmax, max_leaf, n_bi
     return _partition(order, start, end, cent, a, cmin[a], scale, n_bins, best_split)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _push(st_node, st_start, st_end, st_depth, sp, node, start, end, depth):
     st_node[sp] = node
     st_start[sp] = start
@@ -237,7 +246,6 @@ def _build(lo, hi, cent, max_leaf, n_bins, c_trav, c_isect):
     bin_box = np.empty((n_bins, 6))
     right_area = np.empty(n_bins)
     right_cnt = np.empty(n_bins, np.int64)
-    acc = np.empty(6)
     cmin = np.empty(3)
     cmax = np.empty(3)
 
@@ -248,9 +256,9 @@ def _build(lo, hi, cent, max_leaf, n_bins, c_trav, c_isect):
         end = st_end[sp]
         depth = st_depth[sp]
         max_depth = max(max_depth, depth)
-        _node_bounds(order, start, end, lo, hi, cent, bounds[node], cmin, cmax)
-        mid = _split_node(order, start, end, lo, hi, cent, bounds[node], cmin, cmax, max_leaf,
-                          n_bins, c_trav, c_isect, bin_cnt, bin_box, right_cnt, right_area, acc)
+        _node_bounds(order, start, end, lo, hi, cent, bounds, node, cmin, cmax)
+        mid = _split_node(order, start, end, lo, hi, cent, bounds, node, cmin, cmax, max_leaf,
+                          n_bins, c_trav, c_isect, bin_cnt, bin_box, right_cnt, right_area)
         if mid < 0:
             first[node] = start
             count[node] = end - start

@@ -88,22 +88,12 @@ def _box_entry(bounds, node, ox, oy, oz, ix, iy, iz, tmin, tmax):
     return np.inf
 
 
-@njit(cache=True, error_model="numpy")
-def _trace(bounds, child, first, count, tris, ox, oy, oz, dx, dy, dz, tmin, tmax, any_hit,
-           st_node, st_t):
-    """One ray. Returns (t, k, u, v) with k the index into the reordered triangles, -1 on a
-    miss. ``any_hit`` stops at the first hit in (tmin, tmax)."""
-    best_t = tmax
-    best_k = -1
-    best_u = 0.0
-    best_v = 0.0
-    # NaN in tmax or a NaN / zero direction: nothing to find
-    if not (tmax > tmin):
-        return np.inf, -1, 0.0, 0.0
-
-    # --- Woop et al. 2013, section 3: per-ray shear constants. kz = dimension where the
-    # direction is largest in magnitude; kx, ky follow cyclically and are swapped when
-    # d[kz] < 0 to keep the winding (and so the signs of U, V, W) consistent.
+@njit(cache=True, error_model="numpy", inline="always")
+def _shear(ox, oy, oz, dx, dy, dz):
+    """Woop et al. 2013, section 3: the per-ray shear constants. kz = the dimension where the
+    direction is largest in magnitude; kx, ky follow cyclically and are swapped when d[kz] < 0
+    to keep the winding (and so the signs of U, V, W) consistent. Returns (ok, kx, ky, kz, sx,
+    sy, sz, o[kx], o[ky], o[kz]); ok is False for a NaN or zero direction."""
     adx = abs(dx)
     ady = abs(dy)
     adz = abs(dz)
@@ -123,23 +113,103 @@ def _trace(bounds, child, first, count, tris, ox, oy, oz, dx, dy, dz, tmin, tmax
     d3 = (dx, dy, dz)
     dkz = d3[kz]
     if not (abs(dkz) > 0.0):
-        return np.inf, -1, 0.0, 0.0
+        return False, kx, ky, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if dkz < 0.0:
         kx, ky = ky, kx
-    sx = d3[kx] / dkz
-    sy = d3[ky] / dkz
-    sz = 1.0 / dkz
-    okx = o3[kx]
-    oky = o3[ky]
-    okz = o3[kz]
+    return True, kx, ky, kz, d3[kx] / dkz, d3[ky] / dkz, 1.0 / dkz, o3[kx], o3[ky], o3[kz]
 
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _hit_triangle(tris, k, kx, ky, kz, sx, sy, sz, okx, oky, okz):
+    """The watertight test of reordered triangle k (Woop et al. 2013): (t, u, v), with t = inf
+    when the ray misses it (t may be NaN or negative: the caller's interval test rejects it)."""
+    # translate to the ray origin, then shear and scale (Woop et al. eq. 1-3); the corners are
+    # read in the ray's (kx, ky, kz) order
+    akz = tris[k, kz] - okz
+    bkz = tris[k, 3 + kz] - okz
+    ckz = tris[k, 6 + kz] - okz
+    Ax = (tris[k, kx] - okx) - sx * akz
+    Ay = (tris[k, ky] - oky) - sy * akz
+    Bx = (tris[k, 3 + kx] - okx) - sx * bkz
+    By = (tris[k, 3 + ky] - oky) - sy * bkz
+    Cx = (tris[k, 6 + kx] - okx) - sx * ckz
+    Cy = (tris[k, 6 + ky] - oky) - sy * ckz
+    # scaled barycentrics: 2D edge functions of the edges opposite A, B, C
+    U = Cx * By - Cy * Bx
+    V = Ax * Cy - Ay * Cx
+    W = Bx * Ay - By * Ax
+    # (the paper's fallback to double precision when one is exactly 0 is moot: we already are
+    # in double precision)
+    if (U < 0.0 or V < 0.0 or W < 0.0) and (U > 0.0 or V > 0.0 or W > 0.0):
+        return np.inf, 0.0, 0.0
+    det = U + V + W
+    if det == 0.0:
+        return np.inf, 0.0, 0.0     # ray in the triangle's plane (or a degenerate triangle)
+    T = U * (sz * akz) + V * (sz * bkz) + W * (sz * ckz)
+    rcp = 1.0 / det
+    return T / det, V * rcp, W * rcp
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leaf(tris, f, cnt, kx, ky, kz, sx, sy, sz, okx, oky, okz, tmin, best_t, best_k, best_u, best_v,
+          any_hit):
+    """Test a leaf's triangles f .. f + cnt - 1 against the closest hit so far. Returns the
+    updated (t, k, u, v) and whether ``any_hit`` may stop (a hit was found)."""
+    for k in range(f, f + cnt):
+        t, u, v = _hit_triangle(tris, k, kx, ky, kz, sx, sy, sz, okx, oky, okz)
+        if t > tmin and t < best_t:
+            best_t = t
+            best_k = k
+            best_u = u
+            best_v = v
+            if any_hit:
+                return best_t, best_k, best_u, best_v, True
+    return best_t, best_k, best_u, best_v, False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _next_child(bounds, child, node, ox, oy, oz, ix, iy, iz, tmin, best_t, st_node, st_t, sp):
+    """The child of inner ``node`` to visit next (-1: the ray misses both boxes); when both are
+    hit it goes to the nearer and pushes the farther with its entry distance. Returns (child, sp)."""
+    c0 = child[node]
+    c1 = c0 + 1
+    t0 = _box_entry(bounds, c0, ox, oy, oz, ix, iy, iz, tmin, best_t)
+    t1 = _box_entry(bounds, c1, ox, oy, oz, ix, iy, iz, tmin, best_t)
+    if t0 == np.inf:
+        if t1 == np.inf:
+            return -1, sp
+        return c1, sp
+    if t1 == np.inf:
+        return c0, sp
+    if t1 < t0:
+        st_node[sp] = c0
+        st_t[sp] = t0
+        return c1, sp + 1
+    st_node[sp] = c1
+    st_t[sp] = t1
+    return c0, sp + 1
+
+
+@njit(cache=True, error_model="numpy")
+def _trace(bounds, child, first, count, tris, ox, oy, oz, dx, dy, dz, tmin, tmax, any_hit,
+           st_node, st_t):
+    """One ray. Returns (t, k, u, v) with k the index into the reordered triangles, -1 on a
+    miss. ``any_hit`` stops at the first hit in (tmin, tmax)."""
+    # NaN in tmax or a NaN / zero direction: nothing to find
+    if not (tmax > tmin):
+        return np.inf, -1, 0.0, 0.0
+    ok, kx, ky, kz, sx, sy, sz, okx, oky, okz = _shear(ox, oy, oz, dx, dy, dz)
+    if not ok:
+        return np.inf, -1, 0.0, 0.0
     ix = 1.0 / dx
     iy = 1.0 / dy
     iz = 1.0 / dz
-
+    best_t = tmax
+    best_k = -1
+    best_u = 0.0
+    best_v = 0.0
     if _box_entry(bounds, 0, ox, oy, oz, ix, iy, iz, tmin, best_t) == np.inf:
         return np.inf, -1, 0.0, 0.0
-    sp = 0
     st_node[0] = 0
     st_t[0] = tmin
     sp = 1
@@ -148,65 +218,17 @@ def _trace(bounds, child, first, count, tris, ox, oy, oz, dx, dy, dz, tmin, tmax
         node = st_node[sp]
         if st_t[sp] >= best_t:
             continue            # entered beyond the closest hit found since it was pushed
-        while True:
+        while node >= 0:
             cnt = count[node]
             if cnt > 0:
-                f = first[node]
-                for k in range(f, f + cnt):
-                    # translate to the ray origin, then shear and scale (Woop et al. eq. 1-3);
-                    # the corners are read in the ray's (kx, ky, kz) order
-                    akz = tris[k, kz] - okz
-                    bkz = tris[k, 3 + kz] - okz
-                    ckz = tris[k, 6 + kz] - okz
-                    Ax = (tris[k, kx] - okx) - sx * akz
-                    Ay = (tris[k, ky] - oky) - sy * akz
-                    Bx = (tris[k, 3 + kx] - okx) - sx * bkz
-                    By = (tris[k, 3 + ky] - oky) - sy * bkz
-                    Cx = (tris[k, 6 + kx] - okx) - sx * ckz
-                    Cy = (tris[k, 6 + ky] - oky) - sy * ckz
-                    # scaled barycentrics: 2D edge functions of the edges opposite A, B, C
-                    U = Cx * By - Cy * Bx
-                    V = Ax * Cy - Ay * Cx
-                    W = Bx * Ay - By * Ax
-                    # (the paper's fallback to double precision when one is exactly 0 is moot:
-                    # we already are in double precision)
-                    if (U < 0.0 or V < 0.0 or W < 0.0) and (U > 0.0 or V > 0.0 or W > 0.0):
-                        continue
-                    det = U + V + W
-                    if det == 0.0:
-                        continue        # ray in the triangle's plane (or a degenerate triangle)
-                    T = U * (sz * akz) + V * (sz * bkz) + W * (sz * ckz)
-                    t = T / det
-                    if t > tmin and t < best_t:
-                        rcp = 1.0 / det
-                        best_t = t
-                        best_k = k
-                        best_u = V * rcp
-                        best_v = W * rcp
-                        if any_hit:
-                            return best_t, best_k, best_u, best_v
+                best_t, best_k, best_u, best_v, stop = _leaf(
+                    tris, first[node], cnt, kx, ky, kz, sx, sy, sz, okx, oky, okz, tmin,
+                    best_t, best_k, best_u, best_v, any_hit)
+                if stop:
+                    return best_t, best_k, best_u, best_v
                 break
-            c0 = child[node]
-            c1 = c0 + 1
-            t0 = _box_entry(bounds, c0, ox, oy, oz, ix, iy, iz, tmin, best_t)
-            t1 = _box_entry(bounds, c1, ox, oy, oz, ix, iy, iz, tmin, best_t)
-            if t0 == np.inf:
-                if t1 == np.inf:
-                    break
-                node = c1
-            elif t1 == np.inf:
-                node = c0
-            else:
-                # both hit: go to the nearer, keep the farther with its entry distance
-                if t1 < t0:
-                    st_node[sp] = c0
-                    st_t[sp] = t0
-                    node = c1
-                else:
-                    st_node[sp] = c1
-                    st_t[sp] = t1
-                    node = c0
-                sp += 1
+            node, sp = _next_child(bounds, child, node, ox, oy, oz, ix, iy, iz, tmin, best_t,
+                                   st_node, st_t, sp)
     if best_k < 0:
         return np.inf, -1, 0.0, 0.0
     return best_t, best_k, best_u, best_v
