@@ -16,7 +16,7 @@ pytestmark = pytest.mark.skipif(__import__("shutil").which("Xvfb") is None
 
 
 def test_error_views_convergence_and_sampling_tab(display, tmp_path):
-    from test_strategies import GLOSSY_STUDIO
+    from reference_harness import GLOSSY_STUDIO
 
     scene = tmp_path / "glossy.toml"
     scene.write_text(GLOSSY_STUDIO)

@@ -6,44 +6,15 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import tomllib
 
 import numpy as np
 import pytest
 
+from reference_harness import GLOSSY_STUDIO, glossy_studio
 from viewer.pathtracer import ReferenceRenderer
-from viewer.scene import SCENE_DIR, load_scene, parse_scene
-
-# A gold GGX sphere (alpha 0.15) alone under the studio map: the key, fill and rim panels are
-# small and bright, the lobe is glossy, so neither strategy alone is good everywhere (BSDF
-# sampling misses the panels seen through the lobe's tail, light sampling picks panels the
-# lobe rejects) -- the case MIS is for. A convex object alone: max_depth 1 is the whole answer.
-GLOSSY_STUDIO = """
-[camera]
-position = [0.0, 0.0, 3.2]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 40.0
-width = 24
-height = 24
-
-[environment]
-map = "studio"
-
-[[objects]]
-mesh = "sphere"
-material = "ball"
-
-[materials.ball]
-preset = "gold"
-alpha = 0.15
-"""
+from viewer.scene import load_scene
 
 SPP = 64
-
-
-def glossy_studio():
-    return parse_scene(tomllib.loads(GLOSSY_STUDIO), None, label="<glossy studio>", base_dir=SCENE_DIR)
 
 
 def run(scene, spp=SPP, seed=0, **options):
