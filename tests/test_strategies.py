@@ -119,3 +119,18 @@ def test_reference_cli_strategy(tmp_path):
     assert out.exists() and "samples/second" in r.stdout
     r = subprocess.run(cmd[:-5] + ["--strategy", "bdpt"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "invalid choice: 'bdpt'" in r.stderr
+
+
+def test_the_spectral_estimator_takes_the_strategies_too():
+    """The hero-wavelength estimator runs the same steps: each strategy has the same mean (4
+    sigma, as above; gold is a spectral conductor here) and the strategies really differ (BSDF
+    sampling alone is the noisiest under the studio map's small bright panels)."""
+    scene = glossy_studio()
+    res = {s: run(scene, spp=32, seed=20 + i, strategy=s, spectral=True)
+           for i, s in enumerate(("mis", "bsdf", "light"))}
+    ref_m, ref_se = channel_means(*res["mis"])
+    for s, (m, v) in res.items():
+        mm, se = channel_means(m, v)
+        z = np.abs(mm - ref_m) / np.sqrt(se ** 2 + ref_se ** 2)
+        assert np.all(z < 4.0), f"{s}: means {mm} vs {ref_m}, z = {z}"
+    assert res["mis"][1].mean() < 0.8 * res["bsdf"][1].mean(), {s: v.mean() for s, (_, v) in res.items()}

@@ -119,16 +119,13 @@ class SpectralPaths(PathState):
 
 class SpectralIntegrator(Integrator):
     """``Integrator`` with four wavelengths per path instead of RGB channels: the same steps,
-    with the channel hooks below. The spectral estimator has no strategy switches: it always
-    combines light and BSDF sampling of the environment by MIS with the power heuristic and
-    plays Russian roulette, whatever the setup's ``strategy``, ``mis_heuristic`` and
-    ``russian_roulette`` say."""
+    with the channel hooks below, so the setup's ``strategy``, ``mis_heuristic`` and
+    ``russian_roulette`` apply to it as to the RGB estimator."""
 
     CHANNELS = 4
 
     def __init__(self, setup):
         super().__init__(setup)
-        self._set_options("mis", "power", True)
         self.bins_nm = bin_wavelengths()
         self.w_bins = bin_weights()
         self.basis = spectral.upsampling.basis_at(self.bins_nm)          # (420, 3)
