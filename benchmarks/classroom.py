@@ -28,7 +28,7 @@ def main():
         out = []
         for i in range(len(TOUR)):
             t = time.perf_counter()
-            app.lecture(i)
+            app.session.lecture(i)
             app.frame()
             out.append(1000 * (time.perf_counter() - t))
         return out
@@ -37,11 +37,11 @@ def main():
     print("lecture step, first visit (ms):  " + " ".join(f"{x:.0f}" for x in first))
     print("lecture step, second visit (ms): " + " ".join(f"{x:.0f}" for x in again)
           + f"   median {np.median(again):.0f}")
-    app.lecture(None)
-    app.open_scene("default")
-    app.set_image_mode("split")
+    app.session.lecture(None)
+    app.session.open_scene("default")
+    app.session.set_image_mode("split")
     t0 = time.time()
-    while (app._reference is None or app._reference.spp < 4) and time.time() - t0 < 300:
+    while (app.session.reference is None or app.session.reference.spp < 4) and time.time() - t0 < 300:
         app.frame()
     idle = []
     for _ in range(20):
@@ -50,14 +50,14 @@ def main():
         idle.append(1000 * (time.perf_counter() - t))
     moving = []
     for _ in range(10):
-        app.camera.orbit(5.0, 0.0, 720.0)
-        app.dirty = True
+        app.session.camera.orbit(5.0, 0.0, 720.0)
+        app.session.dirty = True
         t = time.perf_counter()
         app.frame()
         moving.append(1000 * (time.perf_counter() - t))
-    rv = app._reference
+    rv = app.session.reference
     print(f"split view 1280x720 (view {app.viewport()[2]}x{app.viewport()[3]}), reference running: "
-          f"idle frame {np.median(idle):.0f} ms median, raster render {app.render_ms:.0f} ms, "
+          f"idle frame {np.median(idle):.0f} ms median, raster render {app.session.render_ms:.0f} ms, "
           f"frame while orbiting {np.median(moving):.0f} ms median; reference {rv.samples_per_second / 1e3:.0f} "
           f"k samples/s at half resolution")
     app.close()

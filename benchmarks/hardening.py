@@ -228,7 +228,6 @@ def run_nan(quick):
 
     import nan_sweep_cases as nc
     from brdf_harness import param_grid
-    from test_nan_sweep import _scene
     from viewer import brdf
 
     section("NaN sweep: parameter corners x special direction pairs, both renderers")
@@ -267,7 +266,7 @@ def run_nan(quick):
                     fail(f"GLSL {'eval' if what == 0 else 'terms'} {name} {p.to_plain()}")
         r_n = r_bad = 0
         for ibl, ssr in (("split_sum", True), ("fis", False), ("brute_force", False)):
-            scene = _scene(24, 24, ibl, ssr)
+            scene = nc.sweep_scene(24, 24, ibl, ssr)
             cam = OrbitCamera.from_scene(scene)
             for p in nc.corner_sets(name, n_render, 2002):
                 scene.materials["ball"] = p
@@ -277,7 +276,7 @@ def run_nan(quick):
                     r_bad += 1
                     fail(f"raster {name} {ibl} {p.to_plain()}")
         f_n = f_bad = 0
-        scene = _scene(10, 8)
+        scene = nc.sweep_scene(10, 8)
         for k, p in enumerate(nc.corner_sets(name, n_ref, 3003)):
             scene.materials["ball"] = p
             with ReferenceRenderer(scene, max_depth=4, seed=k, workers=0) as ref:

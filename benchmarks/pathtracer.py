@@ -137,7 +137,7 @@ def kernels_child(threads: int) -> dict:
     import numba
 
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-    from viewer.pathtracer.geometry import build_geometry
+    from viewer.geometry.soup import build_geometry
     from viewer.pathtracer.kernel_numba import NumbaKernel
 
     scene = load_bench_scene()
@@ -354,7 +354,7 @@ def rel_rmse(img, ref):
 
 def region_masks(scene):
     """Per-pixel region of the centre ray: background, sphere (object 0), ground (object 1)."""
-    from viewer.pathtracer.geometry import build_geometry
+    from viewer.geometry.soup import build_geometry
     from viewer.pathtracer.kernel_numba import NumbaKernel
 
     geom = build_geometry(scene)

@@ -20,57 +20,15 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))   # scene_text: the scenes the tests render too
 
-GLASS_BALL = """
-[camera]
-position = [0.0, 0.3, 3.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 30.0
-[environment]
-map = "studio"
-[render]
-ibl = "split_sum"
-[[objects]]
-mesh = "sphere"
-material = "glass"
-scale = 0.6
-[materials.glass]
-preset = "lecture_air_glass"
-"""
+from scene_text import glass_ball, mirror_floor  # noqa: E402
 
-MIRROR_FLOOR = """
-[camera]
-position = [0.0, 1.2, 3.2]
-target = [0.0, 0.4, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 40.0
-[environment]
-constant = [0.2, 0.25, 0.3]
-[render]
-ibl = "split_sum"
-shadows = true
-[[lights]]
-type = "point"
-position = [-2.0, 4.0, 2.5]
-intensity = [30.0, 30.0, 30.0]
-[[objects]]
-mesh = "sphere"
-material = "ball"
-translate = [0.0, 0.6, 0.0]
-scale = 0.5
-[[objects]]
-mesh = "plane"
-material = "floor"
-scale = 3.0
-[materials.ball]
-model = "lambert"
-albedo = [0.7, 0.2, 0.15]
-[materials.floor]
-model = "mirror"
-fresnel = "none"
-"""
+GLASS_BALL = glass_ball()
+
+MIRROR_FLOOR = mirror_floor()
 
 SIZES = (("window preview 460x360, no MSAA", 460, 360, 0), ("window view 920x720, MSAA", 920, 720, None),
          ("1280x720, MSAA", 1280, 720, None))

@@ -80,12 +80,12 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
     t0 = time.perf_counter()
 
     def act(kind):
-        s = app.scene
+        s = app.session.scene
         counts[kind] += 1
         if kind == "model":
             name = rng.choice(list(s.materials))
             s.materials[name] = brdf.get(rng.choice(brdf.names())).params()
-            app.dirty = True
+            app.session.dirty = True
         elif kind == "slider":
             name = rng.choice(list(s.materials))
             p = s.materials[name]
@@ -104,7 +104,7 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
             except ViewerError:
                 return
             s.materials[name] = p.replace(**{q.name: v})
-            app.dirty = True
+            app.session.dirty = True
         elif kind == "exposure":
             s.render.exposure = ui.finite_or(rng.choice(TYPED + [rng.uniform(-5, 5)]), s.render.exposure)
             s.render.exposure = float(np.clip(s.render.exposure, -10, 10))
@@ -117,21 +117,21 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
                 app.frame()
             app.glfw.get_framebuffer_size = real
         elif kind == "environment":
-            app.set_environment(rng.choice([None, "sky", "studio", "/nonexistent/map.hdr"]))
+            app.session.set_environment(rng.choice([None, "sky", "studio", "/nonexistent/map.hdr"]))
         elif kind == "compare":
-            app.set_image_mode(rng.choice(MODES))
+            app.session.set_image_mode(rng.choice(MODES))
         elif kind == "camera":
-            app.camera.orbit(rng.uniform(-50, 50), rng.uniform(-30, 30), 400)
-            app.dirty = True
+            app.session.camera.orbit(rng.uniform(-50, 50), rng.uniform(-30, 30), 400)
+            app.session.dirty = True
         elif kind == "lecture":
-            app.lecture(rng.randrange(len(TOUR)) if rng.random() < 0.8 else None)
+            app.session.lecture(rng.randrange(len(TOUR)) if rng.random() < 0.8 else None)
         elif kind == "plots":
             app.plots.visible = not app.plots.visible
         elif kind == "ui_scale":
             app.set_ui_scale(rng.choice([0.5, 1.0, 1.5, 3.0, math.nan]))
         elif kind == "view_mode":
-            app.view_mode = rng.randrange(len(VIEW_MODES))
-            app.dirty = True
+            app.session.view_mode = rng.randrange(len(VIEW_MODES))
+            app.session.dirty = True
 
     weights = {"model": 3, "slider": 8, "exposure": 1, "resize": 1, "minimize": 0.3, "environment": 0.5,
                "compare": 1, "camera": 2, "lecture": 0.5, "plots": 0.5, "ui_scale": 0.3, "view_mode": 1}
@@ -149,15 +149,15 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
             err = app.ctx.error
             if err != "GL_NO_ERROR":
                 failures.append(f"frame {i}: {err}")
-            if app.hdr is not None and i % 50 == 0 and app.view_mode == 0:
-                img = app.renderer.read_linear(app.hdr)
+            if app.session.hdr is not None and i % 50 == 0 and app.session.view_mode == 0:
+                img = app.session.renderer.read_linear(app.session.hdr)
                 if not np.isfinite(img).all() or img.min() < 0:
                     failures.append(f"frame {i}: non-finite or negative pixels "
-                                    f"(model(s) {sorted({m.model for m in app.scene.materials.values()})})")
+                                    f"(model(s) {sorted({m.model for m in app.session.scene.materials.values()})})")
             if i % 1000 == 0:
                 rss_series.append((i, round(rss_mb(), 1)))
             if i in (report_at, frames):
-                app.set_image_mode("raster")  # the reference's images are not GL objects; settle it
+                app.session.set_image_mode("raster")  # the reference's images are not GL objects; settle it
                 app.frame()
                 import gc
 

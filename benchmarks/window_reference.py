@@ -39,9 +39,9 @@ def child(engine: str) -> None:
 
     app = App("gallery", size=(1280, 720), restore_state=False)
     app.frame()
-    rv = app.reference_view()
+    rv = app.session.reference_view()
     rv.engine_request = engine
-    app.set_image_mode("split")
+    app.session.set_image_mode("split")
     t0 = time.perf_counter()
     spp_at, frames = {}, []
     while len(spp_at) < len(MARKS):
@@ -70,16 +70,16 @@ def child(engine: str) -> None:
     got = rv.latest_variance()
     print(f"   a variance (>= 2 spp) after {t_var:.0f} s" if got else "   no variance after 5 more minutes")
     # the variance views
-    app.mc.show_convergence = True
+    app.session.mc.show_convergence = True
     for view in ERROR_VIEWS:
-        app.mc.view = view
+        app.session.mc.view = view
         view_ms, frame_ms = [], []
         for _ in range(8):
-            app.mc._key = None      # recompute the map every frame, as each new pass does
+            app.session.mc._key = None      # recompute the map every frame, as each new pass does
             t = time.perf_counter()
             app.frame()
             frame_ms.append(1000 * (time.perf_counter() - t))
-            view_ms.append(app.mc.view_ms)
+            view_ms.append(app.session.mc.view_ms)
         got = rv.latest_variance()
         shape = "x".join(map(str, got[1].shape[1::-1])) if got else "?"
         print(f"   variance view {view!r} ({shape} map): compute + upload {np.median(view_ms):.1f} ms; "

@@ -337,3 +337,13 @@ def write_chi2_images(result, label) -> str:
 def sidak(alpha, n_tests):
     """Per-test significance so that n_tests independent tests reject wrongly with probability alpha."""
     return 1.0 - (1.0 - alpha) ** (1.0 / max(n_tests, 1))
+
+
+def sweep_directions():
+    """Unit directions at normal, oblique, grazing (cos = 1e-6 and 0) and back-facing angles."""
+    dirs = []
+    for cos in (1.0, 0.5, 1e-6, 0.0, -1e-6, -0.5, -1.0):
+        s = np.sqrt(max(0.0, 1.0 - cos * cos))
+        for phi in (0.0, 0.37, np.pi / 2, 2.5):
+            dirs.append([s * np.cos(phi), s * np.sin(phi), cos])
+    return np.unique(np.array(dirs), axis=0)

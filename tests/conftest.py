@@ -43,3 +43,24 @@ def renderer(gl_ctx):
     r = Renderer(gl_ctx)
     yield r
     r.release()
+
+
+@pytest.fixture(scope="module")
+def display():
+    """A private Xvfb server for the window tests (its number chosen by Xvfb itself), or the
+    existing DISPLAY when there is no Xvfb."""
+    import shutil
+    import subprocess
+
+    if shutil.which("Xvfb") is None:
+        yield os.environ["DISPLAY"]
+        return
+    r, w = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(w)
+    with os.fdopen(r) as f:
+        num = f.readline().strip()
+    yield f":{num}"
+    proc.terminate()
+    proc.wait(10)

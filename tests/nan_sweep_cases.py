@@ -11,6 +11,7 @@ value, so every in-range combination must shade without NaN, Inf or negative val
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 
@@ -166,3 +167,49 @@ def check_python(name: str, p: Params, wi, wo, rng) -> list[str]:
         if not np.all(w[~ok] == 0):
             bad.append("sample weight != 0 where pdf == 0")
     return bad
+
+
+SWEEP_SCENE = textwrap.dedent("""
+    [camera]
+    position = [0.0, 0.3, 3.0]
+    width = {w}
+    height = {h}
+    fov_y = 40.0
+    [environment]
+    map = "studio"
+    [render]
+    ibl = "{ibl}"
+    ssr = {ssr}
+    shadows = true
+    msaa = 0
+    [[lights]]
+    type = "point"
+    position = [1.0, 2.0, 2.0]
+    intensity = [5.0, 5.0, 5.0]
+    [[lights]]
+    type = "directional"
+    direction = [-0.3, -1.0, -0.2]
+    irradiance = [1.0, 1.0, 1.0]
+    [[objects]]
+    mesh = "sphere"
+    material = "ball"
+    [[objects]]
+    mesh = "plane"
+    material = "floor"
+    translate = [0.0, -1.0, 0.0]
+    scale = 3.0
+    [materials.ball]
+    model = "lambert"
+    [materials.floor]
+    model = "lambert"
+    """)
+
+
+def sweep_scene(w, h, ibl="split_sum", ssr=False):
+    """The sweep's scene: a sphere over a floor under the studio map, a point and a directional
+    light; the tests put each parameter corner on the ball."""
+    import tomllib
+
+    from viewer.scene import parse_scene
+
+    return parse_scene(tomllib.loads(SWEEP_SCENE.format(w=w, h=h, ibl=ibl, ssr=str(ssr).lower())), None)

@@ -49,3 +49,27 @@ def lambert_point(albedo, intensity, light_pos, p, n):
     l = d / np.sqrt(r2)
     cos = np.maximum(np.sum(n * l, axis=-1, keepdims=True), 0.0)
     return np.asarray(albedo) / np.pi * np.asarray(intensity) * cos / r2
+
+
+def sphere_interior(cam, center=(0, 0, 0), radius=1.0, light=(2.0, 3.0, 3.0), margin=1):
+    """Pixels whose four corners all see the sphere, with the terminator band removed (there
+    the raster's value at the pixel centre and the reference's pixel average differ by more
+    than curvature: n.l changes sign inside the pixel)."""
+    inside = np.ones((cam.height, cam.width), bool)
+    sign = []
+    for off in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        d = camera_rays(cam.position, cam.target, cam.up, cam.fov_y, cam.width, cam.height, off)
+        t = hit_sphere(cam.position, d, center, radius)
+        inside &= np.isfinite(t)
+        p = cam.position + d * np.where(np.isfinite(t), t, 0)[..., None]
+        n = p - np.asarray(center)
+        l = np.asarray(light) - p
+        sign.append(np.sum(n * l, axis=-1) > 0)
+    same = np.all(sign, axis=0) | ~np.any(sign, axis=0)
+    m = inside & same
+    for _ in range(margin):
+        m[1:, :] &= m[:-1, :]
+        m[:-1, :] &= m[1:, :]
+        m[:, 1:] &= m[:, :-1]
+        m[:, :-1] &= m[:, 1:]
+    return m

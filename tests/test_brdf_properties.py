@@ -16,7 +16,8 @@ from viewer import brdf
 from viewer.brdf.chi2 import chi2_test
 
 from brdf_harness import (albedo_sampler, albedo_uniform, direction, param_grid,
-                          random_params, random_upper, sidak, test_param_sets, write_chi2_images)
+                          random_params, random_upper, sidak, sweep_directions, test_param_sets,
+                          write_chi2_images)
 
 NAMES = brdf.names()
 NON_DELTA = [n for n in NAMES if not brdf.get(n).spec.delta]
@@ -153,15 +154,6 @@ def test_reciprocity(name):
 # ----------------------------------------------------------------------------- NaN sweep
 
 
-def _sweep_directions():
-    dirs = []
-    for cos in (1.0, 0.5, 1e-6, 0.0, -1e-6, -0.5, -1.0):
-        s = np.sqrt(max(0.0, 1.0 - cos * cos))
-        for phi in (0.0, 0.37, np.pi / 2, 2.5):
-            dirs.append([s * np.cos(phi), s * np.sin(phi), cos])
-    return np.unique(np.array(dirs), axis=0)
-
-
 SWEEP_U = np.array([[0.0, 0.0], [0.5, 0.5], [1 - 2 ** -53, 1 - 2 ** -53], [0.0, 1 - 2 ** -53],
                     [1 - 2 ** -53, 0.0], [0.25, 0.75], [0.999, 0.001], [1e-12, 0.5]])
 
@@ -178,7 +170,7 @@ def test_no_nan_at_extremes(name):
     at normal, grazing (cos = 1e-6 and 0) and back-facing directions."""
     model = brdf.get(name)
     rng = np.random.default_rng(_seed(name, "nan"))
-    d = _sweep_directions()
+    d = sweep_directions()
     wi = np.repeat(d, len(d), axis=0)
     wo = np.tile(d, (len(d), 1))
     wo_s = np.repeat(d, len(SWEEP_U), axis=0)

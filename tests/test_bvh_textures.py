@@ -4,8 +4,8 @@ same hits as Embree on random rays through built-in scenes."""
 import numpy as np
 import pytest
 
-from viewer.pathtracer.bvh_flat import STACK_SIZE, TEX_WIDTH, flatten_scene
-from viewer.pathtracer.geometry import build_geometry
+from viewer.geometry.bvh_flat import STACK_SIZE, TEX_WIDTH, flatten_scene
+from viewer.geometry.soup import build_geometry
 from viewer.pathtracer.kernel_embree import EmbreeKernel
 from viewer.resources import SHADER_DIR
 from viewer.scene import load_scene
@@ -62,7 +62,7 @@ def test_glsl_hits_equal_embree(gl_ctx, name):
     assert np.quantile(rel, 0.999) < 1e-4
     # where the triangles differ (shared edges; the default scene's coplanar disc on its floor)
     # the point found must be the same
-    from viewer.pathtracer.geometry import hit_points
+    from viewer.geometry.soup import hit_points
 
     pe = hit_points(geom, p_e[both], u_e[both], v_e[both])
     pg = hit_points(geom, p_g[both], u_g[both], v_g[both])

@@ -2,7 +2,7 @@
 views, every model with a slider move, shader hot reload with the error overlay, saving and
 reopening scenes and screenshots, the lecture tour, the window state and loading meshes.
 
-Each test runs the app in a subprocess (a private Xvfb from test_gui's fixture) and prints one
+Each test runs the app in a subprocess (a private Xvfb, the ``display`` fixture of conftest.py) and prints one
 JSON line of measurements that the test checks; the app is never imported into pytest itself."""
 
 import json
@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from test_gui import _run_py, display  # noqa: F401 - the fixture is used by name
+from gui_harness import run_py
 
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb (apt-get install xvfb)")
 
@@ -48,10 +48,10 @@ SCENE = textwrap.dedent("""
     """)
 
 
-def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: F811
+def test_every_model_and_a_slider_change_the_image(display, tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE)
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, numpy as np
         from viewer import brdf
         from viewer.brdf.spec import Params
@@ -59,14 +59,14 @@ def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: 
         app = App({str(scene)!r}, size=(560, 300), restore_state=False)
         app.show_ui = False
         def image():
-            app.dirty = True
+            app.session.dirty = True
             app.frame()
-            return app.renderer.read_linear(app.hdr).astype(np.float64)
+            return app.session.renderer.read_linear(app.session.hdr).astype(np.float64)
         out = {{}}
         prev = image()
         for name in brdf.names():
             p = brdf.get(name).params()
-            app.scene.materials["ball"] = p
+            app.session.scene.materials["ball"] = p
             a = image()
             switched = float(np.abs(a - prev).max())
             moved = None
@@ -86,7 +86,7 @@ def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: 
                     table = Params(p[prm.name].model, dict(p[prm.name]))
                     table[fld.name] = val
                     val = table
-                app.scene.materials["ball"] = p.replace(**{{prm.name: val}})
+                app.session.scene.materials["ball"] = p.replace(**{{prm.name: val}})
                 b = image()
                 d = float(np.abs(b - a).max())
                 if d > 1e-3:
@@ -109,31 +109,31 @@ def test_every_model_and_a_slider_change_the_image(display, tmp_path):  # noqa: 
     assert all(v["switched"] > 1e-3 for n, v in res.items() if n != "lambert"), res
 
 
-def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):  # noqa: F811
+def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):
     # The raster side shows a term view (the Fresnel term F, unlike any shading) and the
     # reference side its shaded image, so each half can be told apart from the other.
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE.replace('map = "studio"', "constant = [0.3, 0.3, 0.3]").replace("split_sum", "off"))
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, time, numpy as np
         from viewer.app.main import App
         from viewer.gl.renderer import VIEW_MODES
         from viewer.colour import to_srgb8
         app = App({str(scene)!r}, size=(800, 400), restore_state=False)
         app.show_ui = False
-        app.view_mode = list(VIEW_MODES).index("N.L")
-        app.set_image_mode("split")
+        app.session.view_mode = list(VIEW_MODES).index("N.L")
+        app.session.set_image_mode("split")
         t0 = time.time()
-        while (app._reference is None or app._reference.spp < 4) and time.time() - t0 < 120:
+        while (app.session.reference is None or app.session.reference.spp < 4) and time.time() - t0 < 120:
             app.frame(); time.sleep(0.02)
         for _ in range(3):
             app.frame()
         shot = app.capture_window().astype(float)
-        raster = app.renderer.read_srgb(app.hdr).astype(float)
-        ref, spp = app._reference.latest()
+        raster = app.session.renderer.read_srgb(app.session.hdr).astype(float)
+        ref, spp = app.session.reference.latest()
         ref8 = to_srgb8(ref).astype(float)
         h, w = raster.shape[:2]
-        cut = int(round(w * app.compare.split))
+        cut = int(round(w * app.session.compare.split))
         big_ref = np.repeat(np.repeat(ref8, 2, axis=0), 2, axis=1)[:h, :w]
         L = slice(10, cut - 10); R = slice(cut + 10, w - 10); rows = slice(40, h - 40)
         out = dict(
@@ -141,7 +141,7 @@ def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):  #
             left_vs_ref=float(np.abs(shot[rows, L] - big_ref[rows, L]).mean()),
             right_vs_ref=float(np.abs(shot[rows, R] - big_ref[rows, R]).mean()),
             right_vs_raster=float(np.abs(shot[rows, R] - raster[rows, R]).mean()),
-            spp=int(spp), metrics=app.compare.metrics is not None)
+            spp=int(spp), metrics=app.session.compare.metrics is not None)
         # frame time with the split view and the reference running (the closing note's figure)
         ts = []
         for _ in range(5):
@@ -162,12 +162,12 @@ def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):  #
     assert res["left_vs_ref"] > 2 * res["left_vs_raster"], res
 
 
-def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp_path):  # noqa: F811
+def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp_path):
     from viewer.gl.shaders import shader_root
 
     root = tmp_path / "shaders"
     shutil.copytree(shader_root(), root)
-    r = _run_py(f"""
+    r = run_py(f"""
         import json, os, time, numpy as np
         from viewer.gl.shaders import set_shader_root
         set_shader_root({str(root)!r})
@@ -175,7 +175,7 @@ def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp
         app = App("sphere", size=(640, 360), restore_state=False)
         for _ in range(3):
             app.frame()
-        before = app.renderer.read_linear(app.hdr).copy()
+        before = app.session.renderer.read_linear(app.session.hdr).copy()
         f = {str(root / "brdf" / "lambert.glsl")!r}
         text = open(f).read()
         lines = text.splitlines()
@@ -190,9 +190,9 @@ def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp
         seen = time.perf_counter() - t0
         errs = [(e.file, e.line) for e in app.hot_reload.errors]
         for _ in range(3):
-            app.dirty = True; app.frame()
+            app.session.dirty = True; app.frame()
         shot = app.capture_window()
-        after = app.renderer.read_linear(app.hdr)
+        after = app.session.renderer.read_linear(app.session.hdr)
         open(f, "w").write(text)
         st = os.stat(f); os.utime(f, (st.st_atime, st.st_mtime + 10))
         t0 = time.perf_counter()
@@ -216,35 +216,35 @@ def test_shader_error_overlay_names_the_include_and_frames_continue(display, tmp
     assert res["fixed"], res
 
 
-def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_path):  # noqa: F811
-    r = _run_py(f"""
+def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_path):
+    r = run_py(f"""
         import json, numpy as np
         from viewer.app.main import App
         app = App("default", size=(640, 360), restore_state=False)
         app.frame()
-        app.camera.orbit(40.0, 15.0, 360)  # the saved camera is where the user left it
-        app.scene.materials["ball"] = app.scene.materials["ball"].replace(albedo=np.array([0.2, 0.5, 0.7]))
+        app.session.camera.orbit(40.0, 15.0, 360)  # the saved camera is where the user left it
+        app.session.scene.materials["ball"] = app.session.scene.materials["ball"].replace(albedo=np.array([0.2, 0.5, 0.7]))
         def image():
-            app.dirty = True
+            app.session.dirty = True
             app.frame()
-            return app.renderer.read_linear(app.hdr).copy()
+            return app.session.renderer.read_linear(app.session.hdr).copy()
         a = image()
-        ok1 = app.save_scene({str(tmp_path / "saved.toml")!r})
+        ok1 = app.session.save_scene({str(tmp_path / "saved.toml")!r})
         ok2 = app.take_screenshot({str(tmp_path / "shot.png")!r}) is not None
-        ok3 = app.save_material("ball", {str(tmp_path / "ball.toml")!r})
-        app.open_scene("sphere")
+        ok3 = app.session.save_material("ball", {str(tmp_path / "ball.toml")!r})
+        app.session.open_scene("sphere")
         b0 = image()
-        ok4 = app.open_scene({str(tmp_path / "saved.toml")!r})
+        ok4 = app.session.open_scene({str(tmp_path / "saved.toml")!r})
         b = image()
-        ok5 = app.open_scene({str(tmp_path / "shot.png")!r})
+        ok5 = app.session.open_scene({str(tmp_path / "shot.png")!r})
         c = image()
         # a material file loaded onto another material
-        app.open_scene("default")
-        ok6 = app.load_material("ball", {str(tmp_path / "ball.toml")!r})
-        alb = [float(x) for x in app.scene.materials["ball"]["albedo"]]
-        bad = app.open_scene({str(tmp_path / "missing.toml")!r})
-        status = app.status
-        still = app.scene.label
+        app.session.open_scene("default")
+        ok6 = app.session.load_material("ball", {str(tmp_path / "ball.toml")!r})
+        alb = [float(x) for x in app.session.scene.materials["ball"]["albedo"]]
+        bad = app.session.open_scene({str(tmp_path / "missing.toml")!r})
+        status = app.session.status
+        still = app.session.scene.label
         app.close()
         print("RESULT " + json.dumps(dict(ok=[ok1, ok2, ok3, ok4, ok5, ok6], differs=float(np.abs(a - b0).max()),
               scene=float(np.abs(a - b).max()), shot=float(np.abs(a - c).max()), albedo=alb,
@@ -260,8 +260,8 @@ def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_p
     assert res["still"] == "<built-in default>"
 
 
-def test_lecture_tour_visits_every_step(display):  # noqa: F811
-    r = _run_py("""
+def test_lecture_tour_visits_every_step(display):
+    r = run_py("""
         import json, time, numpy as np
         from viewer.app.main import App
         from viewer.lecture import TOUR
@@ -270,23 +270,23 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
         out = []
         for i in range(len(TOUR)):
             t = time.perf_counter()
-            ok = app.lecture(i)
+            ok = app.session.lecture(i)
             # the glass steps trace their specular chains; on software GL a traced glass ball at
             # this size takes minutes a frame, so here they render untraced (the traced steps are
             # rendered at small sizes in tests/test_reflections_choice.py)
-            app.scene.render.raytrace = False
+            app.session.scene.render.raytrace = False
             app.frame()
             dt = time.perf_counter() - t
             # the importance-sampling step opens the reference view: no raster frame to read
-            raster = app.hdr is not None
-            img = app.renderer.read_linear(app.hdr) if raster else np.zeros((1, 1, 3))
-            out.append(dict(ok=ok, step=app.lecture_step, label=app.scene.label, ms=1000 * dt, raster=raster,
+            raster = app.session.hdr is not None
+            img = app.session.renderer.read_linear(app.session.hdr) if raster else np.zeros((1, 1, 3))
+            out.append(dict(ok=ok, step=app.session.lecture_step, label=app.session.scene.label, ms=1000 * dt, raster=raster,
                             finite=bool(np.isfinite(img).all()), neg=float(img.min()), std=float(img.std())))
         # stepping back and forth again (programs warm): the time a lecturer waits per key press
         again = []
         for i in [1, 2, 3, 2, 1]:
-            t = time.perf_counter(); app.lecture(i); app.frame(); again.append(1000 * (time.perf_counter() - t))
-        app.lecture(None)
+            t = time.perf_counter(); app.session.lecture(i); app.frame(); again.append(1000 * (time.perf_counter() - t))
+        app.session.lecture(None)
         # a projector's UI scale: the panel widens with it and the view starts where it ends
         # (no band of clear colour between them)
         app.set_ui_scale(2.0)
@@ -313,7 +313,7 @@ def test_lecture_tour_visits_every_step(display):  # noqa: F811
             assert TOUR[i].image == "reference", s
 
 
-def test_window_state_is_restored(display, tmp_path):  # noqa: F811
+def test_window_state_is_restored(display, tmp_path):
     state = tmp_path / "state.toml"
     code = f"""
         import json, os
@@ -322,12 +322,12 @@ def test_window_state_is_restored(display, tmp_path):  # noqa: F811
         app = App("sphere")
         app.frame()
         out = dict(size=list(app.glfw.get_window_size(app.window)), scale=app.ui_scale,
-                   mode=app.compare.mode, split=app.compare.split, plots=app.plots.visible)
+                   mode=app.session.compare.mode, split=app.session.compare.split, plots=app.plots.visible)
         if {{}} == {{}} and os.environ.get("STEP") == "1":
             app.glfw.set_window_size(app.window, 900, 500)
             app.set_ui_scale(1.5)
-            app.set_image_mode("side by side")
-            app.compare.split = 0.3
+            app.session.set_image_mode("side by side")
+            app.session.compare.split = 0.3
             app.plots.visible = True
             for _ in range(3):
                 app.frame()
@@ -338,50 +338,54 @@ def test_window_state_is_restored(display, tmp_path):  # noqa: F811
 
     os.environ["STEP"] = "1"
     try:
-        first = _result(_run_py(code, display))
+        first = _result(run_py(code, display))
     finally:
         os.environ.pop("STEP")
-    second = _result(_run_py(code, display))
+    second = _result(run_py(code, display))
     assert first["size"] == [1280, 720] and first["mode"] == "raster"
     assert second == dict(size=[900, 500], scale=1.5, mode="side by side", split=0.3, plots=True), second
     assert (tmp_path / "last_scene.toml").exists()
     # a damaged state file is ignored (with a message), never fatal
     state.write_text("ui_scale = 'huge'\nwindow_width = -5\n[[[")
-    third = _run_py(code, display)
+    third = run_py(code, display)
     assert third.returncode == 0 and "window state ignored" in third.stderr, third.stderr
 
 
-def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, tmp_path):  # noqa: F811
+def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, tmp_path):
     import trimesh
 
     good = tmp_path / "box.obj"
     trimesh.creation.box(extents=(2.0, 1.0, 1.0)).export(good)
     bad = tmp_path / "broken.ply"
     bad.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n0 0")
-    r = _run_py(f"""
+    r = run_py(f"""
         import json
         from viewer.app.main import App
         app = App("sphere", size=(640, 360), restore_state=False)
         app.frame()
-        app._on_drop(None, [{str(bad)!r}])
-        s1, m1 = app.status, app.scene.objects[0].mesh
+        app.on_drop(None, [{str(bad)!r}])
+        s1, m1 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
-        app._on_drop(None, [{str(good)!r}])
-        s2, m2 = app.status, app.scene.objects[0].mesh
+        red1 = app.overlay_plan()[1]["toast_error"]  # the toast of an error notification is red
+        app.on_drop(None, [{str(good)!r}])
+        s2, m2 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
-        app._on_drop(None, [{str(tmp_path / "notes.txt")!r}])
-        s3 = app.status
-        tri = len(app.scene.objects[0].mesh_data.indices)
+        red2 = app.overlay_plan()[1]["toast_error"]
+        app.on_drop(None, [{str(tmp_path / "notes.txt")!r}])
+        s3 = app.session.status
+        red3 = app.overlay_plan()[1]["toast_error"]
+        tri = len(app.session.scene.objects[0].mesh_data.indices)
         app.close()
-        print("RESULT " + json.dumps(dict(s1=s1, m1=m1, s2=s2, m2=m2, s3=s3, tri=tri)))
+        print("RESULT " + json.dumps(dict(s1=s1, m1=m1, s2=s2, m2=m2, s3=s3, tri=tri, red=[red1, red2, red3])))
         """, display)
     res = _result(r)
     assert res["m1"] == "sphere" and "mesh not loaded" in res["s1"] and "broken.ply" in res["s1"], res
     assert res["m2"].endswith("box.obj") and res["tri"] == 12, res
     assert "unknown kind" in res["s3"] and ".toml" in res["s3"], res
+    assert res["red"] == [True, False, True], res  # errors red, the loaded mesh's line not
 
 
-def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):  # noqa: F811
+def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, tmp_path):
     """Mutated scenes, meshes and environment maps (tests/fuzz_cases.py) opened in the running
     window: each either loads or leaves the scene exactly as it was, with one line of status."""
     import fuzz_cases as fc
@@ -400,7 +404,7 @@ def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, t
         meshes.append(str(fc.make_mesh_case(rng, tmp_path, fc.MESH_KINDS[i % len(fc.MESH_KINDS)], i)[1]))
     for i in range(13):
         envs.append(str(fc.make_env_case(rng, tmp_path, fc.ENV_KINDS[i % len(fc.ENV_KINDS)], i)[1]))
-    r = _run_py(f"""
+    r = run_py(f"""
         import json
         from viewer.app.main import App
         from viewer.scene import scene_to_toml
@@ -408,23 +412,23 @@ def test_fuzzed_files_into_the_running_window_keep_the_previous_state(display, t
         app.frame()
         out = dict(loaded=0, refused=0, bad=[])
         def attempt(kind, fn, path):
-            before = scene_to_toml(app.scene)
+            before = scene_to_toml(app.session.scene)
             ok = fn(path)
             app.frame()
-            after = scene_to_toml(app.scene)
+            after = scene_to_toml(app.session.scene)
             if ok:
                 out["loaded"] += 1
             else:
                 out["refused"] += 1
-                if after != before or "\\n" in app.status or not app.status:
-                    out["bad"].append([kind, path, app.status])
+                if after != before or "\\n" in app.session.status or not app.session.status:
+                    out["bad"].append([kind, path, app.session.status])
         for p in {scenes!r}:
-            attempt("scene", app.open_scene, p)
-            app.open_scene("sphere")
+            attempt("scene", app.session.open_scene, p)
+            app.session.open_scene("sphere")
         for p in {meshes!r}:
-            attempt("mesh", app.load_mesh, p)
+            attempt("mesh", app.session.load_mesh, p)
         for p in {envs!r}:
-            attempt("env", app.set_environment, p)
+            attempt("env", app.session.set_environment, p)
         app.close()
         print("RESULT " + json.dumps(out))
         """, display, timeout=400)

@@ -262,10 +262,10 @@ def test_no_display_hint_names_every_headless_command():
 
 
 def test_counts_are_singular_and_plural():
-    from viewer.app.main import _count
+    from viewer.app.panels.scene import count_noun
 
-    assert _count(1, "light") == "1 light" and _count(2, "light") == "2 lights"
-    assert _count(12345, "triangle") == "12,345 triangles" and _count(0, "object") == "0 objects"
+    assert count_noun(1, "light") == "1 light" and count_noun(2, "light") == "2 lights"
+    assert count_noun(12345, "triangle") == "12,345 triangles" and count_noun(0, "object") == "0 objects"
 
 
 # ----------------------------------------------------------------------------- term views

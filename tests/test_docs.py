@@ -1,9 +1,9 @@
-"""docs/ is part of the code: the generated pages match what the code says, the import rules of
-docs/architecture.md hold, and nothing in the repository points at documents outside it."""
+"""docs/ is part of the code: the generated pages match what the code says and nothing in the
+repository points at documents outside it (the import rules of docs/architecture.md are
+checked by tests/test_imports.py)."""
 
 from __future__ import annotations
 
-import ast
 import re
 import subprocess
 from pathlib import Path
@@ -38,8 +38,8 @@ def test_the_key_check_can_fail(monkeypatch):
     monkeypatch.setattr(docgen, "SCENE_FIELDS", kept)
     problems = docgen.check_fields_cover_the_code()
     assert len(problems) == 2
-    assert problems[0].startswith("render.raytrace_depth: accepted by viewer/scene.py")
-    assert problems[1].startswith("materials.NAME.thin_film.ior: accepted by viewer/scene.py")
+    assert problems[0].startswith("render.raytrace_depth: accepted by viewer/scene/parse.py")
+    assert problems[1].startswith("materials.NAME.thin_film.ior: accepted by viewer/scene/parse.py")
 
 
 def test_shared_material_keys_are_the_registrys():
@@ -81,62 +81,6 @@ def test_handwritten_docs_exist_and_link_to_each_other():
     for page in DOCS.glob("*.md"):
         for target in re.findall(r"\]\(([^)#:]+\.md)", page.read_text(encoding="utf-8")):
             assert (page.parent / target).is_file(), f"{page.name} links to missing {target}"
-
-
-# ----------------------------------------------------------------------------- import rules
-
-GL_MODULES = ("viewer.gl", "viewer.app", "moderngl", "glfw", "imgui_bundle", "glcontext", "OpenGL")
-WINDOW_MODULES = ("viewer.app", "glfw", "imgui_bundle")
-# The one known exception: viewer/brdf/glsl.py generates the GLSL parameter blocks and reads the
-# shader folder through viewer.gl.shaders; it belongs in viewer/gl/ and is to move there.
-KNOWN_EXCEPTIONS = {"viewer/brdf/glsl.py"}
-
-
-def _imports(path: Path) -> set[str]:
-    """Every module a file imports, at any depth (function-level imports count too)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
-    out = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            out.add(node.module)
-            out.update(f"{node.module}.{a.name}" for a in node.names)
-    return out
-
-
-def _offenders(files, banned) -> list[str]:
-    bad = []
-    for f in files:
-        rel = f.relative_to(ROOT).as_posix()
-        if rel in KNOWN_EXCEPTIONS:
-            continue
-        for mod in sorted(_imports(f)):
-            if any(mod == b or mod.startswith(b + ".") for b in banned):
-                bad.append(f"{rel} imports {mod}")
-    return bad
-
-
-def test_brdf_and_pathtracer_import_no_gl():
-    files = sorted((ROOT / "viewer" / "brdf").rglob("*.py")) + sorted((ROOT / "viewer" / "pathtracer").rglob("*.py"))
-    assert len(files) > 10
-    assert _offenders(files, GL_MODULES) == []
-
-
-def test_scene_model_imports_no_window():
-    files = [ROOT / "viewer" / n for n in ("scene.py", "mesh.py", "meshgen.py", "camera.py", "lecture.py")]
-    assert _offenders(files, WINDOW_MODULES + ("viewer.gl",)) == []
-
-
-def test_the_import_check_can_fail(tmp_path):
-    f = tmp_path / "x.py"
-    f.write_text("def g():\n    import moderngl\n    from viewer.gl.context import create_offscreen_context\n")
-    assert _offenders_outside_root(f) == ['moderngl', 'viewer.gl.context',
-                                        'viewer.gl.context.create_offscreen_context']
-
-
-def _offenders_outside_root(f: Path) -> list[str]:
-    return [m for m in sorted(_imports(f)) if any(m == b or m.startswith(b + ".") for b in GL_MODULES)]
 
 
 # ----------------------------------------------------------------------------- self-contained

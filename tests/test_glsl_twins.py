@@ -72,11 +72,10 @@ def test_glsl_finite_at_extremes(name, evaluator):
     """The GLSL side of the NaN sweep: over the parameter grid (every range end, slider end,
     choice, lobe extreme and nested base model) at normal, grazing (cos = 1e-6 and 0) and
     back-facing directions, eval gives finite values >= 0 and agrees in where it is zero."""
-    from brdf_harness import param_grid
-    from test_brdf_properties import _sweep_directions
+    from brdf_harness import param_grid, sweep_directions
 
     model = brdf.get(name)
-    d = _sweep_directions()
+    d = sweep_directions()
     wi = np.repeat(d, len(d), axis=0)
     wo = np.tile(d, (len(d), 1))
     wi32 = wi.astype(np.float32).astype(np.float64)

@@ -13,66 +13,14 @@ and lecture step is marked slow.
 import numpy as np
 import pytest
 
+from reference_harness import agreement, check, under_grey_sky
 from viewer.lecture import TOUR, tour_scene
 from viewer.scene import builtin_scene_names, load_scene
-
-SIZE = 32
-BLOCK = 4
 
 
 @pytest.fixture(scope="module")
 def ctx(gl_ctx):
     return gl_ctx
-
-
-def agreement(ctx, scene, spp, max_depth=8, size=SIZE, seed=1, **estimator):
-    """Block z-scores and image means of the two engines (``estimator``: the options both take)."""
-    from viewer.gpupt import GpuReferenceRenderer
-    from viewer.pathtracer import ReferenceRenderer
-
-    with GpuReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, ctx=ctx,
-                              **estimator) as g:
-        g.step(spp)
-        mg, vg, bad_g = g.mean().astype(np.float64), g.variance().astype(np.float64), g.bad_values
-    with ReferenceRenderer(scene, width=size, height=size, max_depth=max_depth, seed=seed, workers=0,
-                           **estimator) as c:
-        c.step(spp)
-        mc, vc, bad_c = c.mean().astype(np.float64), c.variance().astype(np.float64), c.bad_values
-    nb = size // BLOCK
-
-    def blk(a, scale=1.0):
-        return a.reshape(nb, BLOCK, nb, BLOCK, 3).sum(axis=(1, 3)) * scale
-
-    bm_g, bm_c = blk(mg, 1 / BLOCK**2), blk(mc, 1 / BLOCK**2)
-    bv = blk(vg + vc, 1 / BLOCK**4)
-    # pixels seeing only a constant background have zero variance in both; their means differ by
-    # float32 rounding of the GPU's sums (about 1e-7 relative per addition): floor at 1e-5
-    bv = bv + (1e-5 * bm_c) ** 2 + 1e-30
-    z = (bm_g - bm_c) / np.sqrt(bv)
-    total_c = mc.sum()
-    return dict(z2=float(np.mean(z * z)), zmax=float(np.abs(z).max()),
-                rel=float(mg.sum() / total_c - 1.0) if total_c > 0 else 0.0,
-                sigma=float(np.sqrt(vg.sum() + vc.sum()) / total_c) if total_c > 0 else 0.0,
-                bad=(bad_g, bad_c), mean_gpu=float(mg.mean()), mean_cpu=float(mc.mean()),
-                var_gpu=float(vg.sum()), var_cpu=float(vc.sum()))
-
-
-def check(a, name, mean_tol=0.005):
-    assert a["bad"] == (0, 0), (name, a)
-    assert a["mean_cpu"] > 0, (name, a)
-    assert a["zmax"] < 5.0, (name, a)
-    assert a["z2"] < 1.6, (name, a)
-    assert abs(a["rel"]) < max(mean_tol, 4 * a["sigma"]), (name, a)
-
-
-def under_grey_sky(scene):
-    """The scene lit by a constant environment only (a point light or the sky's sun seen through
-    smooth glass from a diffuse floor is a caustic neither engine samples well at this spp)."""
-    scene.lights = []
-    scene.environment.map = None
-    scene.environment.constant = np.array([0.6, 0.65, 0.7])
-    scene.environment.intensity = 1.0
-    return scene
 
 
 # the default run: a lit Lambert sphere, glass and mirror under a sky map, rough metals under an

@@ -10,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from test_gpu_engine import agreement, check, under_grey_sky
-from test_strategies import glossy_studio
+from reference_harness import agreement, check, glossy_studio, under_grey_sky
 from viewer.lecture import tour_scene
 
 SIZE = 24

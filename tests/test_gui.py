@@ -7,54 +7,21 @@ import shutil
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 
 import numpy as np
 import pytest
 
+from gui_harness import run_py, window_env
+
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
                                 reason="needs Xvfb (apt-get install xvfb) or a display")
-
-
-@pytest.fixture(scope="module")
-def display():
-    """A private Xvfb server (its number chosen by Xvfb itself), or the existing DISPLAY."""
-    if shutil.which("Xvfb") is None:
-        yield os.environ["DISPLAY"]
-        return
-    r, w = os.pipe()
-    proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.close(w)
-    with os.fdopen(r) as f:
-        num = f.readline().strip()
-    yield f":{num}"
-    proc.terminate()
-    proc.wait(10)
-
-
-def _env(display):
-    env = dict(os.environ)
-    env["DISPLAY"] = display
-    # each app run starts from no saved window state (one run's compare view or window size
-    # must not leak into the next test); test_classroom checks the restoring itself
-    import tempfile
-
-    env["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
-    env.pop("WAYLAND_DISPLAY", None)
-    return env
-
-
-def _run_py(code, display, timeout=120):
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display),
-                          capture_output=True, text=True, timeout=timeout)
 
 
 def test_starts_renders_and_screenshots(display, tmp_path):
     shot = tmp_path / "shot.png"
     r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "4", "--screenshot", str(shot)],
-                       env=_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                       env=window_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "first frame" in r.stderr
     from PIL import Image
@@ -75,7 +42,7 @@ def test_starts_renders_and_screenshots(display, tmp_path):
 
 
 def test_window_close_resize_and_zero_framebuffer(display):
-    r = _run_py("""
+    r = run_py("""
         import numpy as np
         from viewer.app.main import App
         app = App(None, size=(800, 500))
@@ -110,7 +77,7 @@ def test_window_close_resize_and_zero_framebuffer(display):
 
 
 def test_sigterm_exits_cleanly(display, tmp_path):
-    p = subprocess.Popen([sys.executable, "-m", "viewer"], env=_env(display), stderr=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "viewer"], env=window_env(display), stderr=subprocess.PIPE,
                          stdout=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         t0 = time.time()
@@ -142,17 +109,17 @@ def test_no_display_message(tmp_path):
 
 
 def test_reference_view_renders_in_background_and_restarts(display):
-    r = _run_py("""
+    r = run_py("""
         import time
         import numpy as np
         from viewer import brdf
         from viewer.app.main import App
         app = App("sphere", size=(520, 300))
-        app.set_image_mode("reference")
+        app.session.set_image_mode("reference")
         t0 = time.time()
-        while (app._reference is None or app._reference.spp < 2) and time.time() - t0 < 60:
+        while (app.session.reference is None or app.session.reference.spp < 2) and time.time() - t0 < 60:
             app.frame()
-        rv = app._reference
+        rv = app.session.reference
         assert rv.spp >= 2, rv.error
         img = app.capture_window()
         assert img[:, 360:].std() > 5  # the sphere is there (not a blank view)
@@ -162,8 +129,8 @@ def test_reference_view_renders_in_background_and_restarts(display):
             app.frame()
         assert app.frame_count == frames_before + 5 and time.time() - t1 < 10  # raster stays live
         key_before = rv._key
-        app.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
-        app.dirty = True
+        app.session.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
+        app.session.dirty = True
         app.frame()
         assert rv._key != key_before and rv.spp < 2  # restarted on the change
         t0 = time.time()
@@ -181,21 +148,21 @@ def test_reference_view_renders_in_background_and_restarts(display):
 def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
     bad = tmp_path / "broken.hdr"
     bad.write_bytes(b"#?RADIANCE\\nFORMAT=32-bit_rle_rgbe\\n\\n-Y 4 +X 8\\n\\x02")  # truncated
-    r = _run_py(f"""
+    r = run_py(f"""
         import numpy as np
         from viewer.app.main import App
         app = App(None, size=(640, 360))
         app.frame()
         before = app.capture_window()
-        assert app.set_environment("studio")
+        assert app.session.set_environment("studio")
         app.frame()
         after = app.capture_window()
         assert np.abs(after.astype(float) - before).mean() > 1.0  # the image changed
-        env = app.scene.environment
-        assert not app.set_environment({str(bad)!r})
-        assert app.scene.environment is env and "broken.hdr" in app.status
-        app._on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
-        assert "scene not opened" in app.status and "photo.png" in app.status  # a .png opens as a scene
+        env = app.session.scene.environment
+        assert not app.session.set_environment({str(bad)!r})
+        assert app.session.scene.environment is env and "broken.hdr" in app.session.status
+        app.on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
+        assert "scene not opened" in app.session.status and "photo.png" in app.session.status  # a .png opens as a scene
         app.frame()
         app.glfw.set_window_should_close(app.window, True)
         app.run()
@@ -206,17 +173,17 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
 
 
 def test_brute_force_ibl_accumulates_in_the_window(display):
-    r = _run_py("""
+    r = run_py("""
         from viewer.app.main import App
         app = App(None, ['environment={map="studio"}', 'render.ibl="brute_force"'], size=(400, 240))
         for _ in range(6):
             app.frame()
-        assert app._bf_count >= 4, app._bf_count
-        n = app._bf_count
-        app.camera.orbit(5.0, 0.0, 240.0)
-        app.dirty = True
+        assert app.session.bf_count >= 4, app.session.bf_count
+        n = app.session.bf_count
+        app.session.camera.orbit(5.0, 0.0, 240.0)
+        app.session.dirty = True
         app.frame()
-        assert app._bf_count <= 1  # a change starts the average over
+        assert app.session.bf_count <= 1  # a change starts the average over
         app.glfw.set_window_should_close(app.window, True)
         app.run()
         print("BF OK", n)

@@ -13,7 +13,7 @@ from viewer import brdf
 from viewer.camera import OrbitCamera
 from viewer.scene import parse_scene
 
-from test_raster_vs_reference import _interior
+from render_util import sphere_interior
 
 pathtracer = pytest.importorskip("viewer.pathtracer")
 
@@ -57,7 +57,7 @@ def test_environment_lighting_against_reference(tmp_path, renderer, name):
     with pathtracer.ReferenceRenderer(scene, camera=cam, max_depth=8, seed=4, workers=2) as ref:
         ref.step(64)
         mean, var = ref.mean(), ref.variance()
-    m = _interior(scene.camera, light=(0.0, 100.0, 0.0))  # interior pixels (no terminator here)
+    m = sphere_interior(scene.camera, light=(0.0, 100.0, 0.0))  # interior pixels (no terminator here)
     ref_mean = mean[m].mean()
     se_of_mean = np.sqrt(var[m].sum()) / m.sum()  # pixels are independent
     scene.render.ibl = "brute_force"

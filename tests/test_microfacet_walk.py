@@ -16,6 +16,8 @@ from viewer import ViewerError, brdf
 from viewer.brdf import microfacet, microfacet_walk as W
 from viewer.brdf.microfacet_dist import Distribution
 
+from scene_text import lone_sphere
+
 MF = brdf.get("microfacet")
 
 
@@ -188,26 +190,8 @@ def test_reference_furnace_sphere(tmp_path):
     from viewer.scene import load_scene
 
     path = tmp_path / "f.toml"
-    path.write_text(textwrap.dedent("""
-        [camera]
-        position = [0.0, 0.0, 4.0]
-        target = [0.0, 0.0, 0.0]
-        fov_y = 40.0
-        width = 24
-        height = 24
-        [environment]
-        constant = [1.0, 1.0, 1.0]
-        [[objects]]
-        mesh = "sphere"
-        material = "m"
-        [materials.m]
-        model = "microfacet"
-        distribution = "ggx"
-        alpha = 1.0
-        fresnel = "schlick"
-        f0 = 1.0
-        multiple_scattering = true
-        """))
+    path.write_text(lone_sphere(dict(model="microfacet", distribution="ggx", alpha=1.0, fresnel="schlick",
+                                     f0=1.0, multiple_scattering=True), 24, 24))
     sc = load_scene(path)
     means = {}
     for ms in (True, False):

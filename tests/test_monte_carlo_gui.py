@@ -7,7 +7,7 @@ import textwrap
 import subprocess
 import sys
 
-from test_gui import _env, display  # noqa: F401 - the private Xvfb fixture
+from gui_harness import window_env
 
 import pytest
 
@@ -16,7 +16,7 @@ pytestmark = pytest.mark.skipif(__import__("shutil").which("Xvfb") is None
 
 
 def test_error_views_convergence_and_sampling_tab(display, tmp_path):
-    from test_strategies import GLOSSY_STUDIO
+    from reference_harness import GLOSSY_STUDIO
 
     scene = tmp_path / "glossy.toml"
     scene.write_text(GLOSSY_STUDIO)
@@ -28,10 +28,10 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app = App({str(scene)!r}, size=(480, 300))
         app.frame()
         raster = app.capture_window()
-        rv = app.reference_view()
-        app.mc.set_options(rv, strategy="bsdf")
-        app.mc.view = "standard error"
-        app.mc.show_convergence = True
+        rv = app.session.reference_view()
+        app.session.mc.set_options(rv, strategy="bsdf")
+        app.session.mc.view = "standard error"
+        app.session.mc.show_convergence = True
         app.plots.visible = True
         app.plots.select_tab("Sampling")
         t0 = time.time()
@@ -42,26 +42,26 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app.frame()
         mean, var, spp = rv.latest_variance()
         for view, expect in (("standard error", standard_error(var)), ("relative error", relative_error(mean, var)),
-                             ("samples needed", samples_needed(mean, var, spp, app.mc.target))):
-            app.mc.view = view
-            err, rgb = app.mc.heat_map(rv)
+                             ("samples needed", samples_needed(mean, var, spp, app.session.mc.target))):
+            app.session.mc.view = view
+            err, rgb = app.session.mc.heat_map(rv)
             np.testing.assert_allclose(err, np.where(np.isfinite(expect), expect, 0.0), rtol=1e-12)
-        app.mc.view = "relative error"
+        app.session.mc.view = "relative error"
         times = []
         for _ in range(4):
-            app.mc._key = None  # force a recompute, to time it
+            app.session.mc._key = None  # force a recompute, to time it
             app.frame()
-            times.append(app.mc.view_ms)
+            times.append(app.session.mc.view_ms)
         shot = app.capture_window()
         assert np.abs(shot.astype(float) - raster).mean() > 1.0
         from PIL import Image
         Image.fromarray(shot).save({str(tmp_path / 'mc.png')!r})
         n = len(rv.curve)
         assert n >= 2 and rv.curve.label == "bsdf"
-        assert app.mc.store_curve(rv) and app.mc.stored.label.startswith("BSDF sampling")
-        app.mc.set_options(rv, strategy="mis")
+        assert app.session.mc.store_curve(rv) and app.session.mc.stored.label.startswith("BSDF sampling")
+        app.session.mc.set_options(rv, strategy="mis")
         app.frame()
-        assert rv.curve.label == "mis" and len(app.mc.stored) == n
+        assert rv.curve.label == "mis" and len(app.session.mc.stored) == n
         t0 = time.time()
         while len(rv.curve) < 2 and time.time() - t0 < 60:
             app.frame()
@@ -73,7 +73,7 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app.run()
         print("MC OK")
     """
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=_env(display), capture_output=True,
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=window_env(display), capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:] + r.stdout
     assert "MC OK" in r.stdout

@@ -28,7 +28,6 @@ float32 for such lobes (now saturates at the float32 maximum).
 from __future__ import annotations
 
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -91,57 +90,13 @@ def test_glsl_twin_finite_and_nonnegative(name, pairs, evaluator):
             pytest.fail(f"{name}: GLSL terms {terms[i]} at wi={wi[i]}, wo={wo[i]} for {p.to_plain()}")
 
 
-SCENE = textwrap.dedent("""
-    [camera]
-    position = [0.0, 0.3, 3.0]
-    width = {w}
-    height = {h}
-    fov_y = 40.0
-    [environment]
-    map = "studio"
-    [render]
-    ibl = "{ibl}"
-    ssr = {ssr}
-    shadows = true
-    msaa = 0
-    [[lights]]
-    type = "point"
-    position = [1.0, 2.0, 2.0]
-    intensity = [5.0, 5.0, 5.0]
-    [[lights]]
-    type = "directional"
-    direction = [-0.3, -1.0, -0.2]
-    irradiance = [1.0, 1.0, 1.0]
-    [[objects]]
-    mesh = "sphere"
-    material = "ball"
-    [[objects]]
-    mesh = "plane"
-    material = "floor"
-    translate = [0.0, -1.0, 0.0]
-    scale = 3.0
-    [materials.ball]
-    model = "lambert"
-    [materials.floor]
-    model = "lambert"
-    """)
-
-
-def _scene(w, h, ibl="split_sum", ssr=False):
-    import tomllib
-
-    from viewer.scene import parse_scene
-
-    return parse_scene(tomllib.loads(SCENE.format(w=w, h=h, ibl=ibl, ssr=str(ssr).lower())), None)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_raster_renders_finite_and_nonnegative(name, renderer):
     from viewer.camera import OrbitCamera
 
     sets = nc.corner_sets(name, CORNERS_RENDER, SEED + 1)
     for ibl, ssr in (("split_sum", True), ("fis", False)):
-        scene = _scene(24, 24, ibl, ssr)
+        scene = nc.sweep_scene(24, 24, ibl, ssr)
         cam = OrbitCamera.from_scene(scene)
         for p in sets:
             scene.materials["ball"] = p
@@ -154,7 +109,7 @@ def test_raster_renders_finite_and_nonnegative(name, renderer):
 def test_reference_finite_and_nonnegative(name):
     from viewer.pathtracer import ReferenceRenderer
 
-    scene = _scene(10, 8)
+    scene = nc.sweep_scene(10, 8)
     for k, p in enumerate(nc.corner_sets(name, 4, SEED + 2)):
         scene.materials["ball"] = p
         with ReferenceRenderer(scene, max_depth=4, seed=k, workers=0) as r:
@@ -185,7 +140,7 @@ def test_gpu_reference_finite_and_nonnegative(name, gpu_engine_ctx):
     radiance) per pixel the way the CPU engine does; the count must stay 0."""
     from viewer.gpupt import GpuReferenceRenderer
 
-    scene = _scene(10, 8)
+    scene = nc.sweep_scene(10, 8)
     for k, p in enumerate(nc.corner_sets(name, 4, SEED + 2)):
         scene.materials["ball"] = p
         with GpuReferenceRenderer(scene, max_depth=4, seed=k, ctx=gpu_engine_ctx) as r:

@@ -22,22 +22,13 @@ from viewer.pathtracer.kernel_embree import EmbreeKernel
 from viewer.scene import load_scene
 
 from brdf_harness import param_grid
+from scene_text import camera, environment, lone_sphere, material, point_light, scene, sphere_on_floor
 
 
 def scene_from(tmp_path, text, name="s.toml"):
     p = tmp_path / name
     p.write_text(textwrap.dedent(text))
     return load_scene(p)
-
-
-SPHERE_CAM = """
-[camera]
-position = [0.0, 0.0, 4.0]
-target = [0.0, 0.0, 0.0]
-fov_y = 40.0
-width = 32
-height = 32
-"""
 
 
 def pixel_corner_rays(w, h, fov_y=40.0, dist=4.0):
@@ -90,16 +81,7 @@ def test_embree_kernel_interface():
 
 @pytest.mark.parametrize("max_depth,env", [(1, "constant"), (8, "constant"), (8, "map")])
 def test_furnace_lambert_sphere(tmp_path, max_depth, env):
-    sc = scene_from(tmp_path, SPHERE_CAM + """
-        [environment]
-        constant = [1.0, 1.0, 1.0]
-        [[objects]]
-        mesh = "sphere"
-        material = "m"
-        [materials.m]
-        model = "lambert"
-        albedo = [0.5, 0.5, 0.5]
-        """)
+    sc = scene_from(tmp_path, lone_sphere(dict(model="lambert", albedo=[0.5, 0.5, 0.5]), 32, 32))
     # "map": the same white environment as a lat-long array, so the map's importance sampling
     # (luminance x sin theta, pdf per solid angle with the Jacobian) and its MIS weights are used
     image = np.ones((8, 16, 3)) if env == "map" else None
@@ -143,19 +125,8 @@ def _albedo_table(model, p, cos_o, n_theta=160, n_phi=160):
 
 
 def test_ggx_sphere_albedo(tmp_path):
-    sc = scene_from(tmp_path, SPHERE_CAM + """
-        [environment]
-        constant = [1.0, 1.0, 1.0]
-        [[objects]]
-        mesh = "sphere"
-        material = "m"
-        [materials.m]
-        model = "microfacet"
-        distribution = "ggx"
-        fresnel = "schlick"
-        f0 = [1.0, 1.0, 1.0]
-        alpha = 0.5
-        """)
+    sc = scene_from(tmp_path, lone_sphere(dict(model="microfacet", distribution="ggx", fresnel="schlick",
+                                               f0=[1.0, 1.0, 1.0], alpha=0.5), 32, 32))
     r = ReferenceRenderer(sc, width=32, height=32, max_depth=16, seed=2, workers=0)
     r.step(32)
     m, var = r.mean(), r.variance()
@@ -230,16 +201,7 @@ def test_glass_slab_transmittance(tmp_path):
 
 
 def test_total_internal_reflection_inside_sphere(tmp_path):
-    sc = scene_from(tmp_path, SPHERE_CAM + """
-        [environment]
-        constant = [1.0, 1.0, 1.0]
-        [[objects]]
-        mesh = "sphere"
-        material = "glass"
-        [materials.glass]
-        model = "dielectric"
-        ior = 1.5
-        """)
+    sc = scene_from(tmp_path, lone_sphere(dict(model="dielectric", ior=1.5), 32, 32, name="glass"))
     it = Integrator(RenderSetup.from_scene(sc, width=4, height=4, max_depth=12))
     rng = np.random.default_rng(0)
     n = 2000
@@ -259,35 +221,17 @@ def test_total_internal_reflection_inside_sphere(tmp_path):
 
 # ----------------------------------------------------------------------------- determinism
 
-SMALL_SCENE = """
-[camera]
-position = [0.0, 1.2, 3.5]
-target = [0.0, 0.4, 0.0]
-fov_y = 45.0
-width = 32
-height = 24
-[environment]
-constant = [0.3, 0.35, 0.4]
-[[lights]]
-type = "point"
-position = [2.0, 3.0, 2.0]
-intensity = [20.0, 20.0, 20.0]
-[[objects]]
-mesh = "sphere"
-material = "ball"
-translate = [0.0, 0.5, 0.0]
-scale = 0.5
-[[objects]]
-mesh = "plane"
-material = "floor"
-scale = 3.0
-[materials.ball]
-preset = "gold"
-alpha = 0.3
-[materials.floor]
-model = "lambert"
-albedo = [0.5, 0.5, 0.5]
-"""
+def small_scene(width=32, height=24):
+    """A gold sphere on a grey floor, a point light and a constant sky."""
+    return scene(camera([0.0, 1.2, 3.5], [0.0, 0.4, 0.0], 45.0, width, height),
+                 environment(constant=[0.3, 0.35, 0.4]),
+                 point_light([2.0, 3.0, 2.0], [20.0, 20.0, 20.0]),
+                 sphere_on_floor(height=0.5),
+                 material("ball", preset="gold", alpha=0.3),
+                 material("floor", model="lambert", albedo=[0.5, 0.5, 0.5]))
+
+
+SMALL_SCENE = small_scene()
 
 
 def test_determinism_and_seed_statistics(tmp_path):
@@ -335,7 +279,7 @@ def _grid_subset(model, k=6):
 
 @pytest.mark.parametrize("name", brdf.names())
 def test_no_nan_inf_negative_at_parameter_extremes(tmp_path, name):
-    sc = scene_from(tmp_path, SMALL_SCENE.replace("width = 32", "width = 16").replace("height = 24", "height = 12"))
+    sc = scene_from(tmp_path, small_scene(16, 12))
     model = brdf.get(name)
     for p in _grid_subset(model):
         sc.materials["ball"] = p
@@ -356,7 +300,7 @@ def test_no_nan_inf_negative_at_parameter_extremes(tmp_path, name):
 # ----------------------------------------------------------------------------- cancellation
 
 def test_cancel_within_100ms_and_no_leftover_processes(tmp_path):
-    sc = scene_from(tmp_path, SMALL_SCENE.replace("width = 32", "width = 64").replace("height = 24", "height = 64"))
+    sc = scene_from(tmp_path, small_scene(64, 64))
     before = set(p.pid for p in mp.active_children())
     r = ReferenceRenderer(sc, seed=0, workers=2)
     r.step(1)

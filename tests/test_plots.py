@@ -1,4 +1,4 @@
-"""BRDF plots (viewer/plots.py, ``brdf-viewer plot``): the plotted numbers are the Python
+"""BRDF plots (viewer/plots/, ``brdf-viewer plot``): the plotted numbers are the Python
 functions' values, the lecture's Fresnel angles come out, and the command fails cleanly."""
 
 import json
@@ -220,12 +220,12 @@ from viewer.app.plots_panel import PlotsPanel, TABS
 from viewer.brdf.presets import get_preset
 
 app = App("sphere", size=(1200, 800))
-app._warm = []
+app.session.warm = []
 panel = PlotsPanel()
-materials = {"ball": app.scene.materials["ball"], "glass": plots.as_params(get_preset("green_glass")),
+materials = {"ball": app.session.scene.materials["ball"], "glass": plots.as_params(get_preset("green_glass")),
              "gold": plots.as_params(get_preset("gold"))}
-draw = app._panel
-app._panel = lambda *a: (draw(*a), panel.draw(materials))
+draw = app.side_panel.draw
+app.side_panel.draw = lambda *a: (draw(*a), panel.draw(materials))
 app.frame()
 shots = {}
 for tab in TABS:

@@ -110,7 +110,7 @@ def _object_mask(gl_ctx, scene, w, h):
     from render_util import camera_rays
 
     from viewer.gl.scene_textures import RayQuery, SceneTextures
-    from viewer.pathtracer.geometry import build_geometry
+    from viewer.geometry.soup import build_geometry
 
     c = scene.camera
     d = camera_rays(c.position, c.target, c.up, c.fov_y, w, h).reshape(-1, 3)

@@ -19,7 +19,8 @@ from viewer import brdf
 from viewer.camera import OrbitCamera
 from viewer.scene import load_scene
 
-from render_util import camera_rays, hit_plane_y, hit_sphere
+from render_util import camera_rays, hit_plane_y, hit_sphere, sphere_interior
+from scene_text import camera, material, point_light, scene, sphere_on_floor
 
 pathtracer = pytest.importorskip("viewer.pathtracer")
 
@@ -59,30 +60,6 @@ def _scene_with_material(tmp_path, params):
     return parse_scene(data, tmp_path / "s.toml")
 
 
-def _interior(cam, center=(0, 0, 0), radius=1.0, light=(2.0, 3.0, 3.0), margin=1):
-    """Pixels whose four corners all see the sphere, with the terminator band removed (there
-    the raster's value at the pixel centre and the reference's pixel average differ by more
-    than curvature: n.l changes sign inside the pixel)."""
-    inside = np.ones((cam.height, cam.width), bool)
-    sign = []
-    for off in ((0, 0), (1, 0), (0, 1), (1, 1)):
-        d = camera_rays(cam.position, cam.target, cam.up, cam.fov_y, cam.width, cam.height, off)
-        t = hit_sphere(cam.position, d, center, radius)
-        inside &= np.isfinite(t)
-        p = cam.position + d * np.where(np.isfinite(t), t, 0)[..., None]
-        n = p - np.asarray(center)
-        l = np.asarray(light) - p
-        sign.append(np.sum(n * l, axis=-1) > 0)
-    same = np.all(sign, axis=0) | ~np.any(sign, axis=0)
-    m = inside & same
-    for _ in range(margin):
-        m[1:, :] &= m[:-1, :]
-        m[:-1, :] &= m[1:, :]
-        m[:, 1:] &= m[:, :-1]
-        m[:, :-1] &= m[:, 1:]
-    return m
-
-
 def _compare(raster, mean, var, mask, label):
     se = np.sqrt(var)
     diff = raster - mean
@@ -112,7 +89,7 @@ def test_direct_light_agrees_per_pixel(tmp_path, renderer, name):
         mean, var = ref.mean(), ref.variance()
     finally:
         ref.close()
-    mask = _interior(scene.camera)
+    mask = sphere_interior(scene.camera)
     assert mask.sum() > 400
     if model.spec.delta and name in ("mirror",) or (name == "dielectric" and model.params().alpha == 0):
         # a delta lobe reflects a point light in one direction only: both renderers give 0
@@ -121,34 +98,10 @@ def test_direct_light_agrees_per_pixel(tmp_path, renderer, name):
     _compare(raster, mean, var, mask, name)
 
 
-SHADOW_SCENE = """
-[camera]
-position = [0.0, 3.0, 4.5]
-target = [0.0, 0.3, 0.0]
-fov_y = 45.0
-width = 64
-height = 48
-
-[[lights]]
-type = "point"
-position = [1.0, 4.0, 0.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[objects]]
-mesh = "sphere"
-material = "white"
-scale = 0.5
-translate = [0.0, 0.8, 0.0]
-
-[[objects]]
-mesh = "plane"
-material = "white"
-scale = 3.0
-
-[materials.white]
-model = "lambert"
-albedo = [0.7, 0.7, 0.7]
-"""
+SHADOW_SCENE = scene(camera([0.0, 3.0, 4.5], [0.0, 0.3, 0.0], 45.0, 64, 48),
+                     point_light([1.0, 4.0, 0.5], [30.0, 30.0, 30.0]),
+                     sphere_on_floor("white", "white", height=0.8),
+                     material("white", model="lambert", albedo=[0.7, 0.7, 0.7]))
 
 
 def test_shadows_agree_with_reference(tmp_path, renderer):

@@ -18,6 +18,8 @@ from viewer.camera import OrbitCamera
 from viewer import ViewerError as SceneError
 from viewer.scene import load_scene, parse_scene
 
+from scene_text import camera, environment, glass_ball, material, mirror_floor, obj, render, scene
+
 W = H = 64
 SS = 4
 
@@ -45,7 +47,7 @@ def _object_mask(gl_ctx, scene, index, erode=1):
     from render_util import camera_rays
 
     from viewer.gl.scene_textures import RayQuery, SceneTextures
-    from viewer.pathtracer.geometry import build_geometry
+    from viewer.geometry.soup import build_geometry
 
     c = scene.camera
     d = camera_rays(c.position, c.target, c.up, c.fov_y, W, H).reshape(-1, 3)
@@ -90,29 +92,7 @@ def _raster(renderer, scene, raytrace):
     return renderer.render_arrays(scene, width=W, height=H, supersample=SS)[0]
 
 
-GLASS_BALL = """
-[camera]
-position = [0.0, 0.3, 3.0]
-target   = [0.0, 0.0, 0.0]
-up       = [0.0, 1.0, 0.0]
-fov_y    = 30.0
-width    = 64
-height   = 64
-
-[environment]
-map = "studio"
-
-[render]
-ibl = "split_sum"
-
-[[objects]]
-mesh     = "sphere"
-material = "glass"
-scale    = 0.6
-
-[materials.glass]
-preset = "lecture_air_glass"
-"""
+GLASS_BALL = glass_ball(W, H)
 
 
 def test_scene_key_is_validated(tmp_path):
@@ -172,49 +152,6 @@ def test_tir_glass_cube_lecture_step(renderer, gl_ctx):
     assert e[True] < 0.08
 
 
-MIRROR_FLOOR = """
-[camera]
-position = [0.0, 1.2, 3.2]
-target   = [0.0, 0.4, 0.0]
-up       = [0.0, 1.0, 0.0]
-fov_y    = 40.0
-width    = 64
-height   = 64
-
-[environment]
-constant = [0.2, 0.25, 0.3]
-
-[render]
-ibl     = "split_sum"
-ssr     = {ssr}
-shadows = true
-
-[[lights]]
-type      = "point"
-position  = [-2.0, 4.0, 2.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[objects]]
-mesh      = "sphere"
-material  = "ball"
-translate = [0.0, 0.6, 0.0]
-scale     = 0.5
-
-[[objects]]
-mesh     = "plane"
-material = "floor"
-scale    = 3.0
-
-[materials.ball]
-model  = "lambert"
-albedo = [0.7, 0.2, 0.15]
-
-[materials.floor]
-model   = "mirror"
-fresnel = "none"
-"""
-
-
 def _reflected_region(scene):
     """Floor pixels whose mirrored centre ray meets the sphere (analytic, numpy)."""
     from render_util import camera_rays, hit_plane_y, hit_sphere
@@ -241,7 +178,7 @@ def test_sphere_over_mirror_floor(tmp_path, renderer):
     # the reference's sphere underside also sees the floor's mirror image, which the raster's
     # split sum takes as sky; that is the remaining error). Bound: 0.15 x the RMSE without any
     # reflection of the scene (the issue's bound).
-    scene = _scene(tmp_path, "mirror", MIRROR_FLOOR.format(ssr="false"))
+    scene = _scene(tmp_path, "mirror", mirror_floor(W, H, ssr=False))
     region = _reflected_region(scene)
     assert region.sum() > 40
     ref = _reference(scene, 64)
@@ -256,31 +193,14 @@ def test_sphere_over_mirror_floor(tmp_path, renderer):
     assert out["raytrace"] < 0.15 * out["none"]
 
 
-ABSORBING = """
-[camera]
-position = [0.0, 0.0, 4.0]
-target   = [0.0, 0.0, 0.0]
-up       = [0.0, 1.0, 0.0]
-fov_y    = 30.0
-width    = 64
-height   = 64
-
-[environment]
-constant = [1.0, 1.0, 1.0]
-
-[render]
-ibl = "split_sum"
-
-[[objects]]
-mesh     = "sphere"
-material = "glass"
-scale    = {r}
-
-[materials.glass]
-model   = "dielectric"
-ior     = 1.5
-sigma_a = [0.5, 1.5, 3.0]
-"""
+def absorbing_ball(radius, constant=(1.0, 1.0, 1.0)):
+    """An absorbing glass ball of ``radius`` (sigma_a 0.5, 1.5, 3.0 per unit length) in a
+    constant environment (white: a furnace)."""
+    return scene(camera([0.0, 0.0, 4.0], [0.0, 0.0, 0.0], 30.0, W, H, up=[0.0, 1.0, 0.0]),
+                 environment(constant=list(constant)),
+                 render(ibl="split_sum"),
+                 obj("sphere", "glass", scale=radius),
+                 material("glass", model="dielectric", ior=1.5, sigma_a=[0.5, 1.5, 3.0]))
 
 
 @pytest.mark.parametrize("radius", [0.3, 0.9])
@@ -294,7 +214,7 @@ def test_absorbing_glass_follows_bouguer(tmp_path, renderer, gl_ctx, radius):
     # covers the 2 x 2 pixels' rays being up to 1.5 pixels off the axis (shorter chords).
     # (b) Over the whole sphere against the reference (two sizes: the colour deepens with the
     # path length): mean error < 3% per channel; both follow the chain exactly here.
-    scene = _scene(tmp_path, f"abs{radius}", ABSORBING.format(r=radius))
+    scene = _scene(tmp_path, f"abs{radius}", absorbing_ball(radius))
     img = _raster(renderer, scene, True)
     sigma = np.array([0.5, 1.5, 3.0])
     R = ((1.5 - 1.0) / (1.5 + 1.0)) ** 2
@@ -338,7 +258,7 @@ def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
     # of a render whose single index is that channel's (the chain traced per channel).
     import viewer.gl.raytrace as rtmod
 
-    scene = _scene(tmp_path, "disp", ABSORBING.format(r=0.6).replace("[1.0, 1.0, 1.0]", "[0.3, 0.5, 0.8]"))
+    scene = _scene(tmp_path, "disp", absorbing_ball(0.6, constant=[0.3, 0.5, 0.8]))
     scene.render.raytrace = True
     single = {}
     for ior in (1.4, 1.5, 1.7):

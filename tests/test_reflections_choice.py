@@ -78,11 +78,11 @@ def test_window_draws_the_choice(tmp_path):
         try:
             app.plots.visible = False
             app.frame()
-            assert reflection_mode(app.scene.render) == "ray traced"
+            assert reflection_mode(app.session.scene.render) == "ray traced"
             a = app.capture_window()
-            set_reflection_mode(app.scene.render, "off"); app.dirty = True
+            set_reflection_mode(app.session.scene.render, "off"); app.session.dirty = True
             b = app.capture_window()
-            assert (app.scene.render.raytrace, app.scene.render.ssr) == (False, False)
+            assert (app.session.scene.render.raytrace, app.session.scene.render.ssr) == (False, False)
             print("DIFF", float(np.abs(a.astype(float) - b.astype(float)).mean()))
         finally:
             app.close()

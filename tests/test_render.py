@@ -11,6 +11,7 @@ from viewer.camera import OrbitCamera
 from viewer.scene import load_scene
 
 from render_util import camera_rays, hit_plane_y, hit_sphere, lambert_point
+from scene_text import camera, material, obj, point_light, render, scene, sphere_on_floor
 
 
 def _scene(tmp_path, body, name="s.toml", overrides=()):
@@ -19,32 +20,13 @@ def _scene(tmp_path, body, name="s.toml", overrides=()):
     return load_scene(p, overrides)
 
 
-SPHERE = """
-[camera]
-position = [0.0, 0.0, 4.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 40.0
-width = 256
-height = 256
-
-[render]
-msaa = 4
-shadows = true
-
-[[lights]]
-type = "point"
-position = [{lx}, {ly}, {lz}]
-intensity = [10.0, 8.0, 6.0]
-
-[[objects]]
-mesh = "sphere"
-material = "ball"
-
-[materials.ball]
-model = "lambert"
-albedo = [0.5, 0.6, 0.7]
-"""
+def sphere_scene(light, ibl=None, **placement):
+    """A grey-blue Lambert sphere (placed by ``placement``) lit by one point light at ``light``."""
+    return scene(camera([0.0, 0.0, 4.0], [0.0, 0.0, 0.0], 40.0, 256, 256, up=[0.0, 1.0, 0.0]),
+                 render(ibl=ibl, msaa=4, shadows=True),
+                 point_light(light, [10.0, 8.0, 6.0]),
+                 obj("sphere", "ball", **placement),
+                 material("ball", model="lambert", albedo=[0.5, 0.6, 0.7]))
 
 
 def _render(renderer, scene):
@@ -73,7 +55,7 @@ def _interior_mask(cam, radius=1.0, center=(0, 0, 0), margin_px=2):
 
 def test_lambert_sphere_matches_analytic(tmp_path, renderer):
     light = (2.0, 3.0, 4.0)
-    scene = _scene(tmp_path, SPHERE.format(lx=light[0], ly=light[1], lz=light[2]))
+    scene = _scene(tmp_path, sphere_scene(light))
     img = _render(renderer, scene)
     cam = scene.camera
     d = camera_rays(cam.position, cam.target, cam.up, cam.fov_y, cam.width, cam.height)
@@ -99,14 +81,14 @@ def test_lambert_sphere_matches_analytic(tmp_path, renderer):
 
 def test_projection_radius_and_orientation(tmp_path, renderer):
     # light at +x: the right side of the image is lit
-    scene = _scene(tmp_path, SPHERE.format(lx=10.0, ly=0.0, lz=0.0))
+    scene = _scene(tmp_path, sphere_scene([10.0, 0.0, 0.0]))
     img = _render(renderer, scene)
     H, W = img.shape[:2]
     assert img.shape == (256, 256, 3)
     lum = img.sum(axis=-1)
     # covered pixels: the sphere is lit on its right half only, so measure coverage from a
     # render lit from the camera side
-    front = _render(renderer, _scene(tmp_path, SPHERE.format(lx=0.0, ly=0.0, lz=10.0), "f.toml"))
+    front = _render(renderer, _scene(tmp_path, sphere_scene([0.0, 0.0, 10.0]), "f.toml"))
     cov = front.sum(axis=-1) > 1e-4
     predicted = math.tan(math.asin(1 / 4)) / math.tan(math.radians(20)) * H / 2  # ~90.8 px
     row = cov[H // 2]
@@ -120,12 +102,12 @@ def test_projection_radius_and_orientation(tmp_path, renderer):
     # +x lights the right side
     assert lum[:, W // 2 + 10:].sum() > 100 * lum[:, : W // 2 - 10].sum()
     # +y is up: a light above lights the top rows (row 0 = top)
-    top = _render(renderer, _scene(tmp_path, SPHERE.format(lx=0.0, ly=10.0, lz=0.0), "t.toml")).sum(axis=-1)
+    top = _render(renderer, _scene(tmp_path, sphere_scene([0.0, 10.0, 0.0]), "t.toml")).sum(axis=-1)
     assert top[: H // 2 - 10].sum() > 100 * top[H // 2 + 10:].sum()
 
 
 def test_object_translation_orientation(tmp_path, renderer):
-    body = SPHERE.format(lx=0.0, ly=0.0, lz=10.0).replace('material = "ball"', 'material = "ball"\nscale = 0.3\ntranslate = [1.0, 0.5, 0.0]')
+    body = sphere_scene([0.0, 0.0, 10.0], scale=0.3, translate=[1.0, 0.5, 0.0])
     img = _render(renderer, _scene(tmp_path, body)).sum(axis=-1)
     ys, xs = np.nonzero(img > 1e-4)
     H, W = img.shape
@@ -133,44 +115,18 @@ def test_object_translation_orientation(tmp_path, renderer):
     assert ys.mean() < H * 0.4  # +y is up (row 0 = top)
 
 
-SHADOW = """
-[camera]
-position = [0.0, 4.0, 5.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 45.0
-width = 320
-height = 240
-
-[render]
-msaa = 4
-shadows = true
-
-[[lights]]
-type = "point"
-position = [{lx}, {ly}, {lz}]
-intensity = [40.0, 40.0, 40.0]
-
-[[objects]]
-mesh = "sphere"
-material = "white"
-scale = 0.5
-translate = [0.0, 1.0, 0.0]
-
-[[objects]]
-mesh = "plane"
-material = "white"
-scale = 3.0
-
-[materials.white]
-model = "lambert"
-albedo = [0.8, 0.8, 0.8]
-"""
+def shadow_scene(light):
+    """A white sphere on a white floor lit by one point light at ``light``."""
+    return scene(camera([0.0, 4.0, 5.0], [0.0, 0.0, 0.0], 45.0, 320, 240, up=[0.0, 1.0, 0.0]),
+                 render(msaa=4, shadows=True),
+                 point_light(light, [40.0, 40.0, 40.0]),
+                 sphere_on_floor("white", "white", height=1.0),
+                 material("white", model="lambert", albedo=[0.8, 0.8, 0.8]))
 
 
 @pytest.mark.parametrize("light", [(0.6, 4.0, 0.4), (-2.0, 3.0, -1.0)])
 def test_shadow_where_geometry_predicts(tmp_path, renderer, light):
-    scene = _scene(tmp_path, SHADOW.format(lx=light[0], ly=light[1], lz=light[2]))
+    scene = _scene(tmp_path, shadow_scene(light))
     img = _render(renderer, scene)
     cam = scene.camera
     d = camera_rays(cam.position, cam.target, cam.up, cam.fov_y, cam.width, cam.height)
@@ -299,7 +255,7 @@ def test_builtin_scenes_render_clean(renderer, name):
 def test_no_environment_with_shadows_still_draws(tmp_path, renderer):
     """ibl = "off" and no environment, with a shadowed point light: the lit sphere is drawn (a
     sampler left on the shadow atlas's texture unit would make every draw call invalid)."""
-    body = SPHERE.format(lx=2.0, ly=3.0, lz=4.0).replace("[render]", '[render]\nibl = "off"')
+    body = sphere_scene([2.0, 3.0, 4.0], ibl="off")
     img = _render(renderer, _scene(tmp_path, body))
     assert img.max() > 0.05
 

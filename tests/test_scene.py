@@ -587,3 +587,31 @@ def test_every_preset_conserves_energy(name):
     r, t = directional_albedo(brdf.get(p.model), p, cos_o, split=True)
     total = np.asarray(r) + np.asarray(t)
     assert total.max() <= 1.02, (name, total.max(axis=0))
+
+
+def test_dotted_key_turns_list_indices_into_path_parts():
+    from viewer.scene import dotted_key
+
+    assert dotted_key(" lobes[0].n ") == "lobes.0.n"
+    assert dotted_key("lights[1].intensity") == "lights.1.intensity"
+    assert dotted_key("materials.ball.alpha") == "materials.ball.alpha"
+
+
+def test_save_scene_and_material_write_atomically_and_read_back(tmp_path, monkeypatch):
+    """save_scene and save_material go through viewer.io's atomic writer; what they write loads
+    back to the same scene and material."""
+    from viewer import io as vio
+    from viewer.scene import load_material_file, material_to_toml, save_material, save_scene
+
+    written = []
+    real = vio.atomic_write_bytes
+    monkeypatch.setattr(vio, "atomic_write_bytes", lambda path, data: written.append(path) or real(path, data))
+    s = load_scene("cornell", load_meshes=False)
+    assert save_scene(s, tmp_path / "s.toml") == tmp_path / "s.toml"
+    assert scene_to_toml(load_scene(tmp_path / "s.toml", load_meshes=False)) == scene_to_toml(s)
+    name = sorted(s.materials)[0]
+    save_material(name, s.materials[name], tmp_path / "m.toml")
+    got, params = load_material_file(tmp_path / "m.toml")
+    assert got == name and material_to_toml(got, params) == material_to_toml(name, s.materials[name])
+    assert written == [tmp_path / "s.toml", tmp_path / "m.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml", "s.toml"]  # no temporary left

@@ -11,16 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from test_gui import _env, display  # noqa: F401
+from gui_harness import window_env
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.skipif(not __import__("shutil").which("Xvfb"), reason="needs Xvfb")
-def test_short_soak_has_no_failures(display):  # noqa: F811
+def test_short_soak_has_no_failures(display):
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--frames", "200",
                         "--report-at", "200", "--seed", "7", "--json"],
-                       env=_env(display), capture_output=True, text=True, timeout=600)
+                       env=window_env(display), capture_output=True, text=True, timeout=600)
     assert r.returncode in (0, 1), r.stderr[-3000:]
     res = json.loads(r.stdout.strip().splitlines()[-1])
     assert res["failures"] == [], res["failures"]

@@ -248,7 +248,7 @@ def test_spectral_plot_data_and_png(tmp_path):
     misses gold's colour by several per cent (the reason for the tables)."""
     from viewer import plots
     from viewer.brdf.presets import get_preset
-    from viewer.spectral_plot import spectral_data
+    from viewer.plots.spectral import spectral_data
 
     d = spectral_data("Au")
     np.testing.assert_allclose(d["rgb"][0], spectral.to_rgb(f0_conductor(d["n"], d["k"]), d["wavelength_nm"]),

@@ -15,8 +15,6 @@
     pass).
 """
 
-import textwrap
-
 import numpy as np
 import pytest
 
@@ -24,72 +22,28 @@ from viewer.camera import OrbitCamera
 from viewer.gl.renderer import VIEW_MODES
 from viewer.scene import load_scene
 
+from scene_text import (LAMBERT_RED, MIRROR_NO_FRESNEL, camera, environment, material, obj, point_light,
+                        render, scene)
+
 W, H = 192, 128
 
-SCENE = """
-[camera]
-position = [0.0, {cy}, 4.2]
-target   = [0.0, {ty}, 0.0]
-up       = [0.0, 1.0, 0.0]
-fov_y    = 40.0
-width    = {W}
-height   = {H}
-
-[environment]
-constant = [0.2, 0.25, 0.3]
-
-[render]
-ibl     = "split_sum"
-ssr     = {ssr}
-shadows = true
-msaa    = {msaa}
-
-[[lights]]
-type      = "point"
-position  = [-2.0, 4.0, 2.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[objects]]
-mesh      = "sphere"
-material  = "red"
-translate = [-0.7, 0.55, 0.0]
-scale     = 0.5
-
-[[objects]]
-mesh      = "cube"
-material  = "green"
-translate = [0.8, 0.45, -0.3]
-scale     = 0.4
-rotate_y_deg = 30.0
-
-{floor}
-
-[materials.red]
-model  = "lambert"
-albedo = [0.7, 0.2, 0.15]
-
-[materials.green]
-model  = "lambert"
-albedo = [0.2, 0.6, 0.3]
-
-[materials.floor]
-model   = "mirror"
-fresnel = "none"
-"""
-
-FLOOR = """
-[[objects]]
-mesh     = "plane"
-material = "floor"
-scale    = 3.0
-"""
-
+def ssr_scene(cy, ty, ssr, msaa, floor=True):
+    """A red sphere and a green cube over a mirror floor (``floor``), seen from height ``cy``."""
+    return scene(camera([0.0, cy, 4.2], [0.0, ty, 0.0], 40.0, W, H, up=[0.0, 1.0, 0.0]),
+                 environment(constant=[0.2, 0.25, 0.3]),
+                 render(ibl="split_sum", ssr=ssr, shadows=True, msaa=msaa),
+                 point_light([-2.0, 4.0, 2.5], [30.0, 30.0, 30.0]),
+                 obj("sphere", "red", translate=[-0.7, 0.55, 0.0], scale=0.5),
+                 obj("cube", "green", translate=[0.8, 0.45, -0.3], scale=0.4, rotate_y_deg=30.0),
+                 obj("plane", "floor", scale=3.0) if floor else "",
+                 material("red", **LAMBERT_RED),
+                 material("green", model="lambert", albedo=[0.2, 0.6, 0.3]),
+                 material("floor", **MIRROR_NO_FRESNEL))
 
 def _scene(tmp_path, name, ssr=True, floor=True, mirrored_camera=False, msaa=0):
     cy, ty = (-1.4, -0.4) if mirrored_camera else (1.4, 0.4)
     p = tmp_path / f"{name}.toml"
-    p.write_text(textwrap.dedent(SCENE.format(cy=cy, ty=ty, W=W, H=H, ssr=str(ssr).lower(), msaa=msaa,
-                                              floor=FLOOR if floor else "")))
+    p.write_text(ssr_scene(cy, ty, ssr, msaa, floor))
     return load_scene(str(p))
 
 

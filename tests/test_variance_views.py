@@ -11,7 +11,7 @@ import pytest
 from viewer import variance as V
 from viewer.pathtracer import ReferenceRenderer
 
-from test_strategies import glossy_studio
+from reference_harness import glossy_studio
 
 K, N = 12, 16   # independent seeds, samples per pixel each
 

@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from test_gui import _env, _run_py, display  # noqa: F401 - the fixture is used by name
+from gui_harness import run_py, window_env
 
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb (apt-get install xvfb)")
 
@@ -51,11 +51,11 @@ def _result(r):
     return json.loads(line[-1][len("RESULT "):])
 
 
-def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  # noqa: F811
+def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):
     """One window (its start-up is the slow part): lecture mode at UI scale 2, three key taps
     shorter than a frame, then a split view whose screenshot must equal the view."""
     shot = tmp_path / "split.png"
-    r = _run_py(f"""
+    r = run_py(f"""
         import ctypes, json, time, os
         import numpy as np
         from PIL import Image
@@ -66,10 +66,10 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
         for _ in range(2):
             app.frame()
         lay = app.layout()
-        out = dict(step0=app.lecture_step, plots=app.plots.visible, tab=app.plots.tab,
+        out = dict(step0=app.session.lecture_step, plots=app.plots.visible, tab=app.plots.tab,
                    view_w=lay["view"].w, has_strip="strip" in lay, has_panel="panel" in lay,
                    plots_x=lay["plots"].x if "plots" in lay else None, view_right=lay["view"].right,
-                   prefetch_started=app._prefetch is not None)
+                   prefetch_started=app.session.prefetch is not None)
         # real X key events through XTest, press and release back to back (shorter than a frame)
         x11 = ctypes.CDLL("libX11.so.6"); xtst = ctypes.CDLL("libXtst.so.6")
         x11.XOpenDisplay.restype = ctypes.c_void_p
@@ -83,40 +83,40 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
             xtst.XTestFakeKeyEvent(dpy, right, 1, 0); xtst.XTestFakeKeyEvent(dpy, right, 0, 0)
             x11.XFlush(dpy); time.sleep(0.04)
         t1 = time.time()  # a loaded X server may deliver them a little later: frames until all count
-        while app.lecture_step < 3 and time.time() - t1 < 20:
+        while app.session.lecture_step < 3 and time.time() - t1 < 20:
             app.frame()
         app.frame()
         times["taps"] = time.time() - T0
-        out["step_after_taps"] = app.lecture_step
-        out["status"] = app.status
+        out["step_after_taps"] = app.session.lecture_step
+        out["status"] = app.session.status
         # a split view: the screenshot is the view as drawn (divider, labels, RMSE)
-        app.lecture(None)
+        app.session.lecture(None)
         app.set_ui_scale(1.0)
         app.show_ui = False
         import glfw; glfw.set_window_size(app.window, 640, 360)
-        app.reference_view().engine_request = "cpu"  # the GPU engine's first compile takes a minute on llvmpipe
-        app.set_image_mode("split")
+        app.session.reference_view().engine_request = "cpu"  # the GPU engine's first compile takes a minute on llvmpipe
+        app.session.set_image_mode("split")
         t0 = time.time()
-        while (app._reference is None or app._reference.spp < 2) and time.time() - t0 < 120:
+        while (app.session.reference is None or app.session.reference.spp < 2) and time.time() - t0 < 120:
             app.frame(); time.sleep(0.02)
-        times["ref"] = time.time() - T0; out["engine"] = app._reference.engine
-        rv = app._reference            # a still reference: the view does not change between frames
+        times["ref"] = time.time() - T0; out["engine"] = app.session.reference.engine
+        rv = app.session.reference            # a still reference: the view does not change between frames
         rv.stop(); rv.update = lambda *a, **k: None  # (stop alone lets the next update restart it)
         for _ in range(2):             # and metrics caught up with its last pass (they refresh every 0.5 s)
             time.sleep(0.6); app.frame()
-        app.status = ""; app.TOAST_S = 0.0
+        app.TOAST_S = 0.0  # no toast over the view
         view = app.capture_view().astype(int)
         app.take_screenshot({str(shot)!r})
         png = np.asarray(Image.open({str(shot)!r}).convert("RGB")).astype(int)
         from viewer.io import read_png_text
         text = read_png_text({str(shot)!r})
         state = json.loads(text["brdf-viewer:state"])
-        cut = int(round(png.shape[1] * app.compare.split))
+        cut = int(round(png.shape[1] * app.session.compare.split))
         col = png[60:-60, cut - 1:cut + 2].min(axis=(0, 2)).max()
         # side by side: each half at the view's aspect ratio (whole, letterboxed)
-        app.set_image_mode("side by side")
+        app.session.set_image_mode("side by side")
         vx, vy, vw, vh = app.viewport()
-        rr = app.compare.raster_rect((vx, vy, vw, vh)); ref = app.compare.reference_rect((vx, vy, vw, vh))
+        rr = app.session.compare.raster_rect((vx, vy, vw, vh)); ref = app.session.compare.reference_rect((vx, vy, vw, vh))
         times["shot"] = time.time() - T0
         app.close()
         times["closed"] = time.time() - T0
@@ -142,11 +142,11 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):  #
     assert abs(a_raster - a_view) < 0.02 and abs(a_ref - a_view) < 0.02, res
 
 
-def test_screenshot_to_an_unwritable_path_fails_in_one_line(display, tmp_path):  # noqa: F811
+def test_screenshot_to_an_unwritable_path_fails_in_one_line(display, tmp_path):
     (tmp_path / "file.txt").write_text("x")
     for bad in (tmp_path / "no" / "such" / "folder" / "s.png", "/proc/s.png", tmp_path / "file.txt" / "s.png"):
         r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "2", "--screenshot", str(bad)],
-                           env=_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                           env=window_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
         assert r.returncode == 2, (r.returncode, r.stderr)
         lines = [x for x in r.stderr.splitlines() if x.strip()]
         assert len(lines) == 1 and "--screenshot" in lines[0] and "error" in lines[0], r.stderr

@@ -143,7 +143,7 @@ def _plot_material(name: str, assignments):
     from viewer import brdf
     from viewer.brdf.presets import PRESETS, get_preset
     from viewer.brdf.spec import validate_params
-    from viewer.scene import _INDEX, apply_override
+    from viewer.scene import apply_override, dotted_key
 
     if name.endswith(".binary"):  # a measured BRDF file (MERL format)
         raw = {"model": "measured", "file": name}
@@ -162,7 +162,7 @@ def _plot_material(name: str, assignments):
         if "=" not in a:
             raise ViewerError(f"--set {a}: no '=' in the assignment; allowed: KEY=VALUE with a parameter "
                               "name, e.g. alpha=0.2 or coating.ior=1.3")
-        key = _INDEX.sub(r".\1", a.split("=", 1)[0].strip())  # lobes[0].n = lobes.0.n, as apply_override
+        key = dotted_key(a.split("=", 1)[0])  # lobes[0].n = lobes.0.n, as apply_override
         parts = key.split(".")
         if not all(parts):
             raise ViewerError(f"--set {a}: empty part in {key!r}; allowed: a parameter name, dotted "

@@ -281,12 +281,12 @@ def check_fields_cover_the_code() -> list[str]:
         documented = [f.key for f in SCENE_FIELDS if f.section == section]
         for k in keys:
             if k not in documented:
-                problems.append(f"{section or 'top level'}.{k}: accepted by viewer/scene.py but not in "
+                problems.append(f"{section or 'top level'}.{k}: accepted by viewer/scene/parse.py but not in "
                                 "viewer/docgen.py SCENE_FIELDS (add its type and meaning there)")
         for k in documented:
             if k not in keys:
                 problems.append(f"{section or 'top level'}.{k}: documented in viewer/docgen.py but not accepted "
-                                "by viewer/scene.py")
+                                "by viewer/scene/parse.py")
     return problems
 
 
@@ -319,7 +319,7 @@ def scene_format_md() -> str:
     problems = check_fields_cover_the_code()
     if problems:
         raise RuntimeError("; ".join(problems))
-    out = [HEADER.format(src="viewer/scene.py (validation) and viewer/docgen.py (meanings)"),
+    out = [HEADER.format(src="viewer/scene/parse.py (validation) and viewer/docgen.py (meanings)"),
            "# Scene files\n\n",
            "A scene is a TOML file (or TOML text given to the Python API, or the text chunk of a PNG the viewer "
            "wrote). Units, frames and colours follow [conventions.md](conventions.md). Relative paths resolve "

@@ -63,11 +63,18 @@ _STUDIO = _env('map = "studio"\nintensity = 1.0')
 # the sky model is in cd/m^2 (thousands): scaled so the horizon reads about 0.3 (EV 0)
 _SKY = _env('map = "sky"\nintensity = 0.006')
 
+
+def _one_ball(preset: str) -> str:
+    """One sphere of ``preset`` on the floor under the key light, dim surroundings, no IBL: the
+    setting of the single-lobe steps."""
+    return _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+                  _mat("ball", preset))
+
+
 TOUR: tuple[Step, ...] = (
     Step("lambert", "Lambert",
          "Perfectly diffuse: the same radiance toward every viewer; shading follows cos(theta_i) alone.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
-                _mat("ball", "lecture_lambert")), "polar"),
+         _one_ball("lecture_lambert"), "polar"),
     Step("fresnel", "Mirror and glass with Fresnel",
          "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (the black glass's "
          "rims). The clear ball refracts what lies behind it: "
@@ -85,8 +92,7 @@ TOUR: tuple[Step, ...] = (
                 _FLOOR_MAT, _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("torrance_sparrow", "Torrance-Sparrow with a Blinn-Phong distribution",
          "Microfacets: D (Blinn-Phong), V-cavity shadowing G and Fresnel F shape one highlight over a diffuse base.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
-                _mat("ball", "lecture_torrance_sparrow_blinn")), "polar"),
+         _one_ball("lecture_torrance_sparrow_blinn"), "polar"),
     Step("beckmann_ggx", "Beckmann (left) against GGX (right)",
          "Same alpha = 0.2: GGX's long tail leaves a glow around the highlight; Beckmann falls off quickly.",
          _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("beckmann", -0.75),
@@ -100,12 +106,10 @@ TOUR: tuple[Step, ...] = (
                 _mat("oren_nayar", "lecture_oren_nayar"), _mat("lambert", "lecture_lambert")), "polar"),
     Step("lafortune", "Lafortune's generalized cosine lobes",
          "A forward lobe about the mirror direction plus a retro-reflective lobe, over a diffuse base.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
-                _mat("ball", "lecture_lafortune")), "polar"),
+         _one_ball("lecture_lafortune"), "polar"),
     Step("ashikhmin_shirley", "Ashikhmin-Shirley anisotropy",
          "n_u = 10, n_v = 1000: the highlight stretches across the tangent direction, as on brushed metal.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
-                _mat("ball", "lecture_ashikhmin_shirley")), "lobe"),
+         _one_ball("lecture_ashikhmin_shirley"), "lobe"),
     Step("layered", "Weidlich-Wilkie layered coat",
          "A clear coat over a coloured base: a sharp Fresnel reflection on top of a glossy, tinted layer.",
          _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,

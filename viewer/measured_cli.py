@@ -1,6 +1,6 @@
 """``brdf-viewer fit MEASURED_FILE --model MODEL``: fit an analytic model to a measured BRDF
 (viewer/brdf/fit.py), print the parameters and the error, write the material table (atomically)
-and, optionally, the residual slice (viewer/measured_plot.py)."""
+and, optionally, the residual slice (viewer/plots/measured.py)."""
 
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ def cmd_fit(args) -> int:
     from viewer import brdf, plots
     from viewer.brdf import fit, merl
     from viewer.cli import plot_material
-    from viewer.io import atomic_write_bytes, check_output_path
-    from viewer.scene import material_to_toml
+    from viewer.io import check_output_path
+    from viewer.scene import save_material
 
     out = check_output_path(args.out, (".toml",), "--out")
     res_png = check_output_path(args.residual, (".png",), "--residual") if args.residual else None
@@ -41,8 +41,7 @@ def cmd_fit(args) -> int:
         if name not in spec.names:
             raise ViewerError(f"--fix {name}: not a parameter of {start.model!r}; allowed: {', '.join(spec.names)}")
     r = fit.fit(table, start.model, start=start, fixed=tuple(args.fix))
-    text = material_to_toml(args.name, r.params)
-    atomic_write_bytes(out, text.encode())
+    save_material(args.name, r.params, out)
     shown = ", ".join(f"{k} = {_fmt(r.params[k])}" for k in r.fitted)
     print(f"fitted {start.model} to {args.file} ({r.n_points} entries x 3 channels): {shown}")
     print(f"RMS of (f_model - f_measured) cos theta_i: {r.rms:.4g} /sr (start {r.rms_start:.4g}), "

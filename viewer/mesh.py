@@ -35,6 +35,7 @@ each call returns fresh arrays, so callers may modify them.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import threading
@@ -201,6 +202,31 @@ def _load_file(path: Path, name: str, where: str) -> MeshData:
     return build_mesh(name, positions, normals, faces, uvs, where=where, label=str(path))
 
 
+def _load_scene(trimesh, path: Path, source, ext: str, extra: dict):
+    """What ``trimesh.load_scene(source, file_type=ext, process=False, **extra)`` returns, in
+    its two public steps, plus the names of the geometries whose vertex normals the file
+    supplies. A loaded ``Trimesh`` does not say whether its ``vertex_normals`` came from the
+    file or would be computed from the faces; the format's loader (trimesh's table
+    ``trimesh.exchange.load.mesh_loaders``) returns the file's data as keyword arguments, with
+    ``vertex_normals`` only when the file has them, and ``trimesh.load_scene`` builds the scene
+    from those arguments as it does from a file."""
+    from trimesh.exchange.load import mesh_loaders
+
+    opts = {k: v for k, v in extra.items() if k != "resolver"}
+    resolver = extra.get("resolver") or trimesh.resolvers.FilePathResolver(str(path.absolute()))
+    with (open(source, "rb") if isinstance(source, str) else contextlib.nullcontext(source)) as fh:
+        data = {"process": False, **opts}
+        data.update(mesh_loaders[ext](file_obj=fh, file_type=ext, resolver=resolver, metadata=None,
+                                      process=False, **opts))
+    scene = trimesh.load_scene(data)
+    if "geometry" in data:  # a scene: one set of keyword arguments per geometry name
+        with_normals = {name for name, g in data["geometry"].items()
+                        if isinstance(g, dict) and g.get("vertex_normals") is not None}
+    else:                   # one mesh
+        with_normals = set(scene.geometry) if data.get("vertex_normals") is not None else set()
+    return scene, with_normals
+
+
 def _read_trimesh(path: Path):
     """Read a file with trimesh (no processing) and flatten it into one triangle mesh.
 
@@ -230,7 +256,7 @@ def _read_trimesh(path: Path):
             source = io.BytesIO(raw.decode("latin-1").encode("utf-8"))
             extra["resolver"] = trimesh.resolvers.FilePathResolver(str(path))
     try:
-        scene = trimesh.load_scene(source, file_type=ext, process=False, **extra)
+        scene, with_normals = _load_scene(trimesh, path, source, ext, extra)
     except (UnicodeDecodeError, ImportError):
         raise _BadFile(f"cannot read {ext.upper()} file (neither valid binary data nor UTF-8 text)") from None
     parts = []
@@ -243,14 +269,13 @@ def _read_trimesh(path: Path):
         f = np.asarray(geom.faces, dtype=np.int64).reshape(-1, 3)
         if len(f) == 0 or len(v) == 0:
             continue
-        # The file's own normals are in trimesh's cache only when the file had them (reading
-        # geom.vertex_normals would compute some).
-        cached = geom._cache["vertex_normals"] if "vertex_normals" in geom._cache else None
+        # The file's own normals, where it has them (for a mesh without them trimesh's
+        # vertex_normals would compute some: NaN rows here, our own normals later).
         n = np.full_like(v, np.nan)
-        if cached is not None:
-            cached = np.asarray(cached, dtype=np.float64)
-            if cached.shape == v.shape:
-                n = cached
+        if geom_name in with_normals:
+            given = np.asarray(geom.vertex_normals, dtype=np.float64)
+            if given.shape == v.shape:
+                n = given
         uv = None
         vis_uv = getattr(geom.visual, "uv", None) if getattr(geom.visual, "kind", None) == "texture" else None
         if vis_uv is not None:

@@ -254,8 +254,8 @@ class PlotsPanel:
         """One spectral material (``spectral = "NAME"``): n(lambda) and k(lambda); R(theta, lambda)
         as an image with the RGB colour per angle beside it; the errors of Schlick (with the
         spectral f0) and of the three-wavelength RGB Fresnel against the spectral integral, per
-        channel. The data are ``viewer.spectral_plot.spectral_data``, as in ``plot --kind spectral``."""
-        from viewer.spectral_plot import spectral_data
+        channel. The data are ``viewer.plots.spectral.spectral_data``, as in ``plot --kind spectral``."""
+        from viewer.plots.spectral import spectral_data
 
         have = [n for n in names if plots.spectral_source(materials[n]) is not None]
         missing = [n for n in names if n not in have]

@@ -15,7 +15,7 @@ from viewer import ViewerError, brdf
 from viewer.brdf.spec import Param, Params, validate_value
 
 
-def param_widget(param: Param, value, label_prefix: str = ""):
+def param_widget(param: Param, value, label_prefix: str = "", on_error=None):
     """Draw one widget; return (changed, new_value). The new value is not yet validated."""
     label = f"{param.name}##{label_prefix}{param.name}"
     k = param.kind
@@ -48,7 +48,7 @@ def param_widget(param: Param, value, label_prefix: str = ""):
         new = Params(value.model, dict(value))
         if imgui.tree_node(f"{param.name}##{label_prefix}"):
             for f in param.fields:
-                c, v = param_widget(f, value[f.name], f"{label_prefix}{param.name}.")
+                c, v = param_widget(f, value[f.name], f"{label_prefix}{param.name}.", on_error)
                 if c:
                     new[f.name] = v
                     changed_any = True
@@ -62,7 +62,7 @@ def param_widget(param: Param, value, label_prefix: str = ""):
                 imgui.push_id(f"{label_prefix}lobe{i}")
                 imgui.text(f"lobe {i}")
                 for f in param.fields:
-                    c, v = param_widget(f, lobe[f.name], f"{label_prefix}{i}.")
+                    c, v = param_widget(f, lobe[f.name], f"{label_prefix}{i}.", on_error)
                     if c:
                         new[i][f.name] = v
                         changed_any = True
@@ -73,7 +73,7 @@ def param_widget(param: Param, value, label_prefix: str = ""):
         changed_any = False
         new = value
         if imgui.tree_node(f"{param.name}: {value.model}##{label_prefix}"):
-            c, new = material_editor(value, f"{label_prefix}{param.name}.", nested=True)
+            c, new = material_editor(value, f"{label_prefix}{param.name}.", nested=True, on_error=on_error)
             changed_any = c
             imgui.tree_pop()
         return changed_any, new
@@ -137,12 +137,12 @@ def _roughness_slider(label: str, alpha: float, lo: float, hi: float):
     return changed, float(min(max(r, r_lo), r_hi)) ** 2
 
 
-def material_editor(params: Params, prefix: str, nested: bool = False):
-    """Preset picker, model switch and the model's sliders. Returns (changed, params); messages
-    via last_error. A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
+def material_editor(params: Params, prefix: str, nested: bool = False, on_error=None):
+    """Preset picker, model switch and the model's sliders. Returns (changed, params); a value
+    the spec refuses (NaN, out of range) keeps the old one and its message goes to
+    ``on_error(text)`` (the session's error notification). A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
     an *anisotropic* toggle that reveals alpha_x / alpha_y; parameters that do nothing in the
     chosen variant are hidden (``shown_params``)."""
-    global last_error
     presets = [PRESET_NONE] + preset_names(nested)
     ch, i = imgui.combo(f"preset##{prefix}preset", 0, presets)
     if imgui.is_item_hovered():
@@ -151,7 +151,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False):
         try:
             return True, preset_params(presets[i])
         except ViewerError as e:
-            last_error = str(e)
+            _report(on_error, str(e))
     names = [n for n in brdf.names() if not (nested and brdf.get(n).spec.nests_material)]
     idx = names.index(params.model) if params.model in names else 0
     changed, idx = imgui.combo(f"model##{prefix}model", idx, names)
@@ -193,7 +193,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False):
             lo, hi = p.slider_range
             c, v = _roughness_slider(f"roughness r (perceptual, alpha = r^2)##{prefix}alpha", params[p.name], lo, hi)
         else:
-            c, v = param_widget(p, params[p.name], prefix)
+            c, v = param_widget(p, params[p.name], prefix, on_error)
             if imgui.is_item_hovered() and p.doc:
                 imgui.set_tooltip(f"{p.doc}\n{p.allowed()}" + (f" [{p.unit}]" if p.unit else ""))
         if c:
@@ -201,14 +201,16 @@ def material_editor(params: Params, prefix: str, nested: bool = False):
                 v = validate_value(p, v if p.kind != "rgb" else list(v), f"{params.model}.{p.name}", brdf.lookup_spec) \
                     if p.kind in ("float", "rgb", "choice") else v
             except ViewerError as e:
-                last_error = str(e)
+                _report(on_error, str(e))
                 continue
             new = new.replace(**{p.name: v})
             any_change = True
     return any_change, new
 
 
-last_error = ""
+def _report(on_error, text: str) -> None:
+    if on_error is not None:
+        on_error(text)
 
 
 def finite_or(value: float, old: float) -> float:

@@ -3,7 +3,7 @@
 Mirrors and smooth glass are drawn by a variant of the forward program (``RAYTRACE`` defined;
 shaders/common/specular_chain.glsl) that follows the chain of delta bounces from the camera's
 hit through the scene's triangles: the BVH in float textures of ``viewer.gl.scene_textures``
-(``viewer.pathtracer.bvh_flat``), shared with the GPU reference engine. Every other surface keeps
+(``viewer.geometry.bvh_flat``), shared with the GPU reference engine. Every other surface keeps
 the ordinary program, so ``raytrace = false`` (or a scene with no mirror or smooth glass) renders
 exactly as without this module.
 
@@ -103,7 +103,7 @@ class RayTrace:
 
     def update(self, scene, albedo_tables):
         from viewer.gl.scene_textures import SceneTextures, float_texture
-        from viewer.pathtracer.geometry import build_geometry
+        from viewer.geometry.soup import build_geometry
 
         gkey = tuple((id(o.mesh_data), o.material, o.model_matrix().tobytes()) for o in scene.objects)
         gkey = (gkey, tuple(scene.materials))

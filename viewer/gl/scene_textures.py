@@ -1,6 +1,6 @@
 """The scene's triangles, shading data and BVH as float textures on the GPU (OpenGL 4.1).
 
-``SceneTextures(ctx, geom)`` uploads ``viewer.pathtracer.bvh_flat.flatten_scene(geom)`` once
+``SceneTextures(ctx, geom)`` uploads ``viewer.geometry.bvh_flat.flatten_scene(geom)`` once
 (per geometry change: make a new one, ``release`` the old). ``bind(prog, unit)`` binds the
 three textures to texture units ``unit, unit + 1, unit + 2`` and points the samplers of
 ``shaders/common/bvh.glsl`` (``u_bvh_nodes``, ``u_bvh_tris``, ``u_tri_shading``) at them,
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.gl.shaders import set_uniform
-from viewer.pathtracer.bvh_flat import FlatScene, flatten_scene
+from viewer.geometry.bvh_flat import FlatScene, flatten_scene
 
 SAMPLERS = ("u_bvh_nodes", "u_bvh_tris", "u_tri_shading")
 
@@ -98,7 +98,7 @@ class RayQuery:
         self.vao = ctx.vertex_array(self.prog, [])
 
     def _run(self, scene_tex: SceneTextures, o, d, tmin, tmax, any_hit):
-        from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
+        from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
 
         o = np.asarray(o, np.float64).reshape(-1, 3)
         d = np.asarray(d, np.float64).reshape(-1, 3)

@@ -38,7 +38,7 @@ from viewer import ViewerError
 from viewer.brdf.glsl import generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
-from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
+from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
 from viewer.pathtracer.integrator import RenderSetup, check_options
 
 MAX_MATERIALS = 64                 # pathtrace.frag MAX_MATERIALS

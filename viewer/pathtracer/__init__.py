@@ -1,6 +1,6 @@
-"""The CPU reference path tracer. It never imports GL.
+"""The CPU reference path tracer. It never imports GL. The scene's triangle soup and its BVH
+are in ``viewer.geometry`` (shared with the rasterizer and the GPU engine).
 
-* ``geometry``       the scene as one world-space triangle soup + shading data
 * ``kernel_embree``  ray queries with Embree (``EmbreeKernel``); ``kernel_numba`` the same
                      interface without Embree (``NumbaKernel``)
 * ``envmap``         constant / lat-long environment light with importance sampling

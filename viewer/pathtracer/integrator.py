@@ -55,7 +55,7 @@ import numpy as np
 
 from viewer import brdf
 from viewer.pathtracer.envmap import EnvironmentLight
-from viewer.pathtracer.geometry import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
+from viewer.geometry.soup import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
 
 RR_START_DEPTH = 4          # Russian roulette from the 4th scattering event on ("after 3 bounces")
 RR_MIN, RR_MAX = 0.05, 0.95
@@ -216,8 +216,10 @@ class _Group:
     """The hits of one material at one bounce: indices ``sel`` into the bounce's hits, the
     material, and its shading frames (n, tx, ty), geometric normals ``ng`` and local ``wo``."""
 
-    def __init__(self, sel, info: MaterialInfo, model, wo_l, n, tx, ty, ng):
+    def __init__(self, sel, info: MaterialInfo, model, wo_l, n, tx, ty, ng, mi=None, act=None):
         self.sel, self.info, self.model, self.prm = sel, info, model, info.params
+        self.mi = mi              # the material's index
+        self.act = act            # the paths (indices into the trace's N) of the hits
         self.k = sel.size
         self.two = info.transmissive
         self.wo = wo_l[sel]
@@ -259,7 +261,77 @@ class _Shadows:
         self.c.append(c)
 
 
+class PathState:
+    """The state of the N paths of one trace: radiance ``L`` and throughput ``T`` per channel
+    (RGB, or the spectral integrator's four wavelengths), the medium each is in (``sigma``),
+    and what the last bounce's sample needs for MIS at the environment."""
+
+    def __init__(self, n: int, channels: int):
+        self.L = np.zeros((n, channels))
+        self.T = np.ones((n, channels))
+        self.sigma = np.zeros((n, 3))
+        self.prev_pdf = np.zeros(n)
+        self.prev_lpdf = np.zeros(n)
+        self.prev_delta = np.ones(n, dtype=bool)   # camera rays count as "delta": full environment
+
+
+class _Hits:
+    """The surface points of one bounce's hits in the rasterizer's shading conventions (see the
+    module docstring): points ``p``, winding normals ``ng_raw``, oriented shading normals ``n``
+    with their frames (``tx``, ``ty``), geometric normals ``ng`` on the side of ``n``, local
+    ``wo_l``, ray offsets ``eps``, material indices ``mat`` and whether they transmit."""
+
+    def __init__(self, integrator, d, prim, bu, bv):
+        geom = integrator.geom
+        self.p = hit_points(geom, prim, bu, bv)
+        self.ng_raw = geom.geo_normals[prim]
+        n, tan = interpolate_shading(geom, prim, bu, bv)
+        self.mat = geom.material_index[prim]
+        self.trans = integrator.trans_table[self.mat]
+        flip = (_dot(d, self.ng_raw) > 0) & ~self.trans
+        n = np.where(flip[:, None], -n, n)
+        self.n = n
+        self.ng = self.ng_raw * np.where(_dot(self.ng_raw, n) < 0, -1.0, 1.0)[:, None]
+        self.tx, self.ty = shading_frame(n, tan)
+        wo = -d
+        self.wo_l = np.stack([_dot(wo, self.tx), _dot(wo, self.ty), _dot(wo, n)], axis=1)
+        self.eps = EPS_REL * (1.0 + np.abs(self.p).max(axis=1))
+
+    def groups(self):
+        """Index arrays of the hits per material, in material order."""
+        order = np.argsort(self.mat, kind="stable")
+        bounds = np.flatnonzero(np.diff(self.mat[order])) + 1
+        return [sel for sel in np.split(order, bounds) if sel.size]
+
+    def offset(self, sel, w):
+        """Ray origins at hits ``sel`` leaving along ``w``: ``p + eps n_g`` on the side w leaves."""
+        ng = self.ng[sel]
+        side = np.where(_dot(ng, w) < 0, -1.0, 1.0)
+        return self.p[sel] + (self.eps[sel] * side)[:, None] * ng
+
+
+class _Bounce:
+    """What the material groups of one bounce decide for its M paths: the new direction, the
+    sample's weight per channel, its pdf and light sampling's pdf there (MIS), whether it came
+    from a delta lobe, and whether it left the path to its hero wavelength (spectral only)."""
+
+    def __init__(self, m: int, channels: int):
+        self.dir = np.zeros((m, 3))
+        self.w = np.zeros((m, channels))
+        self.pdf = np.zeros(m)
+        self.lpdf = np.zeros(m)
+        self.delta = np.zeros(m, dtype=bool)
+        self.solo = np.zeros(m, dtype=bool)
+
+
 class Integrator:
+    """The RGB path tracer. The steps of a bounce are methods; the spectral integrator
+    (``spectral.SpectralIntegrator``) runs the same steps on four wavelengths by overriding the
+    hooks marked *channel hook* (how an RGB quantity becomes the path's channels, how a
+    material is evaluated, sampled and its pdf taken)."""
+
+    CHANNELS = 3
+
     def __init__(self, setup: RenderSetup):
         check_options(setup.strategy, setup.mis_heuristic)
         self.s = setup
@@ -269,11 +341,16 @@ class Integrator:
         self.trans_table = np.array([m.transmissive for m in setup.materials] or [False], dtype=bool)
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
-        self.heuristic = HEURISTICS[setup.mis_heuristic]
-        env_on = not setup.env.is_black
+        self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
+
+    def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
+        self.strategy = strategy
+        self.heuristic = HEURISTICS[mis_heuristic]
+        self.russian_roulette = bool(russian_roulette)
+        self.env_on = not self.s.env.is_black
         # which strategies reach the environment (point / directional lights: always NEE)
-        self.env_by_light = env_on and setup.strategy in ("mis", "light")
-        self.env_by_bsdf = env_on and setup.strategy in ("mis", "bsdf")
+        self.env_by_light = self.env_on and strategy in ("mis", "light")
+        self.env_by_bsdf = self.env_on and strategy in ("mis", "bsdf")
 
     # -- helpers
     def _clean(self, a, allow_negative=False):
@@ -297,56 +374,112 @@ class Integrator:
         return o, d
 
     # -- one block of pixels, several samples
+    def _block_streams(self, row0: int, row1: int, samples, seed: int, block_id: int):
+        """The random streams of the block's samples, its pixel count and the camera jitter
+        (the first two numbers of every stream), with the pixels' rows and columns per sample."""
+        W = self.s.width
+        npix = (row1 - row0) * W
+        gens = [philox(seed, block_id, si) for si in samples]
+        pix = np.arange(npix)
+        rows = np.tile(row0 + pix // W, len(gens))
+        cols = np.tile(pix % W, len(gens))
+        jit = np.concatenate([g.random((npix, 2)) for g in gens])
+        return gens, npix, rows, cols, jit
+
+    @staticmethod
+    def _bounce_draws(gens, npix):
+        """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order."""
+        return lambda: np.concatenate([g.random((npix, DIMS_PER_BOUNCE)) for g in gens])
+
     def render_block(self, row0: int, row1: int, samples, seed: int, block_id: int):
         """Render rows [row0, row1) with the given sample indices. Returns (sum, sum of squares)
         of the per-sample radiance, each (row1 - row0, width, 3) float64."""
-        s = self.s
-        W = s.width
-        npix = (row1 - row0) * W
         samples = list(samples)
-        ns = len(samples)
-        gens = [philox(seed, block_id, si) for si in samples]
-        pix = np.arange(npix)
-        rows = row0 + pix // W
-        cols = pix % W
-        jit = np.concatenate([g.random((npix, 2)) for g in gens])
-        o, d = self.camera_rays(np.tile(rows, ns), np.tile(cols, ns), jit)
-        L = self.trace(o, d, lambda: np.concatenate([g.random((npix, DIMS_PER_BOUNCE)) for g in gens]))
-        L = L.reshape(ns, row1 - row0, W, 3)
+        gens, npix, rows, cols, jit = self._block_streams(row0, row1, samples, seed, block_id)
+        o, d = self.camera_rays(rows, cols, jit)
+        L = self.trace(o, d, self._bounce_draws(gens, npix))
+        L = L.reshape(len(samples), row1 - row0, self.s.width, 3)
         return L.sum(axis=0), (L * L).sum(axis=0)
 
+    def trace(self, o, d, draw):
+        """Radiance (N, 3) along the rays (o, d); ``draw()`` returns the random numbers
+        (N, DIMS_PER_BOUNCE) of the next bounce for all N paths."""
+        return self.trace_paths(PathState(o.shape[0], self.CHANNELS), o, d, draw)
+
+    # -- channel hooks (RGB here; the spectral integrator overrides them)
+    def spectrum(self, rgb, paths: PathState, idx):
+        """An RGB quantity (3,) or (k, 3) in the channels of paths ``idx``."""
+        return rgb
+
+    def emission_share(self, g: "_Group", paths: PathState):
+        """A factor on next-event contributions of group ``g`` (None: 1)."""
+        return None
+
+    def eval_directions(self, g: "_Group", paths: PathState, dirs_w):
+        """[(local direction, f in the paths' channels)] for each world direction set in
+        ``dirs_w`` (each (k, 3)) at the hits of ``g``: one model call for all of them."""
+        k = g.k
+        dw = np.concatenate(dirs_w)
+        dl = g.local(dw)
+        f = self._clean(g.model.eval(g.prm, dl, np.tile(g.wo, (len(dirs_w), 1))))
+        return [(dl[j * k:(j + 1) * k], f[j * k:(j + 1) * k]) for j in range(len(dirs_w))]
+
+    def material_pdf(self, g: "_Group", paths: PathState, wi_l):
+        """The pdf of ``g``'s sampling for local directions ``wi_l``."""
+        return self._clean(g.model.pdf(g.prm, wi_l, g.wo))
+
+    def sample_material(self, g: "_Group", paths: PathState, rnd_g):
+        """``g``'s sample: (local wi, weight in the paths' channels (cleaned), raw pdf,
+        hero-only flags or None)."""
+        wi_l, wgt, pdf_s = g.model.sample(g.prm, g.wo, rnd_g)
+        return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None
+
+    def throughput(self, paths: PathState, act, Ta, new: _Bounce):
+        """The paths' throughput after the bounce."""
+        return Ta * new.w
+
     # -- the steps of one bounce
-    def _bsdf_hits_environment(self, L, T, idx, d, prev_pdf, prev_lpdf, prev_delta):
+    def _bsdf_hits_environment(self, paths: PathState, idx, d):
         """BSDF sampling's part: radiance of the environment reached by rays ``d`` of paths
         ``idx``, weighted against light sampling (MIS), fully (BSDF sampling only) or not at all
         (light sampling only: the environment was reached by NEE). A camera ray or a delta
         lobe's discrete sample, which light sampling cannot find, always takes it fully."""
-        Le = self.s.env.eval(d)
-        strategy = self.s.strategy
-        if strategy == "mis":
-            w = np.where(prev_delta[idx], 1.0, self.heuristic(prev_pdf[idx], prev_lpdf[idx]))
-        elif strategy == "bsdf":
+        Le = self.spectrum(self.s.env.eval(d), paths, idx)
+        prev_delta = paths.prev_delta
+        if self.strategy == "mis":
+            w = np.where(prev_delta[idx], 1.0, self.heuristic(paths.prev_pdf[idx], paths.prev_lpdf[idx]))
+        elif self.strategy == "bsdf":
             w = np.ones(idx.size)
         else:
             w = np.where(prev_delta[idx], 1.0, 0.0)
-        L[idx] += T[idx] * Le * w[:, None]
+        paths.L[idx] += paths.T[idx] * Le * w[:, None]
 
-    def _delta_lights(self, p, eps):
+    def _absorb(self, paths: PathState, act, t):
+        """Bouguer attenuation exp(-sigma_a t) of the segment just travelled inside a medium."""
+        sig = paths.sigma[act]
+        inside = np.any(sig > 0, axis=1)
+        if np.any(inside):
+            ia = act[inside]
+            paths.T[ia] *= self.spectrum(np.exp(-sig[inside] * t[inside, None]), paths, ia)
+
+    def _delta_lights(self, hits: _Hits, paths: PathState, act):
         """Per point / directional light: directions to it (M, 3), its arriving radiance term
-        (intensity / r^2 or irradiance) and the shadow ray's length."""
+        (intensity / r^2 or irradiance, in the paths' channels) and the shadow ray's length."""
+        p, eps = hits.p, hits.eps
         M = p.shape[0]
         dirs, vals, tmax = [], [], []
         for kind, a, val in self.s.lights:
+            e = self.spectrum(val, paths, act)
             if kind == "point":
                 dv = a - p
                 r2 = np.maximum(_dot(dv, dv), 1e-300)
                 r = np.sqrt(r2)
                 dirs.append(dv / r[:, None])
-                vals.append(val[None, :] / r2[:, None])
+                vals.append(e / r2[:, None])
                 tmax.append(r - eps)
             else:
                 dirs.append(np.broadcast_to(-a, (M, 3)))
-                vals.append(np.broadcast_to(val, (M, 3)))
+                vals.append(np.broadcast_to(e, (M, self.CHANNELS)))
                 tmax.append(np.full(M, np.inf))
         return dirs, vals, tmax
 
@@ -355,49 +488,44 @@ class Integrator:
         e_dir, e_val, e_pdf = self.s.env.sample(rnd[:, 2:4], n, trans)
         return e_dir, e_val, self._clean(e_pdf)
 
-    def _next_event(self, g: _Group, Tg, act_g, p, eps, lights, env_sample, shadows: _Shadows):
+    def _next_event(self, g: "_Group", paths: PathState, Tg, hits: _Hits, lights, env_sample,
+                    shadows: "_Shadows"):
         """Next-event estimation at the hits of group ``g``: every delta light, and the
         environment sample when light sampling is on (weighted against BSDF sampling under MIS).
         Adds one shadow ray per candidate with a non-zero contribution."""
-        sel, k, model, prm = g.sel, g.k, g.model, g.prm
+        sel, k = g.sel, g.k
         light_dirs, light_vals, light_tmax = lights
         dirs_w = [ld[sel] for ld in light_dirs]
         if env_sample is not None:
             dirs_w.append(env_sample[0][sel])
-        dw = np.concatenate(dirs_w)
-        dl = g.local(dw)
-        f = self._clean(model.eval(prm, dl, np.tile(g.wo, (len(dirs_w), 1))))
-        for j in range(len(dirs_w)):
-            sl = slice(j * k, (j + 1) * k)
-            wl, ww, fj = dl[sl], dw[sl], f[sl]
+        share = self.emission_share(g, paths)
+        for j, (ww, (wl, fj)) in enumerate(zip(dirs_w, self.eval_directions(g, paths, dirs_w))):
             ok = g.valid(wl, ww)
-            c = Tg * fj * np.abs(wl[:, 2])[:, None]
+            cos = np.abs(wl[:, 2]) if share is None else np.abs(wl[:, 2]) * share
+            c = Tg * fj * cos[:, None]
             if j < len(light_dirs):
                 c = c * light_vals[j][sel]
                 tmax = light_tmax[j][sel]
             else:
                 pe = env_sample[2][sel]
                 ok &= pe > 0
-                if self.s.strategy == "mis":
-                    pb = self._clean(model.pdf(prm, wl, g.wo))
+                if self.strategy == "mis":
+                    pb = self.material_pdf(g, paths, wl)
                     wmis = self.heuristic(pe, pb) / np.where(pe > 0, pe, 1.0)
                 else:
                     wmis = 1.0 / np.where(pe > 0, pe, 1.0)
-                c = c * env_sample[1][sel] * wmis[:, None]
+                c = c * self.spectrum(env_sample[1][sel], paths, g.act) * wmis[:, None]
                 tmax = np.full(k, np.inf)
             ok &= np.any(c > 0, axis=1)
             if np.any(ok):
-                ngs = g.ng[ok]
-                side = np.where(_dot(ngs, ww[ok]) < 0, -1.0, 1.0)
-                shadows.add(act_g[ok], p[sel[ok]] + (eps[sel[ok]] * side)[:, None] * ngs, ww[ok],
-                            tmax[ok], c[ok])
+                shadows.add(g.act[ok], hits.offset(sel[ok], ww[ok]), ww[ok], tmax[ok], c[ok])
 
-    def _sample_bsdf(self, g: _Group, rnd_g):
+    def _sample_bsdf(self, g: "_Group", paths: PathState, rnd_g):
         """BSDF sampling at the hits of group ``g``: (world direction, weight f cos / pdf with
-        failed samples 0, pdf, discrete flag: the sample came from a delta lobe)."""
-        model, prm, k = g.model, g.prm, g.k
-        wi_l, wgt, pdf_s = model.sample(prm, g.wo, rnd_g)
-        wgt = self._clean(np.asarray(wgt, dtype=np.float64))
+        failed samples 0, pdf, discrete flag: the sample came from a delta lobe, hero-only
+        flags or None)."""
+        k = g.k
+        wi_l, wgt, pdf_s, hero_only = self.sample_material(g, paths, rnd_g)
         pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
         bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
         if np.any(bad_dir):
@@ -407,15 +535,51 @@ class Integrator:
         if g.info.kind == "delta":
             disc = np.ones(k, dtype=bool)
         elif g.info.kind == "mixed":
-            pe_ = self._clean(model.pdf(prm, wi_l, g.wo))
+            pe_ = self.material_pdf(g, paths, wi_l)
             disc = np.abs(pdf_s - pe_) > 1e-6 * np.maximum(pdf_s, 1e-300)
         else:
             disc = np.zeros(k, dtype=bool)
         wi_w = g.world(wi_l)
         ok = g.valid(wi_l, wi_w) & (pdf_s > 0) & np.any(wgt > 0, axis=1)
-        return wi_w, np.where(ok[:, None], wgt, 0.0), pdf_s, disc
+        return wi_w, np.where(ok[:, None], wgt, 0.0), pdf_s, disc, hero_only
 
-    def _trace_shadows(self, L, shadows: _Shadows):
+    def _scatter(self, g: "_Group", paths: PathState, hits: _Hits, rnd_g, new: _Bounce):
+        """Sample group ``g``'s next directions into ``new``; a transmissive material sets the
+        medium the new direction enters."""
+        sel = g.sel
+        wi_w, wgt, pdf_s, disc, hero_only = self._sample_bsdf(g, paths, rnd_g)
+        new.dir[sel] = wi_w
+        new.w[sel] = wgt
+        new.pdf[sel] = pdf_s
+        new.delta[sel] = disc
+        if hero_only is not None:
+            new.solo[sel] = hero_only
+        if self.env_by_light and self.env_by_bsdf:  # MIS: light sampling's density there
+            new.lpdf[sel] = np.where(disc, 0.0, self.s.env.pdf(wi_w, g.n, np.full(g.k, g.two)))
+        if g.two:
+            inside_next = _dot(hits.ng_raw[sel], wi_w) < 0
+            paths.sigma[g.act] = np.where(inside_next[:, None], g.info.sigma_a, 0.0)
+
+    def _bounce(self, paths: PathState, act, hits: _Hits, rnd) -> _Bounce:
+        """One bounce at the hits of paths ``act``: per material, next-event estimation (shadow
+        rays traced together at the end) and a BSDF sample."""
+        s = self.s
+        Ta = paths.T[act]
+        lights = self._delta_lights(hits, paths, act)
+        env_sample = self._light_sample_environment(rnd, hits.n, hits.trans) if self.env_by_light else None
+        new = _Bounce(act.size, self.CHANNELS)
+        shadows = _Shadows()
+        for sel in hits.groups():
+            mi = int(hits.mat[sel[0]])
+            g = _Group(sel, s.materials[mi], self.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
+                       hits.ng, mi=mi, act=act[sel])
+            if g.info.kind != "delta" and (s.lights or env_sample is not None):
+                self._next_event(g, paths, Ta[sel], hits, lights, env_sample, shadows)
+            self._scatter(g, paths, hits, rnd[sel, 0:2], new)
+        self._trace_shadows(paths.L, shadows)
+        return new
+
+    def _trace_shadows(self, L, shadows: "_Shadows"):
         """Trace every collected shadow ray at once; unoccluded ones add their contribution."""
         if not shadows.idx:
             return
@@ -429,110 +593,57 @@ class Integrator:
     def _roulette(self, Tn, alive, u, depth):
         """Russian roulette from ``RR_START_DEPTH`` on (when enabled): survival probability
         clamp(max throughput), survivors divided by it."""
-        if self.s.russian_roulette and depth >= RR_START_DEPTH:
+        if self.russian_roulette and depth >= RR_START_DEPTH:
             q = np.clip(Tn.max(axis=1), RR_MIN, RR_MAX)
             survive = u < q
             Tn = Tn / q[:, None]
             alive &= survive
         return Tn, alive
 
-    def trace(self, o, d, draw):
-        """Radiance (N, 3) along the rays (o, d); ``draw()`` returns the random numbers
-        (N, DIMS_PER_BOUNCE) of the next bounce for all N paths."""
+    def _continue(self, paths: PathState, act, hits: _Hits, new: _Bounce, u_rr, depth):
+        """The paths' new throughput, MIS memory and rays; returns (o, d, act) of the survivors."""
+        Tn = self.throughput(paths, act, paths.T[act], new)
+        alive = np.any(Tn > 0, axis=1)
+        Tn, alive = self._roulette(Tn, alive, u_rr, depth)
+        paths.T[act] = Tn
+        paths.prev_pdf[act] = new.pdf
+        paths.prev_lpdf[act] = new.lpdf
+        paths.prev_delta[act] = new.delta
+        side = np.where(_dot(hits.ng, new.dir) < 0, -1.0, 1.0)
+        o = (hits.p + (hits.eps * side)[:, None] * hits.ng)[alive]
+        return o, new.dir[alive], act[alive]
+
+    def _final(self, L):
+        """Count and zero NaN / Inf / negative radiance (never expected; see bad_values)."""
+        bad = ~np.isfinite(L) | (L < 0)
+        if np.any(bad):
+            self.bad_values += int(np.count_nonzero(bad))
+            L = np.where(bad, 0.0, L)
+        return L
+
+    def trace_paths(self, paths: PathState, o, d, draw):
+        """Follow the rays (o, d) of ``paths`` to ``max_depth`` scattering events; returns the
+        paths' radiance in their channels."""
         s = self.s
-        geom = self.geom
-        env = s.env
-        N = o.shape[0]
-        L = np.zeros((N, 3))
-        T = np.ones((N, 3))
-        sigma = np.zeros((N, 3))
-        prev_pdf = np.zeros(N)
-        prev_lpdf = np.zeros(N)
-        prev_delta = np.ones(N, dtype=bool)   # camera rays count as "delta": full environment
-        act = np.arange(N)
-        # a camera ray or delta bounce reaches the environment even with BSDF sampling off
-        env_on = not env.is_black
+        act = np.arange(o.shape[0])
         for depth in range(1, s.max_depth + 2):
             if act.size == 0:
                 break
             rnd_all = draw() if depth <= s.max_depth else None
             t, prim, bu, bv = self.kernel.intersect(o, d, 0.0, np.inf)
             miss = prim < 0
-            if env_on and np.any(miss):
-                self._bsdf_hits_environment(L, T, act[miss], d[miss], prev_pdf, prev_lpdf, prev_delta)
+            # a camera ray or delta bounce reaches the environment even with BSDF sampling off
+            if self.env_on and np.any(miss):
+                self._bsdf_hits_environment(paths, act[miss], d[miss])
             if depth > s.max_depth:
                 break
             hit = ~miss
-            act, o, d, t, prim, bu, bv = act[hit], o[hit], d[hit], t[hit], prim[hit], bu[hit], bv[hit]
+            act, d, t, prim, bu, bv = act[hit], d[hit], t[hit], prim[hit], bu[hit], bv[hit]
             if act.size == 0:
                 break
-            # Bouguer attenuation of the segment just travelled inside a medium
-            sig = sigma[act]
-            inside = np.any(sig > 0, axis=1)
-            if np.any(inside):
-                ia = act[inside]
-                T[ia] *= np.exp(-sig[inside] * t[inside, None])
+            self._absorb(paths, act, t)
             rnd = rnd_all[act]
-            p = hit_points(geom, prim, bu, bv)
-            ng_raw = geom.geo_normals[prim]
-            n, tan = interpolate_shading(geom, prim, bu, bv)
-            mat = geom.material_index[prim]
-            trans = self.trans_table[mat]
-            flip = (_dot(d, ng_raw) > 0) & ~trans
-            n = np.where(flip[:, None], -n, n)
-            ng = ng_raw * np.where(_dot(ng_raw, n) < 0, -1.0, 1.0)[:, None]
-            tx, ty = shading_frame(n, tan)
-            wo = -d
-            wo_l = np.stack([_dot(wo, tx), _dot(wo, ty), _dot(wo, n)], axis=1)
-            eps = EPS_REL * (1.0 + np.abs(p).max(axis=1))
-            M = act.size
-            Ta = T[act]
-
-            lights = self._delta_lights(p, eps)
-            env_sample = self._light_sample_environment(rnd, n, trans) if self.env_by_light else None
-            new_dir = np.zeros((M, 3))
-            new_w = np.zeros((M, 3))
-            new_pdf = np.zeros(M)
-            new_lpdf = np.zeros(M)
-            new_delta = np.zeros(M, dtype=bool)
-            shadows = _Shadows()
-
-            order = np.argsort(mat, kind="stable")
-            bounds = np.flatnonzero(np.diff(mat[order])) + 1
-            for sel in np.split(order, bounds):
-                if sel.size == 0:
-                    continue
-                mi = int(mat[sel[0]])
-                g = _Group(sel, s.materials[mi], self.models[mi], wo_l, n, tx, ty, ng)
-                if g.info.kind != "delta" and (s.lights or env_sample is not None):
-                    self._next_event(g, Ta[sel], act[sel], p, eps, lights, env_sample, shadows)
-                wi_w, wgt, pdf_s, disc = self._sample_bsdf(g, rnd[sel, 0:2])
-                new_dir[sel] = wi_w
-                new_w[sel] = wgt
-                new_pdf[sel] = pdf_s
-                new_delta[sel] = disc
-                if self.env_by_light and self.env_by_bsdf:  # MIS: light sampling's density there
-                    new_lpdf[sel] = np.where(disc, 0.0, env.pdf(wi_w, g.n, np.full(g.k, g.two)))
-                if g.two:
-                    inside_next = _dot(ng_raw[sel], wi_w) < 0
-                    sigma[act[sel]] = np.where(inside_next[:, None], g.info.sigma_a, 0.0)
-
-            self._trace_shadows(L, shadows)
-
-            # ---- continue
-            Tn = Ta * new_w
-            alive = np.any(Tn > 0, axis=1)
-            Tn, alive = self._roulette(Tn, alive, rnd[:, 4], depth)
-            T[act] = Tn
-            prev_pdf[act] = new_pdf
-            prev_lpdf[act] = new_lpdf
-            prev_delta[act] = new_delta
-            side = np.where(_dot(ng, new_dir) < 0, -1.0, 1.0)
-            o = (p + (eps * side)[:, None] * ng)[alive]
-            d = new_dir[alive]
-            act = act[alive]
-        bad = ~np.isfinite(L) | (L < 0)
-        if np.any(bad):
-            self.bad_values += int(np.count_nonzero(bad))
-            L = np.where(bad, 0.0, L)
-        return L
+            hits = _Hits(self, d, prim, bu, bv)
+            new = self._bounce(paths, act, hits, rnd)
+            o, d, act = self._continue(paths, act, hits, new, rnd[:, 4], depth)
+        return self._final(paths.L)

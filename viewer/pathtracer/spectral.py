@@ -34,9 +34,7 @@ import numpy as np
 
 from viewer import spectral
 from viewer.brdf.spec import Params
-from viewer.pathtracer.integrator import (
-    DIMS_PER_BOUNCE, EPS_REL, RR_MAX, RR_MIN, RR_START_DEPTH, Integrator, _dot, _power, philox)
-from viewer.pathtracer.geometry import hit_points, interpolate_shading, shading_frame
+from viewer.pathtracer.integrator import Integrator, PathState
 
 N_BINS = 420
 STRIDE = N_BINS // 4
@@ -108,8 +106,23 @@ def params_at(p, lam3) -> Params:
     return Params(p.model, out)
 
 
+class SpectralPaths(PathState):
+    """``PathState`` with four wavelength bins ``lam`` (N, 4) per path, its hero index ``hero``
+    (N,) and whether the path has been reduced to its hero (``solo``: T holds the hero alone)."""
+
+    def __init__(self, lam, hero):
+        super().__init__(lam.shape[0], 4)
+        self.lam = lam
+        self.hero = hero
+        self.solo = np.zeros(lam.shape[0], dtype=bool)
+
+
 class SpectralIntegrator(Integrator):
-    """``Integrator`` with four wavelengths per path instead of RGB channels."""
+    """``Integrator`` with four wavelengths per path instead of RGB channels: the same steps,
+    with the channel hooks below, so the setup's ``strategy``, ``mis_heuristic`` and
+    ``russian_roulette`` apply to it as to the RGB estimator."""
+
+    CHANNELS = 4
 
     def __init__(self, setup):
         super().__init__(setup)
@@ -143,29 +156,62 @@ class SpectralIntegrator(Integrator):
         return self._cache[ck]
 
     def render_block(self, row0, row1, samples, seed, block_id):
-        s = self.s
-        W = s.width
-        npix = (row1 - row0) * W
         samples = list(samples)
-        ns = len(samples)
-        gens = [philox(seed, block_id, si) for si in samples]
-        pix = np.arange(npix)
-        rows = row0 + pix // W
-        cols = pix % W
-        jit = np.concatenate([g.random((npix, 2)) for g in gens])
+        gens, npix, rows, cols, jit = self._block_streams(row0, row1, samples, seed, block_id)
         lam_u = np.concatenate([g.random((npix, 2)) for g in gens])
         c = np.minimum((lam_u[:, 0] * STRIDE).astype(np.int64), STRIDE - 1)
         hero = np.minimum((lam_u[:, 1] * 4).astype(np.int64), 3)
         lam = c[:, None] + STRIDE * np.arange(4)[None, :]
-        o, d = self.camera_rays(np.tile(rows, ns), np.tile(cols, ns), jit)
-        Ls = self.trace_spectral(o, d, lam, hero,
-                                 lambda: np.concatenate([g.random((npix, DIMS_PER_BOUNCE)) for g in gens]))
+        o, d = self.camera_rays(rows, cols, jit)
+        Ls = self.trace_spectral(o, d, lam, hero, self._bounce_draws(gens, npix))
         rgb = (N_BINS / 4.0) * np.einsum("nj,njc->nc", Ls, self.w_bins[lam])
-        rgb = rgb.reshape(ns, row1 - row0, W, 3)
+        rgb = rgb.reshape(len(samples), row1 - row0, self.s.width, 3)
         return rgb.sum(axis=0), (rgb * rgb).sum(axis=0)
 
     def trace(self, o, d, draw):  # pragma: no cover - the RGB entry point is not this class's
         raise NotImplementedError("SpectralIntegrator traces wavelengths: use render_block")
+
+    def trace_spectral(self, o, d, lam, hero, draw):
+        """Spectral radiance (N, 4) at the wavelengths ``lam`` (N, 4) of each path."""
+        return self.trace_paths(SpectralPaths(lam, hero), o, d, draw)
+
+    # -- the channel hooks of Integrator's steps
+    def spectrum(self, rgb, paths, idx):
+        return self.up(rgb, paths.lam[idx])
+
+    def emission_share(self, g, paths):
+        # a hero-only evaluation stands for all four wavelengths (4x) unless the path is
+        # already reduced to its hero (its throughput holds the 4x)
+        if self.category[g.mi] != "hero":
+            return None
+        return np.where(paths.solo[g.act], 1.0, HERO)
+
+    def eval_directions(self, g, paths, dirs_w):
+        lam_s, hero_s, cat = paths.lam[g.act], paths.hero[g.act], self.category[g.mi]
+        out = []
+        for ww in dirs_w:
+            wl = g.local(ww)
+            out.append((wl, self._eval4(g.mi, g.model, g.prm, cat, lam_s, hero_s, wl, g.wo)))
+        return out
+
+    def material_pdf(self, g, paths, wi_l):
+        return self._pdf4(g.mi, g.model, self.category[g.mi], paths.lam[g.act], paths.hero[g.act],
+                          wi_l, g.wo)
+
+    def sample_material(self, g, paths, rnd_g):
+        return self._sample4(g.mi, g.model, g.info, self.category[g.mi], paths.lam[g.act],
+                             paths.hero[g.act], g.wo, rnd_g)
+
+    def throughput(self, paths, act, Ta, new):
+        # a path that becomes hero-only: the model weighted only the hero's channel; the hero
+        # now carries the four wavelengths' share (4x), the others are terminated
+        was_solo = paths.solo[act]
+        became = new.solo & ~was_solo
+        Tn = Ta * new.w
+        if np.any(became):
+            Tn[became] *= HERO
+        paths.solo[act] = was_solo | new.solo
+        return Tn
 
     # -- evaluation of one material group at the paths' wavelengths
     def _eval4(self, mi, model, prm, cat, lam, hero, wi, wo):
@@ -229,205 +275,6 @@ class SpectralIntegrator(Integrator):
             wi[g], pdf[g] = w_g, pg
             wgt4[g, hero[g]] = wg[:, 0]
         return wi, wgt4, pdf, np.ones(k, dtype=bool)
-
-    def trace_spectral(self, o, d, lam, hero, draw):
-        """Spectral radiance (N, 4) at the wavelengths ``lam`` (N, 4) of each path."""
-        s = self.s
-        geom = self.geom
-        env = s.env
-        env_on = not env.is_black
-        N = o.shape[0]
-        L = np.zeros((N, 4))
-        T = np.ones((N, 4))
-        solo = np.zeros(N, dtype=bool)       # secondaries terminated: T holds the hero alone
-        sigma = np.zeros((N, 3))
-        prev_pdf = np.zeros(N)
-        prev_lpdf = np.zeros(N)
-        prev_delta = np.ones(N, dtype=bool)
-        act = np.arange(N)
-        lights = s.lights
-        for depth in range(1, s.max_depth + 2):
-            if act.size == 0:
-                break
-            rnd_all = draw() if depth <= s.max_depth else None
-            t, prim, bu, bv = self.kernel.intersect(o, d, 0.0, np.inf)
-            miss = prim < 0
-            if env_on and np.any(miss):
-                idx = act[miss]
-                Le = self.up(env.eval(d[miss]), lam[idx])
-                w = np.where(prev_delta[idx], 1.0, _power(prev_pdf[idx], prev_lpdf[idx]))
-                L[idx] += T[idx] * Le * w[:, None]
-            if depth > s.max_depth:
-                break
-            hit = ~miss
-            act, o, d, t, prim, bu, bv = act[hit], o[hit], d[hit], t[hit], prim[hit], bu[hit], bv[hit]
-            if act.size == 0:
-                break
-            sig = sigma[act]
-            inside = np.any(sig > 0, axis=1)
-            if np.any(inside):
-                ia = act[inside]
-                T[ia] *= self.up(np.exp(-sig[inside] * t[inside, None]), lam[ia])
-            rnd = rnd_all[act]
-            p = hit_points(geom, prim, bu, bv)
-            ng_raw = geom.geo_normals[prim]
-            n, tan = interpolate_shading(geom, prim, bu, bv)
-            mat = geom.material_index[prim]
-            trans = self.trans_table[mat]
-            flip = (_dot(d, ng_raw) > 0) & ~trans
-            n = np.where(flip[:, None], -n, n)
-            ng = ng_raw * np.where(_dot(ng_raw, n) < 0, -1.0, 1.0)[:, None]
-            tx, ty = shading_frame(n, tan)
-            wo = -d
-            wo_l = np.stack([_dot(wo, tx), _dot(wo, ty), _dot(wo, n)], axis=1)
-            eps = EPS_REL * (1.0 + np.abs(p).max(axis=1))
-            M = act.size
-            Ta = T[act]
-            lam_a, hero_a = lam[act], hero[act]
-
-            light_dirs, light_vals, light_tmax = [], [], []
-            for kind, a, val in lights:
-                if kind == "point":
-                    dv = a - p
-                    r2 = np.maximum(_dot(dv, dv), 1e-300)
-                    r = np.sqrt(r2)
-                    light_dirs.append(dv / r[:, None])
-                    light_vals.append(self.up(val, lam_a) / r2[:, None])
-                    light_tmax.append(r - eps)
-                else:
-                    light_dirs.append(np.broadcast_to(-a, (M, 3)))
-                    light_vals.append(self.up(val, lam_a))
-                    light_tmax.append(np.full(M, np.inf))
-            if env_on:
-                e_dir, e_val, e_pdf = env.sample(rnd[:, 2:4], n, trans)
-                e_pdf = self._clean(e_pdf)
-            new_dir = np.zeros((M, 3))
-            new_w = np.zeros((M, 4))
-            new_pdf = np.zeros(M)
-            new_lpdf = np.zeros(M)
-            new_delta = np.zeros(M, dtype=bool)
-            new_solo = np.zeros(M, dtype=bool)
-            sh_idx, sh_o, sh_d, sh_tmax, sh_c = [], [], [], [], []
-
-            order = np.argsort(mat, kind="stable")
-            bounds = np.flatnonzero(np.diff(mat[order])) + 1
-            for sel in np.split(order, bounds):
-                if sel.size == 0:
-                    continue
-                mi = int(mat[sel[0]])
-                info = s.materials[mi]
-                model = self.models[mi]
-                cat = self.category[mi]
-                prm = info.params
-                k = sel.size
-                wo_s = wo_l[sel]
-                ns_, txs, tys, ngs = n[sel], tx[sel], ty[sel], ng[sel]
-                two = info.transmissive
-                lam_s, hero_s = lam_a[sel], hero_a[sel]
-                # a hero-only evaluation stands for all four wavelengths (4x) unless the path is
-                # already reduced to its hero (its throughput holds the 4x)
-                share = np.where(solo[act[sel]], 1.0, HERO) if cat == "hero" else np.ones(k)
-
-                def local(w):
-                    return np.stack([_dot(w, txs), _dot(w, tys), _dot(w, ns_)], axis=1)
-
-                def valid(wl, ww):
-                    g = _dot(ngs, ww)
-                    if two:
-                        return wl[:, 2] * g > 0
-                    return (wl[:, 2] > 0) & (g > 0)
-
-                if info.kind != "delta" and (lights or env_on):
-                    dirs_w = [ld[sel] for ld in light_dirs]
-                    if env_on:
-                        dirs_w.append(e_dir[sel])
-                    for j, ww in enumerate(dirs_w):
-                        wl = local(ww)
-                        fj = self._eval4(mi, model, prm, cat, lam_s, hero_s, wl, wo_s)
-                        ok = valid(wl, ww)
-                        c = Ta[sel] * fj * (np.abs(wl[:, 2]) * share)[:, None]
-                        if j < len(lights):
-                            c = c * light_vals[j][sel]
-                            tmax = light_tmax[j][sel]
-                        else:
-                            pb = self._pdf4(mi, model, cat, lam_s, hero_s, wl, wo_s)
-                            pe = e_pdf[sel]
-                            ok &= pe > 0
-                            wmis = _power(pe, pb) / np.where(pe > 0, pe, 1.0)
-                            c = c * self.up(e_val[sel], lam_s) * wmis[:, None]
-                            tmax = np.full(k, np.inf)
-                        ok &= np.any(c > 0, axis=1)
-                        if np.any(ok):
-                            side = np.where(_dot(ngs[ok], ww[ok]) < 0, -1.0, 1.0)
-                            sh_idx.append(act[sel[ok]])
-                            sh_o.append(p[sel[ok]] + (eps[sel[ok]] * side)[:, None] * ngs[ok])
-                            sh_d.append(ww[ok])
-                            sh_tmax.append(tmax[ok])
-                            sh_c.append(c[ok])
-
-                wi_l, wgt, pdf_s, hero_only = self._sample4(mi, model, info, cat, lam_s, hero_s, wo_s,
-                                                            rnd[sel, 0:2])
-                pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
-                bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
-                if np.any(bad_dir):
-                    self.bad_values += int(np.count_nonzero(bad_dir))
-                    wi_l = np.where(bad_dir[:, None], np.array([0.0, 0.0, 1.0]), wi_l)
-                    wgt = np.where(bad_dir[:, None], 0.0, wgt)
-                if info.kind == "delta":
-                    disc = np.ones(k, dtype=bool)
-                elif info.kind == "mixed":
-                    pe_ = self._pdf4(mi, model, cat, lam_s, hero_s, wi_l, wo_s)
-                    disc = np.abs(pdf_s - pe_) > 1e-6 * np.maximum(pdf_s, 1e-300)
-                else:
-                    disc = np.zeros(k, dtype=bool)
-                wi_w = wi_l[:, :1] * txs + wi_l[:, 1:2] * tys + wi_l[:, 2:3] * ns_
-                ok = valid(wi_l, wi_w) & (pdf_s > 0) & np.any(wgt > 0, axis=1)
-                new_dir[sel] = wi_w
-                new_w[sel] = np.where(ok[:, None], wgt, 0.0)
-                new_pdf[sel] = pdf_s
-                new_delta[sel] = disc
-                new_solo[sel] = hero_only
-                if env_on:
-                    new_lpdf[sel] = np.where(disc, 0.0, env.pdf(wi_w, ns_, np.full(k, two)))
-                if two:
-                    inside_next = _dot(ng_raw[sel], wi_w) < 0
-                    sigma[act[sel]] = np.where(inside_next[:, None], info.sigma_a, 0.0)
-
-            if sh_idx:
-                idx = np.concatenate(sh_idx)
-                blocked = self.kernel.occluded(np.concatenate(sh_o), np.concatenate(sh_d), 0.0,
-                                               np.concatenate(sh_tmax))
-                c = np.concatenate(sh_c)
-                free = ~blocked
-                np.add.at(L, idx[free], c[free])
-
-            # a path that becomes hero-only: the model weighted only the hero's channel; the hero
-            # now carries the four wavelengths' share (4x), the others are terminated
-            was_solo = solo[act]
-            became = new_solo & ~was_solo
-            Tn = Ta * new_w
-            if np.any(became):
-                Tn[became] *= HERO
-            solo[act] = was_solo | new_solo
-            alive = np.any(Tn > 0, axis=1)
-            if depth >= RR_START_DEPTH:
-                q = np.clip(Tn.max(axis=1), RR_MIN, RR_MAX)
-                survive = rnd[:, 4] < q
-                Tn = Tn / q[:, None]
-                alive &= survive
-            T[act] = Tn
-            prev_pdf[act] = new_pdf
-            prev_lpdf[act] = new_lpdf
-            prev_delta[act] = new_delta
-            side = np.where(_dot(ng, new_dir) < 0, -1.0, 1.0)
-            o = (p + (eps * side)[:, None] * ng)[alive]
-            d = new_dir[alive]
-            act = act[alive]
-        bad = ~np.isfinite(L) | (L < 0)
-        if np.any(bad):
-            self.bad_values += int(np.count_nonzero(bad))
-            L = np.where(bad, 0.0, L)
-        return L
 
     def _pdf4(self, mi, model, cat, lam, hero, wi, wo):
         """The pdf the group's sampling used (the same parameters as ``_sample4``)."""

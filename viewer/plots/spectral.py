@@ -4,7 +4,7 @@ Schlick's approximation with the spectral f0, and the three-wavelength approxima
 Fresnel of n + i k sampled at 650 / 550 / 450 nm, what RGB renderers usually do).
 
 Data: ``spectral_data(p)``; the figure: ``spectral_figure``; drawing: ``draw_spectral`` (Pillow,
-through ``viewer.plots``' canvas).
+through ``viewer.plots.canvas``).
 """
 
 from __future__ import annotations
@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import ViewerError, spectral
+from viewer.plots.canvas import CHANNEL_COLOURS, colormap, nice_ceil, nice_ticks, tick_label
+from viewer.plots.figures import Curve, Figure
 
 WAVELENGTHS_NM = np.arange(360.0, 781.0, 5.0)
 THETA_DEG = np.linspace(0.0, 90.0, 91)
@@ -58,25 +60,22 @@ def spectral_data(p_or_name) -> dict:
 
 
 def spectral_figure(p, label: str, sub: str):
-    from viewer import plots
-
     d = spectral_data(p)
     curves = []
     for lab, arr, style in (("Schlick - spectral", d["err_schlick"], "solid"),
                             ("3 wavelengths - spectral", d["err_three"], "dashed")):
         for c in range(3):
-            curves.append(plots.Curve(f"{lab} ({'rgb'[c]})", d["theta"], arr[:, c],
-                                      plots.CHANNEL_COLOURS[c], style))
+            curves.append(Curve(f"{lab} ({'rgb'[c]})", d["theta"], arr[:, c], CHANNEL_COLOURS[c], style))
     notes = [f"{d['name']} ({d['description']}): {d['source'][:110]}",
              f"max |error| over angles and channels: Schlick {d['max_err_schlick']:.3f}, "
              f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}; "
              f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}"]
     emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3)
-    return plots.Figure("spectral", p.model, p, f"{label}: spectral Fresnel reflectance of {d['name']}",
-                        "angle of incidence (deg)", "RGB error", curves, [], (0.0, 90.0),
-                        (-emax * 1.1, emax * 1.1), sub, notes,
-                        {k: d[k] for k in ("name", "wavelength_nm", "n", "k", "theta", "R", "rgb",
-                                           "max_err_schlick", "max_err_three", "conductor")})
+    return Figure("spectral", p.model, p, f"{label}: spectral Fresnel reflectance of {d['name']}",
+                  "angle of incidence (deg)", "RGB error", curves, [], (0.0, 90.0),
+                  (-emax * 1.1, emax * 1.1), sub, notes,
+                  {k: d[k] for k in ("name", "wavelength_nm", "n", "k", "theta", "R", "rgb",
+                                     "max_err_schlick", "max_err_three", "conductor")})
 
 
 def _srgb(rgb):
@@ -86,8 +85,6 @@ def _srgb(rgb):
 
 
 def _axes(cv, box, xr, yr, xlabel, ylabel, title):
-    from viewer import plots
-
     x0, y0, x1, y1 = box
     d = cv.draw
 
@@ -95,15 +92,15 @@ def _axes(cv, box, xr, yr, xlabel, ylabel, title):
         return (x0 + (np.asarray(x) - xr[0]) / (xr[1] - xr[0]) * (x1 - x0),
                 y1 - (np.asarray(y) - yr[0]) / (yr[1] - yr[0]) * (y1 - y0))
 
-    xt, yt = plots.nice_ticks(xr[0], xr[1], 5), plots.nice_ticks(yr[0], yr[1], 4)
+    xt, yt = nice_ticks(xr[0], xr[1], 5), nice_ticks(yr[0], yr[1], 4)
     for v in xt:
         px, _ = to_px(v, yr[0])
         d.line([(px, y1), (px, y1 + cv.s(4))], fill=(60, 60, 60), width=cv.s(1))
-        cv.text((px, y1 + cv.s(6)), plots.tick_label(v, xt), px=11, anchor="ma")
+        cv.text((px, y1 + cv.s(6)), tick_label(v, xt), px=11, anchor="ma")
     for v in yt:
         _, py = to_px(xr[0], v)
         d.line([(x0, py), (x1, py)], fill=(235, 235, 235), width=cv.s(1))
-        cv.text((x0 - cv.s(6), py), plots.tick_label(v, yt), px=11, anchor="rm")
+        cv.text((x0 - cv.s(6), py), tick_label(v, yt), px=11, anchor="rm")
     d.rectangle([x0, y0, x1, y1], outline=(60, 60, 60), width=cv.s(1))
     cv.text(((x0 + x1) / 2, y1 + cv.s(22)), xlabel, px=12, anchor="ma")
     cv.text((x0, y0 - cv.s(16)), f"{title}   ({ylabel})", px=12, anchor="la")
@@ -115,15 +112,13 @@ def draw_spectral(cv, fig, width, height):
     right), the errors of the RGB shortcuts vs theta (bottom)."""
     from PIL import Image
 
-    from viewer import plots
-
     info = fig.info
     lam, n, k = np.asarray(info["wavelength_nm"]), np.asarray(info["n"]), np.asarray(info["k"])
     top = 58 + 14 * len(fig.notes) + 20
     mid = top + (height - top) * 0.52
     # n, k
     box = (cv.s(60), cv.s(top), cv.s(width * 0.45), cv.s(mid - 34))
-    vmax = plots.nice_ceil(max(float(n.max()), float(k.max()), 1.0) * 1.05)
+    vmax = nice_ceil(max(float(n.max()), float(k.max()), 1.0) * 1.05)
     to_px = _axes(cv, box, (lam[0], lam[-1]), (0.0, vmax), "wavelength (nm)", "n solid, k dashed",
                   "index of refraction")
     for arr, style in ((n, "solid"), (k, "dashed")):
@@ -132,7 +127,7 @@ def draw_spectral(cv, fig, width, height):
     # R(theta, lambda) image: lambda across, theta down; swatch column on the right
     x0, y0, x1, y1 = cv.s(width * 0.55), cv.s(top), cv.s(width - 90), cv.s(mid - 34)
     R = np.asarray(info["R"])
-    img = np.clip(plots.colormap(R[::-1]), 0, 255).astype(np.uint8)       # row 0 = 90 degrees
+    img = np.clip(colormap(R[::-1]), 0, 255).astype(np.uint8)       # row 0 = 90 degrees
     im = Image.fromarray(img).resize((int(x1 - x0), int(y1 - y0)), Image.NEAREST)
     cv.im.paste(im, (int(x0), int(y0)))
     _axes(cv, (x0, y0, x1, y1), (lam[0], lam[-1]), (0.0, 90.0), "wavelength (nm)",

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf import merl
+from viewer.plots.figures import Figure
+from viewer.plots.kinds import LUMINANCE
 
 PHI_D = 0.5 * np.pi
 
@@ -38,22 +40,20 @@ def slice_data(p, overlay=None, n_d: int = 90) -> dict:
 
 
 def slice_figure(p, label: str, sub: str, overlay=None):
-    from viewer import plots
-
     d = slice_data(p, overlay)
-    lum = d["f"] @ plots.LUMINANCE
+    lum = d["f"] @ LUMINANCE
     notes = [f"phi_d = 90 deg; columns: the MERL theta_h bins (sqrt mapping), rows: theta_d; "
              f"max f = {float(lum.max()):.4g} /sr (luminance); colour: RGB of log(1 + f) / log(1 + max f)"]
     info = {"theta_h": d["theta_h"], "theta_d": d["theta_d"], "f": d["f"], "valid": d["valid"]}
     if overlay is not None:
-        r = d["residual"] @ plots.LUMINANCE
+        r = d["residual"] @ LUMINANCE
         rms = float(np.sqrt(np.mean(r[d["valid"]] ** 2)))
         notes.append(f"right: residual ({overlay.model} - {p.model}) cos theta_i (luminance), RMS {rms:.3g}; "
                      f"red: the model reflects more, blue: less")
         info.update(residual=d["residual"], overlay_model=overlay.model, overlay_params=overlay.to_plain(),
                     residual_rms=rms)
-    return plots.Figure("slice", p.model, p, f"{label}: Rusinkiewicz slice f(theta_h, theta_d)",
-                        "theta_h (deg)", "theta_d (deg)", [], [], (0.0, 90.0), (0.0, 90.0), sub, notes, info)
+    return Figure("slice", p.model, p, f"{label}: Rusinkiewicz slice f(theta_h, theta_d)",
+                  "theta_h (deg)", "theta_d (deg)", [], [], (0.0, 90.0), (0.0, 90.0), sub, notes, info)
 
 
 def _image(cv, box, rgb):

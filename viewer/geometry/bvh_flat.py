@@ -6,7 +6,7 @@ as they are and ``shaders/common/bvh.glsl`` reads with ``texelFetch`` (texel ``i
 ``(i % TEX_WIDTH, i // TEX_WIDTH)``). Integers travel as the bits of a float
 (``floatBitsToInt`` in GLSL), so every index is exact.
 
-The tree is the numba kernel's binned SAH build (``kernel_numba.build_bvh``); the triangles
+The tree is the binned SAH build of ``viewer.geometry.bvh_build.build_bvh``; the triangles
 are stored in its leaf order, so a leaf's triangles are contiguous and a hit names the
 *reordered* index ``k`` (``prim_id[k]`` is the index in ``geom``).
 
@@ -63,7 +63,7 @@ def int_bits(a) -> np.ndarray:
 
 def flatten_bvh(triangles: np.ndarray):
     """(nodes texels (2M, 4), order (T,), depth) for (T, 3, 3) corners (T >= 1)."""
-    from viewer.pathtracer.kernel_numba import build_bvh
+    from viewer.geometry.bvh_build import build_bvh
 
     bounds, child, first, count, order, depth = build_bvh(triangles)
     if depth >= STACK_SIZE - 1:
@@ -83,7 +83,7 @@ def flatten_bvh(triangles: np.ndarray):
 
 
 def flatten_scene(geom) -> FlatScene:
-    """The textures' contents for a ``viewer.pathtracer.geometry.SceneGeometry``."""
+    """The textures' contents for a ``viewer.geometry.soup.SceneGeometry``."""
     T = geom.n_triangles
     if T == 0:
         # an empty scene: a root leaf with no triangles and an empty box (every ray misses)

@@ -1,0 +1,31 @@
+"""Shared helpers for the window tests (test_gui, test_classroom, test_window_views,
+test_monte_carlo_gui, test_soak): the environment a window subprocess runs in and a runner for
+a script in such a subprocess. The private X server is the ``display`` fixture (conftest.py)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import textwrap
+
+HAVE_X = shutil.which("Xvfb") is not None or bool(os.environ.get("DISPLAY"))
+
+
+def window_env(display: str) -> dict:
+    """The environment for a window subprocess on ``display``: each app run starts from no saved
+    window state (one run's compare view or window size must not leak into the next test);
+    test_classroom checks the restoring itself."""
+    env = dict(os.environ)
+    env["DISPLAY"] = display
+    env["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
+    env.pop("WAYLAND_DISPLAY", None)
+    return env
+
+
+def run_py(code: str, display: str, timeout: float = 120):
+    """Run ``code`` (dedented) in a Python subprocess on ``display``; the CompletedProcess."""
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=window_env(display),
+                          capture_output=True, text=True, timeout=timeout)

@@ -1,0 +1,324 @@
+"""The import rules of the layers, read from the source with ``ast`` (nothing is imported):
+
+(a) the BRDF twins (``viewer/brdf``), the CPU reference (``viewer/pathtracer``) and the shared
+    geometry (``viewer/geometry``) import no GL and no window, not even inside a function: the
+    reference's worker processes start without a GL driver and the numpy twins work anywhere;
+(b) the scene model (``viewer/scene.py`` or the ``viewer/scene/`` package, ``mesh.py``,
+    ``meshgen.py``, ``camera.py``, ``lecture.py``) imports neither GL nor the window;
+(c) the rasterizer (``viewer/gl``) imports no reference engine (``viewer.pathtracer``,
+    ``viewer.gpupt``), so each checks the other; what both need is in ``viewer/geometry``;
+(d) no module under ``viewer/`` uses another module's private (``_name``) names: neither
+    ``from a import _x`` nor ``mod._x`` on an imported module (aliasing a public name as ``_x``
+    is fine); what two modules share is public;
+(e) no test module (``tests/test_*.py``) is imported by another test or harness module: what
+    tests share lives in harness modules (``brdf_harness.py``, ``render_util.py``,
+    ``reference_harness.py``, ...) and ``conftest.py``.
+
+An import counts wherever it stands (module level or inside a function), and so do the dynamic
+forms with a literal name (``importlib.import_module("x")``, ``__import__("x")``,
+``viewer.optional.require("x")`` / ``available("x")``). Every rule has a test that feeds it a
+synthetic offending file.
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+GL_MODULES = ("viewer.gl", "viewer.app", "viewer.gpupt", "moderngl", "glfw", "imgui_bundle",
+              "glcontext", "OpenGL")
+REFERENCE_ENGINES = ("viewer.pathtracer", "viewer.gpupt")
+DYNAMIC_IMPORTS = {"import_module", "__import__", "require", "available"}
+
+# Temporary allowances, to be emptied when the restructuring branches are merged:
+# rule (a): viewer/brdf/glsl.py (the GLSL parameter-block generator) reads the shader folder
+# through viewer.gl.shaders; it is moving to viewer/gl/.
+TEMPORARY_GL_ALLOWANCE = {"viewer/brdf/glsl.py"}
+# rules (d) and (e) hold with no exception.
+TEMPORARY_PRIVATE_ALLOWANCE: set[str] = set()
+TEMPORARY_TEST_IMPORT_ALLOWANCE: set[str] = set()
+
+
+# ----------------------------------------------------------------------------- reading imports
+
+@functools.lru_cache(maxsize=None)
+def _parse(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(encoding="utf-8"), str(path))
+
+
+def _module_name(root: Path, path: Path) -> str:
+    """'viewer.gl.renderer' for root/viewer/gl/renderer.py, 'viewer.gl' for its __init__.py."""
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _absolute(root: Path, path: Path, node: ast.ImportFrom) -> str:
+    """The module an ImportFrom names, relative imports resolved against the file's package."""
+    if node.level == 0:
+        return node.module or ""
+    pkg = _module_name(root, path).split(".")
+    if path.name != "__init__.py":
+        pkg = pkg[:-1]
+    pkg = pkg[: len(pkg) - (node.level - 1)]
+    return ".".join(pkg + ([node.module] if node.module else []))
+
+
+def _call_name(func: ast.expr) -> str | None:
+    if isinstance(func, ast.Name):
+        return func.id
+    if isinstance(func, ast.Attribute):
+        return func.attr
+    return None
+
+
+def imports(root: Path, path: Path) -> set[str]:
+    """Every module a file imports, at any depth, as dotted names; ``from a import b`` gives
+    ``a`` and ``a.b`` (b may be a submodule)."""
+    out = set()
+    for node in ast.walk(_parse(path)):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            mod = _absolute(root, path, node)
+            if mod:
+                out.add(mod)
+            out.update(f"{mod}.{a.name}" if mod else a.name for a in node.names)
+        elif (isinstance(node, ast.Call) and _call_name(node.func) in DYNAMIC_IMPORTS and node.args
+              and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)):
+            out.add(node.args[0].value)
+    return out
+
+
+def _matches(mod: str, banned) -> bool:
+    return any(mod == b or mod.startswith(b + ".") for b in banned)
+
+
+def banned_imports(root: Path, files, banned, allowed=frozenset()) -> list[str]:
+    """'file imports module' for every import of ``files`` that falls under ``banned``."""
+    bad = []
+    for f in files:
+        rel = f.relative_to(root).as_posix()
+        if rel in allowed:
+            continue
+        bad.extend(f"{rel} imports {m}" for m in sorted(imports(root, f)) if _matches(m, banned))
+    return bad
+
+
+def _py(root: Path, *folders: str) -> list[Path]:
+    return [f for d in folders for f in sorted((root / d).rglob("*.py"))]
+
+
+# ----------------------------------------------------------------------------- the rules
+
+def no_gl_in_the_cpu_layers(root: Path) -> list[str]:
+    """Rule (a)."""
+    files = _py(root, "viewer/brdf", "viewer/pathtracer", "viewer/geometry")
+    return banned_imports(root, files, GL_MODULES, TEMPORARY_GL_ALLOWANCE)
+
+
+def scene_model_files(root: Path) -> list[Path]:
+    files = [root / "viewer" / n for n in ("scene.py", "mesh.py", "meshgen.py", "camera.py", "lecture.py")]
+    return [f for f in files if f.is_file()] + _py(root, "viewer/scene")
+
+
+def no_gl_in_the_scene_model(root: Path) -> list[str]:
+    """Rule (b)."""
+    return banned_imports(root, scene_model_files(root), GL_MODULES)
+
+
+def no_reference_in_the_rasterizer(root: Path) -> list[str]:
+    """Rule (c)."""
+    return banned_imports(root, _py(root, "viewer/gl"), REFERENCE_ENGINES)
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _ours(mod: str) -> bool:
+    """A module of this repository (the rule is about our layers: ``sys._getframe`` is CPython's
+    documented API, not another module's internals)."""
+    return mod == "viewer" or mod.startswith("viewer.")
+
+
+def _is_module(root: Path, dotted: str) -> bool:
+    p = root.joinpath(*dotted.split("."))
+    return p.with_suffix(".py").is_file() or (p / "__init__.py").is_file()
+
+
+def private_uses(root: Path, path: Path) -> list[str]:
+    """The private names ``path`` takes from other modules: ``from a import _x``, an import of
+    a private module (``a._m``), and ``m._x`` or ``m.sub._x`` where ``m`` is bound to a module
+    by an import (``import a as m``, or ``from viewer.p import m`` naming a module file)."""
+    tree = _parse(path)
+    modules: set[str] = set()       # local names bound to the repository's modules
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if not _ours(a.name):
+                    continue
+                modules.add(a.asname or a.name.split(".")[0])
+                if any(_private(part) for part in a.name.split(".")):
+                    bad.append(a.name)
+        elif isinstance(node, ast.ImportFrom):
+            mod = _absolute(root, path, node)
+            if not _ours(mod):
+                continue
+            if any(_private(part) for part in mod.split(".")):
+                bad.append(mod)
+            for a in node.names:
+                if _private(a.name):
+                    bad.append(f"{mod}.{a.name}")
+                elif _is_module(root, f"{mod}.{a.name}"):
+                    modules.add(a.asname or a.name)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            chain, v = [node.attr], node.value
+            while isinstance(v, ast.Attribute):
+                chain.append(v.attr)
+                v = v.value
+            if isinstance(v, ast.Name) and v.id in modules:
+                bad.append(".".join([v.id] + chain[::-1]))
+    return sorted(set(bad))
+
+
+def private_offenders(root: Path, allowed=frozenset()) -> list[str]:
+    """Rule (d): 'file: name' for every private name a module under viewer/ takes from another."""
+    bad = []
+    for f in _py(root, "viewer"):
+        rel = f.relative_to(root).as_posix()
+        bad.extend(e for e in (f"{rel}: {n}" for n in private_uses(root, f)) if e not in allowed)
+    return bad
+
+
+def imports_of_test_modules(root: Path, allowed=frozenset()) -> list[str]:
+    """Rule (e): 'file: test module' for every import of a tests/test_*.py module by another
+    module under tests/."""
+    tests = {f.stem for f in (root / "tests").glob("test_*.py")}
+    bad = []
+    for f in sorted((root / "tests").glob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        for m in sorted({m.split(".")[0] for m in imports(root, f)} & tests - {f.stem}):
+            if f"{rel}: {m}" not in allowed:
+                bad.append(f"{rel}: {m}")
+    return bad
+
+
+# ----------------------------------------------------------------------------- the tests
+
+def test_brdf_pathtracer_and_geometry_import_no_gl():
+    assert len(_py(ROOT, "viewer/brdf", "viewer/pathtracer", "viewer/geometry")) > 10
+    assert no_gl_in_the_cpu_layers(ROOT) == []
+
+
+def test_scene_model_imports_no_gl_and_no_window():
+    assert len(scene_model_files(ROOT)) >= 5
+    assert no_gl_in_the_scene_model(ROOT) == []
+
+
+def test_rasterizer_imports_no_reference_engine():
+    assert len(_py(ROOT, "viewer/gl")) > 5
+    assert no_reference_in_the_rasterizer(ROOT) == []
+
+
+def test_no_private_names_across_modules():
+    assert private_offenders(ROOT, TEMPORARY_PRIVATE_ALLOWANCE) == []
+
+
+def test_the_temporary_allowances_name_only_current_offenders():
+    """An allowance entry that no longer offends is to be deleted (so the lists only shrink)."""
+    gl = {e.split(" imports ")[0] for e in banned_imports(ROOT, _py(ROOT, "viewer/brdf"), GL_MODULES)}
+    assert gl >= TEMPORARY_GL_ALLOWANCE, "delete the stale entries of TEMPORARY_GL_ALLOWANCE"
+    assert set(private_offenders(ROOT)) >= TEMPORARY_PRIVATE_ALLOWANCE, \
+        "delete the stale entries of TEMPORARY_PRIVATE_ALLOWANCE"
+    assert set(imports_of_test_modules(ROOT)) >= TEMPORARY_TEST_IMPORT_ALLOWANCE, \
+        "delete the stale entries of TEMPORARY_TEST_IMPORT_ALLOWANCE"
+
+
+def test_no_test_module_imports_another():
+    assert imports_of_test_modules(ROOT, TEMPORARY_TEST_IMPORT_ALLOWANCE) == []
+
+
+# -- each rule can fail: a synthetic tree with one offending file per rule
+
+def _tree(tmp_path: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        f = tmp_path / rel
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(text)
+    return tmp_path
+
+
+def test_the_gl_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/brdf/glsl.py": "import moderngl\n",            # the temporary allowance
+        "viewer/brdf/x.py": "def g():\n    import moderngl\n    from viewer.gl.context import create\n",
+        "viewer/pathtracer/y.py": "from ..gpupt import engine\n",
+        "viewer/geometry/z.py": "import importlib\nimportlib.import_module('glfw')\n",
+        "viewer/geometry/ok.py": "import numpy\nfrom viewer.brdf import spec\n",
+    })
+    assert sorted(no_gl_in_the_cpu_layers(root)) == [
+        "viewer/brdf/x.py imports moderngl", "viewer/brdf/x.py imports viewer.gl.context",
+        "viewer/brdf/x.py imports viewer.gl.context.create",
+        "viewer/geometry/z.py imports glfw",
+        "viewer/pathtracer/y.py imports viewer.gpupt", "viewer/pathtracer/y.py imports viewer.gpupt.engine"]
+
+
+def test_the_scene_model_rule_can_fail(tmp_path):
+    for layout in ("viewer/scene.py", "viewer/scene/model.py"):
+        root = _tree(tmp_path / layout.replace("/", "_"), {
+            layout: "def f():\n    from viewer.app import main\n",
+            "viewer/camera.py": "import imgui_bundle\n",
+            "viewer/mesh.py": "import numpy\n",
+        })
+        got = sorted(no_gl_in_the_scene_model(root))
+        assert got == sorted(["viewer/camera.py imports imgui_bundle", f"{layout} imports viewer.app",
+                              f"{layout} imports viewer.app.main"]), layout
+
+
+def test_the_rasterizer_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/gl/a.py": "def f():\n    from viewer.pathtracer.integrator import RenderSetup\n",
+        "viewer/gl/b.py": "from viewer.geometry.soup import build_geometry\nimport viewer.gpupt\n",
+    })
+    assert no_reference_in_the_rasterizer(root) == [
+        "viewer/gl/a.py imports viewer.pathtracer.integrator",
+        "viewer/gl/a.py imports viewer.pathtracer.integrator.RenderSetup",
+        "viewer/gl/b.py imports viewer.gpupt"]
+
+
+def test_the_private_name_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/__init__.py": "",
+        "viewer/pkg/__init__.py": "",
+        "viewer/pkg/mod.py": "def _helper(): pass\ndef public(): pass\n",
+        "viewer/a.py": "from viewer.pkg.mod import _helper\n",
+        "viewer/b.py": "from viewer.pkg import mod\n\ndef f():\n    return mod._helper()\n",
+        "viewer/c.py": "import viewer.pkg.mod as m\nx = m._helper\nimport sys\ny = sys._getframe(0)\n",
+        "viewer/d.py": ("from viewer.pkg.mod import public as _public\n"   # aliasing: fine
+                        "class K:\n    def f(self):\n        return self._own, _public\n"
+                        "import os\nz = os.__name__\n"),
+        "viewer/pkg/e.py": "from ._private_mod import thing\nfrom . import mod\nmod._helper()\n",
+    })
+    assert private_offenders(root) == [
+        "viewer/a.py: viewer.pkg.mod._helper", "viewer/b.py: mod._helper", "viewer/c.py: m._helper",
+        "viewer/pkg/e.py: mod._helper",
+        "viewer/pkg/e.py: viewer.pkg._private_mod"]
+    assert private_offenders(root, {"viewer/a.py: viewer.pkg.mod._helper"})[0] == "viewer/b.py: mod._helper"
+
+
+def test_the_test_import_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "tests/test_one.py": "from test_two import helper\n",
+        "tests/test_two.py": "from render_util import camera_rays\n\ndef helper(): pass\n",
+        "tests/render_util.py": "def camera_rays(): pass\n",
+        "tests/some_harness.py": "def f():\n    import test_one\n",
+    })
+    assert imports_of_test_modules(root) == ["tests/some_harness.py: test_one", "tests/test_one.py: test_two"]
+    assert imports_of_test_modules(root, {"tests/test_one.py: test_two"}) == ["tests/some_harness.py: test_one"]

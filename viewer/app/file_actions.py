@@ -1,0 +1,253 @@
+"""The session's actions on files and on what they hold: scenes (open, save), materials (edit,
+load, save), meshes, environment maps, files dropped on the window. Each keeps what was shown
+when it fails and says why through ``notify`` (one message naming the file and the problem).
+
+``FileActions`` is a part of ``viewer.app.session.Session`` (it uses the session's ``scene``,
+``camera``, ``renderer``, ``dirty`` and ``notify``). No imgui, no glfw."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from viewer import ViewerError
+
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+ENV_SUFFIXES = (".hdr", ".exr")
+SCENE_SUFFIXES = (".toml", ".png")
+
+
+class FileActions:
+    """Scenes, materials, meshes and environment maps of a ``Session``."""
+
+    # ------------------------------------------------------------------ materials
+    def set_material(self, name: str, params) -> None:
+        """Replace material ``name`` with validated ``params`` (the editor's result)."""
+        self.scene.materials[name] = params
+        self.dirty = True
+
+    def set_material_param(self, name: str, param: str, value) -> bool:
+        """Set one parameter of material ``name``, validated through the model's spec: NaN, Inf,
+        a value out of range or an unknown choice leaves the old value and notifies once."""
+        from viewer import brdf
+        from viewer.brdf.spec import validate_value
+
+        mat = self.scene.materials.get(name)
+        if mat is None:
+            self.notify(f"material {name!r}: not in the scene; it has {', '.join(self.scene.materials)}",
+                        error=True)
+            return False
+        spec = brdf.get(mat.model).spec
+        by_name = {p.name: p for p in spec.params}
+        p = by_name.get(param)
+        if p is None:
+            self.notify(f"{mat.model}.{param}: unknown parameter; allowed: {', '.join(by_name)}", error=True)
+            return False
+        try:
+            if p.kind in ("float", "rgb", "choice"):
+                value = validate_value(p, list(np.asarray(value, float).reshape(-1)) if p.kind == "rgb" else value,
+                                       f"{mat.model}.{p.name}", brdf.lookup_spec)
+        except (ViewerError, TypeError, ValueError) as e:
+            self.notify(str(e) if isinstance(e, ViewerError) else f"{mat.model}.{param}: {e}", error=True)
+            return False
+        self.set_material(name, mat.replace(**{param: value}))
+        return True
+
+    def save_material(self, name: str, path) -> bool:
+        """One material as a ``[materials.NAME]`` table (the scene file's format)."""
+        from viewer.io import atomic_write_bytes
+        from viewer.scene import material_to_toml
+
+        try:
+            text = material_to_toml(name, self.scene.materials[name])
+            atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
+        except (OSError, KeyError, ViewerError) as e:
+            self.notify(f"material not saved: {e}", error=True)
+            return False
+        self.notify(f"saved material {name} to {path}")
+        return True
+
+    def load_material(self, name: str, path) -> bool:
+        """Replace material ``name`` with the first material of a TOML file (a material file or
+        a whole scene), validated like a scene's; on any problem the old material stays."""
+        from viewer.scene import load_material_file
+
+        try:
+            first, params = load_material_file(path)
+        except ViewerError as e:
+            self.notify(f"material not loaded: {e}", error=True)
+            return False
+        self.scene.materials[name] = params
+        self.dirty = True
+        self.notify(f"material {name} <- {path} [{first}]")
+        return True
+
+    # ------------------------------------------------------------------ scenes and meshes
+    def _set_scene(self, scene):
+        from viewer.camera import OrbitCamera
+
+        self.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
+        self.scene = scene
+        self.camera = OrbitCamera.from_scene(scene)
+        self.hdr = None
+        self.dirty = True
+
+    def open_scene(self, ref) -> bool:
+        """Load a scene file, a screenshot (.png) or a built-in name; on failure keep the old."""
+        from viewer.scene import load_scene
+
+        try:
+            scene = load_scene(str(ref))
+        except ViewerError as e:
+            self.notify(f"scene not opened: {e}", error=True)
+            return False
+        except Exception as e:  # noqa: BLE001 - anything unexpected keeps the running scene
+            self.notify(f"scene not opened: {ref}: {type(e).__name__}: {e}", error=True)
+            return False
+        self._set_scene(scene)
+        self.lecture_step = -1
+        self.notify(f"opened {ref}")
+        return True
+
+    def save_scene(self, path) -> bool:
+        """The current scene (camera as seen) as TOML in the scene-file format, written atomically."""
+        from viewer.io import atomic_write_bytes
+        from viewer.scene import scene_to_toml
+        from viewer.screenshot import scene_with_camera
+
+        try:
+            text = scene_to_toml(scene_with_camera(self.scene, self.camera))
+            atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
+        except (OSError, ViewerError) as e:
+            self.notify(f"scene not saved: {e}", error=True)
+            return False
+        self.notify(f"saved scene {path}")
+        return True
+
+    @property
+    def mesh_target(self) -> int:
+        """The object a loaded mesh replaces: the one picked in the panel, else the largest
+        object that is not a plane."""
+        if self._mesh_target is not None and self._mesh_target < len(self.scene.objects):
+            return self._mesh_target
+        best, best_r = 0, -1.0
+        for i, o in enumerate(self.scene.objects):
+            if o.mesh == "plane":
+                continue
+            p = o.world_positions()
+            r = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+            if r > best_r:
+                best, best_r = i, r
+        return best
+
+    @mesh_target.setter
+    def mesh_target(self, index: int | None) -> None:
+        self._mesh_target = index
+
+    def load_mesh(self, path, object_index: int | None = None) -> bool:
+        """Replace one object's mesh (default: the largest object that is not a plane) with a
+        mesh file, scaled to the same bounding-sphere radius and centre; errors keep the old."""
+        from viewer.mesh import load_mesh
+
+        objs = self.scene.objects
+        if not objs:
+            self.notify("mesh not loaded: the scene has no objects", error=True)
+            return False
+        if object_index is None:
+            object_index = self.mesh_target
+        object_index = int(np.clip(object_index, 0, len(objs) - 1))
+        obj = objs[object_index]
+        try:
+            md = load_mesh(str(Path(path).expanduser().absolute()), None, where="Files > Load mesh")
+        except ViewerError as e:
+            self.notify(f"mesh not loaded: {e}", error=True)
+            return False
+        except Exception as e:  # noqa: BLE001 - trimesh raises many kinds for a broken file
+            self.notify(f"mesh not loaded: {path}: {type(e).__name__}: {e}", error=True)
+            return False
+
+        def sphere(points):
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-12)
+
+        old_c, old_r = sphere(obj.world_positions())
+        new_c, new_r = sphere(np.asarray(md.positions, np.float64).reshape(-1, 3))
+        s = old_r / new_r
+        obj.mesh = str(Path(path).expanduser().absolute())
+        obj.mesh_data = md
+        self.renderer.forget_meshes(keep=[o.mesh_data for o in objs])
+        obj.scale = s
+        obj.rotate_y_deg = 0.0
+        obj.translate = old_c - s * new_c
+        self.dirty = True
+        self.notify(f"object {object_index} <- {path} ({len(md.indices):,} triangles)")
+        return True
+
+    def file_action(self, kind: str, path: str) -> bool:
+        """A path picked or typed under Files: open / save a scene, load a mesh, load / save the
+        material of the object meshes replace."""
+        target = self.scene.objects[self.mesh_target].material if self.scene.objects else None
+        if kind == "scene":
+            return self.open_scene(path)
+        if kind == "save_scene":
+            return self.save_scene(path if path.lower().endswith(".toml") else path + ".toml")
+        if kind == "mesh":
+            return self.load_mesh(path)
+        if kind == "material" and target:
+            return self.load_material(target, path)
+        if kind == "save_material" and target:
+            return self.save_material(target, path if path.lower().endswith(".toml") else path + ".toml")
+        return False
+
+    def open_files(self, paths) -> None:
+        """Files dropped on the window, each by its kind: .toml / .png scenes, .hdr / .exr
+        environment maps, meshes."""
+        for p in paths:
+            low = p.lower()
+            if low.endswith(ENV_SUFFIXES):
+                self.set_environment(p)
+            elif low.endswith(SCENE_SUFFIXES):
+                self.open_scene(p)
+            elif low.endswith(MESH_SUFFIXES):
+                self.load_mesh(p)
+            else:
+                self.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
+                            "meshes " + " ".join(MESH_SUFFIXES), error=True)
+
+    # ------------------------------------------------------------------ environment
+    def set_environment(self, ref) -> bool:
+        """Switch the environment to a built-in map name, a .hdr/.exr path or None (constant).
+        A file that does not load leaves the previous environment and shows why."""
+        env = self.scene.environment
+        new = dataclasses.replace(env)
+        new.__dict__.pop("_map_cache", None)
+        if ref is None:
+            new.map = None
+            if new.constant is None:
+                new.constant = np.array([0.1, 0.1, 0.1])
+        else:
+            from viewer.environment.procedural import builtin_names
+
+            new.map = ref if ref in builtin_names() else Path(ref).expanduser()
+            new.constant = None
+            try:
+                new.radiance_map()
+            except ViewerError as e:
+                self.notify(f"environment not changed: {e}", error=True)
+                return False
+            except Exception as e:  # noqa: BLE001 - any decoder failure keeps the old map
+                self.notify(f"environment not changed: {ref}: {type(e).__name__}: {e}", error=True)
+                return False
+        self.scene.environment = new
+        text = f"environment: {ref or 'constant'}"
+        if new.map is not None:  # a map's own units (the sky is in kcd/m^2): start at mid-grey
+            auto = new.mid_grey_intensity()
+            if auto is not None:
+                new.intensity = float(auto)
+                text += (f" (intensity {auto:.3g}: mean luminance {new.mean_luminance():.3g} -> mid-grey "
+                         "0.18; edit it under Environment)")
+        self.notify(text)
+        self.dirty = True
+        return True

@@ -1,0 +1,459 @@
+"""The classroom session without a window: the scene, the camera, the renderer and every action a
+student or lecturer can take (open and save scenes, edit materials, load meshes, materials and
+environment maps, step the lecture, switch the compare and reflection modes, take screenshots,
+keep the window's state), each reporting through one path, ``notify(text, error=False)``.
+
+The window (``viewer.app.window``) draws it with imgui and forwards input; tests drive it
+in-process on an offscreen EGL context. Nothing here imports imgui or glfw."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.app.file_actions import FileActions
+
+BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
+
+# the plot tab each lecture step's ``plot`` names
+STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
+             "bouguer": "Bouguer", "spectral": "Spectral", "sampling": "Sampling"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Message:
+    """One notification: its text, whether it reports a problem, when (perf_counter seconds)."""
+    text: str
+    error: bool
+    time: float
+
+
+class Session(FileActions):
+    """The state and the actions of one viewing session on the OpenGL context ``ctx``.
+
+    ``scene``: a loaded Scene, else ``scene_ref`` / ``overrides`` are loaded (``lecture:N``
+    starts lecture mode at step N). ``state``: the saved window state (``viewer.app.state``)
+    whose compare mode, divider and view mode are restored. ``prefetch``: prefilter the lecture's
+    environment maps in a background process when lecture mode starts."""
+
+    def __init__(self, ctx, scene_ref=None, overrides=(), *, scene=None, renderer=None,
+                 state: dict | None = None, prefetch: bool = True):
+        from viewer import brdf
+        from viewer.app.compare_view import MODES, CompareView
+        from viewer.app.monte_carlo import MonteCarloPanel
+        from viewer.camera import OrbitCamera
+        from viewer.gl.renderer import VIEW_MODES, Renderer
+        from viewer.scene import LECTURE_NAME, load_scene
+
+        self.ctx = ctx
+        self.scene = scene if scene is not None else load_scene(scene_ref, overrides)
+        self.state = dict(state or {})
+        self._own_renderer = renderer is None
+        self.renderer = renderer if renderer is not None else Renderer(ctx)
+        self.camera = OrbitCamera.from_scene(self.scene)
+        self.compare = CompareView(ctx)
+        self.mc = MonteCarloPanel(ctx)  # reference settings, error views, convergence
+        if self.state.get("compare_mode") in MODES:
+            self.compare.mode = self.state["compare_mode"]
+        self.compare.split = float(self.state.get("split", 0.5))
+        self.view_mode = 0
+        if 0 <= self.state.get("view_mode", 0) < len(VIEW_MODES):
+            self.view_mode = self.state.get("view_mode", 0)
+        self.messages: list[Message] = []
+        self.status = ""           # the latest message's text
+        self.dirty = True          # the raster image must be rendered again
+        self.hdr = None            # the raster image shown (a texture), None before the first
+        self.raster_version = 0
+        self.render_ms = 0.0
+        self.quality = "full"      # "preview" after an interactive (half-resolution) frame
+        self.bf_count = 0          # brute-force IBL: frames in the running mean
+        self.lecture_step = -1     # -1: lecture mode off; else the tour's step shown
+        self.reference = None      # the ReferenceView, made on first use
+        self.prefetch = None       # the lecture maps' background prefilter
+        self.nonfinite = None      # the last check's message about NaN / Inf pixels, else None
+        self.warm = list(brdf.names())  # models whose programs compile while idle
+        self.screenshot_dir = Path.cwd()
+        self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
+        self._prefetch_on = prefetch
+        self._mesh_target = None
+        self._bf_sum = None
+        self._bf_tex = None
+        self._hdr_for = None
+        self._step_timer = None
+        self._nonfinite_said = None
+        self._extents_for = None
+        m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
+        if m is not None:  # opened as lecture:N: lecture mode at that step
+            self._enter_step(int(m.group(1)) - 1)
+
+    # ------------------------------------------------------------------ notifications
+    def notify(self, text: str, error: bool = False) -> None:
+        """The one way anything reports to the user: the window shows the latest as a toast
+        (red for an error) and in the panel."""
+        self.status = str(text)
+        self.messages.append(Message(self.status, bool(error), time.perf_counter()))
+        del self.messages[:-50]
+
+    @property
+    def last_message(self) -> Message | None:
+        return self.messages[-1] if self.messages else None
+
+    def release(self) -> None:
+        """Stop the reference and the prefetch, free the GL objects this session made."""
+        if self.reference is not None:
+            self.reference.close()
+        if self.prefetch is not None:
+            self.prefetch.stop()
+        self.compare.release()
+        self.mc.release()
+        if self._bf_tex is not None:
+            self._bf_tex.release()
+            self._bf_tex = None
+        if self._own_renderer:
+            self.renderer.release()
+
+    # ------------------------------------------------------------------ rendering
+    @property
+    def refining(self) -> bool:
+        """Frames should follow without waiting for input (brute-force IBL still averaging)."""
+        return self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES
+
+    def render_view(self, size, interacting: bool = False) -> None:
+        """Render the raster image for a view of ``size`` = (w, h) pixels if anything changed:
+        at half resolution without MSAA while the user drags (software GL is slow), at full
+        quality once the interaction pauses; brute-force IBL keeps averaging frames."""
+        rw_full, rh_full = size
+        if self.compare.mode == "reference":
+            self.dirty = False  # no raster image is shown; the reference restarts on its own key
+            return
+        if rw_full <= 0 or rh_full <= 0:
+            return
+        scale = 0.5 if interacting else 1.0
+        rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
+        want_full = not interacting and self.quality != "full"
+        progressive = self.refining and not interacting
+        stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
+        if not (self.dirty or want_full or stale or progressive):
+            return
+        t1 = time.perf_counter()
+        if self.dirty or want_full or stale:
+            self.bf_count, self._bf_sum = 0, None
+        try:
+            self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
+                                            msaa=0 if interacting else None, frame_index=self.bf_count)
+            if self.scene.render.ibl == "brute_force" and not interacting:
+                self.hdr = self._accumulate(self.hdr)
+        except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
+            self.notify(str(e), error=True)
+        self.ctx.finish()
+        if not interacting and self.hdr is not None:
+            self._check_finite(self.hdr)
+        self.raster_version += 1
+        self.render_ms = 1000 * (time.perf_counter() - t1)
+        self._hdr_for = (rw_full, rh_full)
+        self.quality = "preview" if interacting else "full"
+        self.dirty = False
+        if self._step_timer is not None and not interacting:
+            self._step_shown()
+
+    def update_reference(self, size):
+        """Advance the reference for a view of ``size`` when a compare mode or an error view
+        shows it; returns its texture to display (or None), and refreshes the metrics."""
+        if not (self.compare.uses_reference or self.mc.active) or size[0] <= 0 or size[1] <= 0:
+            return None
+        rv = self.reference_view()
+        rv.update(self.scene, self.camera, size)
+        tex = rv.texture_for_display()
+        if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None:
+            self.compare.update_metrics(self.renderer, self.hdr, self.raster_version, rv)
+        return tex
+
+    def render_image(self, width: int, height: int) -> np.ndarray:
+        """The raster image of the scene as seen, rendered afresh: (H, W, 3) uint8 sRGB."""
+        hdr = self.renderer.render(self.scene, self.camera, width, height, self.view_mode)
+        return self.renderer.read_srgb(hdr, self.scene.render.exposure, self.scene.render.tonemap)
+
+    def _accumulate(self, hdr):
+        """Brute-force IBL: the running mean of frames with new sample sets (as the offscreen
+        ``render_arrays(frames=K)``), shown while it converges."""
+        from viewer.app.compare_view import upload_rgb
+
+        img = self.renderer.read_linear(hdr).astype(np.float64)
+        self._bf_sum = img if self._bf_sum is None else self._bf_sum + img
+        self.bf_count += 1
+        self._bf_tex = upload_rgb(self.ctx, self._bf_tex, self._bf_sum / self.bf_count)
+        return self._bf_tex
+
+    def _check_finite(self, hdr):
+        """Say in one line (a notification and stderr, once per distinct message) when the view
+        holds NaN or Inf pixels: a renderer bug the class would see as holes."""
+        from viewer.finite import nonfinite_message, render_switches
+
+        try:
+            img = self.renderer.read_linear(hdr)
+        except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
+            return
+        msg = nonfinite_message(img, f"view of {self.scene.label}", (), render_switches(self.scene))
+        self.nonfinite = msg
+        if msg and msg != self._nonfinite_said:
+            self.notify(msg, error=True)
+            print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
+        self._nonfinite_said = msg
+
+    def warm_one(self) -> None:
+        """Compile one model's forward program while idle, so switching models later does not
+        wait for the shader compiler (software GL compiles take 0.1-0.5 s each)."""
+        from viewer import brdf
+
+        if not self.warm:
+            return
+        name = self.warm.pop(0)
+        try:
+            self.renderer.forward_program(brdf.get(name).params())
+        except ViewerError as e:
+            self.notify(str(e), error=True)
+
+    def reference_view(self):
+        if self.reference is None:
+            from viewer.app.reference_view import ReferenceView
+
+            self.reference = ReferenceView(self.ctx)
+        return self.reference
+
+    def extents(self) -> dict:
+        """material -> [(object, diameter)]: the smallest side of each solid object's bounding box
+        (a sphere's diameter, the path through its centre), for the plots' Bouguer tab."""
+        if self._extents_for is not None and self._extents_for[0] is self.scene:
+            return self._extents_for[1]
+        out: dict = {}
+        for i, o in enumerate(self.scene.objects):
+            if o.mesh == "plane":
+                continue
+            p = o.world_positions()
+            d = float((p.max(axis=0) - p.min(axis=0)).min())
+            if d > 0:
+                label = Path(o.mesh).stem if o.mesh not in ("sphere", "cube") else f"{o.mesh} {i}"
+                out.setdefault(o.material, []).append((label, d))
+        self._extents_for = (self.scene, out)
+        return out
+
+    # ------------------------------------------------------------------ camera and display
+    def changed(self) -> None:
+        """Something the raster image depends on changed: render it again (and restart the
+        brute-force average)."""
+        self.dirty = True
+
+    def reset_camera(self) -> None:
+        self.camera.reset()
+        self.dirty = True
+
+    def fit_camera(self) -> None:
+        self.camera.fit(*self.scene.bounds())
+        self.dirty = True
+
+    @property
+    def image_mode(self) -> str:
+        return self.compare.mode
+
+    def set_image_mode(self, mode: str):
+        """One of ``compare_view.MODES``: raster, reference, split, side by side, difference,
+        relative difference. Modes without the reference stop its render (no CPU spent)."""
+        from viewer.app.compare_view import MODES
+
+        if mode not in MODES:
+            raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
+        self.compare.mode = mode
+        if not self.compare.uses_reference and not self.mc.active and self.reference is not None:
+            self.reference.stop()
+        self.dirty = True
+
+    def cycle_image_mode(self) -> None:
+        from viewer.app.compare_view import MODES
+
+        self.set_image_mode(MODES[(MODES.index(self.compare.mode) + 1) % len(MODES)])
+
+    def set_view_mode(self, index: int) -> None:
+        """One of ``viewer.gl.renderer.VIEW_MODES`` by index (shaded, normals, ...)."""
+        from viewer.gl.renderer import VIEW_MODES
+
+        if not 0 <= int(index) < len(VIEW_MODES):
+            self.notify(f"view {index}: unknown; allowed 0..{len(VIEW_MODES) - 1}", error=True)
+            return
+        self.view_mode = int(index)
+        self.dirty = True
+
+    @property
+    def reflection_mode(self) -> str:
+        from viewer.app.reflections import reflection_mode
+
+        return reflection_mode(self.scene.render)
+
+    def set_reflection_mode(self, mode: str, ssr_on_glossy: bool | None = None) -> bool:
+        """Reflections / refraction: off, SSR or ray traced (``viewer.app.reflections``)."""
+        from viewer.app.reflections import MODES, set_reflection_mode
+
+        if mode not in MODES:
+            self.notify(f"reflections {mode!r}: unknown; allowed: {', '.join(MODES)}", error=True)
+            return False
+        if set_reflection_mode(self.scene.render, mode, ssr_on_glossy=ssr_on_glossy):
+            self.dirty = True
+            return True
+        return False
+
+    # ------------------------------------------------------------------ lecture mode
+    def lecture(self, step: int | None):
+        """Show the lecture tour's ``step`` (0-based; None ends lecture mode). The step's scene
+        replaces the current one; a step that fails to load leaves the scene as it was."""
+        from viewer.lecture import TOUR, tour_scene
+
+        if step is None:
+            self.lecture_step = -1
+            self.notify("lecture mode off")
+            for listener in self.step_listeners:
+                listener(None)
+            return True
+        step %= len(TOUR)
+        t0 = time.perf_counter()
+        try:
+            scene = tour_scene(step)
+        except ViewerError as e:
+            self.notify(f"lecture step {step + 1} not loaded: {e}", error=True)
+            return False
+        self._set_scene(scene)
+        self._enter_step(step)
+        self.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} (loading...)")
+        self._step_timer = (step, t0)  # the true time: until the step's first full frame is drawn
+        return True
+
+    def lecture_next(self):
+        from viewer.lecture import TOUR
+
+        return self.lecture((self.lecture_step + 1) % len(TOUR))
+
+    def lecture_previous(self):
+        """The step before (from lecture mode off: the last one)."""
+        from viewer.lecture import TOUR
+
+        return self.lecture((max(self.lecture_step, 0) - 1) % len(TOUR))
+
+    def lecture_back(self):
+        """The key / strip's previous step (from the first: the last)."""
+        from viewer.lecture import TOUR
+
+        return self.lecture((self.lecture_step - 1) % len(TOUR))
+
+    @property
+    def lecture_title(self) -> tuple[str, str]:
+        """("3/14  Total internal reflection", caption) of the step shown, ("", "") when off."""
+        from viewer.lecture import TOUR
+
+        if self.lecture_step < 0:
+            return "", ""
+        s = TOUR[self.lecture_step]
+        return f"{self.lecture_step + 1}/{len(TOUR)}  {s.title}", s.caption
+
+    def step_plot(self, step: int) -> dict:
+        """What the plots show beside ``step``: its tab (or None), light from inside (the
+        critical angle), the materials plotted (the step's subjects, not the floor)."""
+        from viewer.lecture import TOUR
+
+        return dict(tab=STEP_TABS.get(TOUR[step].plot), inside=TOUR[step].key == "tir",
+                    shown={name: name != "floor" for name in self.scene.materials})
+
+    def _step_shown(self):
+        """The step's first full frame is drawn: say how long the key press took to show it."""
+        from viewer.lecture import TOUR
+
+        step, t0 = self._step_timer
+        self._step_timer = None
+        if step != self.lecture_step:
+            return
+        dt = time.perf_counter() - t0
+        why = ""
+        st = getattr(self.renderer.ibl(), "stats", {})
+        if st.get("prefilter_passes"):
+            why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
+        self.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
+
+    def _enter_step(self, step: int):
+        """Lecture mode on at ``step`` for the scene already shown."""
+        from viewer.lecture import TOUR
+
+        self.lecture_step = step
+        if self.prefetch is None and self._prefetch_on:  # the tour's other maps, prefiltered in the background
+            from viewer.app.prefetch import Prefetch
+
+            self.prefetch = Prefetch(step)
+        if TOUR[step].image:  # a step about the reference shows it
+            self.set_image_mode(TOUR[step].image)
+        for listener in self.step_listeners:
+            listener(step)
+
+    # ------------------------------------------------------------------ screenshots and state
+    def take_screenshot(self, path=None, size=None, capture=None) -> Path | None:
+        """Save the view as a PNG (atomic) with the scene and parameters in its text chunks.
+        ``size``: the view's (w, h); the raster alone is rendered afresh at it. ``capture``: a
+        function returning the view as shown ((H, W, 3) uint8), used for the compare views and
+        error maps (the window's); without one they fall back to the raster."""
+        from viewer.gl.renderer import VIEW_MODES
+        from viewer.io import write_png
+        from viewer.screenshot import png_text
+
+        if path is None:
+            stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+            path = self.screenshot_dir / f"brdf-viewer-{stamp}.png"
+        vw, vh = size if size is not None else (self.scene.camera.width, self.scene.camera.height)
+        if vw == 0 or vh == 0:
+            self.notify("screenshot skipped: the window is minimized", error=True)
+            return None
+        try:
+            extra = {"view": list(VIEW_MODES)[self.view_mode], "image": self.compare.mode}
+            if capture is None or (self.compare.mode == "raster" and not self.mc.active):
+                # the raster alone: rendered afresh at the view's size (no overlay to keep)
+                srgb = self.render_image(vw, vh)
+            else:  # what the view shows: split, side by side, heat map with its colour bar, labels
+                srgb = capture()
+                if self.compare.metrics_text():
+                    extra["metrics"] = self.compare.metrics_text()
+            write_png(path, srgb, png_text(self.scene, self.camera, extra))
+        except (OSError, ViewerError) as e:
+            self.notify(f"screenshot failed: {e}", error=True)
+            return None
+        self.dirty = True
+        self.notify(f"saved {path}")
+        print(self.status, file=sys.stderr)
+        return Path(path)
+
+    def state_entries(self) -> dict:
+        """The session's part of the saved state."""
+        return dict(compare_mode=self.compare.mode, split=self.compare.split, view_mode=self.view_mode)
+
+    def save_state(self, window: dict | None = None, path: os.PathLike | None = None) -> bool:
+        """The state for the next start (the session's entries and the window's, ``window``) and
+        the scene as last_scene.toml next to it, both written atomically. A problem is reported
+        on stderr and returns False: the session is never lost to a state file."""
+        from viewer.app import state as state_mod
+        from viewer.io import atomic_write_bytes
+        from viewer.scene import scene_to_toml
+        from viewer.screenshot import scene_with_camera
+
+        st = dict(self.state)
+        st.update(window or {})
+        st.update(self.state_entries())
+        try:
+            state_mod.save_state(st, path)
+            text = scene_to_toml(scene_with_camera(self.scene, self.camera))
+            last = state_mod.last_scene_path() if path is None else Path(path).with_name("last_scene.toml")
+            atomic_write_bytes(last, text.encode("utf-8"))
+        except Exception as e:  # noqa: BLE001 - never lose the session to a state-file problem
+            print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
+            return False
+        self.state = st
+        return True

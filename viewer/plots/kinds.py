@@ -1,0 +1,175 @@
+"""Which plots apply to a material: its Fresnel, absorption and spectral sources, whether its
+sampler has a density, and the checks of a plot kind and channel (one-line ``ViewerError``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.brdf.sampling import LUMINANCE_REC709, luminance
+
+KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling", "slice")
+CHANNELS = ("rgb", "lum", "r", "g", "b")
+PNG_KEY = "brdf-viewer:plot"
+LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (docs/conventions.md: linear Rec.709 RGB)
+
+
+def as_params(p, model: str | None = None):
+    """A validated ``Params``: a Params as it is, else a dict of values (with a ``model`` key,
+    or ``model`` given) validated through the model's spec."""
+    from viewer import brdf
+    from viewer.brdf.spec import Params
+
+    if isinstance(p, Params):
+        return p
+    raw = dict(p or {})
+    name = raw.pop("model", model)
+    if name is None:
+        raise ViewerError("plot: no model given; allowed: " + ", ".join(brdf.names()))
+    return brdf.get(name).params(**raw)
+
+
+def model_of(p):
+    from viewer import brdf
+
+    return brdf.get(p.model)
+
+
+def fresnel_source(p) -> dict | None:
+    """How a material's Fresnel reflectance is given, or None when it has none:
+    {"type": "dielectric", "ior": n, "field": ...} | {"type": "conductor", "eta": (3,), "k": (3,)}
+    | {"type": "schlick", "f0": (3,)}; "field" names the parameter(s)."""
+    m = p.model
+    if m == "microfacet":
+        if p.fresnel == "dielectric":
+            return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
+        if p.fresnel == "conductor":
+            return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
+                    "field": "eta, k"}
+        return {"type": "schlick", "f0": np.asarray(p.f0, float), "field": "f0"}
+    if m == "mirror":
+        if p.fresnel == "conductor":
+            return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
+                    "field": "eta, k"}
+        if p.fresnel == "dielectric":
+            return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
+        return None
+    if m == "layered":
+        return {"type": "dielectric", "ior": float(p.coating.ior), "field": "coating.ior"}
+    if m == "ashikhmin_shirley":
+        return {"type": "schlick", "f0": np.asarray(p.rs, float), "field": "rs"}
+    # any other (discovered) model: by its parameter names
+    if "ior" in p and np.ndim(p["ior"]) == 0:
+        return {"type": "dielectric", "ior": float(p["ior"]), "field": "ior"}
+    if "eta" in p and "k" in p:
+        return {"type": "conductor", "eta": np.asarray(p["eta"], float), "k": np.asarray(p["k"], float),
+                "field": "eta, k"}
+    return None
+
+
+def absorption_source(p) -> dict | None:
+    """The absorption coefficient of a material, or None: {"sigma_a": (3,), "unit": length unit,
+    "thickness": layer thickness or None, "field": ...}."""
+    if p.model == "layered":
+        return {"sigma_a": np.asarray(p.coating.sigma_a, float), "unit": "um",
+                "thickness": float(p.coating.thickness), "field": "coating.sigma_a"}
+    if "sigma_a" in p and np.shape(p["sigma_a"]) == (3,):
+        return {"sigma_a": np.asarray(p["sigma_a"], float), "unit": "m", "thickness": None, "field": "sigma_a"}
+    return None
+
+
+def applicable_kinds(p) -> tuple[str, ...]:
+    """The plot kinds that apply to a material (polar, lobe and albedo apply to every model)."""
+    kinds = ["polar", "lobe", "albedo"]
+    if fresnel_source(p) is not None:
+        kinds.append("fresnel")
+    if absorption_source(p) is not None:
+        kinds.append("bouguer")
+    if spectral_source(p) is not None:
+        kinds.append("spectral")
+    if sampling_delta(p) is None:
+        kinds.append("sampling")
+        kinds.append("slice")  # the Rusinkiewicz slice (viewer/plots/measured.py)
+    return tuple(kinds)
+
+
+def spectral_source(p) -> str | None:
+    """The spectral table (viewer.spectral) a material names, or None."""
+    from viewer.plots.spectral import spectral_name
+
+    return spectral_name(p)
+
+
+def sampling_delta(p) -> str | None:
+    """Why ``p``'s sampler has no density to histogram (a delta lobe: mirror, smooth glass, or
+    a layered model over one), else None."""
+    from viewer import brdf
+
+    spec = brdf.get(p.model).spec
+    rough_glass = spec.name == "dielectric" and float(p.get("alpha", 0.0)) > 0.0
+    if spec.delta and not rough_glass:
+        return f"model {p.model!r} samples a delta lobe (a discrete direction, no density)"
+    for prm in spec.params:
+        if prm.kind == "material" and sampling_delta(p[prm.name]) is not None:
+            return f"its {prm.name} ({p[prm.name].model}) samples a delta lobe (a discrete direction, no density)"
+    return None
+
+
+def _models_with(test) -> list[str]:
+    from viewer import brdf
+
+    out = []
+    for name in brdf.names():
+        m = brdf.get(name)
+        try:
+            if test(m.params()) is not None:
+                out.append(name)
+        except ViewerError:
+            pass
+    return out
+
+
+def check_kind_name(kind: str) -> None:
+    """ViewerError (one line) when ``kind`` is not a plot kind."""
+    if kind not in KINDS:
+        raise ViewerError(f"--kind: {kind!r} is not a plot kind; allowed: {', '.join(KINDS)}")
+
+
+def check_kind(p, kind: str) -> None:
+    """ViewerError (one line) when ``kind`` is not a plot kind or does not apply to ``p``."""
+    check_kind_name(kind)
+    if kind in applicable_kinds(p):
+        return
+    if kind in ("sampling", "slice"):
+        raise ViewerError(f"{kind} plot: {sampling_delta(p)}; the plots of {p.model!r}: "
+                          f"{', '.join(applicable_kinds(p))}")
+    what = {"fresnel": "no index of refraction (no Fresnel term)",
+            "bouguer": "no absorption coefficient sigma_a",
+            "spectral": "no spectral table (spectral = \"NAME\")"}[kind]
+    if kind == "fresnel" and p.model == "mirror":
+        what = "fresnel = 'none' (R = 1 at every angle)"
+    if kind == "spectral":
+        raise ViewerError(f"spectral plot: model {p.model!r} has {what}; set spectral to one of "
+                          f"{', '.join(_spectral_names())} (or use a metal preset, e.g. gold)")
+    needs = _models_with(fresnel_source if kind == "fresnel" else absorption_source)
+    raise ViewerError(f"{kind} plot: model {p.model!r} has {what}; the plots of {p.model!r}: "
+                      f"{', '.join(applicable_kinds(p))}; {kind} applies to: {', '.join(needs)}")
+
+
+def _spectral_names():
+    from viewer import spectral
+
+    return spectral.materials()
+
+
+def check_channel(channel: str) -> None:
+    if channel not in CHANNELS:
+        raise ViewerError(f"--channel: {channel!r} is not a channel; allowed: {', '.join(CHANNELS)}")
+
+
+def reduce_channel(rgb, channel: str) -> np.ndarray:
+    """(..., 3) -> (...): one channel ('r', 'g', 'b') or the Rec.709 luminance ('lum', 'rgb')."""
+    check_channel(channel)
+    if channel in ("lum", "rgb"):
+        return luminance(rgb)
+    return np.asarray(rgb, dtype=np.float64)[..., "rgb".index(channel)]

@@ -1,0 +1,152 @@
+"""Loading scenes: built-in names, ``lecture:N``, scene files (TOML), screenshots (the scene in a
+PNG's text chunk), TOML text, and material files."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any, Sequence
+
+from viewer.io import one_line_errors, path_problem
+from viewer.resources import SCENE_DIR
+from viewer.scene.model import Scene
+from viewer.scene.parse import parse_materials, parse_scene
+from viewer.scene.validation import Checker, loads_toml
+
+def builtin_scene_names() -> list[str]:
+    """Names of the scenes shipped in ``viewer/scenes`` (``default`` first)."""
+    names = sorted(p.stem for p in SCENE_DIR.glob("*.toml"))
+    if "default" in names:
+        names.remove("default")
+        names.insert(0, "default")
+    return names
+
+
+LECTURE_NAME = re.compile(r"lecture:(\S*)")  # lecture:N, N = 1 .. the number of lecture steps
+
+
+def lecture_scene_names() -> list[str]:
+    """``lecture:1`` .. ``lecture:N``: the lecture tour's steps as built-in scene names."""
+    from viewer.lecture import TOUR
+
+    return [f"lecture:{i + 1}" for i in range(len(TOUR))]
+
+
+def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
+    from viewer.lecture import TOUR, step_label
+
+    n = len(TOUR)
+    text = m.group(0)
+    allowed = f"lecture:1 .. lecture:{n} (the lecture tour's steps, 1-based)"
+    if not m.group(1).isdigit():
+        Checker(text).fail("scene", f"{m.group(1)!r} is not a step number", allowed)
+    i = int(m.group(1))
+    if not 1 <= i <= n:
+        Checker(text).fail("scene", f"step {i} is out of range", allowed)
+    data = loads_toml(TOUR[i - 1].toml, step_label(i - 1))
+    return parse_scene(data, None, overrides, label=step_label(i - 1), base_dir=SCENE_DIR, load_meshes=load_meshes)
+
+
+def _builtin_label(name: str) -> str:
+    return f"<built-in {name}>"
+
+
+@one_line_errors
+def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
+               load_meshes: bool = True) -> "Scene":
+    """Load and validate a scene.
+
+    ``ref`` None loads the built-in ``default``; a string without a path separator and without
+    a ``.toml`` suffix that names a built-in scene (``builtin_scene_names()``) loads that one;
+    ``lecture:N`` loads the lecture tour's step N (1-based; ``lecture_scene_names()``);
+    anything else is a file path. ``overrides`` are ``KEY=VALUE`` assignments (``--set``)
+    applied before validation. Raises ``ViewerError`` (one line) on any problem.
+    """
+    if ref is None:
+        ref = "default"
+    text = str(ref)
+    seps = {"/", os.sep} | ({os.altsep} if os.altsep else set())
+    is_bare = isinstance(ref, str) and not any(s in text for s in seps) and not text.endswith(".toml")
+    builtins = builtin_scene_names()
+    m = LECTURE_NAME.fullmatch(text) if is_bare else None
+    if m is not None:
+        return _lecture_scene(m, overrides, load_meshes)
+    if is_bare and text in builtins:
+        file = SCENE_DIR / f"{text}.toml"
+        label = _builtin_label(text)
+        data = _read_toml(file, label)
+        return parse_scene(data, None, overrides, label=label, base_dir=SCENE_DIR, load_meshes=load_meshes)
+    path = Path(ref)
+    label = text
+    problem = path_problem(path)
+    if problem == "file not found":
+        hint = ("a scene file path (.toml) or a built-in scene name: " + ", ".join(builtins)
+                + ", lecture:1 .. lecture:" + str(len(lecture_scene_names())))
+        if is_bare:
+            Checker(label).fail("scene", "no such built-in scene or file", hint)
+        Checker(label).fail("file", "not found", hint)
+    if problem == "is a folder, not a file":
+        Checker(label).fail("file", "is a folder, not a scene file", "a scene file path (.toml)")
+    if problem is not None:  # a pipe would block the read; a name too long, a NUL character
+        Checker(label).fail("file", problem, "a scene file path (.toml)")
+    if path.suffix.lower() == ".png":
+        # a screenshot: its text chunk holds the whole scene (viewer.screenshot.png_text)
+        data = _read_screenshot(path, label)
+        return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
+    data = _read_toml(path, label)
+    return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
+
+
+def load_scene_text(text: str, overrides: Sequence[str] = (), *, base_dir: str | Path | None = None,
+                    label: str = "<scene text>", load_meshes: bool = True) -> "Scene":
+    """Load and validate a scene given as TOML text (the Python API's third kind of scene).
+    Relative mesh and map paths resolve against ``base_dir`` (default: the working folder).
+    Raises ``ViewerError`` (one line) on any problem, as ``load_scene`` does."""
+    data = loads_toml(str(text), label)
+    return parse_scene(data, None, overrides, label=label, base_dir=base_dir, load_meshes=load_meshes)
+
+
+SCREENSHOT_KEY = "brdf-viewer:scene"
+
+
+def _read_screenshot(path: Path, label: str) -> dict:
+    """The scene stored in a screenshot's PNG text chunk. Mesh and map paths in it resolve
+    against the screenshot's folder; built-in names work anywhere."""
+    try:
+        from viewer.io import read_png_text
+
+        text = read_png_text(path)
+    except Exception as e:  # noqa: BLE001 - Pillow raises many kinds for a broken PNG
+        Checker(label).fail("file", f"cannot be read as PNG ({type(e).__name__}: {e})",
+                             "a brdf-viewer screenshot (.png) or a scene file (.toml)")
+    if SCREENSHOT_KEY not in text:
+        Checker(label).fail(SCREENSHOT_KEY, "this PNG holds no scene",
+                             "a screenshot saved by brdf-viewer (F12 or render)")
+    return loads_toml(text[SCREENSHOT_KEY], label)
+
+
+def _read_toml(path: Path, label: str) -> dict:
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        Checker(label).fail("file", f"cannot be read ({e.strerror or e})", "a readable scene file (.toml)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        Checker(label).fail("file", f"is not UTF-8 text (byte {e.start})", "a UTF-8 TOML text file")
+    return loads_toml(text, label)
+
+
+def load_material_file(path) -> tuple[str, Any]:
+    """(name, Params) of the first ``[materials.NAME]`` table of a TOML file (a material file or
+    a whole scene), validated like a scene's materials. Raises ViewerError (one line)."""
+    path = Path(path).expanduser()
+    label = str(path)
+    data = _read_toml(path, label)
+    mats = data.get("materials")
+    if not isinstance(mats, dict) or not mats:
+        Checker(label).fail("materials", "no [materials.NAME] table in the file",
+                             "a file with [materials.NAME] and model = ... (or preset = ...)")
+    name = next(iter(mats))
+    return name, parse_materials(Checker(label), {name: mats[name]}, path.parent.absolute())[name]

@@ -1,0 +1,209 @@
+"""The scene model: the data classes a validated scene is made of (``Scene``, ``Camera``,
+``Light``, ``RenderSettings``, ``SceneObject``; ``Environment`` is in ``viewer.scene.environment``)
+and the scene file's vocabulary: its sections, keys and allowed values."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from viewer.scene.environment import Environment
+
+SCENE_VERSION = 1
+
+TOP_KEYS = ("version", "camera", "environment", "render", "lights", "objects", "materials")
+CAMERA_KEYS = ("position", "target", "up", "fov_y", "width", "height")
+ENV_KEYS = ("constant", "map", "intensity", "rotation_deg")
+RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation", "raytrace", "raytrace_depth")
+LIGHT_TYPES = ("point", "directional")
+POINT_KEYS = ("type", "position", "intensity")
+DIRECTIONAL_KEYS = ("type", "direction", "irradiance")
+OBJECT_KEYS = ("mesh", "material", "translate", "scale", "rotate_y_deg")
+
+IBL_MODES = ("split_sum", "fis", "brute_force", "off")
+TONEMAPS = ("none", "aces", "filmic", "reinhard")
+MSAA_SAMPLES = (0, 1, 2, 4, 8)
+MAX_SIZE = 16384
+EXPOSURE_RANGE = (-20.0, 20.0)
+# Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
+# a finite float64 beyond this would turn into inf there.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+MIN_VIEW_DISTANCE = 1e-6  # m, between camera.position and camera.target (viewer.camera clamps there)
+
+
+def _v3(x) -> np.ndarray:
+    return np.array(x, dtype=np.float64).reshape(3)
+
+
+@dataclass(eq=False)
+class Camera:
+    """A pinhole camera looking from ``position`` at ``target``; ``fov_y`` is the full vertical
+    field of view in degrees; ``width`` x ``height`` pixels. ``up`` is stored unit length."""
+
+    position: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 4.0]))
+    target: np.ndarray = field(default_factory=lambda: _v3([0.0, 0.0, 0.0]))
+    up: np.ndarray = field(default_factory=lambda: _v3([0.0, 1.0, 0.0]))
+    fov_y: float = 40.0
+    width: int = 256
+    height: int = 256
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    def __eq__(self, other):
+        return equal(self, other)
+
+
+@dataclass(eq=False)
+class Light:
+    """A point light (``position`` m, ``intensity`` W/sr) or a directional light (``direction``:
+    unit vector the light travels along, from the light toward the scene; ``irradiance`` W/m^2).
+    The fields of the other type are zero."""
+
+    type: str = "point"
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    intensity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    irradiance: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __eq__(self, other):
+        return equal(self, other)
+
+
+@dataclass(eq=False)
+class RenderSettings:
+    """The rasterizer's switches (the reference path tracer ignores them)."""
+
+    ibl: str = "split_sum"
+    ssr: bool = False
+    shadows: bool = True
+    msaa: int = 4
+    exposure: float = 0.0
+    tonemap: str = "none"
+    # multiple-scattering energy compensation of glossy lobes under environment light
+    # (Fdez-Aguera 2019; Kulla & Conty 2017): the energy single scattering loses, put back
+    ms_compensation: bool = False
+    # specular chains (mirror and smooth-glass bounces) traced through the scene's triangles on
+    # the GPU instead of the environment looked up as through a sphere; raytrace_depth = the most
+    # scattering events along a chain, the camera's hit included (the reference's max_depth)
+    raytrace: bool = False
+    raytrace_depth: int = 8
+
+    def __eq__(self, other):
+        return equal(self, other)
+
+
+@dataclass(eq=False)
+class SceneObject:
+    """One mesh instance. ``mesh`` is the reference as written in the file (a built-in name or
+    a path relative to the scene file); ``mesh_data`` is the loaded ``viewer.mesh.MeshData``
+    (None when the scene was parsed with ``load_meshes=False``). ``scale`` is a float or a
+    (3,) array of positive numbers."""
+
+    mesh: str
+    material: str
+    translate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale: float | np.ndarray = 1.0
+    rotate_y_deg: float = 0.0
+    mesh_data: Any = field(default=None, repr=False)
+
+    def model_matrix(self) -> np.ndarray:
+        """4x4 float64 object-to-world matrix for column vectors (``M @ [x, y, z, 1]``):
+        ``T(translate) @ R_y(rotate_y_deg) @ S(scale)``. Transpose it for pyrr's row-major
+        (vector-on-the-left) convention."""
+        s = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (3,))
+        a = math.radians(self.rotate_y_deg)
+        c, sn = math.cos(a), math.sin(a)
+        # Right-handed rotation about +y: x goes to -z for +90 degrees.
+        rot = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+        m = np.eye(4)
+        m[:3, :3] = rot * s[None, :]
+        m[:3, 3] = self.translate
+        return m
+
+    def normal_matrix(self) -> np.ndarray:
+        """3x3 matrix that transforms normals to world space (inverse transpose of the
+        upper-left 3x3 of the model matrix); renormalize after use."""
+        return np.linalg.inv(self.model_matrix()[:3, :3]).T
+
+    def world_positions(self) -> np.ndarray:
+        """(V, 3) float64 vertex positions in world space."""
+        p = np.asarray(self.mesh_data.positions, dtype=np.float64).reshape(-1, 3)
+        m = self.model_matrix()
+        return p @ m[:3, :3].T + m[:3, 3]
+
+    def __eq__(self, other):
+        return equal(self, other, skip=("mesh_data",))
+
+
+@dataclass(eq=False)
+class Scene:
+    """A validated scene. ``data`` is the TOML data after ``--set`` overrides, as read (before
+    normalization); ``scene_to_toml(scene)`` writes the current field values instead, so edits
+    made to a Scene (e.g. by the GUI) are what gets saved. ``label`` names the scene in messages
+    (the file name, or ``<built-in default>``); ``base_dir`` is where relative paths resolve."""
+
+    path: Path | None
+    camera: Camera
+    environment: Environment
+    render: RenderSettings
+    lights: list
+    objects: list
+    materials: dict
+    data: dict = field(default_factory=dict)
+    label: str = "<scene>"
+    base_dir: Path | None = None
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) float64 (3,) corners of the world-space box around every object."""
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for obj in self.objects:
+            if obj.mesh_data is None:
+                continue
+            p = obj.world_positions()
+            if len(p):
+                lo = np.minimum(lo, p.min(axis=0))
+                hi = np.maximum(hi, p.max(axis=0))
+        if not np.all(np.isfinite(lo)):
+            return np.zeros(3), np.zeros(3)
+        return lo, hi
+
+    def material_of(self, obj: SceneObject):
+        return self.materials[obj.material]
+
+    def __eq__(self, other):
+        return equal(self, other, skip=("data", "label", "base_dir"))
+
+
+_EQ_SKIP = {SceneObject: ("mesh_data",)}
+
+
+def equal(a, b, skip=()) -> bool:
+    """Structural equality that understands numpy arrays, Params and dataclasses.
+    Float arrays compare with a relative tolerance of 1e-12 (a normalized direction that is
+    normalized again may move by an ulp)."""
+    if type(a) is not type(b):
+        if not (isinstance(a, (int, float)) and isinstance(b, (int, float))
+                and not isinstance(a, bool) and not isinstance(b, bool)):
+            return False
+    if is_dataclass(a):
+        # A SceneObject inside a Scene's list skips mesh_data as it does on its own, so a scene
+        # loaded with meshes equals the same scene parsed with load_meshes=False.
+        skip = skip or _EQ_SKIP.get(type(a), ())
+        return all(equal(getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name not in skip)
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
+    if isinstance(a, dict):
+        if getattr(a, "model", None) != getattr(b, "model", None):
+            return False
+        return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(equal(x, y) for x, y in zip(a, b))
+    return a == b

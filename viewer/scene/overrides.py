@@ -1,0 +1,111 @@
+"""``--set KEY=VALUE`` overrides: applied to the TOML data before validation; a material's
+``model`` or ``preset`` assignment starts that material afresh."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from viewer.scene.model import TOP_KEYS
+from viewer.scene.validation import Checker, check_nesting, describe, short
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+
+_INDEX = re.compile(r"\[(\d+)\]")
+
+
+def _parse_value(text: str):
+    """A TOML value (number, bool, array, inline table, quoted string); else the bare text."""
+    text = text.strip()
+    try:
+        value = tomllib.loads(f"v = {text}")["v"]
+    except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError; so is a 5000-digit integer
+        return text
+    check_nesting(value, f"--set value {short(text)}")
+    return value
+
+
+def dotted_key(key: str) -> str:
+    """A ``--set`` KEY with list indices written as path parts: ``lobes[0].n`` -> ``lobes.0.n``."""
+    return _INDEX.sub(r".\1", key.strip())
+
+
+def _override_parts(assignment: str) -> list[str]:
+    key = assignment.split("=", 1)[0] if "=" in assignment else ""
+    return dotted_key(key).split(".")
+
+
+def is_material_switch(assignment: str) -> bool:
+    """``materials.NAME.model=...`` or ``materials.NAME.preset=...`` (also a nested material's,
+    ``materials.NAME.base.model=...``)."""
+    parts = _override_parts(assignment)
+    return len(parts) >= 3 and parts[0] == "materials" and parts[-1] in ("model", "preset") and all(parts)
+
+
+def switch_material(data: dict, assignment: str) -> None:
+    """Apply a model / preset assignment and drop every other value of that material table, so
+    the material becomes the model's defaults or the preset."""
+    parts = _override_parts(assignment)
+    apply_override(data, assignment)  # checks the path, sets the value
+    cur: Any = data
+    for p in parts[:-1]:
+        cur = cur[int(p)] if isinstance(cur, list) else cur[p]
+    if isinstance(cur, dict):
+        value = cur[parts[-1]]
+        cur.clear()
+        cur[parts[-1]] = value
+
+
+def apply_override(data: dict, assignment: str, where: str = "--set") -> None:
+    """Apply one ``KEY=VALUE`` assignment to ``data`` in place.
+
+    KEY is a dotted path (``materials.ball.alpha``, ``camera.fov_y``); list items are addressed
+    by index (``lights.0.intensity`` or ``lights[0].intensity``). VALUE is parsed as a TOML
+    value (``0.2``, ``[1, 2, 3]``, ``true``, ``"text"``); a bare word that is not TOML is taken
+    as a string (``model=ggx``). Missing top-level sections (camera, environment, render,
+    materials) are created; any other missing part of the path is an error naming it. The
+    value itself is checked later, by ``parse_scene``.
+    """
+    ck = Checker(f"{where} {assignment}")
+    if "=" not in assignment:
+        ck.fail("KEY=VALUE", "no '=' in the assignment", "KEY=VALUE with a dotted KEY, e.g. materials.ball.alpha=0.2")
+    key, text = assignment.split("=", 1)
+    key = dotted_key(key)
+    parts = key.split(".")
+    if not key or any(not p for p in parts):
+        ck.fail(key or "KEY", "empty part in the dotted path",
+                "a dotted path like materials.ball.alpha or lights.0.intensity")
+    value = _parse_value(text)
+    cur: Any = data
+    for depth, part in enumerate(parts):
+        here = ".".join(parts[:depth + 1])
+        last = depth == len(parts) - 1
+        if isinstance(cur, list):
+            if not part.isdigit() or int(part) >= len(cur):
+                allowed = (f"an index 0..{len(cur) - 1}" if cur else "nothing: the list is empty")
+                ck.fail(here, f"no item {part!r} in {'.'.join(parts[:depth]) or 'the list'}", allowed)
+            idx = int(part)
+            if last:
+                cur[idx] = value
+            else:
+                cur = cur[idx]
+        elif isinstance(cur, dict):
+            if last:
+                cur[part] = value
+            elif part in cur:
+                cur = cur[part]
+            elif depth == 0 and part in ("camera", "environment", "render", "materials"):
+                cur[part] = {}
+                cur = cur[part]
+            else:
+                allowed = ", ".join(map(str, cur)) if cur else "nothing here yet"
+                if depth == 0:
+                    allowed = ", ".join(TOP_KEYS)
+                ck.fail(here, f"no {part!r} in {'.'.join(parts[:depth]) or 'the scene'}", allowed)
+        else:
+            ck.fail(here, f"{'.'.join(parts[:depth])} is a value ({describe(cur)}), not a table or list",
+                    "a path that ends at " + ".".join(parts[:depth]))
