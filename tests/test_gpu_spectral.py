@@ -80,6 +80,20 @@ def test_white_furnace_is_one_at_every_pixel(ctx):
     assert a["n_z"] == g.mean.size // h.BLOCK**2   # every block is noisy: wavelengths vary everywhere
 
 
+def test_white_furnace_is_one_under_every_estimator_option(ctx):
+    """The estimator's options are compile-time variants of the spectral pass too: light sampling
+    alone with no roulette, BSDF sampling alone, the balance heuristic; every option converges to
+    the same image (1 here), with its own noise."""
+    sc = h.toml_scene(h.FURNACE_SCENE, "furnace")
+    one = None
+    for opts in (dict(strategy="light", russian_roulette=False), dict(strategy="bsdf"),
+                 dict(mis_heuristic="balance")):
+        g = h.gpu(ctx, sc, 64, max_depth=32, **opts)
+        one = one or h.Estimate(np.ones_like(g.mean), np.zeros_like(g.var), 0, True, 0)
+        # the mean: within 0.5% or 4 standard errors (~1.4% here)
+        h.check(h.agreement(g, one), f"white furnace {opts}", mean_tol=0.005)
+
+
 def test_dispersion_lecture_step_renders_without_bad_values(ctx):
     """The lecture's dispersion step (an SF11 prism and a diamond under the sky map) as it is:
     the GPU engine takes wavelengths by itself, and no radiance is NaN, infinite or negative."""
@@ -169,6 +183,18 @@ def test_gpu_spectral_agrees_with_cpu_spectral_lecture_steps(ctx, step):
     c = h.cpu(sc, 256, size=(32, 32), spectral=True)
     # the mean: within 0.5% or 4 standard errors
     h.check(h.agreement(g, c), f"lecture step {step}", mean_tol=0.005)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("opts", [dict(strategy="bsdf"), dict(strategy="light", russian_roulette=False),
+                                  dict(mis_heuristic="balance")], ids=["bsdf", "light_no_rr", "balance"])
+def test_gpu_spectral_options_agree_with_cpu_spectral(ctx, opts):
+    """The estimator's options on the dispersive scene, both engines spectral: the same image and
+    the same noise per option."""
+    sc = h.toml_scene(h.DISPERSIVE_SCENE, "dispersive")
+    g = h.gpu(ctx, sc, 64, max_depth=6, **opts)
+    c = h.cpu(sc, 64, max_depth=6, **opts)
+    h.check(h.agreement(g, c), f"dispersive scene {opts}", mean_tol=0.01)   # as the default-option test
 
 
 @pytest.mark.slow

@@ -27,8 +27,8 @@
 // substitution (n, k of the table for eta, k; n(lam) for ior; upsampled RGB parameters) is
 // the CPU engine's by construction.
 //
-// As in the CPU spectral estimator, there are no strategy switches: the environment is
-// always reached by MIS with the power heuristic, and roulette always plays.
+// The estimator's options are trace_path's compile-time variants (STRATEGY, BALANCE_HEURISTIC
+// through mis_weight, NO_ROULETTE), as the CPU spectral estimator runs the RGB one's steps.
 
 const int SPEC_STRIDE = 105;       // bins between a path's wavelengths (420 / 4)
 const float SPEC_N_BINS = 420.0;
@@ -111,7 +111,13 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
 #if ENV_MODE != 0
-            float w = prev_delta ? 1.0 : power_heuristic(prev_pdf, prev_lpdf);
+#if STRATEGY == STRATEGY_MIS
+            float w = prev_delta ? 1.0 : mis_weight(prev_pdf, prev_lpdf);
+#elif STRATEGY == STRATEGY_BSDF
+            float w = 1.0;
+#else
+            float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
+#endif
             L = add_sat4(L, mul_sat4(T, spec_up(env_eval(d)) * w));
 #endif
             break;
@@ -185,7 +191,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
                 if (!bvh_occluded(so, wi, 0.0, tmax)) L = add_sat4(L, cc);
             }
 #endif
-#if ENV_MODE != 0
+#if ENV_MODE != 0 && STRATEGY != STRATEGY_BSDF
             {
                 vec3 wi;
                 float pe;
@@ -196,8 +202,13 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
                 bool ok = (trans ? wl.z * g > 0.0 : (wl.z > 0.0 && g > 0.0)) && pe > 0.0;
                 if (ok) {
                     vec4 f = spec_eval(cat, model, o_s, o_3, hmask, wl, wo_l);
+#if STRATEGY == STRATEGY_MIS
                     float pb = clean(brdf_pdf(model, o_s, wl, wo_l));
-                    vec4 cc = mul_sat4(T, mul_sat4(f, (abs(wl.z) * share * (power_heuristic(pe, pb) / pe)) * spec_up(ev)));
+                    float wmis = mis_weight(pe, pb) / pe;
+#else
+                    float wmis = 1.0 / pe;
+#endif
+                    vec4 cc = mul_sat4(T, mul_sat4(f, (abs(wl.z) * share * wmis) * spec_up(ev)));
                     if (any_pos4(cc)) {
                         vec3 so = p + eps * (g < 0.0 ? -1.0 : 1.0) * ng;
                         if (!bvh_occluded(so, wi, 0.0, BVH_INF)) L = add_sat4(L, cc);
@@ -225,18 +236,20 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         // now carries the four wavelengths' share, the others are terminated
         if (cat == 2 && !solo) Tn = mul_sat4(Tn, vec4(SPEC_HERO));
         if (cat == 2) solo = true;
-#if ENV_MODE != 0
+#if ENV_MODE != 0 && STRATEGY == STRATEGY_MIS
         prev_lpdf = disc ? 0.0 : env_pdf(wi_w, n, trans);
 #endif
         prev_pdf = pdf_s;
         prev_delta = disc;
         if (trans) sigma = dot(ng_raw, wi_w) < 0.0 ? u_mat_info[2 * mi + 1].xyz : vec3(0.0);
         bool alive = any_pos4(Tn);
+#ifndef NO_ROULETTE
         if (depth >= RR_START_DEPTH) {
             float q = clamp(max4(Tn), RR_MIN, RR_MAX);
             alive = alive && r0.w < q;
             Tn /= q;
         }
+#endif
         if (!alive) break;
         T = Tn;
         o = p + eps * (gw < 0.0 ? -1.0 : 1.0) * ng;

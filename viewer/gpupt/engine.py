@@ -103,7 +103,7 @@ class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
     ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
-    ``ReferenceRenderer`` (the spectral estimator, like the CPU one, has no strategy switches).
+    ``ReferenceRenderer`` (spectral or not).
     ``spectral``: trace wavelengths (True), RGB (False, the default) or, None, wavelengths where
     a material is dispersive (``ReferenceRenderer``'s default)."""
 
