@@ -1,7 +1,7 @@
 """What the spectral engine tests share (no test module imports another): rendering one scene
 with a given engine and mode, the block z-score statistics of two estimates of the same image
-(those of tests/test_gpu_engine.py, for any pair of renderers and any image size), and the
-scenes.
+(``reference_harness.agreement``'s, for any pair of estimates -- GPU against CPU, spectral
+against RGB, an engine against an exact image -- and any image size), and the scenes.
 
 Two estimators of the same integral agree within noise when, per ``BLOCK`` x ``BLOCK`` block of
 pixels, the difference of the means over its standard error (both estimates' variance of the

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import spectral_harness as h
+from reference_harness import under_grey_sky
 from viewer.lecture import TOUR, tour_scene
 from viewer.scene import builtin_scene_names, load_scene
 
@@ -174,11 +175,7 @@ def test_gpu_spectral_agrees_with_cpu_spectral_lecture_steps(ctx, step):
     """The lecture's spectral steps (complex IOR: gold, silver, copper mirrors; dispersion),
     under a grey sky (the sky map's sun seen in a mirror or through glass from the floor is a
     caustic neither engine samples well at this spp), both engines spectral."""
-    sc = tour_scene(step)
-    sc.lights = []
-    sc.environment.map = None
-    sc.environment.constant = np.array([0.6, 0.65, 0.7])
-    sc.environment.intensity = 1.0
+    sc = under_grey_sky(tour_scene(step))
     g = h.gpu(ctx, sc, 256, size=(32, 32), spectral=True)
     c = h.cpu(sc, 256, size=(32, 32), spectral=True)
     # the mean: within 0.5% or 4 standard errors
