@@ -313,3 +313,27 @@ model = "lambert"
 [materials.floor]
 model = "lambert"
 """
+
+# A polished gold sphere filling a 3 x 3 image in a white constant environment: a camera ray
+# reflects once at near-normal incidence (the view spans 3 degrees)
+GOLD_MIRROR_SCENE = """
+[camera]
+position = [0.0, 0.0, 6.0]
+target = [0.0, 0.0, 0.0]
+fov_y = 3.0
+width = 3
+height = 3
+
+[environment]
+constant = [1.0, 1.0, 1.0]
+
+[render]
+ibl = "off"
+
+[[objects]]
+mesh = "sphere"
+material = "gold"
+
+[materials.gold]
+preset = "polished_gold"
+"""
