@@ -75,3 +75,19 @@ def test_bake_cli(tmp_path):
     assert r.returncode == 2 and "name at least one SCENE" in r.stderr
     r = run_cli("bake", "sphere", "--spp", "2", "--engine", "tpu", env=env)
     assert r.returncode == 2 and "--engine: 'tpu' is not an engine" in r.stderr
+
+
+def test_bake_keys_a_dispersive_scene_as_the_renderers_do(tmp_path):
+    """A dispersive scene's reference traces wavelengths; bake stores it under the key the
+    window's renderer (which sets the spectral flag) looks up."""
+    import os
+
+    glass = 'materials.ball={model="dielectric", spectral="SF11"}'
+    env = dict(os.environ, BRDF_VIEWER_CACHE=str(tmp_path))
+    r = run_cli("bake", "sphere", "--spp", "1", "--width", "12", "--height", "8", "--engine", "cpu",
+                "--workers", "0", "--max-depth", "3", "--set", glass, env=env)
+    assert r.returncode == 0, r.stderr
+    with ReferenceRenderer(load_scene("sphere", [glass]), width=12, height=8, max_depth=3, workers=0) as rr:
+        assert rr.setup.extra["spectral"]
+        want = cache.path_for(cache.setup_key(rr.setup), tmp_path)
+    assert [f.name for f in (tmp_path / "references").glob("*.npz")] == [want.name]

@@ -511,7 +511,7 @@ def _parser_bake() -> argparse.ArgumentParser:
 
 def cmd_bake(args) -> int:
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer
+    from viewer.gpupt.select import make_renderer, needs_spectral
     from viewer.pathtracer import cache
     from viewer.pathtracer.integrator import RenderSetup
     from viewer.scene import load_scene
@@ -533,7 +533,9 @@ def cmd_bake(args) -> int:
         camera = OrbitCamera.from_scene(scene)
         w = args.width or max(1, scene.camera.width // 2)
         h = args.height or max(1, scene.camera.height // 2)
-        key = cache.setup_key(RenderSetup.from_scene(scene, camera, w, h, args.max_depth))
+        setup = RenderSetup.from_scene(scene, camera, w, h, args.max_depth)
+        setup.extra["spectral"] = needs_spectral(scene)   # as both engines key it (dispersive: wavelengths)
+        key = cache.setup_key(setup)
         old = cache.load(key)
         have = old.spp if old is not None else 0
         if have >= args.spp:

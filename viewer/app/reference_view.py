@@ -145,8 +145,9 @@ class ReferenceView:
                 if self._gpu is None:
                     from viewer.gpupt.engine import GpuReferenceRenderer
 
+                    # spectral=None: wavelengths where a material is dispersive, as the cpu engine
                     self._gpu = GpuReferenceRenderer(scene, camera, w, h, max_depth=self.max_depth, ctx=self.ctx,
-                                                     **self.options)
+                                                     spectral=None, **self.options)
                 else:
                     self._gpu.reset(scene, camera, w, h, **self.options)
                 self._gpu_key, have = _cached(self._gpu)
