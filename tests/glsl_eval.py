@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.glsl import generate_dispatch, models_used, uniform_block, uses_thin_film
+from viewer.gl.brdf_glsl import generate_dispatch, models_used, uniform_block, uses_thin_film
 from viewer.gl.measured_tex import MeasuredTextures, measured_params
 from viewer.gl.shaders import build_program
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.albedo import N_SIDE, PHIS, TABLE_SIZE, stratified_u
-from viewer.brdf.glsl import choice_constants, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
+from viewer.gl.brdf_glsl import choice_constants, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
 from viewer.gl.shaders import build_program, set_uniform
 
 _VERT = """#version 410 core

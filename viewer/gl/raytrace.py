@@ -18,7 +18,7 @@ import json
 
 import numpy as np
 
-from viewer.brdf.glsl import MAT_VEC4, models_used, pack_material
+from viewer.gl.brdf_glsl import MAT_VEC4, models_used, pack_material
 
 ROW_TEXELS = 164  # texels per material row (see shaders/common/specular_chain.glsl)
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = 64, 96, 128, 160, 161, 162, 163

@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 
 from viewer.brdf.albedo import TABLE_SIZE, albedo_tables
-from viewer.brdf.glsl import uniform_block
+from viewer.gl.brdf_glsl import uniform_block
 from viewer.camera import OrbitCamera, gl_bytes, look_at, orthographic, perspective
 from viewer.gl.shaders import ShaderError, compile_sources, default_virtual, program_sources
 from viewer.gl.shaders import set_uniform as _set
@@ -372,7 +372,7 @@ class Renderer:
         whose specular chain is traced (viewer/gl/raytrace.py); ``dispersion`` traces each
         colour channel's chain apart. ``thin_film``: compile the film's wavelength loop (None: where
         this material has a film)."""
-        from viewer.brdf.glsl import models_used, uses_thin_film
+        from viewer.gl.brdf_glsl import models_used, uses_thin_film
 
         per_sample = self.sample_shading if sample_shading is None else sample_shading
         used = models_used(params)
@@ -727,7 +727,7 @@ class Renderer:
             rt = self.raytrace_state()
             rt.update(scene, self.albedo_tables)
             rt_models, rt_disp = scene_models(scene), dispersive(scene)
-            from viewer.brdf.glsl import uses_thin_film
+            from viewer.gl.brdf_glsl import uses_thin_film
 
             rt_film = any(uses_thin_film(scene.materials[o.material]) for o in scene.objects)
         ready = set()

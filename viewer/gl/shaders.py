@@ -154,7 +154,7 @@ def load(rel: str, virtual: dict[str, str] | None = None, defines: dict[str, str
 
 
 def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
-    from viewer.brdf.glsl import generate_dispatch
+    from viewer.gl.brdf_glsl import generate_dispatch
 
     return {"brdf/dispatch.glsl": generate_dispatch(only)}
 

@@ -8,7 +8,7 @@ spent (the window calls it once per frame so the raster stays interactive).
 How it runs (OpenGL 4.1 core): the setup is the CPU engine's (``RenderSetup.from_scene``: the
 same triangles, vertex normals, tangents, camera, lights, environment tables). The triangles
 and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
-one after another into a float texture in the layout of ``viewer.brdf.glsl.pack_material``
+one after another into a float texture in the layout of ``viewer.gl.brdf_glsl.pack_material``
 (the generated ``brdf/dispatch.glsl`` reads them through ``mat_f``, here from that texture
 instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``:
 a whole-image pass over the whole target, a band of rows (``step_for``) only over the band after
@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf.glsl import generate_dispatch, models_used, pack_material, program_defines
+from viewer.gl.brdf_glsl import generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.pathtracer.bvh_flat import TEX_WIDTH, as_texels
