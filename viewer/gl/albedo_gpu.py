@@ -107,8 +107,6 @@ class GPUAlbedoTables:
         prog = self._programs.get(key)
         if prog is None:
             virtual = {"brdf/dispatch.glsl": generate_dispatch(models, fixed)}
-            if "measured" in models:
-                defines["MEASURED_TEXTURE"] = "1"  # its table's texture
             prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=_SAMPLE_FRAG, virtual=virtual,
                                  defines=defines or None)
             self._programs[key] = prog
