@@ -3,8 +3,8 @@ tone-mapping pass to the screen or an 8-bit sRGB image. The window and the offsc
 call ``Renderer.render``; only the owner of the final framebuffer differs.
 
 A frame is a sequence of named steps (``_render``): the frame's targets and switches, the shadow
-pass (viewer/gl/shadow.py), the environment (IBL, the thickness of absorbers, the materials'
-albedo tables: viewer/gl/material_tables.py), the background, the per-frame uniforms, the
+pass (viewer/gl/shadow.py), the environment (IBL, the thickness of absorbers: viewer/gl/targets.py,
+the materials' albedo tables: viewer/gl/material_tables.py), the background, the per-frame uniforms, the
 traced chains' scene data (viewer/gl/raytrace.py), one draw per object with its forward-program
 variant (viewer/gl/programs.py), and the SSR pass or the MSAA resolve. Programs are kept and hot
 reloaded by a ``ProgramCache``."""
@@ -25,6 +25,7 @@ from viewer.gl.shaders import set_uniform as _set
 from viewer.gl.raytrace import KIND_SHADED, chain_kind, dispersive
 from viewer.gl.raytrace import MAX_SEGMENTS as RT_MAX_SEGMENTS
 from viewer.gl.shadow import SHADOW_TILE, ShadowMaps, shadow_lights
+from viewer.gl.targets import HdrTarget, ThicknessPass
 
 __all__ = ["Renderer", "GpuMesh", "MAX_LIGHTS", "SHADOW_TILE", "TONEMAPS", "IBL_MODES", "VIEW_MODES",
            "SSR_VIEW_BASE"]
@@ -112,12 +113,11 @@ class Renderer:
         self._programs = ProgramCache(ctx, vao_tables=lambda: [gm.vaos for _, gm in self._meshes.values()])
         self._render_error: ShaderError | None = None
         self.build_programs()
-        self._targets = None
-        self._target_key = None
+        self._hdr = HdrTarget(ctx)
         self._ldr = None
         self._shadows = ShadowMaps(ctx)
         self.tables = MaterialTables(ctx)
-        self._thick = None
+        self._thick = ThicknessPass(ctx)
         self._ibl = None
         self._ssr = None
         self._rt = None
@@ -217,41 +217,7 @@ class Renderer:
                 self._meshes.pop(key)[1].release()
 
     def _ensure_targets(self, w, h, samples):
-        samples = samples if samples > 1 else 0
-        samples = min(samples, self.ctx.max_samples)
-        key = (w, h, samples)
-        if self._target_key == key:
-            return self._targets
-        self._release_targets()
-        ctx = self.ctx
-        resolved = ctx.texture((w, h), 4, dtype="f4")
-        resolved.filter = (ctx.NEAREST, ctx.NEAREST)
-        resolved_fbo = ctx.framebuffer(color_attachments=[resolved])
-        if samples:
-            ms_color = ctx.renderbuffer((w, h), 4, samples=samples, dtype="f4")
-            ms_depth = ctx.depth_renderbuffer((w, h), samples=samples)
-            ms_fbo = ctx.framebuffer(color_attachments=[ms_color], depth_attachment=ms_depth)
-            extra = [ms_color, ms_depth]
-        else:
-            depth = ctx.depth_renderbuffer((w, h))
-            ms_fbo = ctx.framebuffer(color_attachments=[resolved], depth_attachment=depth)
-            extra = [depth]
-        self._targets = {"resolved": resolved, "resolved_fbo": resolved_fbo, "draw_fbo": ms_fbo,
-                         "extra": extra, "samples": samples}
-        self._target_key = key
-        return self._targets
-
-    def _release_targets(self):
-        if self._targets:
-            t = self._targets
-            if t["draw_fbo"] is not t["resolved_fbo"]:
-                t["draw_fbo"].release()
-            t["resolved_fbo"].release()
-            t["resolved"].release()
-            for r in t["extra"]:
-                r.release()
-        self._targets = None
-        self._target_key = None
+        return self._hdr.ensure(w, h, samples)
 
     # ---------------------------------------------------------------- material tables
     @property
@@ -368,7 +334,8 @@ class Renderer:
         absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])
                      and not (scene.render.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
         if absorbers and f.env_on:
-            thickness = self._thickness_pass(absorbers, f.cam, f.w, f.h)
+            thickness = self._thick.render(absorbers, f.cam, f.w, f.h, self._programs.get("thickness", _THICKNESS),
+                                           self._mesh_vao)
         self.ibl().set_environment(f.env_map, constant=None if f.env_map is not None else f.env_rad)
         if f.ssr_on or f.env_on:
             for obj in scene.objects:
@@ -512,39 +479,6 @@ class Renderer:
             self.ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])
         return t["resolved"]
 
-    def _thickness_pass(self, objects, cam, w, h):
-        """Distance from the camera to the nearest back face of absorbing transmissive objects,
-        per pixel (R32F). The forward pass takes back - front as the path length inside, the
-        rasterizer's approximation of Bouguer absorption (the reference path tracer follows
-        the refracted path exactly)."""
-        ctx = self.ctx
-        key = (w, h)
-        if self._thick is None or self._thick[0] != key:
-            if self._thick is not None:
-                for r in self._thick[1:]:
-                    r.release()
-            tex = ctx.texture((w, h), 1, dtype="f4")
-            tex.filter = (ctx.NEAREST, ctx.NEAREST)
-            depth = ctx.depth_renderbuffer((w, h))
-            self._thick = (key, tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
-        _, tex, _, fbo = self._thick
-        prog = self._programs.get("thickness", _THICKNESS)
-        fbo.use()
-        fbo.viewport = (0, 0, w, h)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(ctx.DEPTH_TEST | ctx.CULL_FACE)
-        ctx.cull_face = "front"  # keep back faces: the far side of each object
-        _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
-        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
-        for obj in objects:
-            m = obj.model_matrix()
-            _set(prog, "u_model", gl_bytes(m))
-            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
-            self._gpu_mesh(obj.mesh_data).vao(prog).render()
-        ctx.cull_face = "back"
-        ctx.disable(ctx.CULL_FACE)
-        return tex
-
     def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
         """Exposure, tone mapping and sRGB encoding of ``hdr`` into ``fbo`` (e.g. ctx.screen)."""
         ctx = self.ctx
@@ -612,7 +546,7 @@ class Renderer:
         return linear, to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
 
     def release(self):
-        self._release_targets()
+        self._hdr.release()
         for _, gm in self._meshes.values():
             gm.release()
         self._meshes.clear()
@@ -620,10 +554,7 @@ class Renderer:
         if self._ldr:
             self._ldr[1].release()
             self._ldr[0].release()
-        if self._thick:
-            for r in self._thick[1:]:
-                r.release()
-        for part in (self._ibl, self._ssr, self.tables, self._rt, self._measured):
+        for part in (self._thick, self._ibl, self._ssr, self.tables, self._rt, self._measured):
             if part is not None:
                 part.release()
         self._programs.release()
