@@ -120,7 +120,7 @@ def model_switch():
         scene.materials["ball"] = brdf.get("lambert").params()
         r.render(scene, cam, 640, 360, msaa=0)
         scene.materials["ball"] = brdf.get(name).params(**{})
-        r._albedo_cache.clear()
+        r.tables.clear()
         t = time.perf_counter()
         r.render(scene, cam, 640, 360, msaa=0)
         ctx.finish()

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.glsl import generate_dispatch, models_used, uniform_block, uses_thin_film
-from viewer.gl.measured_tex import MeasuredTextures, measured_params
+from viewer.gl.brdf_glsl import generate_dispatch, models_used, program_defines, uniform_block
+from viewer.gl.measured_tex import MeasuredTextures
 from viewer.gl.shaders import build_program
 
 _VERT = """#version 410 core
@@ -76,11 +76,7 @@ class _FilmPrograms:
         self.use(None)
 
     def use(self, params):
-        defines = {}
-        if params is not None and uses_thin_film(params):
-            defines["THIN_FILM"] = "1"
-        if params is not None and measured_params(params) is not None:
-            defines["MEASURED_TEXTURE"] = "1"
+        defines = {} if params is None else program_defines([params])
         key = (models_used(params), tuple(sorted(defines))) if defines else None
         if key not in self._programs:
             if key is None:

@@ -87,7 +87,7 @@ def test_renderer_uses_gpu_tables_same_image(renderer):
         renderer.gpu_albedo = True
         renderer.reload_shaders()  # drops the cached tables (they are rebuilt from the GLSL samplers)
         a = renderer.render_arrays(scene, width=64, height=48)[0]
-        assert renderer.albedo_gpu_error is None and renderer._albedo_gpu is not None
+        assert renderer.albedo_gpu_error is None and renderer.tables.gpu_builder is not None
         for n, p in scene.materials.items():
             for g, c in zip(renderer.albedo_tables(p)[:3], numpy_tables[n][:3]):
                 np.testing.assert_allclose(g, c, atol=1e-3, err_msg=n)

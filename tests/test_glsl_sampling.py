@@ -21,7 +21,7 @@ import pytest
 
 from viewer import brdf
 from viewer.brdf.fresnel import fresnel_dielectric
-from viewer.brdf.glsl import glsl_u
+from viewer.gl.brdf_glsl import glsl_u
 from viewer.brdf.sampling import split_uniform
 
 from brdf_harness import direction, param_grid, random_upper, sidak, test_param_sets, write_chi2_images
@@ -67,7 +67,7 @@ def _is_delta(p) -> bool:
 
 def _uses_split(p) -> bool:
     """The numpy sample splits u[:, 0] into (choice, continuous) with split_uniform (the model's
-    ``splits_u`` hook, which viewer.brdf.glsl.glsl_u follows)."""
+    ``splits_u`` hook, which viewer.gl.brdf_glsl.glsl_u follows)."""
     hook = getattr(brdf.get(p.model).module, "splits_u", None)
     return bool(hook and hook(p))
 

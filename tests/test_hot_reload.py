@@ -259,3 +259,51 @@ def test_program_first_compiled_after_a_broken_edit(tmp_path, hot):
         _edit(phong, ok)
         _poll_until_reload(hr)
     assert hr.errors == []
+
+
+SSR_SCENE = SCENE.replace('ibl = "off"', 'ibl = "split_sum"\nssr = true') + """
+[environment]
+constant = [0.4, 0.5, 0.6]
+
+[[objects]]
+mesh = "plane"
+material = "floor"
+translate = [0.0, -1.0, 0.0]
+scale = 4.0
+
+[materials.floor]
+model = "mirror"
+"""
+
+
+def test_ibl_and_ssr_programs_reload_through_the_passes(tmp_path, hot):
+    """The IBL and SSR passes' programs are rebuilt through their own interface
+    (``program_recipes`` / ``replace_program``): an edit of the SSR composite takes effect, an
+    edit of the IBL prefilter rebuilds the prefiltered environment (the same result here)."""
+    renderer, hr, root = hot
+    p = tmp_path / "ssr.toml"
+    p.write_text(textwrap.dedent(SSR_SCENE.format(model="lambert")))
+    scene = load_scene(p)
+    before = _render(renderer, scene)
+    assert before.max() > 0.05
+    assert set(renderer.ssr().program_recipes()) == {"trace", "background", "hiz"}
+    assert "ibl_prefilter" in renderer.ibl().program_recipes()
+    ssr_frag, prefilter = root / "passes" / "ssr.frag", root / "passes" / "ibl_prefilter.frag"
+    ssr_ok, prefilter_ok = ssr_frag.read_text(), prefilter.read_text()
+    assert "frag_color = vec4(base + ssr, 1.0);" in ssr_ok
+    try:
+        _edit(ssr_frag, ssr_ok.replace("frag_color = vec4(base + ssr, 1.0);", "frag_color = vec4(0.5 * (base + ssr), 1.0);"))
+        nonce = time.time_ns() % 999983  # a new source each run: no compiler cache serves it
+        _edit(prefilter, prefilter_ok + f"\nconst float HOT_RELOAD_NONCE = {nonce}.0;\n")
+        rebuilt, _ = _poll_until_reload(hr)
+        assert rebuilt and hr.errors == []
+        assert {"ssr:trace", "ibl:ibl_prefilter"} <= set(renderer.last_reloaded), renderer.last_reloaded
+        assert not renderer.ibl().use_cache  # results of edited shaders never go to the disk cache
+        after = _render(renderer, scene)
+        np.testing.assert_allclose(after, 0.5 * before, rtol=1e-5, atol=1e-7)
+    finally:
+        _edit(ssr_frag, ssr_ok)
+        _edit(prefilter, prefilter_ok)
+        _poll_until_reload(hr)
+    assert hr.errors == []
+    np.testing.assert_allclose(_render(renderer, scene), before, rtol=1e-5, atol=1e-7)

@@ -5,6 +5,7 @@
 // function B(1 + Lambda_o, 1 + Lambda_i) of sec. 5.3 refraction), with pbrt-v4's
 // radiance-mode 1 / eta^2 on transmission. wi may be below the surface (transmission).
 // sigma_a is applied by the path tracer along the path inside, not here.
+#include "generated/constants.glsl"
 #include "common/fresnel.glsl"
 #include "common/microfacet.glsl"
 
@@ -127,7 +128,7 @@ float dielectric_pdf(dielectric_params p, vec3 wi, vec3 wo) {
     if (wm.z < 0.0) wm = -wm;
     float im = dot(wi, wm), om = dot(wo, wm);
     if (im * ci <= 0.0 || om * co <= 0.0) return 0.0;
-    float pm = mf_D_visible(1, wo, wm, p.alpha, p.alpha);
+    float pm = mf_D_visible(MICROFACET_DISTRIBUTION_GGX, wo, wm, p.alpha, p.alpha);
     float oc = clamp(om, 0.0, 1.0);
     if (p.thin_film.thickness_nm > 0.0) {  // the sampler's branch probabilities: mean R, 1 - mean R
         float R = dielectric_film_mean_r(p, oc, eta);

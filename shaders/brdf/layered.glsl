@@ -6,6 +6,7 @@
 // 1 / eta^2: the radiance leaving the layer is the radiance inside over eta^2 (L / n^2 invariant).
 // Lambert base: times 1 / (1 - rho K), the coat-base interreflections (layered_internal_reflectance).
 // The base is any non-layered material, evaluated through the generated brdf_eval_base().
+#include "generated/constants.glsl"
 #include "common/fresnel.glsl"
 #include "common/microfacet.glsl"
 
@@ -99,7 +100,7 @@ float layered_pdf(layered_params p, vec3 wi, vec3 wo) {
     float pc = fresnel_dielectric(clamp(wo.z, 0.0, 1.0), eta);
     vec3 h = normalize_safe(wi + wo);
     float oh = dot(wo, h);
-    float coat = oh > 0.0 ? mf_D_visible(1, wo, h, a, a) / (4.0 * oh) : 0.0;
+    float coat = oh > 0.0 ? mf_D_visible(MICROFACET_DISTRIBUTION_GGX, wo, h, a, a) / (4.0 * oh) : 0.0;
     vec3 wi_t = layered_refract_in(wi, eta);
     vec3 wo_t = layered_refract_in(wo, eta);
     float pb = brdf_pdf_base(p.base_model, p.base_offset, wi_t, wo_t);

@@ -1,30 +1,30 @@
 // Microfacet BRDF f = F G D / (4 cos_i cos_o) (lecture; Torrance & Sparrow 1967, Blinn 1977,
 // Cook & Torrance 1981, Walter et al. 2007 eq. 20) plus the optional diffuse base
 // kd / pi (1 - F(cos_i)) (1 - F(cos_o)). Twin of viewer/brdf/microfacet.py.
-// Choice ids: distribution 0 beckmann, 1 ggx, 2 blinn_phong; shadowing 0 smith, 1 v_cavity;
-// fresnel 0 dielectric, 1 conductor, 2 schlick.
+// Choice ids: MICROFACET_<PARAM>_<CHOICE> of generated/constants.glsl (from the spec).
+#include "generated/constants.glsl"
 #include "common/fresnel.glsl"
 #include "common/microfacet.glsl"
 #include "common/spectral.glsl"
 
 vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
     // a thin film on the dielectric or conductor (common/fresnel.glsl; Schlick has none)
-    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != 2)
-        return p.fresnel == 1 ? thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MICROFACET_FRESNEL_SCHLICK)
+        return p.fresnel == MICROFACET_FRESNEL_CONDUCTOR ? thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
                               : thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
-    if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_i);
-    if (p.fresnel == 0) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
-    if (p.fresnel == 1) return fresnel_conductor(cos_i, p.eta, p.k);
+    if (p.spectral > MICROFACET_SPECTRAL_NONE) return spectral_fresnel(p.spectral_offset, cos_i);
+    if (p.fresnel == MICROFACET_FRESNEL_DIELECTRIC) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
+    if (p.fresnel == MICROFACET_FRESNEL_CONDUCTOR) return fresnel_conductor(cos_i, p.eta, p.k);
     return fresnel_schlick(cos_i, p.f0);
 }
 
 float microfacet_G(microfacet_params p, vec3 wi, vec3 wo, vec3 h) {
-    if (p.shadowing == 1) return G_v_cavity(wi, wo, h);
+    if (p.shadowing == MICROFACET_SHADOWING_V_CAVITY) return G_v_cavity(wi, wo, h);
     float lam_i = mf_lambda(p.distribution, wi, p.alpha_x, p.alpha_y);
     float lam_o = mf_lambda(p.distribution, wo, p.alpha_x, p.alpha_y);
     // blinn_phong borrows Beckmann's Lambda (Walter 2007 sec. 5.2); the V-cavity cap (Heitz 2014
     // sec. 4.3) is blended in only where the albedo would exceed 1; see microfacet_dist.py
-    if (p.distribution == 2) return G_blinn_smith(p.alpha_x, lam_i, lam_o, wi, wo, h);
+    if (p.distribution == MICROFACET_DISTRIBUTION_BLINN_PHONG) return G_blinn_smith(p.alpha_x, lam_i, lam_o, wi, wo, h);
     return smith_g2_height_correlated(lam_i, lam_o, wi, wo, h);
 }
 

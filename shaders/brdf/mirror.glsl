@@ -1,17 +1,18 @@
 // Perfect mirror (lecture: "Reflectance of perfectly specular materials"): a delta lobe, so the
 // BRDF as a function is 0 everywhere; the rasterizer reflects the environment with
 // mirror_reflectance() instead. Twin of viewer/brdf/mirror.py.
-// fresnel: 0 = conductor, 1 = dielectric, 2 = none.
+// fresnel: MIRROR_FRESNEL_CONDUCTOR, _DIELECTRIC or _NONE (generated/constants.glsl).
+#include "generated/constants.glsl"
 #include "common/fresnel.glsl"
 #include "common/spectral.glsl"
 
 vec3 mirror_reflectance(mirror_params p, float cos_o) {
-    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != 2)
-        return p.fresnel == 0 ? thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MIRROR_FRESNEL_NONE)
+        return p.fresnel == MIRROR_FRESNEL_CONDUCTOR ? thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
                               : thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
-    if (p.spectral > 0) return spectral_fresnel(p.spectral_offset, cos_o);
-    if (p.fresnel == 0) return fresnel_conductor(cos_o, p.eta, p.k);
-    if (p.fresnel == 1) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));
+    if (p.spectral > MIRROR_SPECTRAL_NONE) return spectral_fresnel(p.spectral_offset, cos_o);
+    if (p.fresnel == MIRROR_FRESNEL_CONDUCTOR) return fresnel_conductor(cos_o, p.eta, p.k);
+    if (p.fresnel == MIRROR_FRESNEL_DIELECTRIC) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));
     return vec3(1.0);
 }
 

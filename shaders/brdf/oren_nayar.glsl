@@ -2,6 +2,7 @@
 // variant 0 = full: Sec. 4 functional approximation, direct term L1 (C1, C2, C3) plus the
 // interreflection term L2; variant 1 = qualitative: Sec. 5, A + B max(0, cos dphi) sin(alpha) tan(beta).
 // sigma in degrees; sigma = 0 gives Lambert exactly. Twin of viewer/brdf/oren_nayar.py.
+#include "generated/constants.glsl"
 
 // Oren & Nayar 1994, Sec. 5: A = 1 - 0.5 s^2 / (s^2 + 0.33), B = 0.45 s^2 / (s^2 + 0.09).
 float oren_nayar_qualitative(float s2, float cos_dphi, float sin_alpha, float tan_beta) {
@@ -59,7 +60,7 @@ vec3 oren_nayar_eval(oren_nayar_params p, vec3 wi, vec3 wo) {
     vec2 sc_beta = i_larger ? vec2(so, co) : vec2(si, ci);
     // pi/2 - beta, the elevation of the direction nearer the normal (accurate near grazing)
     float elev_beta = atan(sc_beta.y, sc_beta.x);
-    if (p.variant == 1) {
+    if (p.variant == OREN_NAYAR_VARIANT_QUALITATIVE) {
         float tan_beta = sc_beta.x / max(sc_beta.y, 1e-12);
         return p.albedo * INV_PI * oren_nayar_qualitative(s2, cos_dphi, sc_alpha.x, tan_beta);
     }

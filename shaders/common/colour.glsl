@@ -1,5 +1,6 @@
 // Colour encoding for display: exposure, optional tone mapping, sRGB.
 // The piecewise sRGB transfer function (IEC 61966-2-1), not a 2.2 gamma (docs/conventions.md).
+#include "generated/constants.glsl"
 vec3 srgb_encode(vec3 c) {
     c = max(c, vec3(0.0));
     vec3 lo = 12.92 * c;
@@ -25,10 +26,10 @@ vec3 tonemap_filmic(vec3 c) {
     return hable_curve(2.0 * c) / hable_curve(vec3(11.2));
 }
 
-// mode: 0 none, 1 reinhard, 2 aces, 3 filmic
+// mode: TONEMAP_NONE, _REINHARD, _ACES or _FILMIC (generated/constants.glsl)
 vec3 tonemap(vec3 c, int mode) {
-    if (mode == 1) return tonemap_reinhard(c);
-    if (mode == 2) return tonemap_aces(c);
-    if (mode == 3) return tonemap_filmic(c);
+    if (mode == TONEMAP_REINHARD) return tonemap_reinhard(c);
+    if (mode == TONEMAP_ACES) return tonemap_aces(c);
+    if (mode == TONEMAP_FILMIC) return tonemap_filmic(c);
     return c;
 }

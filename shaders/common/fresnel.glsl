@@ -168,7 +168,7 @@ vec2 tf_base(float lambda_nm, vec3 eta, vec3 k) {
 
 // RGB reflectance of a film (n1, d_nm) on a base (eta, k per RGB channel) from index 1;
 // d_nm <= 0 gives the loop no iterations. The loop is compiled in only where THIN_FILM is
-// defined (programs of materials with a film: viewer.brdf.glsl.program_defines): inlined at
+// defined (programs of materials with a film: viewer.gl.brdf_glsl.program_defines): inlined at
 // every Fresnel call of every sampler, it multiplies software GL's compile time (an all-model
 // program went from 6 s to more than 10 minutes).
 vec3 thin_film_rgb(float cos_i, float n1, float d_nm, vec3 eta, vec3 k) {

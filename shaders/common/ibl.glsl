@@ -13,11 +13,8 @@
 //   vec3  env_prefiltered(vec3 r, float alpha)   GGX-prefiltered radiance (split-sum 1st factor)
 //   vec2  env_dfg(float n_dot_v, float alpha)    (A, B): E_ss = F0 A + B (Karis 2013)
 //   float env_fis_lod(float pdf, int n_samples)  Colbert & Krivanek 2007 source mip level
+#include "generated/constants.glsl"
 #include "common/math.glsl"
-
-#ifndef IBL_MAX_LEVELS
-#define IBL_MAX_LEVELS 8
-#endif
 
 uniform sampler2D u_env_map;               // lat-long radiance, full mip chain
 uniform sampler2DArray u_env_prefiltered;  // layer k - 1 holds alpha = u_env_alphas[k], k >= 1

@@ -1,6 +1,7 @@
 // Microfacet distributions and masking-shadowing, the GLSL twin of viewer/brdf/microfacet_dist.py.
 // Shading frame: normal +z, tangent +x; alpha_x along +x (Walter et al. 2007 alpha).
-// Distribution ids follow the spec's choice order: 0 = beckmann, 1 = ggx, 2 = blinn_phong.
+// Distribution ids: MICROFACET_DISTRIBUTION_* of generated/constants.glsl (the spec's choice order).
+#include "generated/constants.glsl"
 #include "common/math.glsl"
 
 // mx^2/ax^2 + my^2/ay^2 (the anisotropic tan^2 term times cos^2; Heitz 2014 eqs. 82, 85)
@@ -101,15 +102,15 @@ float D_blinn_phong(vec3 m, float alpha) {
 }
 
 float mf_D(int dist, vec3 m, float ax, float ay) {
-    if (dist == 0) return D_beckmann(m, ax, ay);
-    if (dist == 1) return D_ggx(m, ax, ay);
+    if (dist == MICROFACET_DISTRIBUTION_BECKMANN) return D_beckmann(m, ax, ay);
+    if (dist == MICROFACET_DISTRIBUTION_GGX) return D_ggx(m, ax, ay);
     return D_blinn_phong(m, ax);
 }
 
 // Smith Lambda of a distribution; blinn_phong borrows Beckmann's (Walter et al. 2007 sec. 5.2).
 float mf_lambda(int dist, vec3 w, float ax, float ay) {
-    if (dist == 1) return lambda_ggx(w, ax, ay);
-    if (dist == 2) return lambda_beckmann(w, ax, ax);
+    if (dist == MICROFACET_DISTRIBUTION_GGX) return lambda_ggx(w, ax, ay);
+    if (dist == MICROFACET_DISTRIBUTION_BLINN_PHONG) return lambda_beckmann(w, ax, ax);
     return lambda_beckmann(w, ax, ay);
 }
 

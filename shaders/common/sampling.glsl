@@ -1,6 +1,7 @@
 // Shared sampling helpers, the GLSL twin of viewer/brdf/sampling.py and of the sampling half of
 // viewer/brdf/microfacet_dist.py (shading frame, z = normal). Used by the <name>_sample and
 // <name>_pdf functions of the BRDF families; u components are uniforms in [0, 1).
+#include "generated/constants.glsl"
 #include "common/math.glsl"
 #include "common/microfacet.glsl"
 
@@ -107,7 +108,7 @@ float mf_D_visible(int dist, vec3 w, vec3 m, float ax, float ay) {
 // Density (per solid angle of m) of mf_sample_m: visible normals for beckmann / ggx, D cos for
 // blinn_phong (Distribution.pdf_m).
 float mf_pdf_m(int dist, vec3 wo, vec3 m, float ax, float ay) {
-    if (dist == 2) return D_blinn_phong(m, ax) * max(m.z, 0.0);
+    if (dist == MICROFACET_DISTRIBUTION_BLINN_PHONG) return D_blinn_phong(m, ax) * max(m.z, 0.0);
     return mf_D_visible(dist, wo, m, ax, ay);
 }
 
@@ -207,7 +208,7 @@ vec3 sample_blinn_phong_m(vec2 u, float alpha) {
 
 // A microfacet normal for the upper-hemisphere direction wo (Distribution.sample_m).
 vec3 mf_sample_m(int dist, vec3 wo, vec2 u, float ax, float ay) {
-    if (dist == 1) return sample_vndf_ggx(wo, u, ax, ay);
-    if (dist == 0) return sample_vndf_beckmann(wo, u, ax, ay);
+    if (dist == MICROFACET_DISTRIBUTION_GGX) return sample_vndf_ggx(wo, u, ax, ay);
+    if (dist == MICROFACET_DISTRIBUTION_BECKMANN) return sample_vndf_beckmann(wo, u, ax, ay);
     return sample_blinn_phong_m(u, ax);
 }

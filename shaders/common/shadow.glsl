@@ -1,7 +1,7 @@
 // Shadow maps in one depth atlas: light i owns row i; a point light uses six 90-degree (plus a
 // margin) perspective tiles, one per cube face, a directional light one orthographic tile.
 // Filtering: 4 taps of hardware 2x2 comparison (bilinear PCF), a 3x3-texel tent.
-const int MAX_LIGHTS = 4;
+#include "generated/constants.glsl"
 
 uniform sampler2DShadow u_shadow_atlas;
 uniform mat4 u_shadow_mat[MAX_LIGHTS * 6];

@@ -21,9 +21,10 @@
 //
 // Material rows of u_mat_tex (viewer/gl/raytrace.py): texels 0..63 the u_mat block (at float
 // offset 256 row), 64.. the albedo table, 96.. its specular part, 128.. the transmitted part,
-// 160 = (model index, specular alpha, kind: 0 shaded / 1 mirror / 2 smooth glass, transmits),
-// 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel 0 conductor / 1 dielectric
-// / 2 none), 163 = (mirror k, mirror dielectric ior).
+// 160 = (model index, specular alpha, kind: CHAIN_SHADED / _MIRROR / _GLASS, transmits),
+// 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel MIRROR_FRESNEL_CONDUCTOR /
+// _DIELECTRIC / _NONE), 163 = (mirror k, mirror dielectric ior).
+#include "generated/constants.glsl"
 #include "common/bvh.glsl"
 #include "common/fresnel.glsl"
 
@@ -33,8 +34,7 @@ uniform int u_rt_max_segments;   // most rays traced per pixel
 
 const int RT_STACK = 8;
 const float RT_MIN_WEIGHT = 1e-3;
-const int RT_T_ALBEDO = 64, RT_T_SPEC = 96, RT_T_TRANS = 128, RT_T_INFO = 160, RT_T_SIGMA = 161,
-          RT_T_ETA = 162, RT_T_K = 163;
+// RT_T_ALBEDO, _SPEC, _TRANS, _INFO, _SIGMA, _ETA, _K: where a row's parts start (generated/constants.glsl)
 
 vec4 rt_texel(int row, int x) { return texelFetch(u_mat_tex, ivec2(x, row), 0); }
 
@@ -77,7 +77,7 @@ vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
     vec3 radiance = vec3(0.0);
     for (int i = 0; i < MAX_LIGHTS; ++i) {
         if (i >= u_num_lights) break;
-        bool is_point = u_light_type[i] == 0;
+        bool is_point = u_light_type[i] == LIGHT_POINT;
         vec3 wi_w;
         vec3 e;
         if (is_point) {
@@ -126,11 +126,11 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
     b.o = p;
     b.d = d;
     vec4 eta4 = rt_texel(row, RT_T_ETA);
-    if (kind == 1) {
+    if (kind == CHAIN_MIRROR) {
         int fr = int(eta4.w + 0.5);
         vec4 k4 = rt_texel(row, RT_T_K);
-        vec3 R = fr == 0 ? fresnel_conductor(cos_i, eta4.xyz, k4.xyz)
-                         : (fr == 1 ? vec3(fresnel_dielectric(cos_i, k4.w)) : vec3(1.0));
+        vec3 R = fr == MIRROR_FRESNEL_CONDUCTOR ? fresnel_conductor(cos_i, eta4.xyz, k4.xyz)
+                         : (fr == MIRROR_FRESNEL_DIELECTRIC ? vec3(fresnel_dielectric(cos_i, k4.w)) : vec3(1.0));
         a.w = w * R;
         return 1;
     }
@@ -188,8 +188,8 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
         vec4 info = rt_texel(row, RT_T_INFO);
         int hkind = int(info.z + 0.5);
         bool entering = dot(ng, r.d) < 0.0;
-        if (hkind == 2 && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
-        if (hkind == 0) {
+        if (hkind == CHAIN_GLASS && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+        if (hkind == CHAIN_SHADED) {
             // two-sided as in the forward pass: the side the ray arrives on
             vec3 ngs = entering ? ng : -ng;
             vec3 ns = dot(hn, ngs) < 0.0 ? -hn : hn;
@@ -214,7 +214,7 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
 // channel is traced on its own, from mirrors too (a dispersive glass may be seen in one).
 vec3 rt_specular(vec3 p, vec3 wo_w, vec3 n, vec3 ng_w) {
     int kind = int(rt_texel(u_rt_row, RT_T_INFO).z + 0.5);
-    if (kind == 0) return vec3(0.0);
+    if (kind == CHAIN_SHADED) return vec3(0.0);
 #ifdef RT_DISPERSION
     return vec3(rt_chain(kind, p, -wo_w, n, ng_w, 0).r, rt_chain(kind, p, -wo_w, n, ng_w, 1).g,
                 rt_chain(kind, p, -wo_w, n, ng_w, 2).b);

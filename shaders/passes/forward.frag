@@ -1,6 +1,7 @@
 #version 410 core
 // Forward shading: every material goes through brdf_eval (the one include point of the BRDFs,
 // generated from the registry), lit by point and directional lights with shadow maps.
+#include "generated/constants.glsl"
 #include "common/math.glsl"
 #include "brdf/dispatch.glsl"
 #include "common/shadow.glsl"
@@ -23,20 +24,19 @@ flat in vec3 v_geometric_normal;  // from forward.geom
 uniform int u_model_id;        // registry index of this object's material model
 uniform vec3 u_camera_pos;
 uniform int u_num_lights;
-uniform int u_light_type[MAX_LIGHTS];    // 0 point, 1 directional
+uniform int u_light_type[MAX_LIGHTS];    // LIGHT_POINT or LIGHT_DIRECTIONAL
 uniform vec3 u_light_pos[MAX_LIGHTS];    // point: position; directional: direction the light travels
 uniform vec3 u_light_value[MAX_LIGHTS];  // point: intensity I [W/sr]; directional: irradiance E [W/m^2]
 uniform int u_env_on;                    // any environment light (constant or map), IBL not "off"
 uniform vec3 u_env_constant;             // the constant environment's radiance (ENV_CONSTANT)
-uniform int u_ibl_mode;                  // 1 split sum, 2 filtered importance sampling, 3 brute force
+uniform int u_ibl_mode;                  // IBL_MODE_SPLIT_SUM, _FIS (filtered importance sampling), _BRUTE_FORCE
 uniform float u_ibl_alpha;               // the lobe width of the material's specular part (ibl_split)
 uniform int u_ibl_delta;                 // the material has only delta lobes (mirror, smooth glass)
 uniform int u_frame_index;               // brute force: a new sample set each frame
 uniform int u_ms_on;                     // multiple-scattering compensation (Fdez-Aguera 2019)
 uniform vec3 u_ms_f0;                    // the specular lobe's normal-incidence reflectance
-uniform int u_view_mode;                 // 0 shaded, 1 F, 2 D, 3 G, 4 N.L, 5 f cos, 6 shadow
-const int ALBEDO_TABLE = 32;             // keep equal to viewer.brdf.albedo.TABLE_SIZE
-uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / 32
+uniform int u_view_mode;                 // VIEW_MODE_SHADED, _F, _D, _G, _N_L, _F_COS, _SHADOW
+uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / ALBEDO_TABLE
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
 uniform vec3 u_albedo_s[ALBEDO_TABLE];   // the reflected albedo of the specular part alone
 uniform int u_transmit_on;
@@ -155,7 +155,7 @@ void main() {
     vec3 first_fcos = vec3(0.0);
     for (int i = 0; i < MAX_LIGHTS; ++i) {
         if (i >= u_num_lights) break;
-        bool is_point = u_light_type[i] == 0;
+        bool is_point = u_light_type[i] == LIGHT_POINT;
         vec3 wi_w;
         vec3 e;  // irradiance at normal incidence from this light
         if (is_point) {
@@ -207,7 +207,7 @@ void main() {
         vec3 rho_d = rho - rho_s;
         vec3 r_w = reflect(-wo_w, n);
         if (wo.z > 0.0) {
-            if (u_ibl_mode == 1 || u_ibl_delta != 0 || SSR_ON) {
+            if (u_ibl_mode == IBL_MODE_SPLIT_SUM || u_ibl_delta != 0 || SSR_ON) {
                 // Split sum (Karis 2013): the lobe integral of the environment is the prefiltered
                 // environment around the mirror direction times the lobe's albedo; the diffuse
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
@@ -233,7 +233,7 @@ void main() {
                 // only compiled into programs for the fis / brute_force modes: software GL pays
                 // for an untaken loop of BRDF evaluations (measured: +65% frame time)
                 radiance += ibl_sampled(wo, transpose(to_local), rho, rho_s, u_ibl_alpha,
-                                        u_ibl_mode == 2, u_frame_index);
+                                        u_ibl_mode == IBL_MODE_FIS, u_frame_index);
 #endif
             }
         }
@@ -278,17 +278,17 @@ void main() {
 #ifdef RAYTRACE
     radiance += rt_specular(v_position, wo_w, n, v_geometric_normal);
 #endif
-    if (u_view_mode == 0) {
+    if (u_view_mode == VIEW_MODE_SHADED) {
         frag_color = vec4(radiance, 1.0);
-    } else if (u_view_mode <= 3) {
-        float v = first_terms[u_view_mode - 1];
+    } else if (u_view_mode <= VIEW_MODE_G) {  // F, D, G in the order brdf_terms returns them
+        float v = first_terms[u_view_mode - VIEW_MODE_F];
         // F and G in [0,1]; D on log(1 + D) / log(101) so peaks and tails are both visible
         // (the scales and colour bars: viewer/termview.py)
-        float t = u_view_mode == 2 ? log(1.0 + max(v, 0.0)) / log(1.0 + 100.0) : v;
+        float t = u_view_mode == VIEW_MODE_D ? log(1.0 + max(v, 0.0)) / log(1.0 + 100.0) : v;
         frag_color = vec4(v < 0.0 ? vec3(0.25) : false_colour(t), 1.0);
-    } else if (u_view_mode == 4) {
+    } else if (u_view_mode == VIEW_MODE_N_L) {
         frag_color = vec4(false_colour(first_ndotl), 1.0);
-    } else if (u_view_mode == 5) {
+    } else if (u_view_mode == VIEW_MODE_F_COS) {
         // f cos theta_i of the first light, its luminance on a log scale up to 10 (viewer/termview.py)
         float v = max(dot(first_fcos, vec3(0.2126, 0.7152, 0.0722)), 0.0);
         frag_color = vec4(false_colour(log(1.0 + 10.0 * v) / log(1.0 + 100.0)), 1.0);

@@ -13,6 +13,7 @@
 // spread over the lobe instead of hitting a few texels as fireflies.
 // The sample set is the same Hammersley set for every texel: its error varies smoothly across
 // the map (no per-texel noise).
+#include "generated/constants.glsl"
 #include "common/math.glsl"
 #include "common/ibl.glsl"
 

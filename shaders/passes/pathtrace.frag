@@ -16,10 +16,11 @@
 // Rays start at p + 1e-4 (1 + max|p|) n_g on the side they leave.
 //
 // Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, HAS_MIXED, and the
-// estimator's options: STRATEGY (0 MIS, default; 1 BSDF sampling only; 2 light sampling only),
+// estimator's options: STRATEGY (STRATEGY_MIS, default; _BSDF sampling only; _LIGHT sampling only),
 // BALANCE_HEURISTIC (MIS weights by the balance heuristic instead of the power one),
 // NO_ROULETTE (every path to max_depth). llvmpipe runs branches a uniform disables, so these
 // are variants, compiled only for the options in use.
+#include "generated/constants.glsl"
 #include "brdf/dispatch.glsl"
 #include "common/bvh.glsl"
 #include "common/rng.glsl"
@@ -29,12 +30,8 @@
 #define N_LIGHTS 0
 #endif
 #ifndef STRATEGY
-#define STRATEGY 0
+#define STRATEGY STRATEGY_MIS
 #endif
-#define STRATEGY_MIS 0
-#define STRATEGY_BSDF 1
-#define STRATEGY_LIGHT 2
-#define MAX_MATERIALS 64
 
 uniform sampler2D u_prev_sum;     // rgb = sum of radiance, a = number of samples
 uniform sampler2D u_prev_sq;      // rgb = sum of squared radiance, a = bad values met
@@ -49,7 +46,7 @@ uniform vec3 u_cam_forward;
 uniform vec3 u_cam_right;
 uniform vec3 u_cam_up;
 uniform float u_tan_half_y;
-// per material: (model, float offset into the material texture, kind 0 smooth / 1 delta / 2 mixed,
+// per material: (model, float offset into the material texture, kind PT_KIND_SMOOTH / _DELTA / _MIXED,
 // transmissive), then (sigma_a, 0)
 uniform vec4 u_mat_info[2 * MAX_MATERIALS];
 #if N_LIGHTS > 0
@@ -121,7 +118,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
     for (int depth = 1; depth <= u_max_depth + 1; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
-#if ENV_MODE != 0
+#if ENV_MODE != ENV_MODE_BLACK
 #if STRATEGY == STRATEGY_MIS
             float w = prev_delta ? 1.0 : mis_weight(prev_pdf, prev_lpdf);
 #elif STRATEGY == STRATEGY_BSDF
@@ -167,7 +164,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         float eps = EPS_REL * (1.0 + max3(abs(p)));
 
         // ---- next-event estimation (not for pure delta lobes)
-        if (kind != 1) {
+        if (kind != PT_KIND_DELTA) {
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -194,7 +191,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
                 if (!bvh_occluded(so, wi, 0.0, tmax)) L = add_sat(L, c);
             }
 #endif
-#if ENV_MODE != 0 && STRATEGY != STRATEGY_BSDF
+#if ENV_MODE != ENV_MODE_BLACK && STRATEGY != STRATEGY_BSDF
             {
                 vec3 wi;
                 float pe;
@@ -226,15 +223,15 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         vec3 wgt = clean(brdf_sample(model, moff, wo_l, r0.xyz, wi_l, pdf_s));
         pdf_s = clean(pdf_s);
         if (any(isnan(wi_l)) || any(isinf(wi_l))) { g_bad += 1.0; wi_l = vec3(0.0, 0.0, 1.0); wgt = vec3(0.0); }
-        bool disc = kind == 1;
+        bool disc = kind == PT_KIND_DELTA;
 #ifdef HAS_MIXED
-        if (kind == 2) disc = brdf_sample_is_discrete(model, moff, wi_l, wo_l, pdf_s);
+        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, moff, wi_l, wo_l, pdf_s);
 #endif
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);
         bool ok = (trans ? wi_l.z * gw > 0.0 : (wi_l.z > 0.0 && gw > 0.0)) && pdf_s > 0.0 && any_pos(wgt);
         vec3 Tn = ok ? mul_sat(T, wgt) : vec3(0.0);
-#if ENV_MODE != 0 && STRATEGY == STRATEGY_MIS
+#if ENV_MODE != ENV_MODE_BLACK && STRATEGY == STRATEGY_MIS
         prev_lpdf = disc ? 0.0 : env_pdf(wi_w, n, trans);
 #endif
         prev_pdf = pdf_s;

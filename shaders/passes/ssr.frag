@@ -16,6 +16,7 @@
 // last miss and the hit refines the hit point afterwards (the paper's stride-then-refine idea).
 // With u_hiz = 1 the same steps are visited through a min-depth pyramid (trace_hiz), which skips
 // only cells where no step can hit, so the result is the DDA's.
+#include "generated/constants.glsl"
 #include "common/math.glsl"
 #include "common/ibl.glsl"
 
@@ -37,7 +38,7 @@ uniform float u_max_roughness;
 uniform float u_edge_fade;    // fraction of the screen over which hits fade out at its borders
 uniform float u_max_lod;
 uniform int u_env_on;
-uniform int u_debug;          // 0 composite, 1 hit mask, 2 step count, 3 hit uv, 4 SSR only
+uniform int u_debug;          // SSR_DEBUG_COMPOSITE, _HIT (mask), _STEPS (count), _UV (hit uv), _ONLY (SSR only)
 uniform int u_hiz;            // 0: the linear DDA over every stride; 1: skip empty space with u_hiz_tex
 uniform sampler2D u_hiz_tex;  // Hi-Z pyramid: level k = min (closest) linear depth over 2x2 of k - 1
 uniform int u_hiz_max_level;
@@ -268,9 +269,9 @@ void main() {
         }
     }
     vec3 ssr = rho_s * reflected;
-    if (u_debug == 0) frag_color = vec4(base + ssr, 1.0);
-    else if (u_debug == 1) frag_color = vec4(surface ? vec3(hit) : vec3(0.0, 0.0, 0.25 * float(cov > 0.5)), 1.0);
-    else if (u_debug == 2) frag_color = vec4(surface ? false_colour(steps / float(u_max_steps)) : vec3(0.0), 1.0);
-    else if (u_debug == 3) frag_color = vec4(hit > 0.0 ? vec3(hit_uv, 0.0) : vec3(0.0), 1.0);
+    if (u_debug == SSR_DEBUG_COMPOSITE) frag_color = vec4(base + ssr, 1.0);
+    else if (u_debug == SSR_DEBUG_HIT) frag_color = vec4(surface ? vec3(hit) : vec3(0.0, 0.0, 0.25 * float(cov > 0.5)), 1.0);
+    else if (u_debug == SSR_DEBUG_STEPS) frag_color = vec4(surface ? false_colour(steps / float(u_max_steps)) : vec3(0.0), 1.0);
+    else if (u_debug == SSR_DEBUG_UV) frag_color = vec4(hit > 0.0 ? vec3(hit_uv, 0.0) : vec3(0.0), 1.0);
     else frag_color = vec4(ssr, 1.0);
 }

@@ -1,10 +1,11 @@
 // The environment light of the GPU path tracer: the same strategies as the CPU engine
-// (viewer/pathtracer/envmap.py). ENV_MODE 0: black, 1: constant (cosine hemisphere about the
-// shading normal; uniform sphere on transmissive surfaces), 2: lat-long map importance sampled by
+// (viewer/pathtracer/envmap.py). ENV_MODE_BLACK, ENV_MODE_CONSTANT (cosine hemisphere about the
+// shading normal; uniform sphere on transmissive surfaces), ENV_MODE_MAP: lat-long map importance sampled by
 // luminance x sin(theta) (pbrt-v3 14.2.4): a row from the marginal CDF, a column from the row's
 // conditional CDF, then a uniform point in the texel; p(omega) = p(u, v) / (2 pi^2 sin theta).
+#include "generated/constants.glsl"
 #ifndef ENV_MODE
-#define ENV_MODE 0
+#define ENV_MODE ENV_MODE_BLACK
 #endif
 uniform vec3 u_env_constant;
 uniform sampler2D u_env_map;      // rgb = radiance (intensity applied), a = texel probability * W * H
@@ -32,9 +33,9 @@ ivec2 env_texel(vec2 uv) {
 }
 
 vec3 env_eval(vec3 d) {
-#if ENV_MODE == 1
+#if ENV_MODE == ENV_MODE_CONSTANT
     return u_env_constant;
-#elif ENV_MODE == 2
+#elif ENV_MODE == ENV_MODE_MAP
     return texelFetch(u_env_map, env_texel(env_dir_to_uv(u_env_to_map * d)), 0).rgb;
 #else
     return vec3(0.0);
@@ -87,7 +88,7 @@ float env_map_pdf_uv(vec2 uv, ivec2 tx) {
 
 // a direction for next-event estimation: returns its radiance, sets wi and the solid-angle pdf
 vec3 env_sample(vec2 u, vec3 n, bool two_sided, out vec3 wi, out float pdf) {
-#if ENV_MODE == 1
+#if ENV_MODE == ENV_MODE_CONSTANT
     if (two_sided) {
         float z = 1.0 - 2.0 * u.x;
         float r = sqrt(max(0.0, 1.0 - z * z));
@@ -102,7 +103,7 @@ vec3 env_sample(vec2 u, vec3 n, bool two_sided, out vec3 wi, out float pdf) {
         pdf = l.z * INV_PI;
     }
     return u_env_constant;
-#elif ENV_MODE == 2
+#elif ENV_MODE == ENV_MODE_MAP
     int W = u_env_size.x, H = u_env_size.y;
     int row = env_search_row(u.y);
     float lo = texelFetch(u_env_row_cdf, ivec2(row, 0), 0).r;
@@ -128,9 +129,9 @@ vec3 env_sample(vec2 u, vec3 n, bool two_sided, out vec3 wi, out float pdf) {
 
 // the solid-angle density with which env_sample picks the world direction d
 float env_pdf(vec3 d, vec3 n, bool two_sided) {
-#if ENV_MODE == 1
+#if ENV_MODE == ENV_MODE_CONSTANT
     return two_sided ? INV_4PI : max(dot(d, n), 0.0) * INV_PI;
-#elif ENV_MODE == 2
+#elif ENV_MODE == ENV_MODE_MAP
     vec2 uv = env_dir_to_uv(u_env_to_map * d);
     return env_map_pdf_uv(uv, env_texel(uv));
 #else

@@ -30,6 +30,8 @@
 // The estimator's options are trace_path's compile-time variants (STRATEGY, BALANCE_HEURISTIC
 // through mis_weight, NO_ROULETTE), as the CPU spectral estimator runs the RGB one's steps.
 
+#include "generated/constants.glsl"
+
 const int SPEC_STRIDE = 105;       // bins between a path's wavelengths (420 / 4)
 const float SPEC_N_BINS = 420.0;
 const float SPEC_HERO = 4.0;       // a hero-only estimate stands for the four wavelengths
@@ -71,7 +73,7 @@ vec4 spec_sample(int cat, int kind, int model, int o_s, int o_3, vec4 hmask, vec
     vec4 w4 = vec4(0.0);
     wi = vec3(0.0, 0.0, 1.0);
     pdf = 0.0;
-    int n_sets = cat == 1 && kind == 1 ? 2 : 1;
+    int n_sets = cat == 1 && kind == PT_KIND_DELTA ? 2 : 1;
     for (int s = 0; s < n_sets; ++s) {
         vec3 wi_s;
         float pdf_s;
@@ -84,7 +86,7 @@ vec4 spec_sample(int cat, int kind, int model, int o_s, int o_3, vec4 hmask, vec
             w4.w = w.x;
         }
     }
-    if (cat == 1 && kind != 1) {
+    if (cat == 1 && kind != PT_KIND_DELTA) {
         float f3 = clean(brdf_eval(model, o_3, wi, wo)).x;
         w4.w = pdf > 0.0 ? f3 * abs(wi.z) / pdf : 0.0;
     }
@@ -110,7 +112,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
     for (int depth = 1; depth <= u_max_depth + 1; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
-#if ENV_MODE != 0
+#if ENV_MODE != ENV_MODE_BLACK
 #if STRATEGY == STRATEGY_MIS
             float w = prev_delta ? 1.0 : mis_weight(prev_pdf, prev_lpdf);
 #elif STRATEGY == STRATEGY_BSDF
@@ -163,7 +165,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         float eps = EPS_REL * (1.0 + max3(abs(p)));
 
         // ---- next-event estimation (not for pure delta lobes)
-        if (kind != 1) {
+        if (kind != PT_KIND_DELTA) {
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -191,7 +193,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
                 if (!bvh_occluded(so, wi, 0.0, tmax)) L = add_sat4(L, cc);
             }
 #endif
-#if ENV_MODE != 0 && STRATEGY != STRATEGY_BSDF
+#if ENV_MODE != ENV_MODE_BLACK && STRATEGY != STRATEGY_BSDF
             {
                 vec3 wi;
                 float pe;
@@ -224,9 +226,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         vec4 wgt = spec_sample(cat, kind, model, o_s, o_3, hmask, wo_l, r0.xyz, wi_l, pdf_s);
         pdf_s = clean(pdf_s);
         if (any(isnan(wi_l)) || any(isinf(wi_l))) { g_bad += 1.0; wi_l = vec3(0.0, 0.0, 1.0); wgt = vec4(0.0); }
-        bool disc = kind == 1;
+        bool disc = kind == PT_KIND_DELTA;
 #ifdef HAS_MIXED
-        if (kind == 2) disc = brdf_sample_is_discrete(model, o_s, wi_l, wo_l, pdf_s);
+        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, o_s, wi_l, wo_l, pdf_s);
 #endif
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);
@@ -236,7 +238,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         // now carries the four wavelengths' share, the others are terminated
         if (cat == 2 && !solo) Tn = mul_sat4(Tn, vec4(SPEC_HERO));
         if (cat == 2) solo = true;
-#if ENV_MODE != 0 && STRATEGY == STRATEGY_MIS
+#if ENV_MODE != ENV_MODE_BLACK && STRATEGY == STRATEGY_MIS
         prev_lpdf = disc ? 0.0 : env_pdf(wi_w, n, trans);
 #endif
         prev_pdf = pdf_s;

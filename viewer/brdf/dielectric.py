@@ -235,5 +235,5 @@ def ibl_split(p):
 
 def splits_u(p):
     """The rough interface's sample splits u[:, 0] into the Fresnel choice and the direction
-    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.brdf.glsl.glsl_u)."""
+    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.gl.brdf_glsl.glsl_u)."""
     return not _is_smooth(p)

@@ -311,5 +311,5 @@ def ibl_split(p):
 
 def splits_u(p):
     """The sample splits u[:, 0] into the coat-or-base choice and the direction
-    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.brdf.glsl.glsl_u)."""
+    (``split_uniform``); the GLSL twin takes those as u.z and u.x (viewer.gl.brdf_glsl.glsl_u)."""
     return True

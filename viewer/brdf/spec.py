@@ -1,7 +1,7 @@
 """BRDF specs: the single description of a model's parameters.
 
 A spec drives the GUI sliders, scene-file validation, ``brdf-viewer models``, plot axes and the
-GLSL parameter block (see ``viewer.brdf.glsl``). Every family module in this package defines
+GLSL parameter block (see ``viewer.gl.brdf_glsl``). Every family module in this package defines
 ``SPEC`` plus numpy ``eval(p, wi, wo)``, ``sample(p, wo, u)`` and ``pdf(p, wi, wo)``; the
 GLSL twin lives in ``shaders/brdf/<name>.glsl``.
 """

@@ -14,7 +14,7 @@ rasterizer and the numpy twins) read the Fresnel colour from one table per mater
 
 The table reaches GLSL through the material block ``u_mat``: a ``spectral`` parameter packs its
 choice index and the float offset of its 3 * TABLE_N values, appended after the material's
-block (``viewer.brdf.glsl``).
+block (``viewer.gl.brdf_glsl``).
 
 A spectral dielectric (``dielectric`` model, a ``layered`` coating) has no table: its RGB
 reflectance is grey to within 1e-3 (the spectral R(theta) of BK7 or diamond differs between

@@ -62,7 +62,8 @@ import numpy as np
 from viewer.environment import cache
 from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
 from viewer.environment.latlong import rotation_y
-from viewer.gl.shaders import build_program
+from viewer.gl.constants import IBL_MAX_LEVELS
+from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 
 log = logging.getLogger(__name__)
@@ -83,9 +84,14 @@ LAYER_WIDTH = 256
 DFG_SAMPLES = 4096
 #: a constant environment is a small constant map (the same code path, exact results)
 CONSTANT_MAP_SIZE = (16, 8)
-MAX_LEVELS = 8  # keep equal to IBL_MAX_LEVELS in shaders/common/ibl.glsl
+MAX_LEVELS = IBL_MAX_LEVELS  # prefiltered levels at most (the generated GLSL constant too)
 
 _VERT = "passes/fullscreen.vert"
+
+
+def program_recipe(name: str) -> Recipe:
+    """The IBL pass's program ``name``: a fullscreen pass ``passes/<name>.frag`` without BRDF code."""
+    return Recipe(_VERT, f"passes/{name}.frag", models=None)
 
 
 def sanitize_map(latlong) -> np.ndarray:
@@ -143,10 +149,36 @@ class IBL:
     def _program(self, name: str):
         prog = self._programs.get(name)
         if prog is None:
-            prog = build_program(self.ctx, _VERT, f"passes/{name}.frag", virtual={})
+            prog = program_recipe(name).build(self.ctx)
             self._programs[name] = prog
             self._vaos[name] = self.ctx.vertex_array(prog, [])
         return prog
+
+    def program_recipes(self) -> dict[str, Recipe]:
+        """How each program built so far is made (name -> Recipe), for hot reload."""
+        return {name: program_recipe(name) for name in self._programs}
+
+    def replace_program(self, name: str, prog) -> None:
+        """Use ``prog`` (built from ``program_recipes()[name]``) from now on, release the one it
+        replaces, and drop what the old one computed, so the next use recomputes it."""
+        old, old_vao = self._programs.get(name), self._vaos.get(name)
+        self._programs[name] = prog
+        self._vaos[name] = self.ctx.vertex_array(prog, [])
+        if old_vao is not None:
+            old_vao.release()
+        if old is not None:
+            old.release()
+        # the disk cache is keyed by the map and the settings, not by shader sources: bypass it
+        # (and never store results of an edited shader) for the rest of this session
+        self.use_cache = False
+        if name == "ibl_dfg" and self.dfg_tex is not None:
+            self.dfg_tex.release()
+            self.dfg_tex = None
+        if name in ("ibl_downsample", "ibl_prefilter", "ibl_dfg"):
+            self._key = None
+            self._last_ident = None
+        if name == "ibl_cubemap":
+            self._cube_key = None
 
     def _draw(self, name: str, fbo, viewport):
         """One fullscreen triangle into ``fbo``; the caller's framebuffer binding is restored

@@ -18,11 +18,13 @@ import json
 
 import numpy as np
 
-from viewer.brdf.glsl import MAT_VEC4, models_used, pack_material
+from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
+from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 
-ROW_TEXELS = 164  # texels per material row (see shaders/common/specular_chain.glsl)
-T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = 64, 96, 128, 160, 161, 162, 163
-KIND_SHADED, KIND_MIRROR, KIND_GLASS = 0, 1, 2
+ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
+T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
+                                                                                    "sigma", "eta", "k"))
+KIND_SHADED, KIND_MIRROR, KIND_GLASS = CHAIN_KINDS["shaded"], CHAIN_KINDS["mirror"], CHAIN_KINDS["glass"]
 MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 needs about 12)
 
 
@@ -61,15 +63,15 @@ def material_rows(scene, albedo_tables) -> np.ndarray:
         block[: data.size] = data
         out[r, :MAT_VEC4] = block.reshape(MAT_VEC4, 4)
         refl, trans, spec, alpha, _ = albedo_tables(params)
-        out[r, T_ALBEDO:T_ALBEDO + 32, :3] = refl
-        out[r, T_SPEC:T_SPEC + 32, :3] = spec
-        out[r, T_TRANS:T_TRANS + 32, :3] = trans
+        out[r, T_ALBEDO:T_ALBEDO + ALBEDO_TABLE, :3] = refl
+        out[r, T_SPEC:T_SPEC + ALBEDO_TABLE, :3] = spec
+        out[r, T_TRANS:T_TRANS + ALBEDO_TABLE, :3] = trans
         kind = chain_kind(params)
         out[r, T_INFO] = (idx, alpha, kind, float(np.any(np.asarray(trans) > 0)))
         if "sigma_a" in params and kind == KIND_GLASS:
             out[r, T_SIGMA, :3] = np.asarray(params.sigma_a, np.float32)
         if params.model == "mirror":
-            out[r, T_ETA] = (*np.asarray(params.eta, float), ("conductor", "dielectric", "none").index(params.fresnel))
+            out[r, T_ETA] = (*np.asarray(params.eta, float), choice_constants(params)["mirror"]["fresnel"])
             out[r, T_K] = (*np.asarray(params.k, float), float(params.ior))
         else:
             out[r, T_ETA, :3] = chain_eta(params)

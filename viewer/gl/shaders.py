@@ -1,5 +1,6 @@
 """Shader loading: ``#include "file"`` resolution (each file at most once), error lines mapped
-back to the file they came from, and generated virtual files (``brdf/dispatch.glsl``).
+back to the file they came from, and generated virtual files (``brdf/dispatch.glsl``, and
+``generated/constants.glsl`` in every program: the values of ``viewer.gl.constants``).
 
 Files are read from disk on every build (there is no source cache), from ``shader_root()``:
 the package's ``shaders/`` unless ``set_shader_root`` or the environment variable
@@ -26,6 +27,9 @@ _ERR = [re.compile(r"(?P<file>\d+):(?P<line>\d+)\(\d+\)"),
         re.compile(r"(?P<file>\d+)\((?P<line>\d+)\)"),
         re.compile(r"ERROR:\s*(?P<file>\d+):(?P<line>\d+)")]
 
+
+#: the generated include of the constants both sides share (viewer/gl/constants.py)
+GENERATED_CONSTANTS = "generated/constants.glsl"
 
 #: environment variable naming another shader folder (default: the package's shaders/)
 SHADER_ROOT_ENV = "BRDF_VIEWER_SHADERS"
@@ -110,6 +114,10 @@ def preprocess(text: str, name: str, virtual: dict[str, str] | None = None,
     def read(rel: str, file: str, line: int) -> str:
         if rel in virtual:
             return virtual[rel]
+        if rel == GENERATED_CONSTANTS:  # made from the Python side's values, never a file
+            from viewer.gl.constants import glsl_header
+
+            return glsl_header()
         path = root / rel
         try:
             return path.read_text()
@@ -154,7 +162,7 @@ def load(rel: str, virtual: dict[str, str] | None = None, defines: dict[str, str
 
 
 def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
-    from viewer.brdf.glsl import generate_dispatch
+    from viewer.gl.brdf_glsl import generate_dispatch
 
     return {"brdf/dispatch.glsl": generate_dispatch(only)}
 

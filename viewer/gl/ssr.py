@@ -43,8 +43,15 @@ import math
 import numpy as np
 
 from viewer.camera import gl_bytes
-from viewer.gl.shaders import build_program, default_virtual
+from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
+
+#: the pass's programs (name -> recipe), fullscreen passes with the one-model BRDF dispatch
+PROGRAMS = {
+    "trace": Recipe("passes/fullscreen.vert", "passes/ssr.frag"),
+    "background": Recipe("passes/fullscreen.vert", "passes/ssr_background.frag"),
+    "hiz": Recipe("passes/fullscreen.vert", "passes/ssr_hiz.frag"),
+}
 
 SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
 
@@ -56,17 +63,25 @@ class SSR:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        virtual = default_virtual(("lambert",))
-        self.prog = build_program(ctx, "passes/fullscreen.vert", "passes/ssr.frag", virtual=virtual)
-        self.bg_prog = build_program(ctx, "passes/fullscreen.vert", "passes/ssr_background.frag", virtual=virtual)
-        self.vao = ctx.vertex_array(self.prog, [])
-        self.hiz_prog = build_program(ctx, "passes/fullscreen.vert", "passes/ssr_hiz.frag", virtual=virtual)
-        self.hiz_vao = ctx.vertex_array(self.hiz_prog, [])
+        self.programs = {name: recipe.build(ctx) for name, recipe in PROGRAMS.items()}
+        self.vaos = {name: ctx.vertex_array(prog, []) for name, prog in self.programs.items()}
         self.last_hiz_s = None
-        self.bg_vao = ctx.vertex_array(self.bg_prog, [])
         self._t = None
         self._key = None
         self.last_pass_s = None
+
+    def program_recipes(self) -> dict[str, Recipe]:
+        """How each of the pass's programs is made (name -> Recipe), for hot reload."""
+        return dict(PROGRAMS)
+
+    def replace_program(self, name: str, prog) -> None:
+        """Use ``prog`` (built from ``program_recipes()[name]``) from now on; the program and
+        vertex array it replaces are released."""
+        old, old_vao = self.programs[name], self.vaos[name]
+        self.programs[name] = prog
+        self.vaos[name] = self.ctx.vertex_array(prog, [])
+        old_vao.release()
+        old.release()
 
     # ------------------------------------------------------------------ targets
     def targets(self, w, h, samples):
@@ -140,12 +155,13 @@ class SSR:
         """Fill every attachment behind the scene (a clear sets all three to one colour)."""
         ctx = self.ctx
         ctx.disable(ctx.DEPTH_TEST)
-        _set(self.bg_prog, "u_inv_view_proj", gl_bytes(np.linalg.inv(cam.projection(w / h) @ cam.view())))
-        _set(self.bg_prog, "u_camera_pos", tuple(float(x) for x in cam.position))
-        _set(self.bg_prog, "u_use_map", int(env_map_on))
-        _set(self.bg_prog, "u_constant", tuple(float(x) for x in constant))
-        ibl.bind(self.bg_prog, rotation_deg)
-        self.bg_vao.render(vertices=3)
+        prog = self.programs["background"]
+        _set(prog, "u_inv_view_proj", gl_bytes(np.linalg.inv(cam.projection(w / h) @ cam.view())))
+        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
+        _set(prog, "u_use_map", int(env_map_on))
+        _set(prog, "u_constant", tuple(float(x) for x in constant))
+        ibl.bind(prog, rotation_deg)
+        self.vaos["background"].render(vertices=3)
 
     def build_hiz(self, method: str | None = None):
         """The Hi-Z pyramid of this frame's linear view depth (the resolved target 2's w over
@@ -166,13 +182,13 @@ class SSR:
                 t["hiz"].write(np.ascontiguousarray(z, np.float32).tobytes(), level=k)
         else:
             ctx.disable(ctx.DEPTH_TEST)
-            prog = self.hiz_prog
+            prog = self.programs["hiz"]
             _set(prog, "u_src", 0)
             t["resolved"][2].use(location=0)
             _set(prog, "u_level", 0)
             t["hiz_fbo0"].use()
             t["hiz_fbo0"].viewport = (0, 0) + sizes[0]
-            self.hiz_vao.render(vertices=3)
+            self.vaos["hiz"].render(vertices=3)
             t["hiz"].use(location=0)
             for k in range(1, len(sizes)):
                 _set(prog, "u_level", k)
@@ -180,7 +196,7 @@ class SSR:
                 fbo = t["hiz_tmp_fbo"][k]
                 fbo.use()
                 fbo.viewport = (0, 0) + sizes[k]
-                self.hiz_vao.render(vertices=3)
+                self.vaos["hiz"].render(vertices=3)
                 t["hiz_tmp"][k].read_into(t["hiz_pbo"])
                 t["hiz"].write(t["hiz_pbo"], level=k)
         self.last_hiz_s = time.perf_counter() - t0
@@ -214,7 +230,7 @@ class SSR:
         use_hiz = bool(s["hiz"])
         if use_hiz:
             self.build_hiz()
-        prog = self.prog
+        prog = self.programs["trace"]
         t["hiz"].use(location=3)
         _set(prog, "u_hiz_tex", 3)
         _set(prog, "u_hiz", int(s["hiz"]))
@@ -249,18 +265,16 @@ class SSR:
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         ctx.disable(ctx.DEPTH_TEST)
-        self.vao.render(vertices=3)
+        self.vaos["trace"].render(vertices=3)
         self.last_pass_s = time.perf_counter() - t0  # CPU side; call ctx.finish() to time the GPU
         return t["out"]
 
     def release(self):
         self._release_targets()
-        self.vao.release()
-        self.hiz_vao.release()
-        self.hiz_prog.release()
-        self.bg_vao.release()
-        self.prog.release()
-        self.bg_prog.release()
+        for v in self.vaos.values():
+            v.release()
+        for p in self.programs.values():
+            p.release()
 
 
 EMPTY_DEPTH = 1e30  # the pyramid's value where there is no surface (shaders/passes/ssr_hiz.frag)

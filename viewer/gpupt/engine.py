@@ -8,7 +8,7 @@ spent (the window calls it once per frame so the raster stays interactive).
 How it runs (OpenGL 4.1 core): the setup is the CPU engine's (``RenderSetup.from_scene``: the
 same triangles, vertex normals, tangents, camera, lights, environment tables). The triangles
 and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
-one after another into a float texture in the layout of ``viewer.brdf.glsl.pack_material``
+one after another into a float texture in the layout of ``viewer.gl.brdf_glsl.pack_material``
 (the generated ``brdf/dispatch.glsl`` reads them through ``mat_f``, here from that texture
 instead of the rasterizer's uniform block). Each pass draws ``shaders/passes/pathtrace.frag``:
 a whole-image pass over the whole target, a band of rows (``step_for``) only over the band after
@@ -35,40 +35,20 @@ import time
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf.glsl import generate_dispatch, models_used, pack_material, program_defines
+from viewer.gl.brdf_glsl import generate_dispatch, models_used, pack_material, program_defines
+from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
 from viewer.pathtracer.integrator import RenderSetup, check_options
 
-MAX_MATERIALS = 64                 # pathtrace.frag MAX_MATERIALS
-STRATEGY_CODE = {"mis": 0, "bsdf": 1, "light": 2}   # pathtrace.frag STRATEGY
-KIND_CODE = {"smooth": 0, "delta": 1, "mixed": 2}
 FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-_UNIFORM_MAT = "float mat_f(int i) { return u_mat[i >> 2][i & 3]; }"
-_TEXTURE_MAT = ("uniform sampler2D u_mat_tex;\n"
-                "float mat_f(int i) { int t = i >> 2; return texelFetch(u_mat_tex, ivec2(t & 4095, t >> 12), 0)[i & 3]; }")
 
 
 def dispatch_from_texture(models: tuple[str, ...]) -> str:
     """The generated dispatch for ``models`` reading materials from the texture ``u_mat_tex``
     (every material of the scene at its own offset) instead of the uniform block."""
-    src = generate_dispatch(models)
-    lines = src.splitlines()
-    out, seen = [], 0
-    for line in lines:
-        if line.startswith("uniform vec4 u_mat["):
-            seen += 1
-            continue
-        if line.strip() == _UNIFORM_MAT:
-            seen += 1
-            out.append(_TEXTURE_MAT)
-            continue
-        out.append(line)
-    if seen != 2:  # the generator changed how it reads materials: fail loudly, never read garbage
-        raise AssertionError("brdf/dispatch.glsl no longer declares u_mat / mat_f as expected")
-    return "\n".join(out) + "\n"
+    return generate_dispatch(models, texture_width=TEX_WIDTH)
 
 
 def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
@@ -81,7 +61,7 @@ def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     offset = 0
     for i, m in enumerate(materials):
         model, arr = pack_material(m.params, offset, limit=None)
-        info[2 * i] = (model, offset, KIND_CODE[m.kind], 1.0 if m.transmissive else 0.0)
+        info[2 * i] = (model, offset, PT_KINDS[m.kind], 1.0 if m.transmissive else 0.0)
         info[2 * i + 1, :3] = m.sigma_a
         data.append(arr)
         offset += arr.size
@@ -188,8 +168,8 @@ class GpuReferenceRenderer:
                                                                                           np.float32)])))
         self._textures.append(self._mat_tex)
         env = setup.env
-        self.env_mode = 0 if env.is_black else (2 if env.is_map else 1)
-        if self.env_mode == 2:
+        self.env_mode = ENV_MODES["black" if env.is_black else ("map" if env.is_map else "constant")]
+        if self.env_mode == ENV_MODES["map"]:
             texel_p, row_cdf, col_cdf, to_map = env.distribution()
             h, w, _ = env.image.shape
             img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
@@ -237,9 +217,9 @@ class GpuReferenceRenderer:
         if any(m.kind == "mixed" for m in s.materials):
             defines["HAS_MIXED"] = "1"
         defines.update(program_defines([m.params for m in s.materials]))
-        if s.strategy != "mis" and self.env_mode != 0:   # strategies differ only in reaching the environment
-            defines["STRATEGY"] = str(STRATEGY_CODE[s.strategy])
-        if s.strategy == "mis" and s.mis_heuristic == "balance" and self.env_mode != 0:   # the heuristic matters only to MIS
+        if s.strategy != "mis" and self.env_mode != ENV_MODES["black"]:   # strategies differ only in reaching the environment
+            defines["STRATEGY"] = str(STRATEGIES[s.strategy])
+        if s.strategy == "mis" and s.mis_heuristic == "balance" and self.env_mode != ENV_MODES["black"]:   # the heuristic matters only to MIS
             defines["BALANCE_HEURISTIC"] = "1"
         if not s.russian_roulette:
             defines["NO_ROULETTE"] = "1"

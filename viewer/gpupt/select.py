@@ -163,7 +163,7 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
 def uses_measured(scene) -> bool:
     """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
     engine renders (the gpu engine's programs bind no per-material 3D textures)."""
-    from viewer.brdf.glsl import models_used
+    from viewer.gl.brdf_glsl import models_used
 
     return any("measured" in models_used(m) for m in scene.materials.values())
 

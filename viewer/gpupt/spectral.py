@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.glsl import pack_material
+from viewer.gl.brdf_glsl import pack_material
 from viewer.pathtracer import spectral as sp
 
 CATEGORY_CODE = {"rgb": 0, "table": 1, "hero": 2}   # spectral.glsl u_mat_spec[m].x

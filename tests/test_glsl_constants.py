@@ -1,0 +1,158 @@
+"""The generated header of the constants Python and GLSL share (viewer/gl/constants.py, included
+as ``generated/constants.glsl``): its values are Python's, every shader that uses one of its
+names includes it first, and no shader compares a parameter choice or a mode against a bare
+number (a number whose meaning lives in Python's lists would silently go stale)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from viewer import brdf
+from viewer.gl import constants
+from viewer.gl.shaders import GENERATED_CONSTANTS, preprocess, shader_root
+
+SHADERS = Path(__file__).resolve().parents[1] / "shaders"
+INCLUDE = f'#include "{GENERATED_CONSTANTS}"'
+
+
+def _header_values() -> dict[str, int]:
+    """The header as the shader loader gives it to a program, parsed back."""
+    text = preprocess(f"#version 410 core\n{INCLUDE}\n", "<test>").text
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^#define (\w+) (-?\d+)$", text, re.M)}
+
+
+def _shader_files() -> list[Path]:
+    files = sorted(p for p in SHADERS.rglob("*") if p.suffix in (".glsl", ".frag", ".vert", ".geom"))
+    assert len(files) > 30
+    return files
+
+
+def test_header_values_are_pythons():
+    from viewer.brdf.albedo import TABLE_SIZE
+    from viewer.gl import ibl, raytrace, renderer
+    from viewer.gpupt import engine
+
+    h = _header_values()
+    # choice ids: the index in each spec's choice list, nested tables included
+    n_choices = 0
+
+    def walk(prefix, params):
+        nonlocal n_choices
+        for p in params:
+            if p.kind == "choice":
+                for i, c in enumerate(p.choices):
+                    assert h[constants.glsl_name(*prefix, p.name, c)] == i, (prefix, p.name, c)
+                    n_choices += 1
+            elif p.kind in ("table", "lobes"):
+                walk(prefix + (p.name,), p.fields)
+
+    for name in brdf.names():
+        walk((name,), brdf.get(name).spec.params)
+    assert n_choices > 40
+    assert h["MICROFACET_FRESNEL_DIELECTRIC"] == 0 and h["MIRROR_FRESNEL_CONDUCTOR"] == 0  # per model
+    # sizes and modes, as the modules that use them see them
+    assert h["MAX_LIGHTS"] == renderer.MAX_LIGHTS == 4
+    assert h["ALBEDO_TABLE"] == TABLE_SIZE
+    assert h["IBL_MAX_LEVELS"] == ibl.MAX_LEVELS
+    assert h["MAX_MATERIALS"] == engine.MAX_MATERIALS
+    for prefix, table in (("TONEMAP", renderer.TONEMAPS), ("IBL_MODE", renderer.IBL_MODES),
+                          ("VIEW_MODE", renderer.VIEW_MODES), ("STRATEGY", constants.STRATEGIES),
+                          ("PT_KIND", constants.PT_KINDS), ("ENV_MODE", constants.ENV_MODES),
+                          ("LIGHT", constants.LIGHT_TYPES), ("SSR_DEBUG", constants.SSR_DEBUG)):
+        for k, v in table.items():
+            assert h[constants.glsl_name(prefix, k)] == v, (prefix, k)
+    assert h["VIEW_MODE_SSR_HIT"] - renderer.SSR_VIEW_BASE == h["SSR_DEBUG_HIT"]
+    assert (h["CHAIN_SHADED"], h["CHAIN_MIRROR"], h["CHAIN_GLASS"]) == (
+        raytrace.KIND_SHADED, raytrace.KIND_MIRROR, raytrace.KIND_GLASS)
+    assert (h["RT_T_ALBEDO"], h["RT_T_INFO"], h["RT_T_K"], h["CHAIN_ROW_TEXELS"]) == (
+        raytrace.T_ALBEDO, raytrace.T_INFO, raytrace.T_K, raytrace.ROW_TEXELS)
+    assert h == constants.values()
+
+
+def test_the_header_is_generated_wherever_shaders_are_read(tmp_path, monkeypatch):
+    """Not a file: an empty shader folder (BRDF_VIEWER_SHADERS elsewhere, an installed copy)
+    still gets it."""
+    monkeypatch.setenv("BRDF_VIEWER_SHADERS", str(tmp_path))
+    assert shader_root() == tmp_path.resolve()
+    assert _header_values() == constants.values()
+
+
+def test_files_include_the_header_before_using_it():
+    """Each file that uses a generated name includes the header itself, above the first use
+    (an include further down compiles only where another file happened to include it first)."""
+    names = set(constants.values())
+    bad = []
+    for f in _shader_files():
+        lines = f.read_text().splitlines()
+        inc = next((i for i, l in enumerate(lines) if l.strip() == INCLUDE), None)
+        first = next((i for i, l in enumerate(lines)
+                      if set(re.findall(r"\b[A-Z][A-Z0-9_]*\b", l.split("//")[0])) & names), None)
+        if first is not None and (inc is None or inc > first):
+            bad.append(f"{f.relative_to(SHADERS)}:{first + 1}")
+    assert bad == []
+
+
+# mode uniforms and the locals / defines that carry a mode or a choice id
+MODE_NAMES = ("u_view_mode", "u_ibl_mode", "u_tonemap", "u_debug", "u_light_type", "mode", "dist", "kind",
+              "hkind", "fr", "ENV_MODE", "STRATEGY")
+
+
+def choice_fields() -> set[str]:
+    out = set()
+
+    def walk(params):
+        for p in params:
+            if p.kind == "choice":
+                out.add(p.name)
+            elif p.kind in ("table", "lobes"):
+                walk(p.fields)
+
+    for name in brdf.names():
+        walk(brdf.get(name).spec.params)
+    return out
+
+
+def bare_id_comparisons(text: str, fields, modes=MODE_NAMES) -> list[str]:
+    """``line: code`` of every comparison of a choice field (``x.field``) or a mode name with an
+    integer literal, either way round; comments are ignored."""
+    f = "|".join(sorted(map(re.escape, fields)))
+    m = "|".join(sorted(map(re.escape, modes)))
+    ident = rf"(?:\.\s*(?:{f})\b|(?<![\w.])(?:{m})\b(?:\s*\[[^\]]*\])?)"
+    op = r"(?:==|!=|<=|>=|<|>)"
+    num = r"-?\d+(?![\w.])"
+    pats = [re.compile(rf"{ident}\s*{op}\s*{num}"), re.compile(rf"(?<![\w.]){num}\s*{op}\s*(?:\w+)?{ident}")]
+    out = []
+    for n, line in enumerate(text.splitlines(), start=1):
+        code = line.split("//")[0]
+        if any(p.search(code) for p in pats):
+            out.append(f"{n}: {line.strip()}")
+    return out
+
+
+def test_no_shader_compares_a_choice_or_a_mode_with_a_bare_number():
+    fields = choice_fields()
+    assert {"fresnel", "distribution", "shadowing", "variant", "spectral"} <= fields
+    bad = [f"{f.relative_to(SHADERS)}:{hit}" for f in _shader_files()
+           for hit in bare_id_comparisons(f.read_text(), fields)]
+    assert bad == []
+
+
+@pytest.mark.parametrize("code", [
+    "if (p.fresnel == 0) return x;", "return p.fresnel != 2 ? a : b;", "if (p.spectral > 0) f();",
+    "bool b = 1 == p.distribution;", "if (u_view_mode <= 3) {", "bool pt = u_light_type[i] == 0;",
+    "if (mode == 1) return c;", "#if ENV_MODE != 0", "if (p.thin_film.x > 0.0 && p . variant==1)",
+])
+def test_the_bare_number_scan_can_fail(code):
+    assert bare_id_comparisons("// header\n" + code + "\n", choice_fields()) == [f"2: {code}"]
+
+
+@pytest.mark.parametrize("code", [
+    "if (p.fresnel == MIRROR_FRESNEL_NONE) return x;", "if (p.thin_film.thickness_nm > 0.0) f();",
+    "if (u_view_mode == VIEW_MODE_D) {", "float x = p.alpha == 0.0 ? 1.0 : 2.0;",
+    "if (u_num_lights == 0) return;  // p.fresnel == 0", "if (res == 2) break;", "int k = dist + 1;",
+])
+def test_the_bare_number_scan_passes_named_ids(code):
+    assert bare_id_comparisons(code, choice_fields()) == []

@@ -1,0 +1,102 @@
+"""Render targets of the rasterizer: the linear HDR colour target (RGBA32F, with an MSAA draw
+target resolved into it), and the thickness pass, the distance to the nearest back face of
+absorbing objects that the forward pass turns into a path length inside them."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.camera import gl_bytes
+from viewer.gl.shaders import set_uniform as _set
+
+
+class HdrTarget:
+    """The colour and depth targets of one (width, height, samples), remade when those change:
+    ``draw_fbo`` (multisampled when samples > 1) is resolved into ``resolved`` (RGBA32F)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._targets = None
+        self._key = None
+
+    def ensure(self, w, h, samples) -> dict:
+        """{"resolved", "resolved_fbo", "draw_fbo", "extra", "samples"} for this size."""
+        samples = samples if samples > 1 else 0
+        samples = min(samples, self.ctx.max_samples)
+        key = (w, h, samples)
+        if self._key == key:
+            return self._targets
+        self.release()
+        ctx = self.ctx
+        resolved = ctx.texture((w, h), 4, dtype="f4")
+        resolved.filter = (ctx.NEAREST, ctx.NEAREST)
+        resolved_fbo = ctx.framebuffer(color_attachments=[resolved])
+        if samples:
+            ms_color = ctx.renderbuffer((w, h), 4, samples=samples, dtype="f4")
+            ms_depth = ctx.depth_renderbuffer((w, h), samples=samples)
+            ms_fbo = ctx.framebuffer(color_attachments=[ms_color], depth_attachment=ms_depth)
+            extra = [ms_color, ms_depth]
+        else:
+            depth = ctx.depth_renderbuffer((w, h))
+            ms_fbo = ctx.framebuffer(color_attachments=[resolved], depth_attachment=depth)
+            extra = [depth]
+        self._targets = {"resolved": resolved, "resolved_fbo": resolved_fbo, "draw_fbo": ms_fbo,
+                         "extra": extra, "samples": samples}
+        self._key = key
+        return self._targets
+
+    def release(self):
+        if self._targets:
+            t = self._targets
+            if t["draw_fbo"] is not t["resolved_fbo"]:
+                t["draw_fbo"].release()
+            t["resolved_fbo"].release()
+            t["resolved"].release()
+            for r in t["extra"]:
+                r.release()
+        self._targets = None
+        self._key = None
+
+
+class ThicknessPass:
+    """Distance from the camera to the nearest back face of absorbing transmissive objects, per
+    pixel (R32F). The forward pass takes back - front as the path length inside, the
+    rasterizer's approximation of Bouguer absorption (the reference path tracer follows the
+    refracted path exactly)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._thick = None  # (size, texture, depth, framebuffer)
+
+    def render(self, objects, cam, w, h, prog, vao_of):
+        """The thickness texture of ``objects`` drawn with ``prog``; ``vao_of(mesh_data, prog)``."""
+        ctx = self.ctx
+        key = (w, h)
+        if self._thick is None or self._thick[0] != key:
+            self.release()
+            tex = ctx.texture((w, h), 1, dtype="f4")
+            tex.filter = (ctx.NEAREST, ctx.NEAREST)
+            depth = ctx.depth_renderbuffer((w, h))
+            self._thick = (key, tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+        _, tex, _, fbo = self._thick
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST | ctx.CULL_FACE)
+        ctx.cull_face = "front"  # keep back faces: the far side of each object
+        _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
+        _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
+        for obj in objects:
+            m = obj.model_matrix()
+            _set(prog, "u_model", gl_bytes(m))
+            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
+            vao_of(obj.mesh_data, prog).render()
+        ctx.cull_face = "back"
+        ctx.disable(ctx.CULL_FACE)
+        return tex
+
+    def release(self):
+        if self._thick is not None:
+            for r in self._thick[1:]:
+                r.release()
+            self._thick = None
