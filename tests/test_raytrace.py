@@ -273,3 +273,44 @@ def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
     for c, ior in enumerate((1.4, 1.5, 1.7)):
         np.testing.assert_allclose(disp[..., c], single[ior][..., c], atol=1e-5)
     assert not np.allclose(single[1.4], single[1.7])
+
+
+@pytest.mark.parametrize("step, msaa", [("tir", 4), ("absorbing_glass", 0)])
+def test_progressive_trace_equals_one_shot(renderer, gl_ctx, step, msaa):
+    # The window's progressive trace (strips of rows, each a scissored traced frame copied into
+    # a texture of its own) ends bit-identical to one traced frame: every pixel is computed as in
+    # the whole frame (the scissor only discards pixels outside), and the copy is of float32
+    # texels. Before it is done the untraced approximation fills the rows not yet traced.
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.lecture import TOUR, tour_scene
+
+    scene = tour_scene([s.key for s in TOUR].index(step))
+    assert renderer.traces(scene)
+    w, h = 40, 30
+    one_shot = renderer.read_linear(renderer.render(scene, None, w, h, msaa=msaa)).copy()
+    untraced = renderer.read_linear(renderer.render(scene, None, w, h, msaa=msaa, raytrace=False)).copy()
+    assert not np.array_equal(one_shot, untraced)
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        tex = pt.start(renderer, scene, None, w, h, msaa=msaa, rows=7)
+        assert np.array_equal(renderer.read_linear(tex), untraced)
+        pt.step(budget_s=1e9)  # rows 0..6 from the top traced, the rest still untraced
+        partial = renderer.read_linear(pt.texture)
+        assert np.array_equal(partial[:7], one_shot[:7]) and np.array_equal(partial[7:], untraced[7:])
+        while not pt.done:
+            pt.step(budget_s=1e-9)  # one row at a time from here: strip edges everywhere
+        assert pt.steps > 10 and pt.progress == 1.0
+        assert np.array_equal(renderer.read_linear(pt.texture), one_shot)
+    finally:
+        pt.release()
+
+
+def test_raytrace_override_false_equals_raytrace_off(renderer):
+    # render(raytrace=False), the window's preview while the view moves, is the untraced render
+    from viewer.lecture import TOUR, tour_scene
+
+    scene = tour_scene([s.key for s in TOUR].index("fresnel"))
+    forced = renderer.read_linear(renderer.render(scene, None, 32, 24, msaa=0, raytrace=False)).copy()
+    scene.render.raytrace = False
+    off = renderer.read_linear(renderer.render(scene, None, 32, 24, msaa=0))
+    assert np.array_equal(forced, off)

@@ -138,3 +138,88 @@ class RayTrace:
             self.mat_tex.release()
             self.mat_tex = None
         self._geom_key = self._mat_key = None
+
+
+class ProgressiveTrace:
+    """The traced image of a still view, built over several frames (the window on software
+    OpenGL, where one traced frame takes seconds): ``start`` renders the view with the untraced
+    approximation into a texture of its own, each ``step`` renders the next strip of rows with
+    the chains traced (``Renderer.render(region=...)``: a scissor, every pixel inside exactly as in
+    a whole frame) and copies it in, from the top down. The strip's height follows the time of the
+    last one so that a step takes about ``budget_s``. Once ``done``, the texture holds the one-shot
+    traced render bit for bit (pixels are independent, and the copy is of float32 texels)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.texture = None
+        self._fbo = None
+        self._job = None
+        self.rows_done = 0
+        self.height = 0
+        self.rows = 0          # the next strip's height
+        self.steps = 0
+        self.trace_s = 0.0     # time spent in steps since start
+
+    @property
+    def active(self) -> bool:
+        return self._job is not None
+
+    @property
+    def done(self) -> bool:
+        return self._job is not None and self.rows_done >= self.height
+
+    @property
+    def progress(self) -> float:
+        return self.rows_done / self.height if self.height else 0.0
+
+    def _target(self, w, h):
+        if self.texture is None or self.texture.size != (w, h):
+            self.release()
+            self.texture = self.ctx.texture((w, h), 4, dtype="f4")
+            self.texture.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+            self._fbo = self.ctx.framebuffer(color_attachments=[self.texture])
+        return self.texture
+
+    def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0):
+        """The untraced view (returned, also the texture's content), and the trace set to begin.
+        ``rows``: the first strip's height (default 1/16 of the image)."""
+        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
+        tex = self._target(w, h)
+        self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
+        self._job = (renderer, scene, camera, w, h, view_mode, msaa)
+        self.rows_done, self.height, self.steps, self.trace_s = 0, h, 0, 0.0
+        self.rows = max(1, int(rows) if rows else -(-h // 16))
+        return tex
+
+    def step(self, budget_s: float = 0.15):
+        """Trace the next strip into the texture (returned); nothing once ``done``."""
+        import time
+
+        if self._job is None or self.done:
+            return self.texture
+        renderer, scene, camera, w, h, view_mode, msaa = self._job
+        rows = min(self.rows, h - self.rows_done)
+        y = h - self.rows_done - rows  # GL rows count from the bottom; the strips go top down
+        t0 = time.perf_counter()
+        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, region=(0, y, w, rows))
+        data = renderer.resolved_framebuffer(hdr).read(viewport=(0, y, w, rows), components=4, dtype="f4")
+        self.texture.write(data, viewport=(0, y, w, rows))
+        self.ctx.finish()
+        dt = time.perf_counter() - t0
+        self.trace_s += dt
+        self.rows_done += rows
+        self.steps += 1
+        # the next strip: as many rows as the budget allows at this strip's cost per row (at most
+        # twice as many, as the cost changes down the image)
+        self.rows = max(1, min(2 * rows, int(rows * budget_s / max(dt, 1e-6))))
+        return self.texture
+
+    def cancel(self):
+        self._job = None
+
+    def release(self):
+        self._job = None
+        if self._fbo is not None:
+            self._fbo.release()
+            self.texture.release()
+        self._fbo = self.texture = None

@@ -99,6 +99,8 @@ class _Frame(NamedTuple):
     env_rad: np.ndarray  # the constant environment's radiance (intensity applied)
     env_map: object      # the radiance map, or None
     env_on: bool         # the environment lights the scene (IBL not off, not black)
+    raytrace: bool       # traced chains on (the scene's ``raytrace`` unless the call overrides it)
+    region: tuple | None  # (x, y, w, h) scissor of the background and forward draws, else None
 
 
 class Renderer:
@@ -122,6 +124,7 @@ class Renderer:
         self._ssr = None
         self._rt = None
         self._measured = None
+        self._frame_targets = None  # the last frame's colour targets (resolved_framebuffer)
 
     # ---------------------------------------------------------------- programs
     @property
@@ -277,17 +280,25 @@ class Renderer:
         return self._ssr
 
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
-               height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0):
+               height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0,
+               raytrace: bool | None = None, region: tuple | None = None):
         """Render the scene into the linear HDR target; returns the resolved float texture.
+
+        ``raytrace``: False draws mirrors and smooth glass with the untraced approximation even
+        when the scene says ``raytrace = true`` (the window's preview frames), None follows the
+        scene. ``region`` = (x, y, w, h) in pixels from the bottom left: only those pixels are
+        drawn (a scissor on the background and forward draws; shadow maps and the other passes
+        are whole), each exactly as in a whole frame (the window's progressive trace,
+        ``viewer.gl.raytrace.ProgressiveTrace``); the rest of the target is left undefined.
 
         Raises ShaderError when a program it needs does not compile, except in hot-reload mode
         (``hot_reload``): there the error goes to ``shader_errors``, an object whose forward
         program never compiled is left out, and a pass that cannot be built gives back the
         colour target as it is (normally the previous frame)."""
         if not self.hot_reload:
-            return self._render(scene, camera, width, height, view_mode, msaa, frame_index)
+            return self._render(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region)
         try:
-            hdr = self._render(scene, camera, width, height, view_mode, msaa, frame_index)
+            hdr = self._render(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region)
         except ShaderError as e:
             self._render_error = e
             w = int(width or scene.camera.width)
@@ -296,18 +307,38 @@ class Renderer:
         self._render_error = None
         return hdr
 
-    def _render(self, scene, camera, width, height, view_mode, msaa, frame_index):
-        f = self._begin_frame(scene, camera, width, height, view_mode, msaa)
+    def _render(self, scene, camera, width, height, view_mode, msaa, frame_index, raytrace=None, region=None):
+        f = self._begin_frame(scene, camera, width, height, view_mode, msaa, raytrace, region)
         if f.shadows:
             self._shadows.update(scene, self.programs["shadow"], self._mesh_vao)
         thickness = self._environment(scene, f)
-        self._draw_background(scene, f)
-        uniforms = self._frame_uniforms(scene, f, frame_index)
-        rt = self._raytrace_setup(scene)
-        self._draw_objects(scene, f, uniforms, rt, thickness)
+        if f.region is not None:  # applied by every use() of the frame's colour target
+            f.targets["draw_fbo"].scissor = f.region
+        try:
+            self._draw_background(scene, f)
+            uniforms = self._frame_uniforms(scene, f, frame_index)
+            rt = self._raytrace_setup(scene, f)
+            self._draw_objects(scene, f, uniforms, rt, thickness)
+        finally:
+            if f.region is not None:
+                f.targets["draw_fbo"].scissor = None
+                f.targets["draw_fbo"].use()
         return self._finish(scene, f, frame_index)
 
-    def _begin_frame(self, scene, camera, width, height, view_mode, msaa) -> _Frame:
+    def resolved_framebuffer(self, hdr):
+        """The framebuffer of ``hdr``, a texture ``render`` returned (to read or copy from)."""
+        t = self._frame_targets
+        if t is None or t.get("resolved") is not hdr or "resolved_fbo" not in t:
+            raise ValueError("not the resolved target of this renderer's last frame (an SSR frame has its own)")
+        return t["resolved_fbo"]
+
+    def traces(self, scene) -> bool:
+        """Whether a render of ``scene`` traces specular chains (``raytrace`` on and a mirror or
+        smooth glass in the scene)."""
+        return bool(scene.render.raytrace) and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
+                                                   for o in scene.objects)
+
+    def _begin_frame(self, scene, camera, width, height, view_mode, msaa, raytrace=None, region=None) -> _Frame:
         """The frame's size, camera, colour targets (the SSR pass's with SSR) and switches."""
         w = int(width or scene.camera.width)
         h = int(height or scene.camera.height)
@@ -323,8 +354,14 @@ class Renderer:
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
         env_map = env.radiance_map() if env.map is not None else None
         env_on = scene.render.ibl != "off" and (env_map is not None or bool(np.any(env_rad > 0)))
+        self._frame_targets = targets
+        rt_on = bool(scene.render.raytrace) if raytrace is None else bool(raytrace)
+        if region is not None:
+            x, y, rw, rh = (int(v) for v in region)
+            x0, y0 = max(0, x), max(0, y)
+            region = (x0, y0, max(0, min(w, x + rw) - x0), max(0, min(h, y + rh) - y0))
         return _Frame(w, h, camera or OrbitCamera.from_scene(scene), targets, view_mode, ssr_on, ssr_debug,
-                      lights, bool(scene.render.shadows) and len(lights) > 0, env_rad, env_map, env_on)
+                      lights, bool(scene.render.shadows) and len(lights) > 0, env_rad, env_map, env_on, rt_on, region)
 
     def _environment(self, scene, f: _Frame):
         """The thickness of absorbing objects (or None), the IBL textures of the environment, and
@@ -332,7 +369,7 @@ class Renderer:
         GPU table build binds its own targets)."""
         thickness = None
         absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])
-                     and not (scene.render.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
+                     and not (f.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
         if absorbers and f.env_on:
             thickness = self._thick.render(absorbers, f.cam, f.w, f.h, self._programs.get("thickness", _THICKNESS),
                                            self._mesh_vao)
@@ -393,11 +430,10 @@ class Renderer:
             uniforms.update(self._shadows.bind(unit=0))
         return uniforms
 
-    def _raytrace_setup(self, scene):
+    def _raytrace_setup(self, scene, f: _Frame):
         """(RayTrace state, the scene's materials, dispersion) when a traced chain starts at a
         mirror or smooth glass of the scene, else None."""
-        if not (scene.render.raytrace and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
-                                              for o in scene.objects)):
+        if not (f.raytrace and self.traces(scene)):
             return None
         rt = self.raytrace_state()
         rt.update(scene, self.albedo_tables)
