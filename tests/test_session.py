@@ -267,3 +267,44 @@ def test_the_session_imports_no_window_library():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
                          cwd=app.parents[1])
     assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr[-2000:])
+
+
+def test_traced_chains_refine_when_still_and_not_while_interacting(session, monkeypatch):
+    # With ray tracing on, a preview frame (the view moving) draws mirrors and glass untraced:
+    # the renderer is asked for raytrace=False. Once still the untraced view comes first, then
+    # strips of traced rows, frame after frame (``refining``) until the image equals one traced
+    # render bit for bit; a move cancels the trace and the next still view starts over.
+    import viewer.app.session as smod
+    from viewer.lecture import TOUR
+
+    assert session.lecture([s.key for s in TOUR].index("tir"))
+    assert session.renderer.traces(session.scene)
+    asked = []
+    real = session.renderer.render
+    monkeypatch.setattr(session.renderer, "render", lambda *a, **k: asked.append(k.get("raytrace")) or real(*a, **k))
+    monkeypatch.setattr(smod, "TRACE_BUDGET_S", 1e-9)  # one row per frame after the first strip
+    session.changed()
+    session.render_view(SIZE, interacting=True)
+    assert asked == [False] and session.quality == "preview" and not session.refining
+    asked.clear()
+    session.render_view(SIZE)
+    assert asked == [False] and session.tracing and session.refining and "ray tracing: 0%" in session.trace_status
+    untraced = session.renderer.read_linear(session.hdr).copy()
+    frames = 0
+    while session.refining:
+        session.render_view(SIZE)
+        frames += 1
+        assert frames < 100
+    assert frames > 5 and session.quality == "full" and session.trace_status == ""
+    assert None in asked and "ray traced in" in session.last_message.text
+    done = session.renderer.read_linear(session.hdr).copy()
+    one_shot = real(session.scene, session.camera, *SIZE, session.view_mode)
+    assert np.array_equal(done, session.renderer.read_linear(one_shot))
+    assert not np.array_equal(done, untraced)
+    asked.clear()
+    session.render_view(SIZE)  # nothing changed: nothing rendered
+    assert asked == []
+    session.camera.orbit(5.0, 0.0, SIZE[1])  # the window marks a moved camera so
+    session.changed()
+    session.render_view(SIZE, interacting=True)
+    assert asked == [False] and not session.refining

@@ -21,6 +21,7 @@ from viewer import ViewerError
 from viewer.app.file_actions import FileActions
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
+TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
 
 # the plot tab each lecture step's ``plot`` names
 STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
@@ -89,6 +90,7 @@ class Session(FileActions):
         self._step_timer = None
         self._nonfinite_said = None
         self._extents_for = None
+        self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
         if m is not None:  # opened as lecture:N: lecture mode at that step
             self._enter_step(int(m.group(1)) - 1)
@@ -116,14 +118,37 @@ class Session(FileActions):
         if self._bf_tex is not None:
             self._bf_tex.release()
             self._bf_tex = None
+        if self._trace is not None:
+            self._trace.release()
+            self._trace = None
         if self._own_renderer:
             self.renderer.release()
 
     # ------------------------------------------------------------------ rendering
     @property
     def refining(self) -> bool:
-        """Frames should follow without waiting for input (brute-force IBL still averaging)."""
-        return self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES
+        """Frames should follow without waiting for input (brute-force IBL still averaging, or
+        the traced chains still refining)."""
+        return (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
+
+    @property
+    def tracing(self) -> bool:
+        """The traced image of the still view is being built, strip by strip."""
+        return self._trace is not None and self._trace.active and not self._trace.done
+
+    @property
+    def trace_status(self) -> str:
+        """What the view says while the traced image refines ("" otherwise)."""
+        if not self.tracing:
+            return ""
+        return f"ray tracing: {100 * self._trace.progress:.0f}% (refining; the rows below are untraced)"
+
+    def _progressive(self) -> bool:
+        """Traced chains drawn untraced while the view moves and traced in strips once it is
+        still: a scene that traces, without SSR (its pass reads the whole frame) and brute-force
+        IBL (which averages whole frames); those trace every full frame at once."""
+        r = self.scene.render
+        return self.renderer.traces(self.scene) and not r.ssr and r.ibl != "brute_force"
 
     def render_view(self, size, interacting: bool = False) -> None:
         """Render the raster image for a view of ``size`` = (w, h) pixels if anything changed:
@@ -137,31 +162,56 @@ class Session(FileActions):
             return
         scale = 0.5 if interacting else 1.0
         rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
-        want_full = not interacting and self.quality != "full"
+        want_full = not interacting and self.quality == "preview"
         progressive = self.refining and not interacting
         stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
         if not (self.dirty or want_full or stale or progressive):
             return
         t1 = time.perf_counter()
-        if self.dirty or want_full or stale:
+        restart = self.dirty or want_full or stale
+        if restart:
             self.bf_count, self._bf_sum = 0, None
+        traced = self._progressive()
+        quality = "preview" if interacting else "full"
         try:
-            self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
-                                            msaa=0 if interacting else None, frame_index=self.bf_count)
-            if self.scene.render.ibl == "brute_force" and not interacting:
-                self.hdr = self._accumulate(self.hdr)
+            if traced and not interacting:  # still: the untraced view, then the traced one in strips
+                quality = self._trace_step(rw, rh, restart)
+            else:
+                if self._trace is not None:
+                    self._trace.cancel()
+                self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
+                                                msaa=0 if interacting else None, frame_index=self.bf_count,
+                                                raytrace=False if traced else None)
+                if self.scene.render.ibl == "brute_force" and not interacting:
+                    self.hdr = self._accumulate(self.hdr)
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
             self.notify(str(e), error=True)
         self.ctx.finish()
-        if not interacting and self.hdr is not None:
+        if quality == "full" and self.hdr is not None:
             self._check_finite(self.hdr)
         self.raster_version += 1
         self.render_ms = 1000 * (time.perf_counter() - t1)
         self._hdr_for = (rw_full, rh_full)
-        self.quality = "preview" if interacting else "full"
+        self.quality = quality
         self.dirty = False
         if self._step_timer is not None and not interacting:
             self._step_shown()
+
+    def _trace_step(self, w, h, restart: bool) -> str:
+        """The progressive trace: (re)start it with the untraced view, or trace its next strip;
+        "tracing" until the traced image is complete, then "full"."""
+        from viewer.gl.raytrace import ProgressiveTrace
+
+        if self._trace is None:
+            self._trace = ProgressiveTrace(self.ctx)
+        if restart or not self._trace.active:
+            self.hdr = self._trace.start(self.renderer, self.scene, self.camera, w, h, self.view_mode)
+            return "tracing"
+        self.hdr = self._trace.step(TRACE_BUDGET_S)
+        if not self._trace.done:
+            return "tracing"
+        self.notify(f"ray traced in {self._trace.trace_s:.1f} s ({self._trace.steps} strips)")
+        return "full"
 
     def update_reference(self, size):
         """Advance the reference for a view of ``size`` when a compare mode or an error view

@@ -47,7 +47,8 @@ def plan(win):
     labels = cmp.overlay_labels(view, rv.spp if rv is not None else 0)
     bars = cmp.overlay_bars(view) + session.mc.overlay_bars(cmp.reference_rect(view))
     title, caption = ("", "") if win.view_only else session.lecture_title
-    texts = dict(labels=labels, toast=m.text if m else "", rmse=cmp.metrics_text(), bars=bars, title=title,
+    # the progressive trace's progress stands where a toast would (a toast comes first)
+    texts = dict(labels=labels, toast=m.text if m else session.trace_status, rmse=cmp.metrics_text(), bars=bars, title=title,
                  caption=caption)
     lay = overlay_layout(Rect(*view), imgui.get_font_size(), measure(), **texts)
     texts["toast_error"] = bool(m and m.error)
