@@ -9,6 +9,12 @@ its 360 px panel: 920 x 720, MSAA); and its preview while the camera moves (half
 460 x 360), which is what must stay interactive. The first frame of each configuration
 (shader compilation, BVH upload, IBL prefiltering) is rendered at 64 x 36 first and left out.
 ``--quick``: the preview size only. The preview comes first, so a cut-short run still says it.
+
+Then the window's frames with ray tracing on (``viewer.app.session``): a preview frame while the
+view moves (460 x 360, no MSAA, traced materials drawn untraced: ``render(raytrace=False)``), the
+first still frame (the untraced view at full quality, 920 x 720 with MSAA; 460 x 360 with
+``--quick``), the refining frames that trace a strip of rows each (``ProgressiveTrace.step`` with
+the session's budget: median and longest) and the time until the traced image is complete.
 """
 
 from __future__ import annotations
@@ -82,9 +88,48 @@ def main(argv=None) -> int:
                     med[rt] = statistics.median(ts)
                 print(f"{label:34s} {name:20s} {1000 * med[False]:11.1f} ms {1000 * med[True]:11.1f} ms "
                       f"{med[True] / med[False]:5.1f}x", flush=True)
+        window_frames(ctx, r, scenes, args.quick)
     finally:
         r.release()
     return 0
+
+
+def window_frames(ctx, r, scenes, quick):
+    from viewer.app.session import TRACE_BUDGET_S
+    from viewer.camera import OrbitCamera
+    from viewer.gl.raytrace import ProgressiveTrace
+
+    w, h, msaa = (460, 360, 0) if quick else (920, 720, None)
+    print(f"\nwindow, ray tracing on (still view {w}x{h}{'' if quick else ', MSAA'}; strip budget "
+          f"{1000 * TRACE_BUDGET_S:.0f} ms)")
+    print(f"{'scene':20s} {'preview':>10s} {'still, untraced':>16s} {'refining median':>16s} {'longest':>9s} "
+          f"{'frames':>7s} {'traced after':>13s}")
+    pt = ProgressiveTrace(ctx)
+    try:
+        for name, scene in scenes.items():
+            cam = OrbitCamera.from_scene(scene)
+            scene.render.ssr, scene.render.raytrace = False, True
+            r.render(scene, cam, 64, 36, msaa=0, raytrace=False)
+            r.render(scene, cam, 64, 36, msaa=msaa)  # compile both variants
+            ctx.finish()
+            t = time.perf_counter()
+            r.render(scene, cam, 460, 360, msaa=0, raytrace=False)
+            ctx.finish()
+            preview = time.perf_counter() - t
+            t0 = time.perf_counter()
+            pt.start(r, scene, cam, w, h, msaa=msaa)
+            ctx.finish()
+            still = time.perf_counter() - t0
+            ts = []
+            while not pt.done:
+                t = time.perf_counter()
+                pt.step(TRACE_BUDGET_S)
+                ts.append(time.perf_counter() - t)
+            total = time.perf_counter() - t0
+            print(f"{name:20s} {1000 * preview:7.1f} ms {1000 * still:13.1f} ms {1000 * statistics.median(ts):13.1f} ms "
+                  f"{1000 * max(ts):6.0f} ms {len(ts):7d} {total:11.1f} s", flush=True)
+    finally:
+        pt.release()
 
 
 if __name__ == "__main__":

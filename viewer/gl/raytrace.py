@@ -26,6 +26,9 @@ T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k 
                                                                                     "sigma", "eta", "k"))
 KIND_SHADED, KIND_MIRROR, KIND_GLASS = CHAIN_KINDS["shaded"], CHAIN_KINDS["mirror"], CHAIN_KINDS["glass"]
 MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 needs about 12)
+# most pixels in one strip of the progressive trace: on llvmpipe (2 cores) a pixel of a glass
+# ball costs about 0.04 ms traced, so a strip of 4096 such pixels takes about 180 ms
+STRIP_PIXELS = 4096
 
 
 def chain_kind(params) -> int:
@@ -182,13 +185,13 @@ class ProgressiveTrace:
 
     def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
-        ``rows``: the first strip's height (default 1/16 of the image)."""
+        ``rows``: the first strip's height (default 2: the cost per row is not known yet)."""
         hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
         tex = self._target(w, h)
         self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
         self._job = (renderer, scene, camera, w, h, view_mode, msaa)
         self.rows_done, self.height, self.steps, self.trace_s = 0, h, 0, 0.0
-        self.rows = max(1, int(rows) if rows else -(-h // 16))
+        self.rows = max(1, int(rows) if rows else 2)
         return tex
 
     def step(self, budget_s: float = 0.15):
@@ -209,9 +212,10 @@ class ProgressiveTrace:
         self.trace_s += dt
         self.rows_done += rows
         self.steps += 1
-        # the next strip: as many rows as the budget allows at this strip's cost per row (at most
-        # twice as many, as the cost changes down the image)
-        self.rows = max(1, min(2 * rows, int(rows * budget_s / max(dt, 1e-6))))
+        # the next strip: as many rows as the budget allows at this strip's cost per row, at most
+        # 1.5 times as many and STRIP_PIXELS in all (the cost per row jumps where a glass object
+        # begins: a strip must stay short where the cost is not known yet)
+        self.rows = max(1, min(int(1.5 * rows) + 1, int(rows * budget_s / max(dt, 1e-6)), STRIP_PIXELS // w))
         return self.texture
 
     def cancel(self):
