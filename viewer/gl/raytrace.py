@@ -146,20 +146,25 @@ class RayTrace:
 class ProgressiveTrace:
     """The traced image of a still view, built over several frames (the window on software
     OpenGL, where one traced frame takes seconds): ``start`` renders the view with the untraced
-    approximation into a texture of its own, each ``step`` renders the next strip of rows with
-    the chains traced (``Renderer.render(region=...)``: a scissor, every pixel inside exactly as in
-    a whole frame) and copies it in, from the top down. The strip's height follows the time of the
-    last one so that a step takes about ``budget_s``. Once ``done``, the texture holds the one-shot
-    traced render bit for bit (pixels are independent, and the copy is of float32 texels)."""
+    approximation into a texture of its own, each ``step`` renders the next tile with the chains
+    traced (``Renderer.render(region=...)``: a scissor, every pixel inside exactly as in a whole
+    frame) and copies it in: bands of rows from the top down, a band in tiles from the left when
+    a whole band is over the budget. The tile's pixel count follows the time of the last one so
+    that a step takes about ``budget_s``. Once ``done``, the texture holds the one-shot traced
+    render bit for bit (pixels are independent, and the copy is of float32 texels)."""
 
     def __init__(self, ctx):
         self.ctx = ctx
         self.texture = None
         self._fbo = None
         self._job = None
-        self.rows_done = 0
+        self.rows_done = 0     # whole rows traced, from the top
+        self.x = 0             # columns of the band below them traced
+        self.band = 0          # that band's rows (0: none started)
         self.height = 0
-        self.rows = 0          # the next strip's height
+        self.width = 0
+        self.pixels = 0        # the next tile's pixels
+        self.rows = 0          # the first strip's rows
         self.steps = 0
         self.trace_s = 0.0     # time spent in steps since start
 
@@ -173,7 +178,8 @@ class ProgressiveTrace:
 
     @property
     def progress(self) -> float:
-        return self.rows_done / self.height if self.height else 0.0
+        n = self.width * self.height
+        return (self.rows_done * self.width + self.x * self.band) / n if n else 0.0
 
     def _target(self, w, h):
         if self.texture is None or self.texture.size != (w, h):
@@ -185,37 +191,59 @@ class ProgressiveTrace:
 
     def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
-        ``rows``: the first strip's height (default 2: the cost per row is not known yet)."""
+        ``rows``: the first strip's height (default 2: the cost per pixel is not known yet)."""
         hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
         tex = self._target(w, h)
         self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
         self._job = (renderer, scene, camera, w, h, view_mode, msaa)
-        self.rows_done, self.height, self.steps, self.trace_s = 0, h, 0, 0.0
+        self.rows_done, self.x, self.band, self.height, self.width = 0, 0, 0, h, w
+        self.steps, self.trace_s = 0, 0.0
         self.rows = max(1, int(rows) if rows else 2)
+        self.pixels = self.rows * w
         return tex
 
+    def _next_tile(self):
+        """(x, y, w, h) of the next tile. Bands end on rows that are multiples of 4 from the
+        bottom (software rasterizers shade blocks of 4 x 4 pixels: a band of one row costs about
+        what four do), tiles are whole blocks wide."""
+        w, h = self.width, self.height
+        top = h - self.rows_done
+        if self.x == 0:
+            if self.steps == 0:
+                rows = self.rows
+            else:
+                rows = max(4, self.pixels // w // 4 * 4) + top % 4 if self.pixels >= 4 * w else (top % 4 or 4)
+            self.band = min(rows, top)
+        bh = self.band
+        tw = w - self.x if self.x == 0 and self.pixels >= bh * w else max(16, self.pixels // bh // 4 * 4)
+        tw = min(tw, w - self.x)
+        return self.x, top - bh, tw, bh
+
     def step(self, budget_s: float = 0.15):
-        """Trace the next strip into the texture (returned); nothing once ``done``."""
+        """Trace the next tile into the texture (returned); nothing once ``done``."""
         import time
 
         if self._job is None or self.done:
             return self.texture
         renderer, scene, camera, w, h, view_mode, msaa = self._job
-        rows = min(self.rows, h - self.rows_done)
-        y = h - self.rows_done - rows  # GL rows count from the bottom; the strips go top down
+        x, y, tw, th = self._next_tile()
         t0 = time.perf_counter()
-        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, region=(0, y, w, rows))
-        data = renderer.resolved_framebuffer(hdr).read(viewport=(0, y, w, rows), components=4, dtype="f4")
-        self.texture.write(data, viewport=(0, y, w, rows))
+        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, region=(x, y, tw, th))
+        data = renderer.resolved_framebuffer(hdr).read(viewport=(x, y, tw, th), components=4, dtype="f4")
+        self.texture.write(data, viewport=(x, y, tw, th))
         self.ctx.finish()
         dt = time.perf_counter() - t0
         self.trace_s += dt
-        self.rows_done += rows
         self.steps += 1
-        # the next strip: as many rows as the budget allows at this strip's cost per row, at most
-        # 1.5 times as many and STRIP_PIXELS in all (the cost per row jumps where a glass object
-        # begins: a strip must stay short where the cost is not known yet)
-        self.rows = max(1, min(int(1.5 * rows) + 1, int(rows * budget_s / max(dt, 1e-6)), STRIP_PIXELS // w))
+        self.x += tw
+        if self.x >= w:
+            self.rows_done += th
+            self.x = self.band = 0
+        # the next tile: as many pixels as the budget allows at this tile's cost per pixel, at
+        # most 1.5 times as many and STRIP_PIXELS in all (the cost jumps where a glass object
+        # begins: a tile must stay small where the cost is not known yet)
+        n = tw * th
+        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / max(dt, 1e-6)), STRIP_PIXELS))
         return self.texture
 
     def cancel(self):
