@@ -126,7 +126,8 @@ def window_frames(ctx, r, scenes, quick):
                 pt.step(TRACE_BUDGET_S)
                 ts.append(time.perf_counter() - t)
             total = time.perf_counter() - t0
-            print(f"{name:20s} {1000 * preview:7.1f} ms {1000 * still:13.1f} ms {1000 * statistics.median(ts):13.1f} ms "
+            med = statistics.median(ts)
+            print(f"{name:20s} {1000 * preview:7.1f} ms {1000 * still:13.1f} ms {1000 * med:13.1f} ms "
                   f"{1000 * max(ts):6.0f} ms {len(ts):7d} {total:11.1f} s", flush=True)
     finally:
         pt.release()
