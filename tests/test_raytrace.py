@@ -294,12 +294,15 @@ def test_progressive_trace_equals_one_shot(renderer, gl_ctx, step, msaa):
     try:
         tex = pt.start(renderer, scene, None, w, h, msaa=msaa, rows=7)
         assert np.array_equal(renderer.read_linear(tex), untraced)
-        pt.step(budget_s=1e9)  # rows 0..6 from the top traced, the rest still untraced
+        pt.step(budget_s=1e-9)  # one tile: rows 0..6 from the top traced, the rest still untraced
         partial = renderer.read_linear(pt.texture)
         assert np.array_equal(partial[:7], one_shot[:7]) and np.array_equal(partial[7:], untraced[7:])
         while not pt.done:
             pt.step(budget_s=1e-9)  # one row at a time from here: strip edges everywhere
         assert pt.steps > 10 and pt.progress == 1.0
+        pt.start(renderer, scene, None, w, h, msaa=msaa)
+        pt.step(budget_s=1e9)  # tiles until done, in one step
+        assert pt.done and np.array_equal(renderer.read_linear(pt.texture), one_shot)
         assert np.array_equal(renderer.read_linear(pt.texture), one_shot)
     finally:
         pt.release()

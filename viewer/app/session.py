@@ -210,7 +210,7 @@ class Session(FileActions):
         self.hdr = self._trace.step(TRACE_BUDGET_S)
         if not self._trace.done:
             return "tracing"
-        self.notify(f"ray traced in {self._trace.trace_s:.1f} s ({self._trace.steps} strips)")
+        self.notify(f"ray traced in {self._trace.trace_s:.1f} s ({self._trace.steps} tiles)")
         return "full"
 
     def update_reference(self, size):

@@ -150,7 +150,7 @@ class ProgressiveTrace:
     traced (``Renderer.render(region=...)``: a scissor, every pixel inside exactly as in a whole
     frame) and copies it in: bands of rows from the top down, a band in tiles from the left when
     a whole band is over the budget. The tile's pixel count follows the time of the last one so
-    that a step takes about ``budget_s``. Once ``done``, the texture holds the one-shot traced
+    that a tile takes about ``budget_s``, and a step traces tiles until that is spent. Once ``done``, the texture holds the one-shot traced
     render bit for bit (pixels are independent, and the copy is of float32 texels)."""
 
     def __init__(self, ctx):
@@ -158,6 +158,7 @@ class ProgressiveTrace:
         self.texture = None
         self._fbo = None
         self._job = None
+        self.steps = 0         # tiles traced since start
         self.rows_done = 0     # whole rows traced, from the top
         self.x = 0             # columns of the band below them traced
         self.band = 0          # that band's rows (0: none started)
@@ -165,7 +166,6 @@ class ProgressiveTrace:
         self.width = 0
         self.pixels = 0        # the next tile's pixels
         self.rows = 0          # the first strip's rows
-        self.steps = 0
         self.trace_s = 0.0     # time spent in steps since start
 
     @property
@@ -220,11 +220,21 @@ class ProgressiveTrace:
         return self.x, top - bh, tw, bh
 
     def step(self, budget_s: float = 0.15):
-        """Trace the next tile into the texture (returned); nothing once ``done``."""
+        """Trace tiles into the texture (returned) until about ``budget_s`` is spent (at least
+        one; the next is left out when its predicted time would overrun); nothing once ``done``."""
         import time
 
-        if self._job is None or self.done:
-            return self.texture
+        t0 = time.perf_counter()
+        while self._job is not None and not self.done:
+            dt, n = self._tile(budget_s)
+            if time.perf_counter() - t0 + self.pixels * dt / n > budget_s:
+                break
+        return self.texture
+
+    def _tile(self, budget_s):
+        """Trace the next tile; (its time, its pixels)."""
+        import time
+
         renderer, scene, camera, w, h, view_mode, msaa = self._job
         x, y, tw, th = self._next_tile()
         t0 = time.perf_counter()
@@ -232,7 +242,7 @@ class ProgressiveTrace:
         data = renderer.resolved_framebuffer(hdr).read(viewport=(x, y, tw, th), components=4, dtype="f4")
         self.texture.write(data, viewport=(x, y, tw, th))
         self.ctx.finish()
-        dt = time.perf_counter() - t0
+        dt = max(time.perf_counter() - t0, 1e-6)
         self.trace_s += dt
         self.steps += 1
         self.x += tw
@@ -243,8 +253,8 @@ class ProgressiveTrace:
         # most 1.5 times as many and STRIP_PIXELS in all (the cost jumps where a glass object
         # begins: a tile must stay small where the cost is not known yet)
         n = tw * th
-        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / max(dt, 1e-6)), STRIP_PIXELS))
-        return self.texture
+        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / dt), STRIP_PIXELS))
+        return dt, n
 
     def cancel(self):
         self._job = None
