@@ -141,7 +141,7 @@ class Session(FileActions):
         """What the view says while the traced image refines ("" otherwise)."""
         if not self.tracing:
             return ""
-        return f"ray tracing: {100 * self._trace.progress:.0f}% (refining; the rows below are untraced)"
+        return f"ray tracing: {100 * self._trace.progress:.0f}% (refining; what is not traced yet is drawn untraced)"
 
     def _progressive(self) -> bool:
         """Traced chains drawn untraced while the view moves and traced in strips once it is
