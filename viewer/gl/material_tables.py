@@ -102,6 +102,10 @@ class MaterialTables:
                 return self.gpu_builder.tables(params)
             except ShaderError as e:  # e.g. a family file being edited: numpy still knows the model
                 self.gpu_error = e
+        if params.get("multiple_scattering", False):
+            # the GLSL samplers have no random walk: nor has the fallback (the raster adds the
+            # walk's light as its compensation, which must not come on top of the walk's albedo)
+            params = params.replace(multiple_scattering=False)
         return albedo_tables(model, params)
 
     def clear(self):
