@@ -4,7 +4,10 @@
 
 The built-in gallery in the split view (raster | reference) of a 1280x720 window: the
 reference's samples per pixel after 5, 20 and 60 s, its samples/s, and the frame time while it
-runs (median and 90th percentile), once per engine (``auto``: what the window uses, a stored
+runs (median and 90th percentile of the frames drawn; the window's loop, ``App.tick``, sleeps
+between them while only the reference changes), then the frame time while the camera orbits
+(a drag simulated as the window's input handling does it: 8 pixels per frame for 10 s), once per
+engine (``auto``: what the window uses, a stored
 measurement or a hardware GPU decides; ``cpu``: the CPU engine on a background thread, as before
 the GPU engine existed). Then the variance views (standard error, relative error, samples
 needed) with the convergence plot: the time to compute and upload one error map, and the frame
@@ -42,12 +45,13 @@ def child(engine: str) -> None:
     rv = app.session.reference_view()
     rv.engine_request = engine
     app.session.set_image_mode("split")
+    tick = getattr(app, "tick", lambda: app.frame() or True)   # (a window without tick draws flat out)
     t0 = time.perf_counter()
     spp_at, frames = {}, []
     while len(spp_at) < len(MARKS):
         t = time.perf_counter()
-        app.frame()
-        frames.append((t - t0, 1000 * (time.perf_counter() - t)))
+        if tick():   # the window's loop: a frame, or a sleep while only the reference changes
+            frames.append((t - t0, app.frame_ms))
         el = time.perf_counter() - t0
         for m in MARKS:
             if m not in spp_at and el >= m:
@@ -55,6 +59,16 @@ def child(engine: str) -> None:
     vw, vh = app.viewport()[2:]
     first = max((f for t, f in frames[:3]), default=0.0)
     ft = np.array([f for t, f in frames[3:]] or [np.nan])   # after the first frames (programs compile)
+    # orbiting: the drag as App._handle_input applies it, every frame for 10 s
+    drag, t2 = [], time.perf_counter()
+    while time.perf_counter() - t2 < 10.0:
+        app.session.camera.orbit(8.0, 0.0, vh)
+        app.session.changed()
+        app._last_interaction = app._last_event = time.perf_counter()
+        if tick():
+            drag.append(app.frame_ms)
+    dt = np.array(drag[1:] or [np.nan])
+    spp_drag = rv.spp
     # the variance views need a variance: at least 2 whole samples per pixel (5 minutes at most)
     t1 = time.perf_counter()
     while rv.latest_variance() is None and time.perf_counter() - t1 < 300:
@@ -66,7 +80,9 @@ def child(engine: str) -> None:
           + f"; {rv.samples_per_second / 1e3:.0f} k samples/s")
     print(f"   frame time while the reference runs: median {np.median(ft):.0f} ms, 90th percentile "
           f"{np.percentile(ft, 90):.0f} ms ({len(ft)} frames after the first 3; the longest of those "
-          f"{first:.0f} ms)")
+          f"{first:.0f} ms); {len(frames) / MARKS[-1]:.1f} frames/s drawn)")
+    print(f"   frame time while orbiting: median {np.median(dt):.0f} ms, 90th percentile "
+          f"{np.percentile(dt, 90):.0f} ms ({len(dt)} frames in 10 s; reference at {spp_drag} spp: it restarts when the drag pauses)")
     got = rv.latest_variance()
     print(f"   a variance (>= 2 spp) after {t_var:.0f} s" if got else "   no variance after 5 more minutes")
     # the variance views

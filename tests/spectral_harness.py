@@ -107,7 +107,7 @@ ibl = "off"
 # RGB materials only, under white point and directional light (no environment): the spectral
 # estimator upsamples every colour, so one bounce round-trips exactly (the same scene as the CPU
 # engine's RGB / spectral test)
-RGB_SCENE = _CAMERA + """
+RGB_BODY = """
 [[lights]]
 type = "point"
 position = [2.0, 4.0, 3.0]
@@ -151,6 +151,8 @@ model = "oren_nayar"
 albedo = [0.3, 0.5, 0.2]
 sigma = 20.0
 """
+RGB_SCENE = _CAMERA + RGB_BODY
+
 
 # Every spectral category under a grey sky (a constant environment: no point light seen through
 # glass, whose caustic on the floor neither engine samples well at a few spp): an SF11 prism

@@ -216,7 +216,7 @@ def test_albedo_plot_shows_three_albedos():
     """plot --kind albedo of a microfacet material: single scattering, the raster's compensation
     and the random walk. White GGX alpha 1: single scattering at normal incidence is
     1 - ln 2 = 0.307 (f cos integrates in closed form: D = 1/pi, Lambda(wi) = (1/cos - 1)/2),
-    the walk 1 (nothing is absorbed), the compensation between the two."""
+    the walk 1 (nothing is absorbed), and so is the compensation."""
     from viewer import plots
 
     p = _white("ggx", 1.0)
@@ -225,9 +225,11 @@ def test_albedo_plot_shows_three_albedos():
     assert set(by) == {"single scattering", "compensated", "random walk"}
     assert abs(by["single scattering"][0] - (1 - math.log(2))) < 0.01
     assert np.all(np.abs(by["random walk"] - 1.0) < 2e-3)
-    # the compensation overshoots slightly at grazing view (1.017 at 89.5 degrees: the DFG table is
-    # read at its edge texels there, and F0 is derived from albedos, not given)
-    assert np.all(by["compensated"] > by["single scattering"]) and np.all(by["compensated"] < 1.03)
+    # the compensation's E_ss is the lobe's own F = 1 albedo (viewer/ms_compare.py): with F = 1 it
+    # returns what single scattering loses, 1 within the two albedo estimates' sampling (the plot's
+    # curve and ms_compare's table use different sample sets)
+    assert np.all(by["compensated"] > by["single scattering"])
+    assert np.all(np.abs(by["compensated"] - 1.0) < 0.01), np.abs(by["compensated"] - 1.0).max()
 
 
 def _ms_scene(tmp_path):

@@ -36,7 +36,7 @@ def test_choice_maps_to_scene_keys():
         set_reflection_mode(r, "path traced")
 
 
-TRACED_STEPS = ("fresnel", "tir", "absorbing_glass", "dispersion")
+TRACED_STEPS = ("fresnel", "tir", "absorbing_glass", "complex_ior", "dispersion")
 
 
 @pytest.mark.parametrize("key", TRACED_STEPS)

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from spectral_harness import RGB_BODY
 from viewer import spectral
 from viewer.scene import load_scene
 
@@ -23,49 +24,7 @@ height = 24
 [render]
 ibl = "off"
 
-[[lights]]
-type = "point"
-position = [2.0, 4.0, 3.0]
-intensity = [12.0, 12.0, 12.0]
-
-[[lights]]
-type = "directional"
-direction = [-0.3, -1.0, -0.2]
-irradiance = [0.6, 0.6, 0.6]
-
-[[objects]]
-mesh = "sphere"
-material = "red"
-translate = [-0.6, 0.5, 0.0]
-scale = 0.5
-
-[[objects]]
-mesh = "sphere"
-material = "plastic"
-translate = [0.6, 0.5, 0.0]
-scale = 0.5
-
-[[objects]]
-mesh = "plane"
-material = "floor"
-scale = 3.0
-
-[materials.red]
-model = "lambert"
-albedo = [0.8, 0.15, 0.05]
-
-[materials.plastic]
-model = "microfacet"
-fresnel = "dielectric"
-ior = 1.5
-alpha = 0.3
-kd = [0.1, 0.45, 0.7]
-
-[materials.floor]
-model = "oren_nayar"
-albedo = [0.3, 0.5, 0.2]
-sigma = 20.0
-"""
+""" + RGB_BODY
 
 
 def _render(path, spectral_on, spp, max_depth=1, overrides=()):

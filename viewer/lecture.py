@@ -122,9 +122,11 @@ TOUR: tuple[Step, ...] = (
                 _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
     Step("complex_ior", "Complex IOR: gold, silver, copper",
          "n + i k measured per wavelength (Johnson & Christy 1972): gold and copper absorb the blue end "
-         "(n rises, k falls below 500-600 nm), silver reflects all; the colours are spectral integrals.",
-         _scene(_camera(fov=40.0), _SKY, _render("split_sum"), _FLOOR, _sphere("gold", -1.3, 0.55),
-                _sphere("silver", 0.0, 0.55), _sphere("copper", 1.3, 0.55), _FLOOR_MAT,
+         "(n rises, k falls below 500-600 nm), silver reflects all; their colours show in the white floor "
+         "each one mirrors (traced reflections).",
+         _scene(_camera(fov=40.0), _SKY, _render("split_sum", raytrace=True), _KEY_LIGHT, _FLOOR,
+                _sphere("gold", -1.3, 0.55), _sphere("silver", 0.0, 0.55), _sphere("copper", 1.3, 0.55),
+                '[materials.floor]\nmodel = "lambert"\nalbedo = [0.8, 0.8, 0.8]\n',
                 _mat("gold", "polished_gold"), _mat("silver", "polished_silver"),
                 _mat("copper", "polished_copper")), "spectral"),
     Step("dispersion", "Dispersion: a flint prism and a diamond",

@@ -3,19 +3,24 @@
 * ``single``: the single-scattering lobe alone (``multiple_scattering = false``);
 * ``compensated``: what the rasterizer shows with ``render.ms_compensation`` in a constant
   environment: the single-scattering albedo plus Fdez-Aguera 2019's term F_ms E_ms, with
-  E_ms = 1 - (A + B) from the GGX DFG table and the material's F0 derived as the renderer does
-  (its normal-incidence specular albedo over A + B, clamped to 1);
+  E_ms = 1 - E_ss, E_ss the specular lobe's own single-scattering albedo with F = 1
+  (``white_lobe``; the GGX DFG table's A + B only for lobes without a Fresnel factor to set to 1),
+  and the material's F0 derived as the renderer does (``ms_f0``: its normal-incidence specular
+  albedo over E_ss there, clamped to 1);
 * ``walk``: the reference's random walk (Heitz et al. 2016; ``multiple_scattering = true``).
 
 All three from the model's own samplers on the same stratified pattern
 (``viewer.brdf.albedo.directional_albedo``); ``benchmarks/ms_compensation.py`` prints the
-compensation's error against the walk per alpha."""
+compensation's error against the walk per alpha. The rule for E_ss and F0 lives here once: the
+rasterizer's tables (``viewer/gl/material_tables.py``) call ``white_lobe``, ``ess_ggx`` and
+``ms_f0``."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from viewer import brdf
+from viewer.brdf import spectral_fresnel
 from viewer.brdf.albedo import TABLE_SIZE, directional_albedo
 
 _DFG = None
@@ -35,9 +40,49 @@ def _dfg(nov, alpha):
     return lookup_dfg(_DFG, nov, max(float(alpha), 1e-3))
 
 
-def albedos(p, cos_o, n_side: int = 24, known: dict | None = None) -> dict:
+def white_lobe(spec_p):
+    """The specular lobe ``spec_p`` (a model's ``ibl_split`` params) with F = 1, single scattering
+    only: its directional albedo is the E_ss of the compensation. Microfacet lobes (every D and G):
+    Schlick with f0 = 1 is F = 1 exactly (no film, no spectral table, no walk, no diffuse base).
+    None for the other models (no Fresnel factor to set to 1); ``ess_ggx`` stands in for them."""
+    if getattr(spec_p, "model", None) != "microfacet":
+        return None
+    kw = {"spectral": spectral_fresnel.NONE} if "spectral" in spec_p else {}
+    return spec_p.replace(kd=np.zeros(3), fresnel="schlick", f0=np.ones(3), multiple_scattering=False, **kw)
+
+
+def ess_ggx(cos_o, alpha) -> np.ndarray:
+    """E_ss = A + B of the GGX DFG table at the lobe width ``alpha`` (the rule for lobes without
+    ``white_lobe``, and the one used for every lobe before: wrong for Beckmann and Blinn-Phong)."""
+    a, b = _dfg(np.asarray(cos_o, dtype=np.float64), alpha)
+    return np.clip(np.asarray(a + b, dtype=np.float64), 0.0, 1.0)
+
+
+def ms_f0(spec_normal, ess_normal) -> np.ndarray:
+    """The specular lobe's Fresnel at normal incidence for F_avg: its albedo there over E_ss there
+    (exact for a constant F), clamped to [0, 1]; 0 for a material without a specular part."""
+    spec_normal = np.asarray(spec_normal, dtype=np.float64)
+    if not np.any(spec_normal > 0):
+        return np.zeros(3)
+    return np.clip(spec_normal / max(float(ess_normal), 1e-6), 0.0, 1.0)
+
+
+def compensated(single, spec_single, e_ss, f0) -> np.ndarray:
+    """Fdez-Aguera 2019 sec. 3-4 (``viewer.environment.dfg.ms_compensation``'s formula) with the
+    lobe's own single-scattering albedo as FssEss, as shaders/passes/forward.frag adds it:
+    single + F_ms E_ms, E_ms = 1 - E_ss, F_avg = F0 + (1 - F0) / 21,
+    F_ms = FssEss F_avg / (1 - E_ms F_avg)."""
+    e_ms = np.clip(1.0 - np.asarray(e_ss, dtype=np.float64), 0.0, 1.0)[:, None]
+    f_avg = np.asarray(f0) + (1.0 - np.asarray(f0)) / 21.0
+    f_ms = spec_single * f_avg / (1.0 - e_ms * f_avg)
+    return single + f_ms * e_ms
+
+
+def albedos(p, cos_o, n_side: int = 24, known: dict | None = None, rule: str = "lobe") -> dict:
     """{"single", "compensated", "walk"}: (len(cos_o), 3) directional albedos of ``p``.
-    ``known``: any of "single" / "walk" already computed at these cos_o with this n_side."""
+    ``known``: any of "single" / "walk" already computed at these cos_o with this n_side.
+    ``rule``: "lobe" (E_ss of ``white_lobe``, what the rasterizer does) or "ggx" (the GGX DFG
+    table for every lobe: the former rule, kept for the benchmark's before/after)."""
     model = brdf.get("microfacet")
     cos_o = np.asarray(cos_o, dtype=np.float64)
     known = known or {}
@@ -54,12 +99,12 @@ def albedos(p, cos_o, n_side: int = 24, known: dict | None = None) -> dict:
     has_kd = bool(np.any(np.asarray(p.kd) > 0))
     spec_single = directional_albedo(model, spec_p, cos_o, n_side=n_side) if has_kd else single
     spec_normal = directional_albedo(model, spec_p, np.array([nov_n]), n_side=n_side)[0]
-    a_n, b_n = _dfg(nov_n, alpha)
-    f0 = np.clip(spec_normal / max(float(a_n + b_n), 1e-6), 0.0, 1.0)
-    a, b = _dfg(cos_o, alpha)
-    e_ms = np.clip(1.0 - (a + b), 0.0, 1.0)[:, None]
-    f_avg = f0 + (1.0 - f0) / 21.0
-    # viewer.environment.dfg.ms_compensation's formula, with the lobe's own single-scattering
-    # albedo as FssEss (as shaders/passes/forward.frag uses its table rho_s)
-    f_ms = spec_single * f_avg / (1.0 - e_ms * f_avg)
-    return {"single": single, "compensated": single + f_ms * e_ms, "walk": walk}
+    white = white_lobe(spec_p) if rule == "lobe" else None
+    if white is not None:
+        cos_n = np.append(cos_o, nov_n)
+        e = directional_albedo(model, white, cos_n, n_side=n_side).mean(axis=1)
+        e_ss, e_n = e[:-1], e[-1]
+    else:
+        e_ss, e_n = ess_ggx(cos_o, alpha), float(ess_ggx([nov_n], alpha)[0])
+    f0 = ms_f0(spec_normal, e_n)
+    return {"single": single, "compensated": compensated(single, spec_single, e_ss, f0), "walk": walk}

@@ -35,6 +35,7 @@ uniform int u_ibl_delta;                 // the material has only delta lobes (m
 uniform int u_frame_index;               // brute force: a new sample set each frame
 uniform int u_ms_on;                     // multiple-scattering compensation (Fdez-Aguera 2019)
 uniform vec3 u_ms_f0;                    // the specular lobe's normal-incidence reflectance
+uniform float u_ms_ess[ALBEDO_TABLE];    // E_ss: that lobe's single-scattering albedo with F = 1
 uniform int u_view_mode;                 // VIEW_MODE_SHADED, _F, _D, _G, _N_L, _F_COS, _SHADOW
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / ALBEDO_TABLE
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
@@ -219,11 +220,11 @@ void main() {
 #endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
-                    // energy (E_ss = A + B from the GGX DFG table); bounces return the geometric
-                    // series F_ms = FssEss F_avg / (1 - E_ms F_avg), spread like a diffuse lobe.
-                    // FssEss is the lobe's exact single-scattering albedo (the table rho_s).
-                    vec2 ab = env_dfg(wo.z, max(u_ibl_alpha, 1e-3));
-                    float e_ms = clamp(1.0 - (ab.x + ab.y), 0.0, 1.0);
+                    // energy; bounces return the geometric series F_ms = FssEss F_avg /
+                    // (1 - E_ms F_avg), spread like a diffuse lobe. E_ss is the lobe's own
+                    // albedo with F = 1 (table u_ms_ess, viewer/ms_compare.py: any D, not only
+                    // GGX), FssEss its albedo with its own Fresnel (the table rho_s).
+                    float e_ms = clamp(1.0 - mix(u_ms_ess[k0], u_ms_ess[k1], fx), 0.0, 1.0);
                     vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
                     vec3 f_ms = rho_s * f_avg / (1.0 - e_ms * f_avg);
                     radiance += f_ms * e_ms * ENV_IRRADIANCE(n) * INV_PI;

@@ -32,9 +32,18 @@ _TAP_KEYS = ("h", "f11", "c", "p", "l", "right", "page_down", "space", "left", "
 
 class App:
     """The window: glfw, the imgui backends, input (keys, mouse orbit, drops), the frame loop and
-    the toasts. ``session`` holds the scene and the actions; the panels draw it."""
+    the toasts. ``session`` holds the scene and the actions; the panels draw it.
+
+    The loop (``run``, one ``tick`` per turn) draws while anything changes and sleeps while only
+    the CPU reference does: then it draws when the reference publishes a pass (its thread wakes
+    the loop), at once on any input, and every ``IDLE_FRAME_S`` otherwise (toasts fade). On
+    software OpenGL a frame costs about a core for 100-200 ms, which the reference's worker
+    processes need (gallery, split view: 31 k samples/s drawing flat out)."""
 
     TOAST_S = 6.0
+    IDLE_FRAME_S = 0.5  # a frame at least this often while idle
+    SETTLE_S = 0.5      # frames follow without sleeping for this long after an input event
+    throttle = True     # False: ``run`` draws flat out, as ``frame`` does
     panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
     ui_scale = 1.0
     show_ui = True
@@ -70,13 +79,20 @@ class App:
         imgui.get_io().set_ini_filename("")  # no imgui.ini in the user's working folder
         self._taps: list[str] = []
         self._tap_codes = {getattr(glfw, "KEY_" + k.upper()): k for k in _TAP_KEYS}
+        self.input_events = 0           # glfw input and window events so far (``tick`` wakes on them)
+        self._last_event = time.perf_counter()
         glfw.set_key_callback(self.window, self._on_key)  # before imgui's backend, which chains to it
+        for name in ("cursor_pos", "mouse_button", "scroll", "char", "cursor_enter", "window_focus"):
+            getattr(glfw, f"set_{name}_callback")(self.window, self._on_event)  # imgui chains to these too
+        for name in ("window_size", "framebuffer_size", "window_refresh", "window_iconify"):
+            getattr(glfw, f"set_{name}_callback")(self.window, self._on_event)  # imgui installs none
         imgui.backends.glfw_init_for_opengl(ctypes.cast(self.window, ctypes.c_void_p).value, True)
         imgui.backends.opengl3_init("#version 410")
         glfw.set_drop_callback(self.window, self.on_drop)  # imgui installs no drop callback
         self._load_font()
         self.session = Session(self.ctx, scene_ref, scene=scene, state=state)
         self.session.step_listeners.append(self._on_step)
+        self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
         self.plots = PlotsPanel()
         self.plots.visible = bool(state.get("plots_visible", False))
@@ -86,6 +102,8 @@ class App:
         self._fullscreen_restore = None
         self.frame_count = 0
         self.frame_ms = 0.0
+        self.frames_skipped = 0         # turns of ``tick`` that slept instead of drawing
+        self._drawn = (-1, -1.0, None)  # (input events, time, reference version) at the last frame
         self.first_frame_s = None
         self._closing = False
         self._last_interaction = -1.0
@@ -139,7 +157,8 @@ class App:
         old = signal.signal(signal.SIGTERM, self.request_close)
         try:
             while not self.should_close():
-                self.frame()
+                if not self.tick():
+                    continue
                 if frames and self.frame_count >= frames:
                     if screenshot and self.take_screenshot(screenshot) is None:
                         print(f"brdf-viewer: error: {self.session.status}", file=sys.stderr)
@@ -219,13 +238,51 @@ class App:
         return overlays.plan(self)
 
     # ------------------------------------------------------------------ frame
-    def frame(self):
+    def idle(self) -> bool:
+        """Nothing but the CPU reference changes: no raster image to render or refine, no
+        program to compile, no input for ``SETTLE_S``, no GPU reference slicing the frames."""
+        s = self.session
+        if s.dirty or s.quality != "full" or s.refining or s.warm:
+            return False
+        if time.perf_counter() - self._last_event < self.SETTLE_S:
+            return False
+        return not (s.reference is not None and s.reference.needs_frames)
+
+    def _reference_version(self):
+        rv = self.session.reference
+        return None if rv is None else rv.version
+
+    def wants_frame(self) -> bool:
+        """Something to draw since the last frame: input, a new reference image, or
+        ``IDLE_FRAME_S`` gone by (or ``idle`` no more)."""
+        events, at, version = self._drawn
+        return (self.input_events != events or self._reference_version() != version
+                or time.perf_counter() - at >= self.IDLE_FRAME_S or not self.idle())
+
+    def tick(self) -> bool:
+        """One turn of the loop: a frame (True), or, while ``idle``, a sleep until input, a new
+        reference pass or ``IDLE_FRAME_S`` after the last frame (False when nothing came)."""
+        if self.throttle and self.idle():
+            if not self.wants_frame():
+                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
+                self.glfw.wait_events_timeout(max(wait, 0.001))
+                if not self.wants_frame():
+                    self.frames_skipped += 1
+                    return False
+            self.frame(wait=False)
+        else:
+            self.frame()
+        return True
+
+    def frame(self, wait: bool = True):
+        """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
         glfw, imgui, s = self.glfw, self.imgui, self.session
         t0 = time.perf_counter()
-        if s.dirty or s.quality != "full" or s.refining:
+        if s.dirty or s.quality != "full" or s.refining or not wait:
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
+        self._drawn = (self.input_events, time.perf_counter(), self._reference_version())
         fw, fh = glfw.get_framebuffer_size(self.window)
         if fw == 0 or fh == 0:  # minimized: nothing to draw into
             time.sleep(0.02)
@@ -243,9 +300,10 @@ class App:
             self.hot_reload.draw_overlay()
         view = self.viewport()
         _, _, rw, rh = s.compare.raster_rect(view)
-        s.render_view((rw, rh), interacting=time.perf_counter() - self._last_interaction < 0.3)
+        interacting = time.perf_counter() - self._last_interaction < 0.3
+        s.render_view((rw, rh), interacting=interacting)
         _, _, ref_w, ref_h = s.compare.reference_rect(view)
-        ref_tex = s.update_reference((ref_w, ref_h)) if view[2] > 0 and view[3] > 0 else None
+        ref_tex = s.update_reference((ref_w, ref_h), interacting) if view[2] > 0 and view[3] > 0 else None
         self._draw_view(fw, fh, view, ref_tex)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
@@ -294,13 +352,19 @@ class App:
         screen.viewport = (0, 0, fw, fh)
 
     # ------------------------------------------------------------------ input
+    def _on_event(self, window, *args):
+        self.input_events += 1
+        self._last_event = time.perf_counter()
+
     def _on_key(self, window, key, scancode, action, mods):
+        self._on_event(window)
         if action == self.glfw.PRESS and key in self._tap_codes:
             if not mods & (self.glfw.MOD_CONTROL | self.glfw.MOD_ALT | self.glfw.MOD_SUPER):
                 self._taps.append(self._tap_codes[key])
 
     def on_drop(self, window, paths):
         """glfw's drop callback: the session opens each file by its kind."""
+        self._on_event(window)
         self.session.open_files(paths)
 
     def _handle_input(self):

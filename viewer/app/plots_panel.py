@@ -76,6 +76,9 @@ def _params_key(p) -> str:
     return json.dumps(p.to_plain(), sort_keys=True, default=str)
 
 
+# wavelength ticks of the spectral tab's half-width plots (implot's defaults collide there)
+WAVELENGTH_TICKS = (400.0, 550.0, 700.0)
+
 class PlotsPanel:
     """An imgui window "BRDF plots" with tabs Polar / 3D lobe / Albedo / Fresnel / Bouguer.
 
@@ -286,6 +289,7 @@ class PlotsPanel:
         lam = np.ascontiguousarray(d["wavelength_nm"], dtype=np.float64)
         if implot.begin_plot("##spectral_nk", half):
             implot.setup_axes("wavelength (nm)", "n (solid), k (dots)")
+            implot.setup_axis_ticks(implot.ImAxis_.x1, list(WAVELENGTH_TICKS))  # readable in half a panel
             self._legend()
             ymax = max(float(np.max(d["n"])), float(np.max(d["k"])), 1.0) * 1.05
             implot.setup_axes_limits(float(lam[0]), float(lam[-1]), 0.0, ymax, implot.Cond_.always)
@@ -293,13 +297,18 @@ class PlotsPanel:
             implot.plot_line("n", lam, np.ascontiguousarray(d["n"], dtype=np.float64),
                              implot.Spec(line_color=_vec4(col), line_weight=2.5))
             if np.any(np.asarray(d["k"]) > 0):
-                implot.plot_line("k", lam, np.ascontiguousarray(d["k"], dtype=np.float64),
-                                 implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.5,
-                                             marker=implot.Marker_.circle, marker_size=2.0))
+                k = np.ascontiguousarray(d["k"], dtype=np.float64)
+                implot.plot_line("k", lam, k, implot.Spec(line_color=_vec4(col, 0.8), line_weight=1.0))
+                # dots every ~25 nm (a marker at every sample would draw a thick band)
+                every = max(1, len(lam) // 16)
+                implot.plot_scatter("k", np.ascontiguousarray(lam[::every]), np.ascontiguousarray(k[::every]),
+                                    implot.Spec(line_color=_vec4(col, 0.8), fill_color=_vec4(col, 0.8),
+                                                marker=implot.Marker_.circle, marker_size=3.0))
             implot.end_plot()
         imgui.same_line()
-        if implot.begin_plot("##spectral_R", half):
+        if implot.begin_plot("##spectral_R", half, implot.Flags_.no_legend):  # one heat map: no legend
             implot.setup_axes("wavelength (nm); RGB at the right", "angle of incidence (deg)")
+            implot.setup_axis_ticks(implot.ImAxis_.x1, list(WAVELENGTH_TICKS))
             x_sw0, x_sw1 = float(lam[-1]) + 10.0, float(lam[-1]) + 60.0  # the swatch column
             implot.setup_axes_limits(float(lam[0]), x_sw1, 0.0, 90.0, implot.Cond_.always)
             implot.push_colormap(implot.Colormap_.viridis)

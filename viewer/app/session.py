@@ -82,6 +82,7 @@ class Session(FileActions):
         self.warm = list(brdf.names())  # models whose programs compile while idle
         self.screenshot_dir = Path.cwd()
         self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
+        self.wake = None           # called from any thread when the reference has a new image
         self._prefetch_on = prefetch
         self._mesh_target = None
         self._bf_sum = None
@@ -213,13 +214,14 @@ class Session(FileActions):
         self.notify(f"ray traced in {self._trace.trace_s:.1f} s ({self._trace.steps} tiles)")
         return "full"
 
-    def update_reference(self, size):
+    def update_reference(self, size, interacting: bool = False):
         """Advance the reference for a view of ``size`` when a compare mode or an error view
-        shows it; returns its texture to display (or None), and refreshes the metrics."""
+        shows it; returns its texture to display (or None), and refreshes the metrics.
+        ``interacting``: a change restarts the reference only once the drag pauses."""
         if not (self.compare.uses_reference or self.mc.active) or size[0] <= 0 or size[1] <= 0:
             return None
         rv = self.reference_view()
-        rv.update(self.scene, self.camera, size)
+        rv.update(self.scene, self.camera, size, defer=interacting)
         tex = rv.texture_for_display()
         if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None:
             self.compare.update_metrics(self.renderer, self.hdr, self.raster_version, rv)
@@ -274,7 +276,7 @@ class Session(FileActions):
         if self.reference is None:
             from viewer.app.reference_view import ReferenceView
 
-            self.reference = ReferenceView(self.ctx)
+            self.reference = ReferenceView(self.ctx, wake=self.wake)
         return self.reference
 
     def extents(self) -> dict:

@@ -1,7 +1,7 @@
 """The per-material data of environment lighting, cached by parameter values: directional-albedo
 tables (reflected, transmitted, and the specular part's alone, the model's ``ibl_split`` hook),
-that part's lobe width, and its normal-incidence Fresnel for the multiple-scattering
-compensation. Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
+that part's lobe width, and for the multiple-scattering compensation the lobe's single-scattering
+albedo with F = 1 (E_ss) and its normal-incidence Fresnel (the rule of ``viewer.ms_compare``). Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
 numpy estimator's points) or from numpy (``viewer.brdf.albedo``: the oracle and the fallback)."""
 
 from __future__ import annotations
@@ -13,23 +13,6 @@ import numpy as np
 from viewer.brdf.albedo import TABLE_SIZE, albedo_tables
 from viewer.gl.shaders import ShaderError
 
-_DFG = None
-
-
-def _ms_f0(spec_albedo_normal, alpha: float, nov: float) -> np.ndarray:
-    """The specular lobe's Fresnel at normal incidence for the multiple-scattering term: its
-    albedo there divided by the GGX albedo with F = 1 (A + B of the DFG table), clamped to 1."""
-    global _DFG
-    from viewer.environment.dfg import dfg_table, lookup_dfg
-
-    if not np.any(np.asarray(spec_albedo_normal, float) > 0):
-        return np.zeros(3)  # no specular part (diffuse models): 0 whatever the table says
-    if _DFG is None:  # about a second of numpy: made the first time a compensated specular needs it
-        _DFG = dfg_table()
-    a, b = lookup_dfg(_DFG, nov, max(alpha, 1e-3))
-    return np.clip(np.asarray(spec_albedo_normal, float) / max(float(a + b), 1e-6), 0.0, 1.0)
-
-
 class MaterialTables:
     """``gpu``: build tables with the GLSL samplers (False: the numpy builder); ``gpu_error``:
     why the GPU builder last failed (a family file being edited), the tables then came from numpy."""
@@ -40,7 +23,7 @@ class MaterialTables:
         self.gpu_error: ShaderError | None = None
         self.gpu_builder = None  # the GPUAlbedoTables, made on first use
         self._cache: dict[str, tuple] = {}
-        self._ms_cache: dict[str, np.ndarray] = {}
+        self._ms_cache: dict[str, tuple] = {}
 
     def albedo_tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
         """float32 (32, 3) tables of the reflected albedo, the transmitted albedo and the
@@ -50,17 +33,37 @@ class MaterialTables:
 
     def ms_f0(self, params) -> np.ndarray:
         """The normal-incidence Fresnel of a material's specular part for the multiple-scattering
-        compensation (see ``_ms_f0``; computed on first use: only scenes with
-        ``ms_compensation`` need it, and it needs the DFG table)."""
+        compensation (``ms_terms``)."""
+        return self.ms_terms(params)[1]
+
+    def ms_terms(self, params) -> tuple[np.ndarray, np.ndarray]:
+        """The multiple-scattering compensation's data (computed on first use: only scenes with
+        ``ms_compensation`` need it): float32 (32,) E_ss, the specular lobe's single-scattering
+        albedo with F = 1 (``viewer.ms_compare.white_lobe``, built like the other tables; the
+        GGX DFG table's A + B for lobes without one), and F0 = the specular albedo over E_ss at
+        the table's normal-incidence node (``viewer.ms_compare.ms_f0``)."""
+        from viewer import ms_compare
+
         key = json.dumps(params.to_plain(), sort_keys=True)
-        f0 = self._ms_cache.get(key)
-        if f0 is None:
+        terms = self._ms_cache.get(key)
+        if terms is None:
             _, _, spec, alpha = self.tables(params)
-            f0 = _ms_f0(spec[-1], alpha, (TABLE_SIZE - 0.5) / TABLE_SIZE)
+            if not np.any(spec[-1] > 0):  # no specular part (diffuse models): no term
+                terms = (np.ones(TABLE_SIZE, "f4"), np.zeros(3))
+            else:
+                from viewer import brdf
+
+                split = getattr(brdf.get(params.model).module, "ibl_split", None)
+                white = ms_compare.white_lobe(split(params)[0]) if split is not None else None
+                if white is not None:
+                    e_ss = self._albedo_pair(brdf.get(white.model), white)[0].mean(axis=1)
+                else:  # about a second of numpy the first time: the DFG table
+                    e_ss = ms_compare.ess_ggx((np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE, alpha)
+                terms = (np.clip(e_ss, 0.0, 1.0).astype("f4"), ms_compare.ms_f0(spec[-1], e_ss[-1]))
             if len(self._ms_cache) > 256:
                 self._ms_cache.clear()
-            self._ms_cache[key] = f0
-        return f0
+            self._ms_cache[key] = terms
+        return terms
 
     def tables(self, params) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """(reflected, transmitted, specular part, alpha), cached by the parameter values."""
@@ -99,16 +102,22 @@ class MaterialTables:
                 return self.gpu_builder.tables(params)
             except ShaderError as e:  # e.g. a family file being edited: numpy still knows the model
                 self.gpu_error = e
+        if params.get("multiple_scattering", False):
+            # the GLSL samplers have no random walk: nor has the fallback (the raster adds the
+            # walk's light as its compensation, which must not come on top of the walk's albedo)
+            params = params.replace(multiple_scattering=False)
         return albedo_tables(model, params)
 
     def clear(self):
         """Forget the cached tables (they are built again on the next use)."""
         self._cache.clear()
+        self._ms_cache.clear()
 
     def shaders_changed(self):
         """The GLSL samplers changed: rebuild the GPU builder and the tables from the new files."""
         self.release()
         self._cache.clear()
+        self._ms_cache.clear()
         self.gpu_error = None
 
     def release(self):

@@ -495,8 +495,10 @@ class Renderer:
         # multiple-scattering random walk (the raster's approximation of the same light)
         ms_on = ms_scene or bool(params.get("multiple_scattering", False))
         _set(prog, "u_ms_on", int(ms_on))
-        if ms_on:  # the shader reads u_ms_f0 only then
-            _set(prog, "u_ms_f0", tuple(float(x) for x in self.ms_f0(params)))
+        if ms_on:  # the shader reads u_ms_f0 and u_ms_ess only then
+            ms_ess, ms_f0 = self.tables.ms_terms(params)
+            _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
+            _set(prog, "u_ms_ess", ms_ess.tobytes())
         absorbing = "sigma_a" in params and brdf_spec(params).transmissive
         _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
         _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))

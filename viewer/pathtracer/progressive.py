@@ -211,6 +211,13 @@ class ReferenceRenderer:
             self._setup_file = None
 
     # ------------------------------------------------------------------ work
+    def samples_per_chunk(self) -> int:
+        """The samples per pixel that fill a chunk (``TARGET_CHUNK_PATHS`` camera samples): a
+        ``step`` of fewer samples runs chunks of fewer paths, whose fixed cost per chunk then
+        dominates (gallery at 460 x 360, 2 workers: step(1) 2.5 s, step(4) 2.6 s)."""
+        block_px = max(b1 - b0 for b0, b1 in self.blocks) * self.width
+        return max(1, TARGET_CHUNK_PATHS // max(block_px, 1))
+
     def _chunks(self, s0: int, spp: int):
         block_px = max(b1 - b0 for b0, b1 in self.blocks) * self.width
         per = max(1, min(spp, TARGET_CHUNK_PATHS // max(block_px, 1)))

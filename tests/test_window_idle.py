@@ -1,0 +1,160 @@
+"""The window while only the reference changes: the loop sleeps (no frame without a change) and
+draws at once on input or on a new reference pass; the reference renders passes that fill a
+chunk, pauses while a drag lasts, and its texture is uploaded only for new samples."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import os
+import time
+
+import numpy as np
+import pytest
+
+from gui_harness import run_py
+
+
+def _wait(predicate, seconds=60.0):
+    t0 = time.perf_counter()
+    while not predicate() and time.perf_counter() - t0 < seconds:
+        time.sleep(0.01)
+    return predicate()
+
+
+def test_samples_per_chunk_fills_a_chunk():
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.pathtracer.progressive import TARGET_CHUNK_PATHS
+    from viewer.scene import load_scene
+
+    r = ReferenceRenderer(load_scene("sphere"), width=460, height=360, max_depth=1, workers=0)
+    # 460 px wide: blocks of 2048 // 460 = 4 rows, 1840 px; 8192 // 1840 = 4 samples per chunk
+    assert r.samples_per_chunk() == 4
+    c = r._chunks(0, r.samples_per_chunk())
+    assert all(len(ch[4]) == 4 for ch in c) and len(c) == len(r.blocks)
+    assert 4 * 1840 <= TARGET_CHUNK_PATHS < 5 * 1840
+    r = ReferenceRenderer(load_scene("sphere"), width=4000, height=8, max_depth=1, workers=0)
+    assert r.samples_per_chunk() == 2   # one row of 4000 px per block
+
+
+def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    woken = []
+    rv = ReferenceView(None, scale=0.1, max_depth=1, workers=0, wake=lambda: woken.append(time.perf_counter()))
+    try:
+        rv.update(scene, cam, (160, 120))   # 16 x 12: one block of 192 px, 8192 // 192 = 42 spp a pass
+        assert _wait(lambda: rv.spp >= 84), rv.error
+        assert rv.spp % 42 == 0             # passes of samples_per_chunk samples
+        assert len(woken) >= 2 and rv.version >= len(woken)
+        # dragging: the change cancels the job and clears the image, and nothing restarts
+        cam.yaw += 0.2
+        rv.update(scene, cam, (160, 120), defer=True)
+        assert rv.latest() is None and rv.spp == 0
+        assert _wait(lambda: not rv._busy, 10)
+        v = rv.version
+        for _ in range(5):
+            rv.update(scene, cam, (160, 120), defer=True)
+        time.sleep(0.3)
+        assert rv.latest() is None and rv.version == v and not rv._busy   # still paused
+        # the drag pauses: the view restarts for the new camera
+        rv.update(scene, cam, (160, 120))
+        assert _wait(lambda: rv.spp >= 4), rv.error
+        assert rv.version > v
+    finally:
+        rv.close()
+
+
+def test_the_reference_texture_is_uploaded_only_for_new_samples(gl_ctx, monkeypatch):
+    from viewer.app import compare_view
+    from viewer.app.reference_view import ReferenceView
+
+    calls = []
+    real = compare_view.upload_rgb
+    monkeypatch.setattr(compare_view, "upload_rgb", lambda *a: calls.append(1) or real(*a))
+    rv = ReferenceView(gl_ctx, workers=0)
+    try:
+        assert rv.texture_for_display() is None and not calls
+        img = np.full((6, 8, 3), 0.5, np.float32)
+        with rv._lock:
+            rv._image, rv._image_spp = img, 4
+        t = rv.texture_for_display()
+        assert t is not None and len(calls) == 1
+        for _ in range(5):   # frames without a new pass
+            assert rv.texture_for_display() is t
+        assert len(calls) == 1
+        with rv._lock:
+            rv._image, rv._image_spp = img * 2, 8   # a new pass
+        rv.texture_for_display()
+        assert len(calls) == 2
+    finally:
+        rv.close()
+
+
+needs_x = pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("DISPLAY"),
+                             reason="needs Xvfb (apt-get install xvfb) or a display")
+
+
+@needs_x
+def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
+    r = run_py("""
+        import json, threading, time
+        from viewer.app.main import App
+        app = App("sphere", size=(480, 300), restore_state=False)
+        s = app.session
+        t0 = time.time()
+        while not app.idle() and time.time() - t0 < 90:   # programs warm up, the raster settles
+            app.tick()
+        out = dict(idle=app.idle())
+        # nothing changes: one frame per IDLE_FRAME_S at most; a wake-up without input draws nothing
+        app.IDLE_FRAME_S = 3.0
+        app.tick()
+        n0, k0 = app.frame_count, app.frames_skipped
+        threading.Timer(0.4, app.glfw.post_empty_event).start()
+        t = time.perf_counter(); drew = app.tick()
+        out.update(spurious=dict(drew=drew, s=time.perf_counter() - t, frames=app.frame_count - n0,
+                                 skipped=app.frames_skipped - k0))
+        t = time.perf_counter(); drew = app.tick()   # then the timer's frame
+        out.update(timer=dict(drew=drew, s=time.perf_counter() - t))
+        # input (a resize: real window events through the callbacks) draws at once
+        app.glfw.set_window_size(app.window, 500, 300)
+        t = time.perf_counter(); drew = app.tick()
+        out.update(input=dict(drew=drew, s=time.perf_counter() - t))
+        # the split view: each reference pass wakes the loop, which draws it at once
+        s.set_image_mode("split")
+        app.IDLE_FRAME_S = 30.0
+        t0 = time.time()
+        while s.reference is None or s.reference.spp < 4:
+            app.tick()
+            assert time.time() - t0 < 90, s.reference and s.reference.error
+        while not app.idle() and time.time() - t0 < 120:
+            app.tick()
+        rv = s.reference
+        spp, n0 = rv.spp, app.frame_count
+        t = time.perf_counter()
+        while rv.spp < spp + 8 and time.perf_counter() - t < 25:
+            app.tick()
+        out.update(passes=dict(spp=rv.spp - spp, frames=app.frame_count - n0, s=time.perf_counter() - t,
+                               idle=app.idle(), per=rv._renderer.samples_per_chunk()))
+        app.glfw.set_window_should_close(app.window, True)
+        app.run()
+        print("RESULT " + json.dumps(out))
+    """, display, timeout=300)
+    assert r.returncode == 0, r.stderr + r.stdout
+    res = json.loads(next(ln for ln in r.stdout.splitlines() if ln.startswith("RESULT "))[7:])
+    print(res)
+    assert res["idle"]
+    # a wake-up that brought no input: no frame, and back well before IDLE_FRAME_S (3 s)
+    assert not res["spurious"]["drew"] and res["spurious"]["frames"] == 0 and res["spurious"]["skipped"] == 1
+    assert res["spurious"]["s"] < 2.5
+    assert res["timer"]["drew"]
+    assert res["input"]["drew"] and res["input"]["s"] < 2.0, res["input"]
+    # 8 more spp, in passes of ``per``: drawn as they came (well before IDLE_FRAME_S, 30 s), and no
+    # frame without a pass (two passes may come within one frame: at least one frame)
+    p = res["passes"]
+    assert p["spp"] >= 8 and p["idle"] and p["s"] < 25, p
+    assert 1 <= p["frames"] <= p["spp"] // p["per"] + 1, p
