@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import spectral
+from viewer.brdf import thin_film
 from viewer.brdf.spec import Params
 from viewer.pathtracer.integrator import Integrator, PathState
 
@@ -54,9 +55,16 @@ def bin_weights() -> np.ndarray:
     return out
 
 
+def has_film(p) -> bool:
+    """Whether a material (or its layered coating) has an active thin film."""
+    owner = p if "thin_film" in p else p.get("coating")
+    return owner is not None and "thin_film" in owner and float(owner.thin_film.thickness_nm) > 0.0
+
+
 def uses_spectral(p) -> bool:
-    """Whether a material (Params) names a spectral table anywhere."""
-    if p.get("spectral", "none") != "none":
+    """Whether a material (Params) names a spectral table anywhere, or has a thin film (its R is
+    evaluated per wavelength)."""
+    if p.get("spectral", "none") != "none" or has_film(p):
         return True
     return any(isinstance(v, Params) and uses_spectral(v) for v in p.values())
 
@@ -96,7 +104,22 @@ def params_at(p, lam3) -> Params:
                 out["fresnel"] = "conductor"
         if "ior" in out:
             out["ior"] = float(n[0].real)
+    film = key_film = None
+    if "thin_film" in p and float(p.thin_film.thickness_nm) > 0.0:
+        # a thin film is evaluated at the wavelengths themselves (viewer/brdf/thin_film.py);
+        # a non-spectral conductor base's eta, k at them as the RGB renderers interpolate them
+        film = dict(p.thin_film)
+        film["lambda_nm"] = lam3.copy()
+        key_film = "thin_film"
+        if name == "none" and "eta" in out and "k" in out:
+            out["eta"] = thin_film.rgb_to_spectral_at(p.eta, lam3)
+            out["k"] = thin_film.rgb_to_spectral_at(p.k, lam3)
     for key, v in p.items():
+        if key == key_film:
+            out[key] = Params(v.model, film)
+            continue
+        if film is not None and key in ("eta", "k") and name == "none":
+            continue
         if isinstance(v, Params):
             out[key] = params_at(v, lam3)
         elif isinstance(v, np.ndarray) and v.shape == (3,) and key in out and out[key] is v:
@@ -134,7 +157,9 @@ class SpectralIntegrator(Integrator):
             p = m.params
             if not uses_spectral(p):
                 self.category.append("rgb")
-            elif is_dispersive(p) or m.kind == "mixed":
+            elif is_dispersive(p) or m.kind == "mixed" or (has_film(p) and p.model == "dielectric"):
+                # (a smooth or rough film-coated dielectric chooses reflection or refraction with
+                # its R: one wavelength per path)
                 self.category.append("hero")
             else:
                 self.category.append("table")
