@@ -39,8 +39,19 @@ def test_top_interface_reflection_is_the_coat_lobe(film):
         coat["thin_film"] = film
     p = _p(coat)
     top = layered_walk.top_interface(p)
-    np.testing.assert_allclose(brdf.get("dielectric").eval(top, wi, wo), layered_mod.eval_coat(p, wi, wo),
-                               rtol=1e-12, atol=1e-14)
+    got, want = brdf.get("dielectric").eval(top, wi, wo), layered_mod.eval_coat(p, wi, wo)
+    if not film:
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+        return
+    # the closed form's film reflectance comes from its table over cos (layered.film_table), the
+    # dielectric's is the exact Airy sum: they differ by the table's interpolation error in F
+    # (< 3e-3, tests/test_layered_film.py) times the lobe's F-free factor G D / (4 cos_i cos_o)
+    plain = layered_mod.eval_coat(_p({"ior": 1.7, "alpha": 0.25}), wi, wo)[:, :1]
+    h = (wi + wo) / np.linalg.norm(wi + wo, axis=1, keepdims=True)
+    from viewer.brdf.fresnel import fresnel_dielectric
+
+    geo = plain / fresnel_dielectric(np.sum(wi * h, axis=1), 1.7)[:, None]
+    assert np.all(np.abs(got - want) <= 3e-3 * geo + 1e-14)
 
 
 @pytest.mark.parametrize("ior", [1.5, 2.2])

@@ -9,7 +9,7 @@
 // coat's ior, its albedo E + R_film - F (exact for a smooth coat), K takes the coloured E. R_film
 // is a table over cos computed once per material on the CPU (viewer/brdf/layered.py film_table,
 // in p.derived after the albedo table and a film flag): no wavelength loop here, so a coat film
-// compiles as fast as none. Only under THIN_FILM (viewer/gl/brdf_glsl.py program_defines).
+// compiles as fast as none. Only under COAT_FILM (viewer/gl/brdf_glsl.py program_defines).
 // The base is any non-layered material, evaluated through the generated brdf_eval_base().
 #include "generated/constants.glsl"
 #include "common/fresnel.glsl"
@@ -21,7 +21,7 @@ vec3 layered_refract_in(vec3 w, float eta) {
     return vec3(xy, sqrt(max(0.0, 1.0 - dot(xy, xy))));
 }
 
-#ifdef THIN_FILM
+#ifdef COAT_FILM
 bool layered_has_film(layered_params p) { return p.derived[LAYERED_COAT_TABLE] > 0.5; }
 
 // The film's RGB R at cos, from the table at cos = (k / (N - 1))^2: linear in sqrt(cos).
@@ -38,7 +38,7 @@ vec3 layered_film_table(layered_params p, float c) {
 // The coat surface's reflectance at cos (from outside): dielectric F, or the thin film's RGB R.
 vec3 layered_coat_fresnel(layered_params p, float c) {
     c = clamp(c, 0.0, 1.0);
-#ifdef THIN_FILM
+#ifdef COAT_FILM
     if (layered_has_film(p)) return layered_film_table(p, c);
 #endif
     return vec3(fresnel_dielectric(c, p.coating.ior));
@@ -67,7 +67,7 @@ float layered_coat_albedo(layered_params p, float c) {
 // E per channel: with a thin film on the coating E + R_film - F, clipped (coat_albedo_rgb).
 vec3 layered_coat_albedo_rgb(layered_params p, float c) {
     vec3 E = vec3(layered_coat_albedo(p, c));
-#ifdef THIN_FILM
+#ifdef COAT_FILM
     if (layered_has_film(p))
         E = clamp(E + layered_film_table(p, c) - fresnel_dielectric(clamp(c, 0.0, 1.0), p.coating.ior), 0.0, 1.0);
 #endif
@@ -173,7 +173,7 @@ vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pd
         vec3 wi_in = layered_refract_in(wi, eta);
         vec3 Ti = vec3(fresnel_dielectric_transmittance(min(wi.z, 1.0), eta));
         vec3 To = vec3(fresnel_dielectric_transmittance(min(wo_s.z, 1.0), eta));
-#ifdef THIN_FILM
+#ifdef COAT_FILM
         if (layered_has_film(p)) {  // the film's change of R at the macro angles
             Ti = clamp(Ti - layered_film_table(p, wi.z) + fresnel_dielectric(min(wi.z, 1.0), eta), 0.0, 1.0);
             To = clamp(To - layered_film_table(p, wo_s.z) + fresnel_dielectric(min(wo_s.z, 1.0), eta), 0.0, 1.0);

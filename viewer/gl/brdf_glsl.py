@@ -214,27 +214,52 @@ def models_used(params: Params) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
+def _has_film(p) -> bool:
+    # a film somewhere on the object: at its bottom, or at its top (thickness over height)
+    film = p.get("thin_film") if hasattr(p, "get") else None
+    return film is not None and max(float(film.get("thickness_nm", 0.0)),
+                                    float(film.get("thickness_top_nm", -1.0))) > 0.0
+
+
+def film_kinds(params: Params) -> set[str]:
+    """Which thin films a material needs compiled: "own" where it or a material nested in it
+    carries ``thin_film`` (the wavelength loop of common/fresnel.glsl), "coat" where a table
+    parameter of one does (a layered model's ``coating.thin_film``, read from tables the CPU
+    computes: viewer/brdf/layered.py)."""
+    out = set()
+    if _has_film(params):
+        out.add("own")
+    for v in params.values():
+        if isinstance(v, Params):
+            if v.model:
+                out |= film_kinds(v)
+            elif _has_film(v):
+                out.add("coat")
+    return out
+
+
 def uses_thin_film(params: Params) -> bool:
     """Whether a material, a table parameter of it (a layered model's coating) or a material
     nested in it has a thin film of positive thickness."""
-    film = params.get("thin_film") if hasattr(params, "get") else None
-    if film is not None and float(film.get("thickness_nm", 0.0)) > 0.0:
-        return True
-    return any(isinstance(v, Params) and uses_thin_film(v) for v in params.values())
+    return bool(film_kinds(params))
 
 
 def program_defines(materials) -> dict[str, str]:
     """The ``#define``s a program needs for ``materials`` (an iterable of Params), the one place
     every program (forward pass, GPU albedo tables, GPU engine, tests) decides them:
     MEASURED_TEXTURE where one is or nests a measured table (shaders/brdf/measured.glsl reads it
-    from a 3D texture), THIN_FILM where one has a film (common/fresnel.glsl compiles the film's
-    wavelength loop only then)."""
+    from a 3D texture), THIN_FILM where one (or its base) has a film of its own
+    (common/fresnel.glsl compiles the film's wavelength loop only then), COAT_FILM where a
+    layered coating has one (shaders/brdf/layered.glsl reads its precomputed tables: no loop)."""
     materials = list(materials)
     out = {}
     if any("measured" in models_used(p) for p in materials):
         out["MEASURED_TEXTURE"] = "1"
-    if any(uses_thin_film(p) for p in materials):
+    kinds = set().union(*(film_kinds(p) for p in materials)) if materials else set()
+    if "own" in kinds:
         out["THIN_FILM"] = "1"
+    if "coat" in kinds:
+        out["COAT_FILM"] = "1"
     return out
 
 
