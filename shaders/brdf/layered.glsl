@@ -28,9 +28,9 @@ bool layered_has_film(layered_params p) { return p.derived[LAYERED_COAT_TABLE] >
 vec3 layered_film_table(layered_params p, float c) {
     float x = sqrt(clamp(c, 0.0, 1.0)) * float(LAYERED_FILM_TABLE - 1);
     int i = min(int(floor(x)), LAYERED_FILM_TABLE - 2);
-    int o = LAYERED_COAT_TABLE + 1 + 3 * i;
-    vec3 r0 = vec3(p.derived[o], p.derived[o + 1], p.derived[o + 2]);
-    vec3 r1 = vec3(p.derived[o + 3], p.derived[o + 4], p.derived[o + 5]);
+    int o = p.derived_at + LAYERED_COAT_TABLE + 1 + 3 * i;  // from the material block itself
+    vec3 r0 = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
+    vec3 r1 = vec3(mat_f(o + 3), mat_f(o + 4), mat_f(o + 5));
     return mix(r0, r1, x - float(i));
 }
 #endif

@@ -104,6 +104,10 @@ class ModelSpec:
     # the parameters (e.g. a table precomputed in numpy): derived(params) -> N floats
     derived: object = None
     derived_size: int = 0
+    # how many of them the struct copies (None: all); the GLSL reads the rest from the material
+    # block at ``p.derived_at + i`` (software GL turns every dynamic index into a local array into a
+    # chain over all its elements, so a long table is read from the uniforms instead)
+    derived_copy: int | None = None
 
     def param(self, name: str) -> Param:
         for p in self.params:

@@ -328,8 +328,9 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
         (nesting if spec.nests_material else plain).append(name)
         structs: list[str] = []
         main = _struct(f"{name}_params", spec.params, structs)
+        n_copy = spec.derived_size if spec.derived_copy is None else spec.derived_copy
         if spec.derived_size:
-            main = main[:-3] + f"    float derived[{spec.derived_size}];\n}};\n"
+            main = main[:-3] + f"    float derived[{max(n_copy, 1)}];\n    int derived_at;\n}};\n"
         out.extend(structs)
         out.append(main)
         out.append(f"{name}_params {name}_unpack(int o) {{")
@@ -337,7 +338,8 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
         o = [0]
         out.extend(_glsl_reads(spec.params, "p", o, (fixed or {}).get(name)))
         if spec.derived_size:
-            out.append(f"    for (int i = 0; i < {spec.derived_size}; ++i) p.derived[i] = mat_f(o + {o[0]} + i);")
+            out.append(f"    for (int i = 0; i < {n_copy}; ++i) p.derived[i] = mat_f(o + {o[0]} + i);")
+            out.append(f"    p.derived_at = o + {o[0]};")
         out.append("    return p;\n}\n")
 
     def has_terms(n):
