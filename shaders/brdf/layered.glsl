@@ -8,7 +8,7 @@
 // A thin film on the coating (p.coating.thin_film): the coat's F becomes the film's RGB R over the
 // coat's ior, its albedo E + R_film - F (exact for a smooth coat), K takes the coloured E. R_film
 // is a table over cos computed once per material on the CPU (viewer/brdf/layered.py film_table,
-// in p.derived after the albedo table and a film flag): no wavelength loop here, so a coat film
+// in the derived block after the albedo table, a film flag and K): no wavelength loop here, so a coat film
 // compiles as fast as none. Only under COAT_FILM (viewer/gl/brdf_glsl.py program_defines).
 // The base is any non-layered material, evaluated through the generated brdf_eval_base().
 #include "generated/constants.glsl"
@@ -28,7 +28,7 @@ bool layered_has_film(layered_params p) { return p.derived[LAYERED_COAT_TABLE] >
 vec3 layered_film_table(layered_params p, float c) {
     float x = sqrt(clamp(c, 0.0, 1.0)) * float(LAYERED_FILM_TABLE - 1);
     int i = min(int(floor(x)), LAYERED_FILM_TABLE - 2);
-    int o = p.derived_at + LAYERED_COAT_TABLE + 1 + 3 * i;  // from the material block itself
+    int o = p.derived_at + LAYERED_COAT_TABLE + 4 + 3 * i;  // from the material block itself
     vec3 r0 = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
     vec3 r1 = vec3(mat_f(o + 3), mat_f(o + 4), mat_f(o + 5));
     return mix(r0, r1, x - float(i));
@@ -79,6 +79,12 @@ vec3 layered_coat_albedo_rgb(layered_params p, float c) {
 // mu < mu_c, then the transmitting cone in the outside cosine mu' (F_int(mu) ~ E(mu'),
 // 2 mu dmu = 2 mu' dmu' / eta^2). Twin of internal_reflectance in layered.py.
 vec3 layered_internal_reflectance(layered_params p) {
+#ifdef COAT_FILM
+    // with a coat film: K computed on the CPU (layered.py derived), not 16 film lookups here
+    if (layered_has_film(p))
+        return vec3(mat_f(p.derived_at + LAYERED_COAT_TABLE + 1), mat_f(p.derived_at + LAYERED_COAT_TABLE + 2),
+                    mat_f(p.derived_at + LAYERED_COAT_TABLE + 3));
+#endif
     float eta = p.coating.ior;
     vec3 tau = p.coating.sigma_a * p.coating.thickness;
     float mu_c = sqrt(max(0.0, 1.0 - 1.0 / (eta * eta)));

@@ -107,7 +107,7 @@ SPEC = ModelSpec(
     source="Weidlich & Wilkie 2007 (layered micro-facet surfaces); Walter et al. 2007 eq. 20; "
            "Heitz 2014 eq. 99; Bouguer's law; coat-base interreflections as a geometric series",
     derived=lambda p: derived(p),
-    derived_size=24 + 1 + 3 * 32,  # COAT_TABLE + film flag + 3 FILM_TABLE (see ``derived``)
+    derived_size=24 + 1 + 3 + 3 * 32,  # COAT_TABLE, film flag, K, 3 FILM_TABLE (see ``derived``)
     derived_copy=24 + 1,           # the film table is read from the material block (p.derived_at)
 )
 
@@ -183,12 +183,15 @@ def film_table_rgb(p, cos) -> np.ndarray:
 
 def derived(p) -> np.ndarray:
     """The layered material's derived block: the coat's albedo table (COAT_TABLE), a film flag,
-    the coat film's reflectance table (FILM_TABLE x RGB; zeros without a film)."""
-    out = np.zeros(COAT_TABLE + 1 + 3 * FILM_TABLE)
+    with a coat film its internal reflectance K (RGB, ``internal_reflectance``: the GLSL would
+    otherwise look the film up 16 times) and its reflectance table (FILM_TABLE x RGB); zeros
+    after the flag without a film."""
+    out = np.zeros(COAT_TABLE + 1 + 3 + 3 * FILM_TABLE)
     out[:COAT_TABLE] = coat_albedo_table(p.coating.ior, p.coating.alpha)
     if has_film(p):
         out[COAT_TABLE] = 1.0
-        out[COAT_TABLE + 1:] = film_table(p).reshape(-1)
+        out[COAT_TABLE + 1:COAT_TABLE + 4] = internal_reflectance(p)
+        out[COAT_TABLE + 4:] = film_table(p).reshape(-1)
     return out
 
 
