@@ -30,6 +30,10 @@ taken for the same direction, so the weights sum to 1: the estimate is unbiased 
 of walks (``n_walks``), with no limit but ``max_depth`` base vertices (64; a white lossless layer
 at normal incidence loses < 1e-4 there).
 
+A base that reflects more than it receives (a Lafortune lobe with large coefficients) makes the
+walk's series diverge under a nearly lossless coat, as the layer's own interreflections would:
+estimates grow past float32's range. The walk is meant for energy-conserving bases.
+
 In the reference the model samples directions with the closed form's sampler (its pdf is
 exact) and weights them by the walk's f: unbiased, since the closed form's pdf covers every
 direction the layer reflects into. A delta base (mirror) keeps the closed form (its walk would need a
@@ -54,9 +58,14 @@ def top_interface(p) -> Params:
     from viewer import brdf
 
     kw = {"ior": float(p.coating.ior), "alpha": float(p.coating.alpha)}
-    if "thin_film" in p.coating:
-        kw["thin_film"] = dict(p.coating.thin_film)
-    return brdf.get("dielectric").params(**kw)
+    tf = p.coating.get("thin_film")
+    if tf is not None:
+        kw["thin_film"] = {k: v for k, v in tf.items() if k != "lambda_nm"}
+    top = brdf.get("dielectric").params(**kw)
+    if tf is not None and tf.get("lambda_nm") is not None:
+        # the spectral reference's film carries its wavelengths (viewer.pathtracer.spectral.params_at)
+        top = top.replace(thin_film=Params(tf.model, dict(tf)))
+    return top
 
 
 def _power(a, b):
