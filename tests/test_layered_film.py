@@ -248,3 +248,32 @@ def test_spectral_reference_evaluates_the_film_per_wavelength(p):
     want = fresnel_thin_film(cos[:, None], lam3[None, :], owner.thin_film.ior, owner.thin_film.thickness_nm,
                              n2[None, :])
     np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_program_defines_see_the_coat_film():
+    # a coat film inside the coating table: its own define (tables only), not the wavelength loop
+    from viewer.gl.brdf_glsl import program_defines, uses_thin_film
+
+    assert program_defines([_coated(300.0)]) == {"COAT_FILM": "1"}
+    assert program_defines([_coated(0.0, top=80.0)]) == {"COAT_FILM": "1"}   # a film at the top only
+    assert program_defines([_coated(0.0)]) == {} and not uses_thin_film(_coated(0.0))
+    own = brdf.get("microfacet").params(fresnel="conductor", thin_film={"ior": 1.4, "thickness_nm": 200.0})
+    assert program_defines([_coated(300.0), own]) == {"COAT_FILM": "1", "THIN_FILM": "1"}
+    # (a nested base takes no film: the validator says so, the top thickness included)
+    from viewer import ViewerError
+
+    with pytest.raises(ViewerError, match="nested base"):
+        _coated(300.0, base={"model": "microfacet", "thin_film": {"thickness_nm": 0.0, "thickness_top_nm": 9.0}})
+
+
+def test_gpu_spectral_pass_refuses_films():
+    # the spectral reference traces a film per wavelength; the GPU engine's spectral pass would
+    # evaluate it in RGB, so it refuses in one line and auto takes the cpu engine
+    from viewer import ViewerError
+    from viewer.gpupt.select import choose_for_scenes, make_renderer
+    from viewer.scene import load_scene_text
+
+    scene = load_scene_text(_LAYERED_BOTTOM)
+    assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
+    with pytest.raises(ViewerError, match="thin films per wavelength"):
+        make_renderer("gpu", scene, spectral=True)
