@@ -6,7 +6,10 @@ and should compile in about the time of a plain coat. One command:
     MESA_SHADER_CACHE_DISABLE=true python benchmarks/coat_film_compile.py
 
 Prints, per base and coat, the seconds of the first raster frame (the forward program's compile
-dominates it) and of the first GPU albedo table (the sampling program's compile).
+dominates it) and of the first GPU albedo table (the sampling program's compile). Measured here
+(llvmpipe, 2 cores): Lambert base 1.2 / 1.0 s plain, 0.6 / 1.2 s with a 400 nm film; GGX base
+1.6 / 1.5 s, 1.9 / 2.1 s. With the film's 32-wavelength loop inlined at every coat Fresnel call
+instead, the Lambert base's forward program took 587 s (275 s even without a film).
 """
 
 import time
