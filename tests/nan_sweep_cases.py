@@ -36,16 +36,23 @@ def _corner_values(prm) -> list[float]:
     return sorted(set(float(np.float32(v)) if lo <= float(np.float32(v)) <= hi else float(v) for v in vals))
 
 
-def _corner_fields(fields, rng, depth) -> dict:
+def _corner_fields(fields, rng, depth, in_table=False) -> dict:
     out = {}
     for prm in fields:
         k = prm.kind
-        if k == "float":
+        if k == "float" and prm.name == "thickness_top_nm":  # a side stream: the other corners stay
+            out[prm.name] = float(side_rng(rng).choice(_corner_values(prm)))
+        elif k == "float":
             out[prm.name] = float(rng.choice(_corner_values(prm)))
         elif k == "rgb":
             vals = _corner_values(prm)
             out[prm.name] = [float(rng.choice(vals)) for _ in range(3)] if rng.random() < 0.5 \
                 else [float(rng.choice(vals))] * 3
+        elif k == "choice" and prm.name == "reference":
+            # the layered model's closed form: its random walk (viewer/brdf/layered_walk.py) over a
+            # base that reflects more than it receives (Lafortune corners) sums a diverging series,
+            # as the physical layer would (values past float32's range, not NaN)
+            out[prm.name] = prm.default
         elif k == "choice" and prm.name == "spectral":  # a side stream: see brdf_harness.side_rng
             out[prm.name] = str(prm.choices[int(side_rng(rng).integers(len(prm.choices)))])
         elif k == "choice":
@@ -57,8 +64,11 @@ def _corner_fields(fields, rng, depth) -> dict:
         elif k == "table" and prm.name == "thin_film" and depth > 0:
             _corner_fields(prm.fields, rng, depth)  # the same draws; a nested base takes no film
             out[prm.name] = {"thickness_nm": 0.0}
+        elif k == "table" and prm.name == "thin_film" and in_table:
+            # a layered coating's film: a side stream, so the base drawn after it stays as it was
+            out[prm.name] = _corner_fields(prm.fields, side_rng(rng), depth)
         elif k == "table":
-            out[prm.name] = _corner_fields(prm.fields, rng, depth)
+            out[prm.name] = _corner_fields(prm.fields, rng, depth, in_table=True)
         elif k == "lobes":
             count = int(rng.choice([1, prm.max_items]))
             out[prm.name] = [_corner_fields(prm.fields, rng, depth) for _ in range(count)]

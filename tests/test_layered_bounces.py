@@ -32,7 +32,7 @@ def _base_term_albedo(p, mu_o, eval_fn):
     coat lobe (sharp at small alpha) is subtracted and measured by its own sampler instead."""
     wi = np.stack([np.sqrt(1 - _MU ** 2), np.zeros_like(_MU), _MU], axis=-1)
     wo = np.broadcast_to(np.array([np.sqrt(1 - mu_o ** 2), 0.0, mu_o]), wi.shape).copy()
-    f = eval_fn(p, wi, wo)[:, 0] - layered_mod.eval_coat(p, wi, wo)
+    f = eval_fn(p, wi, wo)[:, 0] - layered_mod.eval_coat(p, wi, wo)[:, 0]
     return 2 * np.pi * float(np.sum(_MW * f * _MU))
 
 

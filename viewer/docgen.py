@@ -114,6 +114,9 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "MgF2 1.38)", 0.5),
     Field("materials.NAME", "thin_film.thickness_nm", "number", "the film's thickness (nm); 0 is no film",
           -1),
+    Field("materials.NAME", "thin_film.thickness_top_nm", "number", "the film's thickness (nm) at the "
+          "object's top, linear in height from thickness_nm at its bottom (a draining bubble); -1 (default) "
+          "is a uniform film. A layered coating's film: the rasterizer draws thickness_nm all over", -2),
 )
 
 # The model a material probe uses: one that takes every key documented for ``materials.NAME``.

@@ -5,6 +5,11 @@
 // macro-surface angles; a = exp(-sigma_a thickness (1/cos_ti' + 1/cos_to')) (Bouguer);
 // 1 / eta^2: the radiance leaving the layer is the radiance inside over eta^2 (L / n^2 invariant).
 // Lambert base: times 1 / (1 - rho K), the coat-base interreflections (layered_internal_reflectance).
+// A thin film on the coating (p.coating.thin_film): the coat's F becomes the film's RGB R over the
+// coat's ior, its albedo E + R_film - F (exact for a smooth coat), K takes the coloured E. R_film
+// is a table over cos computed once per material on the CPU (viewer/brdf/layered.py film_table,
+// in the derived block after the albedo table, a film flag and K): no wavelength loop here, so a coat film
+// compiles as fast as none. Only under COAT_FILM (viewer/gl/brdf_glsl.py program_defines).
 // The base is any non-layered material, evaluated through the generated brdf_eval_base().
 #include "generated/constants.glsl"
 #include "common/fresnel.glsl"
@@ -16,10 +21,33 @@ vec3 layered_refract_in(vec3 w, float eta) {
     return vec3(xy, sqrt(max(0.0, 1.0 - dot(xy, xy))));
 }
 
-float layered_coat(layered_params p, vec3 wi, vec3 wo) {
+#ifdef COAT_FILM
+bool layered_has_film(layered_params p) { return p.derived[LAYERED_COAT_TABLE] > 0.5; }
+
+// The film's RGB R at cos, from the table at cos = (k / (N - 1))^2: linear in sqrt(cos).
+vec3 layered_film_table(layered_params p, float c) {
+    float x = sqrt(clamp(c, 0.0, 1.0)) * float(LAYERED_FILM_TABLE - 1);
+    int i = min(int(floor(x)), LAYERED_FILM_TABLE - 2);
+    int o = p.derived_at + LAYERED_COAT_TABLE + 4 + 3 * i;  // from the material block itself
+    vec3 r0 = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
+    vec3 r1 = vec3(mat_f(o + 3), mat_f(o + 4), mat_f(o + 5));
+    return mix(r0, r1, x - float(i));
+}
+#endif
+
+// The coat surface's reflectance at cos (from outside): dielectric F, or the thin film's RGB R.
+vec3 layered_coat_fresnel(layered_params p, float c) {
+    c = clamp(c, 0.0, 1.0);
+#ifdef COAT_FILM
+    if (layered_has_film(p)) return layered_film_table(p, c);
+#endif
+    return vec3(fresnel_dielectric(c, p.coating.ior));
+}
+
+vec3 layered_coat(layered_params p, vec3 wi, vec3 wo) {
     vec3 h = normalize_safe(wi + wo);
     float a = p.coating.alpha;
-    float F = fresnel_dielectric(clamp(dot(wi, h), 0.0, 1.0), p.coating.ior);
+    vec3 F = layered_coat_fresnel(p, dot(wi, h));
     float G = smith_g2_height_correlated(lambda_ggx(wi, a, a), lambda_ggx(wo, a, a), wi, wo, h);
     return F * ratio_capped(G * D_ggx(h, a, a), 4.0 * wi.z * wo.z);
 }
@@ -31,9 +59,19 @@ const float LAYERED_GL_W[16] = float[16](0.0135762297, 0.031126762, 0.0475792558
 // E(cos), the coat's own directional albedo, from the 24-entry table at cos = k / 23 that
 // viewer/brdf/layered.py (coat_albedo_table) puts in the material block; linear interpolation.
 float layered_coat_albedo(layered_params p, float c) {
-    float x = clamp(c, 0.0, 1.0) * 23.0;
-    int i = min(int(floor(x)), 22);
+    float x = clamp(c, 0.0, 1.0) * float(LAYERED_COAT_TABLE - 1);
+    int i = min(int(floor(x)), LAYERED_COAT_TABLE - 2);
     return mix(p.derived[i], p.derived[i + 1], x - float(i));
+}
+
+// E per channel: with a thin film on the coating E + R_film - F, clipped (coat_albedo_rgb).
+vec3 layered_coat_albedo_rgb(layered_params p, float c) {
+    vec3 E = vec3(layered_coat_albedo(p, c));
+#ifdef COAT_FILM
+    if (layered_has_film(p))
+        E = clamp(E + layered_film_table(p, c) - fresnel_dielectric(clamp(c, 0.0, 1.0), p.coating.ior), 0.0, 1.0);
+#endif
+    return E;
 }
 
 // K = integral_0^1 F_int(mu) exp(-2 tau / mu) 2 mu dmu, the coat's internal diffuse reflectance
@@ -41,6 +79,12 @@ float layered_coat_albedo(layered_params p, float c) {
 // mu < mu_c, then the transmitting cone in the outside cosine mu' (F_int(mu) ~ E(mu'),
 // 2 mu dmu = 2 mu' dmu' / eta^2). Twin of internal_reflectance in layered.py.
 vec3 layered_internal_reflectance(layered_params p) {
+#ifdef COAT_FILM
+    // with a coat film: K computed on the CPU (layered.py derived), not 16 film lookups here
+    if (layered_has_film(p))
+        return vec3(mat_f(p.derived_at + LAYERED_COAT_TABLE + 1), mat_f(p.derived_at + LAYERED_COAT_TABLE + 2),
+                    mat_f(p.derived_at + LAYERED_COAT_TABLE + 3));
+#endif
     float eta = p.coating.ior;
     vec3 tau = p.coating.sigma_a * p.coating.thickness;
     float mu_c = sqrt(max(0.0, 1.0 - 1.0 / (eta * eta)));
@@ -50,7 +94,7 @@ vec3 layered_internal_reflectance(layered_params p) {
         K += (LAYERED_GL_W[k] * mu_c * 2.0 * mu) * exp(-2.0 * tau / max(mu, 1e-30));
         float mo = LAYERED_GL_X[k];
         float mu_in = sqrt(1.0 - (1.0 - mo * mo) / (eta * eta));
-        K += (LAYERED_GL_W[k] * layered_coat_albedo(p, mo) * 2.0 * mo / (eta * eta)) * exp(-2.0 * tau / mu_in);
+        K += (LAYERED_GL_W[k] * layered_coat_albedo_rgb(p, mo) * 2.0 * mo / (eta * eta)) * exp(-2.0 * tau / mu_in);
     }
     return K;
 }
@@ -59,12 +103,12 @@ vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {
     if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
     if (wi.z * wo.z <= 0.0) return vec3(0.0);  // both cosines underflowed
     float eta = p.coating.ior;
-    vec3 f = vec3(layered_coat(p, wi, wo));
+    vec3 f = layered_coat(p, wi, wo);
     vec3 wi_t = layered_refract_in(wi, eta);
     vec3 wo_t = layered_refract_in(wo, eta);
     // T = 1 - E: what the (rough) coat does not reflect enters the layer
-    float Ti = 1.0 - layered_coat_albedo(p, wi.z);
-    float To = 1.0 - layered_coat_albedo(p, wo.z);
+    vec3 Ti = 1.0 - layered_coat_albedo_rgb(p, wi.z);
+    vec3 To = 1.0 - layered_coat_albedo_rgb(p, wo.z);
     float path = 1.0 / max(wi_t.z, 1e-12) + 1.0 / max(wo_t.z, 1e-12);
     vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
     vec3 fb = brdf_eval_base(p.base_model, p.base_offset, wi_t, wo_t);
@@ -133,8 +177,14 @@ vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pd
     if (brdf_is_delta_base(p.base_model, p.base_offset)) {
         // discrete base lobe: throughput T_i T_o a w_b (the eta^2 into and out of the layer cancel)
         vec3 wi_in = layered_refract_in(wi, eta);
-        float Ti = fresnel_dielectric_transmittance(min(wi.z, 1.0), eta);
-        float To = fresnel_dielectric_transmittance(min(wo_s.z, 1.0), eta);
+        vec3 Ti = vec3(fresnel_dielectric_transmittance(min(wi.z, 1.0), eta));
+        vec3 To = vec3(fresnel_dielectric_transmittance(min(wo_s.z, 1.0), eta));
+#ifdef COAT_FILM
+        if (layered_has_film(p)) {  // the film's change of R at the macro angles
+            Ti = clamp(Ti - layered_film_table(p, wi.z) + fresnel_dielectric(min(wi.z, 1.0), eta), 0.0, 1.0);
+            To = clamp(To - layered_film_table(p, wo_s.z) + fresnel_dielectric(min(wo_s.z, 1.0), eta), 0.0, 1.0);
+        }
+#endif
         float path = 1.0 / max(wi_in.z, 1e-12) + 1.0 / max(wo_t.z, 1e-12);
         vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
         pdf = (1.0 - pc) * pdf_b;

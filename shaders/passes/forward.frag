@@ -22,6 +22,7 @@ in vec4 v_tangent;
 flat in vec3 v_geometric_normal;  // from forward.geom
 
 uniform int u_model_id;        // registry index of this object's material model
+uniform vec2 u_film_y;         // the object's lowest and highest world y (a thin film over height)
 uniform vec3 u_camera_pos;
 uniform int u_num_lights;
 uniform int u_light_type[MAX_LIGHTS];    // LIGHT_POINT or LIGHT_DIRECTIONAL
@@ -136,6 +137,8 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
 #endif
 
 void main() {
+    // relative height on the object, for a thin film whose thickness varies with it
+    brdf_film_height = u_film_y.y > u_film_y.x ? clamp((v_position.y - u_film_y.x) / (u_film_y.y - u_film_y.x), 0.0, 1.0) : 0.0;
     vec3 ng = v_geometric_normal;
     vec3 n = normalize(v_normal);
     vec3 wo_w = normalize(u_camera_pos - v_position);

@@ -104,6 +104,10 @@ class ModelSpec:
     # the parameters (e.g. a table precomputed in numpy): derived(params) -> N floats
     derived: object = None
     derived_size: int = 0
+    # how many of them the struct copies (None: all); the GLSL reads the rest from the material
+    # block at ``p.derived_at + i`` (software GL turns every dynamic index into a local array into a
+    # chain over all its elements, so a long table is read from the uniforms instead)
+    derived_copy: int | None = None
 
     def param(self, name: str) -> Param:
         for p in self.params:
@@ -256,11 +260,11 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
             raise ViewerError(f"{where}.model: {name!r} cannot be nested inside another layered material")
         out = validate_params(spec, sub, where, lookup_spec)
         film = out.get("thin_film")
-        if film is not None and float(film.get("thickness_nm", 0.0)) > 0.0:
+        if film is not None and max(float(film.get("thickness_nm", 0.0)), float(film.get("thickness_top_nm", -1.0))) > 0.0:
             # the film's wavelength loop, inlined at each of the coat model's calls of its base,
             # takes software GL minutes to compile (measured: 379 s); films go on outer surfaces
             raise ViewerError(f"{where}.thin_film: a thin film on a nested base material is not supported; "
-                              f"set thickness_nm = 0 there (films go on the outer surface)")
+                              f"set thickness_nm = 0 (and thickness_top_nm = -1) there (films go on the outer surface)")
         return out
     raise AssertionError(k)
 

@@ -16,6 +16,19 @@ differs from a 1 nm integration by at most ~0.02 (measured in tests/test_thin_fi
 The base's index over wavelength: the dielectric's ``ior`` (constant), or a conductor's RGB
 ``eta``, ``k`` taken as the values at 650 / 550 / 450 nm (the presets' three wavelengths) and
 interpolated linearly in wavelength between them (held beyond).
+
+Thickness over height (``thickness_top_nm``): gravity drains a soap film, so a bubble is thinner
+at its top. With ``thickness_top_nm >= 0`` the film is ``thickness_nm`` at the bottom of the
+object (the lowest world y of its mesh) and ``thickness_top_nm`` at its top (the highest y),
+linear in y between: d(y) = thickness_nm + (thickness_top_nm - thickness_nm) t,
+t = (y - y_min) / (y_max - y_min). The default -1 is a uniform film. The renderers substitute
+d(y) per shading point (``local``): the rasterizer from the fragment's world position and the
+object's y range (``brdf_film_height`` in the generated GLSL), the CPU reference per hit (in
+0.25 nm steps; the colour changes by < 1e-3 over one). A material evaluated without a position
+(plots, albedo tables, the GPU reference engine) has its bottom thickness ``thickness_nm``. A
+layered coating's film is an exception in the rasterizer: its reflectance is a table computed
+once per material on the CPU (viewer/brdf/layered.py ``film_table``, so that no wavelength loop
+is compiled into the layered model's many Fresnel calls), hence the bottom's thickness there.
 """
 
 from __future__ import annotations
@@ -53,6 +66,13 @@ def rgb_to_spectral(v) -> np.ndarray:
         v.shape[:-1] + (N_WAVELENGTHS,))
 
 
+def rgb_to_spectral_at(v, lam_nm) -> np.ndarray:
+    """RGB values at 650 / 550 / 450 nm at the wavelengths lam_nm, linear in wavelength (held
+    beyond): the base's index the RGB renderers integrate the film over."""
+    v = np.asarray(v, dtype=np.float64).reshape(3)
+    return np.interp(np.asarray(lam_nm, dtype=np.float64), RGB_NM[::-1], v[::-1])
+
+
 def param():
     """The ``thin_film`` parameter of a model's spec."""
     from viewer.brdf.spec import Param
@@ -60,9 +80,45 @@ def param():
     return Param("thin_film", "table", {}, "a thin film on the surface (interference colours)", fields=(
         Param("ior", "float", 1.33, "index of refraction of the film (water 1.33, oil 1.47, MgF2 1.38)",
               lo=1.0, hi=3.0),
-        Param("thickness_nm", "float", 0.0, "film thickness; 0 = no film", unit="nm", lo=0.0,
-              hi=MAX_THICKNESS_NM),
+        Param("thickness_nm", "float", 0.0, "film thickness (at the object's bottom when thickness_top_nm "
+              ">= 0); 0 = no film", unit="nm", lo=0.0, hi=MAX_THICKNESS_NM),
+        Param("thickness_top_nm", "float", -1.0, "film thickness at the object's top, linear in height "
+              "from thickness_nm at its bottom (a draining soap bubble); -1 = uniform thickness_nm. On a "
+              "layered coating the rasterizer and the GPU engine draw thickness_nm all over (its film is "
+              "tabulated once per material, not per point); the CPU reference follows the height",
+              unit="nm", lo=-1.0, hi=MAX_THICKNESS_NM),
     ))
+
+
+def film_of(p):
+    """The material's thin_film table: its own, or its layered coating's (None if neither)."""
+    if "thin_film" in p:
+        return p.thin_film
+    coat = p.get("coating")
+    return coat.get("thin_film") if coat is not None else None
+
+
+def varies(p) -> bool:
+    """Whether the material's film (if any) changes thickness with height."""
+    tf = film_of(p)
+    return tf is not None and float(tf.get("thickness_top_nm", -1.0)) >= 0.0
+
+
+def thickness_at(tf, t):
+    """The film thickness at relative height t in [0, 1] (0 bottom, 1 top) of the object."""
+    d0 = float(tf.thickness_nm)
+    d1 = float(tf.get("thickness_top_nm", -1.0))
+    if d1 < 0.0:
+        return np.full(np.shape(t), d0)
+    return d0 + (d1 - d0) * np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)
+
+
+def local(p, d_nm: float):
+    """The material p with a uniform film of thickness d_nm (what a shading point sees)."""
+    if "thin_film" not in p:
+        return p.replace(coating=local(p.coating, d_nm))
+    tf = p.thin_film.replace(thickness_nm=float(d_nm), thickness_top_nm=-1.0)
+    return p.replace(thin_film=tf)
 
 
 def active(p) -> bool:
@@ -73,6 +129,14 @@ def reflectance_rgb(p, cos, base_eta, base_k=None) -> np.ndarray:
     """(N, 3) RGB reflectance of the film p.thin_film on a base: base_eta a float (dielectric) or
     RGB eta with RGB k (conductor), seen from index 1 at cos (N,)."""
     c = np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)[:, None]
+    lam3 = p.thin_film.get("lambda_nm")
+    if lam3 is not None:
+        # the spectral reference: channel j is the film's R at wavelength lam3[j], over the base's
+        # index there (eta, k already taken at lam3 by viewer.pathtracer.spectral.params_at)
+        n2 = (np.full(3, float(base_eta), dtype=np.complex128) if base_k is None
+              else np.asarray(base_eta, dtype=np.float64) + 1j * np.asarray(base_k, dtype=np.float64))
+        return fresnel_thin_film(c, np.asarray(lam3, dtype=np.float64)[None, :], p.thin_film.ior,
+                                 p.thin_film.thickness_nm, n2[None, :])
     if base_k is None:
         n2 = np.full(N_WAVELENGTHS, float(base_eta), dtype=np.complex128)
     else:

@@ -10,11 +10,14 @@ from __future__ import annotations
 import re
 
 from viewer.brdf.albedo import TABLE_SIZE
+from viewer.brdf.layered import COAT_TABLE, FILM_TABLE
 
 MAX_LIGHTS = 4            # point and directional lights with shadow maps in the rasterizer
 ALBEDO_TABLE = TABLE_SIZE  # entries of a directional-albedo table: cos(theta_o) = (k + 0.5) / size
 IBL_MAX_LEVELS = 8        # prefiltered environment levels at most (level 0 is the map itself)
 MAX_MATERIALS = 64        # materials the GPU reference engine holds
+LAYERED_COAT_TABLE = COAT_TABLE  # the layered coat's albedo table entries (viewer/brdf/layered.py)
+LAYERED_FILM_TABLE = FILM_TABLE  # the layered coat film's RGB reflectance table entries
 
 LIGHT_TYPES = {"point": 0, "directional": 1}
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
@@ -42,7 +45,8 @@ ENV_MODES = {"black": 0, "constant": 1, "map": 2}
 _TABLES = (("LIGHT", LIGHT_TYPES), ("TONEMAP", TONEMAPS), ("IBL_MODE", IBL_MODES), ("VIEW_MODE", VIEW_MODES),
            ("SSR_DEBUG", SSR_DEBUG), ("CHAIN", CHAIN_KINDS), ("RT_T", CHAIN_TEXELS), ("PT_KIND", PT_KINDS), ("STRATEGY", STRATEGIES),
            ("ENV_MODE", ENV_MODES))
-_SIZES = ("MAX_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS")
+_SIZES = ("MAX_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
+          "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE")
 
 
 def glsl_name(*parts: str) -> str:

@@ -235,5 +235,6 @@ def forward_variant(params, *, per_sample: bool = False, ssr: bool = False, ibl_
     key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
            + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
            + (":const" if env_constant else "") + (":rt" if traced is not None else "")
-           + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else ""))
+           + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else "")
+           + (":coatfilm" if "COAT_FILM" in defines else ""))
     return key, used, defines

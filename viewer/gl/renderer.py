@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from viewer.brdf import thin_film
 from viewer.camera import OrbitCamera, gl_bytes
 from viewer.gl.brdf_glsl import uniform_block
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
@@ -475,6 +476,8 @@ class Renderer:
             _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
             idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
+            # the object's world y range: a film over height (thickness_top_nm); (0, 0) a uniform one
+            _set(prog, "u_film_y", obj.y_range() if thin_film.varies(params) else (0.0, 0.0))
             _set(prog, "u_mat", block.tobytes())
             if "u_measured" in prog:
                 self._measured_textures().bind(prog, params)

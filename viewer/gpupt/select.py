@@ -181,13 +181,28 @@ def uses_random_walk(scene) -> bool:
     def has(p) -> bool:
         if p.model == "microfacet" and walks(p):
             return True
+        if p.model == "layered" and p.get("reference") == "random_walk":  # viewer/brdf/layered_walk.py
+            return True
         return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
 
     used = {o.material for o in scene.objects}
     return any(has(p) for name, p in scene.materials.items() if name in used)
 
 
-RANDOM_WALK_REASON = "a microfacet material has multiple_scattering: only the cpu engine has the random walk"
+RANDOM_WALK_REASON = ("a material has a random walk (microfacet multiple_scattering, or layered "
+                      "reference = \"random_walk\"): only the cpu engine has it")
+
+
+def uses_thin_film(scene) -> bool:
+    """Whether a material some object uses has a thin film (its own, or a layered coating's)."""
+    from viewer.gl.brdf_glsl import uses_thin_film as film
+
+    used = {o.material for o in scene.objects}
+    return any(film(p) for name, p in scene.materials.items() if name in used)
+
+
+FILM_SPECTRAL_REFUSAL = ("--engine gpu does not trace thin films per wavelength (its spectral pass would "
+                         "evaluate them in RGB); use --engine cpu or auto (auto takes the cpu engine for them)")
 
 
 
@@ -206,8 +221,12 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
         if uses_random_walk(scene):
             from viewer import ViewerError
 
-            raise ViewerError("--engine gpu has no multiple-scattering random walk (a microfacet material has "
-                              "multiple_scattering = true); use --engine cpu or auto")
+            raise ViewerError("--engine gpu has no random walk (a microfacet material has multiple_scattering "
+                              "= true, or a layered one reference = \"random_walk\"); use --engine cpu or auto")
+        if uses_thin_film(scene) and needs_spectral(scene, spectral):
+            from viewer import ViewerError
+
+            raise ViewerError(FILM_SPECTRAL_REFUSAL)
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
@@ -229,4 +248,6 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
             return "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
         if any(uses_random_walk(s) for s in scenes):
             return "cpu", RANDOM_WALK_REASON
+        if any(uses_thin_film(s) and needs_spectral(s, spectral) for s in scenes):
+            return "cpu", "a thin film traced per wavelength: only the cpu engine does it"
     return choose_engine(requested, ctx=ctx, workers=workers)

@@ -57,6 +57,11 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
     data: list[np.ndarray] = []
     bins = sp.bin_wavelengths()
     for i, m in enumerate(materials):
+        if sp.has_film(m.params):  # params_at gives the film its wavelengths; the GLSL would not use them
+            from viewer import ViewerError
+
+            raise ViewerError(f"material {m.name}: the GPU engine's spectral pass does not trace thin films per "
+                              "wavelength; use --engine cpu")
         cat = category(m)
         info[i, 0] = CATEGORY_CODE[cat]
         if cat == "rgb":

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewer import brdf
+from viewer.brdf import thin_film
 from viewer.pathtracer.envmap import EnvironmentLight
 from viewer.geometry.soup import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
 
@@ -85,6 +86,19 @@ def _is_pure_delta(p) -> bool:
     if spec.name == "dielectric":
         return float(p.get("alpha", 0.0)) <= 0.0
     return True
+
+
+def _reference_model(m: "MaterialInfo"):
+    """The model the reference evaluates a material with: its registry model, or for a layered
+    material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
+    random walk (viewer/brdf/layered_walk.py)."""
+    model = brdf.get(m.model_name)
+    p = m.params
+    if m.model_name == "layered" and p.get("reference") == "random_walk" and m.kind != "mixed":
+        from viewer.brdf.layered_walk import WalkModel
+
+        return WalkModel(model)
+    return model
 
 
 def material_info(name: str, p) -> MaterialInfo:
@@ -158,6 +172,8 @@ class RenderSetup:
         env = EnvironmentLight.from_scene(scene, env_image)
         return cls(geom, mats, lights, env, pos, fwd, right, cam_up,
                    math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel,
+                   extra={"object_y": np.array([o.y_range() if o.mesh_data is not None else (0.0, 0.0)
+                                                for o in scene.objects] or [(0.0, 0.0)])},
                    strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
 
 
@@ -284,6 +300,7 @@ class _Hits:
     def __init__(self, integrator, d, prim, bu, bv):
         geom = integrator.geom
         self.p = hit_points(geom, prim, bu, bv)
+        self.prim = prim
         self.ng_raw = geom.geo_normals[prim]
         n, tan = interpolate_shading(geom, prim, bu, bv)
         self.mat = geom.material_index[prim]
@@ -337,7 +354,10 @@ class Integrator:
         self.s = setup
         self.geom = setup.geometry
         self.kernel = make_kernel(self.geom.triangles, setup.kernel)
-        self.models = [brdf.get(m.model_name) for m in setup.materials]
+        self.models = [_reference_model(m) for m in setup.materials]
+        self._film_cache: dict = {}
+        self._object_y = {mi: np.asarray(setup.extra.get("object_y", np.zeros((1, 2))))
+                          for mi, m in enumerate(setup.materials) if thin_film.varies(m.params)}
         self.trans_table = np.array([m.transmissive for m in setup.materials] or [False], dtype=bool)
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
@@ -353,6 +373,30 @@ class Integrator:
         self.env_by_bsdf = self.env_on and strategy in ("mis", "bsdf")
 
     # -- helpers
+    FILM_STEP_NM = 0.25   # a film over height: hits grouped by thickness in these steps
+
+    def _film_groups(self, mi, sel, p, prim):
+        """[(hits, params or None)]: the material's hits as one group, or, for a thin film whose
+        thickness varies with height (viewer/brdf/thin_film.py), grouped by the local thickness
+        d(y) of each hit (in FILM_STEP_NM steps, the bin's centre) with the material at that
+        thickness."""
+        prm = self.s.materials[mi].params
+        if not thin_film.varies(prm):
+            return [(sel, None)]
+        ranges = self._object_y.get(mi)
+        obj = self.geom.object_index[prim[sel]]
+        y0, y1 = ranges[obj, 0], ranges[obj, 1]
+        t = np.where(y1 > y0, (p[sel, 1] - y0) / np.where(y1 > y0, y1 - y0, 1.0), 0.0)
+        d = thin_film.thickness_at(thin_film.film_of(prm), t)
+        q = np.round(d / self.FILM_STEP_NM).astype(np.int64)
+        out = []
+        for v in np.unique(q):
+            key = (mi, int(v))
+            if key not in self._film_cache:
+                self._film_cache[key] = thin_film.local(prm, v * self.FILM_STEP_NM)
+            out.append((sel[q == v], self._film_cache[key]))
+        return out
+
     def _clean(self, a, allow_negative=False):
         """Count and zero NaN / Inf (and negative) entries of a model output."""
         bad = ~np.isfinite(a)
@@ -571,11 +615,14 @@ class Integrator:
         shadows = _Shadows()
         for sel in hits.groups():
             mi = int(hits.mat[sel[0]])
-            g = _Group(sel, s.materials[mi], self.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
-                       hits.ng, mi=mi, act=act[sel])
-            if g.info.kind != "delta" and (s.lights or env_sample is not None):
-                self._next_event(g, paths, Ta[sel], hits, lights, env_sample, shadows)
-            self._scatter(g, paths, hits, rnd[sel, 0:2], new)
+            for sel, prm in self._film_groups(mi, sel, hits.p, hits.prim):
+                g = _Group(sel, s.materials[mi], self.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
+                           hits.ng, mi=mi, act=act[sel])
+                if prm is not None:  # a film over height: the material at this hit's thickness
+                    g.prm = prm
+                if g.info.kind != "delta" and (s.lights or env_sample is not None):
+                    self._next_event(g, paths, Ta[sel], hits, lights, env_sample, shadows)
+                self._scatter(g, paths, hits, rnd[sel, 0:2], new)
         self._trace_shadows(paths.L, shadows)
         return new
 

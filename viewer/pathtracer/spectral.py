@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import spectral
+from viewer.brdf import thin_film
 from viewer.brdf.spec import Params
 from viewer.pathtracer.integrator import Integrator, PathState
 
@@ -54,9 +55,19 @@ def bin_weights() -> np.ndarray:
     return out
 
 
+def has_film(p) -> bool:
+    """Whether a material (or its layered coating) has an active thin film."""
+    owner = p if "thin_film" in p else p.get("coating")
+    if owner is None or "thin_film" not in owner:
+        return False
+    tf = owner.thin_film  # at the object's bottom or (thickness over height) its top
+    return max(float(tf.thickness_nm), float(tf.get("thickness_top_nm", -1.0))) > 0.0
+
+
 def uses_spectral(p) -> bool:
-    """Whether a material (Params) names a spectral table anywhere."""
-    if p.get("spectral", "none") != "none":
+    """Whether a material (Params) names a spectral table anywhere, or has a thin film (its R is
+    evaluated per wavelength)."""
+    if p.get("spectral", "none") != "none" or has_film(p):
         return True
     return any(isinstance(v, Params) and uses_spectral(v) for v in p.values())
 
@@ -96,7 +107,22 @@ def params_at(p, lam3) -> Params:
                 out["fresnel"] = "conductor"
         if "ior" in out:
             out["ior"] = float(n[0].real)
+    film = key_film = None
+    if "thin_film" in p and float(p.thin_film.thickness_nm) > 0.0:
+        # a thin film is evaluated at the wavelengths themselves (viewer/brdf/thin_film.py);
+        # a non-spectral conductor base's eta, k at them as the RGB renderers interpolate them
+        film = dict(p.thin_film)
+        film["lambda_nm"] = lam3.copy()
+        key_film = "thin_film"
+        if name == "none" and "eta" in out and "k" in out:
+            out["eta"] = thin_film.rgb_to_spectral_at(p.eta, lam3)
+            out["k"] = thin_film.rgb_to_spectral_at(p.k, lam3)
     for key, v in p.items():
+        if key == key_film:
+            out[key] = Params(v.model, film)
+            continue
+        if film is not None and key in ("eta", "k") and name == "none":
+            continue
         if isinstance(v, Params):
             out[key] = params_at(v, lam3)
         elif isinstance(v, np.ndarray) and v.shape == (3,) and key in out and out[key] is v:
@@ -134,7 +160,9 @@ class SpectralIntegrator(Integrator):
             p = m.params
             if not uses_spectral(p):
                 self.category.append("rgb")
-            elif is_dispersive(p) or m.kind == "mixed":
+            elif is_dispersive(p) or m.kind == "mixed" or (has_film(p) and p.model == "dielectric"):
+                # (a smooth or rough film-coated dielectric chooses reflection or refraction with
+                # its R: one wavelength per path)
                 self.category.append("hero")
             else:
                 self.category.append("table")
@@ -149,11 +177,14 @@ class SpectralIntegrator(Integrator):
             return b @ rgb
         return np.einsum("mjc,mc->mj", b, rgb)
 
-    def _params(self, mi, key, lam3):
-        ck = (mi, key)
+    def _params(self, mi, key, lam3, prm=None):
+        """The material's parameters at wavelengths lam3 (bins); ``prm`` the material at one hit
+        where it differs from the scene's (a thin film over height: the integrator's groups)."""
+        prm = self.s.materials[mi].params if prm is None else prm
+        ck = (mi, key, id(prm))
         if ck not in self._cache:
-            self._cache[ck] = params_at(self.s.materials[mi].params, self.bins_nm[list(lam3)])
-        return self._cache[ck]
+            self._cache[ck] = (prm, params_at(prm, self.bins_nm[list(lam3)]))
+        return self._cache[ck][1]
 
     def render_block(self, row0, row1, samples, seed, block_id):
         samples = list(samples)
@@ -196,11 +227,11 @@ class SpectralIntegrator(Integrator):
 
     def material_pdf(self, g, paths, wi_l):
         return self._pdf4(g.mi, g.model, self.category[g.mi], paths.lam[g.act], paths.hero[g.act],
-                          wi_l, g.wo)
+                          wi_l, g.wo, g.prm)
 
     def sample_material(self, g, paths, rnd_g):
         return self._sample4(g.mi, g.model, g.info, self.category[g.mi], paths.lam[g.act],
-                             paths.hero[g.act], g.wo, rnd_g)
+                             paths.hero[g.act], g.wo, rnd_g, g.prm)
 
     def throughput(self, paths, act, Ta, new):
         # a path that becomes hero-only: the model weighted only the hero's channel; the hero
@@ -225,22 +256,22 @@ class SpectralIntegrator(Integrator):
             for cval in np.unique(cls):
                 g = np.flatnonzero(cls == cval)
                 l4 = lam[g[0]]
-                f012 = self._clean(model.eval(self._params(mi, ("c", int(cval)), l4[:3]), wi[g], wo[g]))
-                f3 = self._clean(model.eval(self._params(mi, ("h", int(l4[3])), [l4[3]] * 3), wi[g], wo[g]))
+                f012 = self._clean(model.eval(self._params(mi, ("c", int(cval)), l4[:3], prm), wi[g], wo[g]))
+                f3 = self._clean(model.eval(self._params(mi, ("h", int(l4[3])), [l4[3]] * 3, prm), wi[g], wo[g]))
                 out[g, :3] = f012
                 out[g, 3] = f3[:, 0]
             return out
         lh = lam[np.arange(k), hero]
         for b in np.unique(lh):
             g = np.flatnonzero(lh == b)
-            f = self._clean(model.eval(self._params(mi, ("h", int(b)), [b] * 3), wi[g], wo[g]))
+            f = self._clean(model.eval(self._params(mi, ("h", int(b)), [b] * 3, prm), wi[g], wo[g]))
             out[g, hero[g]] = f[:, 0]
         return out
 
-    def _sample4(self, mi, model, info, cat, lam, hero, wo, u):
+    def _sample4(self, mi, model, info, cat, lam, hero, wo, u, prm=None):
         """(wi (k, 3), weight (k, 4), pdf (k,), hero_only (k,) bool)."""
         k = wo.shape[0]
-        prm = info.params
+        prm = info.params if prm is None else prm
         if cat == "rgb":
             wi, wgt, pdf = model.sample(prm, wo, u)
             wgt = self._clean(np.asarray(wgt, dtype=np.float64))
@@ -253,8 +284,8 @@ class SpectralIntegrator(Integrator):
             for cval in np.unique(cls):
                 g = np.flatnonzero(cls == cval)
                 l4 = lam[g[0]]
-                p012 = self._params(mi, ("c", int(cval)), l4[:3])
-                p3 = self._params(mi, ("h", int(l4[3])), [l4[3]] * 3)
+                p012 = self._params(mi, ("c", int(cval)), l4[:3], prm)
+                p3 = self._params(mi, ("h", int(l4[3])), [l4[3]] * 3, prm)
                 w_g, wg, pg = model.sample(p012, wo[g], u[g])
                 wg = self._clean(np.asarray(wg, dtype=np.float64))
                 if info.kind == "delta":   # the same direction at every wavelength (a mirror)
@@ -270,26 +301,26 @@ class SpectralIntegrator(Integrator):
         lh = lam[np.arange(k), hero]
         for b in np.unique(lh):
             g = np.flatnonzero(lh == b)
-            w_g, wg, pg = model.sample(self._params(mi, ("h", int(b)), [b] * 3), wo[g], u[g])
+            w_g, wg, pg = model.sample(self._params(mi, ("h", int(b)), [b] * 3, prm), wo[g], u[g])
             wg = self._clean(np.asarray(wg, dtype=np.float64))
             wi[g], pdf[g] = w_g, pg
             wgt4[g, hero[g]] = wg[:, 0]
         return wi, wgt4, pdf, np.ones(k, dtype=bool)
 
-    def _pdf4(self, mi, model, cat, lam, hero, wi, wo):
+    def _pdf4(self, mi, model, cat, lam, hero, wi, wo, prm=None):
         """The pdf the group's sampling used (the same parameters as ``_sample4``)."""
         k = wi.shape[0]
         if cat == "rgb":
-            return self._clean(model.pdf(self.s.materials[mi].params, wi, wo))
+            return self._clean(model.pdf(self.s.materials[mi].params if prm is None else prm, wi, wo))
         out = np.zeros(k)
         if cat == "table":
             cls = lam[:, 0]
             for cval in np.unique(cls):
                 g = np.flatnonzero(cls == cval)
-                out[g] = model.pdf(self._params(mi, ("c", int(cval)), lam[g[0], :3]), wi[g], wo[g])
+                out[g] = model.pdf(self._params(mi, ("c", int(cval)), lam[g[0], :3], prm), wi[g], wo[g])
             return self._clean(out)
         lh = lam[np.arange(k), hero]
         for b in np.unique(lh):
             g = np.flatnonzero(lh == b)
-            out[g] = model.pdf(self._params(mi, ("h", int(b)), [b] * 3), wi[g], wo[g])
+            out[g] = model.pdf(self._params(mi, ("h", int(b)), [b] * 3, prm), wi[g], wo[g])
         return self._clean(out)

@@ -145,12 +145,13 @@ def _thin_film_curve(p, src, cos, inside):
     angle, or None when it has none."""
     from viewer.brdf import thin_film
 
-    if "thin_film" not in p or not thin_film.active(p) or src["type"] == "schlick":
+    owner = p if "thin_film" in p else p.get("coating")  # a layered model's film is its coating's
+    if owner is None or "thin_film" not in owner or not thin_film.active(owner) or src["type"] == "schlick":
         return None
     if src["type"] == "conductor":
-        return thin_film.reflectance_rgb(p, cos, src["eta"], src["k"])
+        return thin_film.reflectance_rgb(owner, cos, src["eta"], src["k"])
     ior = src["ior"]
-    return thin_film.dielectric_reflectance_rgb(p, cos, 1.0 / ior if inside else ior)
+    return thin_film.dielectric_reflectance_rgb(owner, cos, 1.0 / ior if inside else ior)
 
 
 def fresnel_curves(p, inside: bool = False, n: int = 181) -> dict:

@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from viewer.brdf import thin_film
+
 from viewer.plots.canvas import CHANNEL_COLOURS, CHANNEL_NAMES, NEUTRAL, nice_ceil
 from viewer.plots.data import albedo_curve, bouguer_curve, fresnel_curves, lobe_3d, polar_lobe, sampling_histogram
 from viewer.plots.kinds import as_params, check_channel, check_kind, reduce_channel
@@ -272,7 +274,8 @@ def _fresnel_medium(p, d, inside: bool) -> str:
         medium = (f"from inside n = {n:.4g} to air (n2/n1 = {d['eta'][0]:.4g})" if inside
                   else f"from air to n = {n:.4g}")
     if "thin_film" in d:
-        medium += (f"; thin film n = {p.thin_film.ior:.4g}, {p.thin_film.thickness_nm:g} nm "
+        tf = thin_film.film_of(p)
+        medium += (f"; thin film n = {tf.ior:.4g}, {tf.thickness_nm:g} nm "
                    "(Airy summation, RGB from 32 wavelengths); R_s, R_p, R: without the film")
     return medium
 

@@ -94,10 +94,11 @@ def applicable_kinds(p) -> tuple[str, ...]:
 
 
 def spectral_source(p) -> str | None:
-    """The spectral table (viewer.spectral) a material names, or None."""
-    from viewer.plots.spectral import spectral_name
+    """The spectral table (viewer.spectral) a material names, "thin film" for a material with an
+    active thin film (its R(theta, lambda) is the film's), or None."""
+    from viewer.plots.spectral import film_owner, spectral_name
 
-    return spectral_name(p)
+    return "thin film" if film_owner(p) is not None else spectral_name(p)
 
 
 def sampling_delta(p) -> str | None:

@@ -3,6 +3,12 @@ with the resulting RGB colour per angle, and how far two RGB shortcuts are from 
 Schlick's approximation with the spectral f0, and the three-wavelength approximation (exact
 Fresnel of n + i k sampled at 650 / 550 / 450 nm, what RGB renderers usually do).
 
+A material with a thin film (``thin_film``, or a layered model's ``coating.thin_film``): R(theta,
+lambda) is the film's (``fresnel_thin_film`` over the base's n(lambda): its spectral table, else
+its ior, or a conductor's RGB eta, k interpolated in wavelength as viewer/brdf/thin_film.py does),
+and the shortcuts are the RGB renderers' 32-wavelength integration and the film evaluated at the
+three wavelengths 650 / 550 / 450 nm.
+
 Data: ``spectral_data(p)``; the figure: ``spectral_figure``; drawing: ``draw_spectral`` (Pillow,
 through ``viewer.plots.canvas``).
 """
@@ -32,12 +38,71 @@ def spectral_name(p) -> str | None:
     return None
 
 
+def film_owner(p):
+    """The parameter table holding the material's active thin film (the material or its layered
+    coating), or None."""
+    if isinstance(p, str) or not hasattr(p, "get"):
+        return None
+    for owner in (p, p.get("coating")):
+        if owner is not None and hasattr(owner, "get") and "thin_film" in owner \
+                and float(owner.thin_film.thickness_nm) > 0.0:
+            if p.get("fresnel") in ("schlick", "none"):
+                return None
+            return owner
+    return None
+
+
+def _film_data(p, owner) -> dict:
+    from viewer.brdf import thin_film
+    from viewer.brdf.fresnel import fresnel_thin_film
+    from viewer.plots.kinds import fresnel_source
+
+    lam = WAVELENGTHS_NM
+    src = fresnel_source(p)
+    name = spectral_name(p)
+    if name is not None:
+        n2 = spectral.ior(name, lam)
+        base = f"{name} ({spectral.describe(name)})"
+    elif src["type"] == "conductor":
+        rgb_nm = np.array(thin_film.RGB_NM[::-1])
+        n2 = np.interp(lam, rgb_nm, src["eta"][::-1]) + 1j * np.interp(lam, rgb_nm, src["k"][::-1])
+        base = "conductor eta + i k = " + ", ".join(f"{e:.3g}+{k:.3g}i" for e, k in zip(src["eta"], src["k"]))
+    else:
+        n2 = np.full(lam.shape, float(src["ior"]), dtype=np.complex128)
+        base = f"dielectric n = {src['ior']:.4g}"
+    tf = owner.thin_film
+    cos = np.cos(np.radians(THETA_DEG))
+    R = fresnel_thin_film(cos[:, None], lam[None, :], tf.ior, tf.thickness_nm, n2[None, :])
+    rgb = np.clip(spectral.to_rgb(R, lam), 0.0, 1.0)
+    if src["type"] == "conductor":
+        renderer = thin_film.reflectance_rgb(owner, cos, src["eta"], src["k"])
+    else:
+        renderer = thin_film.reflectance_rgb(owner, cos, float(src["ior"]))
+    lam3 = np.array(thin_film.RGB_NM)
+    n3 = np.interp(lam3, lam, n2.real) + 1j * np.interp(lam3, lam, n2.imag)
+    three = fresnel_thin_film(cos[:, None], lam3[None, :], tf.ior, tf.thickness_nm, n3[None, :])
+    label = f"n = {tf.ior:.4g}, {tf.thickness_nm:g} nm on {base}"
+    return {"name": "thin film", "description": label,
+            "source": "Airy summation (Born & Wolf sec. 7.6.1), both polarizations averaged",
+            "wavelength_nm": lam, "n": n2.real, "k": n2.imag, "theta": THETA_DEG, "R": R, "rgb": rgb,
+            "schlick": renderer, "three_wavelength": three,
+            "err_schlick": renderer - rgb, "err_three": three - rgb,
+            "max_err_schlick": float(np.abs(renderer - rgb).max()),
+            "max_err_three": float(np.abs(three - rgb).max()),
+            "conductor": src["type"] == "conductor", "film": True,
+            "labels": ("32 wavelengths (renderers) - spectral", "3 wavelengths (650/550/450 nm) - spectral")}
+
+
 def spectral_data(p_or_name) -> dict:
     """n, k over WAVELENGTHS_NM; R (91 angles x wavelengths); its RGB per angle; Schlick and the
-    three-wavelength approximation and their errors against it."""
+    three-wavelength approximation and their errors against it. A material with a thin film:
+    the film's R (see the module docstring); n, k are then the base's."""
     from viewer.brdf import spectral_fresnel as sf
     from viewer.brdf.fresnel import fresnel_conductor, fresnel_schlick
 
+    owner = film_owner(p_or_name)
+    if owner is not None:
+        return _film_data(p_or_name, owner)
     name = p_or_name if isinstance(p_or_name, str) else spectral_name(p_or_name)
     if name is None:
         raise ViewerError("spectral plot: the material names no spectral table (spectral = \"NAME\")")
@@ -56,18 +121,20 @@ def spectral_data(p_or_name) -> dict:
             "err_schlick": schlick - rgb, "err_three": three - rgb,
             "max_err_schlick": float(np.abs(schlick - rgb).max()),
             "max_err_three": float(np.abs(three - rgb).max()),
-            "conductor": spectral.is_conductor(name)}
+            "conductor": spectral.is_conductor(name), "film": False,
+            "labels": ("Schlick - spectral", "3 wavelengths - spectral")}
 
 
 def spectral_figure(p, label: str, sub: str):
     d = spectral_data(p)
     curves = []
-    for lab, arr, style in (("Schlick - spectral", d["err_schlick"], "solid"),
-                            ("3 wavelengths - spectral", d["err_three"], "dashed")):
+    for lab, arr, style in ((d["labels"][0], d["err_schlick"], "solid"),
+                            (d["labels"][1], d["err_three"], "dashed")):
         for c in range(3):
             curves.append(Curve(f"{lab} ({'rgb'[c]})", d["theta"], arr[:, c], CHANNEL_COLOURS[c], style))
+    first = "32 wavelengths (the RGB renderers)" if d["film"] else "Schlick"
     notes = [f"{d['name']} ({d['description']}): {d['source'][:110]}",
-             f"max |error| over angles and channels: Schlick {d['max_err_schlick']:.3f}, "
+             f"max |error| over angles and channels: {first} {d['max_err_schlick']:.3f}, "
              f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}; "
              f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}"]
     emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3)
@@ -75,7 +142,7 @@ def spectral_figure(p, label: str, sub: str):
                   "angle of incidence (deg)", "RGB error", curves, [], (0.0, 90.0),
                   (-emax * 1.1, emax * 1.1), sub, notes,
                   {k: d[k] for k in ("name", "wavelength_nm", "n", "k", "theta", "R", "rgb",
-                                     "max_err_schlick", "max_err_three", "conductor")})
+                                     "max_err_schlick", "max_err_three", "conductor", "film")})
 
 
 def _srgb(rgb):
@@ -140,7 +207,8 @@ def draw_spectral(cv, fig, width, height):
     box = (cv.s(60), cv.s(mid + 16), cv.s(width - 24), cv.s(height - 40))
     ya, yb = fig.y_range
     to_px = _axes(cv, box, (0.0, 90.0), (ya, yb), fig.x_label, "shortcut - spectral integral",
-                  "RGB error: Schlick (solid), three wavelengths (dashed)")
+                  "RGB error: 32 wavelengths (solid), three wavelengths (dashed)" if info.get("film")
+                  else "RGB error: Schlick (solid), three wavelengths (dashed)")
     zx, zy = to_px(np.array([0.0, 90.0]), np.array([0.0, 0.0]))
     cv.draw.line([(zx[0], zy[0]), (zx[1], zy[1])], fill=(120, 120, 120), width=cv.s(1))
     for c in fig.curves:

@@ -138,6 +138,17 @@ class SceneObject:
         m = self.model_matrix()
         return p @ m[:3, :3].T + m[:3, 3]
 
+    def y_range(self) -> tuple[float, float]:
+        """(lowest, highest) world y of the mesh: the height over which a thin film's thickness
+        varies (``thin_film.thickness_top_nm``). The rotation is about y, so only the scale and
+        translation matter."""
+        y = np.asarray(self.mesh_data.positions, dtype=np.float64).reshape(-1, 3)[:, 1]
+        if y.size == 0:
+            return 0.0, 0.0
+        sy = float(np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (3,))[1])
+        ty = float(np.asarray(self.translate, dtype=np.float64)[1])
+        return sy * float(y.min()) + ty, sy * float(y.max()) + ty
+
     def __eq__(self, other):
         return equal(self, other, skip=("mesh_data",))
 
