@@ -61,6 +61,14 @@ def test_render_equals_the_cli_bit_for_bit(tmp_path):
                                                 height=30, overrides=over), cli)
 
 
+def test_render_after_reference_gives_the_same_image():
+    """A notebook's reference call in between (its engine choice makes and releases a GL context
+    of its own) must not change what render returns."""
+    before = viewer.render("sphere", width=24, height=16)
+    viewer.reference("sphere", spp=1, width=8, height=6, workers=0, max_depth=1)
+    np.testing.assert_array_equal(viewer.render("sphere", width=24, height=16), before)
+
+
 def test_render_takes_toml_text_like_a_file(tmp_path):
     f = tmp_path / "s.toml"
     f.write_text(SPHERE_TOML)

@@ -69,7 +69,10 @@ def render(scene, width=None, height=None, overrides=()) -> np.ndarray:
 
         ctx = create_offscreen_context()
         _raster = (ctx, Renderer(ctx))
-    renderer = _raster[1]
+    ctx, renderer = _raster
+    # make it current again: a reference call in between may have created and released a GL
+    # context of its own (the engine choice does), which leaves none current on this thread
+    ctx.__enter__()
     linear, _ = renderer.render_arrays(sc, OrbitCamera.from_scene(sc))
     return linear
 
