@@ -347,3 +347,9 @@ def sweep_directions():
         for phi in (0.0, 0.37, np.pi / 2, 2.5):
             dirs.append([s * np.cos(phi), s * np.sin(phi), cos])
     return np.unique(np.array(dirs), axis=0)
+
+
+def is_delta(p) -> bool:
+    """Whether a material is a pure delta lobe (mirror, smooth glass)."""
+    spec = brdf.get(p.model).spec
+    return spec.delta and not (p.model == "dielectric" and p.get("alpha", 0.0) > 0)

@@ -15,7 +15,7 @@ import pytest
 from viewer import brdf
 from viewer.brdf.chi2 import chi2_test
 
-from brdf_harness import (albedo_sampler, albedo_uniform, direction, param_grid,
+from brdf_harness import (albedo_sampler, is_delta, albedo_uniform, direction, param_grid,
                           random_params, random_upper, sidak, sweep_directions, test_param_sets,
                           write_chi2_images)
 
@@ -67,6 +67,11 @@ def test_weight_is_f_cos_over_pdf(name):
     for p in _param_sets(model, rng):
         wo = random_upper(rng, 4000, 89.0)
         wi, w, pdf = model.sample(p, wo, rng.random((len(wo), 2)))
+        if p.model == "layered" and is_delta(p.base):
+            # a delta base makes the lobe mixed: its discrete samples weigh T a w_b against
+            # (1 - P_coat) pdf_b while eval holds the coat alone (test_glsl_sampling checks them
+            # through brdf_sample_is_discrete), so such a set is left out here
+            continue
         ok = pdf > 0
         assert np.all(w[~ok] == 0), f"{name}: weight != 0 where pdf == 0 ({p.to_plain()})"
         f = model.eval(p, wi[ok], wo[ok])
