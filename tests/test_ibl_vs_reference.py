@@ -50,7 +50,13 @@ def _scene(tmp_path, name):
     return parse_scene(data, pathlib.Path(tmp_path) / "s.toml")
 
 
-@pytest.mark.parametrize("name", [n for n in brdf.names() if not brdf.get(n).spec.transmissive])
+# The default run: one model per kind of split (the lobe itself, a diffuse model, a coat over a
+# base, a measured table's fitted peak); every model with -m slow (about 7-12 s each here).
+DEFAULT_IBL = ("lambert", "microfacet", "layered", "measured")
+
+
+@pytest.mark.parametrize("name", [n if n in DEFAULT_IBL else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in brdf.names() if not brdf.get(n).spec.transmissive])
 def test_environment_lighting_against_reference(tmp_path, renderer, name):
     scene = _scene(tmp_path, name)
     cam = OrbitCamera.from_scene(scene)

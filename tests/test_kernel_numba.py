@@ -116,7 +116,7 @@ def _check_against(tri, res, ref, n_edge_tol=1e-6, coincident_faces=False):
     return hit, pt
 
 
-@pytest.mark.parametrize("name", ["teapot", "sphere", "cornell"])
+@pytest.mark.parametrize("name", [pytest.param("teapot", marks=pytest.mark.slow), "sphere", "cornell"])  # teapot: -m slow (6 s)
 def test_closest_hit_matches_brute_force(name):
     tri, k = _scene(name)
     rng = np.random.default_rng(1)
@@ -132,7 +132,7 @@ def test_closest_hit_matches_brute_force(name):
                    coincident_faces=name == "cornell")
 
 
-@pytest.mark.parametrize("name", ["teapot", "cornell"])
+@pytest.mark.parametrize("name", [pytest.param("teapot", marks=pytest.mark.slow), "cornell"])  # teapot: -m slow (6 s)
 def test_occlusion_matches_brute_force(name):
     tri, k = _scene(name)
     rng = np.random.default_rng(2)
@@ -248,7 +248,7 @@ def test_empty_and_shapes():
 
 @pytest.mark.skipif(importlib.util.find_spec("viewer.pathtracer.kernel_embree") is None,
                     reason="viewer/pathtracer/kernel_embree.py not present")
-@pytest.mark.parametrize("name", ["teapot", "sphere", "cornell"])
+@pytest.mark.parametrize("name", [pytest.param("teapot", marks=pytest.mark.slow), "sphere", "cornell"])  # teapot: -m slow (6 s)
 def test_agrees_with_embree(name):
     pytest.importorskip("embreex")
     from viewer.pathtracer.kernel_embree import EmbreeKernel

@@ -16,6 +16,8 @@ from gui_harness import window_env
 ROOT = Path(__file__).resolve().parents[1]
 
 
+# a soak: 200 frames of a real window (about 18 s); with -m slow, as benchmarks/soak.py runs longer ones
+@pytest.mark.slow
 @pytest.mark.skipif(not __import__("shutil").which("Xvfb"), reason="needs Xvfb")
 def test_short_soak_has_no_failures(display):
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--frames", "200",
