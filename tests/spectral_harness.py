@@ -274,48 +274,6 @@ model = "lambert"
 albedo = [1.0, 1.0, 1.0]
 """
 
-# A ball of any material on a Lambert floor under the studio map, a point and a directional light
-# (the NaN sweep's scene, for parameter corners)
-CORNER_SCENE = """
-[camera]
-position = [0.0, 0.3, 3.0]
-width = 10
-height = 8
-fov_y = 40.0
-
-[environment]
-map = "studio"
-
-[render]
-ibl = "off"
-
-[[lights]]
-type = "point"
-position = [1.0, 2.0, 2.0]
-intensity = [5.0, 5.0, 5.0]
-
-[[lights]]
-type = "directional"
-direction = [-0.3, -1.0, -0.2]
-irradiance = [1.0, 1.0, 1.0]
-
-[[objects]]
-mesh = "sphere"
-material = "ball"
-
-[[objects]]
-mesh = "plane"
-material = "floor"
-translate = [0.0, -1.0, 0.0]
-scale = 3.0
-
-[materials.ball]
-model = "lambert"
-
-[materials.floor]
-model = "lambert"
-"""
-
 # A polished gold sphere filling a 3 x 3 image in a white constant environment: a camera ray
 # reflects once at near-normal incidence (the view spans 3 degrees)
 GOLD_MIRROR_SCENE = """
