@@ -21,3 +21,15 @@ def test_readme_documents_each_command():
     readme = (ROOT / "README.md").read_text()
     for c in COMMANDS:
         assert re.search(rf"### `brdf-viewer {c}`", readme), c
+
+
+def test_readme_is_a_front_door_linking_every_page():
+    """The README keeps the quick start, the commands and where to read more; detail lives in
+    docs/, and every page there is reachable from it (and every link it has resolves)."""
+    readme = (ROOT / "README.md").read_text()
+    links = set(re.findall(r"\]\(([^)#:]+\.md)", readme))
+    for target in links:
+        assert (ROOT / target).is_file(), f"README links to missing {target}"
+    for page in (ROOT / "docs").glob("*.md"):
+        assert f"docs/{page.name}" in links, f"docs/{page.name} is not linked from the README"
+    assert len(readme.splitlines()) < 250, "per-feature detail belongs in docs/"
