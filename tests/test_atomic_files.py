@@ -1,4 +1,4 @@
-"""Output files are written atomically (issue "Hardening" 4): screenshots and renders (PNG),
+"""Output files are written atomically: screenshots and renders (PNG),
 linear images (.npy), reference outputs, metrics.json, saved scenes, environment maps and
 meshes reach their name only through ``os.replace`` of a complete, fsynced temporary file in
 the same folder; a writer killed at any moment leaves the destination absent or a complete old

@@ -1,4 +1,4 @@
-"""Reference lifecycle (issue "Hardening" 5): cancelling and restarting the window's reference
+"""Reference lifecycle: cancelling and restarting the window's reference
 view over and over leaves no threads, processes, temporary files or memory behind.
 
 Measured from /proc (no psutil): threads = /proc/self/task, processes = the live /proc entries
