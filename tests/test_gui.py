@@ -128,11 +128,11 @@ def test_reference_view_renders_in_background_and_restarts(display):
         for _ in range(5):
             app.frame()
         assert app.frame_count == frames_before + 5 and time.time() - t1 < 10  # raster stays live
-        key_before = rv._key
+        key_before = rv.key
         app.session.scene.materials["ball"] = brdf.get("lambert").params(albedo=[0.1, 0.1, 0.1])
         app.session.dirty = True
         app.frame()
-        assert rv._key != key_before and rv.spp < 2  # restarted on the change
+        assert rv.key != key_before and rv.spp < 2  # restarted on the change
         t0 = time.time()
         while rv.spp < 1 and time.time() - t0 < 60:
             app.frame()

@@ -55,12 +55,12 @@ def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
         cam.yaw += 0.2
         rv.update(scene, cam, (160, 120), defer=True)
         assert rv.latest() is None and rv.spp == 0
-        assert _wait(lambda: not rv._busy, 10)
+        assert _wait(lambda: not rv.busy, 30)
         v = rv.version
         for _ in range(5):
             rv.update(scene, cam, (160, 120), defer=True)
         time.sleep(0.3)
-        assert rv.latest() is None and rv.version == v and not rv._busy   # still paused
+        assert rv.latest() is None and rv.version == v and not rv.busy   # still paused
         # the drag pauses: the view restarts for the new camera
         rv.update(scene, cam, (160, 120))
         assert _wait(lambda: rv.spp >= 4), rv.error
@@ -139,7 +139,7 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
         while rv.spp < spp + 8 and time.perf_counter() - t < 25:
             app.tick()
         out.update(passes=dict(spp=rv.spp - spp, frames=app.frame_count - n0, s=time.perf_counter() - t,
-                               idle=app.idle(), per=rv._renderer.samples_per_chunk()))
+                               idle=app.idle(), per=rv.samples_per_chunk()))
         app.glfw.set_window_should_close(app.window, True)
         app.run()
         print("RESULT " + json.dumps(out))
