@@ -72,24 +72,30 @@ def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
 def test_the_reference_texture_is_uploaded_only_for_new_samples(gl_ctx, monkeypatch):
     from viewer.app import compare_view
     from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
 
     calls = []
     real = compare_view.upload_rgb
     monkeypatch.setattr(compare_view, "upload_rgb", lambda *a: calls.append(1) or real(*a))
-    rv = ReferenceView(gl_ctx, workers=0)
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=0.1, max_depth=1, workers=0, engine="cpu")
     try:
         assert rv.texture_for_display() is None and not calls
-        img = np.full((6, 8, 3), 0.5, np.float32)
-        with rv._lock:
-            rv._image, rv._image_spp = img, 4
+        rv.update(scene, cam, (80, 60))
+        assert _wait(lambda: rv.spp >= 1), rv.error
+        assert rv.stop()                 # no pass comes while the frames below are drawn
+        spp = rv.spp
         t = rv.texture_for_display()
         assert t is not None and len(calls) == 1
         for _ in range(5):   # frames without a new pass
             assert rv.texture_for_display() is t
         assert len(calls) == 1
-        with rv._lock:
-            rv._image, rv._image_spp = img * 2, 8   # a new pass
-        rv.texture_for_display()
+        rv.update(scene, cam, (80, 60))  # the same view again: it resumes from the cache
+        assert _wait(lambda: rv.spp > spp), rv.error
+        assert rv.stop()
+        rv.texture_for_display()         # a new pass
         assert len(calls) == 2
     finally:
         rv.close()
