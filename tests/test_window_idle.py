@@ -113,36 +113,40 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
         app = App("sphere", size=(480, 300), restore_state=False)
         s = app.session
         t0 = time.time()
-        while not app.idle() and time.time() - t0 < 90:   # programs warm up, the raster settles
+        while not app.idle() and time.time() - t0 < 300:   # programs warm up, the raster settles
             app.tick()
         out = dict(idle=app.idle())
         # nothing changes: one frame per IDLE_FRAME_S at most; a wake-up without input draws nothing
-        app.IDLE_FRAME_S = 3.0
+        # (IDLE_FRAME_S long, so that a bound far below it tells "woke on the event" from "waited")
+        app.IDLE_FRAME_S = 1.0
         app.tick()
+        app.IDLE_FRAME_S = 120.0
         n0, k0 = app.frame_count, app.frames_skipped
         threading.Timer(0.4, app.glfw.post_empty_event).start()
         t = time.perf_counter(); drew = app.tick()
         out.update(spurious=dict(drew=drew, s=time.perf_counter() - t, frames=app.frame_count - n0,
                                  skipped=app.frames_skipped - k0))
+        app.IDLE_FRAME_S = 1.0
         t = time.perf_counter(); drew = app.tick()   # then the timer's frame
         out.update(timer=dict(drew=drew, s=time.perf_counter() - t))
         # input (a resize: real window events through the callbacks) draws at once
+        app.IDLE_FRAME_S = 120.0
         app.glfw.set_window_size(app.window, 500, 300)
         t = time.perf_counter(); drew = app.tick()
         out.update(input=dict(drew=drew, s=time.perf_counter() - t))
         # the split view: each reference pass wakes the loop, which draws it at once
         s.set_image_mode("split")
-        app.IDLE_FRAME_S = 30.0
+        app.IDLE_FRAME_S = 600.0   # no timer frame: every frame below is a pass's
         t0 = time.time()
         while s.reference is None or s.reference.spp < 4:
             app.tick()
-            assert time.time() - t0 < 90, s.reference and s.reference.error
-        while not app.idle() and time.time() - t0 < 120:
+            assert time.time() - t0 < 300, s.reference and s.reference.error
+        while not app.idle() and time.time() - t0 < 400:
             app.tick()
         rv = s.reference
         spp, n0 = rv.spp, app.frame_count
         t = time.perf_counter()
-        while rv.spp < spp + 8 and time.perf_counter() - t < 25:
+        while rv.spp < spp + 8 and time.perf_counter() - t < 300:
             app.tick()
         out.update(passes=dict(spp=rv.spp - spp, frames=app.frame_count - n0, s=time.perf_counter() - t,
                                idle=app.idle(), per=rv.samples_per_chunk()))
@@ -154,13 +158,15 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
     res = json.loads(next(ln for ln in r.stdout.splitlines() if ln.startswith("RESULT "))[7:])
     print(res)
     assert res["idle"]
-    # a wake-up that brought no input: no frame, and back well before IDLE_FRAME_S (3 s)
+    # a wake-up that brought no input: no frame, and back on the event, not after IDLE_FRAME_S
+    # (120 s; the bounds below are far from both, so a loaded machine meets them: no latency is
+    # asserted, only which of the two woke the loop)
     assert not res["spurious"]["drew"] and res["spurious"]["frames"] == 0 and res["spurious"]["skipped"] == 1
-    assert res["spurious"]["s"] < 2.5
+    assert res["spurious"]["s"] < 60, res["spurious"]
     assert res["timer"]["drew"]
-    assert res["input"]["drew"] and res["input"]["s"] < 2.0, res["input"]
-    # 8 more spp, in passes of ``per``: drawn as they came (well before IDLE_FRAME_S, 30 s), and no
-    # frame without a pass (two passes may come within one frame: at least one frame)
+    assert res["input"]["drew"] and res["input"]["s"] < 60, res["input"]
+    # 8 more spp, in passes of ``per``: drawn as they came (IDLE_FRAME_S is 600 s), and no frame
+    # without a pass (two passes may come within one frame: at least one frame)
     p = res["passes"]
-    assert p["spp"] >= 8 and p["idle"] and p["s"] < 25, p
+    assert p["spp"] >= 8 and p["idle"], p
     assert 1 <= p["frames"] <= p["spp"] // p["per"] + 1, p
