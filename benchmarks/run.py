@@ -5,6 +5,7 @@
   window uses too), full quality (scene MSAA) and the interactive preview (no MSAA)
 - whole-process time of `brdf-viewer render` for a 512x512 PNG
 - screen-space reflections: the SSR pass alone and the frame with and without SSR at 1280x720
+- the plots window's albedo curve of the slowest model (varnished_gold)
 """
 
 from __future__ import annotations
@@ -179,7 +180,22 @@ def render_process(runs=3):
     print(f"brdf-viewer render default 512x512 PNG, whole process: median {statistics.median(ts):.2f} s")
 
 
+def albedo_curve_time(runs=3):
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from viewer import plots
+    from viewer.brdf.presets import get_preset
+
+    p = plots.as_params(get_preset("varnished_gold"))   # the slowest model: a layered coat over a microfacet
+    ts = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        plots.albedo_curve(p)
+        ts.append(time.perf_counter() - t)
+    print(f"plots: albedo curve of varnished_gold (the slowest model): median {statistics.median(ts):.2f} s")
+
+
 if __name__ == "__main__":
+    albedo_curve_time()
     frame_times()
     ssr_times()
     model_switch()

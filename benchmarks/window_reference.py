@@ -91,7 +91,7 @@ def child(engine: str) -> None:
         app.session.mc.view = view
         view_ms, frame_ms = [], []
         for _ in range(8):
-            app.session.mc._key = None      # recompute the map every frame, as each new pass does
+            app.session.mc.invalidate()     # recompute the map every frame, as each new pass does
             t = time.perf_counter()
             app.frame()
             frame_ms.append(1000 * (time.perf_counter() - t))

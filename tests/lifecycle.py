@@ -56,6 +56,22 @@ def worker_children() -> dict[int, str]:
     return {p: c for p, c in children().items() if not is_resource_tracker(c)}
 
 
+def alive(pids) -> set[int]:
+    """Those of ``pids`` that are still processes of ours (children of this process, not yet
+    reaped zombies). A test counts only the processes it started itself: other tests, other
+    xdist workers and other users of the machine run processes of their own."""
+    me, out = os.getpid(), set()
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # gone
+        if fields[0] != "Z" and int(fields[1]) == me:
+            out.add(int(pid))
+    return out
+
+
 def setup_files() -> list[str]:
     return glob.glob(os.path.join(tempfile.gettempdir(), "brdf-viewer-setup-*"))
 
@@ -68,7 +84,7 @@ class StormResult:
     baseline_threads: list
     after_close_tasks: int
     after_close_threads: list
-    after_close_workers: dict
+    after_close_workers: set       # of the pool's worker processes seen during the storm: those alive
     after_close_setup_files: list
     rss_warm: int                 # after the first tenth of the restarts
     rss_end: int                  # after the last restart, before close
@@ -76,6 +92,7 @@ class StormResult:
     peak_tasks: int = 0
     final_spp: int = 0
     errors: list = field(default_factory=list)
+    workers_seen: set = field(default_factory=set)   # every worker process the view's pools started
 
     @property
     def drift_mb(self) -> float:
@@ -107,11 +124,13 @@ def restart_storm(n: int, workers: int = 2, seed: int = 0, max_pause_s: float = 
     rv = ReferenceView(None, scale=0.1, max_depth=2, workers=workers)
     samples, peak, errors = [], 0, []
     rss_warm = None
+    seen: set[int] = set()
     t0 = time.perf_counter()
     for i in range(n):
         cam.yaw += 1e-3
         rv.update(scene, cam, (160, 120))
         time.sleep(rng.random() * max_pause_s)
+        seen.update(rv.worker_pids())
         peak = max(peak, task_count())
         if rv.error:
             errors.append(rv.error)
@@ -126,12 +145,14 @@ def restart_storm(n: int, workers: int = 2, seed: int = 0, max_pause_s: float = 
     while rv.spp < 1 and not rv.error and time.perf_counter() - t1 < 60:
         time.sleep(0.01)
     final_spp = rv.spp
+    seen.update(rv.worker_pids())
     if rv.error:
         errors.append(rv.error)
     rv.close()
-    deadline = time.perf_counter() + 10
-    while (worker_children() or task_count() > baseline_tasks) and time.perf_counter() < deadline:
+    deadline = time.perf_counter() + 30   # generous: a loaded machine reaps slowly
+    while (alive(seen) or task_count() > baseline_tasks) and time.perf_counter() < deadline:
         time.sleep(0.02)  # processes are reaped and threads end shortly after close returns
     return StormResult(n, seconds, baseline_tasks, baseline_threads, task_count(),
-                       sorted(t.name for t in threading.enumerate()), worker_children(), setup_files(),
-                       rss_warm if rss_warm is not None else samples[0], rss_end, samples, peak, final_spp, errors)
+                       sorted(t.name for t in threading.enumerate()), alive(seen), setup_files(),
+                       rss_warm if rss_warm is not None else samples[0], rss_end, samples, peak, final_spp, errors,
+                       seen)

@@ -1,4 +1,4 @@
-"""Output files are written atomically (issue "Hardening" 4): screenshots and renders (PNG),
+"""Output files are written atomically: screenshots and renders (PNG),
 linear images (.npy), reference outputs, metrics.json, saved scenes, environment maps and
 meshes reach their name only through ``os.replace`` of a complete, fsynced temporary file in
 the same folder; a writer killed at any moment leaves the destination absent or a complete old
@@ -227,13 +227,107 @@ def kill_writers(folder: Path, kind: str, kills: int, size: int, seed: int, max_
     return versions, mid_write
 
 
-@pytest.mark.parametrize("kind, size, kills", [("npy", 512, 12), ("png", 384, 6), ("json", 1024, 6)])
-def test_sigkill_mid_write_leaves_a_complete_file(tmp_path, kind, size, kills):
-    versions, mid_write = kill_writers(tmp_path, kind, kills=kills, size=size, seed=len(kind))
-    print(f"{kind}: {len(versions)} kills, {mid_write} during a write, versions {versions}")
-    if kind == "npy":  # 3 MB per write: about half the kills land while the temporary file is open
-        assert mid_write >= 1, "no kill landed during a write: the test did not test anything"
-    assert max(versions) >= 1
-    # the next writer removes the temporary files of killed writers
-    vio.atomic_write_bytes(tmp_path / {"npy": "img.npy", "png": "shot.png", "json": "metrics.json"}[kind], b"x")
-    assert _leftovers(tmp_path) == []
+# A writer that pauses inside its own write, at a named point, until it is killed: the kill lands
+# there by construction, not by luck of timing. Versions 1 .. N-1 are written whole first (so
+# the destination holds an old version); version N pauses at PHASE:
+#   data     half of the bytes are in the temporary file (flushed to disk)
+#   fsync    every byte is written, the temporary file is not yet fsynced
+#   replace  fsynced, not yet renamed over the destination
+PAUSING_WRITER = r"""
+import builtins, json, os, sys, time
+import numpy as np
+from viewer.io import atomic_write_bytes, write_npy, write_png
+kind, dst, size, phase, last = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
+armed = False
+
+def pause(where):
+    if armed and where == phase:
+        print("paused", flush=True)
+        while True:
+            time.sleep(60)   # until the SIGKILL
+
+class Halves:
+    def __init__(self, f):
+        self.f = f
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        return self.f.__exit__(*exc)
+    def write(self, data):
+        half = len(data) // 2
+        n = self.f.write(data[:half])
+        self.f.flush()
+        real_fsync(self.f.fileno())   # the half on disk, as a slow disk would have it
+        pause("data")
+        return n + self.f.write(data[half:])
+
+real_open, real_fsync, real_replace = builtins.open, os.fsync, os.replace
+
+def hooked_open(file, mode="r", *a, **k):
+    f = real_open(file, mode, *a, **k)
+    return Halves(f) if armed and ".part" in str(file) and mode == "r+b" else f
+
+def hooked_fsync(fd):
+    pause("fsync")
+    return real_fsync(fd)
+
+def hooked_replace(src, dst_):
+    pause("replace")
+    return real_replace(src, dst_)
+
+builtins.open, os.fsync, os.replace = hooked_open, hooked_fsync, hooked_replace
+for i in range(1, last + 1):
+    armed = i == last
+    if kind == "npy":      # 4 * size^2 * 3 bytes, every element = i
+        write_npy(dst, np.full((size, size, 3), float(i), np.float32))
+    elif kind == "png":    # incompressible noise seeded by i, version i in a text chunk
+        rgb = np.random.default_rng(i).integers(0, 256, (size, size, 3), dtype=np.uint8)
+        write_png(dst, rgb, {"version": str(i)})
+    else:                  # metrics.json of a compare run
+        atomic_write_bytes(dst, (json.dumps({"version": i, "pad": "x" * size * size}) + "\n").encode())
+print("not paused", flush=True)
+"""
+
+PHASES = ("data", "fsync", "replace")
+DEADLINE_S = 120.0   # for the writer to reach its pause (interpreter start, numpy import); generous
+
+
+def kill_paused_writer(folder: Path, kind: str, size: int, phase: str, version: int):
+    """Run PAUSING_WRITER up to its pause in ``version``, SIGKILL it there. Returns (version
+    found at the destination, the temporary files it left)."""
+    dst = folder / {"npy": "img.npy", "png": "shot.png", "json": "metrics.json"}[kind]
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.Popen([sys.executable, "-c", PAUSING_WRITER, kind, str(dst), str(size), phase, str(version)],
+                         stdout=subprocess.PIPE, env=env)
+    try:
+        line = p.stdout.readline().strip()   # blocks until the writer pauses (or ends)
+        assert line == b"paused", (phase, line, p.poll())
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(DEADLINE_S)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        p.stdout.close()
+    left = [n for n in _leftovers(folder) if n.startswith(f".{dst.name}.{p.pid}.")]
+    return check_complete(kind, dst, size), left
+
+
+@pytest.mark.parametrize("kind, size", [("npy", 256), ("png", 128), ("json", 256)])
+def test_sigkill_mid_write_leaves_a_complete_file(tmp_path, kind, size):
+    """Killed at each point of a write, with no old file and with one: the destination is absent
+    or the complete old version, and the next writer removes the killed writer's temporary file."""
+    full = {"npy": 4 * size * size * 3 + 128}.get(kind)   # .npy: data + its header (128 bytes here)
+    for version in (1, 2):
+        for phase in PHASES:
+            folder = tmp_path / f"{phase}-{version}"
+            folder.mkdir()
+            found, left = kill_paused_writer(folder, kind, size, phase, version)
+            assert found == version - 1, (phase, version, found)   # 0: absent
+            assert len(left) == 1, (phase, left)                   # it died inside the write
+            if full is not None:
+                written = (folder / left[0]).stat().st_size
+                assert written == (full // 2 if phase == "data" else full), (phase, written)
+            name = {"npy": "img.npy", "png": "shot.png", "json": "metrics.json"}[kind]
+            vio.atomic_write_bytes(folder / name, b"x")   # the next writer cleans up
+            assert _leftovers(folder) == []

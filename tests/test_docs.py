@@ -92,6 +92,8 @@ OUTSIDE_REFERENCE = re.compile("|".join((
     "DES" + r"IGN\.md",
     r"\.\./sha" + "red",
     r"[Ii]ss" + r"ue [0-9]",
+    r"[Ii]ss" + r"ue [\"'\u201c][A-Z]",   # a work item named by its title in quotes
+    "Harden" + r"ing\"? [0-9]",          # ... or by its title and number
     "#" + r"[0-9]{2}\b",
 )))
 
@@ -124,6 +126,7 @@ def test_nothing_points_outside_the_repository():
 
 def test_the_outside_reference_check_can_fail(tmp_path):
     lines = ["fine", "see " + "CON" + "TRACT section 1", "as in " + "DES" + "IGN.md", "../sha" + "red/x",
-             "fixed in " + "iss" + "ue 7", "PR " + "#" + "12", "colour #fff and 3 # 4"]
+             "fixed in " + "iss" + "ue 7", "PR " + "#" + "12", "colour #fff and 3 # 4",
+             "atomic (" + "iss" + 'ue "Harden' + 'ing" 4)', "as " + "Harden" + "ing 3 asks", "an issue about x"]
     (tmp_path / "a.py").write_text("\n".join(lines))
-    assert [b.split(":")[1] for b in outside_references(tmp_path, ["a.py"])] == ["2", "3", "4", "5", "6"]
+    assert [b.split(":")[1] for b in outside_references(tmp_path, ["a.py"])] == ["2", "3", "4", "5", "6", "8", "9"]

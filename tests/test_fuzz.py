@@ -1,4 +1,4 @@
-"""Fuzzed inputs: mutated scene files, broken meshes, broken HDR / EXR maps (issue "Hardening").
+"""Fuzzed inputs: mutated scene files, broken meshes, broken HDR / EXR maps.
 
 Each case must load cleanly or fail with exactly one ``ViewerError`` whose message is one line
 (no traceback, no other exception type, nothing else printed); through the command line, exit

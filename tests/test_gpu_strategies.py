@@ -113,12 +113,12 @@ def test_reference_view_keeps_the_gpu_engine_for_every_option(ctx):
                      dict(strategy="mis", mis_heuristic="balance", russian_roulette=False)):
             rv.options.update(opts)
             rv.update(sc, cam, (12, 12))
-            assert rv.engine == "gpu" and rv._renderer is None, rv.engine_reason
+            assert rv.engine == "gpu" and rv.active_engine == "gpu", rv.engine_reason
             t0 = time.perf_counter()
             while rv.spp < 2 and time.perf_counter() - t0 < 30:
                 rv.update(sc, cam, (12, 12))
             assert rv.spp >= 2 and rv.error == ""
-            s = rv._gpu.setup
+            s = rv.setup
             assert (s.strategy, s.mis_heuristic, s.russian_roulette) == tuple(opts.values())
     finally:
         rv.close()

@@ -65,7 +65,7 @@ def _insert_line(text, lineno, line):
     return "\n".join(lines) + "\n"
 
 
-def _poll_until_reload(hr, timeout=5.0):
+def _poll_until_reload(hr, timeout=120.0):
     """Poll as the app does (once per 'frame') until a reload ran; returns (rebuilt, seconds)."""
     n = hr.reload_count
     t0 = time.perf_counter()
@@ -73,7 +73,7 @@ def _poll_until_reload(hr, timeout=5.0):
         rebuilt = hr.poll()
         if hr.reload_count > n:
             return rebuilt, time.perf_counter() - t0
-        assert time.perf_counter() - t0 < timeout, "no reload after the edit"
+        assert time.perf_counter() - t0 < timeout, "no reload after the edit"   # a hang, not a latency
         time.sleep(0.005)
 
 
@@ -215,8 +215,8 @@ def test_deep_include_error_keeps_last_image_and_a_fix_takes_effect(tmp_path, ho
               f"+ first frame {t_frame * 1000:.0f} ms; math.glsl edit ({len(programs)} programs: "
               f"{', '.join(programs)}): programs {t_all * 1000:.0f} ms (reload {hr.last_reload_ms:.0f} ms), "
               f"+ first frame {t_frame_all * 1000:.0f} ms")
-        # figures belong in the report, not in assertions (no timing assertions); this only catches a hang
-        assert t_fix + t_frame < 10.0 and t_all + t_frame_all < 10.0
+        # figures belong in the report, not in assertions (no timing assertions); a hang is caught
+        # by _poll_until_reload's deadline
     finally:
         _edit(math_glsl, math_ok)
         _edit(lambert, lambert_ok)

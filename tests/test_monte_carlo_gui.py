@@ -35,21 +35,23 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app.plots.visible = True
         app.plots.select_tab("Sampling")
         t0 = time.time()
-        while (rv.latest_variance() is None or rv.spp < 4) and time.time() - t0 < 120:
+        while (rv.snapshot() is None or rv.spp < 4) and time.time() - t0 < 120:
             app.frame()
         assert rv.spp >= 4, rv.error
-        assert rv._renderer.setup.strategy == "bsdf"
+        assert rv.setup.strategy == "bsdf"
         app.frame()
-        mean, var, spp = rv.latest_variance()
+        # one snapshot for both sides: the reference keeps adding passes meanwhile
+        snap = rv.snapshot()
+        mean, var, spp = snap.mean, snap.variance, snap.spp
         for view, expect in (("standard error", standard_error(var)), ("relative error", relative_error(mean, var)),
                              ("samples needed", samples_needed(mean, var, spp, app.session.mc.target))):
             app.session.mc.view = view
-            err, rgb = app.session.mc.heat_map(rv)
+            err, rgb = app.session.mc.heat_map(snap)
             np.testing.assert_allclose(err, np.where(np.isfinite(expect), expect, 0.0), rtol=1e-12)
         app.session.mc.view = "relative error"
         times = []
         for _ in range(4):
-            app.session.mc._key = None  # force a recompute, to time it
+            app.session.mc.invalidate()  # force a recompute, to time it
             app.frame()
             times.append(app.session.mc.view_ms)
         shot = app.capture_window()
@@ -65,7 +67,7 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         t0 = time.time()
         while len(rv.curve) < 2 and time.time() - t0 < 60:
             app.frame()
-        assert rv._renderer.setup.strategy == "mis"
+        assert rv.setup.strategy == "mis"
         app.frame()
         Image.fromarray(app.capture_window()).save({str(tmp_path / 'mc2.png')!r})
         print("VIEW_MS", " ".join(f"{{t:.2f}}" for t in times), "size", mean.shape)

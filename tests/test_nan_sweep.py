@@ -1,4 +1,4 @@
-"""NaN sweep (issue "Hardening" 3): over the parameter space of every registered model, neither
+"""NaN sweep: over the parameter space of every registered model, neither
 renderer produces NaN, Inf or negative values.
 
 Parameters: the harness grid (``brdf_harness.param_grid``: each parameter at its range and

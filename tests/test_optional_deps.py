@@ -1,4 +1,4 @@
-"""A missing package gives one line naming it (issue "Hardening" 6, the parts without a GUI):
+"""A missing optional package gives one line naming it (the parts without a GUI):
 the numba kernel without numba, the Embree kernel without embreex (also inside the worker
 processes), .hdr / .exr maps without OpenCV / OpenEXR, mesh files without trimesh, and the
 benchmark's Mitsuba comparison (``viewer.optional`` knows every one)."""

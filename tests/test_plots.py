@@ -161,18 +161,15 @@ def test_lobe_3d_surface_is_fcos_times_direction():
     assert np.allclose(d["x"][:, 0], d["x"][:, -1])  # the surface closes around phi
 
 
-def test_albedo_of_lambert_is_its_albedo_and_fast():
-    import time
-
+def test_albedo_of_lambert_is_its_albedo():
     p = brdf.get("lambert").params(albedo=[0.7, 0.4, 0.1])
     d = plots.albedo_curve(p)
     assert np.allclose(d["albedo"], [0.7, 0.4, 0.1], atol=1e-12)
     fig = plots.figure(p, "albedo")
     assert [c.label for c in fig.curves] == ["albedo (red)", "albedo (green)", "albedo (blue)"]
     p = plots.as_params(get_preset("varnished_gold"))  # the slowest model: a layered coat over a microfacet
-    t0 = time.perf_counter()
-    plots.albedo_curve(p)
-    assert time.perf_counter() - t0 < 1.5  # < 0.5 s unloaded; generous for a busy machine
+    d = plots.albedo_curve(p)   # its time: benchmarks/run.py
+    assert np.all(np.isfinite(d["albedo"])) and np.all((d["albedo"] >= 0) & (d["albedo"] <= 1 + 1e-6))
 
 
 def test_bouguer_is_exp_minus_sigma_d():

@@ -55,12 +55,12 @@ def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
         cam.yaw += 0.2
         rv.update(scene, cam, (160, 120), defer=True)
         assert rv.latest() is None and rv.spp == 0
-        assert _wait(lambda: not rv._busy, 10)
+        assert _wait(lambda: not rv.busy, 30)
         v = rv.version
         for _ in range(5):
             rv.update(scene, cam, (160, 120), defer=True)
         time.sleep(0.3)
-        assert rv.latest() is None and rv.version == v and not rv._busy   # still paused
+        assert rv.latest() is None and rv.version == v and not rv.busy   # still paused
         # the drag pauses: the view restarts for the new camera
         rv.update(scene, cam, (160, 120))
         assert _wait(lambda: rv.spp >= 4), rv.error
@@ -72,24 +72,30 @@ def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
 def test_the_reference_texture_is_uploaded_only_for_new_samples(gl_ctx, monkeypatch):
     from viewer.app import compare_view
     from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
 
     calls = []
     real = compare_view.upload_rgb
     monkeypatch.setattr(compare_view, "upload_rgb", lambda *a: calls.append(1) or real(*a))
-    rv = ReferenceView(gl_ctx, workers=0)
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=0.1, max_depth=1, workers=0, engine="cpu")
     try:
         assert rv.texture_for_display() is None and not calls
-        img = np.full((6, 8, 3), 0.5, np.float32)
-        with rv._lock:
-            rv._image, rv._image_spp = img, 4
+        rv.update(scene, cam, (80, 60))
+        assert _wait(lambda: rv.spp >= 1), rv.error
+        assert rv.stop()                 # no pass comes while the frames below are drawn
+        spp = rv.spp
         t = rv.texture_for_display()
         assert t is not None and len(calls) == 1
         for _ in range(5):   # frames without a new pass
             assert rv.texture_for_display() is t
         assert len(calls) == 1
-        with rv._lock:
-            rv._image, rv._image_spp = img * 2, 8   # a new pass
-        rv.texture_for_display()
+        rv.update(scene, cam, (80, 60))  # the same view again: it resumes from the cache
+        assert _wait(lambda: rv.spp > spp), rv.error
+        assert rv.stop()
+        rv.texture_for_display()         # a new pass
         assert len(calls) == 2
     finally:
         rv.close()
@@ -107,39 +113,43 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
         app = App("sphere", size=(480, 300), restore_state=False)
         s = app.session
         t0 = time.time()
-        while not app.idle() and time.time() - t0 < 90:   # programs warm up, the raster settles
+        while not app.idle() and time.time() - t0 < 300:   # programs warm up, the raster settles
             app.tick()
         out = dict(idle=app.idle())
         # nothing changes: one frame per IDLE_FRAME_S at most; a wake-up without input draws nothing
-        app.IDLE_FRAME_S = 3.0
+        # (IDLE_FRAME_S long, so that a bound far below it tells "woke on the event" from "waited")
+        app.IDLE_FRAME_S = 1.0
         app.tick()
+        app.IDLE_FRAME_S = 120.0
         n0, k0 = app.frame_count, app.frames_skipped
         threading.Timer(0.4, app.glfw.post_empty_event).start()
         t = time.perf_counter(); drew = app.tick()
         out.update(spurious=dict(drew=drew, s=time.perf_counter() - t, frames=app.frame_count - n0,
                                  skipped=app.frames_skipped - k0))
+        app.IDLE_FRAME_S = 1.0
         t = time.perf_counter(); drew = app.tick()   # then the timer's frame
         out.update(timer=dict(drew=drew, s=time.perf_counter() - t))
         # input (a resize: real window events through the callbacks) draws at once
+        app.IDLE_FRAME_S = 120.0
         app.glfw.set_window_size(app.window, 500, 300)
         t = time.perf_counter(); drew = app.tick()
         out.update(input=dict(drew=drew, s=time.perf_counter() - t))
         # the split view: each reference pass wakes the loop, which draws it at once
         s.set_image_mode("split")
-        app.IDLE_FRAME_S = 30.0
+        app.IDLE_FRAME_S = 600.0   # no timer frame: every frame below is a pass's
         t0 = time.time()
         while s.reference is None or s.reference.spp < 4:
             app.tick()
-            assert time.time() - t0 < 90, s.reference and s.reference.error
-        while not app.idle() and time.time() - t0 < 120:
+            assert time.time() - t0 < 300, s.reference and s.reference.error
+        while not app.idle() and time.time() - t0 < 400:
             app.tick()
         rv = s.reference
         spp, n0 = rv.spp, app.frame_count
         t = time.perf_counter()
-        while rv.spp < spp + 8 and time.perf_counter() - t < 25:
+        while rv.spp < spp + 8 and time.perf_counter() - t < 300:
             app.tick()
         out.update(passes=dict(spp=rv.spp - spp, frames=app.frame_count - n0, s=time.perf_counter() - t,
-                               idle=app.idle(), per=rv._renderer.samples_per_chunk()))
+                               idle=app.idle(), per=rv.samples_per_chunk()))
         app.glfw.set_window_should_close(app.window, True)
         app.run()
         print("RESULT " + json.dumps(out))
@@ -148,13 +158,15 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
     res = json.loads(next(ln for ln in r.stdout.splitlines() if ln.startswith("RESULT "))[7:])
     print(res)
     assert res["idle"]
-    # a wake-up that brought no input: no frame, and back well before IDLE_FRAME_S (3 s)
+    # a wake-up that brought no input: no frame, and back on the event, not after IDLE_FRAME_S
+    # (120 s; the bounds below are far from both, so a loaded machine meets them: no latency is
+    # asserted, only which of the two woke the loop)
     assert not res["spurious"]["drew"] and res["spurious"]["frames"] == 0 and res["spurious"]["skipped"] == 1
-    assert res["spurious"]["s"] < 2.5
+    assert res["spurious"]["s"] < 60, res["spurious"]
     assert res["timer"]["drew"]
-    assert res["input"]["drew"] and res["input"]["s"] < 2.0, res["input"]
-    # 8 more spp, in passes of ``per``: drawn as they came (well before IDLE_FRAME_S, 30 s), and no
-    # frame without a pass (two passes may come within one frame: at least one frame)
+    assert res["input"]["drew"] and res["input"]["s"] < 60, res["input"]
+    # 8 more spp, in passes of ``per``: drawn as they came (IDLE_FRAME_S is 600 s), and no frame
+    # without a pass (two passes may come within one frame: at least one frame)
     p = res["passes"]
-    assert p["spp"] >= 8 and p["idle"] and p["s"] < 25, p
+    assert p["spp"] >= 8 and p["idle"], p
     assert 1 <= p["frames"] <= p["spp"] // p["per"] + 1, p

@@ -161,31 +161,35 @@ class MonteCarloPanel:
         imgui.end()
 
     # ------------------------------------------------------------------ the view
-    def heat_map(self, ref_view):
-        """(map (H, W), linear RGB heat image) of the current error view, or None."""
-        got = ref_view.latest_variance() if ref_view is not None else None
-        if got is None or self.view == "off":
+    def heat_map(self, snap):
+        """(map (H, W), linear RGB heat image) of the current error view for one reference
+        snapshot (``ReferenceView.snapshot()``), or None (no snapshot, or the view is off)."""
+        if snap is None or self.view == "off":
             return None
-        mean, var, spp = got
-        err = error_view(self.view, mean, var, spp, self.target)
+        err = error_view(self.view, snap.mean, snap.variance, snap.spp, self.target)
         err = np.where(np.isfinite(err), err, 0.0)
         if self.auto_scale:
             self.scale = auto_scale(err)
         t = np.clip(err * (1023.0 / max(self.scale, 1e-30)), 0.0, 1023.0)
         return err, _LUT[t.astype(np.int32)]
 
+    def invalidate(self) -> None:
+        """Recompute the error map on the next ``draw_view`` even when nothing changed."""
+        self._key = None
+
     def draw_view(self, renderer, fbo, rect, ref_view) -> None:
         """Draw the error view into ``rect`` (framebuffer pixels) of ``fbo``, recomputed when the
         reference has a new pass or a setting changed."""
         if self.view == "off" or ref_view is None:
             return
-        got = ref_view.latest_variance()
-        if got is None:
+        snap = ref_view.snapshot()   # one pass for the key and the map alike
+        if snap is None:
             return
-        key = (id(got[1]), got[2], self.view, self.target, self.auto_scale, None if self.auto_scale else self.scale)
+        key = (snap.version, snap.spp, self.view, self.target, self.auto_scale,
+               None if self.auto_scale else self.scale)
         if key != self._key or self._tex is None:
             t0 = time.perf_counter()
-            err, rgb = self.heat_map(ref_view)
+            err, rgb = self.heat_map(snap)
             from viewer.app.compare_view import upload_rgb
 
             self._tex = upload_rgb(self.ctx, self._tex, rgb)

@@ -32,8 +32,17 @@ from __future__ import annotations
 import copy
 import threading
 import time
+from typing import NamedTuple
 
 import numpy as np
+
+
+class ReferenceSnapshot(NamedTuple):
+    """One published pass of the reference (``ReferenceView.snapshot``)."""
+    mean: np.ndarray       # (H, W, 3) float32
+    variance: np.ndarray   # variance of the mean, (H, W, 3) float32
+    spp: int
+    version: int           # ReferenceView.version when it was taken
 
 
 def scene_key(scene, camera, size) -> str:
@@ -109,6 +118,47 @@ class ReferenceView:
     @property
     def spp(self) -> int:
         return self._image_spp
+
+    @property
+    def key(self):
+        """Everything the current image depends on, as text (None while stopped or paused);
+        a change of scene, camera, size or estimator option gives another key."""
+        return self._key
+
+    @property
+    def busy(self) -> bool:
+        """The background thread is running a CPU job."""
+        return self._busy
+
+    @property
+    def has_thread(self) -> bool:
+        """The background thread is alive (False before the first restart and after close)."""
+        thread = self._thread
+        return thread is not None and thread.is_alive()
+
+    @property
+    def active_engine(self):
+        """The engine holding a renderer now: "gpu", "cpu", or None."""
+        if self._gpu is not None:
+            return "gpu"
+        return "cpu" if self._renderer is not None else None
+
+    @property
+    def setup(self):
+        """The ``RenderSetup`` of the renderer the view holds (its scene, camera, estimator
+        options), or None before the first job."""
+        renderer = self._gpu if self._gpu is not None else self._renderer
+        return None if renderer is None else renderer.setup
+
+    def samples_per_chunk(self):
+        """Samples per pixel of one pass of the CPU engine (None when it holds no renderer)."""
+        renderer = self._renderer
+        return None if renderer is None else renderer.samples_per_chunk()
+
+    def worker_pids(self) -> list[int]:
+        """Process ids of the CPU engine's worker processes (none without a pool)."""
+        renderer = self._renderer
+        return [] if renderer is None else renderer.worker_pids()
 
     @property
     def needs_frames(self) -> bool:
@@ -355,12 +405,20 @@ class ReferenceView:
                 return None
             return self._image, self._image_spp
 
-    def latest_variance(self):
-        """(mean, variance of the mean, spp) of the newest pass, or None before the first."""
+    def snapshot(self):
+        """The newest pass as one ``ReferenceSnapshot`` (mean, variance of the mean, spp,
+        version), or None before the first. Its arrays are never written again (each pass
+        publishes new ones), so everything computed from one snapshot agrees with itself while
+        the background job keeps adding passes: take one and hand it to every consumer."""
         with self._lock:
             if self._image is None or self._variance is None:
                 return None
-            return self._image, self._variance, self._image_spp
+            return ReferenceSnapshot(self._image, self._variance, self._image_spp, self.version)
+
+    def latest_variance(self):
+        """(mean, variance of the mean, spp) of the newest pass, or None before the first."""
+        s = self.snapshot()
+        return None if s is None else (s.mean, s.variance, s.spp)
 
     def texture_for_display(self):
         """The latest image as a float texture (None until the first pass is done)."""

@@ -328,6 +328,15 @@ class ReferenceRenderer:
             return []
         return self._pool.submit(_worker_modules).result()
 
+    def worker_pids(self) -> list[int]:
+        """The process ids of the worker processes started so far (none with ``workers=0``),
+        so that a caller (a test) can watch exactly these and no other process."""
+        pool = self._pool
+        if pool is None:
+            return []
+        # concurrent.futures names a pool's processes only in this attribute
+        return sorted(getattr(pool, "_processes", None) or {})
+
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
