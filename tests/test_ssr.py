@@ -263,3 +263,83 @@ def test_hiz_trace_matches_dda(renderer):
           f"max hit distance {d_px.max():.3f} px, max image difference {np.abs(img0 - img1).max():.2e}")
     assert agree >= 0.99
     assert np.all(d_px <= 1.5)
+
+
+# ---------------------------------------------------------------- a ball touching a mirror floor
+# A Lambert ball (albedo 0.8, 0.3, 0.1) 0.02 above a mirror floor under a constant environment,
+# one frame at 128 x 128 (no temporal filter): the reflection's upper edge (rays grazing the
+# ball's underside), the contact (the underside the camera cannot see) and the ball's lower
+# silhouette (pixels that mix ball and floor) are where SSR went wrong.
+
+def _contact_scene(tmp_path, ssr):
+    from scene_text import scene as join
+
+    text = join(camera([0.0, 1.0, 3.2], [0.0, 0.3, 0.0], 40.0, 128, 128, up=[0.0, 1.0, 0.0]),
+                environment(constant=[0.5, 0.5, 0.5]), render(ibl="split_sum", ssr=ssr),
+                obj("sphere", "ball", translate=[0.0, 0.52, 0.0], scale=0.5), obj("plane", "floor", scale=3.0),
+                material("ball", model="lambert", albedo=[0.8, 0.3, 0.1]), material("floor", **MIRROR_NO_FRESNEL))
+    p = tmp_path / f"contact_{ssr}.toml"
+    p.write_text(text)
+    return load_scene(str(p))
+
+
+def _reflects_ball(scene, n=128):
+    """Floor pixels whose mirrored ray meets the ball (analytic sphere), and those whose hit point
+    the camera sees (the rest lie on its underside, hidden behind the ball)."""
+    from render_util import camera_rays, hit_plane_y
+
+    c = scene.camera
+    o = np.asarray(c.position, float)
+    centre, r = np.array([0.0, 0.52, 0.0]), 0.5
+
+    def ball(origin, d):
+        oc = origin - centre
+        b = np.sum(oc * d, -1)
+        disc = b * b - (np.sum(oc * oc, -1) - r * r)
+        t = -b - np.sqrt(np.maximum(disc, 0.0))
+        return np.where((disc > 0) & (t > 1e-6), t, np.inf)
+
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, n, n)
+    tf = hit_plane_y(c.position, d, 0.0)
+    floor = np.isfinite(tf) & (tf < ball(o, d))
+    p = o + d * np.where(np.isfinite(tf), tf, 0.0)[..., None]
+    rd = d * np.array([1.0, -1.0, 1.0])
+    ts = ball(p, rd)
+    hit = floor & np.isfinite(ts)
+    q = p + rd * np.where(np.isfinite(ts), ts, 0.0)[..., None]
+    v = q - o
+    dist = np.maximum(np.linalg.norm(v, axis=-1), 1e-9)
+    seen = hit & (np.abs(ball(np.broadcast_to(o, q.shape), v / dist[..., None]) - dist) < 1e-3)
+    return hit, seen
+
+
+def test_ball_touching_mirror_floor(tmp_path, renderer):
+    pathtracer = pytest.importorskip("viewer.pathtracer")
+    scene = _contact_scene(tmp_path, True)
+    with_ssr = renderer.render_arrays(scene)[0]
+    hit_view = _hit_mask(renderer, scene)
+    without = renderer.render_arrays(_contact_scene(tmp_path, False))[0]
+    ref = pathtracer.ReferenceRenderer(scene, camera=OrbitCamera.from_scene(scene), max_depth=4, seed=5, workers=2)
+    try:
+        ref.step(128)
+        mean = ref.mean()
+    finally:
+        ref.close()
+    region, seen = _reflects_ball(scene)
+    e_ssr = float(np.sqrt(np.mean((with_ssr[region] - mean[region]) ** 2)))
+    e_off = float(np.sqrt(np.mean((without[region] - mean[region]) ** 2)))
+    hits = float((hit_view[seen] > 0.5).mean())
+    print(f"ball on a mirror: {region.sum()} px reflect it, RMSE with SSR {e_ssr:.4f}, without {e_off:.4f} "
+          f"(ratio {e_ssr / e_off:.3f}); SSR hits on {hits:.4f} of the {seen.sum()} px whose point is seen")
+    # Measured 0.148 (0.475 with a fixed 0.05 thickness against the pixel centre's depth, no
+    # back faces and the 8-bit copy of the colour; 0.31 in the release before those). What is
+    # left is what a rasterizer does not have: the darkening of the ball's underside by the floor
+    # and of the floor by the ball near the contact (no occlusion: about half of what remains),
+    # and the reflection's outline at pixel resolution against the reference's box filter.
+    assert e_ssr < 0.2 * e_off
+    # rays to points the camera sees find them (measured 0.994; 0.89 before: a speckled edge)
+    assert hits > 0.97
+    # pixels SSR does not hit are the SSR-off image exactly (the ball's silhouette over the
+    # floor was dark: its pixels mix ball and floor and lost the floor's environment term)
+    miss = hit_view == 0.0
+    assert np.abs(with_ssr[miss] - without[miss]).max() < 1e-5

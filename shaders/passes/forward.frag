@@ -55,8 +55,9 @@ uniform int u_mat_base;
 #endif
 
 #ifdef SSR
-// Screen-space reflections (viewer/gl/ssr.py): the radiance without the specular environment
-// term, that term's weight rho_s and lobe width, and the geometry the SSR pass traces against.
+// Screen-space reflections (viewer/gl/ssr.py): the radiance (with the specular environment term,
+// as without SSR), that term's weight rho_s and lobe width, and the geometry the SSR pass traces
+// against.
 layout(location = 0) out vec4 frag_color;
 layout(location = 1) out vec4 frag_spec;   // rho_s, alpha of the specular part
 layout(location = 2) out vec4 frag_geom;   // world shading normal, linear view depth
@@ -216,11 +217,8 @@ void main() {
                 // environment around the mirror direction times the lobe's albedo; the diffuse
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
                 // environment; no occlusion.
-#ifdef SSR
-                radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI;  // rho_s * L_spec: the SSR pass
-#else
+                // (with SSR the pass replaces the specular term where its ray hits the scene)
                 radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
-#endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
                     // energy; bounces return the geometric series F_ms = FssEss F_avg /

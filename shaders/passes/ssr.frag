@@ -2,7 +2,7 @@
 // Screen-space reflections: the specular environment term of the forward pass, replaced by the
 // scene's own radiance where the reflected ray hits something on screen.
 //
-// Inputs (viewer/gl/ssr.py): the forward pass's radiance without its specular environment term
+// Inputs (viewer/gl/ssr.py): the forward pass's radiance, its specular environment term included
 // (u_color, with a mip chain), the specular weight rho_s and the lobe width alpha (u_spec), and
 // the world-space shading normal with the linear view depth (u_geom; 0 where there is no
 // surface). MSAA resolves average those over a pixel's samples, so a silhouette pixel holds
@@ -43,6 +43,9 @@ uniform int u_hiz;            // 0: the linear DDA over every stride; 1: skip em
 uniform sampler2D u_hiz_tex;  // Hi-Z pyramid: level k = min (closest) linear depth over 2x2 of k - 1
 uniform int u_hiz_max_level;
 uniform int u_hiz_max_iter;
+uniform sampler2D u_back;    // distance from the camera to the nearest back face (0: none)
+uniform int u_back_on;
+uniform float u_max_slope;   // the largest depth change per pixel a surface is given (edge-on planes)
 uniform float u_min_coverage; // a pixel whose normals average shorter than this is no hit (silhouettes)
 uniform int u_jitter;         // 1: start each ray a random fraction of a stride along (u_frame_index's set)
 uniform int u_frame_index;
@@ -90,17 +93,59 @@ float ray_depth(Ray2D r, float t) { return -(r.q0 + r.dq * t) / (r.k0 + r.dk * t
 
 bool inside(vec2 px) { return all(greaterThanEqual(px, vec2(0.0))) && all(lessThan(px, u_size)); }
 
+// The surface seen at pixel p, taken as its tangent plane (the pixel's normal through the point
+// at its centre's depth): its depth along the view ray through the continuous screen position
+// px, and how much that depth changes per pixel of screen motion there (|d depth / d px|). A
+// surface at a grazing angle to the view changes depth by far more than any fixed thickness
+// within one pixel, so comparing the ray with the pixel centre's depth missed rays that hit it
+// (a speckled edge on a reflected sphere). `far` is how deep the surface reaches: a closed
+// object's nearest back face (u_back) plus the thickness, so a ray that passes behind its front
+// but inside the object hits it (the reflection of a ball's underside, which the camera cannot
+// see: without this a band of background where the ball touches a mirror floor) and one that
+// passes behind the object misses; a one-sided surface (no back face behind it) reaches its
+// front's spread over half a step plus the thickness. Returns 0 where there is no surface (or
+// a silhouette pixel, see scene_depth).
+float surface_depth(ivec2 p, vec2 px, out float spread, out float far) {
+    spread = 0.0;
+    far = 0.0;
+    vec4 g = texelFetch(u_geom, p, 0);
+    float cov = length(g.xyz);
+    if (cov <= u_min_coverage) return 0.0;
+    float zc = g.w / cov;
+    vec3 n = mat3(u_view) * (g.xyz / cov);
+    vec3 pc = view_position(vec2(p) + 0.5, zc);
+    vec3 d = vec3((px / u_size * 2.0 - 1.0) * u_tan_half, -1.0);  // view ray with depth 1
+    vec2 dd = 2.0 * u_tan_half / u_size;                          // d's change per pixel
+    float nd = dot(n, d);
+    float z = zc, slope = u_max_slope;
+    if (abs(nd) > 1e-3 * length(d)) {  // nearly edge-on planes keep the centre's depth
+        // the plane's depth at px, within one pixel's worth of depth change of the centre's
+        slope = min(abs(dot(n, pc) / (nd * nd)) * length(n.xy * dd), u_max_slope);
+        z = clamp(dot(n, pc) / nd, zc - slope, zc + slope);
+    }
+    spread = slope * 0.5 * u_stride;
+    far = z + spread + u_thickness;
+    if (u_back_on != 0) {
+        vec3 dc = vec3((vec2(p) + 0.5) / u_size * 2.0 - 1.0, 0.0) * vec3(u_tan_half, 0.0) - vec3(0.0, 0.0, 1.0);
+        float zb = texelFetch(u_back, p, 0).r / length(dc);  // distance -> linear depth
+        if (zb > zc) far = zb;
+    }
+    return z;
+}
+
 // One step of the DDA at step t (an integer): 0 no hit, 1 hit, 2 off screen (the trace ends).
-// The depth interval the ray spans over this pixel: from the previous step's end to half a
-// step ahead (the paper's half-pixel extents).
+// The depth interval the ray spans over this step: from the previous step's end to half a
+// step ahead (the paper's half-pixel extents); it hits when it overlaps the surface's, from
+// its front (less its spread over half a step) to `far`.
 int dda_step(Ray2D r, float t, float t_end) {
     vec2 px = ray_px(r, t);
     if (!inside(px)) return 2;
     float prev = t <= 1.0 ? ray_depth(r, 0.0) : ray_depth(r, min(t - 0.5, t_end + 1.0));
     float cur = ray_depth(r, min(t + 0.5, t_end + 1.0));
     float dmin = min(prev, cur), dmax = max(prev, cur);
-    float zs = scene_depth(ivec2(px));
-    return (zs > 0.0 && dmax >= zs && dmin <= zs + u_thickness) ? 1 : 0;
+    float spread, far;
+    float zs = surface_depth(ivec2(px), px, spread, far);
+    return (zs > 0.0 && dmax >= zs - spread && dmin <= far) ? 1 : 0;
 }
 
 // Bisection between the last step that was in front (t - 1) and the hit at step t.
@@ -109,9 +154,10 @@ vec2 refine(Ray2D r, float t) {
     for (int j = 0; j < u_refine_steps; ++j) {
         float mid = 0.5 * (lo + hi);
         vec2 pm = ray_px(r, mid);
-        float zm = scene_depth(ivec2(pm));
+        float spread, far;
+        float zm = surface_depth(ivec2(pm), pm, spread, far);
         float rd = ray_depth(r, mid);
-        if (zm > 0.0 && rd >= zm && rd <= zm + u_thickness) hi = mid; else lo = mid;
+        if (zm > 0.0 && rd >= zm && rd <= far) hi = mid; else lo = mid;
     }
     return ray_px(r, hi);
 }
@@ -155,7 +201,9 @@ bool trace_hiz(Ray2D r, float t_end, out vec2 hit_px, out float steps) {
         float a = u <= 1.0 ? 0.0 : min(u - 0.5, t_end + 1.0);
         float b = min(u_exit + 0.5, t_end + 1.0);
         float dmax = max(ray_depth(r, a), ray_depth(r, b));
-        if (dmax < zmin) {
+        // (a step hits from the surface's front less its spread, at most u_max_slope over
+        // half a step: the cell is skipped only in front of that)
+        if (dmax < zmin - u_max_slope * 0.5 * u_stride) {
             u = u_exit;
             level = min(level + 1, u_hiz_max_level);
             continue;
@@ -231,8 +279,12 @@ void main() {
     vec4 g = texelFetch(u_geom, p, 0);
     float cov = length(g.xyz);
     vec3 rho_s = spec.rgb;
-    bool surface = cov > 0.5 && any(greaterThan(rho_s, vec3(0.0)));
-    vec3 reflected = vec3(0.0);
+    // a pixel whose samples saw different surfaces (a silhouette: cov <= u_min_coverage) has no
+    // one normal to reflect about; it keeps the forward pass's resolved radiance, whose
+    // specular environment term is right for each sample (the dark pixels along a ball's
+    // silhouette over a mirror floor came from dropping that term there)
+    bool surface = cov > u_min_coverage && any(greaterThan(rho_s, vec3(0.0)));
+    vec3 reflected = vec3(0.0), env = vec3(0.0);
     float hit = 0.0, steps = 0.0;
     vec2 hit_uv = vec2(0.0);
     if (surface) {
@@ -243,7 +295,7 @@ void main() {
         vec3 n_v = normalize(mat3(u_view) * n_w);
         vec3 R = reflect(normalize(P), n_v);
         vec3 r_w = transpose(mat3(u_view)) * R;  // view -> world (rotation)
-        vec3 env = u_env_on != 0 ? env_prefiltered(r_w, alpha) : vec3(0.0);
+        env = u_env_on != 0 ? env_prefiltered(r_w, alpha) : vec3(0.0);
         reflected = env;
         if (alpha <= u_max_roughness) {
             vec2 hp;
@@ -262,14 +314,19 @@ void main() {
                 // mip chain (the cone of half-angle ~alpha over the hit distance in pixels)
                 float lod = 0.0;
                 if (alpha > 0.05) lod = clamp(log2(max(1.0, alpha * length(hp - gl_FragCoord.xy))), 0.0, u_max_lod);
-                vec3 c = textureLod(u_color, hit_uv, lod).rgb;
+                // a sharp reflection reads the hit pixel itself: a bilinear lookup near a
+                // silhouette mixes in the neighbour behind it (a mirror floor's own colour
+                // there is black: dark streaks across the reflection's edge)
+                vec3 c = lod > 0.0 ? textureLod(u_color, hit_uv, lod).rgb : texelFetch(u_color, ivec2(hp), 0).rgb;
                 reflected = mix(env, c, fade);
                 hit = fade;
             }
         }
     }
+    // base holds rho_s * env already (the forward pass's split sum, the same lookup): add the
+    // difference, so a miss is the SSR-off pixel exactly
     vec3 ssr = rho_s * reflected;
-    if (u_debug == SSR_DEBUG_COMPOSITE) frag_color = vec4(base + ssr, 1.0);
+    if (u_debug == SSR_DEBUG_COMPOSITE) frag_color = vec4(base + ssr - rho_s * env, 1.0);
     else if (u_debug == SSR_DEBUG_HIT) frag_color = vec4(surface ? vec3(hit) : vec3(0.0, 0.0, 0.25 * float(cov > 0.5)), 1.0);
     else if (u_debug == SSR_DEBUG_STEPS) frag_color = vec4(surface ? false_colour(steps / float(u_max_steps)) : vec3(0.0), 1.0);
     else if (u_debug == SSR_DEBUG_UV) frag_color = vec4(hit > 0.0 ? vec3(hit_uv, 0.0) : vec3(0.0), 1.0);

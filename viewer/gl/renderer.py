@@ -121,6 +121,7 @@ class Renderer:
         self._shadows = ShadowMaps(ctx)
         self.tables = MaterialTables(ctx)
         self._thick = ThicknessPass(ctx)
+        self._ssr_back = ThicknessPass(ctx)  # the nearest back face of every object, for SSR hits
         self._ibl = None
         self._ssr = None
         self._rt = None
@@ -513,8 +514,13 @@ class Renderer:
     def _finish(self, scene, f: _Frame, frame_index: int):
         """The SSR pass (which resolves and traces), or the MSAA resolve; the linear HDR texture."""
         if f.ssr_on:
+            # what lies behind each visible surface: the distance to the nearest back face (0 where
+            # none, e.g. a one-sided floor), so a reflected ray passing behind a closed object's
+            # front within the object hits it and one passing behind the object does not
+            back = self._ssr_back.render(scene.objects, f.cam, f.w, f.h,
+                                         self._programs.get("thickness", _THICKNESS), self._mesh_vao)
             return self._ssr.resolve_and_trace(self._ibl, f.cam, f.w, f.h, f.env_on, scene.environment.rotation_deg,
-                                               f.ssr_debug, frame_index)
+                                               f.ssr_debug, frame_index, back=back)
         t = f.targets
         if t["draw_fbo"] is not t["resolved_fbo"]:
             self.ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])
@@ -595,7 +601,7 @@ class Renderer:
         if self._ldr:
             self._ldr[1].release()
             self._ldr[0].release()
-        for part in (self._thick, self._ibl, self._ssr, self.tables, self._rt, self._measured):
+        for part in (self._thick, self._ssr_back, self._ibl, self._ssr, self.tables, self._rt, self._measured):
             if part is not None:
                 part.release()
         self._programs.release()

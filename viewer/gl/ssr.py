@@ -4,7 +4,7 @@ the scene's own radiance where the reflected ray hits something visible on scree
 When ``scene.render.ssr`` is on, the renderer draws the forward pass (compiled with ``SSR``
 defined) into this class's targets: three colour attachments, MSAA like the ordinary pass:
 
-0. the radiance without the specular environment term ``rho_s * L_env``,
+0. the radiance, with the specular environment term ``rho_s * L_env`` as without SSR,
 1. ``rho_s`` (the specular part's directional albedo at wo, the weight of that term) and the
    lobe width ``alpha``,
 2. the world-space shading normal and the linear view depth (0 where no surface).
@@ -22,6 +22,14 @@ split sum (the ``ibl`` mode's sampled variants mix the specular part into their 
 Parameters (published defaults): bias 0.01 and maximum distance 3 (Filament),
 thickness 0.05 (0.2 streaked), maximum roughness 0.5, edge fade 0.075 (EEVEE); a stride of 2 pixels stands for
 EEVEE's trace precision, with 6 bisection steps after the stride.
+
+What a step hits (ssr.frag, ``surface_depth``): the pixel's surface is its tangent plane, so its
+depth is taken at the ray's own screen position with a spread of its slope over half a step
+(at most ``max_slope`` per pixel): grazing surfaces change depth by more than the thickness
+within a pixel. Behind the front, a closed object reaches to its nearest back face (the
+renderer's thickness pass over every object, ``back``), a one-sided surface by the thickness:
+a ray through a ball hits it, one passing behind it does not. One frame is the answer: the
+per-frame jitter of the ray start (``jitter``) is off by default.
 
 Hi-Z (``settings["hiz"]``, on by default; 0 = the plain DDA, kept for comparison): each frame a
 pyramid of the linear view depth is built (``build_hiz``: level k = the minimum, the closest
@@ -59,7 +67,8 @@ SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
 class SSR:
     settings = {"max_distance": 3.0, "thickness": 0.05, "bias": 0.01, "stride": 2.0, "max_steps": 320,
                 "refine_steps": 6, "max_roughness": 0.5, "edge_fade": 0.075,
-                "hiz": True, "hiz_build": "gpu", "hiz_max_iter": 2048, "jitter": True, "min_coverage": 0.97}
+                "hiz": True, "hiz_build": "gpu", "hiz_max_iter": 2048, "jitter": False, "min_coverage": 0.97,
+                "max_slope": 0.25}
 
     def __init__(self, ctx):
         self.ctx = ctx
@@ -211,9 +220,11 @@ class SSR:
         return out
 
     def resolve_and_trace(self, ibl, cam, w, h, env_on: bool, rotation_deg: float, debug: int = 0,
-                          frame_index: int = 0):
+                          frame_index: int = 0, back=None):
         """Resolve the forward targets, build the colour mip chain and run the SSR pass; returns
-        the output texture (linear RGBA32F)."""
+        the output texture (linear RGBA32F). ``back``: the distance from the camera to the nearest
+        back face per pixel (R32F, 0 where none; the renderer's thickness pass over every object),
+        the far side of what each pixel shows."""
         import time
 
         ctx = self.ctx
@@ -221,7 +232,9 @@ class SSR:
         if t["draw_fbo"] is not t["resolved_fbo"]:
             ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])  # every attachment
         t0 = time.perf_counter()
-        ctx.copy_framebuffer(t["mip"], t["color_fbo"])
+        # framebuffer to framebuffer (a blit keeps the float values; a copy into the texture
+        # itself went through an 8-bit format: reflections quantized and clamped at 1)
+        ctx.copy_framebuffer(t["mip_fbo"], t["color_fbo"])
         t["mip"].build_mipmaps(0, t["levels"] - 1)
         view = cam.view()
         proj = cam.projection(w / h)
@@ -236,6 +249,10 @@ class SSR:
         _set(prog, "u_hiz", int(s["hiz"]))
         _set(prog, "u_hiz_max_level", len(t["hiz_sizes"]) - 1)
         _set(prog, "u_hiz_max_iter", int(s["hiz_max_iter"]))
+        _set(prog, "u_back_on", int(back is not None))
+        if back is not None:
+            back.use(location=12)  # above the units ibl.bind takes
+            _set(prog, "u_back", 12)
         for i, name in enumerate(("u_color", "u_spec", "u_geom")):
             tex = t["mip"] if i == 0 else t["resolved"][i]
             tex.use(location=i)
@@ -258,6 +275,7 @@ class SSR:
         _set(prog, "u_env_on", int(env_on))
         _set(prog, "u_debug", int(debug))
         _set(prog, "u_min_coverage", float(s["min_coverage"]))
+        _set(prog, "u_max_slope", float(s["max_slope"]))
         _set(prog, "u_jitter", int(bool(s["jitter"])))
         _set(prog, "u_frame_index", int(frame_index))
         ibl.bind(prog, rotation_deg)
