@@ -36,7 +36,7 @@ def lecture_scene_names() -> list[str]:
 
 
 def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
-    from viewer.lecture import TOUR, step_label
+    from viewer.lecture import TOUR, tour_scene
 
     n = len(TOUR)
     text = m.group(0)
@@ -46,8 +46,7 @@ def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
     i = int(m.group(1))
     if not 1 <= i <= n:
         Checker(text).fail("scene", f"step {i} is out of range", allowed)
-    data = loads_toml(TOUR[i - 1].toml, step_label(i - 1))
-    return parse_scene(data, None, overrides, label=step_label(i - 1), base_dir=SCENE_DIR, load_meshes=load_meshes)
+    return tour_scene(i - 1, load_meshes, overrides)
 
 
 def _builtin_label(name: str) -> str:
