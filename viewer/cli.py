@@ -408,9 +408,10 @@ def cmd_models(args) -> int:
 
 
 def _describe_param(p, indent="    ") -> str:
+    from viewer.brdf import lookup_spec
     from viewer.brdf.spec import default_value
 
-    d = default_value(p)
+    d = default_value(p, lookup_spec)
     if p.kind == "rgb":
         dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
     elif p.kind in ("table", "lobes", "material"):
