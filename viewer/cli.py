@@ -8,14 +8,7 @@ import time
 
 import viewer
 from viewer import ViewerError
-
-COMMANDS = ("render", "reference", "compare", "bake", "plot", "models", "fit")
-HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
-                 "brdf-viewer reference SCENE --spp 64 --out ref.png | brdf-viewer compare SCENE --spp 64 "
-                 "--out folder | brdf-viewer bake SCENE --spp 256 | brdf-viewer plot MODEL --kind polar "
-                 "--out plot.png | brdf-viewer fit FILE.binary --model MODEL | brdf-viewer models (SCENE: a "
-                 ".toml file, a built-in name or lecture:N; see README)")
-
+from viewer.commands import COMMANDS, HEADLESS_HINT
 
 ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
                "GPU, else whichever measured faster here; the choice is printed)")
@@ -136,75 +129,17 @@ def _parser_plot() -> argparse.ArgumentParser:
     return p
 
 
-def _plot_material(name: str, assignments):
-    """Validated Params of a model (defaults) or preset, with --set KEY=VALUE applied; KEY is a
-    parameter name, dotted into tables and nested materials (coating.ior, base.albedo,
-    lobes.0.n). The path and the value are read by the scene's ``--set`` (``apply_override``)."""
-    from viewer import brdf
-    from viewer.brdf.presets import PRESETS, get_preset
-    from viewer.brdf.spec import validate_params
-    from viewer.scene import apply_override, dotted_key
-
-    if name.endswith(".binary"):  # a measured BRDF file (MERL format)
-        raw = {"model": "measured", "file": name}
-    elif name.endswith(".toml"):
-        from viewer.scene import load_material_file
-
-        raw = load_material_file(name)[1].to_plain()
-    elif name in brdf.names():
-        raw = {"model": name}
-    elif name in PRESETS:
-        raw = get_preset(name)
-    else:
-        raise ViewerError(f"MODEL: {name!r} is not a BRDF model or preset; allowed: models "
-                          f"{', '.join(brdf.names())}; presets {', '.join(sorted(PRESETS))}")
-    for a in assignments:
-        if "=" not in a:
-            raise ViewerError(f"--set {a}: no '=' in the assignment; allowed: KEY=VALUE with a parameter "
-                              "name, e.g. alpha=0.2 or coating.ior=1.3")
-        key = dotted_key(a.split("=", 1)[0])  # lobes[0].n = lobes.0.n, as apply_override
-        parts = key.split(".")
-        if not all(parts):
-            raise ViewerError(f"--set {a}: empty part in {key!r}; allowed: a parameter name, dotted "
-                              "into tables (coating.ior)")
-        model_name = raw.get("model")
-        spec = brdf.lookup_spec(model_name, "--set model") if isinstance(model_name, str) else None
-        if spec is not None and len(parts) == 1:
-            # aliases (microfacet: alpha -> alpha_x, alpha_y): the newer assignment wins
-            for alias, targets in spec.aliases.items():
-                if parts[0] == alias:
-                    for t in targets:
-                        raw.pop(t, None)
-                elif parts[0] in targets and alias in raw:
-                    v = raw.pop(alias)
-                    for t in targets:
-                        raw[t] = v
-        if len(parts) > 1 and raw.get(parts[0]) is None:
-            # a table, list or nested material not given yet: start from its defaults (an unknown
-            # name gets an empty table, which validation below names)
-            known = spec is not None and parts[0] in spec.names
-            raw[parts[0]] = brdf.get(model_name).params().to_plain()[parts[0]] if known else {}
-        apply_override(raw, a)
-    model = raw.pop("model")
-    if not isinstance(model, str):
-        raise ViewerError(f"--set model: expected a model name; allowed: {', '.join(brdf.names())}")
-    spec = brdf.lookup_spec(model, "--set model")
-    return validate_params(spec, raw, model, brdf.lookup_spec)
-
-
-plot_material = _plot_material  # public: the fit command reads its --set the same way
-
-
 def cmd_plot(args) -> int:
     from viewer import plots
     from viewer.io import check_output_path
+    from viewer.scene import material_from_name
 
     out = check_output_path(args.out, (".png",), "--out")
     data = check_output_path(args.data, (".json",), "--data") if args.data else None
     plots.check_kind_name(args.kind)
     plots.check_channel(args.channel)
-    p = _plot_material(args.model, args.overrides)
-    overlay = _plot_material(args.overlay, []) if args.overlay else None
+    p = material_from_name(args.model, args.overrides)
+    overlay = material_from_name(args.overlay, []) if args.overlay else None
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
                        inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed,
                        overlay=overlay)
@@ -473,9 +408,10 @@ def cmd_models(args) -> int:
 
 
 def _describe_param(p, indent="    ") -> str:
+    from viewer.brdf import lookup_spec
     from viewer.brdf.spec import default_value
 
-    d = default_value(p)
+    d = default_value(p, lookup_spec)
     if p.kind == "rgb":
         dv = "[" + ", ".join(f"{x:g}" for x in d) + "]"
     elif p.kind in ("table", "lobes", "material"):

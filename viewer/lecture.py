@@ -161,9 +161,14 @@ def step_label(index: int) -> str:
     return f"<lecture {i + 1}: {TOUR[i].key}>"
 
 
-def tour_scene(index: int, load_meshes: bool = True):
-    """The tour's step ``index`` (0-based) as a validated ``Scene``; the same as the built-in
-    scene name ``lecture:{index + 1}`` (``viewer.scene.load_scene``)."""
-    from viewer.scene import load_scene
+def tour_scene(index: int, load_meshes: bool = True, overrides=()):
+    """The tour's step ``index`` (0-based) as a validated ``Scene``, ``overrides`` (``--set``)
+    applied; the built-in scene name ``lecture:{index + 1}`` (``viewer.scene.load_scene``) is
+    this scene."""
+    from viewer.resources import SCENE_DIR
+    from viewer.scene.parse import parse_scene
+    from viewer.scene.validation import loads_toml
 
-    return load_scene(f"lecture:{index % len(TOUR) + 1}", load_meshes=load_meshes)
+    i = index % len(TOUR)
+    data = loads_toml(TOUR[i].toml, step_label(i))
+    return parse_scene(data, None, overrides, label=step_label(i), base_dir=SCENE_DIR, load_meshes=load_meshes)

@@ -28,14 +28,13 @@ def parser() -> argparse.ArgumentParser:
 def cmd_fit(args) -> int:
     from viewer import brdf, plots
     from viewer.brdf import fit, merl
-    from viewer.cli import plot_material
     from viewer.io import check_output_path
-    from viewer.scene import save_material
+    from viewer.scene import material_from_name, save_material
 
     out = check_output_path(args.out, (".toml",), "--out")
     res_png = check_output_path(args.residual, (".png",), "--residual") if args.residual else None
     table = merl.read(args.file)
-    start = plot_material(args.model, args.overrides)
+    start = material_from_name(args.model, args.overrides)
     spec = brdf.get(start.model).spec
     for name in args.fix:
         if name not in spec.names:

@@ -114,7 +114,7 @@ class App:
 
     def _open_window(self, size, title):
         glfw = self.glfw
-        from viewer.cli import HEADLESS_HINT
+        from viewer.commands import HEADLESS_HINT
 
         if not glfw.init():
             raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")

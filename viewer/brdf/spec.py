@@ -53,6 +53,9 @@ class Param:
     spectral_table: bool = False
     # path: check(value, where) raises ViewerError when the file is unusable
     check: object = None
+    # fills(value) -> {name: value}: the parameters beside it that its value implies where the
+    # file does not give them (a spectral table's ior, eta and k: viewer/brdf/spectral_fresnel.py)
+    fills: object = None
 
     def __post_init__(self):
         assert self.kind in KINDS, self.kind
@@ -291,13 +294,11 @@ def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, loo
             out[f.name] = validate_value(f, raw[f.name], f"{where}.{f.name}", lookup_spec)
         else:
             out[f.name] = default_value(f, lookup_spec)
-    if out.get("spectral", "none") != "none":
-        # a spectral material's scalar indices follow its table unless the file gives them
-        from viewer.brdf.spectral_fresnel import rgb_defaults
-
-        for key, value in rgb_defaults(out["spectral"]).items():
-            if key in names and key not in raw:
-                out[key] = value
+    for f in fields:
+        if f.fills is not None:
+            for key, value in f.fills(out[f.name]).items():
+                if key in names and key not in raw:
+                    out[key] = value
     return Params(model, out)
 
 
@@ -310,9 +311,7 @@ def default_value(f: Param, lookup_spec=None):
         return validate_fields(f.fields, dict(d or {}), f.name, "")
     if f.kind == "lobes":
         return [validate_fields(f.fields, dict(x), f.name, "") for x in d]
-    if f.kind == "material":
-        if lookup_spec is None:
-            from viewer.brdf import lookup_spec
+    if f.kind == "material":  # needs the registry's lookup_spec (viewer.brdf.lookup_spec)
         return validate_value(f, dict(d), f.name, lookup_spec)
     return d
 

@@ -96,6 +96,12 @@ def rgb_defaults(name: str) -> dict:
     return out
 
 
+def implied_scalars(name: str) -> dict:
+    """What a ``spectral`` choice fills in where the file does not give it: nothing for
+    ``none``, else ``rgb_defaults``."""
+    return {} if name == NONE else rgb_defaults(name)
+
+
 def param(dielectric_only: bool = False):
     """The ``spectral`` parameter of a model's spec."""
     from viewer.brdf.spec import Param
@@ -104,8 +110,8 @@ def param(dielectric_only: bool = False):
         return Param("spectral", "choice", NONE,
                      "a tabulated dielectric (viewer.spectral): ior becomes its n at 587.56 nm; the "
                      "spectral reference traces n(lambda) (dispersion)",
-                     choices=dielectric_choices())
+                     choices=dielectric_choices(), fills=implied_scalars)
     return Param("spectral", "choice", NONE,
                  "a tabulated material (viewer.spectral): the Fresnel colour becomes the spectral "
                  "integral of its n(lambda) + i k(lambda) at every angle, instead of eta, k / ior",
-                 choices=choices(), spectral_table=True)
+                 choices=choices(), spectral_table=True, fills=implied_scalars)

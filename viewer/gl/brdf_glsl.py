@@ -20,7 +20,7 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import spectral_fresnel
 from viewer.brdf.spec import ModelSpec, Param, Params
-from viewer.gl.shaders import ShaderError, shader_root
+from viewer.gl.shader_folder import ShaderError, shader_root
 
 MAT_VEC4 = 64  # size of the uniform block u_mat in vec4s (256 floats)
 
@@ -438,30 +438,8 @@ def glsl_u(params: Params, u: np.ndarray) -> np.ndarray:
     return np.concatenate([u[:, :2], np.zeros((len(u), 1))], axis=1)
 
 
-def _check() -> int:
-    """Compile every family (``python -m viewer.gl.brdf_glsl --check``)."""
-    from viewer.gl.context import create_offscreen_context
-    from viewer.gl.shaders import build_program
-
-    ctx = create_offscreen_context()
-    frag = ('#version 410 core\n#include "brdf/dispatch.glsl"\nuniform int u_model;\nin vec2 v_uv;\n'
-            "out vec4 color;\nvoid main() { vec3 wi = normalize(vec3(v_uv, 1.0)); vec3 wo = vec3(0.0, 0.0, 1.0);\n"
-            "    color = vec4(brdf_eval(u_model, 0, wi, wo) + brdf_terms(u_model, 0, wi, wo), 1.0); }\n")
-    vert = ("#version 410 core\nin vec2 in_pos; out vec2 v_uv;\n"
-            "void main() { v_uv = in_pos; gl_Position = vec4(in_pos, 0.0, 1.0); }\n")
-    try:
-        build_program(ctx, vertex_source=vert, fragment_source=frag)
-    except ShaderError as e:
-        print(e)
-        return 1
-    print("all BRDF families compile:", ", ".join(brdf.names()))
-    return 0
-
-
 if __name__ == "__main__":
     import sys
 
     if "--print" in sys.argv:
         print(generate_dispatch())
-        sys.exit(0)
-    sys.exit(_check())

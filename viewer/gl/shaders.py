@@ -5,7 +5,11 @@ back to the file they came from, and generated virtual files (``brdf/dispatch.gl
 Files are read from disk on every build (there is no source cache), from ``shader_root()``:
 the package's ``shaders/`` unless ``set_shader_root`` or the environment variable
 ``BRDF_VIEWER_SHADERS`` names another folder (tests point it at a temporary copy; hot reload
-in ``viewer/gl/hot_reload.py`` rebuilds programs when files there change)."""
+in ``viewer/gl/hot_reload.py`` rebuilds programs when files there change). The folder and
+``ShaderError`` live in ``viewer/gl/shader_folder.py``, below this module and the generated
+dispatch (``viewer/gl/brdf_glsl.py``), which both use them.
+
+``python -m viewer.gl.shaders --check`` compiles every BRDF family's GLSL."""
 
 from __future__ import annotations
 
@@ -14,8 +18,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from viewer import ViewerError
-from viewer.resources import SHADER_DIR
+from viewer.gl.shader_folder import SHADER_ROOT_ENV, ShaderError, set_shader_root, shader_root  # public here too
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 # Line numbers of included file k start at k * LINE_BASE (``#line``), so a compiler message
@@ -30,50 +33,6 @@ _ERR = [re.compile(r"(?P<file>\d+):(?P<line>\d+)\(\d+\)"),
 
 #: the generated include of the constants both sides share (viewer/gl/constants.py)
 GENERATED_CONSTANTS = "generated/constants.glsl"
-
-#: environment variable naming another shader folder (default: the package's shaders/)
-SHADER_ROOT_ENV = "BRDF_VIEWER_SHADERS"
-_root_override: Path | None = None
-
-
-def set_shader_root(path: str | os.PathLike | None) -> None:
-    """Read shaders from ``path`` from now on (None: back to the environment variable or the
-    package's shaders/). Programs already built are not affected until they are rebuilt."""
-    global _root_override
-    _root_override = None if path is None else Path(path).resolve()
-
-
-def shader_root() -> Path:
-    """The folder shader files are read from: ``set_shader_root``'s, else $BRDF_VIEWER_SHADERS,
-    else the package's shaders/ (never the working folder)."""
-    if _root_override is not None:
-        return _root_override
-    env = os.environ.get(SHADER_ROOT_ENV)
-    return Path(env).resolve() if env else SHADER_DIR
-
-
-class ShaderError(ViewerError):
-    """A shader failed to compile or link; ``.file`` and ``.line`` locate the first error (the
-    included file it is really in, not the pass that included it; None for link errors).
-    ``.detail`` is that error's message without its location; ``.program`` names the program
-    when the renderer knows it (e.g. ``shadow``, ``forward:lambert:env``)."""
-
-    def __init__(self, message: str, file: str | None = None, line: int | None = None,
-                 detail: str | None = None, program: str | None = None):
-        super().__init__(message)
-        self.file = file
-        self.line = line
-        self.detail = detail if detail is not None else message.splitlines()[0] if message else ""
-        self.program = program
-
-    def summary(self) -> str:
-        """One line: ``file:line: message`` (``program: message`` when no file is known)."""
-        if self.file is not None:
-            where = f"{self.file}:{self.line}" if self.line is not None else self.file
-        else:
-            where = self.program or "link"
-        return f"{where}: {self.detail}"
-
 
 @dataclass
 class Source:
@@ -225,3 +184,30 @@ def set_uniform(prog, name, value):
         u.write(bytes(value[: u.array_length * u.dimension * 4]))
     else:
         u.value = value
+
+
+def _check() -> int:
+    """Compile every family (``python -m viewer.gl.shaders --check``)."""
+    from viewer import brdf
+    from viewer.gl.context import create_offscreen_context
+
+    ctx = create_offscreen_context()
+    frag = ('#version 410 core\n#include "brdf/dispatch.glsl"\nuniform int u_model;\nin vec2 v_uv;\n'
+            "out vec4 color;\nvoid main() { vec3 wi = normalize(vec3(v_uv, 1.0)); vec3 wo = vec3(0.0, 0.0, 1.0);\n"
+            "    color = vec4(brdf_eval(u_model, 0, wi, wo) + brdf_terms(u_model, 0, wi, wo), 1.0); }\n")
+    vert = ("#version 410 core\nin vec2 in_pos; out vec2 v_uv;\n"
+            "void main() { v_uv = in_pos; gl_Position = vec4(in_pos, 0.0, 1.0); }\n")
+    try:
+        build_program(ctx, vertex_source=vert, fragment_source=frag)
+    except ShaderError as e:
+        print(e)
+        return 1
+    print("all BRDF families compile:", ", ".join(brdf.names()))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    if "--check" in sys.argv:
+        sys.exit(_check())

@@ -40,6 +40,7 @@ from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
+from viewer.gpupt.refusals import MEASURED_REFUSAL, needs_spectral, uses_measured
 from viewer.pathtracer.integrator import RenderSetup, check_options
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -119,8 +120,6 @@ class GpuReferenceRenderer:
         setup = RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
                                        strategy=self.strategy, mis_heuristic=self.mis_heuristic,
                                        russian_roulette=self.russian_roulette)
-        from viewer.gpupt.select import needs_spectral
-
         setup.extra["spectral"] = needs_spectral(scene, self.spectral)   # as the CPU engine (the cache key reads it)
         return setup
 
@@ -442,8 +441,5 @@ class GpuReferenceRenderer:
 
 
 def _refuse_measured(scene):
-    from viewer import ViewerError
-    from viewer.gpupt.select import MEASURED_REFUSAL, uses_measured
-
     if uses_measured(scene):
         raise ViewerError(MEASURED_REFUSAL)

@@ -8,8 +8,8 @@ the number of cores) or, the first time, a short calibration (the built-in defau
 128 x 128, 4 spp, both engines, warm) whose result is stored. No OpenGL at all -> cpu.
 Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
 the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
-cpu engine can trace (measured tables: ``uses_measured``; the microfacet model's
-multiple-scattering random walk: ``uses_random_walk``) take it under ``auto``; ``gpu`` refuses them.
+cpu engine can trace (``viewer/gpupt/refusals.py``: measured tables, the multiple-scattering
+random walk, thin films per wavelength) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
+
+# needs_spectral, uses_measured, uses_random_walk: public here too (the CLI, the window, tests)
+from viewer.gpupt.refusals import cpu_only, needs_spectral, uses_measured, uses_random_walk
 
 ENGINES = ("cpu", "gpu", "auto")
 SOFTWARE_GL = ("llvmpipe", "softpipe", "swiftshader", "software", "lavapipe", "swrast")
@@ -150,63 +153,6 @@ def choose_engine(requested: str = "auto", ctx=None, workers=None, calibrate_if_
             ctx.release()
 
 
-def needs_spectral(scene, spectral: bool | None = None) -> bool:
-    """Whether a reference of ``scene`` traces wavelengths: ``spectral`` where given, else
-    whether a material it uses is dispersive."""
-    if spectral is not None:
-        return bool(spectral)
-    from viewer.pathtracer.spectral import scene_is_dispersive
-
-    return scene_is_dispersive(scene)
-
-
-def uses_measured(scene) -> bool:
-    """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
-    engine renders (the gpu engine's programs bind no per-material 3D textures)."""
-    from viewer.gl.brdf_glsl import models_used
-
-    return any("measured" in models_used(m) for m in scene.materials.values())
-
-
-MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use --engine cpu or auto "
-                    "(auto takes the cpu engine for them)")
-
-
-def uses_random_walk(scene) -> bool:
-    """Whether a material some object uses (or its nested base) has the microfacet model's
-    multiple-scattering random walk, which only the cpu engine traces."""
-    from viewer.brdf.microfacet import walks
-    from viewer.brdf.spec import Params
-
-    def has(p) -> bool:
-        if p.model == "microfacet" and walks(p):
-            return True
-        if p.model == "layered" and p.get("reference") == "random_walk":  # viewer/brdf/layered_walk.py
-            return True
-        return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
-
-    used = {o.material for o in scene.objects}
-    return any(has(p) for name, p in scene.materials.items() if name in used)
-
-
-RANDOM_WALK_REASON = ("a material has a random walk (microfacet multiple_scattering, or layered "
-                      "reference = \"random_walk\"): only the cpu engine has it")
-
-
-def uses_thin_film(scene) -> bool:
-    """Whether a material some object uses has a thin film (its own, or a layered coating's)."""
-    from viewer.gl.brdf_glsl import uses_thin_film as film
-
-    used = {o.material for o in scene.objects}
-    return any(film(p) for name, p in scene.materials.items() if name in used)
-
-
-FILM_SPECTRAL_REFUSAL = ("--engine gpu does not trace thin films per wavelength (its spectral pass would "
-                         "evaluate them in RGB); use --engine cpu or auto (auto takes the cpu engine for them)")
-
-
-
-
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
@@ -214,19 +160,11 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
     ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette), which
     both engines take."""
     if engine == "gpu":
-        if uses_measured(scene):
+        limit = cpu_only(scene, spectral)
+        if limit is not None:
             from viewer import ViewerError
 
-            raise ViewerError(MEASURED_REFUSAL)
-        if uses_random_walk(scene):
-            from viewer import ViewerError
-
-            raise ViewerError("--engine gpu has no random walk (a microfacet material has multiple_scattering "
-                              "= true, or a layered one reference = \"random_walk\"); use --engine cpu or auto")
-        if uses_thin_film(scene) and needs_spectral(scene, spectral):
-            from viewer import ViewerError
-
-            raise ViewerError(FILM_SPECTRAL_REFUSAL)
+            raise ViewerError(limit.refusal)
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
@@ -244,10 +182,8 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
     that needs wavelengths takes the ordinary choice (both engines trace them). ``spectral`` is
     kept for the callers' sake."""
     if requested == "auto":
-        if any(uses_measured(s) for s in scenes):
-            return "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
-        if any(uses_random_walk(s) for s in scenes):
-            return "cpu", RANDOM_WALK_REASON
-        if any(uses_thin_film(s) and needs_spectral(s, spectral) for s in scenes):
-            return "cpu", "a thin film traced per wavelength: only the cpu engine does it"
+        for s in scenes:
+            limit = cpu_only(s, spectral)
+            if limit is not None:
+                return "cpu", limit.reason
     return choose_engine(requested, ctx=ctx, workers=workers)

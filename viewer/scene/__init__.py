@@ -31,15 +31,15 @@ Mesh references and environment-map paths are resolved against the scene file's 
 The package: ``model`` (the data classes and the file's keys and allowed values), ``environment``
 (the environment light and its map), ``validation`` (the message builder ``Checker``, reading
 TOML), ``parse`` (``parse_scene``: data to a validated ``Scene``), ``overrides`` (``--set``),
-``load`` (built-in names, files, screenshots, text, material files) and ``toml_writer``
-(``scene_to_toml``, ``save_scene``; files are written atomically). None of them imports GL or
-the window.
+``load`` (built-in names, files, screenshots, text, material files, a material named on the
+command line) and ``toml_writer`` (``scene_to_toml``, ``save_scene``; files are written
+atomically). None of them imports GL or the window.
 """
 
 from viewer.resources import SCENE_DIR
 from viewer.scene.environment import LUMINANCE, MAP_ALLOWED, MID_GREY, Environment
 from viewer.scene.load import (LECTURE_NAME, SCREENSHOT_KEY, builtin_scene_names, lecture_scene_names,
-                               load_material_file, load_scene, load_scene_text)
+                               load_material_file, load_scene, load_scene_text, material_from_name)
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, FLOAT32_MAX, IBL_MODES,
                                 LIGHT_TYPES, MAX_SIZE, MIN_VIEW_DISTANCE, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS,
                                 RENDER_KEYS, SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene,
@@ -55,6 +55,6 @@ __all__ = [
     "MSAA_SAMPLES", "OBJECT_KEYS", "POINT_KEYS", "RENDER_KEYS", "SCENE_DIR", "SCENE_VERSION", "SCREENSHOT_KEY",
     "TONEMAPS", "TOP_KEYS", "Camera", "Environment", "Light", "RenderSettings", "Scene", "SceneObject",
     "apply_override", "builtin_scene_names", "dotted_key", "lecture_scene_names", "load_material_file",
-    "load_scene", "load_scene_text", "material_to_toml", "parse_scene", "save_material", "save_scene",
-    "scene_to_data", "scene_to_toml",
+    "load_scene", "load_scene_text", "material_from_name", "material_to_toml", "parse_scene", "save_material",
+    "save_scene", "scene_to_data", "scene_to_toml",
 ]

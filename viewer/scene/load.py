@@ -8,9 +8,11 @@ import re
 from pathlib import Path
 from typing import Any, Sequence
 
+from viewer import ViewerError
 from viewer.io import one_line_errors, path_problem
 from viewer.resources import SCENE_DIR
 from viewer.scene.model import Scene
+from viewer.scene.overrides import apply_override, dotted_key
 from viewer.scene.parse import parse_materials, parse_scene
 from viewer.scene.validation import Checker, loads_toml
 
@@ -34,7 +36,7 @@ def lecture_scene_names() -> list[str]:
 
 
 def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
-    from viewer.lecture import TOUR, step_label
+    from viewer.lecture import TOUR, tour_scene
 
     n = len(TOUR)
     text = m.group(0)
@@ -44,8 +46,7 @@ def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
     i = int(m.group(1))
     if not 1 <= i <= n:
         Checker(text).fail("scene", f"step {i} is out of range", allowed)
-    data = loads_toml(TOUR[i - 1].toml, step_label(i - 1))
-    return parse_scene(data, None, overrides, label=step_label(i - 1), base_dir=SCENE_DIR, load_meshes=load_meshes)
+    return tour_scene(i - 1, load_meshes, overrides)
 
 
 def _builtin_label(name: str) -> str:
@@ -150,3 +151,57 @@ def load_material_file(path) -> tuple[str, Any]:
                              "a file with [materials.NAME] and model = ... (or preset = ...)")
     name = next(iter(mats))
     return name, parse_materials(Checker(label), {name: mats[name]}, path.parent.absolute())[name]
+
+
+def material_from_name(name: str, assignments=()):
+    """Validated Params of a material named on the command line (``plot MODEL``, ``fit --model``):
+    a model (its defaults), a preset, a material file (.toml) or a measured file (.binary), with
+    ``--set KEY=VALUE`` applied; KEY is a parameter name, dotted into tables and nested materials
+    (coating.ior, base.albedo, lobes.0.n), read as the scene's ``--set`` (``apply_override``)."""
+    from viewer import brdf
+    from viewer.brdf.presets import PRESETS, get_preset
+    from viewer.brdf.spec import validate_params
+
+    if name.endswith(".binary"):  # a measured BRDF file (MERL format)
+        raw = {"model": "measured", "file": name}
+    elif name.endswith(".toml"):
+        raw = load_material_file(name)[1].to_plain()
+    elif name in brdf.names():
+        raw = {"model": name}
+    elif name in PRESETS:
+        raw = get_preset(name)
+    else:
+        raise ViewerError(f"MODEL: {name!r} is not a BRDF model or preset; allowed: models "
+                          f"{', '.join(brdf.names())}; presets {', '.join(sorted(PRESETS))}")
+    for a in assignments:
+        if "=" not in a:
+            raise ViewerError(f"--set {a}: no '=' in the assignment; allowed: KEY=VALUE with a parameter "
+                              "name, e.g. alpha=0.2 or coating.ior=1.3")
+        key = dotted_key(a.split("=", 1)[0])  # lobes[0].n = lobes.0.n, as apply_override
+        parts = key.split(".")
+        if not all(parts):
+            raise ViewerError(f"--set {a}: empty part in {key!r}; allowed: a parameter name, dotted "
+                              "into tables (coating.ior)")
+        model_name = raw.get("model")
+        spec = brdf.lookup_spec(model_name, "--set model") if isinstance(model_name, str) else None
+        if spec is not None and len(parts) == 1:
+            # aliases (microfacet: alpha -> alpha_x, alpha_y): the newer assignment wins
+            for alias, targets in spec.aliases.items():
+                if parts[0] == alias:
+                    for t in targets:
+                        raw.pop(t, None)
+                elif parts[0] in targets and alias in raw:
+                    v = raw.pop(alias)
+                    for t in targets:
+                        raw[t] = v
+        if len(parts) > 1 and raw.get(parts[0]) is None:
+            # a table, list or nested material not given yet: start from its defaults (an unknown
+            # name gets an empty table, which validation below names)
+            known = spec is not None and parts[0] in spec.names
+            raw[parts[0]] = brdf.get(model_name).params().to_plain()[parts[0]] if known else {}
+        apply_override(raw, a)
+    model = raw.pop("model")
+    if not isinstance(model, str):
+        raise ViewerError(f"--set model: expected a model name; allowed: {', '.join(brdf.names())}")
+    spec = brdf.lookup_spec(model, "--set model")
+    return validate_params(spec, raw, model, brdf.lookup_spec)

@@ -1,0 +1,89 @@
+"""What only the cpu engine renders, in one place: the tests, the one-line refusal of
+``--engine gpu`` and the reason ``auto`` prints for taking the cpu engine. ``cpu_only(scene)``
+is the first limit a scene meets (None: the gpu engine renders it); the engine selection
+(``viewer/gpupt/select.py``) and the gpu engine itself (``viewer/gpupt/engine.py``: measured
+tables) read them here."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+def needs_spectral(scene, spectral: bool | None = None) -> bool:
+    """Whether a reference of ``scene`` traces wavelengths: ``spectral`` where given, else
+    whether a material it uses is dispersive."""
+    if spectral is not None:
+        return bool(spectral)
+    from viewer.pathtracer.spectral import scene_is_dispersive
+
+    return scene_is_dispersive(scene)
+
+
+def uses_measured(scene) -> bool:
+    """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
+    engine renders (the gpu engine's programs bind no per-material 3D textures)."""
+    from viewer.gl.brdf_glsl import models_used
+
+    return any("measured" in models_used(m) for m in scene.materials.values())
+
+
+MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use --engine cpu or auto "
+                    "(auto takes the cpu engine for them)")
+
+
+def uses_random_walk(scene) -> bool:
+    """Whether a material some object uses (or its nested base) has the microfacet model's
+    multiple-scattering random walk, which only the cpu engine traces."""
+    from viewer.brdf.microfacet import walks
+    from viewer.brdf.spec import Params
+
+    def has(p) -> bool:
+        if p.model == "microfacet" and walks(p):
+            return True
+        if p.model == "layered" and p.get("reference") == "random_walk":  # viewer/brdf/layered_walk.py
+            return True
+        return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
+
+    used = {o.material for o in scene.objects}
+    return any(has(p) for name, p in scene.materials.items() if name in used)
+
+
+RANDOM_WALK_REASON = ("a material has a random walk (microfacet multiple_scattering, or layered "
+                      "reference = \"random_walk\"): only the cpu engine has it")
+
+
+def uses_thin_film(scene) -> bool:
+    """Whether a material some object uses has a thin film (its own, or a layered coating's)."""
+    from viewer.gl.brdf_glsl import uses_thin_film as film
+
+    used = {o.material for o in scene.objects}
+    return any(film(p) for name, p in scene.materials.items() if name in used)
+
+
+FILM_SPECTRAL_REFUSAL = ("--engine gpu does not trace thin films per wavelength (its spectral pass would "
+                         "evaluate them in RGB); use --engine cpu or auto (auto takes the cpu engine for them)")
+
+
+RANDOM_WALK_REFUSAL = ("--engine gpu has no random walk (a microfacet material has multiple_scattering "
+                       "= true, or a layered one reference = \"random_walk\"); use --engine cpu or auto")
+
+
+class Limit(NamedTuple):
+    """One thing only the cpu engine renders."""
+    applies: object   # applies(scene, spectral) -> bool
+    refusal: str      # what --engine gpu says (one line)
+    reason: str       # why auto takes the cpu engine
+
+
+LIMITS = (
+    Limit(lambda scene, spectral: uses_measured(scene), MEASURED_REFUSAL,
+          "the scene has measured (MERL) materials: only the cpu engine renders them"),
+    Limit(lambda scene, spectral: uses_random_walk(scene), RANDOM_WALK_REFUSAL, RANDOM_WALK_REASON),
+    Limit(lambda scene, spectral: uses_thin_film(scene) and needs_spectral(scene, spectral), FILM_SPECTRAL_REFUSAL,
+          "a thin film traced per wavelength: only the cpu engine does it"),
+)
+
+
+def cpu_only(scene, spectral: bool | None = None) -> Limit | None:
+    """The first of ``LIMITS`` that ``scene`` meets (``spectral`` as ``needs_spectral``), or None."""
+    return next((lim for lim in LIMITS if lim.applies(scene, spectral)), None)
