@@ -71,7 +71,7 @@ def test_variants_are_compiled_for_the_options(ctx):
     for opts in (dict(), dict(strategy="bsdf"), dict(strategy="light"), dict(mis_heuristic="balance"),
                  dict(russian_roulette=False)):
         with GpuReferenceRenderer(sc, width=4, height=4, max_depth=1, ctx=ctx, **opts) as g:
-            recipes[tuple(sorted(opts.items()))] = dict(g._recipe()[1])
+            recipes[tuple(sorted(opts.items()))] = dict(g.recipe()[1])
     defines = list(recipes.values())
     assert "STRATEGY" not in defines[0] and "BALANCE_HEURISTIC" not in defines[0] and "NO_ROULETTE" not in defines[0]
     assert defines[1]["STRATEGY"] == "1" and defines[2]["STRATEGY"] == "2"

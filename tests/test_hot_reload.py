@@ -85,8 +85,8 @@ def _render(renderer, scene):
 
 
 def test_shader_root_default_env_and_override(monkeypatch, tmp_path):
+    saved = set_shader_root(None)
     try:
-        set_shader_root(None)
         monkeypatch.delenv(SHADER_ROOT_ENV, raising=False)
         assert shader_root() == SHADER_DIR  # default: the package's folder
         monkeypatch.setenv(SHADER_ROOT_ENV, str(tmp_path))
@@ -99,7 +99,7 @@ def test_shader_root_default_env_and_override(monkeypatch, tmp_path):
         src = shaders.preprocess('#version 410 core\n#include "a.glsl"\n', "<t>")
         assert "return 1.0" in src.text and src.files == ["<t>", "a.glsl"]
     finally:
-        set_shader_root(None)   # the default: no test leaves a folder set
+        set_shader_root(saved)
 
 
 def test_include_error_names_the_including_file_and_line(tmp_path):
@@ -138,9 +138,9 @@ def test_watcher_reports_modified_added_removed_and_rate_limits(tmp_path):
 def shader_copy(tmp_path_factory):
     root = tmp_path_factory.mktemp("hot") / "shaders"
     shutil.copytree(SHADER_DIR, root)
-    set_shader_root(root)
+    saved = set_shader_root(root)
     yield root
-    set_shader_root(None)
+    set_shader_root(saved)
 
 
 @pytest.fixture(scope="module")

@@ -171,13 +171,13 @@ def test_teapot_is_welded_and_has_only_the_classic_openings():
 def test_teapot_every_patch_points_out():
     """dP/du x dP/dv of each of Newell's 32 patches points out of the pot (the winding
     number drops by one across the surface at each patch's centre)."""
-    ctrl, patches = meshgen._teapot_data()
+    ctrl, patches = meshgen.teapot_data()
     shape = meshgen.teapot(8)
     # data (z up, bottom at z = 0, knob top at z = 3.15) -> mesh: rotate to y up, shift, scale
     rot = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
     y_lo, y_hi = shape.positions[:, 1].min(), shape.positions[:, 1].max()
     scale = (y_hi - y_lo) / 3.15
-    b, db = meshgen._bernstein(np.array([0.37]))
+    b, db = meshgen.bernstein(np.array([0.37]))
     C, N = [], []
     for patch in patches:
         G = ctrl[patch]
@@ -422,8 +422,8 @@ def test_degenerate_faces_are_dropped(tmp_path):
 def test_loading_is_cached_and_sees_changes(tmp_path, monkeypatch):
     import viewer.mesh as vm
     reads = []
-    real = vm._load_file
-    monkeypatch.setattr(vm, "_load_file", lambda *a, **k: reads.append(a[0]) or real(*a, **k))
+    real = vm.read_mesh_file
+    monkeypatch.setattr(vm, "read_mesh_file", lambda *a, **k: reads.append(a[0]) or real(*a, **k))
     path = tmp_path / "ball.ply"
     small_sphere().export(path)
     clear_cache()

@@ -250,16 +250,13 @@ def _ms_scene(tmp_path):
 def test_engines_only_cpu_has_the_walk(tmp_path, capsys):
     """auto takes the cpu engine for a scene with the walk (also nested in a layered base) and
     prints why; --engine gpu refuses with one line."""
-    from types import SimpleNamespace
-
-    from viewer import cli
-    from viewer.gpupt.select import make_renderer, uses_random_walk
+    from viewer.gpupt.select import choose_for_scenes, make_renderer, uses_random_walk
 
     sc = _ms_scene(tmp_path)
     assert uses_random_walk(sc)
-    assert cli._engine(SimpleNamespace(engine="auto", workers=0), scenes=[sc]) == "cpu"
-    out = capsys.readouterr().out
-    assert "engine: cpu (a material has a random walk (microfacet multiple_scattering" in out
+    engine, why = choose_for_scenes("auto", [sc], spectral=None, ctx=None, workers=0)   # what the CLI prints
+    assert engine == "cpu"
+    assert why.startswith("a material has a random walk (microfacet multiple_scattering"), why
     with pytest.raises(ViewerError, match="--engine gpu has no random walk") as e:
         make_renderer("gpu", sc)
     assert "\n" not in str(e.value)

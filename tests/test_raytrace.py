@@ -268,7 +268,7 @@ def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
     from viewer.gl import renderer as rmod
 
     monkeypatch.setattr(rmod, "dispersive", lambda s: True)
-    renderer.raytrace_state()._mat_key = None  # rebuild the material rows with the new indices
+    renderer.raytrace_state().invalidate_materials()  # rebuild the material rows with the new indices
     disp = renderer.render_arrays(scene, width=32, height=32)[0]
     for c, ior in enumerate((1.4, 1.5, 1.7)):
         np.testing.assert_allclose(disp[..., c], single[ior][..., c], atol=1e-5)

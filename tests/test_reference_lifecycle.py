@@ -27,7 +27,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import lifecycle  # noqa: E402
 
 ALLOWED_DRIFT_MB = 16.0
-RESTARTS = 1000
+# 300 restarts: leaking one scene snapshot (0.74 MB) per restart would grow RSS by about 220 MB,
+# over ten times the allowed drift; benchmarks/hardening.py runs a storm of 1000
+RESTARTS = 300
 
 
 @pytest.fixture
@@ -38,7 +40,7 @@ def private_tmp(tmp_path, monkeypatch):
     return tmp_path
 
 
-def test_thousand_restarts_leave_nothing_behind(private_tmp):
+def test_a_restart_storm_leaves_nothing_behind(private_tmp):
     r = lifecycle.restart_storm(RESTARTS, workers=2, seed=5, max_pause_s=0.01)
     print(r.summary())
     assert not r.errors, r.errors[:3]

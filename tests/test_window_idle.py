@@ -30,8 +30,11 @@ def test_samples_per_chunk_fills_a_chunk():
     r = ReferenceRenderer(load_scene("sphere"), width=460, height=360, max_depth=1, workers=0)
     # 460 px wide: blocks of 2048 // 460 = 4 rows, 1840 px; 8192 // 1840 = 4 samples per chunk
     assert r.samples_per_chunk() == 4
-    c = r._chunks(0, r.samples_per_chunk())
-    assert all(len(ch[4]) == 4 for ch in c) and len(c) == len(r.blocks)
+    # a pass of samples_per_chunk samples is one chunk per block (progress is called per chunk)
+    short = ReferenceRenderer(load_scene("sphere"), width=460, height=8, max_depth=1, workers=0)
+    done = []
+    assert short.samples_per_chunk() == 4 and short.step(4, progress=done.append)
+    assert len(done) == len(short.blocks) == 2 and short.spp == 4
     assert 4 * 1840 <= TARGET_CHUNK_PATHS < 5 * 1840
     r = ReferenceRenderer(load_scene("sphere"), width=4000, height=8, max_depth=1, workers=0)
     assert r.samples_per_chunk() == 2   # one row of 4000 px per block

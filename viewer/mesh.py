@@ -118,7 +118,7 @@ def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> Me
     cached = _cache_get(key)
     if cached is not None:
         return cached.copy()
-    mesh = _load_file(path, path.stem, where)
+    mesh = read_mesh_file(path, path.stem, where)
     _cache_put(key, mesh)
     return mesh.copy()
 
@@ -140,7 +140,7 @@ def _load_builtin(name: str, where: str) -> MeshData:
             if own is not None:  # the format models/generate.py writes: no trimesh needed
                 cached = build_mesh(name, *own[:2], own[3], own[2], where=where, label=str(path))
             else:
-                cached = _load_file(path, name, where)
+                cached = read_mesh_file(path, name, where)
             _cache_put(key, cached)
         return cached.copy()
     key = ("builtin", name)
@@ -187,7 +187,9 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
-def _load_file(path: Path, name: str, where: str) -> MeshData:
+def read_mesh_file(path: Path, name: str, where: str) -> MeshData:
+    """Read and check one mesh file from disk (no cache: ``load_mesh`` caches what this reads;
+    ``where`` starts the message of a problem)."""
     try:
         positions, normals, uvs, faces = _read_trimesh(path)
     except _BadFile as e:

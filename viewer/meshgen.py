@@ -385,13 +385,15 @@ _TEAPOT_PATCHES = """
 """
 
 
-def _teapot_data() -> tuple[np.ndarray, np.ndarray]:
+def teapot_data() -> tuple[np.ndarray, np.ndarray]:
+    """Newell's teapot: control points (N, 3), z up, and 32 bicubic patches of indices into
+    them, (32, 4, 4)."""
     pts = np.array([[float(x) for x in p.split()] for p in _TEAPOT_POINTS.replace("\n", "").split("|")])
     patches = np.array(_TEAPOT_PATCHES.split(), dtype=np.int64).reshape(32, 4, 4) - 1
     return pts, patches
 
 
-def _bernstein(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def bernstein(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cubic Bernstein basis B_i(t) and its derivative, each (len(t), 4)."""
     s = 1.0 - t
     b = np.stack([s ** 3, 3 * t * s ** 2, 3 * t ** 2 * s, t ** 3], 1)
@@ -407,11 +409,11 @@ def teapot(n: int = 16) -> Shape:
     and the bottom collapse a whole control row to one point, a pole) the normal is taken
     from the same formula a small step inside the patch. Coincident samples on shared patch
     edges are welded into one vertex whose normal is the normalised sum of theirs."""
-    ctrl, patches = _teapot_data()
+    ctrl, patches = teapot_data()
     t = np.linspace(0.0, 1.0, n + 1)
-    b, db = _bernstein(t)
+    b, db = bernstein(t)
     eps = 1e-4
-    b_in, db_in = _bernstein(np.clip(t, eps, 1.0 - eps))
+    b_in, db_in = bernstein(np.clip(t, eps, 1.0 - eps))
     P_all, N_all, F_all = [], [], []
     offset = 0
     for patch in patches:

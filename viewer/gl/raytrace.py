@@ -125,6 +125,11 @@ class RayTrace:
             self._mat_key = mkey
         self.rows = {name: i for i, name in enumerate(scene.materials)}
 
+    def invalidate_materials(self) -> None:
+        """Rebuild the material rows on the next ``update`` even when no parameter changed
+        (what the rows are made of may depend on more than the parameters)."""
+        self._mat_key = None
+
     def bind(self, prog, first_unit: int = 8) -> int:
         from viewer.gl.shaders import set_uniform
 

@@ -15,11 +15,14 @@ SHADER_ROOT_ENV = "BRDF_VIEWER_SHADERS"
 _root_override: Path | None = None
 
 
-def set_shader_root(path: str | os.PathLike | None) -> None:
+def set_shader_root(path: str | os.PathLike | None) -> Path | None:
     """Read shaders from ``path`` from now on (None: back to the environment variable or the
-    package's shaders/). Programs already built are not affected until they are rebuilt."""
+    package's shaders/). Programs already built are not affected until they are rebuilt.
+    Returns the previous setting (None when there was none), to restore it with."""
     global _root_override
+    previous = _root_override
     _root_override = None if path is None else Path(path).resolve()
+    return previous
 
 
 def shader_root() -> Path:

@@ -211,6 +211,13 @@ class SSR:
         self.last_hiz_s = time.perf_counter() - t0
         return t["hiz"]
 
+    def read_resolved(self, index: int) -> np.ndarray:
+        """Resolved forward target ``index`` of the last frame as float32 (H, W, 4), rows bottom
+        to top: 1 the specular weight, 2 the geometry (normal, depth)."""
+        tex = self._t["resolved"][index]
+        w, h = tex.size
+        return np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
+
     def read_hiz(self):
         """The pyramid's levels as float32 arrays (rows bottom to top, like the textures)."""
         t = self._t

@@ -206,7 +206,9 @@ class GpuReferenceRenderer:
         self._cur = 0                       # side holding the current sums
         self._prog = self._program()
 
-    def _recipe(self):
+    def recipe(self):
+        """What the pass's program is compiled for: (the models used, sorted (define, value)
+        pairs). Renderers with the same recipe share one program."""
         s = self.setup
         models = []
         for m in s.materials:
@@ -230,7 +232,7 @@ class GpuReferenceRenderer:
         """The pass's program for this scene's recipe, shared by every renderer on the same
         context (compiling takes 0.2-6 s on llvmpipe; a material change of the same models
         reuses it)."""
-        key = (id(self.ctx), self._recipe())
+        key = (id(self.ctx), self.recipe())
         entry = _PROGRAMS.get(key)
         if entry is None:
             models, defines = key[1]

@@ -88,7 +88,7 @@ def _is_pure_delta(p) -> bool:
     return True
 
 
-def _reference_model(m: "MaterialInfo"):
+def reference_model(m: "MaterialInfo"):
     """The model the reference evaluates a material with: its registry model, or for a layered
     material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
     random walk (viewer/brdf/layered_walk.py)."""
@@ -354,7 +354,7 @@ class Integrator:
         self.s = setup
         self.geom = setup.geometry
         self.kernel = make_kernel(self.geom.triangles, setup.kernel)
-        self.models = [_reference_model(m) for m in setup.materials]
+        self.models = [reference_model(m) for m in setup.materials]
         self._film_cache: dict = {}
         self._object_y = {mi: np.asarray(setup.extra.get("object_y", np.zeros((1, 2))))
                           for mi, m in enumerate(setup.materials) if thin_film.varies(m.params)}
