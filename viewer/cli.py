@@ -7,7 +7,7 @@ import sys
 import time
 
 import viewer
-from viewer import ViewerError
+from viewer import OutputError, ViewerError
 
 COMMANDS = ("render", "reference", "compare", "bake", "plot", "models", "fit")
 HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
@@ -256,7 +256,10 @@ def _parser_models() -> argparse.ArgumentParser:
 
 def _overrides(args) -> list[str]:
     """--set assignments plus --width / --height as camera overrides."""
+    from viewer.scene import check_replaced
+
     out = list(args.overrides)
+    check_replaced(out, {f"camera.{k}": f"--{k}" for k in ("width", "height") if getattr(args, k) is not None})
     for key, val in (("width", args.width), ("height", args.height)):
         if val is not None:
             out.append(f"camera.{key}={val}")
@@ -528,6 +531,7 @@ def cmd_bake(args) -> int:
     if not jobs:
         raise ViewerError("bake: name at least one SCENE, or --lecture")
     scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
+    cache.check_writable()                                 # a cache that cannot store: say so before rendering
     engine = _engine(args, scenes=[s for _, s in scenes])
     for label, scene in scenes:
         camera = OrbitCamera.from_scene(scene)
@@ -536,7 +540,7 @@ def cmd_bake(args) -> int:
         setup = RenderSetup.from_scene(scene, camera, w, h, args.max_depth)
         setup.extra["spectral"] = needs_spectral(scene)   # as both engines key it (dispersive: wavelengths)
         key = cache.setup_key(setup)
-        old = cache.load(key)
+        old = cache.load(key, shape=(h, w, 3))   # a damaged entry: set aside with one line, rendered afresh
         have = old.spp if old is not None else 0
         if have >= args.spp:
             print(f"{label}: {w}x{h} already cached at {have} spp ({key[:12]})")
@@ -559,7 +563,7 @@ def cmd_bake(args) -> int:
             finally:
                 sys.stderr.write("\n")
             total, total2, spp = r.state()
-        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))
+        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))  # CacheError: one line, exit 1
         print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
     return 0
 
@@ -574,6 +578,15 @@ def cmd_window(args) -> int:
     size = None if args.width is None and args.height is None else (args.width or 1280, args.height or 720)
     return run_app(args.scene, args.overrides, size=size, frames=args.frames,
                    screenshot=args.screenshot)
+
+
+def _first_line(e: Exception) -> str:
+    """The message's first line, at most 1,000 characters (the messages quote at most a short
+    prefix of a value; this is the last guard against one that quotes a 100 KB value whole)."""
+    from viewer.scene.validation import short
+
+    text = str(e)
+    return short(text.splitlines()[0] if text else type(e).__name__, 1000)
 
 
 def main(argv=None) -> int:
@@ -591,8 +604,11 @@ def main(argv=None) -> int:
                     "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
+    except OutputError as e:   # a file that could not be written: exit 1
+        print(f"brdf-viewer: error: {_first_line(e)}", file=sys.stderr)
+        return 1
     except ViewerError as e:
-        print(f"brdf-viewer: error: {str(e).splitlines()[0] if str(e) else type(e).__name__}", file=sys.stderr)
+        print(f"brdf-viewer: error: {_first_line(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -8,6 +8,7 @@ import errno
 import functools
 import io
 import os
+import re
 import stat
 import tempfile
 from pathlib import Path
@@ -162,27 +163,62 @@ def _fsync_folder(folder: Path) -> None:
 
 
 def _remove_orphans(folder: Path, prefix: str) -> None:
-    """Remove ``prefix + PID.*.part*`` files in ``folder`` left by writers that were killed
-    (their process ``PID`` no longer exists)."""
+    """Remove ``prefix + PID.*.part*`` files in ``folder`` left by writers that were killed."""
+    remove_orphan_parts(folder, prefix)
+
+
+_PART = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[A-Za-z0-9_]{8}\.part")
+
+
+def remove_orphan_parts(folder, prefix: str = ".") -> list[str]:
+    """Remove the temporary files (``.NAME.PID.XXXXXXXX.part*``, see ``atomic_write_file``) in
+    ``folder`` whose writer is gone: its process ``PID`` no longer exists, or it is a later
+    process that took the number (it started after the file was last written). Returns the
+    names removed. Another process's file (alive, or another user's) is left alone."""
     try:
-        entries = [e.name for e in os.scandir(folder) if e.name.startswith(prefix) and ".part" in e.name]
+        entries = [e for e in os.scandir(folder) if e.name.startswith(prefix) and ".part" in e.name]
     except OSError:
-        return
-    for name in entries:
-        pid_text = name[len(prefix):].split(".", 1)[0]
-        if not pid_text.isdigit() or int(pid_text) == os.getpid():
+        return []
+    removed = []
+    for e in entries:
+        m = _PART.match(e.name)
+        if m is None or int(m["pid"]) == os.getpid():
             continue
         try:
-            os.kill(int(pid_text), 0)
-            continue            # alive (or another user's process): not ours to remove
-        except ProcessLookupError:
-            pass
-        except (PermissionError, OSError, OverflowError):
+            written = e.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        if not _writer_gone(int(m["pid"]), written):
             continue
         try:
-            os.unlink(folder / name)
+            os.unlink(e.path)
+            removed.append(e.name)
         except OSError:
             pass
+    return removed
+
+
+def _writer_gone(pid: int, written: float) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OSError, OverflowError):
+        return False    # alive under another user (or not a pid at all): not ours to judge
+    started = process_start_time(pid)
+    return started is not None and started > written + 1.0   # the number was reused since
+
+
+def process_start_time(pid: int) -> float | None:
+    """When process ``pid`` started (seconds since the epoch), from /proc; None elsewhere."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        with open("/proc/stat") as f:
+            btime = next(int(line.split()[1]) for line in f if line.startswith("btime"))
+        return btime + int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def png_bytes(srgb: np.ndarray, text: dict[str, str] | None = None) -> bytes:

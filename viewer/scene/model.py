@@ -29,6 +29,7 @@ IBL_MODES = ("split_sum", "fis", "brute_force", "off")
 TONEMAPS = ("none", "aces", "filmic", "reinhard")
 MSAA_SAMPLES = (0, 1, 2, 4, 8)
 MAX_SIZE = 16384
+SIZE_ALLOWED = f"an integer of pixels in [1, {MAX_SIZE}]"  # camera.width, camera.height
 EXPOSURE_RANGE = (-20.0, 20.0)
 # Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
 # a finite float64 beyond this would turn into inf there.

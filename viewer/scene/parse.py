@@ -13,7 +13,7 @@ from viewer import ViewerError
 from viewer.io import expand_user, one_line_errors, path_problem
 from viewer.scene.environment import MAP_ALLOWED, Environment
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, IBL_MODES, LIGHT_TYPES,
-                                MAX_SIZE, MIN_VIEW_DISTANCE, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
+                                MAX_SIZE, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
                                 SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene, SceneObject)
 from viewer.scene.overrides import apply_override, is_material_switch, switch_material
 from viewer.scene.validation import Checker, check_nesting, describe, short
@@ -84,7 +84,7 @@ def _parse_camera(ck: Checker, t) -> Camera:
                               0.0, 180.0, lo_open=True, hi_open=True)
     for k in ("width", "height"):
         if k in t:
-            setattr(cam, k, ck.integer(t[k], f"camera.{k}", f"an integer of pixels in [1, {MAX_SIZE}]", 1, MAX_SIZE))
+            setattr(cam, k, ck.integer(t[k], f"camera.{k}", SIZE_ALLOWED, 1, MAX_SIZE))
     view = cam.target - cam.position
     if not np.any(view != 0):
         ck.fail("camera.target", "equals camera.position, so there is no viewing direction",
