@@ -22,9 +22,10 @@ class ViewerError(Exception):
     """A problem with user input (file, field, value) that the CLI reports in one line, exit 2."""
 
 
-class OutputError(ViewerError):
+class OutputError(ViewerError, OSError):
     """A file that could not be written (a full disk, an unwritable folder, a reference cache
-    that cannot store): one line naming the file and why, exit 1, nothing partial left."""
+    that cannot store): one line naming the file and why, exit 1, nothing partial left. Also an
+    ``OSError`` (with the original ``errno``), so code that handles write failures keeps doing so."""
 
 
 def _read_version() -> str:

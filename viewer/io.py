@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer import ViewerError
+from viewer import OutputError, ViewerError
 
 
 def one_line(text: str) -> str:
@@ -108,7 +108,10 @@ def atomic_write_file(path, write, suffix: str = "") -> Path:
         raise ViewerError(one_line(f"{path}: the folder {folder} does not exist"))
     prefix = f".{path.name}."
     _remove_orphans(folder, prefix)
-    fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".part" + suffix, dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".part" + suffix, dir=folder)
+    except OSError as e:
+        raise write_error(path, e) from None
     os.close(fd)
     try:
         write(Path(tmp))
@@ -119,14 +122,24 @@ def atomic_write_file(path, write, suffix: str = "") -> Path:
             os.close(fd)
         os.chmod(tmp, _mode_for(path))
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(e, OSError) and not isinstance(e, ViewerError):
+            raise write_error(path, e) from None
         raise
     _fsync_folder(folder)
     return path
+
+
+def write_error(path, e: OSError) -> OutputError:
+    """One line naming ``path`` and why it could not be written (``OutputError``, exit 1 in the
+    CLI; an ``OSError`` with ``e``'s errno for code that handles write failures)."""
+    err = OutputError(one_line(f"{path}: cannot be written ({e.strerror or e})"))
+    err.errno = e.errno
+    return err
 
 
 def _mode_for(path: Path) -> int:

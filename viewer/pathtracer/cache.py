@@ -227,7 +227,10 @@ def store(key: str, entry: Entry, folder: Path | None = None, report=None) -> bo
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(p, buf.getvalue())
-    except (OSError, ViewerError) as e:
-        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
-        raise CacheError(f"reference cache: {p}: not written ({short(why, 200)})") from None
+    except OSError as e:   # the folder cannot be made, or the write failed (viewer.io: OutputError)
+        why = str(e) if isinstance(e, ViewerError) else f"{p}: cannot be written ({e.strerror or e})"
+        raise CacheError(f"reference cache: {short(why, 300)}; set BRDF_VIEWER_CACHE to a writable "
+                         "folder") from None
+    except ViewerError as e:   # e.g. the folder vanished between mkdir and the write
+        raise CacheError(f"reference cache: {short(str(e), 300)}") from None
     return True
