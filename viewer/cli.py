@@ -266,6 +266,20 @@ def _overrides(args) -> list[str]:
     return out
 
 
+def _load(ref, overrides):
+    """``load_scene`` and, for a large scene, one line on stderr saying how large and how long
+    the load took, before the rendering starts (``Scene.size_note``)."""
+    from viewer.scene import load_scene
+
+    t0 = time.perf_counter()
+    scene = load_scene(ref, overrides)
+    note = scene.size_note()
+    if note:
+        print(f"brdf-viewer: {scene.label}: {note}, loaded in {time.perf_counter() - t0:.1f} s; rendering",
+              file=sys.stderr, flush=True)
+    return scene
+
+
 def _screenshot_size(args) -> list[str]:
     """A screenshot named as the scene renders at the screenshot's size (camera overrides, before
     --width / --height and --set, which win)."""
@@ -288,14 +302,13 @@ def cmd_render(args) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import VIEW_MODES, Renderer
     from viewer.io import check_output_path, write_npy, write_png
-    from viewer.scene import load_scene
     from viewer.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
-    scene = load_scene(args.scene, _screenshot_size(args) + _overrides(args))
+    scene = _load(args.scene, _screenshot_size(args) + _overrides(args))
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
@@ -330,7 +343,6 @@ def cmd_reference(args) -> int:
     from viewer.camera import OrbitCamera
     from viewer.colour import to_srgb8
     from viewer.io import check_output_path, write_npy, write_png
-    from viewer.scene import load_scene
     from viewer.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
@@ -342,7 +354,7 @@ def cmd_reference(args) -> int:
                           "(1 = direct light only)")
     if args.workers is not None and args.workers < 0:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
-    scene = load_scene(args.scene, _overrides(args))
+    scene = _load(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
     from viewer.gpupt.select import make_renderer
 
@@ -517,13 +529,12 @@ def cmd_bake(args) -> int:
     from viewer.gpupt.select import make_renderer, needs_spectral
     from viewer.pathtracer import cache
     from viewer.pathtracer.integrator import RenderSetup
-    from viewer.scene import load_scene
 
     if args.spp < 1:
         raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
     if args.max_depth < 1:
         raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
-    jobs = [(str(s), lambda s=s: load_scene(s, _overrides(args))) for s in args.scenes]
+    jobs = [(str(s), lambda s=s: _load(s, _overrides(args))) for s in args.scenes]
     if args.lecture:
         from viewer.lecture import TOUR, tour_scene
 

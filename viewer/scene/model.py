@@ -36,6 +36,7 @@ SIZE_ALLOWED = f"an integer of pixels in [1, {MAX_SIZE}]"  # camera.width, camer
 # 20 million triangles; 10,000 cubes 120,000.
 MAX_OBJECTS = 100_000
 MAX_TRIANGLES = 30_000_000
+LARGE_SCENE_OBJECTS = 1_000   # from here on, loading says how large the scene is (Scene.size_note)
 EXPOSURE_RANGE = (-20.0, 20.0)
 # Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
 # a finite float64 beyond this would turn into inf there.
@@ -201,6 +202,15 @@ class Scene:
         if not np.all(np.isfinite(lo)):
             return np.zeros(3), np.zeros(3)
         return lo, hi
+
+    def size_note(self) -> str | None:
+        """"N objects, T triangles" for a scene of ``LARGE_SCENE_OBJECTS`` objects or more (the
+        CLI prints it on stderr, the window in its status line: such a load takes seconds), else
+        None."""
+        if len(self.objects) < LARGE_SCENE_OBJECTS:
+            return None
+        tris = sum(len(o.mesh_data.indices) for o in self.objects if o.mesh_data is not None)
+        return f"{len(self.objects):,} objects, {tris:,} triangles"
 
     def material_of(self, obj: SceneObject):
         return self.materials[obj.material]
