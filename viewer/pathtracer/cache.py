@@ -161,7 +161,7 @@ def set_aside(path: Path, why: str, report=None) -> None:
     target = path.with_name(path.name + ".damaged")
     try:
         os.replace(path, target)
-        done = f"moved to {target.name}"
+        done = "set aside as .damaged"
     except OSError:
         try:
             path.unlink()
@@ -182,12 +182,15 @@ def load(key: str, folder: Path | None = None, shape: tuple | None = None, repor
             data = f.read()
     except OSError:
         return None
+    if not data.startswith(b"PK\x03\x04"):   # np.load would guess another format (a pickle) and say so
+        set_aside(p, "not an .npz file", report)
+        return None
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             e = Entry(np.asarray(z["sum"], np.float64), np.asarray(z["sum2"], np.float64),
                       int(z["spp"]), str(z["engine"]), int(z["seed"]))
     except Exception as ex:  # noqa: BLE001 - BadZipFile, zlib.error, ValueError, KeyError, EOFError, ...
-        set_aside(p, short(f"{type(ex).__name__}: {ex}".splitlines()[0], 120), report)
+        set_aside(p, short(f"{type(ex).__name__}: {ex}".splitlines()[0], 80), report)
         return None
     why = entry_problem(e, shape)
     if why is not None:
