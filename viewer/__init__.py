@@ -22,6 +22,12 @@ class ViewerError(Exception):
     """A problem with user input (file, field, value) that the CLI reports in one line, exit 2."""
 
 
+class OutputError(ViewerError, OSError):
+    """A file that could not be written (a full disk, an unwritable folder, a reference cache
+    that cannot store): one line naming the file and why, exit 1, nothing partial left. Also an
+    ``OSError`` (with the original ``errno``), so code that handles write failures keeps doing so."""
+
+
 def _read_version() -> str:
     """The version, kept in one place: pyproject.toml. A source checkout reads that file (so a
     checkout on ``PYTHONPATH`` never reports another install's version); an installed package

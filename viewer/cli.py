@@ -7,7 +7,7 @@ import sys
 import time
 
 import viewer
-from viewer import ViewerError
+from viewer import OutputError, ViewerError
 from viewer.commands import COMMANDS, HEADLESS_HINT
 
 ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
@@ -191,11 +191,28 @@ def _parser_models() -> argparse.ArgumentParser:
 
 def _overrides(args) -> list[str]:
     """--set assignments plus --width / --height as camera overrides."""
+    from viewer.scene import check_replaced
+
     out = list(args.overrides)
+    check_replaced(out, {f"camera.{k}": f"--{k}" for k in ("width", "height") if getattr(args, k) is not None})
     for key, val in (("width", args.width), ("height", args.height)):
         if val is not None:
             out.append(f"camera.{key}={val}")
     return out
+
+
+def _load(ref, overrides):
+    """``load_scene`` and, for a large scene, one line on stderr saying how large and how long
+    the load took, before the rendering starts (``Scene.size_note``)."""
+    from viewer.scene import load_scene
+
+    t0 = time.perf_counter()
+    scene = load_scene(ref, overrides)
+    note = scene.size_note()
+    if note:
+        print(f"brdf-viewer: {scene.label}: {note}, loaded in {time.perf_counter() - t0:.1f} s; rendering",
+              file=sys.stderr, flush=True)
+    return scene
 
 
 def _screenshot_size(args) -> list[str]:
@@ -220,14 +237,13 @@ def cmd_render(args) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import VIEW_MODES, Renderer
     from viewer.io import check_output_path, write_npy, write_png
-    from viewer.scene import load_scene
     from viewer.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
-    scene = load_scene(args.scene, _screenshot_size(args) + _overrides(args))
+    scene = _load(args.scene, _screenshot_size(args) + _overrides(args))
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
@@ -262,7 +278,6 @@ def cmd_reference(args) -> int:
     from viewer.camera import OrbitCamera
     from viewer.colour import to_srgb8
     from viewer.io import check_output_path, write_npy, write_png
-    from viewer.scene import load_scene
     from viewer.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
@@ -274,7 +289,7 @@ def cmd_reference(args) -> int:
                           "(1 = direct light only)")
     if args.workers is not None and args.workers < 0:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
-    scene = load_scene(args.scene, _overrides(args))
+    scene = _load(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
     from viewer.gpupt.select import make_renderer
 
@@ -450,13 +465,12 @@ def cmd_bake(args) -> int:
     from viewer.gpupt.select import make_renderer, needs_spectral
     from viewer.pathtracer import cache
     from viewer.pathtracer.integrator import RenderSetup
-    from viewer.scene import load_scene
 
     if args.spp < 1:
         raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
     if args.max_depth < 1:
         raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
-    jobs = [(str(s), lambda s=s: load_scene(s, _overrides(args))) for s in args.scenes]
+    jobs = [(str(s), lambda s=s: _load(s, _overrides(args))) for s in args.scenes]
     if args.lecture:
         from viewer.lecture import TOUR, tour_scene
 
@@ -464,6 +478,7 @@ def cmd_bake(args) -> int:
     if not jobs:
         raise ViewerError("bake: name at least one SCENE, or --lecture")
     scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
+    cache.check_writable()                                 # a cache that cannot store: say so before rendering
     engine = _engine(args, scenes=[s for _, s in scenes])
     for label, scene in scenes:
         camera = OrbitCamera.from_scene(scene)
@@ -472,7 +487,7 @@ def cmd_bake(args) -> int:
         setup = RenderSetup.from_scene(scene, camera, w, h, args.max_depth)
         setup.extra["spectral"] = needs_spectral(scene)   # as both engines key it (dispersive: wavelengths)
         key = cache.setup_key(setup)
-        old = cache.load(key)
+        old = cache.load(key, shape=(h, w, 3))   # a damaged entry: set aside with one line, rendered afresh
         have = old.spp if old is not None else 0
         if have >= args.spp:
             print(f"{label}: {w}x{h} already cached at {have} spp ({key[:12]})")
@@ -495,7 +510,7 @@ def cmd_bake(args) -> int:
             finally:
                 sys.stderr.write("\n")
             total, total2, spp = r.state()
-        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))
+        cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))  # CacheError: one line, exit 1
         print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
     return 0
 
@@ -510,6 +525,15 @@ def cmd_window(args) -> int:
     size = None if args.width is None and args.height is None else (args.width or 1280, args.height or 720)
     return run_app(args.scene, args.overrides, size=size, frames=args.frames,
                    screenshot=args.screenshot)
+
+
+def _first_line(e: Exception) -> str:
+    """The message's first line, at most 1,000 characters (the messages quote at most a short
+    prefix of a value; this is the last guard against one that quotes a 100 KB value whole)."""
+    from viewer.scene.validation import short
+
+    text = str(e)
+    return short(text.splitlines()[0] if text else type(e).__name__, 1000)
 
 
 def main(argv=None) -> int:
@@ -527,8 +551,11 @@ def main(argv=None) -> int:
                     "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
+    except OutputError as e:   # a file that could not be written: exit 1
+        print(f"brdf-viewer: error: {_first_line(e)}", file=sys.stderr)
+        return 1
     except ViewerError as e:
-        print(f"brdf-viewer: error: {str(e).splitlines()[0] if str(e) else type(e).__name__}", file=sys.stderr)
+        print(f"brdf-viewer: error: {_first_line(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -8,13 +8,14 @@ import errno
 import functools
 import io
 import os
+import re
 import stat
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from viewer import ViewerError
+from viewer import OutputError, ViewerError
 
 
 def one_line(text: str) -> str:
@@ -107,7 +108,10 @@ def atomic_write_file(path, write, suffix: str = "") -> Path:
         raise ViewerError(one_line(f"{path}: the folder {folder} does not exist"))
     prefix = f".{path.name}."
     _remove_orphans(folder, prefix)
-    fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".part" + suffix, dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".part" + suffix, dir=folder)
+    except OSError as e:
+        raise write_error(path, e) from None
     os.close(fd)
     try:
         write(Path(tmp))
@@ -118,14 +122,24 @@ def atomic_write_file(path, write, suffix: str = "") -> Path:
             os.close(fd)
         os.chmod(tmp, _mode_for(path))
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(e, OSError) and not isinstance(e, ViewerError):
+            raise write_error(path, e) from None
         raise
     _fsync_folder(folder)
     return path
+
+
+def write_error(path, e: OSError) -> OutputError:
+    """One line naming ``path`` and why it could not be written (``OutputError``, exit 1 in the
+    CLI; an ``OSError`` with ``e``'s errno for code that handles write failures)."""
+    err = OutputError(one_line(f"{path}: cannot be written ({e.strerror or e})"))
+    err.errno = e.errno
+    return err
 
 
 def _mode_for(path: Path) -> int:
@@ -162,27 +176,62 @@ def _fsync_folder(folder: Path) -> None:
 
 
 def _remove_orphans(folder: Path, prefix: str) -> None:
-    """Remove ``prefix + PID.*.part*`` files in ``folder`` left by writers that were killed
-    (their process ``PID`` no longer exists)."""
+    """Remove ``prefix + PID.*.part*`` files in ``folder`` left by writers that were killed."""
+    remove_orphan_parts(folder, prefix)
+
+
+_PART = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[A-Za-z0-9_]{8}\.part")
+
+
+def remove_orphan_parts(folder, prefix: str = ".") -> list[str]:
+    """Remove the temporary files (``.NAME.PID.XXXXXXXX.part*``, see ``atomic_write_file``) in
+    ``folder`` whose writer is gone: its process ``PID`` no longer exists, or it is a later
+    process that took the number (it started after the file was last written). Returns the
+    names removed. Another process's file (alive, or another user's) is left alone."""
     try:
-        entries = [e.name for e in os.scandir(folder) if e.name.startswith(prefix) and ".part" in e.name]
+        entries = [e for e in os.scandir(folder) if e.name.startswith(prefix) and ".part" in e.name]
     except OSError:
-        return
-    for name in entries:
-        pid_text = name[len(prefix):].split(".", 1)[0]
-        if not pid_text.isdigit() or int(pid_text) == os.getpid():
+        return []
+    removed = []
+    for e in entries:
+        m = _PART.match(e.name)
+        if m is None or int(m["pid"]) == os.getpid():
             continue
         try:
-            os.kill(int(pid_text), 0)
-            continue            # alive (or another user's process): not ours to remove
-        except ProcessLookupError:
-            pass
-        except (PermissionError, OSError, OverflowError):
+            written = e.stat(follow_symlinks=False).st_mtime
+        except OSError:
+            continue
+        if not _writer_gone(int(m["pid"]), written):
             continue
         try:
-            os.unlink(folder / name)
+            os.unlink(e.path)
+            removed.append(e.name)
         except OSError:
             pass
+    return removed
+
+
+def _writer_gone(pid: int, written: float) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OSError, OverflowError):
+        return False    # alive under another user (or not a pid at all): not ours to judge
+    started = process_start_time(pid)
+    return started is not None and started > written + 1.0   # the number was reused since
+
+
+def process_start_time(pid: int) -> float | None:
+    """When process ``pid`` started (seconds since the epoch), from /proc; None elsewhere."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        with open("/proc/stat") as f:
+            btime = next(int(line.split()[1]) for line in f if line.startswith("btime"))
+        return btime + int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def png_bytes(srgb: np.ndarray, text: dict[str, str] | None = None) -> bytes:

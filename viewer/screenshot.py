@@ -32,7 +32,9 @@ def png_text(scene, camera=None, extra: dict | None = None) -> dict[str, str]:
     scene = scene_with_camera(scene, camera)  # the scene as seen
     text = {
         "Software": f"brdf-viewer {viewer.__version__}",
-        "brdf-viewer:scene": scene_to_toml(scene),
+        # absolute mesh and map paths: the PNG reopens from any folder (viewer.scene.load falls
+        # back to a file of the same name beside the PNG when the PNG travelled with its files)
+        "brdf-viewer:scene": scene_to_toml(scene, absolute_paths=True),
     }
     state = {}
     if camera is not None:

@@ -1,4 +1,5 @@
 #version 410 core
 in vec3 in_position;
-uniform mat4 u_mvp;
-void main() { gl_Position = u_mvp * vec4(in_position, 1.0); }
+in mat4 in_model;     // per instance: object to world (viewer.gl.renderer.instance_data)
+uniform mat4 u_mvp;   // the tile's light-space view-projection
+void main() { gl_Position = u_mvp * (in_model * vec4(in_position, 1.0)); }

@@ -108,7 +108,8 @@ class FileActions:
             return False
         self._set_scene(scene)
         self.lecture_step = -1
-        self.notify(f"opened {ref}")
+        note = scene.size_note()   # a large scene: say how large (its first frame takes a while)
+        self.notify(f"opened {ref}" + (f" ({note})" if note else ""))
         return True
 
     def save_scene(self, path) -> bool:

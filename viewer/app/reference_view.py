@@ -53,27 +53,34 @@ def scene_key(scene, camera, size) -> str:
     return f"{scene_to_toml(scene)}|{cam}|{size}"
 
 
-def _cached(renderer):
-    """(cache key, spp resumed from the cache) for a renderer just (re)targeted."""
+def _cached(renderer, report=None):
+    """(cache key, spp resumed from the cache) for a renderer just (re)targeted. A damaged entry
+    is set aside with one line through ``report`` and the view renders afresh."""
     from viewer.pathtracer import cache
 
     key = cache.setup_key(renderer.setup)
-    e = cache.load(key)
-    if e is not None and e.sum.shape == (renderer.height, renderer.width, 3):
+    e = cache.load(key, shape=(renderer.height, renderer.width, 3), report=report)
+    if e is not None:
         renderer.resume(e.sum, e.sum2, e.spp)
         return key, e.spp
     return key, 0
 
 
-def _store(renderer, key, engine, seed=0):
-    """Put a renderer's samples into the cache (when it has any and more than stored)."""
+def _store(renderer, key, engine, seed=0, report=None):
+    """Put a renderer's samples into the cache (when it has any and more than stored); a cache
+    that cannot be written is said through ``report(line, error=True)``."""
     if renderer is None or key is None or renderer.spp < 1:
         return
     from viewer.pathtracer import cache
 
     state = renderer.state()
     if state is not None:
-        cache.store(key, cache.Entry(*state, engine, seed))
+        try:
+            cache.store(key, cache.Entry(*state, engine, seed), report=report)
+        except cache.CacheError as e:
+            if report is None:
+                raise
+            report(str(e), error=True)
 
 
 class ReferenceView:
@@ -114,6 +121,23 @@ class ReferenceView:
         self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
         self._variance = None     # latest variance of the mean, (H, W, 3) float32
         self.curve = None         # ConvergenceCurve of the current render (RMSE estimate per pass)
+        self._notices: list[tuple[str, bool]] = []   # (line, error): cache repairs, failures (take_notices)
+        self._said: set[str] = set()
+
+    def notice(self, text: str, error: bool = False) -> None:
+        """Queue one line for the window (any thread): a damaged cache entry set aside and
+        rendered afresh, or (``error``) a cache that cannot be written; each distinct line once."""
+        with self._lock:
+            if text not in self._said:
+                self._said.add(text)
+                self._notices.append((text, bool(error)))
+        self._published()
+
+    def take_notices(self) -> list[tuple[str, bool]]:
+        """The lines queued since the last call (the session shows each as a notification)."""
+        with self._lock:
+            out, self._notices = self._notices, []
+        return out
 
     @property
     def spp(self) -> int:
@@ -235,7 +259,7 @@ class ReferenceView:
         try:
             if key != self._key:
                 self._key = key
-                _store(self._gpu, self._gpu_key, "gpu")
+                _store(self._gpu, self._gpu_key, "gpu", report=self.notice)
                 if self._gpu is None:
                     from viewer.gpupt.engine import GpuReferenceRenderer
 
@@ -244,7 +268,7 @@ class ReferenceView:
                                                      spectral=None, **self.options)
                 else:
                     self._gpu.reset(scene, camera, w, h, **self.options)
-                self._gpu_key, have = _cached(self._gpu)
+                self._gpu_key, have = _cached(self._gpu, self.notice)
                 from viewer.variance import ConvergenceCurve
 
                 with self._lock:
@@ -282,7 +306,7 @@ class ReferenceView:
         if gpu is not None:
             if store:
                 try:
-                    _store(gpu, self._gpu_key, "gpu")
+                    _store(gpu, self._gpu_key, "gpu", report=self.notice)
                 except Exception:  # noqa: BLE001 - a cache that cannot be written
                     pass
             gpu.close()
@@ -351,7 +375,7 @@ class ReferenceView:
                 self._renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
                                                    max_depth=self.max_depth, workers=self.workers, **options)
             r = self._renderer
-            key, have = _cached(r)
+            key, have = _cached(r, self.notice)
             if have:
                 img, var = r.mean(), r.variance()
                 with self._lock:
@@ -375,7 +399,7 @@ class ReferenceView:
                             self._published()
             finally:
                 if r.spp > have:
-                    _store(r, key, "cpu")
+                    _store(r, key, "cpu", report=self.notice)
         except ViewerError as e:
             self._fail(gen, str(e))
         except Exception as e:  # noqa: BLE001 - shown in the window; the raster view keeps running
@@ -443,7 +467,7 @@ class ReferenceView:
             self._cancel.set()
             self._key = None
             if self._gpu is not None:
-                _store(self._gpu, self._gpu_key, "gpu")
+                _store(self._gpu, self._gpu_key, "gpu", report=self.notice)
             return self._cond.wait_for(lambda: not self._busy, timeout=timeout)
 
     def close(self, timeout: float | None = None):

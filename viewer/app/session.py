@@ -222,6 +222,8 @@ class Session(FileActions):
             return None
         rv = self.reference_view()
         rv.update(self.scene, self.camera, size, defer=interacting)
+        for line, error in rv.take_notices():   # a damaged cache entry repaired, a cache that cannot store
+            self.notify(line, error=error)
         tex = rv.texture_for_display()
         if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None:
             self.compare.update_metrics(self.renderer, self.hdr, self.raster_version, rv)

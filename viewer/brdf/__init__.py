@@ -103,14 +103,16 @@ def get(name: str) -> Model:
     try:
         return _registry()[name]
     except KeyError:
-        raise ViewerError(f"unknown BRDF model {name!r}; allowed: {', '.join(names())}") from None
+        shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."
+        raise ViewerError(f"unknown BRDF model {shown}; allowed: {', '.join(names())}") from None
 
 
 def lookup_spec(name, where: str = "model") -> ModelSpec:
     """The spec of ``name`` or a ViewerError naming ``where`` and the allowed names."""
     reg = _registry()
     if name not in reg:
-        raise ViewerError(f"{where}: unknown model {name!r}; allowed: {', '.join(reg)}")
+        shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."   # never a 100 KB name whole
+        raise ViewerError(f"{where}: unknown model {shown}; allowed: {', '.join(reg)}")
     return reg[name].spec
 
 

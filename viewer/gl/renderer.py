@@ -11,6 +11,7 @@ reloaded by a ``ProgramCache``."""
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -52,13 +53,53 @@ _BACKGROUND = Recipe("passes/fullscreen.vert", "passes/background.frag")
 _THICKNESS = Recipe("passes/forward.vert", "passes/thickness.frag")
 
 
+def group_by(items, key) -> list[list]:
+    """``items`` in groups of equal ``key(item)``, the groups in order of first appearance."""
+    groups: dict = {}
+    for it in items:
+        groups.setdefault(key(it), []).append(it)
+    return list(groups.values())
+
+
+INSTANCE_FLOATS = 25   # per instance: the model matrix (16) and the normal matrix (9), column-major
+
+
+def instance_data(objects) -> np.ndarray:
+    """(N, 25) float32 per-instance attributes of ``objects`` for ``in_model`` and
+    ``in_normal_matrix`` (shaders/passes/forward.vert): ``SceneObject.model_matrix`` for all of
+    them at once, T(translate) R_y S(scale), and its inverse transpose R_y S^-1 (R_y is
+    orthonormal), both column-major as GLSL reads them."""
+    n = len(objects)
+    out = np.empty((n, INSTANCE_FLOATS), np.float32)
+    if n == 0:
+        return out
+    t = np.array([o.translate for o in objects], np.float64).reshape(n, 3)
+    sc = np.array([np.broadcast_to(np.asarray(o.scale, np.float64), (3,)) for o in objects])
+    ang = [math.radians(o.rotate_y_deg) for o in objects]
+    c = np.array([math.cos(a) for a in ang])
+    sn = np.array([math.sin(a) for a in ang])
+    rot = np.zeros((n, 3, 3))
+    rot[:, 0, 0], rot[:, 0, 2], rot[:, 1, 1], rot[:, 2, 0], rot[:, 2, 2] = c, sn, 1.0, -sn, c
+    m = np.zeros((n, 4, 4))
+    m[:, :3, :3] = rot * sc[:, None, :]
+    m[:, :3, 3] = t
+    m[:, 3, 3] = 1.0
+    nrm = rot / sc[:, None, :]
+    out[:, :16] = m.transpose(0, 2, 1).reshape(n, 16)      # column-major
+    out[:, 16:] = nrm.transpose(0, 2, 1).reshape(n, 9)
+    return out
+
+
 class GpuMesh:
-    """Vertex and index buffers of one MeshData; one vertex array per program."""
+    """Vertex and index buffers of one MeshData, shared by every object that uses it, and its
+    per-instance buffer: each draw renders all the instances written by ``draw`` at once (one
+    draw per mesh and material instead of one per object). One vertex array per program."""
 
     def __init__(self, ctx, mesh):
         data = np.hstack([mesh.positions, mesh.normals, mesh.tangents]).astype("f4")
         self.vbo = ctx.buffer(np.ascontiguousarray(data).tobytes())
         self.ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype="u4").tobytes())
+        self.inst = ctx.buffer(reserve=4 * INSTANCE_FLOATS, dynamic=True)
         self.ctx = ctx
         self.vaos = {}
 
@@ -66,23 +107,37 @@ class GpuMesh:
         key = id(prog)
         if key not in self.vaos:
             # attributes the compiler dropped (e.g. the tangent when no model uses it) are skipped
-            fmt, names = [], []
-            for name, comps in (("in_position", 3), ("in_normal", 3), ("in_tangent", 4)):
-                try:
-                    prog[name]
-                    fmt.append(f"{comps}f")
-                    names.append(name)
-                except KeyError:
-                    fmt.append(f"{4 * comps}x")
-            content = [(self.vbo, " ".join(fmt), *names)]
+            content = []
+            for buf, attrs, per in ((self.vbo, (("in_position", "3f", 12), ("in_normal", "3f", 12),
+                                                ("in_tangent", "4f", 16)), ""),
+                                    (self.inst, (("in_model", "16f", 64), ("in_normal_matrix", "9f", 36)), "/i")):
+                fmt, names = [], []
+                for name, f, size in attrs:
+                    if name in prog:
+                        fmt.append(f)
+                        names.append(name)
+                    else:
+                        fmt.append(f"{size}x")
+                if names:
+                    content.append((buf, " ".join(fmt) + per, *names))
             self.vaos[key] = self.ctx.vertex_array(prog, content, index_buffer=self.ibo, index_element_size=4)
         return self.vaos[key]
+
+    def draw(self, prog, instances: np.ndarray):
+        """Render the mesh once per row of ``instances`` ((N, 25) float32, ``instance_data``)."""
+        data = np.ascontiguousarray(instances, np.float32).tobytes()
+        if not data:
+            return
+        self.inst.orphan(len(data))   # fresh storage: a draw still reading the old rows is not waited for
+        self.inst.write(data)
+        self.vao(prog).render(instances=len(instances))
 
     def release(self):
         for v in self.vaos.values():
             v.release()
         self.vbo.release()
         self.ibo.release()
+        self.inst.release()
 
 
 class _Frame(NamedTuple):
@@ -211,8 +266,11 @@ class Renderer:
             self._meshes[key] = hit
         return hit[1]
 
-    def _mesh_vao(self, mesh, prog):
-        return self._gpu_mesh(mesh).vao(prog)
+    def draw_objects(self, objects, prog):
+        """Draw ``objects`` with ``prog``: one instanced draw per mesh they use, in order of
+        first appearance (the shadow and thickness passes)."""
+        for group in group_by(objects, lambda o: id(o.mesh_data)):
+            self._gpu_mesh(group[0].mesh_data).draw(prog, instance_data(group))
 
     def forget_meshes(self, keep=()):
         """Release GPU buffers of meshes not in ``keep`` (called when a scene is replaced)."""
@@ -312,7 +370,7 @@ class Renderer:
     def _render(self, scene, camera, width, height, view_mode, msaa, frame_index, raytrace=None, region=None):
         f = self._begin_frame(scene, camera, width, height, view_mode, msaa, raytrace, region)
         if f.shadows:
-            self._shadows.update(scene, self.programs["shadow"], self._mesh_vao)
+            self._shadows.update(scene, self.programs["shadow"], self.draw_objects)
         thickness = self._environment(scene, f)
         if f.region is not None:  # applied by every use() of the frame's colour target
             f.targets["draw_fbo"].scissor = f.region
@@ -374,11 +432,11 @@ class Renderer:
                      and not (f.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
         if absorbers and f.env_on:
             thickness = self._thick.render(absorbers, f.cam, f.w, f.h, self._programs.get("thickness", _THICKNESS),
-                                           self._mesh_vao)
+                                           self.draw_objects)
         self.ibl().set_environment(f.env_map, constant=None if f.env_map is not None else f.env_rad)
         if f.ssr_on or f.env_on:
-            for obj in scene.objects:
-                self.albedo_tables(scene.materials[obj.material])
+            for name in dict.fromkeys(o.material for o in scene.objects):   # each material once
+                self.albedo_tables(scene.materials[name])
         return thickness
 
     def _draw_background(self, scene, f: _Frame):
@@ -442,11 +500,19 @@ class Renderer:
         return rt, list(scene.materials.values()), dispersive(scene)
 
     def _draw_objects(self, scene, f: _Frame, uniforms: dict, rt, thickness):
-        """One draw per object with the forward-program variant of its material; the frame's
+        """One instanced draw per mesh and material (per object where a thin film varies over
+        the object's height) with the forward-program variant of its material; the frame's
         uniforms are set once per program."""
         ibl_sampled = f.env_on and scene.render.ibl in ("fis", "brute_force")
         ready = set()
-        for obj in scene.objects:
+
+        def group_key(i_obj):
+            i, obj = i_obj
+            own = thin_film.varies(scene.materials[obj.material])   # u_film_y: the object's own
+            return (obj.material, id(obj.mesh_data), i if own else -1)
+
+        for group in group_by(list(enumerate(scene.objects)), group_key):
+            obj = group[0][1]
             params = scene.materials[obj.material]
             traced = rt is not None and chain_kind(params) != KIND_SHADED
             try:
@@ -457,7 +523,7 @@ class Renderer:
             except ShaderError:
                 if not self.hot_reload:
                     raise
-                continue  # never compiled (see shader_errors): leave the object out, draw the rest
+                continue  # never compiled (see shader_errors): leave the objects out, draw the rest
             if id(prog) not in ready:
                 for k, v in uniforms.items():
                     _set(prog, k, v)
@@ -472,9 +538,6 @@ class Renderer:
                 _set(prog, "u_mat_base", row * 256)
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
-            m = obj.model_matrix()
-            _set(prog, "u_model", gl_bytes(m))
-            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
             idx, block = uniform_block(params)
             _set(prog, "u_model_id", idx)
             # the object's world y range: a film over height (thickness_top_nm); (0, 0) a uniform one
@@ -484,7 +547,7 @@ class Renderer:
                 self._measured_textures().bind(prog, params)
             if f.env_on or f.ssr_on:
                 self._environment_uniforms(prog, params, bool(uniforms["u_ms_on"]), thickness)
-            self._gpu_mesh(obj.mesh_data).vao(prog).render()
+            self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
 
     def _environment_uniforms(self, prog, params, ms_scene: bool, thickness):
         """A material's environment-lighting uniforms: its albedo tables, lobe width, the

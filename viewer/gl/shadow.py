@@ -33,12 +33,13 @@ class ShadowMaps:
         self._mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._texel = np.zeros(MAX_LIGHTS)
 
-    def update(self, scene, prog, vao_of):
+    def update(self, scene, prog, draw):
         """Render the atlas with the shadow program ``prog`` unless the lights and objects are
-        where they were; ``vao_of(mesh_data, prog)`` gives an object's vertex array."""
+        where they were; ``draw(objects, prog)`` draws the objects (instanced by mesh)."""
         lights = shadow_lights(scene)
         key = (tuple((l.type, tuple(np.round(l.position, 9)), tuple(np.round(l.direction, 9))) for l in lights),
-               tuple((id(o.mesh_data), o.model_matrix().tobytes()) for o in scene.objects))
+               tuple((id(o.mesh_data), np.asarray(o.translate, float).tobytes(), np.asarray(o.scale, float).tobytes(),
+                      float(o.rotate_y_deg)) for o in scene.objects))   # what the model matrices are made of
         if key == self._key and self._atlas is not None:
             return
         rows = max(1, len(lights))
@@ -63,9 +64,8 @@ class ShadowMaps:
             faces = range(6) if light.type == "point" else range(1)
             for f in faces:
                 fbo.viewport = (f * S, i * S, S, S)
-                for obj in scene.objects:
-                    _set(prog, "u_mvp", gl_bytes(mats[i * 6 + f] @ obj.model_matrix()))
-                    vao_of(obj.mesh_data, prog).render()
+                _set(prog, "u_mvp", gl_bytes(mats[i * 6 + f]))
+                draw(scene.objects, prog)
         ctx.polygon_offset = (0.0, 0.0)
         self._mats = mats
         self._key = key

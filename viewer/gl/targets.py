@@ -4,7 +4,6 @@ absorbing objects that the forward pass turns into a path length inside them."""
 
 from __future__ import annotations
 
-import numpy as np
 
 from viewer.camera import gl_bytes
 from viewer.gl.shaders import set_uniform as _set
@@ -68,8 +67,9 @@ class ThicknessPass:
         self.ctx = ctx
         self._thick = None  # (size, texture, depth, framebuffer)
 
-    def render(self, objects, cam, w, h, prog, vao_of):
-        """The thickness texture of ``objects`` drawn with ``prog``; ``vao_of(mesh_data, prog)``."""
+    def render(self, objects, cam, w, h, prog, draw):
+        """The thickness texture of ``objects`` drawn with ``prog``; ``draw(objects, prog)``
+        draws them (instanced by mesh)."""
         ctx = self.ctx
         key = (w, h)
         if self._thick is None or self._thick[0] != key:
@@ -86,11 +86,7 @@ class ThicknessPass:
         ctx.cull_face = "front"  # keep back faces: the far side of each object
         _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
         _set(prog, "u_camera_pos", tuple(float(x) for x in cam.position))
-        for obj in objects:
-            m = obj.model_matrix()
-            _set(prog, "u_model", gl_bytes(m))
-            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
-            vao_of(obj.mesh_data, prog).render()
+        draw(objects, prog)
         ctx.cull_face = "back"
         ctx.disable(ctx.CULL_FACE)
         return tex

@@ -9,8 +9,10 @@ from it and keeps refining (new samples continue at sample index ``spp``: indepe
 stored ones for the same engine and seed, and for the other engine by construction).
 
 Files: ``<cache folder>/references/<key>.npz`` (float32 sums of radiance and of its squares,
-the sample count, engine, seed), written atomically (``viewer.io``); a damaged entry is
-ignored. The folder: ``$BRDF_VIEWER_CACHE``, else
+the sample count, engine, seed), written atomically (``viewer.io``). A damaged entry (truncated,
+corrupt, wrong shapes, nonsense values) is set aside as ``<key>.npz.damaged`` with one line and
+rendered afresh; a folder that cannot be written is reported (``CacheError``), never ignored.
+Opening the folder (``open_folder``) removes the ``.part`` files of writers that were killed. The folder: ``$BRDF_VIEWER_CACHE``, else
 ``$XDG_CACHE_HOME/brdf-viewer``, else ``~/.cache/brdf-viewer``.
 """
 
@@ -19,10 +21,15 @@ from __future__ import annotations
 import hashlib
 import io
 import os
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from viewer import OutputError, ViewerError
+from viewer.scene.validation import short
 
 #: bump when the estimator changes what it converges to (or its noise), so old entries are unused
 ESTIMATOR_VERSION = "1"
@@ -89,30 +96,131 @@ class Entry:
         return (self.sum / max(self.spp, 1)).astype(np.float32)
 
 
+_OPENED: set[str] = set()
+
+
 def path_for(key: str, folder: Path | None = None) -> Path:
-    return (folder or cache_folder()) / f"{key}.npz"
+    return open_folder(folder) / f"{key}.npz"
 
 
-def load(key: str, folder: Path | None = None) -> Entry | None:
-    """The entry stored under ``key``, or None (missing or unreadable)."""
+def open_folder(folder: Path | None = None) -> Path:
+    """The cache folder; the first time a process opens it, the ``.part`` files of writers that
+    were killed mid-write (up to the size of an entry each) are removed (``viewer.io``)."""
+    folder = folder or cache_folder()
+    if str(folder) not in _OPENED:
+        _OPENED.add(str(folder))
+        from viewer.io import remove_orphan_parts
+
+        remove_orphan_parts(folder)
+    return folder
+
+
+#: the most samples per pixel an entry may claim: far beyond any bake (2^32 spp at 1 spp/ms is 50
+#: days), far below where the int64 count or a float32 sum would stop meaning anything
+MAX_SPP = 2 ** 32
+ENGINES = ("cpu", "gpu")
+
+
+class CacheError(OutputError):
+    """An entry that could not be written (an unwritable or full cache folder): one line."""
+
+
+def say(message: str) -> None:
+    """The default way the cache reports an entry it set aside: one line on stderr."""
+    print(f"brdf-viewer: {message}", file=sys.stderr, flush=True)
+
+
+def entry_problem(e: Entry, shape: tuple | None = None) -> str | None:
+    """What makes ``e`` unusable (wrong shapes, a sample count out of range, NaN, Inf or negative
+    sums), or None. Sums of radiance are >= 0 (the renderers replace NaN, Inf and negative
+    values by 0 before adding); a sum of squares may overflow float32 to +inf (its variance then
+    reads as unknown), never NaN or < 0."""
+    if e.sum.ndim != 3 or e.sum.shape[2] != 3:
+        return f"sums of shape {e.sum.shape}, not (H, W, 3)"
+    if e.sum2.shape != e.sum.shape:
+        return f"sums of squares of shape {e.sum2.shape}, sums of shape {e.sum.shape}"
+    if shape is not None and tuple(e.sum.shape) != tuple(shape):
+        return f"sums of shape {e.sum.shape}, the image is {tuple(shape)}"
+    if not 1 <= e.spp <= MAX_SPP:
+        return f"{short(str(e.spp))} samples per pixel; allowed: 1 to 2^32"
+    if e.engine not in ENGINES:
+        return f"engine {short(e.engine)!r}; allowed: {', '.join(ENGINES)}"
+    if not np.all(np.isfinite(e.sum)):
+        return "NaN or Inf in the sums"
+    if np.any(e.sum < 0):
+        return "negative sums"
+    if np.any(np.isnan(e.sum2)) or np.any(e.sum2 < 0):
+        return "NaN or negative sums of squares"
+    return None
+
+
+def set_aside(path: Path, why: str, report=None) -> None:
+    """Move a damaged entry out of the way (``NAME.damaged``, or delete it when it cannot be
+    renamed) and say so in one line, so the caller renders afresh and the next store writes a
+    good entry."""
+    target = path.with_name(path.name + ".damaged")
+    try:
+        os.replace(path, target)
+        done = "set aside as .damaged"
+    except OSError:
+        try:
+            path.unlink()
+            done = "removed"
+        except OSError as e:
+            done = f"left in place ({e.strerror or e})"
+    (report or say)(f"reference cache: {path}: damaged ({why}); {done}, rendering afresh")
+
+
+def load(key: str, folder: Path | None = None, shape: tuple | None = None, report=None) -> Entry | None:
+    """The entry stored under ``key``, or None. A damaged entry (a truncated or corrupt file,
+    wrong shapes, or ``shape`` = (H, W, 3) not matched, nonsense values: see ``entry_problem``)
+    is set aside (``set_aside``) with one line through ``report`` (default: stderr) and None is
+    returned, so the caller renders afresh. An entry that cannot be read (permissions) is None."""
     p = path_for(key, folder)
     try:
-        with np.load(p, allow_pickle=False) as z:
-            e = Entry(z["sum"].astype(np.float64), z["sum2"].astype(np.float64), int(z["spp"]),
-                      str(z["engine"]), int(z["seed"]))
-    except (OSError, ValueError, KeyError, EOFError):
+        with open(p, "rb") as f:
+            data = f.read()
+    except OSError:
         return None
-    if e.spp < 1 or e.sum.shape != e.sum2.shape or e.sum.ndim != 3 or not np.all(np.isfinite(e.sum)):
+    if not data.startswith(b"PK\x03\x04"):   # np.load would guess another format (a pickle) and say so
+        set_aside(p, "not an .npz file", report)
+        return None
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            e = Entry(np.asarray(z["sum"], np.float64), np.asarray(z["sum2"], np.float64),
+                      int(z["spp"]), str(z["engine"]), int(z["seed"]))
+    except Exception as ex:  # noqa: BLE001 - BadZipFile, zlib.error, ValueError, KeyError, EOFError, ...
+        set_aside(p, short(f"{type(ex).__name__}: {ex}".splitlines()[0], 80), report)
+        return None
+    why = entry_problem(e, shape)
+    if why is not None:
+        set_aside(p, why, report)
         return None
     return e
 
 
-def store(key: str, entry: Entry, folder: Path | None = None) -> bool:
-    """Write ``entry`` unless the stored one already has as many samples; True when written.
-    A cache folder that cannot be written is not an error (False)."""
+def check_writable(folder: Path | None = None) -> Path:
+    """Create the cache folder and write a probe file there; ``CacheError`` (one line) when
+    either fails, so ``bake`` says so before it renders anything."""
+    folder = folder or cache_folder()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".probe.", suffix=".part", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise CacheError(f"reference cache {folder}: cannot be written ({e.strerror or e}); "
+                         "set BRDF_VIEWER_CACHE to a writable folder") from None
+    return folder
+
+
+def store(key: str, entry: Entry, folder: Path | None = None, report=None) -> bool:
+    """Write ``entry`` unless the stored one already has as many samples; True when written,
+    False when the stored entry is kept. A folder that cannot be written (unwritable, full)
+    raises ``CacheError`` (one line naming the file and why): the caller says so."""
     from viewer.io import atomic_write_bytes
 
-    old = load(key, folder)
+    old = load(key, folder, entry.sum.shape, report)
     if old is not None and old.spp >= entry.spp:
         return False
     buf = io.BytesIO()
@@ -122,6 +230,10 @@ def store(key: str, entry: Entry, folder: Path | None = None) -> bool:
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(p, buf.getvalue())
-    except OSError:
-        return False
+    except OSError as e:   # the folder cannot be made, or the write failed (viewer.io: OutputError)
+        why = str(e) if isinstance(e, ViewerError) else f"{p}: cannot be written ({e.strerror or e})"
+        raise CacheError(f"reference cache: {short(why, 300)}; set BRDF_VIEWER_CACHE to a writable "
+                         "folder") from None
+    except ViewerError as e:   # e.g. the folder vanished between mkdir and the write
+        raise CacheError(f"reference cache: {short(str(e), 300)}") from None
     return True

@@ -13,7 +13,10 @@ interpreters that import only numpy, embreex and ``viewer.pathtracer`` / ``viewe
 (no GL). As always with ``spawn``, the launching script must guard its entry point with
 ``if __name__ == "__main__"`` (the package's ``brdf-viewer`` script and ``python -m viewer``
 need nothing: ``multiprocessing`` does not re-run a package's ``__main__``).
-``workers=0`` renders in the calling process (no pool).
+``workers=0`` renders in the calling process (no pool). A worker whose parent dies (killed
+with SIGKILL or SIGTERM, so that it never shut the pool down) notices within
+``PARENT_CHECK_S`` and exits (``watch_parent``); multiprocessing's resource tracker, which
+waits for every holder of its pipe, ends with the last of them.
 
 Cancellation: ``step(cancel=event)`` checks the event every few milliseconds while it waits
 for chunks (each chunk takes well under 100 ms), cancels the chunks not started, and returns
@@ -63,8 +66,33 @@ def _build(setup: RenderSetup) -> Integrator:
         raise ViewerError(explain(e, None, f"the {setup.kernel} ray kernel of the reference path tracer")) from None
 
 
-def _init_worker(setup: RenderSetup, key: str):
+#: how often a worker checks that the process that started it is still alive (seconds)
+PARENT_CHECK_S = 0.5
+
+
+def watch_parent(parent_pid: int, every_s: float = PARENT_CHECK_S) -> threading.Thread:
+    """In a worker: a daemon thread that ends this process when ``parent_pid`` is no longer its
+    parent (killed with SIGKILL or SIGTERM, it could not shut the pool down; the worker is then
+    reparented and would wait on the task queue for good, with the resource tracker, whose pipe
+    the workers hold, waiting with it). Polling ``os.getppid`` works on every POSIX system and
+    needs no help from the parent; ``prctl(PR_SET_PDEATHSIG)`` is not used, since it fires when
+    the parent's *thread* that started the worker ends (the window starts pools from its
+    reference thread)."""
+    def watch():
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(0)   # nothing to save: the parent that would read the results is gone
+            time.sleep(every_s)
+
+    t = threading.Thread(target=watch, name="parent-watch", daemon=True)
+    t.start()
+    return t
+
+
+def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None):
     global _INITIAL
+    if parent_pid is not None:
+        watch_parent(parent_pid)
     _INITIAL = (setup, key)
     try:
         _worker_for(key, None)  # build now, so warm_up() starts ready workers
@@ -156,7 +184,7 @@ class ReferenceRenderer:
         if self.workers > 0:
             check_entry_point_guarded()  # one line instead of multiprocessing's 20 in every worker
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
-                                                initializer=_init_worker, initargs=(self.setup, self._key))
+                                                initializer=_init_worker, initargs=(self.setup, self._key, os.getpid()))
 
     def _spectral_setup(self, scene, setup: RenderSetup) -> RenderSetup:
         from viewer.pathtracer.spectral import scene_is_dispersive

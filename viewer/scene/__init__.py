@@ -44,7 +44,7 @@ from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSUR
                                 LIGHT_TYPES, MAX_SIZE, MIN_VIEW_DISTANCE, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS,
                                 RENDER_KEYS, SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene,
                                 SceneObject)
-from viewer.scene.overrides import apply_override, dotted_key
+from viewer.scene.overrides import apply_override, check_replaced, dotted_key
 from viewer.scene.parse import parse_scene
 from viewer.scene.toml_writer import material_to_toml, save_material, save_scene, scene_to_data, scene_to_toml
 from viewer.scene.validation import MAX_NESTING
@@ -54,7 +54,7 @@ __all__ = [
     "LIGHT_TYPES", "LUMINANCE", "MAP_ALLOWED", "MAX_NESTING", "MAX_SIZE", "MID_GREY", "MIN_VIEW_DISTANCE",
     "MSAA_SAMPLES", "OBJECT_KEYS", "POINT_KEYS", "RENDER_KEYS", "SCENE_DIR", "SCENE_VERSION", "SCREENSHOT_KEY",
     "TONEMAPS", "TOP_KEYS", "Camera", "Environment", "Light", "RenderSettings", "Scene", "SceneObject",
-    "apply_override", "builtin_scene_names", "dotted_key", "lecture_scene_names", "load_material_file",
-    "load_scene", "load_scene_text", "material_from_name", "material_to_toml", "parse_scene", "save_material",
-    "save_scene", "scene_to_data", "scene_to_toml",
+    "apply_override", "builtin_scene_names", "check_replaced", "dotted_key", "lecture_scene_names",
+    "load_material_file", "load_scene", "load_scene_text", "material_from_name", "material_to_toml",
+    "parse_scene", "save_material", "save_scene", "scene_to_data", "scene_to_toml",
 ]

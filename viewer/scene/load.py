@@ -124,7 +124,30 @@ def _read_screenshot(path: Path, label: str) -> dict:
     if SCREENSHOT_KEY not in text:
         Checker(label).fail(SCREENSHOT_KEY, "this PNG holds no scene",
                              "a screenshot saved by brdf-viewer (F12 or render)")
-    return loads_toml(text[SCREENSHOT_KEY], label)
+    return _beside(loads_toml(text[SCREENSHOT_KEY], label), path.parent)
+
+
+def _beside(data: dict, folder: Path) -> dict:
+    """A screenshot's scene names its mesh and map files by absolute path; one that no longer
+    exists there but does beside the screenshot (the PNG was copied with its files) is taken
+    from there."""
+    def moved(value):
+        if not isinstance(value, str) or not os.path.isabs(value) or os.path.exists(value):
+            return value
+        here = folder / Path(value).name
+        return str(here) if here.is_file() else value
+
+    for obj in data.get("objects", []) if isinstance(data.get("objects"), list) else []:
+        if isinstance(obj, dict) and "mesh" in obj:
+            obj["mesh"] = moved(obj["mesh"])
+    env = data.get("environment")
+    if isinstance(env, dict) and "map" in env:
+        env["map"] = moved(env["map"])
+    mats = data.get("materials")
+    for m in mats.values() if isinstance(mats, dict) else []:
+        if isinstance(m, dict) and m.get("model") == "measured" and "file" in m:
+            m["file"] = moved(m["file"])
+    return data
 
 
 def _read_toml(path: Path, label: str) -> dict:

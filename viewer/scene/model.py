@@ -29,6 +29,14 @@ IBL_MODES = ("split_sum", "fis", "brute_force", "off")
 TONEMAPS = ("none", "aces", "filmic", "reinhard")
 MSAA_SAMPLES = (0, 1, 2, 4, 8)
 MAX_SIZE = 16384
+SIZE_ALLOWED = f"an integer of pixels in [1, {MAX_SIZE}]"  # camera.width, camera.height
+# The most objects and triangles (over all objects, each counting its mesh's) a scene may hold
+# (docs/scene-format.md, [[objects]]): beyond them software OpenGL takes minutes a frame and the
+# reference's world-space triangles (72 bytes each) outgrow memory. 1,000 built-in spheres are
+# 20 million triangles; 10,000 cubes 120,000.
+MAX_OBJECTS = 100_000
+MAX_TRIANGLES = 30_000_000
+LARGE_SCENE_OBJECTS = 1_000   # from here on, loading says how large the scene is (Scene.size_note)
 EXPOSURE_RANGE = (-20.0, 20.0)
 # Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
 # a finite float64 beyond this would turn into inf there.
@@ -175,16 +183,34 @@ class Scene:
         """(min, max) float64 (3,) corners of the world-space box around every object."""
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
+        local: dict = {}   # (mesh, rotation, scale) -> the box of the turned and scaled vertices
         for obj in self.objects:
             if obj.mesh_data is None:
                 continue
-            p = obj.world_positions()
-            if len(p):
-                lo = np.minimum(lo, p.min(axis=0))
-                hi = np.maximum(hi, p.max(axis=0))
+            k = (id(obj.mesh_data), float(obj.rotate_y_deg), np.asarray(obj.scale, np.float64).tobytes())
+            box = local.get(k)
+            if box is None:
+                p = np.asarray(obj.mesh_data.positions, dtype=np.float64).reshape(-1, 3)
+                if not len(p):
+                    continue
+                p = p @ obj.model_matrix()[:3, :3].T
+                box = local[k] = (p.min(axis=0), p.max(axis=0))
+            # rounding is monotonic, so min(p + t) = min(p) + t exactly: world_positions' box
+            t = np.asarray(obj.translate, np.float64)
+            lo = np.minimum(lo, box[0] + t)
+            hi = np.maximum(hi, box[1] + t)
         if not np.all(np.isfinite(lo)):
             return np.zeros(3), np.zeros(3)
         return lo, hi
+
+    def size_note(self) -> str | None:
+        """"N objects, T triangles" for a scene of ``LARGE_SCENE_OBJECTS`` objects or more (the
+        CLI prints it on stderr, the window in its status line: such a load takes seconds), else
+        None."""
+        if len(self.objects) < LARGE_SCENE_OBJECTS:
+            return None
+        tris = sum(len(o.mesh_data.indices) for o in self.objects if o.mesh_data is not None)
+        return f"{len(self.objects):,} objects, {tris:,} triangles"
 
     def material_of(self, obj: SceneObject):
         return self.materials[obj.material]

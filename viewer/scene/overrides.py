@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from viewer.scene.model import TOP_KEYS
+from viewer.scene.model import MAX_SIZE, SIZE_ALLOWED, TOP_KEYS
 from viewer.scene.validation import Checker, check_nesting, describe, short
 
 try:  # Python >= 3.11
@@ -70,7 +70,7 @@ def apply_override(data: dict, assignment: str, where: str = "--set") -> None:
     materials) are created; any other missing part of the path is an error naming it. The
     value itself is checked later, by ``parse_scene``.
     """
-    ck = Checker(f"{where} {assignment}")
+    ck = Checker(f"{where} {short(assignment)}")
     if "=" not in assignment:
         ck.fail("KEY=VALUE", "no '=' in the assignment", "KEY=VALUE with a dotted KEY, e.g. materials.ball.alpha=0.2")
     key, text = assignment.split("=", 1)
@@ -109,3 +109,18 @@ def apply_override(data: dict, assignment: str, where: str = "--set") -> None:
         else:
             ck.fail(here, f"{'.'.join(parts[:depth])} is a value ({describe(cur)}), not a table or list",
                     "a path that ends at " + ".".join(parts[:depth]))
+
+
+def check_replaced(assignments, replaced: dict[str, str], where: str = "--set") -> None:
+    """Check the ``camera.width`` / ``camera.height`` assignments among ``assignments`` that a
+    command-line option replaces (``replaced``: key -> the option, e.g. ``--width``): a value
+    that would be refused must not pass unseen because ``--width`` overwrites it. Raises
+    ``ViewerError`` (one line)."""
+    for a in assignments:
+        if "=" not in a:
+            continue
+        key, text = a.split("=", 1)
+        key = dotted_key(key)
+        if key in replaced and key in ("camera.width", "camera.height"):
+            ck = Checker(f"{where} {short(a)} (replaced by {replaced[key]})")
+            ck.integer(_parse_value(text), key, SIZE_ALLOWED, 1, MAX_SIZE)

@@ -13,7 +13,7 @@ from viewer import ViewerError
 from viewer.io import expand_user, one_line_errors, path_problem
 from viewer.scene.environment import MAP_ALLOWED, Environment
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, IBL_MODES, LIGHT_TYPES,
-                                MAX_SIZE, MIN_VIEW_DISTANCE, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
+                                MAX_OBJECTS, MAX_SIZE, MAX_TRIANGLES, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
                                 SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene, SceneObject)
 from viewer.scene.overrides import apply_override, is_material_switch, switch_material
 from viewer.scene.validation import Checker, check_nesting, describe, short
@@ -64,6 +64,11 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
             if obj.mesh not in cache:
                 cache[obj.mesh] = load_mesh(obj.mesh, base_dir, where=f"{label}: objects[{i}].mesh")
             obj.mesh_data = cache[obj.mesh]
+        tris = sum(len(o.mesh_data.indices) for o in objects)
+        if tris > MAX_TRIANGLES:
+            ck.fail("objects", f"{len(objects):,} objects hold {tris:,} triangles in all",
+                    f"at most {MAX_TRIANGLES:,} triangles over all objects (see docs/scene-format.md); "
+                    "a coarser mesh or fewer objects")
 
     return Scene(path=path, camera=camera, environment=environment, render=render, lights=lights,
                  objects=objects, materials=materials, data=data, label=label, base_dir=base_dir)
@@ -84,7 +89,7 @@ def _parse_camera(ck: Checker, t) -> Camera:
                               0.0, 180.0, lo_open=True, hi_open=True)
     for k in ("width", "height"):
         if k in t:
-            setattr(cam, k, ck.integer(t[k], f"camera.{k}", f"an integer of pixels in [1, {MAX_SIZE}]", 1, MAX_SIZE))
+            setattr(cam, k, ck.integer(t[k], f"camera.{k}", SIZE_ALLOWED, 1, MAX_SIZE))
     view = cam.target - cam.position
     if not np.any(view != 0):
         ck.fail("camera.target", "equals camera.position, so there is no viewing direction",
@@ -229,6 +234,8 @@ def _parse_objects(ck: Checker, lst, materials: dict) -> list[SceneObject]:
         ck.fail("objects", f"expected an array of tables, got {describe(lst)}", need)
     if not lst:
         ck.fail("objects", "is empty (a scene needs at least one object)", need)
+    if len(lst) > MAX_OBJECTS:
+        ck.fail("objects", f"{len(lst):,} objects", f"at most {MAX_OBJECTS:,} (see docs/scene-format.md)")
     mat_allowed = ", ".join(materials) if materials else "none defined yet: add a [materials.NAME] table"
     out = []
     for i, t in enumerate(lst):

@@ -21,9 +21,10 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 import tomli_w
 
 
-def scene_to_data(scene: Scene) -> dict:
+def scene_to_data(scene: Scene, absolute_paths: bool = False) -> dict:
     """The scene's current values as plain TOML data (every value explicit, presets expanded).
-    Relative paths are written relative to the scene's folder."""
+    Mesh and map files are written relative to the scene's folder, or (``absolute_paths``, as a
+    screenshot embeds its scene) as absolute paths, so the text means the same from any folder."""
     cam = scene.camera
     d: dict[str, Any] = {"version": SCENE_VERSION}
     d["camera"] = {"position": _list(cam.position), "target": _list(cam.target), "up": _list(cam.up),
@@ -31,7 +32,8 @@ def scene_to_data(scene: Scene) -> dict:
     env = scene.environment
     e: dict[str, Any] = {}
     if env.map is not None:
-        e["map"] = env.map if isinstance(env.map, str) else _rel(env.map, scene)
+        e["map"] = env.map if isinstance(env.map, str) else (
+            str(_base(scene) / env.map) if absolute_paths else _rel(env.map, scene))
     else:
         e["constant"] = _list(env.constant if env.constant is not None else np.zeros(3))
     e["intensity"] = float(env.intensity)
@@ -56,7 +58,13 @@ def scene_to_data(scene: Scene) -> dict:
     for o in scene.objects:
         s = o.scale
         scale = _list(s) if np.ndim(s) else float(s)
-        objs.append({"mesh": o.mesh, "material": o.material, "translate": _list(o.translate),
+        mesh = o.mesh
+        if absolute_paths:
+            from viewer.meshgen import GENERATORS
+
+            if mesh not in GENERATORS:
+                mesh = str(_base(scene) / Path(mesh).expanduser())   # as load_mesh resolves it
+        objs.append({"mesh": mesh, "material": o.material, "translate": _list(o.translate),
                      "scale": scale, "rotate_y_deg": float(o.rotate_y_deg)})
     d["objects"] = objs
     d["materials"] = {name: _plain(p.to_plain()) for name, p in scene.materials.items()}
@@ -79,19 +87,24 @@ def _plain(v):
     return v
 
 
+def _base(scene: Scene) -> Path:
+    """The folder the scene's relative paths resolve against (absolute)."""
+    return Path(scene.base_dir or (scene.path.parent if scene.path else Path.cwd())).absolute()
+
+
 def _rel(p: Path, scene: Scene) -> str:
-    base = scene.base_dir or (scene.path.parent if scene.path else Path.cwd())
     p = Path(p)
     try:
-        return Path(os.path.relpath(p, Path(base).absolute())).as_posix()
+        return Path(os.path.relpath(p, _base(scene))).as_posix()
     except ValueError:  # another drive on Windows
         return str(p)
 
 
-def scene_to_toml(scene_or_data) -> str:
+def scene_to_toml(scene_or_data, absolute_paths: bool = False) -> str:
     """TOML text for a ``Scene`` (its current values, see ``scene_to_data``) or for plain data.
     ``parse_scene(tomllib.loads(scene_to_toml(s)), s.path) == s``."""
-    data = scene_to_data(scene_or_data) if isinstance(scene_or_data, Scene) else _plain(scene_or_data)
+    data = (scene_to_data(scene_or_data, absolute_paths) if isinstance(scene_or_data, Scene)
+            else _plain(scene_or_data))
     lines: list[str] = []
     _emit_table(lines, [], data, header=None)
     text = "\n".join(lines).strip("\n") + "\n"

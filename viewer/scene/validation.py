@@ -56,7 +56,9 @@ class Checker:
         self.label = label
 
     def fail(self, fld: str, problem: str, allowed: str):
-        raise ViewerError(one_line(f"{self.label}: {fld}: {problem}; allowed: {allowed}"))
+        # each part shortened: a problem quotes at most a short prefix of a 100 KB value or name
+        raise ViewerError(one_line(f"{short(self.label, 200)}: {short(fld, 120)}: {short(problem, 200)}; "
+                                   f"allowed: {allowed}"))
 
     def table(self, value, fld: str, keys: Sequence[str], what: str = "key") -> dict:
         if not isinstance(value, dict):
