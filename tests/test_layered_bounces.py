@@ -125,9 +125,14 @@ def test_closed_form_equals_random_walk(ior, rho, tau):
         assert closed == pytest.approx(walk, abs=4 * se + 2e-3), (mu_o, closed, walk)
 
 
-def test_bounce_factor_only_for_lambert_bases():
+def test_interreflection_tables_for_every_base():
+    # a glossy base gets its interreflections too (its own albedos: viewer/brdf/layered.py
+    # base_bounce_tables); a Lambert base's tables are rho and rho K exactly
     p = LAYERED.params(base=dict(model="microfacet", alpha=0.3))
-    np.testing.assert_array_equal(layered_mod.bounce_factor(p), np.ones(3))
+    E, A, rk = layered_mod.base_bounce_tables(p)
+    assert np.all(rk > 0.05) and np.all(A > 0) and np.all(A <= E + 1e-12)
     q = _white(1.5, 0.1, albedo=(0.0, 0.5, 1.0))
-    b = layered_mod.bounce_factor(q)
-    assert b[0] == 1.0 and 1.0 < b[1] < b[2]
+    E, A, rk = layered_mod.base_bounce_tables(q)
+    K = layered_mod.internal_reflectance(q)
+    np.testing.assert_allclose(rk, np.array([0.0, 0.5, 1.0]) * K, rtol=1e-12)
+    np.testing.assert_allclose(E, np.tile([0.0, 0.5, 1.0], (layered_mod.BASE_TABLE, 1)))

@@ -4,9 +4,10 @@
 // Heitz 2014 eq. 99); wi', wo': refracted into the layer, pointing up; T = 1 - E (the coat's albedo) at the
 // macro-surface angles; a = exp(-sigma_a thickness (1/cos_ti' + 1/cos_to')) (Bouguer);
 // 1 / eta^2: the radiance leaving the layer is the radiance inside over eta^2 (L / n^2 invariant).
-// Lambert base: times 1 / (1 - rho K), the coat-base interreflections (layered_internal_reflectance).
+// The coat-base interreflections after the first bounce, for every non-delta base, from the base's
+// tables computed on the CPU (layered.py base_bounce_tables: E_b, A_b, rho_K).
 // A thin film on the coating (p.coating.thin_film): the coat's F becomes the film's RGB R over the
-// coat's ior, its albedo E + R_film - F (exact for a smooth coat), K takes the coloured E. R_film
+// coat's ior, its albedo E + R_film - F (exact for a smooth coat). R_film
 // is a table over cos computed once per material on the CPU (viewer/brdf/layered.py film_table,
 // in the derived block after the albedo table, a film flag and K): no wavelength loop here, so a coat film
 // compiles as fast as none. Only under COAT_FILM (viewer/gl/brdf_glsl.py program_defines).
@@ -22,13 +23,14 @@ vec3 layered_refract_in(vec3 w, float eta) {
 }
 
 #ifdef COAT_FILM
+// the film table's first entry, R at grazing incidence: 1 with a film, 0 without
 bool layered_has_film(layered_params p) { return p.derived[LAYERED_COAT_TABLE] > 0.5; }
 
 // The film's RGB R at cos, from the table at cos = (k / (N - 1))^2: linear in sqrt(cos).
 vec3 layered_film_table(layered_params p, float c) {
     float x = sqrt(clamp(c, 0.0, 1.0)) * float(LAYERED_FILM_TABLE - 1);
     int i = min(int(floor(x)), LAYERED_FILM_TABLE - 2);
-    int o = p.derived_at + LAYERED_COAT_TABLE + 4 + 3 * i;  // from the material block itself
+    int o = p.derived_at + LAYERED_COAT_TABLE + 3 * i;  // from the material block itself
     vec3 r0 = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
     vec3 r1 = vec3(mat_f(o + 3), mat_f(o + 4), mat_f(o + 5));
     return mix(r0, r1, x - float(i));
@@ -52,10 +54,6 @@ vec3 layered_coat(layered_params p, vec3 wi, vec3 wo) {
     return F * ratio_capped(G * D_ggx(h, a, a), 4.0 * wi.z * wo.z);
 }
 
-// 16-point Gauss-Legendre on [0, 1], the numbers of GL16_X / GL16_W in viewer/brdf/layered.py
-const float LAYERED_GL_X[16] = float[16](0.0052995325, 0.0277124885, 0.0671843988, 0.122297796, 0.191061878, 0.270991611, 0.359198225, 0.452493745, 0.547506255, 0.640801775, 0.729008389, 0.808938122, 0.877702204, 0.932815601, 0.972287512, 0.994700467);
-const float LAYERED_GL_W[16] = float[16](0.0135762297, 0.031126762, 0.0475792558, 0.0623144856, 0.0747979944, 0.0845782597, 0.0913017075, 0.0947253052, 0.0947253052, 0.0913017075, 0.0845782597, 0.0747979944, 0.0623144856, 0.0475792558, 0.031126762, 0.0135762297);
-
 // E(cos), the coat's own directional albedo, from the 24-entry table at cos = k / 23 that
 // viewer/brdf/layered.py (coat_albedo_table) puts in the material block; linear interpolation.
 float layered_coat_albedo(layered_params p, float c) {
@@ -74,29 +72,27 @@ vec3 layered_coat_albedo_rgb(layered_params p, float c) {
     return E;
 }
 
-// K = integral_0^1 F_int(mu) exp(-2 tau / mu) 2 mu dmu, the coat's internal diffuse reflectance
-// with absorption up and down (tau = sigma_a thickness): the total-internal-reflection cone
-// mu < mu_c, then the transmitting cone in the outside cosine mu' (F_int(mu) ~ E(mu'),
-// 2 mu dmu = 2 mu' dmu' / eta^2). Twin of internal_reflectance in layered.py.
-vec3 layered_internal_reflectance(layered_params p) {
-#ifdef COAT_FILM
-    // with a coat film: K computed on the CPU (layered.py derived), not 16 film lookups here
-    if (layered_has_film(p))
-        return vec3(mat_f(p.derived_at + LAYERED_COAT_TABLE + 1), mat_f(p.derived_at + LAYERED_COAT_TABLE + 2),
-                    mat_f(p.derived_at + LAYERED_COAT_TABLE + 3));
-#endif
-    float eta = p.coating.ior;
-    vec3 tau = p.coating.sigma_a * p.coating.thickness;
-    float mu_c = sqrt(max(0.0, 1.0 - 1.0 / (eta * eta)));
-    vec3 K = vec3(0.0);
-    for (int k = 0; k < 16; ++k) {
-        float mu = mu_c * LAYERED_GL_X[k];
-        K += (LAYERED_GL_W[k] * mu_c * 2.0 * mu) * exp(-2.0 * tau / max(mu, 1e-30));
-        float mo = LAYERED_GL_X[k];
-        float mu_in = sqrt(1.0 - (1.0 - mo * mo) / (eta * eta));
-        K += (LAYERED_GL_W[k] * layered_coat_albedo_rgb(p, mo) * 2.0 * mo / (eta * eta)) * exp(-2.0 * tau / mu_in);
-    }
-    return K;
+// The base's interreflection tables (viewer/brdf/layered.py base_bounce_tables), after the film's
+// in the material block: E_b (which = 0) or A_b (which = 1) at the outside cosine c, linear in
+// sqrt(c).
+vec3 layered_base_table(layered_params p, int which, float c) {
+    float x = sqrt(clamp(c, 0.0, 1.0)) * float(LAYERED_BASE_TABLE - 1);
+    int i = min(int(floor(x)), LAYERED_BASE_TABLE - 2);
+    int o = p.derived_at + LAYERED_BASE_TABLES_AT + which * 3 * LAYERED_BASE_TABLE + 3 * i;
+    vec3 r0 = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
+    vec3 r1 = vec3(mat_f(o + 3), mat_f(o + 4), mat_f(o + 5));
+    return mix(r0, r1, x - float(i));
+}
+
+// The orders after the first of the coat-base interreflections (base_interreflections):
+// (A_b(mu_i) E_b(mu_o) + E_b(mu_i) A_b(mu_o)) / (2 pi (1 - rho_K)); for a Lambert base the
+// geometric series 1 / (1 - rho K) of its albedo, zero for a delta base.
+vec3 layered_base_interreflections(layered_params p, vec3 wi, vec3 wo) {
+    int o = p.derived_at + LAYERED_BASE_TABLES_AT + 6 * LAYERED_BASE_TABLE;
+    vec3 rk = vec3(mat_f(o), mat_f(o + 1), mat_f(o + 2));
+    vec3 num = layered_base_table(p, 1, wi.z) * layered_base_table(p, 0, wo.z)
+             + layered_base_table(p, 0, wi.z) * layered_base_table(p, 1, wo.z);
+    return num / (2.0 * PI * max(1.0 - rk, vec3(1e-6)));
 }
 
 vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {
@@ -111,12 +107,8 @@ vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {
     vec3 To = 1.0 - layered_coat_albedo_rgb(p, wo.z);
     float path = 1.0 / max(wi_t.z, 1e-12) + 1.0 / max(wo_t.z, 1e-12);
     vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
-    vec3 fb = brdf_eval_base(p.base_model, p.base_offset, wi_t, wo_t);
-    if (p.base_model == BRDF_MODEL_LAMBERT) {
-        // Lambert base: f_base = rho / pi; the interreflections' geometric series 1 / (1 - rho K)
-        vec3 K = layered_internal_reflectance(p);
-        fb /= max(1.0 - PI * fb * K, vec3(1e-6));
-    }
+    vec3 fb = brdf_eval_base(p.base_model, p.base_offset, wi_t, wo_t)
+            + layered_base_interreflections(p, wi, wo);
     f += (Ti * To / (eta * eta)) * absorb * fb;
     return f;
 }

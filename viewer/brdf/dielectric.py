@@ -121,7 +121,7 @@ def _rough_eval_pdf(p, wi, wo):
     # height-correlated Smith G2: Heitz 2014 eq. 99 for reflection, the Beta-function form of
     # sec. 5.3 for refraction
     G = np.where(reflect_, dist.G2(wi, wo, wm), dist.G2_transmission(wi, wo, wm))
-    F, T = _film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)  # (N, 3) each
+    F, T = film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)  # (N, 3) each
     aci = np.where(valid, np.abs(ci), 1.0)
     co = np.where(valid, co, 1.0)
     safe_h2 = np.where(valid, hlen2, 1.0)
@@ -155,7 +155,7 @@ def _rough_eval_pdf(p, wi, wo):
     return f, pdf
 
 
-def _film_or_fresnel(p, cos, eta):
+def film_or_fresnel(p, cos, eta):
     """(R, T), each (N, 3), at cos on the side with relative index eta: a thin film's RGB
     reflectance and 1 - R (thin_film.py), or the plain Fresnel R and T."""
     if thin_film.active(p):
@@ -183,7 +183,7 @@ def _sample_smooth(p, wo, u):
     s, eta = _side(p, wo)
     wo_u = _flip(wo, s)
     co = wo_u[:, 2]
-    R3, T3 = _film_or_fresnel(p, np.clip(co, 0.0, 1.0), eta)
+    R3, T3 = film_or_fresnel(p, np.clip(co, 0.0, 1.0), eta)
     R = R3.mean(axis=1)
     T = 1.0 - R
     choose_r = u[:, 0] < R
@@ -209,7 +209,7 @@ def _sample_rough(p, wo, u):
     dist = Distribution("ggx", p.alpha, p.alpha)
     m = dist.sample_m(wo_s, np.stack([u0, u[:, 1]], axis=-1))
     om = np.sum(wo_s * m, axis=-1)
-    F = _film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)[0].mean(axis=1)
+    F = film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)[0].mean(axis=1)
     choose_r = uc < F
     wr = reflect(wo_s, m)
     wt, ok_t = refract(wo_s, m, eta)

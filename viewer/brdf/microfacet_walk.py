@@ -1,6 +1,8 @@
 """Multiple scattering between microfacets: the stochastic random walk on the microsurface of
 Heitz, Hanika, d'Eon & Dachsbacher 2016, "Multiple-scattering microfacet BSDFs with the Smith
-model" (ACM TOG 35(4), SIGGRAPH 2016), for the reflection-only ``microfacet`` model.
+model" (ACM TOG 35(4), SIGGRAPH 2016): the conductor walk for the reflection-only ``microfacet``
+model, and the dielectric walk (sec. 6.2, at the end of this module) for the layered model's
+rough coat in the CPU reference (viewer/brdf/layered_walk.py).
 
 The Smith microsurface is treated as a volume-like medium of heights and normals (sec. 3-5 of
 the paper): heights have the uniform distribution on [-1, 1] (C1(h) = (h + 1) / 2; the walk's
@@ -294,3 +296,162 @@ def ms_fraction(alpha) -> float:
     the module docstring: any value in [0, 1) keeps the estimate unbiased."""
     a = float(alpha)
     return float(np.clip(0.7 * a ** 1.6, 0.0, 0.7))
+
+
+# ----------------------------------------------------------------------------- dielectric walk
+#
+# The rough dielectric interface (sec. 6.2 of the paper): the microsurface separates the outside
+# (upper side, index 1) from the inside (index ``ior``); a ray on either side walks the same
+# height field, seen flipped from inside (heights -h, directions -w: the uniform C1 is symmetric,
+# so the inside sees the same statistics). At an intersection it samples a visible normal of its
+# side, then reflects with probability F(w . m) or refracts through the facet (Snell's law with the
+# relative index of its side) and changes side. A lossless interface loses nothing: every walk
+# leaves on one side or the other, so R + T = 1 at every direction, which the single-scattering
+# model (viewer/brdf/dielectric.py, the walk's first order) does not give at large alpha.
+#
+# Units: the walk moves particles, so ``sample_dielectric``'s weight and ``eval_dielectric_multiple``'s
+# value carry no radiance factor (the particle density of exits, g(wi, wo) |cos wi|); radiance-mode
+# callers multiply by (n_wo / n_wi)^2 (viewer/brdf/dielectric.py's convention).
+# ``fresnel_rt(cos, eta)`` -> (R, T), each (N, 3), at a facet cosine seen from the side whose
+# relative index (n_other / n_this) is eta; with RGB values (a thin film) the branch is chosen
+# with the mean R and weighted by R / mean(R) or T / (1 - mean(R)).
+
+
+def _side_normal(dist, w_in, outside, u):
+    """A visible normal of w_in on its side: D_w for outside, -D_{-w}(-m) for inside."""
+    s = np.where(outside, 1.0, -1.0)[:, None]
+    return s * sample_visible_normal(dist, s * w_in, u)
+
+
+def _side_height(dist, wr, h, outside, u):
+    s = np.where(outside, 1.0, -1.0)
+    hn, esc = sample_height(dist, s[:, None] * wr, s * h, u)
+    return s * hn, esc
+
+
+def _side_g1(dist, w, h, outside):
+    """Escape probability of a ray leaving height h in direction w on the given side."""
+    s = np.where(outside, 1.0, -1.0)
+    return g1_height(dist, s[:, None] * w, s * h)
+
+
+def _refract_facet(w_in, m, eta):
+    """w_in (pointing away, on m's side) refracted through m, eta = n_t / n_i: (wt, ok)."""
+    cos_i = np.sum(w_in * m, axis=-1)
+    sin2_t = np.maximum(0.0, 1.0 - cos_i * cos_i) / (eta * eta)
+    ok = sin2_t < 1.0
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    wt = -w_in / eta[:, None] + (cos_i / eta - cos_t)[:, None] * m
+    n = np.linalg.norm(wt, axis=1, keepdims=True)
+    return wt / np.where(n > 0, n, 1.0), ok
+
+
+def _scatter_dielectric(dist, ior, fresnel_rt, w_in, outside, wt, u2, uc):
+    """One event: normal, Fresnel choice, new direction, side and weight."""
+    m = _side_normal(dist, w_in, outside, np.clip(u2, 0.0, 1.0 - 1e-16))
+    cos_m = np.clip(np.sum(w_in * m, axis=-1), 0.0, 1.0)
+    eta = np.where(outside, ior, 1.0 / ior)
+    R, T = fresnel_rt(cos_m, eta)
+    P = np.clip(R.mean(axis=1), 0.0, 1.0)
+    wt_ref, ok_t = _refract_facet(w_in, m, eta)
+    refl = (uc < P) | ~ok_t
+    w_rf = _reflect(w_in, m)
+    w_rf /= np.linalg.norm(w_rf, axis=1, keepdims=True)
+    wr = np.where(refl[:, None], w_rf, wt_ref)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.where(refl[:, None], np.where(ok_t[:, None], R / P[:, None], 1.0),
+                        T / (1.0 - P)[:, None])
+    gain = np.where(np.isfinite(gain), gain, 0.0)
+    return wr, np.where(refl, outside, ~outside), wt * gain
+
+
+def sample_dielectric(dist: Distribution, ior: float, fresnel_rt, wo, u, rng):
+    """Random walk from wo (either side; wo.z > 0 is outside): (exit direction wi, particle
+    weight (N, 3), events). The first normal uses ``u`` (N, 2), the rest ``rng``. Its exits
+    have the density g(wi, wo) |cos wi| of the multiply scattering interface (every order)."""
+    n = wo.shape[0]
+    wi = np.tile(np.array([0.0, 0.0, 1.0]), (n, 1))
+    weight = np.zeros((n, 3))
+    events = np.zeros(n, dtype=np.int64)
+    act = np.flatnonzero(wo[:, 2] != 0)
+    wr = -wo[act]
+    outside = wo[act, 2] > 0
+    h = np.where(outside, np.inf, -np.inf)
+    wt = np.ones((act.size, 3))
+    for k in range(MAX_EVENTS + 1):
+        if act.size == 0:
+            break
+        h, esc = _side_height(dist, wr, h, outside, rng.random(act.size))
+        if np.any(esc):
+            done = act[esc]
+            wi[done] = wr[esc]
+            weight[done] = wt[esc]
+            events[done] = k
+            keep = ~esc
+            act, wr, h, wt, outside = act[keep], wr[keep], h[keep], wt[keep], outside[keep]
+        if k == MAX_EVENTS or act.size == 0:
+            break
+        uu = u[act] if k == 0 else rng.random((act.size, 2))
+        wr, outside, wt = _scatter_dielectric(dist, ior, fresnel_rt, -wr, outside, wt, uu,
+                                              rng.random(act.size))
+    return wi, weight, events
+
+
+def _phase_dielectric(dist, ior, fresnel_rt, w_in, outside, l):
+    """Density (per solid angle of l) of the event at a vertex seen from w_in on its side
+    scattering into l, and the side l leaves on: reflection F D_w / (4 |l.m|), refraction
+    T D_w n_t^2 |l.m| / (n_i (w.m) + n_t (l.m))^2 (Walter et al. 2007 eqs. 14, 17)."""
+    same = (l[:, 2] > 0) == outside
+    n_i = np.where(outside, 1.0, ior)
+    n_t = np.where(outside, ior, 1.0)
+    eta = n_t / n_i
+    hv = np.where(same[:, None], w_in + l, -(n_i[:, None] * w_in + n_t[:, None] * l))
+    hn = np.linalg.norm(hv, axis=1, keepdims=True)
+    m = hv / np.where(hn > 0, hn, 1.0)
+    # orient m toward the current side's normal (outside: up; inside: down)
+    s = np.where(outside, 1.0, -1.0)
+    m = np.where((m[:, 2] * s < 0)[:, None], -m, m)
+    wm = np.sum(w_in * m, axis=-1)
+    lm = np.sum(l * m, axis=-1)
+    R, T = fresnel_rt(np.clip(wm, 0.0, 1.0), eta)
+    dv = d_visible(dist, s[:, None] * w_in, s[:, None] * m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p_r = R * (dv / (4.0 * np.abs(lm)))[:, None]
+        den = n_i * wm + n_t * lm
+        p_t = T * (dv * n_t * n_t * np.abs(lm) / (den * den))[:, None]
+    ok = (hn[:, 0] > 0) & (wm > 0) & np.where(same, lm > 0, lm < 0)
+    p = np.where(same[:, None], p_r, p_t)
+    p = np.where(ok[:, None] & np.isfinite(p), p, 0.0)
+    return p, np.where(same, outside, ~outside)
+
+
+def eval_dielectric_multiple(dist: Distribution, ior: float, fresnel_rt, wi, wo, rng,
+                             first: bool = False):
+    """One-walk estimate of the multiply scattered part (orders >= 2; with ``first`` also the
+    first order, for tests) of the particle BSDF g(wi, wo) (no cosine) of the rough dielectric:
+    a walk from wo with next-event estimation toward wi (either side) at every vertex."""
+    n = wi.shape[0]
+    out = np.zeros((n, 3))
+    act = np.flatnonzero((wo[:, 2] != 0) & (wi[:, 2] != 0))
+    wr = -wo[act]
+    outside = wo[act, 2] > 0
+    h = np.where(outside, np.inf, -np.inf)
+    wt = np.ones((act.size, 3))
+    for k in range(MAX_EVENTS):
+        if act.size == 0:
+            break
+        h, esc = _side_height(dist, wr, h, outside, rng.random(act.size))
+        keep = ~esc
+        act, wr, h, wt, outside = act[keep], wr[keep], h[keep], wt[keep], outside[keep]
+        if act.size == 0:
+            break
+        w_in = -wr
+        if k > 0 or first:
+            l = wi[act]
+            ph, side_l = _phase_dielectric(dist, ior, fresnel_rt, w_in, outside, l)
+            c = wt * ph * _side_g1(dist, l, h, side_l)[:, None]
+            out[act] += np.where(np.isfinite(c), c, 0.0)
+        wr, outside, wt = _scatter_dielectric(dist, ior, fresnel_rt, w_in, outside, wt,
+                                              rng.random((act.size, 2)), rng.random(act.size))
+    ci = np.abs(wi[:, 2])
+    return out / np.where(ci > 0, ci, 1.0)[:, None]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 
 from viewer.brdf.albedo import TABLE_SIZE
-from viewer.brdf.layered import COAT_TABLE, FILM_TABLE
+from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TABLE
 
 MAX_LIGHTS = 4            # point and directional lights with shadow maps in the rasterizer
 ALBEDO_TABLE = TABLE_SIZE  # entries of a directional-albedo table: cos(theta_o) = (k + 0.5) / size
@@ -18,6 +18,8 @@ IBL_MAX_LEVELS = 8        # prefiltered environment levels at most (level 0 is t
 MAX_MATERIALS = 64        # materials the GPU reference engine holds
 LAYERED_COAT_TABLE = COAT_TABLE  # the layered coat's albedo table entries (viewer/brdf/layered.py)
 LAYERED_FILM_TABLE = FILM_TABLE  # the layered coat film's RGB reflectance table entries
+LAYERED_BASE_TABLE = BASE_TABLE  # the layered base's interreflection tables' entries
+LAYERED_BASE_TABLES_AT = BASE_TABLES_AT  # their offset in the layered derived block
 
 LIGHT_TYPES = {"point": 0, "directional": 1}
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
@@ -46,7 +48,7 @@ _TABLES = (("LIGHT", LIGHT_TYPES), ("TONEMAP", TONEMAPS), ("IBL_MODE", IBL_MODES
            ("SSR_DEBUG", SSR_DEBUG), ("CHAIN", CHAIN_KINDS), ("RT_T", CHAIN_TEXELS), ("PT_KIND", PT_KINDS), ("STRATEGY", STRATEGIES),
            ("ENV_MODE", ENV_MODES))
 _SIZES = ("MAX_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
-          "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE")
+          "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE", "LAYERED_BASE_TABLE", "LAYERED_BASE_TABLES_AT")
 
 
 def glsl_name(*parts: str) -> str:
