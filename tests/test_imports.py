@@ -12,7 +12,15 @@
     is fine); what two modules share is public;
 (e) no test module (``tests/test_*.py``) is imported by another test or harness module: what
     tests share lives in harness modules (``brdf_harness.py``, ``render_util.py``,
-    ``reference_harness.py``, ...) and ``conftest.py``.
+    ``reference_harness.py``, ...) and ``conftest.py``;
+(f) no import cycles among the modules under ``viewer/``: an import is an edge to the module it
+    names (``from viewer.scene.parse import parse_scene`` -> ``viewer.scene.parse``; ``from
+    viewer.plots import kinds`` -> ``viewer.plots.kinds``), not to the packages above it, whose
+    ``__init__`` re-exports their modules; an import inside a function counts (it is a loop in
+    the layers that only runs later), one under ``if TYPE_CHECKING:`` does not (it never runs).
+    The package root ``viewer/__init__.py`` is the one exception (``FACADES``): every layer
+    imports ``ViewerError`` from it, and its ``render`` / ``reference`` forward to ``viewer.api``
+    inside the functions; it imports nothing of ours at module level.
 
 An import counts wherever it stands (module level or inside a function), and so do the dynamic
 forms with a literal name (``importlib.import_module("x")``, ``__import__("x")``,
@@ -31,6 +39,7 @@ ROOT = Path(__file__).resolve().parent.parent
 GL_MODULES = ("viewer.gl", "viewer.app", "viewer.gpupt", "moderngl", "glfw", "imgui_bundle",
               "glcontext", "OpenGL")
 REFERENCE_ENGINES = ("viewer.pathtracer", "viewer.gpupt")
+FACADES = frozenset({"viewer"})   # rule (f): modules whose own (lazy) imports are not edges
 DYNAMIC_IMPORTS = {"import_module", "__import__", "require", "available"}
 
 # Allowances (each must name a current offender, see the staleness test): none today.
@@ -207,6 +216,105 @@ def imports_of_test_modules(root: Path, allowed=frozenset()) -> list[str]:
     return bad
 
 
+def _type_checking(node: ast.AST) -> bool:
+    test = getattr(node, "test", None)
+    return isinstance(node, ast.If) and (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING"
+                                         or isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def module_edges(root: Path, path: Path, modules, top_level_only: bool = False) -> set[str]:
+    """The modules of ``modules`` (dotted names) that ``path`` imports, each import resolved to
+    the longest dotted prefix that is one of them: ``from a.b import c`` is ``a.b.c`` where that
+    is a module, else ``a.b``. Imports under ``if TYPE_CHECKING:`` are left out; with
+    ``top_level_only`` so are those inside functions."""
+    def resolve(name: str) -> str | None:
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    out: set[str] = set()
+
+    def visit(node: ast.AST):
+        for child in ast.iter_child_nodes(node):
+            if _type_checking(child):
+                continue
+            if top_level_only and isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            if isinstance(child, ast.Import):
+                out.update(resolve(a.name) for a in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                mod = _absolute(root, path, child)
+                out.update(f"{mod}.{a.name}" if f"{mod}.{a.name}" in modules else resolve(mod) for a in child.names)
+            elif (isinstance(child, ast.Call) and _call_name(child.func) in DYNAMIC_IMPORTS and child.args
+                  and isinstance(child.args[0], ast.Constant) and isinstance(child.args[0].value, str)):
+                out.add(resolve(child.args[0].value))
+            visit(child)
+
+    visit(_parse(path))
+    out.discard(None)
+    out.discard(_module_name(root, path))
+    return out
+
+
+def import_graph(root: Path) -> dict[str, set[str]]:
+    """Module -> the modules it imports (rule (f)'s edges), for every module under viewer/."""
+    files = {_module_name(root, f): f for f in _py(root, "viewer")}
+    return {m: set() if m in FACADES else module_edges(root, f, files) for m, f in files.items()}
+
+
+def import_cycles(root: Path) -> list[str]:
+    """Rule (f): one line per strongly connected group of modules, as its shortest loop through
+    the group's first module: ``viewer.a -> viewer.b -> viewer.a``."""
+    graph = import_graph(root)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    groups: list[list[str]] = []
+
+    def connect(v: str):          # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                groups.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return [" -> ".join(_shortest_loop(graph, set(g), g[0])) for g in sorted(groups)]
+
+
+def _shortest_loop(graph: dict[str, set[str]], members: set[str], start: str) -> list[str]:
+    """start, ..., start: the fewest imports inside ``members`` that lead from start back to it
+    (breadth first; ``members`` is a strongly connected group, so there is one)."""
+    came: dict[str, str] = {}     # module -> the module its first import came from
+    frontier = [start]
+    while start not in came:
+        nxt = []
+        for v in frontier:
+            for w in sorted(graph[v] & members):
+                if w not in came:
+                    came[w] = v
+                    nxt.append(w)
+        frontier = nxt
+    loop = [start]
+    while len(loop) == 1 or loop[-1] != start:
+        loop.append(came[loop[-1]])
+    return loop[::-1]
+
+
 # ----------------------------------------------------------------------------- the tests
 
 def test_brdf_pathtracer_and_geometry_import_no_gl():
@@ -236,6 +344,19 @@ def test_the_temporary_allowances_name_only_current_offenders():
         "delete the stale entries of TEMPORARY_PRIVATE_ALLOWANCE"
     assert set(imports_of_test_modules(ROOT)) >= TEMPORARY_TEST_IMPORT_ALLOWANCE, \
         "delete the stale entries of TEMPORARY_TEST_IMPORT_ALLOWANCE"
+
+
+def test_no_import_cycles():
+    assert len(import_graph(ROOT)) > 100
+    assert import_cycles(ROOT) == []
+
+
+def test_the_facades_import_nothing_of_ours_at_module_level():
+    """What lets rule (f) leave the facades' imports out: they run none of ours on import."""
+    for name in FACADES:
+        path = ROOT.joinpath(*name.split(".")) / "__init__.py"
+        files = {_module_name(ROOT, f) for f in _py(ROOT, "viewer")}
+        assert module_edges(ROOT, path, files, top_level_only=True) == set(), name
 
 
 def test_no_test_module_imports_another():
@@ -318,3 +439,23 @@ def test_the_test_import_rule_can_fail(tmp_path):
     })
     assert imports_of_test_modules(root) == ["tests/some_harness.py: test_one", "tests/test_one.py: test_two"]
     assert imports_of_test_modules(root, {"tests/test_one.py: test_two"}) == ["tests/some_harness.py: test_one"]
+
+
+def test_the_import_cycle_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/__init__.py": "def render():\n    from viewer.api import render\n",   # the facade
+        "viewer/api.py": "from viewer import ViewerError\n",
+        "viewer/a.py": "from viewer.b import f\n",
+        "viewer/b.py": "def f():\n    from viewer import a\n",                      # inside a function: counts
+        "viewer/c.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from viewer.d import D\n",
+        "viewer/d.py": "import viewer.c\n",                                          # c -> d never runs
+        "viewer/p/__init__.py": "from viewer.p.x import X\n",
+        "viewer/p/x.py": "import importlib\nX = 1\ndef g():\n    importlib.import_module('viewer.p.y')\n",
+        "viewer/p/y.py": "from viewer.p import x\n",                                 # names viewer.p.x
+        "viewer/p/z.py": "from viewer.p.x import X\n",                               # not viewer.p: no loop
+        "viewer/q.py": "from . import r\n",
+        "viewer/r.py": "from .s import t\n",
+        "viewer/s.py": "def t():\n    import viewer.q\n",
+    })
+    assert import_cycles(root) == ["viewer.a -> viewer.b -> viewer.a", "viewer.p.x -> viewer.p.y -> viewer.p.x",
+                                   "viewer.q -> viewer.r -> viewer.s -> viewer.q"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.albedo import N_SIDE, PHIS, TABLE_SIZE, stratified_u
+from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import choice_constants, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
 from viewer.gl.shaders import build_program, set_uniform
 
@@ -152,8 +153,8 @@ class GPUAlbedoTables:
         set_uniform(prog, "u_size", self.size)
         set_uniform(prog, "u_nphi", len(self.phis))
         set_uniform(prog, "u_phi", np.array(list(self.phis) + [0.0] * (8 - len(self.phis)), dtype="f4").tobytes())
-        self._pattern(params).use(0)
-        set_uniform(prog, "u_pattern", 0)
+        self._pattern(params).use(texture_units.ALBEDO_PATTERN)
+        set_uniform(prog, "u_pattern", texture_units.ALBEDO_PATTERN)
         self._fbo1.use()
         self._fbo1.viewport = (0, 0, self.count, self.rows)
         self._vao(prog).render(vertices=3)

@@ -49,7 +49,7 @@ are always rebuilt (a few small GPU passes).
 
 Texture units: ``bind(prog, rotation_deg, first_unit)`` uses first_unit (map),
 first_unit + 1 (prefiltered), first_unit + 2 (DFG) and, once ``cubemap()`` was made,
-first_unit + 3 (``u_env_cube``).
+first_unit + 3 (``u_env_cube``); first_unit is ``viewer.gl.texture_units.IBL``.
 """
 
 from __future__ import annotations
@@ -58,6 +58,8 @@ import logging
 import time
 
 import numpy as np
+
+from viewer.gl import texture_units
 
 from viewer.environment import cache
 from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
@@ -453,7 +455,7 @@ class IBL:
         if self._key is None:
             self.set_environment(None, np.zeros(3))
 
-    def bind(self, prog, rotation_deg: float = 0.0, first_unit: int = 4) -> None:
+    def bind(self, prog, rotation_deg: float = 0.0, first_unit: int = texture_units.IBL) -> None:
         """Bind the textures to units first_unit.. and set every uniform of common/ibl.glsl
         (those the compiler dropped are skipped)."""
         self._require_env()

@@ -7,8 +7,7 @@ the material it draws from ``u_measured``; ``MeasuredTextures.bind`` uploads eac
 from __future__ import annotations
 
 from viewer.brdf.spec import Params
-
-UNIT = 15  # a texture unit no other pass uses (OpenGL 4.1 guarantees 16 per stage)
+from viewer.gl.texture_units import MEASURED as UNIT
 
 
 def measured_params(params: Params) -> Params | None:

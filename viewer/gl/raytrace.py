@@ -20,6 +20,7 @@ import numpy as np
 
 from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
+from viewer.gl import texture_units
 
 ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
@@ -130,7 +131,7 @@ class RayTrace:
         (what the rows are made of may depend on more than the parameters)."""
         self._mat_key = None
 
-    def bind(self, prog, first_unit: int = 8) -> int:
+    def bind(self, prog, first_unit: int = texture_units.TRACED) -> int:
         from viewer.gl.shaders import set_uniform
 
         unit = self.textures.bind(prog, first_unit)

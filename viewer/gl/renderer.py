@@ -18,6 +18,7 @@ import numpy as np
 
 from viewer.brdf import thin_film
 from viewer.camera import OrbitCamera, gl_bytes
+from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
 from viewer.gl.material_tables import MaterialTables
@@ -461,7 +462,7 @@ class Renderer:
 
     def _frame_uniforms(self, scene, f: _Frame, frame_index: int) -> dict:
         """The uniforms every forward program of the frame gets (camera, lights, environment,
-        view mode, the shadow atlas, bound to unit 0 here)."""
+        view mode, the shadow atlas, bound to its unit here)."""
         types = np.zeros(MAX_LIGHTS, "i4")
         pos = np.zeros((MAX_LIGHTS, 3), "f4")
         val = np.zeros((MAX_LIGHTS, 3), "f4")
@@ -487,7 +488,7 @@ class Renderer:
         if f.ssr_on:
             uniforms["u_view"] = gl_bytes(f.cam.view())
         if f.shadows:
-            uniforms.update(self._shadows.bind(unit=0))
+            uniforms.update(self._shadows.bind(unit=texture_units.SHADOW_ATLAS))
         return uniforms
 
     def _raytrace_setup(self, scene, f: _Frame):
@@ -532,7 +533,7 @@ class Renderer:
                 self._ibl.bind(prog, scene.environment.rotation_deg)
                 ready.add(id(prog))
             if traced:  # every frame: the shadow atlas and IBL share no units with these
-                rt[0].bind(prog, first_unit=8)
+                rt[0].bind(prog, first_unit=texture_units.TRACED)
                 row = rt[0].rows[obj.material]
                 _set(prog, "u_rt_row", row)
                 _set(prog, "u_mat_base", row * 256)
@@ -571,8 +572,9 @@ class Renderer:
         _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))
         _set(prog, "u_ior", float(params.get("ior", 1.0)))
         if thickness is not None:
-            thickness.use(location=1)
-            _set(prog, "u_thickness", 1)
+            thickness.use(location=texture_units.THICKNESS)
+        # always: left at unit 0 it would share the shadow atlas's unit (another sampler type)
+        _set(prog, "u_thickness", texture_units.THICKNESS)
 
     def _finish(self, scene, f: _Frame, frame_index: int):
         """The SSR pass (which resolves and traces), or the MSAA resolve; the linear HDR texture."""

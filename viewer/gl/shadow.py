@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from viewer.camera import gl_bytes, look_at, orthographic, perspective
+from viewer.gl import texture_units
 from viewer.gl.constants import MAX_LIGHTS
 from viewer.gl.shaders import set_uniform as _set
 
@@ -97,7 +98,7 @@ class ShadowMaps:
                 self._texel[i] = 2.0 * radius / S
         return mats
 
-    def bind(self, unit: int = 0) -> dict:
+    def bind(self, unit: int = texture_units.SHADOW_ATLAS) -> dict:
         """Bind the atlas to texture ``unit``; the uniforms the forward pass reads it with."""
         self._atlas["tex"].use(location=unit)
         return {

@@ -51,6 +51,7 @@ import math
 import numpy as np
 
 from viewer.camera import gl_bytes
+from viewer.gl import texture_units
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 
@@ -251,8 +252,8 @@ class SSR:
         if use_hiz:
             self.build_hiz()
         prog = self.programs["trace"]
-        t["hiz"].use(location=3)
-        _set(prog, "u_hiz_tex", 3)
+        t["hiz"].use(location=texture_units.SSR_HIZ)
+        _set(prog, "u_hiz_tex", texture_units.SSR_HIZ)
         _set(prog, "u_hiz", int(s["hiz"]))
         _set(prog, "u_hiz_max_level", len(t["hiz_sizes"]) - 1)
         _set(prog, "u_hiz_max_iter", int(s["hiz_max_iter"]))
@@ -262,8 +263,8 @@ class SSR:
             _set(prog, "u_back", 12)
         for i, name in enumerate(("u_color", "u_spec", "u_geom")):
             tex = t["mip"] if i == 0 else t["resolved"][i]
-            tex.use(location=i)
-            _set(prog, name, i)
+            tex.use(location=texture_units.SSR_INPUTS + i)
+            _set(prog, name, texture_units.SSR_INPUTS + i)
         ty = math.tan(math.radians(cam.fov_y) / 2.0)
         _set(prog, "u_view", gl_bytes(view))
         _set(prog, "u_proj", gl_bytes(proj))

@@ -27,7 +27,8 @@ draws it as an RGB image and ``figure_json`` gives the plotted numbers (the PNG'
 ``brdf-viewer:plot`` text chunk).
 
 The package: ``kinds`` (which plots apply to a material, the checks of a kind and a channel),
-``data`` (the curves above), ``figures`` (``figure``: curves, marks, notes of one kind),
+``data`` (the curves above), ``figure_types`` (``Figure``, ``Curve``, ``Mark``), ``figures``
+(``figure``: curves, marks, notes of one kind),
 ``canvas`` (the Pillow drawing library: canvas, ticks, fonts, colour map, legend and label
 placement), ``draw`` (each kind drawn; ``render_figure``), ``png`` (the PNG with its JSON),
 ``spectral`` (n, k and R(theta, lambda) of a spectral table) and ``measured`` (the Rusinkiewicz
@@ -38,7 +39,8 @@ from viewer.plots.canvas import CHANNEL_COLOURS, CHANNEL_NAMES, colormap, nice_c
 from viewer.plots.data import (SAMPLING_COLS, SAMPLING_ROWS, albedo_curve, bouguer_curve, direction, fresnel_curves,
                                lobe_3d, plane_directions, polar_lobe, sampling_histogram)
 from viewer.plots.draw import render_figure
-from viewer.plots.figures import Curve, Figure, Mark, figure, params_summary
+from viewer.plots.figure_types import Curve, Figure, Mark
+from viewer.plots.figures import figure, params_summary
 from viewer.plots.kinds import (CHANNELS, KINDS, LUMINANCE, absorption_source, applicable_kinds, as_params,
                                 check_channel, check_kind, check_kind_name, fresnel_source, reduce_channel,
                                 sampling_delta, spectral_source)

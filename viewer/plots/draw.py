@@ -11,7 +11,7 @@ import numpy as np
 from viewer import ViewerError
 from viewer.plots.canvas import (Canvas, arrow, best_corner, clipped_layer, colormap, curve_pixels, draw_grid,
                                  draw_header, draw_legend, nice_ticks, paste_clipped, place_labels, tick_label)
-from viewer.plots.figures import Figure, fmt_value
+from viewer.plots.figure_types import Figure, fmt_value
 
 def _draw_cartesian(cv, fig, width, height):
     left, right, top, bottom = 78, 24, 58 + 14 * len(fig.notes), 56

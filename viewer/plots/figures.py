@@ -4,50 +4,16 @@ PNG (``viewer.plots.png``) use."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from viewer.brdf import thin_film
 
 from viewer.plots.canvas import CHANNEL_COLOURS, CHANNEL_NAMES, NEUTRAL, nice_ceil
+from viewer.plots.figure_types import Curve, Figure, Mark, fmt_value
 from viewer.plots.data import albedo_curve, bouguer_curve, fresnel_curves, lobe_3d, polar_lobe, sampling_histogram
 from viewer.plots.kinds import as_params, check_channel, check_kind, reduce_channel
-
-@dataclass
-class Curve:
-    label: str
-    x: np.ndarray
-    y: np.ndarray
-    color: tuple = NEUTRAL
-    style: str = "solid"  # solid | dashed | dotted
-    extra: dict = field(default_factory=dict)  # more arrays at the same x (e.g. f without cos)
-
-
-@dataclass
-class Mark:
-    """A labelled vertical line at x (Brewster, critical angle, thickness...)."""
-    label: str
-    x: float
-    color: tuple = (90, 90, 90)
-
-
-@dataclass
-class Figure:
-    kind: str
-    model: str
-    params: object
-    title: str
-    x_label: str
-    y_label: str
-    curves: list
-    marks: list = field(default_factory=list)
-    x_range: tuple = (0.0, 1.0)
-    y_range: tuple = (0.0, 1.0)
-    subtitle: str = ""
-    notes: list = field(default_factory=list)
-    info: dict = field(default_factory=dict)  # kind-specific values (theta_i, surface, delta...)
-
 
 def _channel_groups(same) -> list[list[int]]:
     """The channels 0..2 grouped so that ``same(first of the group, c)`` holds for each member."""
@@ -78,20 +44,6 @@ def _rgb_curves(x, rgb, label, channel, style="solid", color=None, extra=None) -
     name = "luminance" if channel == "lum" else CHANNEL_NAMES["rgb".index(channel)]
     return [Curve(f"{label} ({name})", x, reduce_channel(rgb, channel), col, style,
                   {k: reduce_channel(v, channel) for k, v in extra.items()})]
-
-
-def fmt_value(v) -> str:
-    if isinstance(v, np.ndarray):
-        if np.allclose(v, v[0]):
-            return f"{v[0]:.3g}"
-        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
-    if isinstance(v, float):
-        return f"{v:.3g}"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k}={fmt_value(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, list):
-        return f"{len(v)} lobe" + ("" if len(v) == 1 else "s")
-    return str(v)
 
 
 def params_summary(p, limit: int = 110) -> str:

@@ -93,11 +93,36 @@ def applicable_kinds(p) -> tuple[str, ...]:
     return tuple(kinds)
 
 
+def spectral_name(p) -> str | None:
+    """The spectral table a material names (its own, a layered coating's, or its base's)."""
+    if p.get("spectral", "none") != "none":
+        return p.spectral
+    coat = p.get("coating")
+    if coat is not None and coat.get("spectral", "none") != "none":
+        return coat.spectral
+    base = p.get("base")
+    if base is not None and hasattr(base, "get") and base.get("spectral", "none") != "none":
+        return base.spectral
+    return None
+
+
+def film_owner(p):
+    """The parameter table holding the material's active thin film (the material or its layered
+    coating), or None."""
+    if isinstance(p, str) or not hasattr(p, "get"):
+        return None
+    for owner in (p, p.get("coating")):
+        if owner is not None and hasattr(owner, "get") and "thin_film" in owner \
+                and float(owner.thin_film.thickness_nm) > 0.0:
+            if p.get("fresnel") in ("schlick", "none"):
+                return None
+            return owner
+    return None
+
+
 def spectral_source(p) -> str | None:
     """The spectral table (viewer.spectral) a material names, "thin film" for a material with an
     active thin film (its R(theta, lambda) is the film's), or None."""
-    from viewer.plots.spectral import film_owner, spectral_name
-
     return "thin film" if film_owner(p) is not None else spectral_name(p)
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf import merl
-from viewer.plots.figures import Figure
+from viewer.plots.figure_types import Figure
 from viewer.plots.kinds import LUMINANCE
 
 PHI_D = 0.5 * np.pi

@@ -10,7 +10,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.plots.draw import render_figure
-from viewer.plots.figures import Figure
+from viewer.plots.figure_types import Figure
 
 PNG_KEY = "brdf-viewer:plot"
 

@@ -19,43 +19,16 @@ import numpy as np
 
 from viewer import ViewerError, spectral
 from viewer.plots.canvas import CHANNEL_COLOURS, colormap, nice_ceil, nice_ticks, tick_label
-from viewer.plots.figures import Curve, Figure
+from viewer.plots.figure_types import Curve, Figure
+from viewer.plots.kinds import film_owner, fresnel_source, spectral_name
 
 WAVELENGTHS_NM = np.arange(360.0, 781.0, 5.0)
 THETA_DEG = np.linspace(0.0, 90.0, 91)
 
 
-def spectral_name(p) -> str | None:
-    """The spectral table a material names (its own, a layered coating's, or its base's)."""
-    if p.get("spectral", "none") != "none":
-        return p.spectral
-    coat = p.get("coating")
-    if coat is not None and coat.get("spectral", "none") != "none":
-        return coat.spectral
-    base = p.get("base")
-    if base is not None and hasattr(base, "get") and base.get("spectral", "none") != "none":
-        return base.spectral
-    return None
-
-
-def film_owner(p):
-    """The parameter table holding the material's active thin film (the material or its layered
-    coating), or None."""
-    if isinstance(p, str) or not hasattr(p, "get"):
-        return None
-    for owner in (p, p.get("coating")):
-        if owner is not None and hasattr(owner, "get") and "thin_film" in owner \
-                and float(owner.thin_film.thickness_nm) > 0.0:
-            if p.get("fresnel") in ("schlick", "none"):
-                return None
-            return owner
-    return None
-
-
 def _film_data(p, owner) -> dict:
     from viewer.brdf import thin_film
     from viewer.brdf.fresnel import fresnel_thin_film
-    from viewer.plots.kinds import fresnel_source
 
     lam = WAVELENGTHS_NM
     src = fresnel_source(p)
