@@ -279,7 +279,9 @@ class PlotsPanel:
         pad = style.frame_padding.x
         widths = [imgui.calc_text_size(t).x + 2 * pad for t in TABS]
         avail = imgui.get_content_region_avail().x
-        for r, row in enumerate(flow_rows(widths, avail, style.item_spacing.x)):
+        for row in flow_rows(widths, avail, style.item_spacing.x):
+            if len(row) == 1:
+                self.check_fits(TABS[row[0]], avail - 2 * pad)
             for j, i in enumerate(row):
                 if j:
                     imgui.same_line()

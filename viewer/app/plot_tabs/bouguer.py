@@ -46,10 +46,7 @@ def draw(panel, names, materials):
         panel.messages.append("no absorption coefficient sigma_a: " + ", ".join(missing))
     if clear:
         panel.messages.append("no absorption (sigma_a = 0: T = 1 at any distance): " + ", ".join(clear))
-    if not data:
-        for m in panel.messages:
-            imgui.text_wrapped(m)
-        panel.messages = []
+    if not data:  # (the panel writes the messages under this)
         imgui.text_wrapped("No shown material absorbs, so there is no Bouguer curve to draw; an absorbing "
                            "glass (sigma_a > 0, e.g. the preset green_glass) shows T = exp(-sigma_a d) here.")
         return

@@ -91,9 +91,11 @@ def draw(panel, names, materials):
         for lab, members in groups:
             n, d = members[0], data[members[0]]
             col = panel.colour(n)
-            implot.plot_line(f"{lab} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
-                             implot.Spec(line_color=vec4(col), line_weight=3.0))
-            if panel.show_components:
+            bare = not matched(d, c)  # an index of 1: R = R_s = R_p = 0 (said under the plot)
+            if bare:
+                implot.plot_line(f"{lab} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
+                                 implot.Spec(line_color=vec4(col), line_weight=3.0))
+            if panel.show_components and bare:
                 implot.plot_line(f"{lab} R_s", d["theta"], np.ascontiguousarray(d["Rs"][:, c]),
                                  implot.Spec(line_color=vec4(R_S_COLOUR), line_weight=1.5,
                                              marker=implot.Marker_.square, marker_size=1.5))

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from imgui_bundle import implot
+from imgui_bundle import imgui, implot
 
 from viewer import plots
 from viewer.app.plot_tabs.common import LIGHT, equal_aspect_limits, pixel_aspect, same_data, vec4
@@ -42,11 +42,15 @@ def draw(panel, names, materials):
     rmax = plots.nice_ceil(rmax * 1.05) if rmax > 0 else 1.0
     size = panel.plot_size()
     y0 = -(below * 1.05 if below > 0 else 0.02 * rmax)
-    area = panel.areas.get("polar")
-    if area is None:  # the first frame: the frame less about the axes' room; measured from then on
-        k = panel.font_k()
-        area = (max(size.x if size.x > 0 else panel.avail_x(), 100.0) - 70 * k, size.y - 60 * k)
-    lim = equal_aspect_limits(-rmax * 1.05, rmax * 1.05, y0, rmax * 1.05, *area)
+    x0, x1, y1 = -rmax * 1.05, rmax * 1.05, rmax * 1.05
+    k = panel.font_k()
+    frame_w = max(size.x if size.x > 0 else panel.avail_x(), 100.0)
+    # the axes' room around the plot area: measured on the last frame, estimated before
+    room_w, room_h = panel.areas.get("polar_room", (70 * k, 60 * k))
+    area_w = frame_w - room_w
+    # no taller than the lobe needs at this width (the room below is the messages')
+    size = imgui.ImVec2(size.x, min(size.y, max(150.0, area_w * (y1 - y0) / (x1 - x0) + room_h)))
+    lim = equal_aspect_limits(x0, x1, y0, y1, area_w, size.y - room_h)
     if implot.begin_plot("##polar", size):
         implot.setup_axes("x (theta_o > 0: mirror side)", "z (normal)")
         panel.legend()
@@ -78,6 +82,6 @@ def draw(panel, names, materials):
                                  np.array([0.0, tt * math.sin(a)]), np.array([0.0, -tt * math.cos(a)]),
                                  implot.Spec(line_color=vec4(panel.colour(n), 0.7), line_weight=3.0))
         area = implot.get_plot_size()
-        panel.areas["polar"] = (area.x, area.y)
+        panel.areas["polar_room"] = (frame_w - area.x, size.y - area.y)
         panel.aspects["polar"] = pixel_aspect()
         implot.end_plot()

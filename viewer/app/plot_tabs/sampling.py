@@ -72,11 +72,16 @@ class SamplingTab:
         grids = (("histogram", d["observed"], 0.0, vmax, implot.Colormap_.viridis),
                  ("integrated pdf", d["expected"], 0.0, vmax, implot.Colormap_.viridis),
                  ("difference (sigma)", d["difference"], -dmax, dmax, implot.Colormap_.rd_bu))
+        # each title over its plot where it fits whole, else all three in one wrapped line above
+        # (a title is centred over the plot area, which is the frame less the cos theta axis)
+        fits = all(imgui.calc_text_size(g[0]).x <= w - 70 * imgui.get_font_size() / 16.0 for g in grids)
+        if not fits:
+            imgui.text_wrapped("left to right: " + ", ".join(g[0] for g in grids))
         for j, (title, a, vmin, vm, cmap) in enumerate(grids):
             if j:
                 imgui.same_line()
             implot.push_colormap(cmap)
-            if implot.begin_plot(f"{title}##samp{j}", imgui.ImVec2(w, h)):
+            if implot.begin_plot(f"{title if fits else ''}##samp{j}", imgui.ImVec2(w, h)):
                 implot.setup_axes("phi (deg)", "cos theta")
                 implot.setup_axis_ticks(implot.ImAxis_.x1, list(PHI_TICKS))
                 implot.setup_axes_limits(0.0, 360.0, lo, 1.0, implot.Cond_.always)
@@ -85,9 +90,9 @@ class SamplingTab:
                 implot.end_plot()
             implot.pop_colormap()
         pts = np.asarray(d["points"], np.float64)
+        imgui.text_wrapped("sampled directions, seen from above (red: below the surface)")
         size = min(avail.x, max(120.0, imgui.get_content_region_avail().y))
-        if implot.begin_plot("sampled directions (top view; red: below the surface)##cloud",
-                             imgui.ImVec2(size, size), implot.Flags_.equal):
+        if implot.begin_plot("##cloud", imgui.ImVec2(size, size), implot.Flags_.equal):
             implot.setup_axes("x (tangent)", "y")
             implot.setup_axes_limits(-1.05, 1.05, -1.05, 1.05, implot.Cond_.always)
             t = np.linspace(0.0, 2 * np.pi, 121)
