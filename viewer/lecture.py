@@ -29,7 +29,14 @@ def _camera(pos=(0.0, 0.9, 4.2), target=(0.0, 0.6, 0.0), fov=36.0) -> str:
 
 _FLOOR = '[[objects]]\nmesh = "plane"\nmaterial = "floor"\nscale = 6.0\n'
 _FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n'
+# under the bright lights of the highlight steps: a dark floor, so the ball is the brightest thing
+_DARK_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.06, 0.06, 0.06]\n'
 _KEY_LIGHT = '[[lights]]\ntype = "point"\nposition = [-2.0, 4.0, 3.0]\nintensity = [30.0, 30.0, 30.0]\n'
+# just above and left of the camera: the mirror direction lands on the ball's front, so the
+# highlight sits where the audience looks
+_HIGHLIGHT_LIGHT = '[[lights]]\ntype = "point"\nposition = [-0.8, 2.2, 4.0]\nintensity = [120.0, 120.0, 120.0]\n'
+# behind the camera, between the two balls: both highlights face the viewer at the same angle
+_TAIL_LIGHT = '[[lights]]\ntype = "point"\nposition = [0.0, 1.4, 5.0]\nintensity = [400.0, 400.0, 400.0]\n'
 
 
 def _sphere(material: str, x: float = 0.0, r: float = 0.6, y: float | None = None) -> str:
@@ -42,9 +49,11 @@ def _env(spec: str) -> str:
     return f"[environment]\n{spec}\n"
 
 
-def _render(ibl: str = "split_sum", ssr: bool = False, raytrace: bool = False) -> str:
+def _render(ibl: str = "split_sum", ssr: bool = False, raytrace: bool = False, exposure: float = 0.0,
+            tonemap: str = "none") -> str:
     rt = "raytrace = true\n" if raytrace else ""
-    return f'[render]\nibl = "{ibl}"\nssr = {str(ssr).lower()}\nshadows = true\nmsaa = 4\n{rt}'
+    tm = f'exposure = {exposure}\ntonemap = "{tonemap}"\n' if exposure or tonemap != "none" else ""
+    return f'[render]\nibl = "{ibl}"\nssr = {str(ssr).lower()}\nshadows = true\nmsaa = 4\n{rt}{tm}'
 
 
 def _mat(name: str, preset: str, **extra) -> str:
@@ -91,13 +100,18 @@ TOUR: tuple[Step, ...] = (
                 'translate = [0.0, 0.56, 0.0]\nrotate_y_deg = 35.0\n',
                 _FLOOR_MAT, _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("torrance_sparrow", "Torrance-Sparrow with a Blinn-Phong distribution",
-         "Microfacets: D (Blinn-Phong), V-cavity shadowing G and Fresnel F shape one highlight over a diffuse base.",
-         _one_ball("lecture_torrance_sparrow_blinn"), "polar"),
+         "Microfacets: D (Blinn-Phong), V-cavity shadowing G and Fresnel F shape the white highlight; "
+         "the dark blue is the diffuse base under it.",
+         _scene(_camera(), _DIM, _render("off"), _HIGHLIGHT_LIGHT, _FLOOR, _sphere("ball"), _DARK_FLOOR_MAT,
+                _mat("ball", "lecture_torrance_sparrow_blinn", kd=[0.04, 0.06, 0.14])), "polar"),
     Step("beckmann_ggx", "Beckmann (left) against GGX (right)",
-         "Same alpha = 0.2: GGX's long tail leaves a glow around the highlight; Beckmann falls off quickly.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("beckmann", -0.75),
-                _sphere("ggx", 0.75), _FLOOR_MAT, _mat("beckmann", "lecture_beckmann"),
-                _mat("ggx", "lecture_ggx")), "polar"),
+         "Same alpha = 0.2, black base so only the lobe shows: GGX's long tail spreads a glow far around "
+         "its highlight; Beckmann's falls off to black within a few degrees.",
+         _scene(_camera(), _env("constant = [0.02, 0.02, 0.025]"), _render("off", exposure=1.5, tonemap="reinhard"),
+                _TAIL_LIGHT, _FLOOR,
+                _sphere("beckmann", -0.75), _sphere("ggx", 0.75), _DARK_FLOOR_MAT,
+                _mat("beckmann", "lecture_beckmann", kd=[0.0, 0.0, 0.0]),
+                _mat("ggx", "lecture_ggx", kd=[0.0, 0.0, 0.0])), "polar"),
     Step("oren_nayar", "Oren-Nayar (left) against Lambert (right)",
          "Lit from behind the viewer, rough clay looks flat (backscatter); Lambert darkens toward the rim.",
          _scene(_camera(), _DIM, _render("off"),

@@ -2,11 +2,9 @@
 heuristic, Russian roulette), error views from its running per-pixel variance (standard error,
 relative error, samples needed for a target error) as heat maps with a colour bar, a
 convergence plot (estimated RMSE against spp, log-log, with the -1/2 slope and a stored curve of
-another strategy), and the plots window's *Sampling* tab (the sampler's histogram beside its
-integrated pdf, their difference, the chi-square p-value, a point cloud of sampled directions).
+another strategy). The plots window's *Sampling* tab is ``viewer.app.plot_tabs.sampling``.
 
-The numbers come from ``viewer.variance`` and ``viewer.plots.sampling_histogram``; this module
-only draws them. Use from the app::
+The numbers come from ``viewer.variance``; this module only draws them. Use from the app::
 
     mc = MonteCarloPanel(ctx)
     mc.draw_settings(reference_view, compare_uses_reference)   # in the side panel
@@ -222,96 +220,3 @@ class MonteCarloPanel:
         if self._tex is not None:
             self._tex.release()
             self._tex = None
-
-
-# ---------------------------------------------------------------------- plots window: sampling tab
-
-SAMPLING_SAMPLES = 50_000   # per histogram in the window (about 0.2-1 s; `plot` takes --samples)
-_sampling_cache: dict = {}
-
-
-def sampling_data(p, theta_i: float, phi: float):
-    """``plots.sampling_histogram`` for the window, cached per (parameters, angles)."""
-    import json
-
-    from viewer import plots
-
-    key = (json.dumps(p.to_plain(), sort_keys=True, default=str), round(theta_i, 3), round(phi, 3))
-    if key not in _sampling_cache:
-        if len(_sampling_cache) > 32:
-            _sampling_cache.clear()
-        _sampling_cache[key] = plots.sampling_histogram(p, theta_i, phi, samples=SAMPLING_SAMPLES, seed=0)
-    return _sampling_cache[key]
-
-
-class SamplingTab:
-    """The plots window's *Sampling* tab: ``draw(names, materials, theta_i, phi)``."""
-
-    def __init__(self):
-        self.material = None
-        self._shown = None   # the last data drawn (kept while a slider is held)
-
-    def draw(self, names, materials, theta_i: float, phi: float) -> None:
-        from imgui_bundle import imgui, implot
-
-        from viewer import plots
-
-        ok = [n for n in names if "sampling" in plots.applicable_kinds(materials[n])]
-        skipped = [n for n in names if n not in ok]
-        if not ok:
-            imgui.text_wrapped("no shown material has a sampled density (delta lobes only): "
-                               + ", ".join(skipped))
-            return
-        if self.material not in ok:
-            self.material = ok[0]
-        ch, i = imgui.combo("material##sampling", ok.index(self.material), ok)
-        if ch:
-            self.material = ok[i]
-        p = materials[self.material]
-        if imgui.is_any_item_active() and self._shown is not None:
-            d = self._shown  # a slider is held: recompute when it is released
-        else:
-            d = self._shown = sampling_data(p, theta_i, phi)
-        imgui.text(f"wo at theta {d['theta_i']:.1f} deg, phi {d['phi']:.0f} deg; {d['samples']} samples; "
-                   f"chi-square {d['chi2']:.1f}, {d['dof']} dof: p = {d['p_value']:.3g}")
-        if skipped:
-            imgui.same_line()
-            imgui.text_disabled(f"(delta lobes, not sampled: {', '.join(skipped)})")
-        avail = imgui.get_content_region_avail()
-        w = max(120.0, (avail.x - 16) / 3)
-        h = max(120.0, avail.y * 0.48)
-        lo = -1.0 if d["sphere"] else 0.0
-        vmax = max(float(np.max(d["observed"])), float(np.max(d["expected"])), 1e-12)
-        dmax = max(3.0, float(np.abs(d["difference"]).max()))
-        grids = (("histogram", d["observed"], 0.0, vmax, implot.Colormap_.viridis),
-                 ("integrated pdf", d["expected"], 0.0, vmax, implot.Colormap_.viridis),
-                 ("difference (sigma)", d["difference"], -dmax, dmax, implot.Colormap_.rd_bu))
-        for j, (title, a, vmin, vm, cmap) in enumerate(grids):
-            if j:
-                imgui.same_line()
-            implot.push_colormap(cmap)
-            if implot.begin_plot(f"{title}##samp{j}", imgui.ImVec2(w, h)):
-                implot.setup_axes("phi (deg)", "cos theta")
-                implot.setup_axes_limits(0.0, 360.0, lo, 1.0, implot.Cond_.always)
-                implot.plot_heatmap(f"##h{j}", np.ascontiguousarray(a, np.float64), vmin, vm, "",
-                                    implot.Point(0.0, lo), implot.Point(360.0, 1.0))
-                implot.end_plot()
-            implot.pop_colormap()
-        pts = np.asarray(d["points"], np.float64)
-        size = min(avail.x, max(120.0, imgui.get_content_region_avail().y))
-        if implot.begin_plot("sampled directions (top view; red: below the surface)##cloud",
-                             imgui.ImVec2(size, size), implot.Flags_.equal):
-            implot.setup_axes("x (tangent)", "y")
-            implot.setup_axes_limits(-1.05, 1.05, -1.05, 1.05, implot.Cond_.always)
-            t = np.linspace(0.0, 2 * np.pi, 121)
-            implot.plot_line("##horizon", np.cos(t), np.sin(t))
-            up = pts[:, 2] >= 0
-            for sel, col, lab in ((up, (0.12, 0.47, 0.71), "above"), (~up, (0.84, 0.15, 0.16), "below")):
-                if np.any(sel):
-                    implot.plot_scatter(lab, np.ascontiguousarray(pts[sel, 0]), np.ascontiguousarray(pts[sel, 1]),
-                                        implot.Spec(marker_fill_color=imgui.ImVec4(*col, 0.7),
-                                                    marker_line_color=imgui.ImVec4(*col, 0.7), marker_size=1.5))
-            wo = np.asarray(d["wo"], np.float64)
-            implot.plot_line("wo", np.array([0.0, wo[0]]), np.array([0.0, wo[1]]),
-                             implot.Spec(line_color=imgui.ImVec4(0.95, 0.55, 0.1, 1.0), line_weight=2.5))
-            implot.end_plot()

@@ -48,6 +48,9 @@ def _delta_reflectance(p, cos_i: float) -> np.ndarray:
     src = fresnel_source(p)
     if src is None:
         return np.ones(3)
+    film = _thin_film_curve(p, src, np.array([cos_i]), False)
+    if film is not None:  # a coated interface: the film's interference decides, not the bare one
+        return np.asarray(film, float).reshape(-1, 3)[0]
     if src["type"] == "dielectric":
         return np.full(3, fresnel_dielectric(cos_i, src["ior"]))
     if src["type"] == "conductor":
@@ -66,8 +69,11 @@ def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict
 
     Returns theta_o (degrees, sorted: a uniform grid of n points over [-90, 90] plus a dense one
     within 4 degrees of the mirror direction, so sharp peaks are resolved), wi (3,), wo (m, 3),
-    f (m, 3), fcos (m, 3) = f cos(theta_o), and delta: a list of {theta_o, reflectance (3,)} for
-    the delta lobes of a mirror or smooth dielectric (whose f is 0 as a function)."""
+    f (m, 3), fcos (m, 3) = f cos(theta_o), delta: a list of {theta_o, reflectance (3,)} for
+    the delta lobes of a mirror or smooth dielectric (whose f is 0 as a function; a thin film's
+    reflectance where the material has one), and refracted: for a smooth dielectric, a list of
+    {theta_t (degrees below the surface, on the far side of the normal), transmittance (3,) =
+    1 - R} (empty beyond total internal reflection)."""
     p = as_params(p)
     theta_i, phi = _check_theta_i(theta_i), _check_phi(phi)
     model = model_of(p)
@@ -79,11 +85,18 @@ def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict
     f = np.asarray(_eval(model, p, np.broadcast_to(wi, wo.shape), wo), dtype=np.float64)
     cos_o = np.maximum(np.cos(np.radians(theta_o)), 0.0)
     fcos = f * cos_o[:, None]
-    delta = []
+    delta, refracted = [], []
     if model.spec.delta and not np.any(f > 0):
-        delta.append({"theta_o": theta_i, "reflectance": _delta_reflectance(p, math.cos(math.radians(theta_i)))})
+        r = _delta_reflectance(p, math.cos(math.radians(theta_i)))
+        delta.append({"theta_o": theta_i, "reflectance": r})
+        src = fresnel_source(p)
+        if model.spec.transmissive and src is not None and src["type"] == "dielectric":
+            # Snell: sin theta_t = sin theta_i / n; the rest of the energy goes through
+            s = math.sin(math.radians(theta_i)) / src["ior"]
+            if s < 1.0:
+                refracted.append({"theta_t": math.degrees(math.asin(s)), "transmittance": 1.0 - r})
     return {"theta_o": theta_o, "wi": wi, "wo": wo, "f": f, "fcos": fcos, "delta": delta,
-            "theta_i": theta_i, "phi": phi}
+            "refracted": refracted, "theta_i": theta_i, "phi": phi}
 
 
 def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_phi: int = 97,

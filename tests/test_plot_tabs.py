@@ -1,0 +1,152 @@
+"""The plots panel's tabs (viewer/app/plot_tabs): the polar plot at equal aspect measured from
+implot's own transform, every label whole at UI scales 1, 1.5 and 2 in the docked panel, and
+the honest states of the tabs: the refracted ray of smooth glass, a thin film's reflectance on
+an index of 1 (no Brewster angle there), sane 3D axes for a delta lobe, no Bouguer plot for a
+material that absorbs nothing, an n(lambda) axis about n's own span."""
+
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from gui_harness import run_py
+from viewer import plots
+from viewer.brdf.presets import get_preset
+
+
+def _p(preset, **extra):
+    d = get_preset(preset)
+    d.update(extra)
+    return plots.as_params(d)
+
+
+def test_equal_aspect_limits_give_one_unit_per_pixel_on_both_axes():
+    from viewer.app.plot_tabs.common import equal_aspect_limits
+
+    for w, h in ((400, 900), (900, 300), (500, 250)):
+        x0, x1, y0, y1 = equal_aspect_limits(-1.0, 1.0, -0.02, 1.0, w, h)
+        assert (x1 - x0) / w == pytest.approx((y1 - y0) / h)
+        assert x0 <= -1.0 and x1 >= 1.0 and y0 <= -0.02 and y1 >= 1.0  # the data stays inside
+        assert y0 == -0.02  # widened upwards: the surface stays at the bottom
+
+
+def test_flow_rows_never_shrink_an_item():
+    from viewer.app.plot_tabs.common import flow_rows
+
+    assert flow_rows([50, 50, 50], 200, 10) == [[0, 1, 2]]
+    assert flow_rows([50, 50, 50], 120, 10) == [[0, 1], [2]]
+    assert flow_rows([300, 50], 120, 10) == [[0], [1]]  # too wide alone: a row of its own
+
+
+def test_smooth_glass_has_a_refracted_ray_at_snells_angle():
+    d = plots.polar_lobe(_p("lecture_air_glass"), 45.0)
+    (r,) = d["delta"]
+    (t,) = d["refracted"]
+    assert math.sin(math.radians(t["theta_t"])) == pytest.approx(math.sin(math.radians(45.0)) / 1.5)
+    assert np.allclose(r["reflectance"] + t["transmittance"], 1.0)
+    assert plots.polar_lobe(_p("lecture_lambert"), 45.0)["refracted"] == []
+
+
+def test_an_index_of_one_reflects_by_its_film_alone_and_has_no_brewster_angle():
+    from viewer.app.plot_tabs.fresnel import fresnel_marks, fresnel_notes
+    from viewer.app.plot_tabs.polar import delta_label
+
+    soap = _p("soap_bubble")
+    (dl,) = plots.polar_lobe(soap, 45.0)["delta"]
+    assert float(np.mean(dl["reflectance"])) > 0.01  # the film reflects: not "R = 0"
+    d = plots.fresnel_curves(soap)
+    assert fresnel_marks([("soap", d)], 1) == []  # no "Brewster 45.0 deg" for n = 1
+    (note,) = fresnel_notes([("soap", d)], 1)
+    assert "no Brewster" in note and "thin film" in note
+    bare = _p("soap_bubble", thin_film={"ior": 1.33, "thickness_nm": 0.0})
+    assert "reflects nothing" in delta_label("bare", 0.0, bare)
+    glass = plots.fresnel_curves(_p("lecture_air_glass"))
+    (b,) = [m for m in fresnel_marks([("glass", glass)], 1) if m[1] == "B"]
+    assert b[0] == pytest.approx(math.degrees(math.atan(1.5)), abs=0.05)
+
+
+def test_delta_lobe_axes_follow_the_delta_line():
+    from viewer.app.plot_tabs.lobe import extent
+
+    glass = {"g": plots.lobe_3d(_p("lecture_air_glass"), 45.0, n_theta=7, n_phi=9)}
+    e = extent(glass, np.asarray)
+    assert 0.05 <= e <= 0.1  # R = 0.05 at 45 deg, rounded up: not +-1e-6
+    bare = {"b": plots.lobe_3d(_p("soap_bubble", thin_film={"ior": 1.33, "thickness_nm": 0.0}), 45.0,
+                               n_theta=7, n_phi=9)}
+    assert extent(bare, np.asarray) == 1.0  # nothing reflected: unit axes
+
+
+def test_dispersive_glass_n_axis_spans_n_not_zero():
+    from viewer.app.plot_tabs.spectral import nk_limits
+    from viewer.plots.spectral import spectral_data
+
+    d = spectral_data(plots.as_params({"model": "dielectric", "spectral": "SF11"}))
+    lo, hi = nk_limits(d["n"], d["k"])
+    assert 1.7 < lo < float(np.min(d["n"])) and float(np.max(d["n"])) < hi < 1.9
+    assert (float(np.max(d["n"])) - float(np.min(d["n"]))) / (hi - lo) > 0.8  # the curve fills the plot
+    g = spectral_data(_p("polished_gold"))
+    assert nk_limits(g["n"], g["k"])[0] == 0.0  # a metal's k is drawn: from 0
+
+
+def test_sampling_headline_leads_with_the_p_value():
+    from viewer.app.plot_tabs.sampling import headline
+
+    h = headline({"p_value": 0.297, "chi2": 1175.1, "dof": 1150, "theta_i": 45.0, "phi": 0.0, "samples": 50000})
+    assert h.startswith("chi-square p = 0.297")
+
+
+GUI = r'''
+import numpy as np
+from viewer import plots
+from viewer.app.layout import window_layout
+from viewer.app.main import App
+from viewer.app.plots_panel import TABS
+from viewer.brdf.presets import get_preset
+
+app = App("sphere", size=(1600, 900), restore_state=False)
+app.session.warm = []
+app.plots.visible = False
+panel = app.plots.__class__()
+P = lambda n, **e: plots.as_params({**get_preset(n), **e})
+materials = {"lambert": P("lecture_lambert"), "glass": P("lecture_air_glass"), "soap": P("soap_bubble"),
+             "green": P("green_glass"), "gold": P("polished_gold"),
+             "sf11": plots.as_params({"model": "dielectric", "spectral": "SF11"})}
+state = {}
+draw = app.side_panel.draw
+app.side_panel.draw = lambda *a: (draw(*a), panel.draw(materials, state["rect"]))
+for scale in (1.0, 1.5, 2.0):
+    app.set_ui_scale(scale)
+    state["rect"] = window_layout(1600, 900, scale, lecture=True, plots=True)["plots"]
+    for solo in (None, "lambert", "glass", "soap", "sf11"):
+        panel.solo = solo
+        for tab in TABS:
+            panel.select_tab(tab)
+            app.frame(); app.frame()
+            assert panel.tab == tab
+            assert panel.clipped == [], (scale, solo, tab, panel.clipped)
+            if tab == "Polar":
+                assert abs(panel.aspects["polar"] - 1.0) < 0.01, (scale, solo, panel.aspects)
+            if tab == "Fresnel" and solo == "soap":
+                assert any("no Brewster" in m for m in panel.messages), panel.messages
+            if tab == "Bouguer" and solo == "glass":
+                assert any("no absorption" in m for m in panel.messages), panel.messages
+            if tab == "3D lobe" and solo == "glass":
+                assert 0.05 <= panel.lobe_extent <= 0.1, panel.lobe_extent
+            if tab == "Spectral" and solo == "sf11":
+                assert panel.nk_range[0] > 1.7, panel.nk_range
+    print("SCALE", scale, "aspect", round(panel.aspects["polar"], 4))
+panel.close()
+app.close()
+print("TABS OK")
+'''
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_docked_tabs_fit_at_every_ui_scale(display):
+    """Docked beside the lecture's view at UI 1, 1.5 and 2, for each material alone and all of
+    them: no label wider than its room, the polar plot at equal aspect (pixels per unit along x
+    over y from implot's transform, within 1 %: a Lambert lobe is a circle), and the states of
+    the tabs named above."""
+    r = run_py(GUI, display, timeout=600)
+    assert r.returncode == 0 and "TABS OK" in r.stdout, r.stdout + r.stderr[-3000:]
