@@ -143,6 +143,12 @@ class Session(FileActions):
                 or self.preparing)
 
     @property
+    def trace(self):
+        """The progressive trace of the still view (``viewer.gl.raytrace.ProgressiveTrace``), or
+        None before the first traced view."""
+        return self._trace
+
+    @property
     def preparing(self) -> bool:
         """Prepare lecture is tracing the lecture's steps into the traced-frame cache."""
         return self.prep is not None and not self.prep.done

@@ -336,6 +336,7 @@ class ProgressiveTrace:
     def finish(self):
         """Trace everything that is left, in tiles of ``max_pixels`` (the bake's way)."""
         while self._job is not None and not self.done:
+            self.pixels = self.max_pixels
             self._tile(1e9)
         self._maybe_finish()
         return self.texture

@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import io
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -82,9 +83,10 @@ def _hash_array(a) -> str:
 def frame_key(scene, camera, width: int, height: int, view_mode: int = 0, msaa=None,
               gl_renderer: str = "") -> str:
     """The content hash (hex) of one traced view: see the module's docstring."""
-    from viewer.camera import gl_bytes
+    from viewer.camera import OrbitCamera, gl_bytes
     from viewer.scene import scene_to_toml
 
+    camera = camera or OrbitCamera.from_scene(scene)
     h = hashlib.sha256()
 
     def add(tag, value):
@@ -140,7 +142,7 @@ def load(key: str, mask: np.ndarray, folder: Path | None = None):
             why = "its mask is not the view's"
         elif values.shape != (int(mask.sum()), 4) or not np.all(np.isfinite(values)):
             why = "its texels do not match its mask"
-    except (OSError, ValueError, KeyError, EOFError, TypeError) as e:
+    except (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile) as e:
         why = f"unreadable ({type(e).__name__})"
     if why:
         set_aside(p)
