@@ -277,33 +277,56 @@ def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
 
 @pytest.mark.parametrize("step, msaa", [("tir", 4), ("absorbing_glass", 0)])
 def test_progressive_trace_equals_one_shot(renderer, gl_ctx, step, msaa):
-    # The window's progressive trace (strips of rows, each a scissored traced frame copied into
-    # a texture of its own) ends bit-identical to one traced frame: every pixel is computed as in
-    # the whole frame (the scissor only discards pixels outside), and the copy is of float32
-    # texels. Before it is done the untraced approximation fills the rows not yet traced.
+    # The window's progressive trace ends with the untraced view (the view's MSAA) where no
+    # traced chain starts and one traced frame without MSAA where one does (the mask), bit for
+    # bit: each tile is a scissored traced frame (the scissor only discards pixels outside) and
+    # the copy is of float32 texels. Before it is done every pixel shows the untraced view, its
+    # half-resolution trace or its full trace: never a hole.
     from viewer.gl.raytrace import ProgressiveTrace
     from viewer.lecture import TOUR, tour_scene
 
     scene = tour_scene([s.key for s in TOUR].index(step))
     assert renderer.traces(scene)
     w, h = 40, 30
-    one_shot = renderer.read_linear(renderer.render(scene, None, w, h, msaa=msaa)).copy()
+    one_shot = renderer.read_linear(renderer.render(scene, None, w, h, msaa=0)).copy()
+    plain0 = renderer.read_linear(renderer.render(scene, None, w, h, msaa=0, raytrace=False)).copy()
     untraced = renderer.read_linear(renderer.render(scene, None, w, h, msaa=msaa, raytrace=False)).copy()
-    assert not np.array_equal(one_shot, untraced)
+    coarse = renderer.read_linear(renderer.render(scene, None, w // 2, h // 2, msaa=0)).copy()
+    mask = renderer.traced_mask(scene, None, w, h)[::-1]  # row 0 = top, as read_linear
+    # the mask is where tracing changes a frame: nowhere outside it, and at most pixels inside
+    assert 0 < mask.sum() < mask.size
+    assert np.array_equal(one_shot[~mask], plain0[~mask])
+    assert np.mean(np.any(one_shot[mask] != plain0[mask], axis=-1)) > 0.5
+    expected = np.where(mask[..., None], one_shot, untraced)
+    coarse_up = np.repeat(np.repeat(coarse, 2, axis=0), 2, axis=1)
+    lum = lambda a: a @ np.array([0.2126, 0.7152, 0.0722], np.float32)  # noqa: E731
     pt = ProgressiveTrace(gl_ctx)
     try:
-        tex = pt.start(renderer, scene, None, w, h, msaa=msaa, rows=7)
-        assert np.array_equal(renderer.read_linear(tex), untraced)
-        pt.step(budget_s=1e-9)  # one tile: rows 0..6 from the top traced, the rest still untraced
-        partial = renderer.read_linear(pt.texture)
-        assert np.array_equal(partial[:7], one_shot[:7]) and np.array_equal(partial[7:], untraced[7:])
+        tex = pt.start(renderer, scene, None, w, h, msaa=msaa, rows=1)
+        assert np.array_equal(renderer.read_linear(tex), untraced) and not pt.done
+        seen_coarse = seen_partial = 0
         while not pt.done:
-            pt.step(budget_s=1e-9)  # one row at a time from here: strip edges everywhere
-        assert pt.steps > 10 and pt.progress == 1.0
-        pt.start(renderer, scene, None, w, h, msaa=msaa)
+            pt.step(budget_s=1e-9)  # one tile at a time: tile edges everywhere
+            img = pt.image()
+            # every pixel is the untraced view, its half-resolution trace or its trace
+            ok = (np.all(img == untraced, axis=-1) | np.all(img == one_shot, axis=-1)
+                  | np.all(img == coarse_up, axis=-1))
+            assert ok.all(), np.argwhere(~ok)[:5]
+            # never black where neither the untraced nor the traced view is
+            dark = lum(img) < 1e-4
+            assert not np.any(dark & (lum(untraced) >= 1e-4) & (lum(one_shot) >= 1e-4))
+            assert lum(img).min() >= min(lum(untraced).min(), lum(one_shot).min(), lum(coarse_up).min())
+            seen_coarse += pt.coarse
+            seen_partial += not pt.done
+        assert seen_coarse > 0 and seen_partial > 4 and pt.steps > 5 and pt.progress == 1.0
+        assert np.array_equal(pt.image(), expected)
+        assert pt.elapsed_s >= pt.trace_s > 0
+        pt.start(renderer, scene, None, w, h, msaa=msaa, coarse=False)
         pt.step(budget_s=1e9)  # tiles until done, in one step
-        assert pt.done and np.array_equal(renderer.read_linear(pt.texture), one_shot)
-        assert np.array_equal(renderer.read_linear(pt.texture), one_shot)
+        assert pt.done and np.array_equal(pt.image(), expected)
+        pt.start(renderer, scene, None, w, h, msaa=msaa, coarse=False, max_pixels=1 << 22)
+        pt.finish()  # the bake's way: a tile per run of blocks with traced pixels
+        assert pt.steps <= 3 and np.array_equal(pt.image(), expected)
     finally:
         pt.release()
 

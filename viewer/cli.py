@@ -445,13 +445,19 @@ def _describe_param(p, indent="    ") -> str:
 def _parser_bake() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer bake",
                                 description="Fill the reference cache in advance (the window shows a cached "
-                                            "reference at once and keeps refining it).")
+                                            "reference at once and keeps refining it); with --lecture --width W "
+                                            "--height H also the traced-frame cache: every lecture step with "
+                                            "traced glass or mirrors, traced for a W x H view, opens fully traced "
+                                            "(the window's Prepare lecture does the same for its view).")
     p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files or built-in scene names")
     p.add_argument("--lecture", action="store_true", help="also every lecture step")
-    p.add_argument("--spp", type=int, required=True, help="samples per pixel each entry should reach")
+    p.add_argument("--spp", type=int, help="samples per pixel each reference should reach (required unless "
+                                           "only the traced frames of --lecture --width --height are wanted)")
     p.add_argument("--width", type=int, help="reference width (default: half the scene camera's width, "
-                                             "as the window's reference view renders)")
-    p.add_argument("--height", type=int, help="reference height (default: half the scene camera's height)")
+                                             "as the window's reference view renders); with --lecture also "
+                                             "the width of the view the traced frames are for")
+    p.add_argument("--height", type=int, help="reference height (default: half the scene camera's height); "
+                                              "with --lecture also the traced frames' view height")
     p.add_argument("--max-depth", type=int, default=8, dest="max_depth")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=None)
@@ -466,6 +472,20 @@ def cmd_bake(args) -> int:
     from viewer.pathtracer import cache
     from viewer.pathtracer.integrator import RenderSetup
 
+    for name in ("width", "height"):
+        v = getattr(args, name)
+        if v is not None and not 1 <= v <= 16384:
+            raise ViewerError(f"--{name}: {v} is out of range; allowed: an integer from 1 to 16384")
+    traced = args.lecture and (args.width is not None or args.height is not None)
+    if traced and (args.width is None or args.height is None):
+        raise ViewerError("bake --lecture: give both --width and --height (the view size the traced frames are for)")
+    if args.spp is None:
+        if not traced:
+            raise ViewerError("bake: --spp N is required (or --lecture --width W --height H for the traced "
+                              "frames alone)")
+        if args.scenes:
+            raise ViewerError("bake: scenes other than the lecture's need --spp N (their references)")
+        return _bake_traced(args.width, args.height)
     if args.spp < 1:
         raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
     if args.max_depth < 1:
@@ -512,6 +532,48 @@ def cmd_bake(args) -> int:
             total, total2, spp = r.state()
         cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))  # CacheError: one line, exit 1
         print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
+    return _bake_traced(args.width, args.height) if traced else 0
+
+
+def _bake_traced(w: int, h: int) -> int:
+    """The traced-frame cache for a w x h view: every lecture step with traced chains
+    (``viewer.app.lecture_prep``), one line per step and one at the end."""
+    import os
+
+    from viewer.app.lecture_prep import LecturePrep, traced_steps
+    from viewer.gl import trace_cache
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+
+    folder = trace_cache.cache_folder()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise ViewerError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({e.strerror or e})")
+    steps = traced_steps()
+    ctx = create_offscreen_context()
+    renderer = Renderer(ctx)
+    try:
+        prep = LecturePrep(ctx, renderer, (w, h), steps)
+
+        def said(r):
+            for msg in prep.messages:
+                print(msg)
+            prep.messages.clear()
+            if r.cached:
+                print(f"lecture step {r.step + 1}: {w}x{h} already prepared")
+            elif r.stored is None:
+                raise ViewerError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}")
+            else:
+                print(f"lecture step {r.step + 1}: traced {w}x{h} in {r.seconds:.1f} s -> {r.stored}")
+
+        prep.run(said)
+        print(f"lecture prepared for a {w}x{h} view: {len(steps)} traced steps in {prep.elapsed_s:.1f} s")
+    finally:
+        renderer.release()
     return 0
 
 

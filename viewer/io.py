@@ -80,6 +80,15 @@ def one_line_errors(fn):
     return wrapper
 
 
+def cache_root() -> Path:
+    """The folder of every on-disk cache (references, traced frames, environment maps):
+    ``$BRDF_VIEWER_CACHE``, else ``$XDG_CACHE_HOME/brdf-viewer``, else ``~/.cache/brdf-viewer``."""
+    env = os.environ.get("BRDF_VIEWER_CACHE")
+    if env:
+        return Path(env).expanduser()
+    return Path(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")) / "brdf-viewer"
+
+
 def atomic_write_bytes(path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically: ``path`` is at every moment absent, its old
     content or the complete new content, never a part (see ``atomic_write_file``)."""

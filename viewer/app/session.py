@@ -22,6 +22,7 @@ from viewer.app.file_actions import FileActions
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
+PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view is still)
 
 # the plot tab each lecture step's ``plot`` names
 STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
@@ -92,6 +93,8 @@ class Session(FileActions):
         self._nonfinite_said = None
         self._extents_for = None
         self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
+        self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
+        self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
         if m is not None:  # opened as lecture:N: lecture mode at that step
             self._enter_step(int(m.group(1)) - 1)
@@ -122,6 +125,12 @@ class Session(FileActions):
         if self._trace is not None:
             self._trace.release()
             self._trace = None
+        if self.prep is not None:
+            self.prep.cancel()
+        if self._shown is not None:
+            self._shown[1].release()
+            self._shown[0].release()
+            self._shown = None
         if self._own_renderer:
             self.renderer.release()
 
@@ -130,7 +139,19 @@ class Session(FileActions):
     def refining(self) -> bool:
         """Frames should follow without waiting for input (brute-force IBL still averaging, or
         the traced chains still refining)."""
-        return (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
+        return ((self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
+                or self.preparing)
+
+    @property
+    def trace(self):
+        """The progressive trace of the still view (``viewer.gl.raytrace.ProgressiveTrace``), or
+        None before the first traced view."""
+        return self._trace
+
+    @property
+    def preparing(self) -> bool:
+        """Prepare lecture is tracing the lecture's steps into the traced-frame cache."""
+        return self.prep is not None and not self.prep.done
 
     @property
     def tracing(self) -> bool:
@@ -141,8 +162,11 @@ class Session(FileActions):
     def trace_status(self) -> str:
         """What the view says while the traced image refines ("" otherwise)."""
         if not self.tracing:
-            return ""
-        return f"ray tracing: {100 * self._trace.progress:.0f}% (refining; what is not traced yet is drawn untraced)"
+            return self.prep.progress_text() if self.preparing else ""
+        t = self._trace
+        stage = "half resolution first" if t.coarse else "full resolution"
+        return (f"ray tracing: {100 * t.progress:.0f}%, {stage}, {time.perf_counter() - t.started:.0f} s "
+                "(what is not traced yet is drawn untraced)")
 
     def _progressive(self) -> bool:
         """Traced chains drawn untraced while the view moves and traced in strips once it is
@@ -164,9 +188,12 @@ class Session(FileActions):
         scale = 0.5 if interacting else 1.0
         rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
         want_full = not interacting and self.quality == "preview"
-        progressive = self.refining and not interacting
+        progressive = (self.tracing or (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) \
+            and not interacting
         stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
         if not (self.dirty or want_full or stale or progressive):
+            if self.preparing and not interacting:
+                self._prepare_step()
             return
         t1 = time.perf_counter()
         restart = self.dirty or want_full or stale
@@ -197,6 +224,8 @@ class Session(FileActions):
         self.dirty = False
         if self._step_timer is not None and not interacting:
             self._step_shown()
+        if self.preparing and not interacting and not self.tracing:
+            self._prepare_step()
 
     def _trace_step(self, w, h, restart: bool) -> str:
         """The progressive trace: (re)start it with the untraced view, or trace its next strip;
@@ -205,14 +234,81 @@ class Session(FileActions):
 
         if self._trace is None:
             self._trace = ProgressiveTrace(self.ctx)
-        if restart or not self._trace.active:
-            self.hdr = self._trace.start(self.renderer, self.scene, self.camera, w, h, self.view_mode)
+        t = self._trace
+        if restart or not t.active:
+            self.hdr = t.start(self.renderer, self.scene, self.camera, w, h, self.view_mode, cache=True,
+                               store=self.lecture_step >= 0)
+            if t.cache_message:
+                self.notify(t.cache_message)
+            if not t.from_cache:
+                return "tracing"
+            self.notify(f"ray traced view from the prepared cache ({t.elapsed_s:.2f} s)")
+            return "full"
+        self.hdr = t.step(TRACE_BUDGET_S)
+        if not t.done:
             return "tracing"
-        self.hdr = self._trace.step(TRACE_BUDGET_S)
-        if not self._trace.done:
-            return "tracing"
-        self.notify(f"ray traced in {self._trace.trace_s:.1f} s ({self._trace.steps} tiles)")
+        # the true time: from the still view's first frame to the last tile, frames between included
+        self.notify(f"ray traced in {t.elapsed_s:.1f} s ({t.steps} tiles, {t.trace_s:.1f} s of them tracing)")
         return "full"
+
+    # ------------------------------------------------------------------ Prepare lecture
+    def prepare_lecture(self, size=None) -> bool:
+        """Trace every lecture step with traced chains at the view's size (``size`` = (w, h), by
+        default the view's last size) into the traced-frame cache, a slice per frame while the
+        view is still (``viewer.app.lecture_prep``). Again while it runs: cancelled."""
+        from viewer.app.lecture_prep import LecturePrep
+
+        if self.preparing:
+            self.prep.cancel()
+            self.notify("Prepare lecture cancelled")
+            return False
+        size = size or self._hdr_for
+        if not size or size[0] <= 0 or size[1] <= 0:
+            self.notify("Prepare lecture: no view to size it by yet (draw a frame first)", error=True)
+            return False
+        self.prep = LecturePrep(self.ctx, self.renderer, size)
+        self.notify(self.prep.progress_text())
+        return True
+
+    def _prepare_step(self):
+        """One slice of the preparation, the view kept as it is shown (the preparation renders
+        other scenes with the same renderer)."""
+        self._keep_view()
+        try:
+            res = self.prep.step(PREP_BUDGET_S)
+        except ViewerError as e:
+            self.prep.cancel()
+            self.notify(f"Prepare lecture stopped: {e}", error=True)
+            return
+        for msg in self.prep.messages:
+            self.notify(msg)
+        self.prep.messages.clear()
+        if res is not None and self.prep.done:
+            traced = [r for r in self.prep.results if not r.cached]
+            self.notify(f"{self.prep.progress_text()} ({len(self.prep.results)} steps, {len(traced)} traced now)")
+        elif res is not None:
+            self.notify(self.prep.progress_text())
+
+    def _keep_view(self):
+        """Copy the view's image into a texture of the session's own unless it has one already
+        (the trace's, the brute-force mean's, this copy)."""
+        own = [x for x in (self._trace and self._trace.texture, self._bf_tex, self._shown and self._shown[0]) if x]
+        if self.hdr is None or any(self.hdr is x for x in own):
+            return
+        size = self.hdr.size
+        if self._shown is None or self._shown[0].size != size:
+            if self._shown is not None:
+                self._shown[1].release()
+                self._shown[0].release()
+            tex = self.ctx.texture(size, 4, dtype="f4")
+            tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+            self._shown = (tex, self.ctx.framebuffer(color_attachments=[tex]))
+        src = self.ctx.framebuffer(color_attachments=[self.hdr])
+        try:
+            self.ctx.copy_framebuffer(self._shown[1], src)
+        finally:
+            src.release()
+        self.hdr = self._shown[0]
 
     def update_reference(self, size, interacting: bool = False):
         """Advance the reference for a view of ``size`` when a compare mode or an error view
@@ -470,8 +566,14 @@ class Session(FileActions):
         try:
             extra = {"view": list(VIEW_MODES)[self.view_mode], "image": self.compare.mode}
             if capture is None or (self.compare.mode == "raster" and not self.mc.active):
-                # the raster alone: rendered afresh at the view's size (no overlay to keep)
-                srgb = self.render_image(vw, vh)
+                # the raster alone, as shown when the view holds it at full quality (a traced
+                # view, finished or not, is saved as it stands: nothing waits, nothing restarts);
+                # otherwise rendered afresh at the view's size
+                if self.hdr is not None and self.quality in ("full", "tracing") and tuple(self.hdr.size) == (vw, vh):
+                    srgb = self.renderer.read_srgb(self.hdr, self.scene.render.exposure, self.scene.render.tonemap)
+                else:
+                    srgb = self.render_image(vw, vh)
+                    self.dirty = True  # the renderer's target was drawn over
             else:  # what the view shows: split, side by side, heat map with its colour bar, labels
                 srgb = capture()
                 if self.compare.metrics_text():
@@ -480,7 +582,6 @@ class Session(FileActions):
         except (OSError, ViewerError) as e:
             self.notify(f"screenshot failed: {e}", error=True)
             return None
-        self.dirty = True
         self.notify(f"saved {path}")
         print(self.status, file=sys.stderr)
         return Path(path)

@@ -149,30 +149,107 @@ class RayTrace:
         self._geom_key = self._mat_key = None
 
 
+class _Pass:
+    """One resolution of the progressive trace: its size, its mask of traced pixels and, per
+    block of 4 rows from the bottom (software rasterizers shade 4 x 4 blocks), the columns
+    [x0, x1) the mask covers (x1 = 0: nothing to trace in the block)."""
+
+    def __init__(self, w: int, h: int, mask: np.ndarray, scale: int):
+        self.w, self.h, self.mask, self.scale = w, h, mask, scale
+        nb = (h + 3) // 4
+        rows = np.zeros((nb * 4, w), bool)
+        rows[:h] = mask
+        blocks = rows.reshape(nb, 4, w).any(axis=1)
+        any_col = blocks.any(axis=1)
+        self.x0 = np.where(any_col, np.argmax(blocks, axis=1), 0)
+        self.x1 = np.where(any_col, w - np.argmax(blocks[:, ::-1], axis=1), 0)
+        self.block = nb - 1      # the next block from the top
+        self.x = 0               # columns of that block traced (when a block is cut into tiles)
+        self.total = int(mask.sum())
+
+    def rows(self, b: int) -> int:
+        return min(4 * b + 4, self.h) - 4 * b
+
+    def skip_empty(self):
+        while self.block >= 0 and self.x1[self.block] == 0:
+            self.block -= 1
+            self.x = 0
+
+    @property
+    def done(self) -> bool:
+        self.skip_empty()
+        return self.block < 0
+
+    def next_tile(self, pixels: int):
+        """(x, y, w, h) of the next tile of about ``pixels`` pixels: whole blocks from the top
+        over the union of their masked columns, or one block cut into tiles from the left."""
+        self.skip_empty()
+        b = self.block
+        x0, x1 = int(self.x0[b]), int(self.x1[b])
+        rows = self.rows(b)
+        if self.x > 0 or (x1 - x0) * rows > pixels:
+            start = max(self.x, x0)
+            tw = min(x1 - start, max(16, pixels // rows // 4 * 4))
+            return start, 4 * b, tw, rows
+        last = b
+        while last - 1 >= 0 and self.x1[last - 1] > 0:
+            nx0, nx1 = min(x0, int(self.x0[last - 1])), max(x1, int(self.x1[last - 1]))
+            if (nx1 - nx0) * (4 * (b - last + 2)) > pixels:
+                break
+            last, x0, x1 = last - 1, nx0, nx1
+        return x0, 4 * last, x1 - x0, 4 * b + rows - 4 * last
+
+    def advance(self, tile):
+        x, y, tw, th = tile
+        b = (y + th - 1) // 4
+        if th <= 4 and x + tw < int(self.x1[b]):  # a block cut into tiles: its next one
+            self.x = x + tw
+            return
+        self.block = y // 4 - 1
+        self.x = 0
+
+
 class ProgressiveTrace:
     """The traced image of a still view, built over several frames (the window on software
-    OpenGL, where one traced frame takes seconds): ``start`` renders the view with the untraced
-    approximation into a texture of its own, each ``step`` renders the next tile with the chains
-    traced (``Renderer.render(region=...)``: a scissor, every pixel inside exactly as in a whole
-    frame) and copies it in: bands of rows from the top down, a band in tiles from the left when
-    a whole band is over the budget. The tile's pixel count follows the time of the last one so
-    that a tile takes about ``budget_s``, and a step traces tiles until that is spent. Once ``done``, the texture holds the one-shot traced
-    render bit for bit (pixels are independent, and the copy is of float32 texels)."""
+    OpenGL, where one traced frame takes seconds).
+
+    ``start`` renders the view with the untraced approximation (the view's MSAA) into a texture
+    of its own and finds the pixels a traced chain changes (``Renderer.traced_mask``: the
+    front-most surface is a mirror or smooth glass); only those are traced. Each ``step`` traces
+    tiles (``Renderer.render(region=...)``, no MSAA: a scissor, every pixel inside exactly as in a
+    whole frame), first at half resolution (``coarse``: the whole traced area appears at a quarter
+    of the cost, each traced pixel standing for its 2 x 2), then at full resolution. A tile spans
+    the masked columns of whole blocks of rows from the top, or cuts a block into tiles from the
+    left; its pixel count follows the time of the last one, so that a step takes about
+    ``budget_s``. Every pixel shows at any moment the untraced view, its half-resolution trace or
+    its trace: never a hole. Once ``done`` the texture holds the untraced view with every masked
+    pixel replaced by its traced value (float32 texels, pixels are independent): the same image
+    whether traced in tiles, in one piece, or read from the traced-frame cache
+    (``viewer.gl.trace_cache``, when ``start(cache=True)``), which a finished trace fills."""
 
     def __init__(self, ctx):
         self.ctx = ctx
         self.texture = None
         self._fbo = None
         self._job = None
+        self._passes: list[_Pass] = []
+        self.base = None       # (H, W, 4) float32: the untraced view, texture row order
+        self.mask = None       # (H, W) bool: the pixels traced at full resolution
         self.steps = 0         # tiles traced since start
-        self.rows_done = 0     # whole rows traced, from the top
-        self.x = 0             # columns of the band below them traced
-        self.band = 0          # that band's rows (0: none started)
         self.height = 0
         self.width = 0
         self.pixels = 0        # the next tile's pixels
-        self.rows = 0          # the first strip's rows
-        self.trace_s = 0.0     # time spent in steps since start
+        self.max_pixels = STRIP_PIXELS
+        self.trace_s = 0.0     # time spent tracing tiles since start
+        self.started = 0.0     # perf_counter() at start
+        self.elapsed_s = 0.0   # wall-clock time from start until done (the true time)
+        self.traced_px = 0     # masked pixels traced (both passes)
+        self.total_px = 0
+        self.from_cache = False
+        self.cache_key = None
+        self.cache_message = ""  # why an entry was set aside ("" when none was)
+        self.stored = None       # the cache entry a finished trace wrote, or None
+        self._store = False
 
     @property
     def active(self) -> bool:
@@ -180,12 +257,18 @@ class ProgressiveTrace:
 
     @property
     def done(self) -> bool:
-        return self._job is not None and self.rows_done >= self.height
+        return self._job is not None and all(p.done for p in self._passes)
+
+    @property
+    def coarse(self) -> bool:
+        """The half-resolution pass is still running."""
+        return bool(self._passes) and self._passes[0].scale == 2 and not self._passes[0].done
 
     @property
     def progress(self) -> float:
-        n = self.width * self.height
-        return (self.rows_done * self.width + self.x * self.band) / n if n else 0.0
+        if self.done:
+            return 1.0
+        return self.traced_px / self.total_px if self.total_px else 0.0
 
     def _target(self, w, h):
         if self.texture is None or self.texture.size != (w, h):
@@ -195,35 +278,53 @@ class ProgressiveTrace:
             self._fbo = self.ctx.framebuffer(color_attachments=[self.texture])
         return self.texture
 
-    def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0):
+    def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0,
+              coarse: bool = True, cache: bool = False, store: bool = False, max_pixels: int = STRIP_PIXELS):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
-        ``rows``: the first strip's height (default 2: the cost per pixel is not known yet)."""
+        ``rows``: the first tile's height (default 2: the cost per pixel is not known yet);
+        ``coarse``: a half-resolution pass first; ``cache``: open from the traced-frame cache
+        when it holds this view (then ``done`` at once); ``store``: write the finished trace
+        there; ``max_pixels``: the largest tile."""
+        import time
+
+        from viewer.gl import trace_cache
+
+        self.started = time.perf_counter()
         hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
         tex = self._target(w, h)
         self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
-        self._job = (renderer, scene, camera, w, h, view_mode, msaa)
-        self.rows_done, self.x, self.band, self.height, self.width = 0, 0, 0, h, w
-        self.steps, self.trace_s = 0, 0.0
-        self.rows = max(1, int(rows) if rows else 2)
-        self.pixels = self.rows * w
+        self.base = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
+        self.mask = renderer.traced_mask(scene, camera, w, h)
+        self._job = (renderer, scene, camera, w, h, view_mode)
+        self.height, self.width = h, w
+        self.steps, self.trace_s, self.elapsed_s, self.traced_px = 0, 0.0, 0.0, 0
+        self.max_pixels = max(16, int(max_pixels))
+        self.pixels = min(self.max_pixels, max(1, int(rows) if rows else 2) * w)
+        self.from_cache, self.cache_message, self.stored = False, "", None
+        self.cache_key = None
+        if cache or store:
+            self.cache_key = trace_cache.frame_key(scene, camera, w, h, view_mode, msaa,
+                                                   renderer.ctx.info.get("GL_RENDERER", ""))
+        self._store = bool(store)
+        if cache:
+            values, self.cache_message = trace_cache.load(self.cache_key, self.mask)
+            if values is not None:
+                img = self.base.copy()
+                img[self.mask] = values
+                tex.write(img)
+                self._passes = []
+                self.from_cache = True
+                self.total_px = self.traced_px = int(self.mask.sum())
+                self.elapsed_s = time.perf_counter() - self.started
+                return tex
+        self._passes = []
+        if coarse and self.mask.any() and w >= 8 and h >= 8:
+            w2, h2 = (w + 1) // 2, (h + 1) // 2
+            self._passes.append(_Pass(w2, h2, renderer.traced_mask(scene, camera, w2, h2), 2))
+        self._passes.append(_Pass(w, h, self.mask, 1))
+        self.total_px = sum(p.total for p in self._passes)
+        self._maybe_finish()
         return tex
-
-    def _next_tile(self):
-        """(x, y, w, h) of the next tile. Bands end on rows that are multiples of 4 from the
-        bottom (software rasterizers shade blocks of 4 x 4 pixels: a band of one row costs about
-        what four do), tiles are whole blocks wide."""
-        w, h = self.width, self.height
-        top = h - self.rows_done
-        if self.x == 0:
-            if self.steps == 0:
-                rows = self.rows
-            else:
-                rows = max(4, self.pixels // w // 4 * 4) + top % 4 if self.pixels >= 4 * w else (top % 4 or 4)
-            self.band = min(rows, top)
-        bh = self.band
-        tw = w - self.x if self.x == 0 and self.pixels >= bh * w else max(16, self.pixels // bh // 4 * 4)
-        tw = min(tw, w - self.x)
-        return self.x, top - bh, tw, bh
 
     def step(self, budget_s: float = 0.15):
         """Trace tiles into the texture (returned) until about ``budget_s`` is spent (at least
@@ -235,32 +336,71 @@ class ProgressiveTrace:
             dt, n = self._tile(budget_s)
             if time.perf_counter() - t0 + self.pixels * dt / n > budget_s:
                 break
+        self._maybe_finish()
         return self.texture
+
+    def finish(self):
+        """Trace everything that is left, in tiles of ``max_pixels`` (the bake's way)."""
+        while self._job is not None and not self.done:
+            self.pixels = self.max_pixels
+            self._tile(1e9)
+        self._maybe_finish()
+        return self.texture
+
+    def _pass(self) -> _Pass:
+        return next(p for p in self._passes if not p.done)
 
     def _tile(self, budget_s):
         """Trace the next tile; (its time, its pixels)."""
         import time
 
-        renderer, scene, camera, w, h, view_mode, msaa = self._job
-        x, y, tw, th = self._next_tile()
+        renderer, scene, camera, w, h, view_mode = self._job
+        p = self._pass()
+        tile = p.next_tile(self.pixels)
+        x, y, tw, th = tile
         t0 = time.perf_counter()
-        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, region=(x, y, tw, th))
-        data = renderer.resolved_framebuffer(hdr).read(viewport=(x, y, tw, th), components=4, dtype="f4")
-        self.texture.write(data, viewport=(x, y, tw, th))
+        hdr = renderer.render(scene, camera, p.w, p.h, view_mode, msaa=0, region=tile)
+        data = renderer.resolved_framebuffer(hdr).read(viewport=tile, components=4, dtype="f4")
+        traced = np.frombuffer(data, np.float32).reshape(th, tw, 4)
+        s = p.scale
+        fx, fy = s * x, s * y
+        fw, fh = min(w, s * (x + tw)) - fx, min(h, s * (y + th)) - fy
+        sel = self.mask[fy:fy + fh, fx:fx + fw]
+        if s > 1:  # each half-resolution pixel stands for its 2 x 2 where both masks agree
+            traced = np.repeat(np.repeat(traced, s, axis=0), s, axis=1)[:fh, :fw]
+            sel = sel & np.repeat(np.repeat(p.mask[y:y + th, x:x + tw], s, axis=0), s, axis=1)[:fh, :fw]
+        out = np.where(sel[..., None], traced, self.base[fy:fy + fh, fx:fx + fw])
+        self.texture.write(np.ascontiguousarray(out), viewport=(fx, fy, fw, fh))
         self.ctx.finish()
         dt = max(time.perf_counter() - t0, 1e-6)
         self.trace_s += dt
         self.steps += 1
-        self.x += tw
-        if self.x >= w:
-            self.rows_done += th
-            self.x = self.band = 0
+        self.traced_px += int(p.mask[y:y + th, x:x + tw].sum())
+        p.advance(tile)
         # the next tile: as many pixels as the budget allows at this tile's cost per pixel, at
-        # most 1.5 times as many and STRIP_PIXELS in all (the cost jumps where a glass object
+        # most 1.5 times as many and max_pixels in all (the cost jumps where a glass object
         # begins: a tile must stay small where the cost is not known yet)
         n = tw * th
-        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / dt), STRIP_PIXELS))
+        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / dt), self.max_pixels))
         return dt, n
+
+    def _maybe_finish(self):
+        """Once done: the true elapsed time, and the cache entry when asked for."""
+        import time
+
+        if self._job is None or self.elapsed_s or not self.done:
+            return
+        self.elapsed_s = time.perf_counter() - self.started
+        if self._store and not self.from_cache:
+            from viewer.gl import trace_cache
+
+            img = np.frombuffer(self.texture.read(), np.float32).reshape(self.height, self.width, 4)
+            self.stored = trace_cache.store(self.cache_key, self.mask, img[self.mask])
+
+    def image(self) -> np.ndarray:
+        """(H, W, 3) float32 linear radiance of the texture, row 0 = top (as ``read_linear``)."""
+        a = np.frombuffer(self.texture.read(), np.float32).reshape(self.height, self.width, 4)
+        return np.ascontiguousarray(a[::-1, :, :3])
 
     def cancel(self):
         self._job = None

@@ -52,6 +52,7 @@ _FIXED = {
 # programs built on first use
 _BACKGROUND = Recipe("passes/fullscreen.vert", "passes/background.frag")
 _THICKNESS = Recipe("passes/forward.vert", "passes/thickness.frag")
+_TRACED_MASK = Recipe("passes/forward.vert", "passes/traced_mask.frag")
 
 
 def group_by(items, key) -> list[list]:
@@ -183,6 +184,7 @@ class Renderer:
         self._rt = None
         self._measured = None
         self._frame_targets = None  # the last frame's colour targets (resolved_framebuffer)
+        self._mask_target = None    # (size, texture, depth, framebuffer) of traced_mask
 
     # ---------------------------------------------------------------- programs
     @property
@@ -398,6 +400,47 @@ class Renderer:
         smooth glass in the scene)."""
         return bool(scene.render.raytrace) and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
                                                    for o in scene.objects)
+
+    def traced_mask(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
+                    height: int | None = None, raytrace: bool | None = None) -> np.ndarray:
+        """(H, W) bool in the texture's row order (row 0 = bottom): the pixels whose front-most
+        surface at the pixel centre is an object drawn with a traced chain, i.e. the pixels where
+        a traced frame without MSAA differs from an untraced one (every other object keeps its
+        program). The objects are drawn as the forward pass draws them (same vertex stage, order
+        and depth test), so the coverage is the forward pass's without MSAA."""
+        ctx = self.ctx
+        w = int(width or scene.camera.width)
+        h = int(height or scene.camera.height)
+        on = bool(scene.render.raytrace) if raytrace is None else bool(raytrace)
+        if not (on and self.traces(scene)):
+            return np.zeros((h, w), bool)
+        if self._mask_target is None or self._mask_target[0] != (w, h):
+            self._release_mask()
+            tex = ctx.texture((w, h), 1, dtype="f1")
+            depth = ctx.depth_renderbuffer((w, h))
+            self._mask_target = ((w, h), tex, depth, ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+        _, tex, _, fbo = self._mask_target
+        cam = camera or OrbitCamera.from_scene(scene)
+        prog = self._programs.get("traced_mask", _TRACED_MASK)
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
+        for obj in scene.objects:
+            m = obj.model_matrix()
+            _set(prog, "u_model", gl_bytes(m))
+            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
+            _set(prog, "u_traced", float(chain_kind(scene.materials[obj.material]) != KIND_SHADED))
+            self._gpu_mesh(obj.mesh_data).vao(prog).render()
+        return np.frombuffer(tex.read(alignment=1), np.uint8).reshape(h, w) > 127
+
+    def _release_mask(self):
+        if self._mask_target is not None:
+            for r in self._mask_target[1:]:
+                r.release()
+            self._mask_target = None
 
     def _begin_frame(self, scene, camera, width, height, view_mode, msaa, raytrace=None, region=None) -> _Frame:
         """The frame's size, camera, colour targets (the SSR pass's with SSR) and switches."""
@@ -666,6 +709,7 @@ class Renderer:
         if self._ldr:
             self._ldr[1].release()
             self._ldr[0].release()
+        self._release_mask()
         for part in (self._thick, self._ssr_back, self._ibl, self._ssr, self.tables, self._rt, self._measured):
             if part is not None:
                 part.release()

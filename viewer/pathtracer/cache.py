@@ -29,18 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from viewer import OutputError, ViewerError
+from viewer.io import cache_root  # noqa: F401  (the cache folder's one definition; re-exported)
 from viewer.scene.validation import short
 
 #: bump when the estimator changes what it converges to (or its noise), so old entries are unused
 ESTIMATOR_VERSION = "1"
-
-
-def cache_root() -> Path:
-    """``$BRDF_VIEWER_CACHE``, else ``$XDG_CACHE_HOME/brdf-viewer``, else ``~/.cache/brdf-viewer``."""
-    env = os.environ.get("BRDF_VIEWER_CACHE")
-    if env:
-        return Path(env).expanduser()
-    return Path(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")) / "brdf-viewer"
 
 
 def cache_folder() -> Path:

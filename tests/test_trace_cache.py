@@ -1,0 +1,260 @@
+"""The traced-frame cache (viewer/gl/trace_cache.py), Prepare lecture (viewer/app/lecture_prep.py)
+and ``brdf-viewer bake --lecture --width W --height H``; the window's screenshot of a traced view
+and the trace's reported time."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+SIZE = (40, 30)  # small: the checks are about identity and bookkeeping, not about detail
+
+
+def _step(key):
+    from viewer.lecture import TOUR
+
+    return [s.key for s in TOUR].index(key)
+
+
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    return tmp_path / "traced"
+
+
+@pytest.fixture
+def session(gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    yield s
+    s.release()
+
+
+def test_cache_hit_is_the_live_trace(renderer, gl_ctx, cache_dir):
+    # A trace read from the cache is the live one bit for bit (linear float32 texels), done at once
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.lecture import tour_scene
+
+    scene = tour_scene(_step("tir"))
+    live, again = ProgressiveTrace(gl_ctx), ProgressiveTrace(gl_ctx)
+    try:
+        live.start(renderer, scene, None, *SIZE, cache=True, store=True)
+        assert not live.from_cache and not live.done and live.cache_message == ""
+        while not live.done:
+            live.step(budget_s=0.02)
+        assert live.stored is not None and live.stored.parent == cache_dir and live.stored.is_file()
+        assert not list(cache_dir.glob(".*.part"))
+        traced = live.image()
+        again.start(renderer, scene, None, *SIZE, cache=True)
+        assert again.from_cache and again.done and again.progress == 1.0 and again.steps == 0
+        assert np.array_equal(again.image(), traced)
+        # and both are the composition of one traced frame (no MSAA) and the untraced view
+        one_shot = renderer.read_linear(renderer.render(scene, None, *SIZE, msaa=0))
+        untraced = renderer.read_linear(renderer.render(scene, None, *SIZE, raytrace=False))
+        mask = renderer.traced_mask(scene, None, *SIZE)[::-1]
+        assert np.array_equal(traced, np.where(mask[..., None], one_shot, untraced))
+        # without cache=True nothing is read
+        again.start(renderer, scene, None, *SIZE)
+        assert not again.from_cache and not again.done
+    finally:
+        live.release()
+        again.release()
+
+
+def test_key_follows_size_scene_camera_and_view(renderer):
+    from viewer.camera import OrbitCamera
+    from viewer.gl.trace_cache import frame_key
+    from viewer.lecture import tour_scene
+
+    scene = tour_scene(_step("fresnel"))
+    cam = OrbitCamera.from_scene(scene)
+    key = frame_key(scene, cam, 64, 48)
+    assert key == frame_key(tour_scene(_step("fresnel")), OrbitCamera.from_scene(scene), 64, 48)  # content, not identity
+    assert key != frame_key(scene, cam, 64, 49) and key != frame_key(scene, cam, 65, 48)
+    assert key != frame_key(scene, cam, 64, 48, view_mode=1) and key != frame_key(scene, cam, 64, 48, msaa=0)
+    assert key != frame_key(scene, cam, 64, 48, gl_renderer="another driver")
+    moved = OrbitCamera.from_scene(scene)
+    moved.orbit(3.0, 0.0, 48)
+    assert key != frame_key(scene, moved, 64, 48)
+    glass = next(n for n, p in scene.materials.items() if p.model == "dielectric")
+    scene.materials[glass]["ior"] = float(scene.materials[glass]["ior"]) + 0.01
+    assert key != frame_key(scene, cam, 64, 48)
+    other = tour_scene(_step("tir"))
+    assert key != frame_key(other, OrbitCamera.from_scene(other), 64, 48)
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "other mask"])
+def test_damaged_entry_is_set_aside_and_traced_again(renderer, gl_ctx, cache_dir, damage):
+    from viewer.gl import trace_cache
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.lecture import tour_scene
+
+    scene = tour_scene(_step("tir"))
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        pt.start(renderer, scene, None, *SIZE, cache=True, store=True, coarse=False)
+        pt.finish()
+        path = pt.stored
+        good = pt.image()
+        if damage == "garbage":
+            path.write_bytes(b"not an npz file")
+        elif damage == "truncated":
+            path.write_bytes(path.read_bytes()[:200])
+        else:  # a well-formed entry of another view under this key
+            trace_cache.store(pt.cache_key, np.zeros_like(pt.mask), np.zeros((0, 4), np.float32))
+        pt.start(renderer, scene, None, *SIZE, cache=True, store=True, coarse=False)
+        assert not pt.from_cache and "set aside" in pt.cache_message and "\n" not in pt.cache_message
+        assert path.with_name(path.name + ".damaged").is_file()
+        pt.finish()
+        assert pt.stored == path and np.array_equal(pt.image(), good)
+        pt.start(renderer, scene, None, *SIZE, cache=True)
+        assert pt.from_cache and np.array_equal(pt.image(), good)
+    finally:
+        pt.release()
+
+
+def test_prepare_lecture_then_the_step_opens_traced(session, cache_dir, monkeypatch):
+    # Prepare lecture traces the steps at the view's size; the step then opens fully traced, the
+    # image the live trace gives (traced again here with the cache out of the way)
+    import viewer.app.lecture_prep as prep_mod
+
+    step = _step("tir")
+    monkeypatch.setattr(prep_mod, "traced_steps", lambda: [step])  # one step: the others cost minutes here
+    session.render_view(SIZE)  # the default scene: the view's size is known from here
+    assert session.prepare_lecture() and session.preparing and session.refining
+    assert "preparing lecture for a 40x30 view" in session.trace_status
+    frames = 0
+    while session.preparing:
+        session.render_view(SIZE)
+        frames += 1
+        assert frames < 200
+    assert "lecture prepared for a 40x30 view" in session.status
+    assert [r.step for r in session.prep.results] == [step] and not session.prep.results[0].cached
+    assert len(list(cache_dir.glob("*.npz"))) == 1
+    session.lecture(step)
+    session.render_view(SIZE)
+    assert not session.tracing and session.quality == "full"
+    assert any("from the prepared cache" in m.text for m in session.messages[-3:])
+    prepared = session.renderer.read_linear(session.hdr).copy()
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(cache_dir.parent / "empty"))
+    session.changed()
+    session.render_view(SIZE)
+    assert session.tracing
+    while session.tracing:
+        session.render_view(SIZE)
+    assert np.array_equal(session.renderer.read_linear(session.hdr), prepared)
+
+
+def test_prepare_twice_cancels(session, cache_dir, monkeypatch):
+    import viewer.app.lecture_prep as prep_mod
+
+    monkeypatch.setattr(prep_mod, "traced_steps", lambda: [_step("tir")])
+    assert not session.prepare_lecture()  # no view drawn yet: nothing to size it by
+    assert session.last_message.error and "no view" in session.status
+    assert session.prepare_lecture(SIZE) and session.preparing
+    assert not session.prepare_lecture(SIZE) and not session.preparing and "cancelled" in session.status
+
+
+def test_screenshot_of_a_traced_view_neither_waits_nor_restarts(session, cache_dir, tmp_path, monkeypatch):
+    # F12 while the view traces: the image as shown, no traced frame rendered for it, and the
+    # trace goes on where it was
+    from PIL import Image
+
+    import viewer.app.session as smod
+
+    monkeypatch.setattr(smod, "TRACE_BUDGET_S", 1e-9)
+    session.lecture(_step("tir"))
+    session.render_view(SIZE)
+    session.render_view(SIZE)
+    assert session.tracing
+    steps, progress = session.trace.steps, session.trace.progress
+    calls = []
+    real = session.renderer.render
+    monkeypatch.setattr(session.renderer, "render", lambda *a, **k: calls.append(k) or real(*a, **k))
+    shown = session.renderer.read_srgb(session.hdr, session.scene.render.exposure, session.scene.render.tonemap)
+    path = session.take_screenshot(tmp_path / "shot.png", size=SIZE)
+    assert path is not None and calls == []
+    assert np.array_equal(np.asarray(Image.open(path).convert("RGB")), shown)
+    assert session.tracing and not session.dirty
+    session.render_view(SIZE)
+    assert session.trace.steps == steps + 1 and session.trace.progress >= progress
+
+
+def test_reported_time_is_the_wall_clock(session, cache_dir, monkeypatch):
+    # the time the trace reports runs from the still view's first frame to the last tile,
+    # frames between included: here 0.05 s of other work between frames
+    import time
+
+    import viewer.app.session as smod
+
+    monkeypatch.setattr(smod, "TRACE_BUDGET_S", 1e-9)
+    session.lecture(_step("tir"))
+    t0 = time.perf_counter()
+    session.render_view(SIZE)
+    frames = 0
+    while session.tracing:
+        time.sleep(0.05)
+        session.render_view(SIZE)
+        frames += 1
+    wall = time.perf_counter() - t0
+    t = session.trace
+    assert 0.05 * frames <= t.elapsed_s <= wall
+    assert t.elapsed_s > t.trace_s
+    assert f"ray traced in {t.elapsed_s:.1f} s" in session.status
+
+
+def run_cli(*args, env):
+    return subprocess.run([sys.executable, "-m", "viewer", *args], capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+def test_bake_lecture_refuses_bad_sizes_in_one_line(tmp_path):
+    env = dict(os.environ, BRDF_VIEWER_CACHE=str(tmp_path))
+    for args, said in ((("--width", "0", "--height", "10"), "--width: 0 is out of range"),
+                       (("--width", "64"), "give both --width and --height"),
+                       (("--height", "-3", "--width", "8"), "--height: -3 is out of range")):
+        r = run_cli("bake", "--lecture", *args, env=env)
+        assert r.returncode == 2 and said in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    r = run_cli("bake", "--lecture", env=env)
+    assert r.returncode == 2 and "--spp N is required" in r.stderr and r.stderr.count("\n") == 1
+    r = run_cli("bake", "sphere", "--lecture", "--width", "8", "--height", "8", env=env)
+    assert r.returncode == 2 and "need --spp" in r.stderr
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    r = run_cli("bake", "--lecture", "--width", "8", "--height", "8", env=dict(env, BRDF_VIEWER_CACHE=str(blocker)))
+    assert r.returncode == 2 and "cannot be written" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert not (tmp_path / "traced").exists()
+
+
+def test_bake_lecture_fills_the_cache(cache_dir, monkeypatch, capsys):
+    # in-process, one step (the CLI's own code path; all steps: the slow test below)
+    import viewer.app.lecture_prep as prep_mod
+    from viewer import cli
+
+    monkeypatch.setattr(prep_mod, "traced_steps", lambda: [_step("tir")])
+    assert cli.main(["bake", "--lecture", "--width", "24", "--height", "16"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"lecture step {_step('tir') + 1}: traced 24x16 in ") and str(cache_dir) in out[0]
+    assert out[-1].startswith("lecture prepared for a 24x16 view: 1 traced steps in ")
+    assert len(list(cache_dir.glob("*.npz"))) == 1
+    assert cli.main(["bake", "--lecture", "--width", "24", "--height", "16"]) == 0
+    assert "24x16 already prepared" in capsys.readouterr().out
+
+
+@pytest.mark.slow(reason="traces every traced lecture step (about a minute on two software-GL cores)")
+def test_bake_lecture_cli_every_traced_step(tmp_path):
+    from viewer.app.lecture_prep import traced_steps
+
+    env = dict(os.environ, BRDF_VIEWER_CACHE=str(tmp_path))
+    r = run_cli("bake", "--lecture", "--width", "32", "--height", "18", env=env)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    steps = traced_steps()
+    assert len(lines) == len(steps) + 1 and all("traced 32x18 in" in x for x in lines[:-1])
+    assert len(list((tmp_path / "traced").glob("*.npz"))) == len(steps)
+    r = run_cli("bake", "--lecture", "--width", "32", "--height", "18", env=env)
+    assert r.returncode == 0 and r.stdout.count("already prepared") == len(steps)

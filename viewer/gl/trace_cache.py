@@ -1,0 +1,170 @@
+"""Traced frames ready in advance: an on-disk cache of the window's finished progressive traces.
+
+*Prepare lecture* (the window) and ``brdf-viewer bake --lecture --width W --height H`` trace every
+lecture step that has traced chains at one view size and store the result here, so a prepared
+step opens fully traced. Only the pixels the chain changes are stored (the mask of pixels whose
+front-most surface is a mirror or smooth glass, ``Renderer.traced_mask``); the rest of the view
+is the untraced frame, rendered when the step opens anyway. ``viewer.gl.raytrace.ProgressiveTrace``
+composes the two the same way live and from the cache, so a cache hit is the live trace bit for
+bit.
+
+An entry's key is the SHA-256 of everything that changes the traced pixels: this module's
+``VERSION``, the renderer version (the content of every shader file and the OpenGL renderer
+string: another driver rounds differently), the scene as TOML (``scene_to_toml``: materials,
+lights, environment, render switches), every object's mesh arrays and model matrix, the
+environment map's texels, the camera's view and projection matrices, the view size, the view
+mode and the untraced frame's MSAA. Files: ``<cache folder>/traced/<key>.npz`` (the packed mask
+and the masked texels as float32), written atomically; an entry that cannot be read or does not
+match the view it is keyed for is moved aside to ``<key>.npz.damaged`` and traced again. The
+folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the newest
+``MAX_ENTRIES`` entries.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.io import cache_root
+
+#: bump when what the progressive trace stores (or how it composes) changes
+VERSION = "1"
+MAX_ENTRIES = 64
+
+_shader_hash: dict = {}
+_array_hash: dict = {}
+
+
+def cache_folder() -> Path:
+    return cache_root() / "traced"
+
+
+def renderer_version(gl_renderer: str = "") -> str:
+    """The SHA-256 of every shader file (path and content) and ``gl_renderer``: a shader edit or
+    another driver makes older entries unused. The file hash is kept per (path, mtime, size)."""
+    from viewer.gl.shaders import shader_root
+
+    root = Path(shader_root())
+    files = sorted(p for p in root.rglob("*") if p.is_file() and p.suffix in (".glsl", ".vert", ".frag", ".geom"))
+    stamp = tuple((str(p.relative_to(root)), p.stat().st_mtime_ns, p.stat().st_size) for p in files)
+    if _shader_hash.get("stamp") != stamp:
+        h = hashlib.sha256()
+        for p in files:
+            h.update(str(p.relative_to(root)).replace("\\", "/").encode())
+            h.update(p.read_bytes())
+        _shader_hash.update(stamp=stamp, digest=h.hexdigest())
+    return hashlib.sha256((_shader_hash["digest"] + "\n" + gl_renderer).encode()).hexdigest()
+
+
+def _hash_array(a) -> str:
+    """SHA-256 of an array's dtype, shape and bytes; kept per object for read-only arrays (mesh
+    data and environment maps are not edited in place)."""
+    a = np.asarray(a)
+    key = id(a)
+    hit = _array_hash.get(key)
+    if hit is not None and hit[0] is a:
+        return hit[1]
+    h = hashlib.sha256(str((a.dtype.str, a.shape)).encode())
+    h.update(np.ascontiguousarray(a).tobytes())
+    digest = h.hexdigest()
+    if not a.flags.writeable:
+        _array_hash[key] = (a, digest)
+        if len(_array_hash) > 256:
+            _array_hash.pop(next(iter(_array_hash)))
+    return digest
+
+
+def frame_key(scene, camera, width: int, height: int, view_mode: int = 0, msaa=None,
+              gl_renderer: str = "") -> str:
+    """The content hash (hex) of one traced view: see the module's docstring."""
+    from viewer.camera import OrbitCamera, gl_bytes
+    from viewer.scene import scene_to_toml
+
+    camera = camera or OrbitCamera.from_scene(scene)
+    h = hashlib.sha256()
+
+    def add(tag, value):
+        h.update(tag.encode() + b"\0")
+        h.update(value if isinstance(value, bytes) else repr(value).encode())
+
+    add("version", VERSION)
+    add("renderer", renderer_version(gl_renderer))
+    add("scene", scene_to_toml(scene).encode())
+    for o in scene.objects:
+        m = o.mesh_data
+        add("object", (o.material, _hash_array(m.positions), _hash_array(m.normals), _hash_array(m.tangents),
+                       _hash_array(m.indices)))
+        add("model", np.asarray(o.model_matrix(), np.float64).tobytes())
+    env_map = scene.environment.radiance_map() if scene.environment.map is not None else None
+    if env_map is not None:
+        add("envmap", _hash_array(env_map))
+    add("view", gl_bytes(camera.view()))
+    add("projection", gl_bytes(camera.projection(width / height)))
+    add("size", (int(width), int(height), int(view_mode), scene.render.msaa if msaa is None else int(msaa)))
+    return h.hexdigest()
+
+
+def path_for(key: str, folder: Path | None = None) -> Path:
+    return (folder or cache_folder()) / f"{key}.npz"
+
+
+def set_aside(path: Path) -> Path | None:
+    """Move a damaged entry out of the way (``.damaged``); the path it went to, or None."""
+    target = path.with_name(path.name + ".damaged")
+    try:
+        os.replace(path, target)
+    except OSError:
+        return None
+    return target
+
+
+def load(key: str, mask: np.ndarray, folder: Path | None = None):
+    """The stored texels of the masked pixels ((N, 4) float32, in the order of ``mask``'s
+    nonzero entries), or (None, why): why is "" when there is no entry, else the reason the
+    entry was set aside (damaged, or not of this view)."""
+    p = path_for(key, folder)
+    if not p.is_file():
+        return None, ""
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            shape = tuple(int(x) for x in z["shape"])
+            bits = z["mask"]
+            values = np.asarray(z["values"], np.float32)
+        stored = np.unpackbits(bits, count=shape[0] * shape[1]).reshape(shape).astype(bool)
+        why = ""
+        if shape != tuple(mask.shape) or not np.array_equal(stored, mask):
+            why = "its mask is not the view's"
+        elif values.shape != (int(mask.sum()), 4) or not np.all(np.isfinite(values)):
+            why = "its texels do not match its mask"
+    except (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile) as e:
+        why = f"unreadable ({type(e).__name__})"
+    if why:
+        set_aside(p)
+        return None, f"traced cache entry {p.name} set aside: {why}"
+    return values, ""
+
+
+def store(key: str, mask: np.ndarray, values: np.ndarray, folder: Path | None = None) -> Path | None:
+    """Write an entry atomically; its path, or None when the cache folder cannot be written
+    (never an error: the view is traced live then). Keeps the newest ``MAX_ENTRIES``."""
+    from viewer.io import atomic_write_bytes
+
+    buf = io.BytesIO()
+    np.savez(buf, shape=np.asarray(mask.shape, np.int64), mask=np.packbits(mask.astype(bool).ravel()),
+             values=np.ascontiguousarray(values, np.float32))
+    p = path_for(key, folder)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(p, buf.getvalue())
+        entries = sorted(p.parent.glob("*.npz"), key=lambda q: q.stat().st_mtime_ns)
+        for old in entries[:-MAX_ENTRIES]:
+            old.unlink(missing_ok=True)
+    except (OSError, ViewerError):
+        return None
+    return p
