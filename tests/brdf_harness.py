@@ -63,7 +63,7 @@ def random_upper(rng, n, max_theta_deg=89.0):
 
 def _hook(model_or_name, attr, default=None):
     model = brdf.get(model_or_name) if isinstance(model_or_name, str) else model_or_name
-    return getattr(model.module, attr, default)
+    return model.hook(attr, default)
 
 
 def plausible(p: Params) -> Params:

@@ -51,7 +51,7 @@ void main() {
     float pdf;
     vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf);
     out_wi_pdf = vec4(wi, pdf);
-    out_weight = vec4(w, brdf_sample_is_discrete(u_model, 0, wi, wo, pdf) ? 1.0 : 0.0);
+    out_weight = vec4(w, brdf_sample_is_discrete(u_model, 0) ? 1.0 : 0.0);
 }
 """
 

@@ -86,9 +86,9 @@ def test_weight_is_f_cos_over_pdf(name):
 
 
 def _albedo_bound(model):
-    bound = getattr(model.module, "ALBEDO_BOUND", 1.0)
+    bound = model.hook("ALBEDO_BOUND", 1.0)
     if bound > 1.0:
-        assert getattr(model.module, "ALBEDO_BOUND_WHY", ""), f"{model.name}: ALBEDO_BOUND > 1 needs a why"
+        assert model.hook("ALBEDO_BOUND_WHY", ""), f"{model.name}: ALBEDO_BOUND > 1 needs a why"
     return bound
 
 

@@ -68,7 +68,7 @@ def _is_delta(p) -> bool:
 def _uses_split(p) -> bool:
     """The numpy sample splits u[:, 0] into (choice, continuous) with split_uniform (the model's
     ``splits_u`` hook, which viewer.gl.brdf_glsl.glsl_u follows)."""
-    hook = getattr(brdf.get(p.model).module, "splits_u", None)
+    hook = brdf.get(p.model).hook("splits_u")
     return bool(hook and hook(p))
 
 

@@ -54,7 +54,7 @@ def test_glsl_matches_numpy(name, evaluator):
         # 1e-4 relative, 1e-6 absolute near zero (the bound)
         err = np.abs(got - ref)
         # (a model may state a looser bound with its reason: measured tables, GLSL_RTOL)
-        tol = getattr(model.module, "GLSL_RTOL", 1e-4) * np.abs(ref) + 1e-6
+        tol = model.hook("GLSL_RTOL", 1e-4) * np.abs(ref) + 1e-6
         bad = err > tol
         # report the relative error where the relative bound governs (tol dominated by 1e-4 |ref|)
         big = np.abs(ref) >= 1e-2

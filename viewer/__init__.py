@@ -54,6 +54,14 @@ def _read_version() -> str:
         return "unknown"
 
 
+def file_brdf_evaluator():
+    """The object that runs a ``.brdf`` file's GLSL on an offscreen context (``viewer.gl.file_brdf``):
+    the wiring between ``viewer.brdf``, which imports no GL, and the GL side."""
+    from viewer.gl.file_brdf import shared_evaluator
+
+    return shared_evaluator()
+
+
 def render(scene, width=None, height=None, overrides=()):
     """Rasterize ``scene`` offscreen; (H, W, 3) float32 linear radiance (see viewer.api.render)."""
     from viewer.api import render as _render

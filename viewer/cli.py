@@ -185,8 +185,10 @@ class ProgressBar:
 
 
 def _parser_models() -> argparse.ArgumentParser:
-    return argparse.ArgumentParser(prog="brdf-viewer models",
-                                   description="List every BRDF model with its parameters, ranges and defaults.")
+    p = argparse.ArgumentParser(prog="brdf-viewer models",
+                                description="List every BRDF model with its parameters, ranges and defaults.")
+    p.add_argument("files", nargs="*", metavar="FILE.brdf", help="list these .brdf files' parameters instead")
+    return p
 
 
 def _overrides(args) -> list[str]:
@@ -407,6 +409,14 @@ def cmd_compare(args) -> int:
 def cmd_models(args) -> int:
     from viewer import brdf
 
+    if getattr(args, "files", None):
+        for f in args.files:
+            model = brdf.load(f)
+            print(f"{f}: model = \"custom\", file = {f!r}; sampler: {model.sampled_by or 'cosine-weighted (generic)'}"
+                  f"; numpy twin: {'yes' if model.twin is not None else 'no'}")
+            for p in model.spec.params[1:]:
+                print(f"    {_describe_param(p)}")
+        return 0
     for name in brdf.names():
         spec = brdf.get(name).spec
         print(f"{name}: {spec.title}  [{spec.source}]")
@@ -603,14 +613,15 @@ def main(argv=None) -> int:
     try:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
-            from viewer import measured_cli
+            from viewer import check_cli, measured_cli
 
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
                       "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models,
-                      "fit": measured_cli.parser}[cmd]()
+                      "fit": measured_cli.parser, "check": check_cli.parser}[cmd]()
             args = parser.parse_args(rest)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
-                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit}[cmd](args)
+                    "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit,
+                    "check": check_cli.cmd_check}[cmd](args)
         args = _parser_window().parse_args(argv)
         return cmd_window(args)
     except OutputError as e:   # a file that could not be written: exit 1

@@ -181,6 +181,7 @@ vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pd
         vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
         pdf = (1.0 - pc) * pdf_b;
         if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }
+        brdf_sampled_delta = true;
         return Ti * To * absorb * w_b / max(1.0 - pc, 1.17549435e-38);
     }
     pdf = layered_pdf(p, wi, wo);

@@ -225,7 +225,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         if (any(isnan(wi_l)) || any(isinf(wi_l))) { g_bad += 1.0; wi_l = vec3(0.0, 0.0, 1.0); wgt = vec3(0.0); }
         bool disc = kind == PT_KIND_DELTA;
 #ifdef HAS_MIXED
-        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, moff, wi_l, wo_l, pdf_s);
+        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, moff);
 #endif
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);

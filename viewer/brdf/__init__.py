@@ -15,24 +15,75 @@ import pkgutil
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf.spec import ModelSpec, Param, Params, validate_params
+from viewer.brdf.spec import HOOKS, ModelSpec, Param, Params, check_module, validate_params
 
 # The course's order (the lecture's order of families); discovered extras follow alphabetically.
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "glsl", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
+_HELPERS = {"spec", "glsl", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
             "spectral_fresnel", "thin_film", "merl", "fit", "chi2"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 
 class Model:
-    """A registered model: its spec and vectorized numpy functions (docs/architecture.md)."""
+    """A registered model: its spec and vectorized numpy functions (docs/architecture.md), and
+    the optional hooks of the model protocol (``viewer.brdf.spec.HOOKS``) with their defaults."""
 
-    def __init__(self, module):
+    def __init__(self, module, where: str | None = None):
+        check_module(module, where)
         self.module = module
         self.spec: ModelSpec = module.SPEC
         self.name = self.spec.name
+
+    def hook(self, name: str, default=None):
+        """The module's hook ``name`` (one of ``spec.HOOKS``), or ``default`` when it has none."""
+        if name not in HOOKS:
+            raise KeyError(f"{name!r} is not a hook of the model protocol")
+        return getattr(self.module, name, default)
+
+    def is_delta(self, p=None) -> bool:
+        """Every lobe of ``p`` is a delta lobe (mirror, smooth glass): the numpy twin of the GLSL
+        ``<name>_is_delta``."""
+        fn = self.hook("is_delta")
+        return bool(fn(self._p(p))) if fn is not None else bool(self.spec.delta)
+
+    def has_delta(self, p=None) -> bool:
+        """Some lobe of ``p`` is a delta lobe: ``p`` is delta, or nests a material (a layered base)
+        that has one."""
+        p = self._p(p)
+        if self.is_delta(p):
+            return True
+        return any(prm.kind == "material" and get(p[prm.name].model).has_delta(p[prm.name])
+                   for prm in self.spec.params)
+
+    def flags(self, p=None) -> str:
+        """"delta" (only delta lobes), "mixed" (delta and smooth lobes) or "smooth"."""
+        p = self._p(p)
+        if self.is_delta(p):
+            return "delta"
+        return "mixed" if self.has_delta(p) else "smooth"
+
+    def sample_lobe(self, p, wo, u):
+        """``sample`` plus, per sample, whether it drew a delta lobe: (wi, weight, pdf, discrete)."""
+        p = self._p(p)
+        fn = self.hook("sample_lobe")
+        if fn is not None:
+            wo2, u2, single = _sample_args(wo, u)
+            wi, weight, pdf, disc = fn(p, wo2, u2)
+            disc = np.asarray(disc, dtype=bool)
+            if single:
+                return wi[0], weight[0], float(pdf[0]), bool(disc[0])
+            return wi, weight, pdf, disc
+        out = self.sample(p, wo, u)
+        d = self.is_delta(p)
+        return (*out, d) if np.ndim(out[2]) == 0 else (*out, np.full(np.shape(out[2]), d))
+
+    def fresnel_source(self, p=None) -> dict | None:
+        """How ``p``'s Fresnel reflectance is given (the hook, else by parameter names)."""
+        p = self._p(p)
+        fn = self.hook("fresnel_source")
+        return fn(p) if fn is not None else fresnel_source_by_names(p)
 
     def __repr__(self):
         return f"<brdf model {self.name}>"
@@ -59,16 +110,73 @@ class Model:
         return float(pdf[0]) if single else pdf
 
     def sample(self, p, wo, u):
-        wo = np.asarray(wo, dtype=np.float64)
-        u = np.asarray(u, dtype=np.float64)
-        single = wo.ndim == 1 and u.ndim == 1
-        n = max(np.atleast_2d(wo).shape[0], np.atleast_2d(u).shape[0])
-        wo2 = np.broadcast_to(np.atleast_2d(wo), (n, 3)).copy()
-        u2 = np.broadcast_to(np.atleast_2d(u), (n, 2)).copy()
+        wo2, u2, single = _sample_args(wo, u)
         wi, weight, pdf = self.module.sample(self._p(p), wo2, u2)
         if single:
             return wi[0], weight[0], float(pdf[0])
         return wi, weight, pdf
+
+
+class FileModel(Model):
+    """The model of one ``.brdf`` file (``load``): the registry's interface, with ``eval`` running
+    the file's GLSL; ``bfile`` is the parsed file, ``twin`` its numpy twin module or None."""
+
+    @property
+    def bfile(self):
+        return self.module.source_file
+
+    @property
+    def twin(self):
+        return self.module.numpy_twin
+
+    @property
+    def sampled_by(self) -> str | None:
+        """"numpy twin", "isFunc" or None (the generic cosine-weighted sampler)."""
+        return self.module.sampled_by
+
+    def __repr__(self):
+        return f"<brdf file {self.bfile.path.name}>"
+
+    def params(self, **values) -> Params:
+        values.setdefault("file", str(self.bfile.path))
+        return super().params(**values)
+
+    def twin_eval(self, p, wi, wo):
+        """f from the numpy twin (a ViewerError when the file has none)."""
+        if self.module.twin_eval is None:
+            raise ViewerError(f"{self.bfile.path.name}: no numpy twin {self.bfile.path.with_suffix('.py').name} "
+                              f"beside it")
+        wi, wo, single = _dirs(wi, wo)
+        f = self.module.twin_eval(self._p(p), wi, wo)
+        return f[0] if single else f
+
+
+def load(path) -> FileModel:
+    """The model of a BRDF Explorer ``.brdf`` file (and its numpy twin ``NAME.py`` beside it)."""
+    from viewer.brdf import file_model
+
+    return file_model.load(path)
+
+
+def _sample_args(wo, u):
+    wo = np.asarray(wo, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    single = wo.ndim == 1 and u.ndim == 1
+    n = max(np.atleast_2d(wo).shape[0], np.atleast_2d(u).shape[0])
+    wo2 = np.broadcast_to(np.atleast_2d(wo), (n, 3)).copy()
+    u2 = np.broadcast_to(np.atleast_2d(u), (n, 2)).copy()
+    return wo2, u2, single
+
+
+def fresnel_source_by_names(p) -> dict | None:
+    """The default ``fresnel_source``: a scalar ``ior`` (dielectric), or ``eta`` and ``k``
+    (conductor), else None."""
+    if "ior" in p and np.ndim(p["ior"]) == 0:
+        return {"type": "dielectric", "ior": float(p["ior"]), "field": "ior"}
+    if "eta" in p and "k" in p:
+        return {"type": "conductor", "eta": np.asarray(p["eta"], float), "k": np.asarray(p["k"], float),
+                "field": "eta, k"}
+    return None
 
 
 def _dirs(wi, wo):
@@ -99,7 +207,52 @@ def names() -> list[str]:
     return list(_registry())
 
 
+class CustomModel(Model):
+    """``get("custom")``: the scene files' model of file BRDFs. Its functions take the file from
+    the parameters (``p.file``, an absolute path once validated) and run that file's model."""
+
+    def __init__(self):
+        from viewer.brdf.file_model import CUSTOM_SPEC
+
+        spec = CUSTOM_SPEC
+        super().__init__(_CustomModule(SPEC=spec, eval=lambda p, wi, wo: self.of(p).module.eval(p, wi, wo),
+                                       sample=lambda p, wo, u: self.of(p).module.sample(p, wo, u),
+                                       pdf=lambda p, wi, wo: self.of(p).module.pdf(p, wi, wo)), where="custom")
+
+    @staticmethod
+    def of(p) -> FileModel:
+        """The file model of parameters ``p`` (with a ``file``)."""
+        if p is None or not p.get("file"):
+            raise ViewerError("model 'custom': give file = \"NAME.brdf\" (a BRDF Explorer file)")
+        return load(p["file"])
+
+    def params(self, **values) -> Params:
+        return self.of(values).params(**values)
+
+    def is_delta(self, p=None) -> bool:
+        return False
+
+    def fresnel_source(self, p=None):
+        return self.of(p).fresnel_source(p)
+
+    def sample_lobe(self, p, wo, u):
+        return self.of(p).sample_lobe(p, wo, u)
+
+
+class _CustomModule:
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+_CUSTOM: CustomModel | None = None
+
+
 def get(name: str) -> Model:
+    global _CUSTOM
+    if name == "custom":
+        if _CUSTOM is None:
+            _CUSTOM = CustomModel()
+        return _CUSTOM
     try:
         return _registry()[name]
     except KeyError:
@@ -110,6 +263,9 @@ def get(name: str) -> Model:
 def lookup_spec(name, where: str = "model") -> ModelSpec:
     """The spec of ``name`` or a ViewerError naming ``where`` and the allowed names."""
     reg = _registry()
+    if name == "custom":
+        raise ViewerError(f"{where}: model 'custom' (a .brdf file) is a material of its own; it cannot be "
+                          f"nested in another material")
     if name not in reg:
         shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."   # never a 100 KB name whole
         raise ViewerError(f"{where}: unknown model {shown}; allowed: {', '.join(reg)}")
@@ -125,4 +281,4 @@ def __getattr__(attr):
     raise AttributeError(attr)
 
 
-__all__ = ["Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]
+__all__ = ["CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]

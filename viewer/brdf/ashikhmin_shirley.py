@@ -135,6 +135,10 @@ def sample(p, wo, u):
     return wi, weight, pdf_
 
 
+def fresnel_source(p):
+    return {"type": "schlick", "f0": np.asarray(p.rs, float), "field": "rs"}
+
+
 def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone (rd = 0), and the GGX alpha of an
     isotropic lobe of the geometric-mean exponent sqrt(nu nv): alpha = sqrt(2 / (n + 2))."""

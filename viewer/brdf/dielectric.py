@@ -228,6 +228,16 @@ def sample(p, wo, u):
     return _sample_rough(p, wo, u)
 
 
+def is_delta(p):
+    """Smooth glass (alpha = 0) has only its two delta lobes; a rough interface none (the twin of
+    GLSL dielectric_is_delta)."""
+    return bool(_is_smooth(p))
+
+
+def fresnel_source(p):
+    return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
+
+
 def ibl_split(p):
     """Image-based lighting: reflection and transmission are both specular lobes of width alpha."""
     return p, float(p.alpha)

@@ -483,6 +483,12 @@ def pdf(p, wi, wo):
 
 
 def sample(p, wo, u):
+    return sample_lobe(p, wo, u)[:3]
+
+
+def sample_lobe(p, wo, u):
+    """``sample`` plus, per sample, whether it drew the base's delta lobe (a smooth mirror or glass
+    base under the coat: a discrete direction)."""
     n = wo.shape[0]
     up = wo[:, 2] > 0
     wo_s = np.where(up[:, None], wo, np.array([0.0, 0.0, 1.0]))
@@ -523,12 +529,18 @@ def sample(p, wo, u):
         sel, wd, pd = w_delta
         weight[sel] = wd
     weight = np.where(ok[:, None], weight, 0.0)
-    return wi, weight, np.where(ok, pdf_, 0.0)
+    discrete = np.zeros(n, dtype=bool)
+    if w_delta is not None:
+        discrete[w_delta[0]] = True
+    return wi, weight, np.where(ok, pdf_, 0.0), discrete & ok
 
 
 def _base_is_delta(p):
-    spec = _base(p).spec
-    return spec.delta and not (spec.name == "dielectric" and p.base.get("alpha", 0.0) > 0)
+    return _base(p).is_delta(p.base)
+
+
+def fresnel_source(p):
+    return {"type": "dielectric", "ior": float(p.coating.ior), "field": "coating.ior"}
 
 
 def ibl_split(p):

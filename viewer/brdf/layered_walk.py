@@ -262,3 +262,8 @@ class WalkModel:
         ok = (pdf > 0) & (wi[:, 2] > 0)
         w = f * (np.abs(wi[:, 2]) / np.where(ok, pdf, 1.0))[:, None]
         return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pdf, 0.0)
+
+    def sample_lobe(self, p, wo, u):
+        """``sample`` plus the discrete flags: the walk runs over a smooth base only (none)."""
+        wi, w, pdf = self.sample(p, wo, u)
+        return wi, w, pdf, np.zeros(len(pdf), dtype=bool)

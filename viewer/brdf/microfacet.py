@@ -261,6 +261,15 @@ def sample(p, wo, u):
     return wi, weight, np.where(ok, pdf_, 0.0)
 
 
+def fresnel_source(p):
+    if p.fresnel == "dielectric":
+        return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
+    if p.fresnel == "conductor":
+        return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
+                "field": "eta, k"}
+    return {"type": "schlick", "f0": np.asarray(p.f0, float), "field": "f0"}
+
+
 def ibl_split(p):
     """Image-based lighting (split sum): the specular lobe alone (kd = 0) and its alpha (the
     geometric mean of alpha_x and alpha_y for anisotropic lobes; alpha_x for blinn_phong)."""

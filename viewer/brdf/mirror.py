@@ -69,6 +69,15 @@ def sample(p, wo, u):
     return wi, weight, np.where(ok, 1.0, 0.0)
 
 
+def fresnel_source(p):
+    if p.fresnel == "conductor":
+        return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
+                "field": "eta, k"}
+    if p.fresnel == "dielectric":
+        return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
+    return None
+
+
 def ibl_split(p):
     """Image-based lighting: all of it is the (delta) specular lobe, alpha 0."""
     return p, 0.0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -319,3 +319,124 @@ def default_value(f: Param, lookup_spec=None):
 def validate_params(spec: ModelSpec, raw: dict, where: str, lookup_spec=None) -> Params:
     """Validate a material table (without its 'model' key) against a spec; fill defaults."""
     return validate_fields(spec.params, raw, where, spec.name, spec.aliases, lookup_spec)
+
+
+# ----------------------------------------------------------------------------- the model protocol
+
+
+class BRDFModule(Protocol):
+    """What a model module (a family of this package, or a ``.brdf`` file's model) provides.
+
+    Required: ``SPEC`` (a ``ModelSpec``) and numpy ``eval(p, wi, wo)``, ``sample(p, wo, u)``,
+    ``pdf(p, wi, wo)`` over (N, 3) direction arrays in the shading frame (z = normal; wi toward
+    the light, wo toward the viewer; f without the cosine; u (N, 2) uniform). ``sample`` returns
+    ``(wi, weight, pdf)`` with weight = f cos / pdf (0 where it fails). Every optional hook of
+    ``HOOKS`` may be defined beside them; ``check_module`` rejects a misspelled one.
+    """
+
+    SPEC: ModelSpec
+
+    def eval(self, p: Params, wi: np.ndarray, wo: np.ndarray) -> np.ndarray: ...
+
+    def sample(self, p: Params, wo: np.ndarray, u: np.ndarray) -> tuple: ...
+
+    def pdf(self, p: Params, wi: np.ndarray, wo: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Hook:
+    """One optional hook of a model module: a function (``args`` names its arguments) or a value,
+    and what the registry does when the module leaves it out (``default``)."""
+
+    name: str
+    kind: str  # "function" | "value"
+    args: tuple[str, ...]
+    default: str
+    doc: str
+
+
+REQUIRED = {"eval": ("p", "wi", "wo"), "sample": ("p", "wo", "u"), "pdf": ("p", "wi", "wo")}
+
+HOOKS = {h.name: h for h in (
+    Hook("is_delta", "function", ("p",), "SPEC.delta",
+         "True when every lobe of p is a delta lobe (the numpy twin of the GLSL <name>_is_delta)"),
+    Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus discrete = is_delta(p)",
+         "(wi, weight, pdf, discrete): sample's result and, per sample, whether it drew a delta "
+         "lobe (no light sampling, no MIS for it); needed by models that mix delta and smooth lobes"),
+    Hook("fresnel_source", "function", ("p",), "by parameter names: ior, or eta and k, else None",
+         "how p's Fresnel reflectance is given, for the Fresnel plot: {'type': 'dielectric', 'ior', "
+         "'field'} | {'type': 'conductor', 'eta', 'k', 'field'} | {'type': 'schlick', 'f0', 'field'} | None"),
+    Hook("ibl_split", "function", ("p",), "None (no specular part: diffuse image-based lighting)",
+         "(specular params, alpha[, diffuse albedo]): the part the split-sum prefilter serves and its width"),
+    Hook("splits_u", "function", ("p",), "False",
+         "True when sample splits u[:, 0] into a lobe choice and a continuous part (split_uniform)"),
+    Hook("eval_mean", "function", ("p", "wi", "wo"), "eval",
+         "the mean of a stochastic eval, for the plots"),
+    Hook("energy_conserving", "function", ("p",), "p unchanged",
+         "p moved into the range where the model conserves energy (the tests' plausible sets)"),
+    Hook("TEST_PARAMS", "value", (), "the defaults plus a rough and a sharp set by parameter names",
+         "{label: parameter dict}: the sets the chi-square and furnace tests use"),
+    Hook("GLSL_RTOL", "value", (), "1e-4", "the relative tolerance of the GLSL twin against numpy"),
+    Hook("ALBEDO_BOUND", "value", (), "1.0", "the largest directional albedo the model may reach"),
+    Hook("ALBEDO_BOUND_WHY", "value", (), "''", "why ALBEDO_BOUND exceeds 1 (required when it does)"),
+)}
+
+
+def _public_names(module) -> dict:
+    """The module's own public names (not imported ones, not submodules)."""
+    import types
+
+    own = getattr(module, "__name__", None)
+    out = {}
+    for key, value in vars(module).items():
+        if key.startswith("_") or isinstance(value, types.ModuleType):
+            continue
+        if callable(value) and getattr(value, "__module__", own) != own:
+            continue  # imported
+        out[key] = value
+    return out
+
+
+def check_module(module, where: str | None = None) -> None:
+    """Check a model module against the protocol: SPEC, eval / sample / pdf with their arguments,
+    and every hook's kind and arguments; a public name within a letter or two of a hook's (or a
+    required function's) name is a misspelled hook. Raises ViewerError naming the module."""
+    import difflib
+    import inspect
+
+    where = where or getattr(module, "__name__", "model")
+    if not isinstance(getattr(module, "SPEC", None), ModelSpec):
+        raise ViewerError(f"{where}: a model module needs SPEC = ModelSpec(...)")
+
+    def check_args(name, fn, args):
+        if not callable(fn):
+            raise ViewerError(f"{where}: {name} must be a function of ({', '.join(args)})")
+        try:
+            sig = inspect.signature(fn)
+        except (TypeError, ValueError):
+            return
+        try:
+            sig.bind(*args)
+        except TypeError:
+            raise ViewerError(f"{where}: {name}{sig} must take ({', '.join(args)})") from None
+
+    for name, args in REQUIRED.items():
+        if not hasattr(module, name):
+            raise ViewerError(f"{where}: a model module needs {name}({', '.join(args)})")
+        check_args(name, getattr(module, name), args)
+    known = set(HOOKS) | set(REQUIRED) | {"SPEC"}
+    for name, value in _public_names(module).items():
+        if name in HOOKS:
+            hook = HOOKS[name]
+            if hook.kind == "function":
+                check_args(name, value, hook.args)
+            elif callable(value):
+                raise ViewerError(f"{where}: {name} is a value ({hook.doc}), not a function")
+            continue
+        if name in known:
+            continue
+        close = difflib.get_close_matches(name.lower(), [k.lower() for k in known], n=1, cutoff=0.84)
+        if close:
+            real = next(k for k in known if k.lower() == close[0])
+            raise ViewerError(f"{where}: {name!r} is not a hook of the model protocol; did you mean {real!r}? "
+                              f"(hooks: {', '.join(sorted(HOOKS))})")

@@ -316,7 +316,10 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
            '#include "common/math.glsl"',
            "// the shading point's relative height on its object, 0 bottom .. 1 top: a thin film's",
            "// thickness_top_nm applies there (the forward pass sets it; elsewhere the bottom's)",
-           "float brdf_film_height = 0.0;"] + _material_reads(texture_width)
+           "float brdf_film_height = 0.0;",
+           "// set by a model's sample when it drew a delta lobe of a material that also has smooth ones",
+           "// (a coat over a mirror or smooth glass base); brdf_sample clears it first",
+           "bool brdf_sampled_delta = false;"] + _material_reads(texture_width)
     # model ids by name (every registered model, so a nesting model can test its base's model)
     out.extend(f"#define BRDF_MODEL_{name.upper()} {model_index(name)}" for name in brdf.names())
     out.append("")
@@ -407,18 +410,17 @@ _SAMPLING_API = """// Importance sampling of the material at float offset o (twi
 // brdf_pdf / brdf_eval are 0 there. u: three uniforms in [0, 1); u.x, u.y as numpy's u[:, 0],
 // u[:, 1]; u.z only where numpy splits u[:, 0] in two (rough glass, layered lobe choice).
 vec3 brdf_sample(int model, int o, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+    brdf_sampled_delta = false;
     return brdf_sample_nested(model, o, wo, u, wi, pdf);
 }
 // The pdf (per solid angle) with which brdf_sample draws wi; 0 for delta lobes.
 float brdf_pdf(int model, int o, vec3 wi, vec3 wo) { return brdf_pdf_nested(model, o, wi, wo); }
 // The material has only delta lobes (mirror, smooth glass): every sample is discrete.
 bool brdf_is_delta(int model, int o) { return brdf_is_delta_nested(model, o); }
-// A sample is discrete (a delta lobe: no light sampling, no MIS) when the material is delta or
-// its pdf is not brdf_pdf at the sampled pair (a delta base under a coating), the reference path
-// tracer's rule; 1e-4 relative tolerates float32 rounding of two evaluations of one pdf.
-bool brdf_sample_is_discrete(int model, int o, vec3 wi, vec3 wo, float pdf) {
-    if (brdf_is_delta(model, o)) return true;
-    return pdf > 0.0 && abs(pdf - brdf_pdf(model, o, wi, wo)) > 1e-4 * pdf;
+// The last brdf_sample drew a delta lobe (no light sampling, no MIS): the material is delta, or
+// the model said so (a delta base under a coating), as numpy's sample_lobe says it.
+bool brdf_sample_is_discrete(int model, int o) {
+    return brdf_is_delta(model, o) || brdf_sampled_delta;
 }
 """.splitlines()
 
@@ -431,7 +433,7 @@ def glsl_u(params: Params, u: np.ndarray) -> np.ndarray:
     from viewer.brdf.sampling import split_uniform
 
     u = np.asarray(u, dtype=np.float64)
-    hook = getattr(brdf.get(params.model).module, "splits_u", None)
+    hook = brdf.get(params.model).hook("splits_u")
     if hook is not None and hook(params):
         choice, cont = split_uniform(u[:, 0])
         return np.stack([cont, u[:, 1], choice], axis=1)

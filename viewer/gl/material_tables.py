@@ -53,7 +53,7 @@ class MaterialTables:
             else:
                 from viewer import brdf
 
-                split = getattr(brdf.get(params.model).module, "ibl_split", None)
+                split = brdf.get(params.model).hook("ibl_split")
                 white = ms_compare.white_lobe(split(params)[0]) if split is not None else None
                 if white is not None:
                     e_ss = self._albedo_pair(brdf.get(white.model), white)[0].mean(axis=1)
@@ -74,7 +74,7 @@ class MaterialTables:
 
             model = brdf.get(params.model)
             r, t = self._albedo_pair(model, params)
-            split = getattr(model.module, "ibl_split", None)
+            split = model.hook("ibl_split")
             if split is None:
                 spec, alpha = np.zeros_like(r), 1.0
             else:

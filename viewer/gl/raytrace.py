@@ -18,6 +18,7 @@ import json
 
 import numpy as np
 
+from viewer import brdf
 from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 from viewer.gl import texture_units
@@ -34,10 +35,9 @@ STRIP_PIXELS = 4096
 
 def chain_kind(params) -> int:
     """How a traced chain treats a material: a mirror, smooth glass, or a surface it shades."""
-    if params.model == "mirror":
-        return KIND_MIRROR
-    if params.model == "dielectric" and float(params.get("alpha", 0.0)) == 0.0:
-        return KIND_GLASS
+    model = brdf.get(params.model)
+    if model.is_delta(params):
+        return KIND_GLASS if model.spec.transmissive else KIND_MIRROR
     return KIND_SHADED
 
 

@@ -80,12 +80,7 @@ class MaterialInfo:
 
 
 def _is_pure_delta(p) -> bool:
-    spec = brdf.get(p.model).spec
-    if not spec.delta:
-        return False
-    if spec.name == "dielectric":
-        return float(p.get("alpha", 0.0)) <= 0.0
-    return True
+    return brdf.get(p.model).is_delta(p)
 
 
 def reference_model(m: "MaterialInfo"):
@@ -102,15 +97,9 @@ def reference_model(m: "MaterialInfo"):
 
 
 def material_info(name: str, p) -> MaterialInfo:
-    spec = brdf.get(p.model).spec
-    if _is_pure_delta(p):
-        kind = "delta"
-    elif spec.delta:
-        kind = "smooth"  # a rough dielectric: continuous lobes only
-    elif any(prm.kind == "material" and _is_pure_delta(p[prm.name]) for prm in spec.params):
-        kind = "mixed"
-    else:
-        kind = "smooth"
+    model = brdf.get(p.model)
+    spec = model.spec
+    kind = model.flags(p)  # "delta", "mixed" (a layered coat over a delta base) or "smooth"
     sigma = np.zeros(3)
     if spec.transmissive and "sigma_a" in p:
         sigma = np.asarray(p["sigma_a"], dtype=np.float64).reshape(3).copy()
@@ -474,9 +463,9 @@ class Integrator:
 
     def sample_material(self, g: "_Group", paths: PathState, rnd_g):
         """``g``'s sample: (local wi, weight in the paths' channels (cleaned), raw pdf,
-        hero-only flags or None)."""
-        wi_l, wgt, pdf_s = g.model.sample(g.prm, g.wo, rnd_g)
-        return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None
+        hero-only flags or None, discrete: which samples drew a delta lobe)."""
+        wi_l, wgt, pdf_s, disc = g.model.sample_lobe(g.prm, g.wo, rnd_g)
+        return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None, disc
 
     def throughput(self, paths: PathState, act, Ta, new: _Bounce):
         """The paths' throughput after the bounce."""
@@ -569,7 +558,7 @@ class Integrator:
         failed samples 0, pdf, discrete flag: the sample came from a delta lobe, hero-only
         flags or None)."""
         k = g.k
-        wi_l, wgt, pdf_s, hero_only = self.sample_material(g, paths, rnd_g)
+        wi_l, wgt, pdf_s, hero_only, disc_s = self.sample_material(g, paths, rnd_g)
         pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
         bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
         if np.any(bad_dir):
@@ -578,9 +567,8 @@ class Integrator:
             wgt = np.where(bad_dir[:, None], 0.0, wgt)
         if g.info.kind == "delta":
             disc = np.ones(k, dtype=bool)
-        elif g.info.kind == "mixed":
-            pe_ = self.material_pdf(g, paths, wi_l)
-            disc = np.abs(pdf_s - pe_) > 1e-6 * np.maximum(pdf_s, 1e-300)
+        elif g.info.kind == "mixed":  # the model says which lobe it drew (sample_lobe)
+            disc = np.asarray(disc_s, dtype=bool)
         else:
             disc = np.zeros(k, dtype=bool)
         wi_w = g.world(wi_l)

@@ -269,14 +269,16 @@ class SpectralIntegrator(Integrator):
         return out
 
     def _sample4(self, mi, model, info, cat, lam, hero, wo, u, prm=None):
-        """(wi (k, 3), weight (k, 4), pdf (k,), hero_only (k,) bool)."""
+        """(wi (k, 3), weight (k, 4), pdf (k,), hero_only (k,) bool, discrete (k,) bool: the
+        sample drew a delta lobe)."""
         k = wo.shape[0]
         prm = info.params if prm is None else prm
         if cat == "rgb":
-            wi, wgt, pdf = model.sample(prm, wo, u)
+            wi, wgt, pdf, disc = model.sample_lobe(prm, wo, u)
             wgt = self._clean(np.asarray(wgt, dtype=np.float64))
-            return wi, self.up(wgt, lam), pdf, np.zeros(k, dtype=bool)
+            return wi, self.up(wgt, lam), pdf, np.zeros(k, dtype=bool), disc
         wi = np.zeros((k, 3))
+        disc = np.zeros(k, dtype=bool)
         wgt4 = np.zeros((k, 4))
         pdf = np.zeros(k)
         if cat == "table":
@@ -286,7 +288,7 @@ class SpectralIntegrator(Integrator):
                 l4 = lam[g[0]]
                 p012 = self._params(mi, ("c", int(cval)), l4[:3], prm)
                 p3 = self._params(mi, ("h", int(l4[3])), [l4[3]] * 3, prm)
-                w_g, wg, pg = model.sample(p012, wo[g], u[g])
+                w_g, wg, pg, disc[g] = model.sample_lobe(p012, wo[g], u[g])
                 wg = self._clean(np.asarray(wg, dtype=np.float64))
                 if info.kind == "delta":   # the same direction at every wavelength (a mirror)
                     _, w3, _ = model.sample(p3, wo[g], u[g])
@@ -297,15 +299,15 @@ class SpectralIntegrator(Integrator):
                 wi[g], pdf[g] = w_g, pg
                 wgt4[g, :3] = wg
                 wgt4[g, 3] = w3
-            return wi, wgt4, pdf, np.zeros(k, dtype=bool)
+            return wi, wgt4, pdf, np.zeros(k, dtype=bool), disc
         lh = lam[np.arange(k), hero]
         for b in np.unique(lh):
             g = np.flatnonzero(lh == b)
-            w_g, wg, pg = model.sample(self._params(mi, ("h", int(b)), [b] * 3, prm), wo[g], u[g])
+            w_g, wg, pg, disc[g] = model.sample_lobe(self._params(mi, ("h", int(b)), [b] * 3, prm), wo[g], u[g])
             wg = self._clean(np.asarray(wg, dtype=np.float64))
             wi[g], pdf[g] = w_g, pg
             wgt4[g, hero[g]] = wg[:, 0]
-        return wi, wgt4, pdf, np.ones(k, dtype=bool)
+        return wi, wgt4, pdf, np.ones(k, dtype=bool), disc
 
     def _pdf4(self, mi, model, cat, lam, hero, wi, wo, prm=None):
         """The pdf the group's sampling used (the same parameters as ``_sample4``)."""

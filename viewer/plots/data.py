@@ -60,7 +60,7 @@ def _delta_reflectance(p, cos_i: float) -> np.ndarray:
 
 def _eval(model, p, wi, wo):
     """f for a plot: a model's ``eval_mean`` where it has one (a stochastic eval averaged), else eval."""
-    fn = getattr(model.module, "eval_mean", None)
+    fn = model.hook("eval_mean")
     return model.eval(p, wi, wo) if fn is None else fn(p, np.ascontiguousarray(wi), np.ascontiguousarray(wo))
 
 

@@ -38,33 +38,9 @@ def model_of(p):
 def fresnel_source(p) -> dict | None:
     """How a material's Fresnel reflectance is given, or None when it has none:
     {"type": "dielectric", "ior": n, "field": ...} | {"type": "conductor", "eta": (3,), "k": (3,)}
-    | {"type": "schlick", "f0": (3,)}; "field" names the parameter(s)."""
-    m = p.model
-    if m == "microfacet":
-        if p.fresnel == "dielectric":
-            return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
-        if p.fresnel == "conductor":
-            return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
-                    "field": "eta, k"}
-        return {"type": "schlick", "f0": np.asarray(p.f0, float), "field": "f0"}
-    if m == "mirror":
-        if p.fresnel == "conductor":
-            return {"type": "conductor", "eta": np.asarray(p.eta, float), "k": np.asarray(p.k, float),
-                    "field": "eta, k"}
-        if p.fresnel == "dielectric":
-            return {"type": "dielectric", "ior": float(p.ior), "field": "ior"}
-        return None
-    if m == "layered":
-        return {"type": "dielectric", "ior": float(p.coating.ior), "field": "coating.ior"}
-    if m == "ashikhmin_shirley":
-        return {"type": "schlick", "f0": np.asarray(p.rs, float), "field": "rs"}
-    # any other (discovered) model: by its parameter names
-    if "ior" in p and np.ndim(p["ior"]) == 0:
-        return {"type": "dielectric", "ior": float(p["ior"]), "field": "ior"}
-    if "eta" in p and "k" in p:
-        return {"type": "conductor", "eta": np.asarray(p["eta"], float), "k": np.asarray(p["k"], float),
-                "field": "eta, k"}
-    return None
+    | {"type": "schlick", "f0": (3,)}; "field" names the parameter(s). The model's own
+    ``fresnel_source`` hook says it (viewer.brdf.spec.HOOKS; by parameter names by default)."""
+    return model_of(p).fresnel_source(p)
 
 
 def absorption_source(p) -> dict | None:
@@ -131,9 +107,9 @@ def sampling_delta(p) -> str | None:
     a layered model over one), else None."""
     from viewer import brdf
 
-    spec = brdf.get(p.model).spec
-    rough_glass = spec.name == "dielectric" and float(p.get("alpha", 0.0)) > 0.0
-    if spec.delta and not rough_glass:
+    model = brdf.get(p.model)
+    spec = model.spec
+    if model.is_delta(p):
         return f"model {p.model!r} samples a delta lobe (a discrete direction, no density)"
     for prm in spec.params:
         if prm.kind == "material" and sampling_delta(p[prm.name]) is not None:

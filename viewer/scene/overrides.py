@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import Any
 
 from viewer.scene.model import MAX_SIZE, SIZE_ALLOWED, TOP_KEYS
@@ -43,7 +44,14 @@ def is_material_switch(assignment: str) -> bool:
     """``materials.NAME.model=...`` or ``materials.NAME.preset=...`` (also a nested material's,
     ``materials.NAME.base.model=...``)."""
     parts = _override_parts(assignment)
+    if len(parts) == 3 and parts[0] == "materials" and parts[-1] == "file" and all(parts):
+        return _is_brdf_file(assignment)  # a .brdf file: the material becomes that file's model
     return len(parts) >= 3 and parts[0] == "materials" and parts[-1] in ("model", "preset") and all(parts)
+
+
+def _is_brdf_file(assignment: str) -> bool:
+    text = assignment.split("=", 1)[1].strip().strip("\"'") if "=" in assignment else ""
+    return text.lower().endswith(".brdf")
 
 
 def switch_material(data: dict, assignment: str) -> None:
@@ -58,6 +66,10 @@ def switch_material(data: dict, assignment: str) -> None:
         value = cur[parts[-1]]
         cur.clear()
         cur[parts[-1]] = value
+        if parts[-1] == "file":  # materials.NAME.file=NAME.brdf (found from the working folder too)
+            cur["model"] = "custom"
+            if isinstance(value, str) and not Path(value).is_absolute() and Path(value).is_file():
+                cur["file"] = str(Path(value).absolute())
 
 
 def apply_override(data: dict, assignment: str, where: str = "--set") -> None:

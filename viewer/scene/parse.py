@@ -266,6 +266,29 @@ def _parse_objects(ck: Checker, lst, materials: dict) -> list[SceneObject]:
     return out
 
 
+def custom_material(raw: dict, where: str, base_dir: Path | None):
+    """Validated parameters of a ``model = "custom"`` material: ``file`` (relative to the scene
+    file) names a ``.brdf`` file whose declarations are the other keys."""
+    from viewer import brdf
+    from viewer.brdf.spec import validate_params
+
+    f = raw.get("file")
+    if not isinstance(f, str) or not f:
+        raise ViewerError(f"{where}.file: {'missing' if f is None else 'expected a file name'}; allowed: "
+                          f"a .brdf file (BRDF Explorer's format) relative to the scene file")
+    path = Path(f).expanduser()
+    if not path.is_absolute() and base_dir is not None:
+        path = Path(base_dir) / path
+    if path.suffix.lower() != ".brdf":
+        raise ViewerError(f"{where}.file: {f!r} is not a .brdf file; allowed: a .brdf file relative to the scene file")
+    if not path.is_file():
+        raise ViewerError(f"{where}.file: no such BRDF file {f!r} (relative to the scene file)")
+    model = brdf.load(path)
+    raw = dict(raw)
+    raw["file"] = str(model.bfile.path)
+    return validate_params(model.spec, raw, where)
+
+
 def parse_materials(ck: Checker, t, base_dir: Path | None = None) -> dict:
     from viewer import brdf
     from viewer.brdf.presets import PRESETS
@@ -302,6 +325,9 @@ def parse_materials(ck: Checker, t, base_dir: Path | None = None) -> dict:
         model = raw.pop("model")
         if not isinstance(model, str):
             ck.fail(f"{fld}.model", f"expected a string, got {describe(model)}", ", ".join(brdf.names()))
+        if model == "custom":  # a .brdf file: its declarations are the parameters
+            out[name] = custom_material(raw, f"{ck.label}: {fld}", base_dir)
+            continue
         spec = brdf.lookup_spec(model, f"{ck.label}: {fld}.model")
         if model == "measured" and isinstance(raw.get("file"), str) and raw["file"] and base_dir is not None:
             raw["file"] = str(Path(base_dir) / Path(raw["file"]).expanduser())  # relative to the scene file

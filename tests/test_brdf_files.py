@@ -1,0 +1,269 @@
+"""BRDF Explorer's ``.brdf`` files: the parser (every declaration type, comments, odd spacing, the
+sampler section, one-line errors naming FILE:LINE), the GLSL block it makes, the model
+``viewer.brdf.load`` returns (GLSL on the offscreen context against an analytic truth and its numpy
+twin), compile errors mapped to the file's lines, and the report card (``brdf-viewer check``) on
+files that must pass and files that must fail each check, and on built-in models."""
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from viewer import ViewerError, brdf
+from viewer.brdf import brdffile
+
+DATA = Path(__file__).parent / "brdfs"
+
+
+def _write(tmp_path, text, name="t.brdf"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+# ----------------------------------------------------------------------------- the parser
+
+
+def test_every_declaration_type_with_comments_odd_spacing_and_a_sampler():
+    f = brdffile.parse(DATA / "every_declaration.brdf")
+    kinds = [(d.kind, d.name) for d in f.declarations]
+    assert kinds == [("float", "n"), ("bool", "use_fresnel"), ("bool", "halve"), ("color", "tint"),
+                     ("float", "f0")]
+    n = f.declaration("n")
+    assert (n.lo, n.hi, n.default, n.line) == (1.0, 1000.0, 50.0, 5)
+    assert f.declaration("use_fresnel").default is True and f.declaration("halve").default is False
+    assert f.declaration("tint").default == (1.0, 1.0, 1.0)
+    assert f.declaration("f0").default == pytest.approx(0.04)
+    assert f.has_sampler and brdffile.sampler_takes_view(f)
+    # the comment line inside the parameters and the text between sections are not code
+    assert all(not f.lines[i - 1].lstrip().startswith("#") for i in f.shader + f.sampler)
+    tabs = brdffile.parse(DATA / "lambert_twin.brdf")
+    assert [(d.kind, d.name, d.default) for d in tabs.declarations] == [
+        ("color", "albedo", (0.8, 0.6, 0.4)), ("float", "gain", 1.0)]
+    assert not tabs.has_sampler
+
+
+def test_glsl_block_keeps_the_files_lines_and_prefixes_its_names():
+    f = brdffile.parse(DATA / "every_declaration.brdf")
+    block = f.glsl_block().splitlines()
+    assert len(block) == len(f.lines)
+    assert block[4] == "float bxf_n;" and block[8] == "vec3 bxf_tint;"
+    assert "bxf_schlick" in block[16] and "bxf_f0" in block[16] and "pow(" in block[16]
+    assert set(f.top_level_names()) >= {"n", "f0", "sqr", "schlick", "BRDF", "sampleBRDF"}
+    # members after a dot, numbers and comments stay as they are
+    assert brdffile._rename("v.n + n * 1e5 // n", {"n": "bxf_n"}) == "v.n + bxf_n * 1e5 // n"
+
+
+def test_hash_lines_are_comments_in_the_shader_too(tmp_path):
+    p = _write(tmp_path, "analytic\n::begin shader\n#define K 2.0\nvec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)"
+                         " { return vec3(1.0); }\n::end shader\n")
+    f = brdffile.parse(p)
+    assert f.shader == [4]
+
+
+@pytest.mark.parametrize("text, line, words", [
+    ("", 1, "empty"),
+    ("bparam\n", 1, "not supported"),
+    ("analytic\n::begin parameters\nfloat a 0 1\n::end parameters\n", 3, "float NAME MIN MAX DEFAULT"),
+    ("analytic\n::begin parameters\nfloat a 0 1 2\n::end parameters\n", 3, "outside"),
+    ("analytic\n::begin parameters\nfloat a 1 0 0.5\n::end parameters\n", 3, "above MAX"),
+    ("analytic\n::begin parameters\nfloat a 0 x 0.5\n::end parameters\n", 3, "not a number"),
+    ("analytic\n::begin parameters\nbool b 2\n::end parameters\n", 3, "0 or 1"),
+    ("analytic\n::begin parameters\nint i 0 1 0\n::end parameters\n", 3, "unknown parameter type"),
+    ("analytic\n::begin parameters\nfloat a 0 1 0\nbool a 1\n::end parameters\n", 4, "twice"),
+    ("analytic\n::begin parameters\nfloat file 0 1 0\n::end parameters\n", 3, "reserved"),
+    ("analytic\n::begin parameters\ncolor c 1 1\n::end parameters\n", 3, "color NAME R G B"),
+    ("analytic\n::begin parameters\nfloat a 0 1 0\n", 2, "never closed"),
+    ("analytic\n::begin parameters\n::begin shader\n", 3, "inside section"),
+    ("analytic\n::begin shader\nvoid f() {}\n::end parameters\n", 4, "does not close"),
+    ("analytic\n::begin shader\nfloat f() { return 1.0; }\n::end shader\n", 3, "no function"),
+    ("analytic\n::begin parameters\n::end parameters\n", None, "no '::begin shader'"),
+])
+def test_problems_are_one_line_errors_naming_the_line(tmp_path, text, line, words):
+    p = _write(tmp_path, text, "bad.brdf")
+    with pytest.raises(ViewerError) as e:
+        brdffile.parse(p)
+    msg = str(e.value)
+    assert "\n" not in msg and words in msg
+    assert msg.startswith(f"bad.brdf:{line}:" if line else "bad.brdf:")
+
+
+# ----------------------------------------------------------------------------- the model
+
+
+def _cosine_dirs(n, seed):
+    rng = np.random.default_rng(seed)
+    z = rng.random(n)
+    phi = 2 * np.pi * rng.random(n)
+    r = np.sqrt(1 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def test_load_gives_the_registry_interface_and_runs_the_glsl():
+    m = brdf.load(DATA / "lambert_twin.brdf")
+    p = m.params(gain=0.5)
+    assert p.model == "custom" and p.file.endswith("lambert_twin.brdf") and p.gain == 0.5
+    wi, wo = _cosine_dirs(500, 1), _cosine_dirs(500, 2)
+    f = m.eval(p, wi, wo)
+    # the analytic truth: gain albedo / pi, float32 in the GLSL
+    assert f.shape == (500, 3)
+    np.testing.assert_allclose(f, np.broadcast_to(0.5 * np.array([0.8, 0.6, 0.4]) / np.pi, f.shape), rtol=1e-6)
+    # below the surface: 0 (a reflection-only model)
+    below = wi * np.array([1, 1, -1])
+    assert np.all(m.eval(p, below, wo) == 0)
+    # the numpy twin is what the CPU side evaluates
+    np.testing.assert_allclose(m.twin_eval(p, wi, wo), f, rtol=1e-6)
+    # single pairs give single values, as the registry's models
+    assert m.eval(p, wi[0], wo[0]).shape == (3,)
+    with pytest.raises(ViewerError, match="out of range"):
+        m.params(gain=2.0)
+    with pytest.raises(ViewerError, match="unknown parameter"):
+        m.params(gian=0.5)
+
+
+def test_a_bool_and_a_colour_reach_the_glsl():
+    m = brdf.load(DATA / "every_declaration.brdf")
+    wi = np.array([[0.0, 0.0, 1.0]])
+    wo = np.array([[0.0, 0.0, 1.0]])
+    full = m.eval(m.params(), wi, wo)[0]
+    # at normal incidence: F = f0, D = (n + 2) / (2 pi), f = F D / 4
+    want = 0.04 * (52.0 / (2 * 3.14159265)) / 4.0
+    np.testing.assert_allclose(full, want, rtol=1e-5)
+    np.testing.assert_allclose(m.eval(m.params(halve=True), wi, wo)[0], full / 2, rtol=1e-6)
+    np.testing.assert_allclose(m.eval(m.params(use_fresnel=False), wi, wo)[0], full / 0.04, rtol=1e-5)
+    np.testing.assert_allclose(m.eval(m.params(tint=[1.0, 0.5, 0.0]), wi, wo)[0], full * [1, 0.5, 0], rtol=1e-6)
+
+
+def test_the_isfunc_sampler_runs_and_its_weights_are_f_cos_over_pdf():
+    m = brdf.load(DATA / "every_declaration.brdf")
+    assert m.sampled_by == "isFunc"
+    p = m.params(n=5.0)
+    n = 2000
+    wo = np.broadcast_to(np.array([0.0, 0.6, 0.8]), (n, 3)).copy()
+    wi, w, pdf = m.sample(p, wo, np.random.default_rng(4).random((n, 2)))
+    ok = pdf > 0
+    assert ok.mean() > 0.99
+    np.testing.assert_allclose(pdf[ok], wi[ok, 2] / np.pi, rtol=1e-5)
+    np.testing.assert_allclose(w[ok], m.eval(p, wi[ok], wo[ok]) * wi[ok, 2, None] / pdf[ok, None], rtol=1e-4)
+
+
+def test_without_a_sampler_the_generic_one_is_cosine_weighted():
+    m = brdf.load(DATA / "too_bright.brdf")
+    assert m.sampled_by is None
+    n = 1000
+    wo = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (n, 3)).copy()
+    wi, w, pdf = m.sample(None, wo, np.random.default_rng(0).random((n, 2)))
+    np.testing.assert_allclose(pdf, wi[:, 2] / np.pi, rtol=1e-12)
+    np.testing.assert_allclose(w, 1.5, rtol=1e-6)  # f cos / pdf = (1.5 / pi) pi
+    np.testing.assert_allclose(m.pdf(None, wi, wo), pdf)
+
+
+def test_a_compile_error_names_the_brdf_file_and_line_with_its_own_names():
+    from viewer import file_brdf_evaluator
+
+    m = brdf.load(DATA / "syntax_error.brdf")
+    with pytest.raises(ViewerError) as e:
+        file_brdf_evaluator().check(m.bfile)
+    msg = str(e.value)
+    assert msg.startswith("syntax_error.brdf:8: ") and "undefined_name" in msg and "\n" not in msg
+    assert "bxf_" not in msg
+
+
+def test_a_changed_file_is_read_again(tmp_path):
+    src = tmp_path / "lam.brdf"
+    body = "analytic\n::begin shader\nvec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y) {{ return vec3({}); }}\n" \
+           "::end shader\n"
+    src.write_text(body.format("0.25"))
+    wi = np.array([[0.0, 0.0, 1.0]])
+    assert brdf.load(src).eval(None, wi, wi)[0, 0] == pytest.approx(0.25)
+    src.write_text(body.format("0.5 "))
+    os.utime(src, ns=(src.stat().st_atime_ns, src.stat().st_mtime_ns + 10 ** 9))
+    assert brdf.load(src).eval(None, wi, wi)[0, 0] == pytest.approx(0.5)
+
+
+def test_a_broken_twin_is_one_line_naming_it(tmp_path):
+    shutil.copy(DATA / "lambert_twin.brdf", tmp_path / "x.brdf")
+    (tmp_path / "x.py").write_text("import numpy as np\n\ndef eval(p, wi, wo):\n    return np.zeros(3)\n1 / 0\n")
+    with pytest.raises(ViewerError) as e:
+        brdf.load(tmp_path / "x.brdf")
+    assert str(e.value).startswith("x.py:5: ") and "ZeroDivisionError" in str(e.value)
+    (tmp_path / "x.py").write_text("def sample(p, wo, u):\n    pass\ndef eval(p, wi, wo):\n    pass\n")
+    with pytest.raises(ViewerError, match="both sample"):
+        brdf.load(tmp_path / "x.brdf")
+
+
+# ----------------------------------------------------------------------------- the report card
+
+
+def _check(capsys, *argv):
+    from viewer.cli import main
+
+    rc = main(["check", *argv, "--json"])
+    out = capsys.readouterr()
+    return rc, (json.loads(out.out) if out.out.strip() else None), out.err
+
+
+def test_check_passes_a_plausible_file_with_its_twin(capsys):
+    rc, rep, _ = _check(capsys, str(DATA / "lambert_twin.brdf"), "--set", "gain=0.9")
+    assert rc == 0 and rep["pass"]
+    c = rep["checks"]
+    assert set(c) == {"finite", "non_negative", "reciprocity", "energy", "twin"}
+    assert c["energy"]["theta_deg"][0] == 0 and len(c["energy"]["albedo"]) == len(c["energy"]["theta_deg"])
+    # albedo of a Lambertian: gain x albedo, at every angle (the quadrature of a constant is exact)
+    np.testing.assert_allclose(c["energy"]["albedo"], np.tile(0.9 * np.array([0.8, 0.6, 0.4]), (19, 1)),
+                               rtol=1e-5)
+    assert c["twin"]["max_rel_error"] < 1e-6
+
+
+def test_check_passes_a_file_with_a_sampler(capsys):
+    rc, rep, _ = _check(capsys, str(DATA / "every_declaration.brdf"))
+    assert rc == 0 and rep["checks"]["sampling"]["pass"] and "twin" not in rep["checks"]
+
+
+@pytest.mark.parametrize("name, failing", [("nonreciprocal", "reciprocity"), ("too_bright", "energy"),
+                                           ("nan", "finite")])
+def test_check_fails_each_implausible_file_on_its_check(capsys, name, failing):
+    rc, rep, _ = _check(capsys, str(DATA / f"{name}.brdf"))
+    assert rc == 1 and not rep["pass"]
+    assert [k for k, c in rep["checks"].items() if not c["pass"]] == [failing]
+    if failing == "energy":
+        assert rep["checks"]["energy"]["max_albedo"] == pytest.approx(1.5, rel=1e-5)
+
+
+def test_check_of_a_file_that_does_not_compile_exits_2_naming_file_and_line(capsys):
+    rc, rep, err = _check(capsys, str(DATA / "syntax_error.brdf"))
+    assert rc == 2 and rep is None
+    assert err.count("\n") == 1 and "syntax_error.brdf:8:" in err
+
+
+def test_check_of_a_missing_file_or_a_bad_value_exits_2(capsys, tmp_path):
+    rc, _, err = _check(capsys, str(tmp_path / "nothing.brdf"))
+    assert rc == 2 and "no such BRDF file" in err
+    rc, _, err = _check(capsys, str(DATA / "lambert_twin.brdf"), "--set", "gain=3")
+    assert rc == 2 and "gain" in err and "out of range" in err
+
+
+def test_check_runs_on_built_in_models(capsys):
+    rc, rep, _ = _check(capsys, "microfacet", "--set", "alpha=0.3")
+    assert rc == 0 and rep["file"] == "microfacet"
+    assert set(rep["checks"]) == {"finite", "non_negative", "reciprocity", "energy", "sampling"}
+    # the delta mirror: albedo from its sampler's weights, no density to test
+    rc, rep, _ = _check(capsys, "mirror")
+    assert rc == 0 and "sampling" not in rep["checks"] and 0.4 < rep["checks"]["energy"]["max_albedo"] <= 1.0
+
+
+@pytest.mark.skipif(not os.environ.get("BRDF_EXPLORER_BRDFS"),
+                    reason="set BRDF_EXPLORER_BRDFS to a folder of BRDF Explorer's published .brdf files")
+def test_every_published_file_loads_and_compiles():
+    from viewer import file_brdf_evaluator
+
+    files = sorted(Path(os.environ["BRDF_EXPLORER_BRDFS"]).glob("*.brdf"))
+    assert files
+    wi = np.array([[0.3, 0.0, np.sqrt(0.91)]])
+    for f in files:
+        m = brdf.load(f)
+        file_brdf_evaluator().check(m.bfile)
+        assert m.eval(None, wi, wi).shape == (1, 3)

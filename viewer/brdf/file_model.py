@@ -1,0 +1,214 @@
+"""A ``.brdf`` file as a model with the registry's interface (``viewer.brdf.load``).
+
+The file's GLSL is the model: ``eval`` runs it (on an offscreen GL context, through the
+evaluator the GL side provides: ``viewer.gl.file_brdf``; this package imports no GL, so the
+evaluator is found through ``viewer.file_brdf_evaluator()``, the top-level package's wiring, or
+set with ``set_glsl_evaluator``). A numpy twin ``NAME.py`` beside ``NAME.brdf`` with
+``eval(p, wi, wo)`` (and optionally ``sample(p, wo, u)`` with ``pdf(p, wi, wo)``) in the shading
+frame of the conventions is what the CPU reference evaluates, and the report card compares the
+two. Sampling: the twin's sampler when it has one, else the file's ``isFunc`` sampler (GLSL), else
+cosine-weighted sampling (pdf cos / pi), which works for any BRDF.
+
+Parameters: the file's declarations (``float`` a number in its range, ``bool``, ``color`` an RGB
+value of 3 numbers >= 0) plus ``file`` (the path). ``Params.model`` is ``"custom"``, the scene
+files' model name for file BRDFs.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import types
+from pathlib import Path
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.brdf.brdffile import BrdfFile, parse, sampler_takes_view
+from viewer.brdf.spec import ModelSpec, Param, Params
+
+#: the scene files' model name of a file BRDF
+CUSTOM = "custom"
+INV_PI = 1.0 / np.pi
+_EVALUATOR = None
+#: the spec of get("custom") before a file is known (a file's own spec adds its declarations)
+CUSTOM_SPEC = ModelSpec(name=CUSTOM, title="a BRDF Explorer .brdf file",
+                        params=(Param("file", "path", "", "the .brdf file (relative to the scene file)"),),
+                        source="the file", doc="a BRDF Explorer .brdf file and its declared parameters")
+
+
+def set_glsl_evaluator(evaluator) -> None:
+    """Set the object that runs a file's GLSL: ``evaluator.eval(bfile, params, wi, wo)`` -> (N, 3)
+    and ``evaluator.sample(bfile, params, wo, u)`` -> (wi, weight, pdf); None: back to the default
+    (``viewer.file_brdf_evaluator()``)."""
+    global _EVALUATOR
+    _EVALUATOR = evaluator
+
+
+def glsl_evaluator():
+    global _EVALUATOR
+    if _EVALUATOR is None:
+        from viewer import file_brdf_evaluator
+
+        _EVALUATOR = file_brdf_evaluator()
+    return _EVALUATOR
+
+
+def _colour_hi(d) -> float:
+    return max(1.0, *d.default)
+
+
+def params_of(bfile: BrdfFile) -> tuple[Param, ...]:
+    out = [Param("file", "path", str(bfile.path), "the .brdf file (relative to the scene file in a scene)")]
+    for d in bfile.declarations:
+        doc = f"declared on line {d.line} of {bfile.path.name}"
+        if d.kind == "float":
+            out.append(Param(d.name, "float", float(d.default), doc, lo=d.lo, hi=d.hi))
+        elif d.kind == "bool":
+            out.append(Param(d.name, "bool", bool(d.default), doc))
+        else:
+            out.append(Param(d.name, "rgb", list(d.default), doc, lo=0.0, hi=_colour_hi(d)))
+    return tuple(out)
+
+
+def load_twin(path: Path):
+    """The numpy twin module ``NAME.py`` beside ``NAME.brdf``, or None; a twin that cannot be
+    imported or lacks ``eval(p, wi, wo)`` is a one-line ViewerError."""
+    twin = path.with_suffix(".py")
+    if not twin.is_file():
+        return None
+    name = f"brdf_twin_{abs(hash(str(twin.resolve())))}"
+    spec = importlib.util.spec_from_file_location(name, twin)
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as e:  # noqa: BLE001 - a student's file: any error is theirs, in one line
+        import traceback
+
+        tb = traceback.extract_tb(e.__traceback__)
+        line = next((fr.lineno for fr in reversed(tb) if fr.filename == str(twin)), None)
+        where = f"{twin.name}:{line}" if line else twin.name
+        raise ViewerError(f"{where}: the numpy twin cannot be loaded: {type(e).__name__}: {e}") from None
+    if not callable(getattr(mod, "eval", None)):
+        raise ViewerError(f"{twin.name}: a numpy twin needs eval(p, wi, wo)")
+    has_s, has_p = callable(getattr(mod, "sample", None)), callable(getattr(mod, "pdf", None))
+    if has_s != has_p:
+        raise ViewerError(f"{twin.name}: a numpy twin's sampler needs both sample(p, wo, u) and pdf(p, wi, wo)")
+    return mod
+
+
+def _upper(wi, wo):
+    return (wi[:, 2] > 0) & (wo[:, 2] > 0)
+
+
+def cosine_sample(u):
+    """Cosine-weighted directions (Malley's method) and their pdf cos / pi."""
+    r = np.sqrt(u[:, 0])
+    phi = 2.0 * np.pi * u[:, 1]
+    z = np.sqrt(np.maximum(0.0, 1.0 - u[:, 0]))
+    wi = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    return wi, z * INV_PI
+
+
+class FileModule(types.SimpleNamespace):
+    """The protocol's module for one ``.brdf`` file (see ``viewer.brdf.spec.BRDFModule``)."""
+
+
+def make_module(bfile: BrdfFile, twin=None) -> FileModule:
+    spec = ModelSpec(name=CUSTOM, title=f"{bfile.name} ({bfile.path.name})", params=params_of(bfile),
+                     source=f"the file {bfile.path}", doc="a BRDF Explorer .brdf file",
+                     reciprocal=True)
+
+    def glsl_eval(p, wi, wo):
+        f = np.asarray(glsl_evaluator().eval(bfile, p, wi, wo), dtype=np.float64)
+        return np.where(_upper(wi, wo)[:, None], f, 0.0)
+
+    def twin_eval(p, wi, wo):
+        f = np.asarray(twin.eval(p, wi, wo), dtype=np.float64)
+        f = np.broadcast_to(f.reshape(len(wi), -1), (len(wi), 3)) if f.ndim else np.full((len(wi), 3), float(f))
+        return np.where(_upper(wi, wo)[:, None], f, 0.0)
+
+    if twin is not None and callable(getattr(twin, "sample", None)):
+        sampler = "numpy twin"
+
+        def pdf(p, wi, wo):
+            return np.where(_upper(wi, wo), np.asarray(twin.pdf(p, wi, wo), dtype=np.float64), 0.0)
+
+        def sample(p, wo, u):
+            wi, w, pd = twin.sample(p, wo, u)
+            return np.asarray(wi, float), np.asarray(w, float), np.asarray(pd, float)
+    elif bfile.has_sampler:
+        sampler = "isFunc"
+
+        def sample(p, wo, u):
+            wi, w, pd = glsl_evaluator().sample(bfile, p, wo, u)
+            ok = (pd > 0) & (wi[:, 2] > 0) & (wo[:, 2] > 0) & np.all(np.isfinite(w), axis=1)
+            return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pd, 0.0)
+
+        def pdf(p, wi, wo):
+            # the file's sampler gives its pdf only at the directions it draws
+            raise ViewerError(f"{bfile.path.name}: the isFunc sampler gives no pdf for a given direction pair")
+    else:
+        sampler = None
+
+        def pdf(p, wi, wo):
+            return np.where(_upper(wi, wo), np.maximum(wi[:, 2], 0.0) * INV_PI, 0.0)
+
+        def sample(p, wo, u):
+            wi, pd = cosine_sample(u)
+            ok = (wo[:, 2] > 0) & (pd > 0)
+            f = glsl_eval(p, wi, wo)
+            w = f * np.pi  # f cos / (cos / pi)
+            return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pd, 0.0)
+
+    mod = FileModule(SPEC=spec, eval=glsl_eval, sample=sample, pdf=pdf)
+    mod.source_file = bfile
+    mod.numpy_twin = twin
+    mod.twin_eval = twin_eval if twin is not None else None
+    mod.sampled_by = sampler  # "numpy twin" | "isFunc" | None (cosine-weighted)
+    return mod
+
+
+_CACHE: dict = {}
+
+
+def _stamp(path: Path):
+    out = []
+    for p in (path, path.with_suffix(".py")):
+        try:
+            st = p.stat()
+            out.append((st.st_mtime_ns, st.st_size))
+        except OSError:
+            out.append(None)
+    return tuple(out)
+
+
+def load(path, where: str | None = None):
+    """The model of the ``.brdf`` file ``path`` (cached until the file or its twin changes)."""
+    from viewer.brdf import FileModel
+
+    path = Path(path).expanduser()
+    if path.suffix.lower() != ".brdf":
+        raise ViewerError(f"{where or path}: a BRDF file's name ends in .brdf")
+    if not path.is_file():
+        raise ViewerError(f"{where or path}: no such BRDF file" if where else f"{path}: no such BRDF file")
+    path = path.resolve()
+    key = str(path)
+    stamp = _stamp(path)
+    hit = _CACHE.get(key)
+    if hit is not None and hit[0] == stamp:
+        return hit[1]
+    bfile = parse(path)
+    model = FileModel(make_module(bfile, load_twin(path)), where=path.name)
+    if len(_CACHE) > 64:
+        _CACHE.clear()
+    _CACHE[key] = (stamp, model)
+    return model
+
+
+def takes_view(bfile: BrdfFile) -> bool:
+    return sampler_takes_view(bfile)
+
+
+def path_of(p: Params) -> str:
+    return os.fspath(p["file"])

@@ -1,0 +1,242 @@
+"""A ``.brdf`` file's GLSL on the GPU: the block of ``viewer.brdf.brdffile`` compiled into an
+evaluation program (directions in float textures, f or the file's sampler out of float32
+targets), the evaluator ``viewer.brdf.load``'s models run their ``eval`` with.
+
+The file goes in as a virtual include named after it (``NAME.brdf``), one GLSL line per file
+line, so a compiler message reads ``NAME.brdf:LINE: message`` (``FileBrdfError``). Programs are
+cached by their source text; a changed file compiles anew. Parameters go in as one float array
+``u_p`` in declaration order (a bool as 0 or 1, a colour as three floats) and are copied into the
+file's globals before its ``BRDF`` runs.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from viewer.brdf.brdffile import PREFIX, BrdfFile, sampler_takes_view
+from viewer.gl.shaders import ShaderError, build_program
+
+MAX_PARAMS = 64  # floats of u_p
+WIDTH = 256      # texels per row of the direction textures
+
+_VERT = """#version 410 core
+void main() {
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
+
+class FileBrdfError(ShaderError):
+    """A ``.brdf`` file's GLSL does not compile: ``str()`` is one line ``NAME.brdf:LINE: message``."""
+
+
+def param_floats(bfile: BrdfFile, p) -> np.ndarray:
+    """The parameter values of ``p`` as the flat floats of ``u_p`` (declaration order)."""
+    out = []
+    for d in bfile.declarations:
+        v = p[d.name] if p is not None and d.name in p else d.default
+        if d.kind == "color":
+            out.extend(float(x) for x in np.ravel(v)[:3])
+        elif d.kind == "bool":
+            out.append(1.0 if v else 0.0)
+        else:
+            out.append(float(v))
+    return np.array(out + [0.0] * max(1, MAX_PARAMS - len(out)), dtype="f4")[:max(MAX_PARAMS, len(out))]
+
+
+def set_params_glsl(bfile: BrdfFile, array: str = "u_p", offset: str = "0") -> str:
+    """GLSL statements copying the float array ``array`` (from ``offset``) into the file's globals."""
+    lines, k = [], 0
+    for d in bfile.declarations:
+        g = PREFIX + d.name
+        if d.kind == "color":
+            lines.append(f"{g} = vec3({array}[{offset} + {k}], {array}[{offset} + {k + 1}], {array}[{offset} + {k + 2}]);")
+            k += 3
+        elif d.kind == "bool":
+            lines.append(f"{g} = {array}[{offset} + {k}] > 0.5;")
+            k += 1
+        else:
+            lines.append(f"{g} = {array}[{offset} + {k}];")
+            k += 1
+    return "\n    ".join(lines)
+
+
+def n_floats(bfile: BrdfFile) -> int:
+    return sum(3 if d.kind == "color" else 1 for d in bfile.declarations)
+
+
+def virtual_files(bfile: BrdfFile) -> dict[str, str]:
+    return {bfile.path.name: bfile.glsl_block()}
+
+
+def _eval_fragment(bfile: BrdfFile) -> str:
+    return f"""#version 410 core
+#include "{bfile.path.name}"
+uniform sampler2D u_wi;
+uniform sampler2D u_wo;
+uniform float u_p[{max(MAX_PARAMS, n_floats(bfile))}];
+out vec4 color;
+void main() {{
+    {set_params_glsl(bfile)}
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec3 wi = texelFetch(u_wi, px, 0).xyz;
+    vec3 wo = texelFetch(u_wo, px, 0).xyz;
+    color = vec4(vec3({PREFIX}BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0))), 1.0);
+}}
+"""
+
+
+def _sample_fragment(bfile: BrdfFile) -> str:
+    view = "wo, " if sampler_takes_view(bfile) else ""
+    return f"""#version 410 core
+#include "{bfile.path.name}"
+uniform sampler2D u_wo;
+uniform sampler2D u_u;
+uniform float u_p[{max(MAX_PARAMS, n_floats(bfile))}];
+layout(location = 0) out vec4 out_wi_pdf;
+layout(location = 1) out vec4 out_weight;
+void main() {{
+    {set_params_glsl(bfile)}
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec3 wo = texelFetch(u_wo, px, 0).xyz;
+    vec2 u = texelFetch(u_u, px, 0).xy;
+    vec3 wi = vec3(0.0, 0.0, 1.0);
+    float pdf = 0.0;
+    vec3 w = vec3({PREFIX}sampleBRDF({view}u.x, u.y, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0),
+                                     wi, pdf));
+    out_wi_pdf = vec4(wi, pdf);
+    out_weight = vec4(w, 0.0);
+}}
+"""
+
+
+def _first_error(log: str, name: str):
+    """(line or None, message) of the first compiler error in a located log (``name:LINE: ...``),
+    with the file's own names (the viewer's prefix taken away)."""
+    pat = re.compile(r"(?P<file>[^\s:]+):(?P<line>\d+):\s*(?P<msg>.*)")
+    first = None
+    for raw in log.splitlines():
+        m = pat.search(raw)
+        if m and "error" in m.group("msg").lower():
+            first = (m.group("file"), int(m.group("line")), m.group("msg"))
+            if first[0] == name:
+                break
+    if first is None:
+        return None, None
+    msg = re.sub(r"\b" + PREFIX + r"(\w+)", r"\1", first[2]).strip()
+    return (first[1] if first[0] == name else None), msg
+
+
+def compile_program(ctx, bfile: BrdfFile, fragment: str):
+    """Compile an evaluation program of ``bfile``; FileBrdfError naming ``NAME.brdf:LINE``."""
+    name = bfile.path.name
+    try:
+        return build_program(ctx, vertex_source=_VERT, fragment_source=fragment, virtual=virtual_files(bfile))
+    except ShaderError as e:
+        line, msg = _first_error(str(e), name)
+        if msg is None:
+            msg = re.sub(r"\b" + PREFIX + r"(\w+)", r"\1", e.detail)
+        if line is None:  # outside the file's lines: the viewer's call of BRDF / sampleBRDF
+            line = (bfile.sampler if "sampleBRDF" in fragment else bfile.shader)[0]
+        raise FileBrdfError(f"{name}:{line}: {msg}", name, line, detail=msg) from None
+
+
+class FileEvaluator:
+    """Runs files' GLSL on one moderngl context (its own headless one unless given)."""
+
+    def __init__(self, ctx=None):
+        if ctx is None:
+            from viewer.gl.context import create_offscreen_context
+
+            ctx = create_offscreen_context()
+        self.ctx = ctx
+        self._programs: dict = {}
+        self.compiles = 0
+
+    def program(self, bfile: BrdfFile, kind: str = "eval"):
+        frag = _eval_fragment(bfile) if kind == "eval" else _sample_fragment(bfile)
+        key = (frag, bfile.glsl_block())
+        hit = self._programs.get(key)
+        if hit is None:
+            prog = compile_program(self.ctx, bfile, frag)
+            hit = (prog, self.ctx.vertex_array(prog, []))
+            self.compiles += 1
+            if len(self._programs) > 32:
+                self._programs.clear()
+            self._programs[key] = hit
+        return hit
+
+    def check(self, bfile: BrdfFile) -> None:
+        """Compile the file's programs (FileBrdfError on a problem)."""
+        with self.ctx:  # current for these calls; the previous context is current again after
+            self.program(bfile, "eval")
+            if bfile.has_sampler:
+                self.program(bfile, "sample")
+
+    def _tex(self, a, w, h):
+        data = np.zeros((h * w, 4), dtype="f4")
+        data[: len(a), : a.shape[1]] = a
+        t = self.ctx.texture((w, h), 4, data.tobytes(), dtype="f4")
+        t.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
+        return t
+
+    def _run(self, prog, vao, inputs: dict, n: int, n_out: int, p_floats):
+        w = min(WIDTH, max(n, 1))
+        h = (n + w - 1) // w
+        texs = [self._tex(a, w, h) for a in inputs.values()]
+        outs = [self.ctx.texture((w, h), 4, dtype="f4") for _ in range(n_out)]
+        fbo = self.ctx.framebuffer(color_attachments=outs)
+        try:
+            for unit, (name, t) in enumerate(zip(inputs, texs)):
+                t.use(unit)
+                if name in prog:
+                    prog[name].value = unit
+            if "u_p" in prog:
+                u = prog["u_p"]
+                u.write(np.asarray(p_floats, "f4")[: u.array_length].tobytes())
+            fbo.use()
+            fbo.viewport = (0, 0, w, h)
+            self.ctx.disable(self.ctx.BLEND | self.ctx.DEPTH_TEST)
+            vao.render(mode=self.ctx.TRIANGLES, vertices=3)
+            res = [np.frombuffer(o.read(), dtype="f4").reshape(-1, 4)[:n].astype(np.float64) for o in outs]
+        finally:
+            for o in texs + outs:
+                o.release()
+            fbo.release()
+        return res
+
+    def eval(self, bfile: BrdfFile, p, wi, wo) -> np.ndarray:
+        """(N, 3) f of the file's BRDF for (N, 3) wi, wo (float32-rounded) in the shading frame."""
+        wi = np.asarray(wi, np.float64)
+        wo = np.asarray(wo, np.float64)
+        n = len(wi)
+        if n == 0:
+            return np.zeros((0, 3))
+        with self.ctx:
+            prog, vao = self.program(bfile, "eval")
+            (f,) = self._run(prog, vao, {"u_wi": wi, "u_wo": wo}, n, 1, param_floats(bfile, p))
+        return f[:, :3]
+
+    def sample(self, bfile: BrdfFile, p, wo, u):
+        """The file's isFunc sampler: (wi, weight, pdf) for (N, 3) wo and (N, 2) u."""
+        wo = np.asarray(wo, np.float64)
+        u = np.asarray(u, np.float64)
+        n = len(wo)
+        with self.ctx:
+            prog, vao = self.program(bfile, "sample")
+            a, b = self._run(prog, vao, {"u_wo": wo, "u_u": u}, n, 2, param_floats(bfile, p))
+        return a[:, :3], b[:, :3], a[:, 3]
+
+
+_SHARED: FileEvaluator | None = None
+
+
+def shared_evaluator() -> FileEvaluator:
+    """The process's evaluator (its own headless context, made on first use)."""
+    global _SHARED
+    if _SHARED is None:
+        _SHARED = FileEvaluator()
+    return _SHARED
