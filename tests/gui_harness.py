@@ -13,6 +13,11 @@ import textwrap
 
 HAVE_X = shutil.which("Xvfb") is not None or bool(os.environ.get("DISPLAY"))
 
+# How long a window subprocess may run before it counts as hung: a hang detector, not a latency
+# bound. Generous, because a window that prefilters its environment maps into a cold cache on a
+# loaded two-core machine took over 120 s (the bound these runs had before).
+HANG_S = 900.0
+
 
 def window_env(display: str) -> dict:
     """The environment for a window subprocess on ``display``: each app run starts from no saved
@@ -25,7 +30,8 @@ def window_env(display: str) -> dict:
     return env
 
 
-def run_py(code: str, display: str, timeout: float = 120):
-    """Run ``code`` (dedented) in a Python subprocess on ``display``; the CompletedProcess."""
+def run_py(code: str, display: str, timeout: float = HANG_S):
+    """Run ``code`` (dedented) in a Python subprocess on ``display``; the CompletedProcess.
+    ``timeout``: at least ``HANG_S``."""
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=window_env(display),
-                          capture_output=True, text=True, timeout=timeout)
+                          capture_output=True, text=True, timeout=max(timeout, HANG_S))

@@ -142,7 +142,7 @@ def restart_storm(n: int, workers: int = 2, seed: int = 0, max_pause_s: float = 
     rss_end = rss_bytes()
     samples.append(rss_end)
     t1 = time.perf_counter()
-    while rv.spp < 1 and not rv.error and time.perf_counter() - t1 < 60:
+    while rv.spp < 1 and not rv.error and time.perf_counter() - t1 < 600:
         time.sleep(0.01)
     final_spp = rv.spp
     seen.update(rv.worker_pids())

@@ -88,7 +88,7 @@ def test_reference_view_time_slices_the_gpu_engine_and_uses_the_cache(ctx):
     rv = ReferenceView(ctx, scale=1.0, max_depth=3, engine="gpu", frame_budget_s=0.01)
     try:
         t0 = time.perf_counter()
-        while rv.spp < 3 and time.perf_counter() - t0 < 60:
+        while rv.spp < 3 and time.perf_counter() - t0 < 600:
             rv.update(sc, cam, (24, 16))
         assert rv.engine == "gpu" and rv.spp >= 3 and rv.error == ""
         img, spp = rv.latest()

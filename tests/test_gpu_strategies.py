@@ -115,7 +115,7 @@ def test_reference_view_keeps_the_gpu_engine_for_every_option(ctx):
             rv.update(sc, cam, (12, 12))
             assert rv.engine == "gpu" and rv.active_engine == "gpu", rv.engine_reason
             t0 = time.perf_counter()
-            while rv.spp < 2 and time.perf_counter() - t0 < 30:
+            while rv.spp < 2 and time.perf_counter() - t0 < 300:
                 rv.update(sc, cam, (12, 12))
             assert rv.spp >= 2 and rv.error == ""
             s = rv.setup

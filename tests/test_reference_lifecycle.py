@@ -60,7 +60,7 @@ def test_restarts_without_worker_processes(private_tmp):
     assert r.drift_mb < ALLOWED_DRIFT_MB, r.summary()
 
 
-def _wait(predicate, seconds=60.0):
+def _wait(predicate, seconds=120.0):   # a deadline for a background job, generous for a loaded machine
     t0 = time.perf_counter()
     while not predicate() and time.perf_counter() - t0 < seconds:
         time.sleep(0.01)
@@ -81,7 +81,7 @@ def test_a_killed_worker_is_reported_and_the_next_restart_recovers(private_tmp):
         pids = rv.worker_pids()   # started on demand: one for the one block of 16 x 12 pixels
         assert pids
         os.kill(pids[0], signal.SIGKILL)
-        assert _wait(lambda: bool(rv.error), 20), "no error shown"
+        assert _wait(lambda: bool(rv.error)), "no error shown"
         assert "BrokenProcessPool" in rv.error
         cam.yaw += 0.1
         rv.update(scene, cam, (160, 120))
@@ -90,7 +90,7 @@ def test_a_killed_worker_is_reported_and_the_next_restart_recovers(private_tmp):
         assert rv.error == "" and fresh and not set(pids) & set(fresh)
     finally:
         rv.close()
-    assert _wait(lambda: not lifecycle.alive(pids + fresh), 30), lifecycle.alive(pids + fresh)
+    assert _wait(lambda: not lifecycle.alive(pids + fresh)), lifecycle.alive(pids + fresh)
 
 
 def test_stop_then_the_same_view_resumes(private_tmp):
@@ -104,7 +104,7 @@ def test_stop_then_the_same_view_resumes(private_tmp):
     try:
         rv.update(scene, cam, (160, 120))
         assert _wait(lambda: rv.spp >= 1)
-        assert rv.stop()                   # idle within the timeout
+        assert rv.stop(timeout=120)        # idle within the timeout (generous: a loaded machine)
         rv.update(scene, cam, (160, 120))  # same scene and camera (raster -> reference in the window)
         assert _wait(lambda: rv.spp >= 1)  # used to stay stopped: the key had not changed
     finally:
@@ -129,5 +129,5 @@ def test_renderer_close_ends_its_processes(private_tmp):
             started += pids
         assert lifecycle.alive(pids) == set()   # close waits for its workers
     assert len(set(started)) == 4
-    assert _wait(lambda: lifecycle.task_count() <= before, 30)  # (threads of earlier tests may still be ending)
+    assert _wait(lambda: lifecycle.task_count() <= before)  # (threads of earlier tests may still be ending)
     assert not list(private_tmp.glob("brdf-viewer-setup-*"))

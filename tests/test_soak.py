@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from gui_harness import window_env
+from gui_harness import HANG_S, window_env
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_short_soak_has_no_failures(display):
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--frames", "200",
                         "--report-at", "200", "--seed", "7", "--json"],
-                       env=window_env(display), capture_output=True, text=True, timeout=600)
+                       env=window_env(display), capture_output=True, text=True, timeout=HANG_S)
     assert r.returncode in (0, 1), r.stderr[-3000:]
     res = json.loads(r.stdout.strip().splitlines()[-1])
     assert res["failures"] == [], res["failures"]

@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from gui_harness import run_py, window_env
+from gui_harness import HANG_S, run_py, window_env
 
 pytestmark = pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb (apt-get install xvfb)")
 
@@ -83,7 +83,7 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):
             xtst.XTestFakeKeyEvent(dpy, right, 1, 0); xtst.XTestFakeKeyEvent(dpy, right, 0, 0)
             x11.XFlush(dpy); time.sleep(0.04)
         t1 = time.time()  # a loaded X server may deliver them a little later: frames until all count
-        while app.session.lecture_step < 3 and time.time() - t1 < 20:
+        while app.session.lecture_step < 3 and time.time() - t1 < 600:
             app.frame()
         app.frame()
         times["taps"] = time.time() - T0
@@ -97,7 +97,7 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):
         app.session.reference_view().engine_request = "cpu"  # the GPU engine's first compile takes a minute on llvmpipe
         app.session.set_image_mode("split")
         t0 = time.time()
-        while (app.session.reference is None or app.session.reference.spp < 2) and time.time() - t0 < 120:
+        while (app.session.reference is None or app.session.reference.spp < 2) and time.time() - t0 < 600:
             app.frame(); time.sleep(0.02)
         times["ref"] = time.time() - T0; out["engine"] = app.session.reference.engine
         rv = app.session.reference            # a still reference: the view does not change between frames
@@ -146,7 +146,7 @@ def test_screenshot_to_an_unwritable_path_fails_in_one_line(display, tmp_path):
     (tmp_path / "file.txt").write_text("x")
     for bad in (tmp_path / "no" / "such" / "folder" / "s.png", "/proc/s.png", tmp_path / "file.txt" / "s.png"):
         r = subprocess.run([sys.executable, "-m", "viewer", "--frames", "2", "--screenshot", str(bad)],
-                           env=window_env(display), capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                           env=window_env(display), capture_output=True, text=True, timeout=HANG_S, cwd=tmp_path)
         assert r.returncode == 2, (r.returncode, r.stderr)
         lines = [x for x in r.stderr.splitlines() if x.strip()]
         assert len(lines) == 1 and "--screenshot" in lines[0] and "error" in lines[0], r.stderr
