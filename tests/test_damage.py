@@ -232,6 +232,25 @@ def test_a_full_disk_gives_one_line_exit_1_and_no_file(command, tmp_path, monkey
     assert not out.exists() and leftovers(tmp_path) == []      # nothing partial: the temporary file is gone
 
 
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_a_failed_png_takes_the_commands_npy_with_it(command, tmp_path, monkeypatch, capsys):
+    """--linear is written first; when the PNG then meets a full disk, the .npy goes too."""
+    if not os.path.isdir("/proc/self/fd"):
+        pytest.skip("tells the files apart through /proc/self/fd")
+    real = os.fsync
+
+    def fsync(fd):
+        if ".png." in os.readlink(f"/proc/self/fd/{fd}"):
+            _enospc()
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    out, lin = tmp_path / "out.png", tmp_path / "out.npy"
+    rc, stdout, err = run_main(OUTPUTS[command] + ["--out", str(out), "--linear", str(lin)], capsys)
+    assert rc == 1 and "No space left on device" in one_error(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("command", list(OUTPUTS))
 def test_an_unwritable_folder_gives_one_line_exit_1(command, capsys):
     """/proc refuses new files for every user, root included (chmod would not stop root)."""

@@ -217,6 +217,30 @@ def _load(ref, overrides):
     return scene
 
 
+def _write_all(outputs) -> None:
+    """Write a command's outputs ((path or None, write) pairs, each write atomic): when one fails
+    (a full disk), the ones this command already wrote are removed again, so a failed command
+    leaves no file of its own behind (an older file under a name is replaced only on success)."""
+    import os
+
+    done = []
+    try:
+        for path, write in outputs:
+            if path is None:
+                continue
+            existed = os.path.lexists(path)
+            write()
+            if not existed:
+                done.append(path)
+    except BaseException:
+        for path in done:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+        raise
+
+
 def _screenshot_size(args) -> list[str]:
     """A screenshot named as the scene renders at the screenshot's size (camera overrides, before
     --width / --height and --set, which win)."""
@@ -261,9 +285,8 @@ def cmd_render(args) -> int:
         from viewer.colour import to_srgb8
 
         srgb = termview.with_colour_bar(to_srgb8(linear, 0.0, "none"), args.view)
-    if lin_path:
-        write_npy(lin_path, linear)
-    write_png(out, srgb, png_text(scene, camera))
+    _write_all([(lin_path, lambda: write_npy(lin_path, linear)),
+                (out, lambda: write_png(out, srgb, png_text(scene, camera)))])
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
     from viewer.finite import culprits, nonfinite_count, nonfinite_message, render_switches
 
@@ -316,11 +339,9 @@ def cmd_reference(args) -> int:
     finally:
         renderer.close()
     srgb = to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
-    if lin_path:
-        write_npy(lin_path, linear)
-    write_png(out, srgb, png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed,
-                                                                "max_depth": args.max_depth, "engine": engine,
-                                                                **_estimator(args)}}))
+    text = png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
+                                                  "engine": engine, **_estimator(args)}})
+    _write_all([(lin_path, lambda: write_npy(lin_path, linear)), (out, lambda: write_png(out, srgb, text))])
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp" + (", spectral" if renderer.is_spectral else "") + ")"
           + (f" and {lin_path}" if lin_path else ""))

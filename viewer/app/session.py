@@ -98,6 +98,9 @@ class Session(FileActions):
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
         if m is not None:  # opened as lecture:N: lecture mode at that step
             self._enter_step(int(m.group(1)) - 1)
+        note = self.scene.size_note()   # a large scene: its first frame takes a while; say why
+        if note:
+            self.notify(f"{self.scene.label}: {note}")
 
     # ------------------------------------------------------------------ notifications
     def notify(self, text: str, error: bool = False) -> None:
