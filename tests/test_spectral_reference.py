@@ -64,7 +64,7 @@ def test_gold_mirror_is_the_spectral_integral(tmp_path):
     """A polished gold sphere in a white constant environment: a camera ray reflects once, so
     the pixel at the sphere's centre (normal incidence) estimates to_rgb(R(0, lambda)) of the
     Johnson & Christy table, unclipped: (1.037, 0.728, 0.365). 64 spp x 4 wavelengths: the
-    standard error per channel is ~1.5%; the RGB reference gives the clipped table instead."""
+    standard error per channel is ~1.5%; the RGB table holds the same value (unclipped)."""
     f = tmp_path / "gold.toml"
     f.write_text("""
 [camera]

@@ -9,9 +9,13 @@
 
 vec3 microfacet_fresnel(microfacet_params p, float cos_i) {
     // a thin film on the dielectric or conductor (common/fresnel.glsl; Schlick has none)
-    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MICROFACET_FRESNEL_SCHLICK)
-        return p.fresnel == MICROFACET_FRESNEL_CONDUCTOR ? thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MICROFACET_FRESNEL_SCHLICK) {
+        // a tabulated base: its own n, k at the film's wavelengths (after its RGB table)
+        if (p.spectral > MICROFACET_SPECTRAL_NONE)
+            return thin_film_spectral_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.spectral_offset);
+        return p.fresnel == MICROFACET_FRESNEL_CONDUCTOR ? thin_film_conductor_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
                               : thin_film_rgb(cos_i, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
+    }
     if (p.spectral > MICROFACET_SPECTRAL_NONE) return spectral_fresnel(p.spectral_offset, cos_i);
     if (p.fresnel == MICROFACET_FRESNEL_DIELECTRIC) return vec3(fresnel_dielectric(clamp(cos_i, 0.0, 1.0), p.ior));
     if (p.fresnel == MICROFACET_FRESNEL_CONDUCTOR) return fresnel_conductor(cos_i, p.eta, p.k);
@@ -48,7 +52,7 @@ vec3 microfacet_eval(microfacet_params p, vec3 wi, vec3 wo) {
     if (any(greaterThan(p.kd, vec3(0.0)))) {
         vec3 Fi = microfacet_fresnel(p, wi.z);
         vec3 Fo = microfacet_fresnel(p, wo.z);
-        f += p.kd * INV_PI * (1.0 - Fi) * (1.0 - Fo);
+        f += p.kd * INV_PI * max(1.0 - Fi, vec3(0.0)) * max(1.0 - Fo, vec3(0.0));
     }
     return f;
 }
@@ -61,7 +65,7 @@ vec3 microfacet_eval(microfacet_params p, vec3 wi, vec3 wo) {
 float microfacet_p_diffuse(microfacet_params p, vec3 wo) {
     if (!any(greaterThan(p.kd, vec3(0.0)))) return 0.0;
     vec3 Fo = microfacet_fresnel(p, wo.z);
-    float wd = dot(p.kd * (1.0 - Fo), vec3(1.0 / 3.0));
+    float wd = dot(p.kd * max(1.0 - Fo, vec3(0.0)), vec3(1.0 / 3.0));
     float ws = dot(Fo, vec3(1.0 / 3.0));
     float tot = wd + ws;
     return tot > 0.0 ? wd / tot : 0.0;

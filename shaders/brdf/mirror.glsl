@@ -7,9 +7,13 @@
 #include "common/spectral.glsl"
 
 vec3 mirror_reflectance(mirror_params p, float cos_o) {
-    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MIRROR_FRESNEL_NONE)
-        return p.fresnel == MIRROR_FRESNEL_CONDUCTOR ? thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
+    if (p.thin_film.thickness_nm > 0.0 && p.fresnel != MIRROR_FRESNEL_NONE) {
+        // a tabulated base: its own n, k at the film's wavelengths (after its RGB table)
+        if (p.spectral > MIRROR_SPECTRAL_NONE)
+            return thin_film_spectral_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.spectral_offset);
+        return p.fresnel == MIRROR_FRESNEL_CONDUCTOR ? thin_film_conductor_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, p.eta, p.k)
                               : thin_film_rgb(cos_o, p.thin_film.ior, p.thin_film.thickness_nm, vec3(p.ior), vec3(0.0));
+    }
     if (p.spectral > MIRROR_SPECTRAL_NONE) return spectral_fresnel(p.spectral_offset, cos_o);
     if (p.fresnel == MIRROR_FRESNEL_CONDUCTOR) return fresnel_conductor(cos_o, p.eta, p.k);
     if (p.fresnel == MIRROR_FRESNEL_DIELECTRIC) return vec3(fresnel_dielectric(clamp(cos_o, 0.0, 1.0), p.ior));

@@ -166,19 +166,29 @@ vec2 tf_base(float lambda_nm, vec3 eta, vec3 k) {
     return mix(vec2(eta.g, k.g), vec2(eta.r, k.r), t - 1.0);
 }
 
-// RGB reflectance of a film (n1, d_nm) on a base (eta, k per RGB channel) from index 1;
-// d_nm <= 0 gives the loop no iterations. The loop is compiled in only where THIN_FILM is
+// RGB reflectance of a film (n1, d_nm) on a base (eta, k per RGB channel) from index 1, as
+// integrated; d_nm <= 0 gives the loop no iterations. The loop is compiled in only where THIN_FILM is
 // defined (programs of materials with a film: viewer.gl.brdf_glsl.program_defines): inlined at
 // every Fresnel call of every sampler, it multiplies software GL's compile time (an all-model
 // program went from 6 s to more than 10 minutes).
-vec3 thin_film_rgb(float cos_i, float n1, float d_nm, vec3 eta, vec3 k) {
+vec3 thin_film_sum(float cos_i, float n1, float d_nm, vec3 eta, vec3 k) {
     vec3 rgb = vec3(0.0);
 #ifdef THIN_FILM
     int n = d_nm > 0.0 ? 32 : 0;
     for (int i = 0; i < n; ++i)
         rgb += fresnel_thin_film(cos_i, TF_NM[i], n1, d_nm, tf_base(TF_NM[i], eta, k)) * TF_W[i];
 #endif
-    return clamp(rgb, 0.0, 1.0);
+    return rgb;
+}
+
+// On a dielectric base: clipped to [0, 1] (1 - R is its transmittance).
+vec3 thin_film_rgb(float cos_i, float n1, float d_nm, vec3 eta, vec3 k) {
+    return clamp(thin_film_sum(cos_i, n1, d_nm, eta, k), 0.0, 1.0);
+}
+
+// On a conductor: kept as integrated (linear RGB may exceed 1 outside the gamut), clipped at 0.
+vec3 thin_film_conductor_rgb(float cos_i, float n1, float d_nm, vec3 eta, vec3 k) {
+    return max(thin_film_sum(cos_i, n1, d_nm, eta, k), vec3(0.0));
 }
 
 // The film on a dielectric interface seen from the side with relative index eta (eta < 1:

@@ -13,3 +13,17 @@ vec3 spectral_fresnel(int o, float cos_i) {
     vec3 r1 = vec3(mat_f(a + 3), mat_f(a + 4), mat_f(a + 5));
     return r0 * (1.0 - f) + r1 * f;
 }
+
+// A thin film (n1, d_nm) on a tabulated base, from index 1: the base's own n, k at the film's 32
+// wavelengths, stored after its RGB table (viewer/brdf/thin_film.py packed_base); as integrated,
+// clipped at 0 (twin of reflectance_rgb with spectral_name). Needs common/fresnel.glsl.
+vec3 thin_film_spectral_rgb(float cos_i, float n1, float d_nm, int o) {
+    vec3 rgb = vec3(0.0);
+#ifdef THIN_FILM
+    int b = o + 3 * SPECTRAL_TABLE_N;
+    int n = d_nm > 0.0 ? 32 : 0;
+    for (int i = 0; i < n; ++i)
+        rgb += fresnel_thin_film(cos_i, TF_NM[i], n1, d_nm, vec2(mat_f(b + 2 * i), mat_f(b + 2 * i + 1))) * TF_W[i];
+#endif
+    return max(rgb, vec3(0.0));
+}

@@ -88,6 +88,8 @@ def fresnel_rgb(p, cos):
     """F(cos) as (N, 3) for the chosen Fresnel variant (a thin film on the dielectric or
     conductor first: viewer/brdf/thin_film.py; Schlick has no film)."""
     if thin_film.active(p) and p.fresnel != "schlick":
+        if p.spectral != spectral_fresnel.NONE:  # the tabulated index at the film's wavelengths
+            return thin_film.reflectance_rgb(p, cos, None, spectral_name=p.spectral)
         if p.fresnel == "conductor":
             return thin_film.reflectance_rgb(p, cos, p.eta, p.k)
         return thin_film.reflectance_rgb(p, cos, p.ior)
@@ -134,7 +136,7 @@ def eval_specular(p, wi, wo):
 def eval_diffuse(p, wi, wo):
     ci, co = wi[:, 2], wo[:, 2]
     ok = (ci > 0) & (co > 0)
-    fd = p.kd[None, :] * INV_PI * (1.0 - fresnel_rgb(p, ci)) * (1.0 - fresnel_rgb(p, co))
+    fd = p.kd[None, :] * INV_PI * np.maximum(1.0 - fresnel_rgb(p, ci), 0.0) * np.maximum(1.0 - fresnel_rgb(p, co), 0.0)
     return np.where(ok[:, None], fd, 0.0)
 
 
@@ -183,7 +185,7 @@ def _p_diffuse(p, wo):
     if not np.any(p.kd > 0):
         return np.zeros(wo.shape[0])
     Fo = fresnel_rgb(p, wo[:, 2])
-    wd = np.mean(p.kd[None, :] * (1.0 - Fo), axis=-1)
+    wd = np.mean(p.kd[None, :] * np.maximum(1.0 - Fo, 0.0), axis=-1)
     ws = np.mean(Fo, axis=-1)
     tot = wd + ws
     return np.where(tot > 0, wd / np.where(tot > 0, tot, 1.0), 0.0)

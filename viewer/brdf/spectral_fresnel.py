@@ -7,9 +7,13 @@ rasterizer and the numpy twins) read the Fresnel colour from one table per mater
     to 1), j = 0 .. TABLE_N - 1;
   * each entry is the spectral integral of the exact unpolarized Fresnel reflectance of
     n(lambda) + i k(lambda) (``fresnel_conductor``; k = 0 for a dielectric) seen under D65 by the
-    CIE 1931 observer, on the 5 nm grid 360-780 nm, clipped to [0, 1] (gold's red, 1.035 at
-    normal incidence, lies just outside the Rec.709 gamut; an RGB reflectance above 1 would
-    create energy) and rounded to float32, the numbers the GLSL twin receives;
+    CIE 1931 observer, on the 5 nm grid 360-780 nm, kept as integrated (only clipped at 0) and
+    rounded to float32, the numbers the GLSL twin receives. Gold's red is 1.038 at normal
+    incidence: its spectrum lies outside the Rec.709 gamut, and linear RGB may exceed 1 there.
+    Clipping it to 1 shifted the hue away from the spectral reference, which integrates the same
+    spectrum and shows 1.038; every spectral reflectance is <= 1 at every wavelength, so no
+    energy is created (a white furnace of the spectral reference has the same value).
+    Where 1 - F is a transmittance (the microfacet model's diffuse base) it is clipped at 0;
   * between samples both twins interpolate linearly in sqrt(cos theta).
 
 The table reaches GLSL through the material block ``u_mat``: a ``spectral`` parameter packs its
@@ -61,7 +65,7 @@ def spectral_reflectance(name: str, cos, wavelength_nm=GRID_NM) -> np.ndarray:
 @functools.lru_cache(maxsize=None)
 def _table(name: str) -> np.ndarray:
     rgb = spectral.to_rgb(spectral_reflectance(name, table_cos()), GRID_NM)
-    t = np.clip(rgb, 0.0, 1.0).astype(np.float32).astype(np.float64)
+    t = np.maximum(rgb, 0.0).astype(np.float32).astype(np.float64)
     t.setflags(write=False)
     return t
 

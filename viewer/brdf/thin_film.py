@@ -13,9 +13,16 @@ resolve the fringes up to the 1,000 nm the thickness allows: the optical path 2 
 water film changes the phase by ~0.2 cycles between neighbouring blue samples; the RGB then
 differs from a 1 nm integration by at most ~0.02 (measured in tests/test_thin_film.py).
 
-The base's index over wavelength: the dielectric's ``ior`` (constant), or a conductor's RGB
-``eta``, ``k`` taken as the values at 650 / 550 / 450 nm (the presets' three wavelengths) and
-interpolated linearly in wavelength between them (held beyond).
+The base's index over wavelength: a tabulated material's own n(lambda) + i k(lambda)
+(``spectral = "Au"`` etc.: viewer.spectral ``ior`` at the 32 wavelengths, rounded to float32,
+the numbers the GLSL twin reads from the material block, ``packed_base``); else the dielectric's
+``ior`` (constant), or a conductor's RGB ``eta``, ``k`` taken as the values at 650 / 550 / 450 nm
+(the presets' three wavelengths) and interpolated linearly in wavelength between them (held
+beyond).
+
+Range: the RGB of a film on a conductor is kept as integrated, > 1 where the spectrum lies outside
+the Rec.709 gamut (gold's red, as in viewer/brdf/spectral_fresnel.py), and only clipped at 0; on a
+dielectric it is clipped to [0, 1], since 1 - R is its transmittance.
 
 Thickness over height (``thickness_top_nm``): gravity drains a soap film, so a bubble is thinner
 at its top. With ``thickness_top_nm >= 0`` the film is ``thickness_nm`` at the bottom of the
@@ -125,9 +132,34 @@ def active(p) -> bool:
     return float(p.thin_film.thickness_nm) > 0.0
 
 
-def reflectance_rgb(p, cos, base_eta, base_k=None) -> np.ndarray:
+@functools.lru_cache(maxsize=None)
+def _spectral_base(name: str) -> np.ndarray:
+    from viewer import spectral
+
+    n = spectral.ior(name, WAVELENGTHS_NM)
+    out = (n.real.astype(np.float32).astype(np.float64)
+           + 1j * n.imag.astype(np.float32).astype(np.float64))
+    out.setflags(write=False)
+    return out
+
+
+def spectral_base(name: str) -> np.ndarray:
+    """(N_WAVELENGTHS,) complex index n + i k of a tabulated material at WAVELENGTHS_NM (float32
+    values: what the GLSL twin gets)."""
+    return _spectral_base(name)
+
+
+def packed_base(name: str) -> np.ndarray:
+    """(2 N_WAVELENGTHS,) the floats the material block carries after its spectral RGB table for
+    a film on a tabulated base: n, k per wavelength."""
+    b = _spectral_base(name)
+    return np.stack([b.real, b.imag], axis=-1).reshape(-1)
+
+
+def reflectance_rgb(p, cos, base_eta, base_k=None, spectral_name=None) -> np.ndarray:
     """(N, 3) RGB reflectance of the film p.thin_film on a base: base_eta a float (dielectric) or
-    RGB eta with RGB k (conductor), seen from index 1 at cos (N,)."""
+    RGB eta with RGB k (conductor), or with ``spectral_name`` a tabulated material's own index
+    (``spectral_base``), seen from index 1 at cos (N,)."""
     c = np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)[:, None]
     lam3 = p.thin_film.get("lambda_nm")
     if lam3 is not None:
@@ -137,12 +169,15 @@ def reflectance_rgb(p, cos, base_eta, base_k=None) -> np.ndarray:
               else np.asarray(base_eta, dtype=np.float64) + 1j * np.asarray(base_k, dtype=np.float64))
         return fresnel_thin_film(c, np.asarray(lam3, dtype=np.float64)[None, :], p.thin_film.ior,
                                  p.thin_film.thickness_nm, n2[None, :])
-    if base_k is None:
+    if spectral_name is not None:
+        n2 = spectral_base(spectral_name)
+    elif base_k is None:
         n2 = np.full(N_WAVELENGTHS, float(base_eta), dtype=np.complex128)
     else:
         n2 = rgb_to_spectral(base_eta) + 1j * rgb_to_spectral(base_k)
     R = fresnel_thin_film(c, WAVELENGTHS_NM[None, :], p.thin_film.ior, p.thin_film.thickness_nm, n2[None, :])
-    return np.clip(R @ weights(), 0.0, 1.0)
+    conductor = base_k is not None or spectral_name is not None
+    return np.maximum(R @ weights(), 0.0) if conductor else np.clip(R @ weights(), 0.0, 1.0)
 
 
 def dielectric_reflectance_rgb(p, cos, eta):

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import brdf
-from viewer.brdf import spectral_fresnel
+from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.spec import ModelSpec, Param, Params
 from viewer.gl.shader_folder import ShaderError, shader_root
 
@@ -53,6 +53,11 @@ def model_index(name: str) -> int:
     return brdf.names().index(name)
 
 
+def _has_film(values) -> bool:
+    tf = values.get("thin_film")
+    return tf is not None and (float(tf.thickness_nm) > 0.0 or float(tf.get("thickness_top_nm", -1.0)) > 0.0)
+
+
 def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
     for p in params_spec:
         v = values[p.name]
@@ -64,7 +69,11 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
         elif k == "choice":
             out.append(float(p.choices.index(v)))
             if p.spectral_table:  # the material's RGB Fresnel table, appended after the block
-                out.append(float(base_offset_fn(spectral_fresnel.packed(v))) if v != "none" else 0.0)
+                # (with a thin film also the base's n, k at the film's wavelengths after it)
+                tab = spectral_fresnel.packed(v) if v != "none" else None
+                if tab is not None and _has_film(values):
+                    tab = np.concatenate([tab, thin_film.packed_base(v)])
+                out.append(float(base_offset_fn(tab)) if tab is not None else 0.0)
         elif k == "table":
             _pack_fields(p.fields, v, out, tail, base_offset_fn)
         elif k == "lobes":
