@@ -19,7 +19,7 @@ from viewer.brdf import thin_film
 from viewer.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
-from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
+from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAT_FLOATS, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
 from viewer.gl.material_tables import MaterialTables
 from viewer.gl.programs import FORWARD_STAGES, ProgramCache, Recipe, forward_variant
 from viewer.gl.shaders import ShaderError
@@ -469,7 +469,7 @@ class Renderer:
                 rt[0].bind(prog, first_unit=texture_units.TRACED)
                 row = rt[0].rows[obj.material]
                 _set(prog, "u_rt_row", row)
-                _set(prog, "u_mat_base", row * 256)
+                _set(prog, "u_mat_base", row * MAT_FLOATS)
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             m = obj.model_matrix()

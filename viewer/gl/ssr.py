@@ -44,6 +44,7 @@ import numpy as np
 
 from viewer.camera import gl_bytes
 from viewer.gl import texture_units
+from viewer.gl.constants import EMPTY_DEPTH  # the pyramid's value where there is no surface (ssr_hiz.frag)
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 
@@ -276,9 +277,6 @@ class SSR:
             v.release()
         for p in self.programs.values():
             p.release()
-
-
-EMPTY_DEPTH = 1e30  # the pyramid's value where there is no surface (shaders/passes/ssr_hiz.frag)
 
 
 def depth_from_geom(g):
