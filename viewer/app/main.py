@@ -334,7 +334,7 @@ class App:
         elif self.plots.visible and not self._said_no_room:  # never over the lecture's view
             s.notify("the plots need a wider window beside the view (or a smaller UI scale, Ctrl -)")
             self._said_no_room = True
-        s.mc.draw_windows(s.reference)
+        s.monte_carlo.draw_windows(s.reference)
 
     def _draw_view(self, fw, fh, view, ref_tex):
         from viewer.app.panels import overlays
@@ -347,7 +347,7 @@ class App:
         if view[2] > 0 and view[3] > 0:
             r = s.scene.render
             s.compare.draw(s.renderer, screen, view, s.hdr, ref_tex, r.exposure, r.tonemap)
-            s.mc.draw_view(s.renderer, screen, s.compare.reference_rect(view), s.reference)
+            s.monte_carlo.draw_view(s.renderer, screen, s.compare.reference_rect(view), s.reference)
             overlays.draw(self)
         screen.viewport = (0, 0, fw, fh)
 
