@@ -80,7 +80,8 @@ def _params_key(p) -> str:
 WAVELENGTH_TICKS = (400.0, 550.0, 700.0)
 
 class PlotsPanel:
-    """An imgui window "BRDF plots" with tabs Polar / 3D lobe / Albedo / Fresnel / Bouguer.
+    """An imgui window "BRDF plots" with one tab per entry of ``TABS`` (Polar, 3D lobe, Albedo,
+    Fresnel, Bouguer, Spectral, Sampling).
 
     ``draw(materials)`` takes the scene's ``{name: Params}``; ``visible`` opens and closes the
     window (its close button sets it False)."""

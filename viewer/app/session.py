@@ -3,7 +3,7 @@ student or lecturer can take (open and save scenes, edit materials, load meshes,
 environment maps, step the lecture, switch the compare and reflection modes, take screenshots,
 keep the window's state), each reporting through one path, ``notify(text, error=False)``.
 
-The window (``viewer.app.window``) draws it with imgui and forwards input; tests drive it
+The window (``App`` in ``viewer/app/main.py``) draws it with imgui and forwards input; tests drive it
 in-process on an offscreen EGL context. Nothing here imports imgui or glfw."""
 
 from __future__ import annotations
