@@ -10,14 +10,6 @@
 #include "common/shadow.glsl"
 #include "common/ibl.glsl"
 
-// With MSAA, shade at every sample (GLSL 4.00 'sample' inputs) so a pixel is the average over
-// its square (the box filter of docs/conventions.md) rather than the value at its centre; defined by
-// the renderer when sample shading is on.
-#ifdef SAMPLE_SHADING
-sample in vec3 v_position;
-sample in vec3 v_normal;
-sample in vec4 v_tangent;
-#else
 in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;

@@ -22,7 +22,6 @@ import numpy as np
 from viewer import ViewerError
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
-from viewer.app.layout import PANEL_WIDTH  # noqa: F401 - the side panel's width at UI scale 1
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it

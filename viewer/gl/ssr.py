@@ -55,8 +55,6 @@ PROGRAMS = {
     "hiz": Recipe("passes/fullscreen.vert", "passes/ssr_hiz.frag"),
 }
 
-SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
-
 
 class SSR:
     settings = {"max_distance": 3.0, "thickness": 0.05, "bias": 0.01, "stride": 2.0, "max_steps": 320,
