@@ -86,16 +86,16 @@ def child(engine: str) -> None:
     got = rv.latest_variance()
     print(f"   a variance (>= 2 spp) after {t_var:.0f} s" if got else "   no variance after 5 more minutes")
     # the variance views
-    app.session.mc.show_convergence = True
+    app.session.monte_carlo.show_convergence = True
     for view in ERROR_VIEWS:
-        app.session.mc.view = view
+        app.session.monte_carlo.view = view
         view_ms, frame_ms = [], []
         for _ in range(8):
-            app.session.mc.invalidate()     # recompute the map every frame, as each new pass does
+            app.session.monte_carlo.invalidate()     # recompute the map every frame, as each new pass does
             t = time.perf_counter()
             app.frame()
             frame_ms.append(1000 * (time.perf_counter() - t))
-            view_ms.append(app.session.mc.view_ms)
+            view_ms.append(app.session.monte_carlo.view_ms)
         got = rv.latest_variance()
         shape = "x".join(map(str, got[1].shape[1::-1])) if got else "?"
         print(f"   variance view {view!r} ({shape} map): compute + upload {np.median(view_ms):.1f} ms; "

@@ -69,7 +69,52 @@ def test_header_values_are_pythons():
         raytrace.KIND_SHADED, raytrace.KIND_MIRROR, raytrace.KIND_GLASS)
     assert (h["RT_T_ALBEDO"], h["RT_T_INFO"], h["RT_T_K"], h["CHAIN_ROW_TEXELS"]) == (
         raytrace.T_ALBEDO, raytrace.T_INFO, raytrace.T_K, raytrace.ROW_TEXELS)
+    from viewer.brdf import spectral_fresnel
+    from viewer.geometry import bvh_flat
+    from viewer.gl import brdf_glsl
+
+    assert h["SPECTRAL_TABLE_N"] == spectral_fresnel.TABLE_N
+    assert h["BVH_STACK"] == bvh_flat.STACK_SIZE
+    assert h["MAT_FLOATS"] == 4 * brdf_glsl.MAT_VEC4 == len(brdf_glsl.uniform_block(brdf.get("lambert").params())[1])
     assert h == constants.values()
+
+
+def _header_floats() -> dict[str, float]:
+    text = preprocess(f"#version 410 core\n{INCLUDE}\n", "<test>").text
+    return {m.group(1): float(m.group(2))
+            for m in re.finditer(r"^#define (\w+) (-?\d+\.\d*(?:e[+-]?\d+)?|-?\d+e[+-]?\d+)$", text, re.M)}
+
+
+def test_header_floats_are_pythons():
+    """The empty depth of the SSR pyramid and the term views' scales, as their modules see them."""
+    from viewer import termview
+    from viewer.gl import ssr
+
+    f = _header_floats()
+    assert f == constants.float_values() and len(f) == 2 + 2 * len(termview.SCALES)
+    assert f["EMPTY_DEPTH"] == ssr.EMPTY_DEPTH == 1e30
+    assert f["TERM_NOT_APPLICABLE"] == termview.NOT_APPLICABLE
+    for view, (_, k, vmax) in termview.SCALES.items():
+        assert (f[constants.glsl_name("TERM", view, "K")], f[constants.glsl_name("TERM", view, "MAX")]) == (k, vmax)
+
+
+def test_no_shader_defines_a_generated_name():
+    """A value the header carries is not written again in a shader (``#define`` or ``const``)."""
+    names = set(constants.values()) | set(constants.float_values())
+    pat = re.compile(r"^\s*(?:#\s*define\s+(\w+)|const\s+\w+\s+(\w+)\s*=)")
+    bad = [f"{f.relative_to(SHADERS)}:{n}: {m.group(1) or m.group(2)}"
+           for f in _shader_files() for n, line in enumerate(f.read_text().splitlines(), start=1)
+           if (m := pat.match(line)) and (m.group(1) or m.group(2)) in names]
+    assert bad == []
+
+
+def test_the_rec709_weights_are_written_once_a_side():
+    """Python: ``viewer.spectral.colorimetry.LUMINANCE_REC709``; GLSL: ``luminance`` in
+    common/math.glsl. Everything else calls them."""
+    root = SHADERS.parent
+    hits = sorted(str(f.relative_to(root)) for f in [*root.joinpath("viewer").rglob("*.py"), *_shader_files()]
+                  if "0.7152" in f.read_text())
+    assert hits == ["shaders/common/math.glsl", "viewer/spectral/colorimetry.py"]
 
 
 def test_the_header_is_generated_wherever_shaders_are_read(tmp_path, monkeypatch):
@@ -83,7 +128,7 @@ def test_the_header_is_generated_wherever_shaders_are_read(tmp_path, monkeypatch
 def test_files_include_the_header_before_using_it():
     """Each file that uses a generated name includes the header itself, above the first use
     (an include further down compiles only where another file happened to include it first)."""
-    names = set(constants.values())
+    names = set(constants.values()) | set(constants.float_values())
     bad = []
     for f in _shader_files():
         lines = f.read_text().splitlines()

@@ -29,9 +29,9 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         app.frame()
         raster = app.capture_window()
         rv = app.session.reference_view()
-        app.session.mc.set_options(rv, strategy="bsdf")
-        app.session.mc.view = "standard error"
-        app.session.mc.show_convergence = True
+        app.session.monte_carlo.set_options(rv, strategy="bsdf")
+        app.session.monte_carlo.view = "standard error"
+        app.session.monte_carlo.show_convergence = True
         app.plots.visible = True
         app.plots.select_tab("Sampling")
         t0 = time.time()
@@ -44,26 +44,26 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         snap = rv.snapshot()
         mean, var, spp = snap.mean, snap.variance, snap.spp
         for view, expect in (("standard error", standard_error(var)), ("relative error", relative_error(mean, var)),
-                             ("samples needed", samples_needed(mean, var, spp, app.session.mc.target))):
-            app.session.mc.view = view
-            err, rgb = app.session.mc.heat_map(snap)
+                             ("samples needed", samples_needed(mean, var, spp, app.session.monte_carlo.target))):
+            app.session.monte_carlo.view = view
+            err, rgb = app.session.monte_carlo.heat_map(snap)
             np.testing.assert_allclose(err, np.where(np.isfinite(expect), expect, 0.0), rtol=1e-12)
-        app.session.mc.view = "relative error"
+        app.session.monte_carlo.view = "relative error"
         times = []
         for _ in range(4):
-            app.session.mc.invalidate()  # force a recompute, to time it
+            app.session.monte_carlo.invalidate()  # force a recompute, to time it
             app.frame()
-            times.append(app.session.mc.view_ms)
+            times.append(app.session.monte_carlo.view_ms)
         shot = app.capture_window()
         assert np.abs(shot.astype(float) - raster).mean() > 1.0
         from PIL import Image
         Image.fromarray(shot).save({str(tmp_path / 'mc.png')!r})
         n = len(rv.curve)
         assert n >= 2 and rv.curve.label == "bsdf"
-        assert app.session.mc.store_curve(rv) and app.session.mc.stored.label.startswith("BSDF sampling")
-        app.session.mc.set_options(rv, strategy="mis")
+        assert app.session.monte_carlo.store_curve(rv) and app.session.monte_carlo.stored.label.startswith("BSDF sampling")
+        app.session.monte_carlo.set_options(rv, strategy="mis")
         app.frame()
-        assert rv.curve.label == "mis" and len(app.session.mc.stored) == n
+        assert rv.curve.label == "mis" and len(app.session.monte_carlo.stored) == n
         t0 = time.time()
         while len(rv.curve) < 2 and time.time() - t0 < 600:
             app.frame()

@@ -1,4 +1,7 @@
-"""Command line (the commands of README.md). Argument parsing only; the work is done elsewhere."""
+"""Command line: the commands of README.md, each a parser (``_parser_<command>``) and a
+``cmd_<command>`` that checks the arguments, calls the layers below (scene loading, the
+renderer, the reference engines, the plots), writes the files and prints what it did; ``fit``
+lives in ``viewer/measured_cli.py``, the command names in ``viewer/commands.py``."""
 
 from __future__ import annotations
 

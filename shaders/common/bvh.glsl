@@ -22,7 +22,8 @@ uniform sampler2D u_bvh_tris;     // 3 texels per triangle: (v0, prim) (v1, mate
 uniform sampler2D u_tri_shading;  // 6 texels per triangle: n0 n1 n2 (w 0), t0 t1 t2 (w sign)
 uniform int u_bvh_n_tris;         // 0: an empty scene (every ray misses)
 
-#define BVH_STACK 64              // bvh_flat.STACK_SIZE
+// BVH_STACK (generated/constants.glsl) is bvh_flat.STACK_SIZE
+#include "generated/constants.glsl"
 const float BVH_INF = 3.0e38;
 const float BVH_BOX_PAD = 1.0 + 2.0 * (3.0 * 5.9604645e-8 / (1.0 - 3.0 * 5.9604645e-8));
 

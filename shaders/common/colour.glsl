@@ -26,6 +26,21 @@ vec3 tonemap_filmic(vec3 c) {
     return hable_curve(2.0 * c) / hable_curve(vec3(11.2));
 }
 
+// A false-colour ramp for term views (dark blue -> cyan -> yellow -> red), t in [0, 1].
+vec3 false_colour(float t) {
+    t = clamp(t, 0.0, 1.0);
+    vec3 a = mix(vec3(0.05, 0.05, 0.35), vec3(0.0, 0.8, 0.9), smoothstep(0.0, 0.35, t));
+    vec3 b = mix(a, vec3(1.0, 0.9, 0.1), smoothstep(0.35, 0.7, t));
+    return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
+}
+
+// A term view's value v as a position on that ramp (viewer/termview.py's scales, generated):
+// t = log(1 + k v) / log(1 + k v_max), or v / v_max for k = 0; negative v counts as 0.
+float term_t(float v, float k, float vmax) {
+    v = max(v, 0.0);
+    return clamp(k > 0.0 ? log(1.0 + k * v) / log(1.0 + k * vmax) : v / vmax, 0.0, 1.0);
+}
+
 // mode: TONEMAP_NONE, _REINHARD, _ACES or _FILMIC (generated/constants.glsl)
 vec3 tonemap(vec3 c, int mode) {
     if (mode == TONEMAP_REINHARD) return tonemap_reinhard(c);

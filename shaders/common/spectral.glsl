@@ -2,7 +2,7 @@
 // SPECTRAL_TABLE_N RGB samples at cos theta_j = (j / (N - 1))^2, stored in u_mat from float
 // offset o (r, g, b per sample), interpolated linearly in sqrt(cos theta).
 // Needs mat_f() (brdf/dispatch.glsl defines it before including the family files).
-#define SPECTRAL_TABLE_N 24
+#include "generated/constants.glsl"
 
 vec3 spectral_fresnel(int o, float cos_i) {
     float x = sqrt(clamp(cos_i, 0.0, 1.0)) * float(SPECTRAL_TABLE_N - 1);

@@ -25,6 +25,7 @@
 // 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel MIRROR_FRESNEL_CONDUCTOR /
 // _DIELECTRIC / _NONE), 163 = (mirror k, mirror dielectric ior).
 #include "generated/constants.glsl"
+#include "common/albedo_table.glsl"
 #include "common/bvh.glsl"
 #include "common/fresnel.glsl"
 
@@ -39,10 +40,9 @@ const float RT_MIN_WEIGHT = 1e-3;
 vec4 rt_texel(int row, int x) { return texelFetch(u_mat_tex, ivec2(x, row), 0); }
 
 vec3 rt_table(int row, int base, float cos_o) {
-    float x = clamp(cos_o, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
-    int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
-    int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
-    float fx = clamp(x - float(k0), 0.0, 1.0);
+    int k0, k1;
+    float fx;
+    albedo_lerp(cos_o, k0, k1, fx);
     return mix(rt_texel(row, base + k0).rgb, rt_texel(row, base + k1).rgb, fx);
 }
 
@@ -73,7 +73,7 @@ vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
     vec3 wo = to_local * wo_w;
     vec4 info = rt_texel(row, RT_T_INFO);
     int model = int(info.x + 0.5);
-    int o = row << 8;  // the row's u_mat block starts at float 256 row (MAT_TEXTURE)
+    int o = row * MAT_FLOATS;  // the row's u_mat block (MAT_TEXTURE)
     vec3 radiance = vec3(0.0);
     for (int i = 0; i < MAX_LIGHTS; ++i) {
         if (i >= u_num_lights) break;

@@ -3,22 +3,16 @@
 // generated from the registry), lit by point and directional lights with shadow maps.
 #include "generated/constants.glsl"
 #include "common/math.glsl"
+#include "common/albedo_table.glsl"
+#include "common/colour.glsl"
+#include "common/rng.glsl"
 #include "brdf/dispatch.glsl"
 #include "common/shadow.glsl"
 #include "common/ibl.glsl"
 
-// With MSAA, shade at every sample (GLSL 4.00 'sample' inputs) so a pixel is the average over
-// its square (the box filter of docs/conventions.md) rather than the value at its centre; defined by
-// the renderer when sample shading is on.
-#ifdef SAMPLE_SHADING
-sample in vec3 v_position;
-sample in vec3 v_normal;
-sample in vec4 v_tangent;
-#else
 in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;
-#endif
 flat in vec3 v_geometric_normal;  // from forward.geom
 
 uniform int u_model_id;        // registry index of this object's material model
@@ -72,23 +66,6 @@ const bool SSR_ON = false;
 #include "common/specular_chain.glsl"
 #endif
 
-// A false-colour ramp for term views (dark blue -> cyan -> yellow -> red), t in [0, 1].
-vec3 false_colour(float t) {
-    t = clamp(t, 0.0, 1.0);
-    vec3 a = mix(vec3(0.05, 0.05, 0.35), vec3(0.0, 0.8, 0.9), smoothstep(0.0, 0.35, t));
-    vec3 b = mix(a, vec3(1.0, 0.9, 0.1), smoothstep(0.35, 0.7, t));
-    return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
-}
-
-float ibl_hash(uvec2 p, uint frame) {
-    uint h = p.x * 1973u + p.y * 9277u + frame * 26699u;
-    h = (h ^ 61u) ^ (h >> 16u);
-    h *= 9u;
-    h ^= h >> 4u;
-    h *= 0x27d4eb2du;
-    h ^= h >> 15u;
-    return float(h) * 2.3283064365386963e-10;
-}
 
 #ifdef IBL_SAMPLED
 // Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
@@ -103,7 +80,7 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
     float p_spec = lt > 0.0 ? clamp(ls / lt, 0.1, 0.9) : 0.5;
     float a = max(alpha, 0.02);
     float a2 = a * a;
-    vec2 cp = vec2(ibl_hash(uvec2(gl_FragCoord.xy), uint(frame)), ibl_hash(uvec2(gl_FragCoord.yx) + 7u, uint(frame)));
+    vec2 cp = vec2(pixel_hash(uvec2(gl_FragCoord.xy), uint(frame)), pixel_hash(uvec2(gl_FragCoord.yx) + 7u, uint(frame)));
     vec3 sum = vec3(0.0);
     for (int k = 0; k < IBL_SAMPLES; ++k) {
         float u0 = (float(k) + 0.5) / float(IBL_SAMPLES);
@@ -203,10 +180,9 @@ void main() {
         // Environment light. Tables (viewer/brdf/albedo.py, the model's own sampler) give the
         // directional albedo rho(wo), its specular part rho_s (the model's ibl_split hook) and the
         // transmitted part; rho_d = rho - rho_s is treated as diffuse.
-        float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
-        int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
-        int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
-        float fx = clamp(x - float(k0), 0.0, 1.0);
+        int k0, k1;
+        float fx;
+        albedo_lerp(wo.z, k0, k1, fx);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
         vec3 rho_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho);
         vec3 rho_d = rho - rho_s;
@@ -264,10 +240,9 @@ void main() {
     {
         // the same table lookup as the environment block, also when the environment is off
         // (reflections of the lit scene need the weight all the same)
-        float x = clamp(wo.z, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
-        int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
-        int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
-        float fx = clamp(x - float(k0), 0.0, 1.0);
+        int k0, k1;
+        float fx;
+        albedo_lerp(wo.z, k0, k1, fx);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
         vec3 rho_s = wo.z > 0.0 ? min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho) : vec3(0.0);
 #ifdef RAYTRACE
@@ -284,16 +259,17 @@ void main() {
         frag_color = vec4(radiance, 1.0);
     } else if (u_view_mode <= VIEW_MODE_G) {  // F, D, G in the order brdf_terms returns them
         float v = first_terms[u_view_mode - VIEW_MODE_F];
-        // F and G in [0,1]; D on log(1 + D) / log(101) so peaks and tails are both visible
-        // (the scales and colour bars: viewer/termview.py)
-        float t = u_view_mode == VIEW_MODE_D ? log(1.0 + max(v, 0.0)) / log(1.0 + 100.0) : v;
-        frag_color = vec4(v < 0.0 ? vec3(0.25) : false_colour(t), 1.0);
+        // F and G linear in [0,1]; D on a log scale so peaks and tails are both visible (the
+        // scales, generated from viewer/termview.py, which draws the colour bars)
+        float t = u_view_mode == VIEW_MODE_D ? term_t(v, TERM_D_K, TERM_D_MAX)
+                : u_view_mode == VIEW_MODE_F ? term_t(v, TERM_F_K, TERM_F_MAX) : term_t(v, TERM_G_K, TERM_G_MAX);
+        frag_color = vec4(v < 0.0 ? vec3(TERM_NOT_APPLICABLE) : false_colour(t), 1.0);
     } else if (u_view_mode == VIEW_MODE_N_L) {
-        frag_color = vec4(false_colour(first_ndotl), 1.0);
+        frag_color = vec4(false_colour(term_t(first_ndotl, TERM_N_L_K, TERM_N_L_MAX)), 1.0);
     } else if (u_view_mode == VIEW_MODE_F_COS) {
-        // f cos theta_i of the first light, its luminance on a log scale up to 10 (viewer/termview.py)
-        float v = max(dot(first_fcos, vec3(0.2126, 0.7152, 0.0722)), 0.0);
-        frag_color = vec4(false_colour(log(1.0 + 10.0 * v) / log(1.0 + 100.0)), 1.0);
+        // f cos theta_i of the first light: its luminance, on a log scale
+        float v = luminance(first_fcos);
+        frag_color = vec4(false_colour(term_t(v, TERM_F_COS_K, TERM_F_COS_MAX)), 1.0);
     } else {
         frag_color = vec4(vec3(first_visibility), 1.0);  // light 0 visibility (shadow map)
     }

@@ -10,15 +10,9 @@ in vec3 vs_position[];
 in vec3 vs_normal[];
 in vec4 vs_tangent[];
 
-#ifdef SAMPLE_SHADING  // per-sample shading: the qualifier must match the fragment stage
-sample out vec3 v_position;
-sample out vec3 v_normal;
-sample out vec4 v_tangent;
-#else
 out vec3 v_position;
 out vec3 v_normal;
 out vec4 v_tangent;
-#endif
 flat out vec3 v_geometric_normal;
 
 void main() {

@@ -18,6 +18,8 @@
 // only cells where no step can hit, so the result is the DDA's.
 #include "generated/constants.glsl"
 #include "common/math.glsl"
+#include "common/colour.glsl"
+#include "common/rng.glsl"
 #include "common/ibl.glsl"
 
 uniform sampler2D u_color;
@@ -53,22 +55,6 @@ uniform int u_frame_index;
 in vec2 v_uv;
 out vec4 frag_color;
 
-vec3 false_colour(float t) {
-    t = clamp(t, 0.0, 1.0);
-    vec3 a = mix(vec3(0.05, 0.05, 0.35), vec3(0.0, 0.8, 0.9), smoothstep(0.0, 0.35, t));
-    vec3 b = mix(a, vec3(1.0, 0.9, 0.1), smoothstep(0.35, 0.7, t));
-    return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
-}
-
-float ssr_hash(uvec2 p, uint frame) {
-    uint h = p.x * 1973u + p.y * 9277u + frame * 26699u;
-    h = (h ^ 61u) ^ (h >> 16u);
-    h *= 9u;
-    h ^= h >> 4u;
-    h *= 0x27d4eb2du;
-    h ^= h >> 15u;
-    return float(h) * 2.3283064365386963e-10;
-}
 
 // Surface depth (positive, along -z of the view) at a pixel; 0 = no surface. A pixel whose
 // samples saw different surfaces (a silhouette under MSAA: the averaged normal is shorter than
@@ -253,7 +239,7 @@ bool trace(vec3 P0, vec3 R, out vec2 hit_px, out float steps) {
         // fraction of a stride along, a new fraction each frame, turns that pattern into noise
         // that the frame average (the window's accumulation while the view is still, or
         // render_arrays(frames=K)) removes.
-        float j = ssr_hash(uvec2(gl_FragCoord.xy), uint(u_frame_index));
+        float j = pixel_hash(uvec2(gl_FragCoord.xy), uint(u_frame_index));
         r.s0 += r.ds * j;
         r.q0 += r.dq * j;
         r.k0 += r.dk * j;

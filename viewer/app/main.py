@@ -22,7 +22,6 @@ import numpy as np
 from viewer import ViewerError
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
-from viewer.app.layout import PANEL_WIDTH  # noqa: F401 - the side panel's width at UI scale 1
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
@@ -334,7 +333,7 @@ class App:
         elif self.plots.visible and not self._said_no_room:  # never over the lecture's view
             s.notify("the plots need a wider window beside the view (or a smaller UI scale, Ctrl -)")
             self._said_no_room = True
-        s.mc.draw_windows(s.reference)
+        s.monte_carlo.draw_windows(s.reference)
 
     def _draw_view(self, fw, fh, view, ref_tex):
         from viewer.app.panels import overlays
@@ -347,7 +346,7 @@ class App:
         if view[2] > 0 and view[3] > 0:
             r = s.scene.render
             s.compare.draw(s.renderer, screen, view, s.hdr, ref_tex, r.exposure, r.tonemap)
-            s.mc.draw_view(s.renderer, screen, s.compare.reference_rect(view), s.reference)
+            s.monte_carlo.draw_view(s.renderer, screen, s.compare.reference_rect(view), s.reference)
             overlays.draw(self)
         screen.viewport = (0, 0, fw, fh)
 

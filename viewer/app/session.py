@@ -3,7 +3,7 @@ student or lecturer can take (open and save scenes, edit materials, load meshes,
 environment maps, step the lecture, switch the compare and reflection modes, take screenshots,
 keep the window's state), each reporting through one path, ``notify(text, error=False)``.
 
-The window (``viewer.app.window``) draws it with imgui and forwards input; tests drive it
+The window (``App`` in ``viewer/app/main.py``) draws it with imgui and forwards input; tests drive it
 in-process on an offscreen EGL context. Nothing here imports imgui or glfw."""
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ class Session(FileActions):
         self.renderer = renderer if renderer is not None else Renderer(ctx)
         self.camera = OrbitCamera.from_scene(self.scene)
         self.compare = CompareView(ctx)
-        self.mc = MonteCarloPanel(ctx)  # reference settings, error views, convergence
+        self.monte_carlo = MonteCarloPanel(ctx)  # reference settings, error views, convergence
         if self.state.get("compare_mode") in MODES:
             self.compare.mode = self.state["compare_mode"]
         self.compare.split = float(self.state.get("split", 0.5))
@@ -121,7 +121,7 @@ class Session(FileActions):
         if self.prefetch is not None:
             self.prefetch.stop()
         self.compare.release()
-        self.mc.release()
+        self.monte_carlo.release()
         if self._bf_tex is not None:
             self._bf_tex.release()
             self._bf_tex = None
@@ -317,7 +317,7 @@ class Session(FileActions):
         """Advance the reference for a view of ``size`` when a compare mode or an error view
         shows it; returns its texture to display (or None), and refreshes the metrics.
         ``interacting``: a change restarts the reference only once the drag pauses."""
-        if not (self.compare.uses_reference or self.mc.active) or size[0] <= 0 or size[1] <= 0:
+        if not (self.compare.uses_reference or self.monte_carlo.active) or size[0] <= 0 or size[1] <= 0:
             return None
         rv = self.reference_view()
         rv.update(self.scene, self.camera, size, defer=interacting)
@@ -423,7 +423,7 @@ class Session(FileActions):
         if mode not in MODES:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
         self.compare.mode = mode
-        if not self.compare.uses_reference and not self.mc.active and self.reference is not None:
+        if not self.compare.uses_reference and not self.monte_carlo.active and self.reference is not None:
             self.reference.stop()
         self.dirty = True
 
@@ -568,7 +568,7 @@ class Session(FileActions):
             return None
         try:
             extra = {"view": list(VIEW_MODES)[self.view_mode], "image": self.compare.mode}
-            if capture is None or (self.compare.mode == "raster" and not self.mc.active):
+            if capture is None or (self.compare.mode == "raster" and not self.monte_carlo.active):
                 # the raster alone, as shown when the view holds it at full quality (a traced
                 # view, finished or not, is saved as it stands: nothing waits, nothing restarts);
                 # otherwise rendered afresh at the view's size

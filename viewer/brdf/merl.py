@@ -38,6 +38,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.io import atomic_write_file, one_line, stat_file
+from viewer.spectral.colorimetry import LUMINANCE_REC709
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +48,7 @@ HEADER = struct.Struct("<3i")
 N_VALUES = 3 * N_TH * N_TD * N_PD
 FILE_SIZE = HEADER.size + 8 * N_VALUES
 HALF_PI = 0.5 * np.pi
-LUM = np.array([0.2126, 0.7152, 0.0722])
+LUM = LUMINANCE_REC709
 
 
 # ---------------------------------------------------------------- coordinates

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.spectral.colorimetry import LUMINANCE_REC709, luminance  # public here too (the models' samplers)
+
 INV_PI = 1.0 / np.pi
 
 # BRDF values are capped at F_MAX = e^80 (about 5.5e34) in both twins (GLSL: common/math.glsl):
@@ -76,12 +78,6 @@ def frame_from_z(z):
 
 
 # ---- power-cosine lobes and mixtures (added for phong / blinn_phong / lafortune / ashikhmin_shirley)
-LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
-
-
-def luminance(rgb):
-    """Rec.709 luminance of linear RGB (..., 3) -> (...)."""
-    return np.asarray(rgb, dtype=np.float64) @ LUMINANCE_REC709
 
 
 def power_cosine(u, n):

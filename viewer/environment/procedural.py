@@ -17,12 +17,13 @@ import math
 import numpy as np
 
 from viewer.environment.latlong import dir_to_uv, row_solid_angles, texel_directions, uv_to_dir
+from viewer.spectral.colorimetry import LUMINANCE_REC709
 
 # CIE XYZ -> linear Rec.709 RGB (IEC 61966-2-1 sRGB, D65 white).
 XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
                           [-0.9692660, 1.8760108, 0.0415560],
                           [0.0556434, -0.2040259, 1.0572252]])
-REC709_LUMA = np.array([0.2126, 0.7152, 0.0722])
+REC709_LUMA = LUMINANCE_REC709
 
 
 def direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:

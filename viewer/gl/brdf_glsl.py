@@ -20,9 +20,9 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.spec import ModelSpec, Param, Params
+from viewer.gl.constants import MAT_VEC4
 from viewer.gl.shader_folder import ShaderError, shader_root
 
-MAT_VEC4 = 64  # size of the uniform block u_mat in vec4s (256 floats)
 
 
 # ---------------------------------------------------------------- layout

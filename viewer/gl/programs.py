@@ -208,7 +208,7 @@ class ProgramCache:
 FORWARD_STAGES = ("passes/forward.vert", "passes/forward.frag", "passes/forward.geom")
 
 
-def forward_variant(params, *, per_sample: bool = False, ssr: bool = False, ibl_sampled: bool = False,
+def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
                     env_light: bool = True, env_constant: bool = False, traced=None,
                     dispersion: bool = False) -> tuple[str, tuple[str, ...], dict[str, str]]:
     """(cache key, BRDF models, ``#define``s) of the forward program that draws a material.
@@ -227,12 +227,12 @@ def forward_variant(params, *, per_sample: bool = False, ssr: bool = False, ibl_
         scene_models = sorted(dict.fromkeys(m for p in traced for m in models_used(p)))
         used = tuple(dict.fromkeys(used + tuple(scene_models)))
         materials += traced
-    flags = {"SAMPLE_SHADING": per_sample, "SSR": ssr, "IBL_SAMPLED": ibl_sampled, "ENV_LIGHT": env_light,
+    flags = {"SSR": ssr, "IBL_SAMPLED": ibl_sampled, "ENV_LIGHT": env_light,
              "ENV_CONSTANT": env_constant, "RAYTRACE": traced is not None, "MAT_TEXTURE": traced is not None,
              "RT_DISPERSION": traced is not None and dispersion}
     defines = {k: "1" for k, on in flags.items() if on}
     defines.update(program_defines(materials))
-    key = ("forward:" + "+".join(used) + (":sample" if per_sample else "") + (":ssr" if ssr else "")
+    key = ("forward:" + "+".join(used) + (":ssr" if ssr else "")
            + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
            + (":const" if env_constant else "") + (":rt" if traced is not None else "")
            + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else "")

@@ -20,7 +20,7 @@ from viewer.brdf import thin_film
 from viewer.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
-from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
+from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAT_FLOATS, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
 from viewer.gl.material_tables import MaterialTables
 from viewer.gl.programs import FORWARD_STAGES, ProgramCache, Recipe, forward_variant
 from viewer.gl.shaders import ShaderError
@@ -162,10 +162,9 @@ class _Frame(NamedTuple):
 
 
 class Renderer:
-    # Per-sample shading (GLSL 'sample' inputs) is off: on Mesa llvmpipe 22.3 it gave wrong shadow
+    # No per-sample shading (GLSL 'sample' inputs): on Mesa llvmpipe 22.3 it gave wrong shadow
     # visibility on fully covered pixels near silhouettes (measured against the reference). For
     # an exact box filter use render_arrays(..., supersample=k) instead.
-    sample_shading = False
 
     def __init__(self, ctx):
         self.ctx = ctx
@@ -242,14 +241,13 @@ class Renderer:
         self._programs.reload(changed, passes={"ssr": self._ssr, "ibl": self._ibl})
         return self.shader_errors
 
-    def forward_program(self, params, sample_shading: bool | None = None, ssr: bool = False,
+    def forward_program(self, params, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
                         traced=None, dispersion: bool = False):
         """The forward program for a material (its model, and a nested base model if any); the
         variants are ``programs.forward_variant``'s (``traced``: the scene's materials, for a
         mirror or smooth glass whose specular chain is traced)."""
-        per_sample = self.sample_shading if sample_shading is None else sample_shading
-        key, models, defines = forward_variant(params, per_sample=per_sample, ssr=ssr, ibl_sampled=ibl_sampled,
+        key, models, defines = forward_variant(params, ssr=ssr, ibl_sampled=ibl_sampled,
                                                env_light=env_light, env_constant=env_constant, traced=traced,
                                                dispersion=dispersion)
         prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
@@ -560,8 +558,7 @@ class Renderer:
             params = scene.materials[obj.material]
             traced = rt is not None and chain_kind(params) != KIND_SHADED
             try:
-                prog = self.forward_program(params, sample_shading=self.sample_shading and f.targets["samples"] > 1,
-                                            ssr=f.ssr_on, ibl_sampled=ibl_sampled, env_light=f.env_on,
+                prog = self.forward_program(params, ssr=f.ssr_on, ibl_sampled=ibl_sampled, env_light=f.env_on,
                                             env_constant=f.env_map is None, traced=rt[1] if traced else None,
                                             dispersion=traced and rt[2])
             except ShaderError:
@@ -579,7 +576,7 @@ class Renderer:
                 rt[0].bind(prog, first_unit=texture_units.TRACED)
                 row = rt[0].rows[obj.material]
                 _set(prog, "u_rt_row", row)
-                _set(prog, "u_mat_base", row * 256)
+                _set(prog, "u_mat_base", row * MAT_FLOATS)
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             idx, block = uniform_block(params)

@@ -52,6 +52,7 @@ import numpy as np
 
 from viewer.camera import gl_bytes
 from viewer.gl import texture_units
+from viewer.gl.constants import EMPTY_DEPTH  # the pyramid's value where there is no surface (ssr_hiz.frag)
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 
@@ -61,8 +62,6 @@ PROGRAMS = {
     "background": Recipe("passes/fullscreen.vert", "passes/ssr_background.frag"),
     "hiz": Recipe("passes/fullscreen.vert", "passes/ssr_hiz.frag"),
 }
-
-SSR_DEBUG = {"ssr hit": 1, "ssr steps": 2, "ssr uv": 3, "ssr only": 4}
 
 
 class SSR:
@@ -301,9 +300,6 @@ class SSR:
             v.release()
         for p in self.programs.values():
             p.release()
-
-
-EMPTY_DEPTH = 1e30  # the pyramid's value where there is no surface (shaders/passes/ssr_hiz.frag)
 
 
 def depth_from_geom(g):

@@ -41,9 +41,8 @@ from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
 from viewer.gpupt.refusals import MEASURED_REFUSAL, needs_spectral, uses_measured
-from viewer.pathtracer.integrator import RenderSetup, check_options
-
-FLOAT32_MAX = float(np.finfo(np.float32).max)
+from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
+from viewer.pathtracer.integrator import RenderSetup
 
 
 def dispatch_from_texture(models: tuple[str, ...]) -> str:
@@ -97,9 +96,7 @@ class GpuReferenceRenderer:
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _refuse_measured(scene)
-        check_options(strategy, mis_heuristic)
-        self.strategy, self.mis_heuristic = strategy, mis_heuristic
-        self.russian_roulette = bool(russian_roulette)
+        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
         self.spectral = spectral    # trace wavelengths; None: where a material is dispersive
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
@@ -118,8 +115,7 @@ class GpuReferenceRenderer:
     # ------------------------------------------------------------------ setup
     def _make_setup(self, scene, camera, width, height) -> RenderSetup:
         setup = RenderSetup.from_scene(scene, camera, width, height, self.max_depth, self.env_image,
-                                       strategy=self.strategy, mis_heuristic=self.mis_heuristic,
-                                       russian_roulette=self.russian_roulette)
+                                       **self.options.as_kwargs())
         setup.extra["spectral"] = needs_spectral(scene, self.spectral)   # as the CPU engine (the cache key reads it)
         return setup
 
@@ -128,11 +124,7 @@ class GpuReferenceRenderer:
         """Start over on a changed scene, camera or size (the programs stay cached); the
         estimator's options change where given (None: as before)."""
         _refuse_measured(scene)
-        check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
-        self.strategy = strategy or self.strategy
-        self.mis_heuristic = mis_heuristic or self.mis_heuristic
-        if russian_roulette is not None:
-            self.russian_roulette = bool(russian_roulette)
+        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
         self._set_setup(self._make_setup(scene, camera, width, height))
 
     def _release_scene(self):
@@ -413,18 +405,12 @@ class GpuReferenceRenderer:
     def mean(self) -> np.ndarray:
         """(H, W, 3) float32 running mean, row 0 = top (pixels with no sample yet: 0)."""
         s, _, n = self.sums()
-        with np.errstate(invalid="ignore", divide="ignore"):
-            m = np.where(n[:, :, None] > 0, s / np.maximum(n, 1)[:, :, None], 0.0)
-        return np.minimum(m, FLOAT32_MAX).astype(np.float32)
+        return mean_of(s, n[:, :, None])
 
     def variance(self) -> np.ndarray:
-        """(H, W, 3) variance of the mean per pixel (unbiased sample variance / n; inf below 2)."""
+        """(H, W, 3) variance of the mean per pixel (``estimator.variance_of_mean``)."""
         s, q, n = self.sums()
-        n3 = n[:, :, None]
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            m = s / np.maximum(n3, 1)
-            var = np.maximum(q - n3 * m * m, 0.0) / np.maximum(n3 - 1, 1) / np.maximum(n3, 1)
-        return np.where(n3 >= 2, var, np.inf).astype(np.float32)
+        return variance_of_mean(s, q, n[:, :, None])
 
     def close(self):
         if self.ctx is None:

@@ -226,7 +226,7 @@ class _Group:
         self.mi = mi              # the material's index
         self.act = act            # the paths (indices into the trace's N) of the hits
         self.k = sel.size
-        self.two = info.transmissive
+        self.transmissive = info.transmissive  # shades both sides
         self.wo = wo_l[sel]
         self.n, self.tx, self.ty, self.ng = n[sel], tx[sel], ty[sel], ng[sel]
 
@@ -247,7 +247,7 @@ class _Group:
         """The rasterizer's light test: shading and geometric cosine on the same side (both
         positive for a reflection-only surface)."""
         g = _dot(self.ng, ww)
-        if self.two:
+        if self.transmissive:
             return wl[:, 2] * g > 0
         return (wl[:, 2] > 0) & (g > 0)
 
@@ -327,7 +327,7 @@ class _Bounce:
         self.pdf = np.zeros(m)
         self.lpdf = np.zeros(m)
         self.delta = np.zeros(m, dtype=bool)
-        self.solo = np.zeros(m, dtype=bool)
+        self.hero_only = np.zeros(m, dtype=bool)
 
 
 class Integrator:
@@ -467,9 +467,9 @@ class Integrator:
         wi_l, wgt, pdf_s, disc = g.model.sample_lobe(g.prm, g.wo, rnd_g)
         return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None, disc
 
-    def throughput(self, paths: PathState, act, Ta, new: _Bounce):
+    def throughput(self, paths: PathState, act, T_before, new: _Bounce):
         """The paths' throughput after the bounce."""
-        return Ta * new.w
+        return T_before * new.w
 
     # -- the steps of one bounce
     def _bsdf_hits_environment(self, paths: PathState, idx, d):
@@ -585,10 +585,10 @@ class Integrator:
         new.pdf[sel] = pdf_s
         new.delta[sel] = disc
         if hero_only is not None:
-            new.solo[sel] = hero_only
+            new.hero_only[sel] = hero_only
         if self.env_by_light and self.env_by_bsdf:  # MIS: light sampling's density there
-            new.lpdf[sel] = np.where(disc, 0.0, self.s.env.pdf(wi_w, g.n, np.full(g.k, g.two)))
-        if g.two:
+            new.lpdf[sel] = np.where(disc, 0.0, self.s.env.pdf(wi_w, g.n, np.full(g.k, g.transmissive)))
+        if g.transmissive:
             inside_next = _dot(hits.ng_raw[sel], wi_w) < 0
             paths.sigma[g.act] = np.where(inside_next[:, None], g.info.sigma_a, 0.0)
 
@@ -596,7 +596,7 @@ class Integrator:
         """One bounce at the hits of paths ``act``: per material, next-event estimation (shadow
         rays traced together at the end) and a BSDF sample."""
         s = self.s
-        Ta = paths.T[act]
+        T_before = paths.T[act]
         lights = self._delta_lights(hits, paths, act)
         env_sample = self._light_sample_environment(rnd, hits.n, hits.trans) if self.env_by_light else None
         new = _Bounce(act.size, self.CHANNELS)
@@ -609,7 +609,7 @@ class Integrator:
                 if prm is not None:  # a film over height: the material at this hit's thickness
                     g.prm = prm
                 if g.info.kind != "delta" and (s.lights or env_sample is not None):
-                    self._next_event(g, paths, Ta[sel], hits, lights, env_sample, shadows)
+                    self._next_event(g, paths, T_before[sel], hits, lights, env_sample, shadows)
                 self._scatter(g, paths, hits, rnd[sel, 0:2], new)
         self._trace_shadows(paths.L, shadows)
         return new
@@ -625,22 +625,22 @@ class Integrator:
         free = ~blocked
         np.add.at(L, idx[free], c[free])
 
-    def _roulette(self, Tn, alive, u, depth):
+    def _roulette(self, T_after, alive, u, depth):
         """Russian roulette from ``RR_START_DEPTH`` on (when enabled): survival probability
         clamp(max throughput), survivors divided by it."""
         if self.russian_roulette and depth >= RR_START_DEPTH:
-            q = np.clip(Tn.max(axis=1), RR_MIN, RR_MAX)
+            q = np.clip(T_after.max(axis=1), RR_MIN, RR_MAX)
             survive = u < q
-            Tn = Tn / q[:, None]
+            T_after = T_after / q[:, None]
             alive &= survive
-        return Tn, alive
+        return T_after, alive
 
     def _continue(self, paths: PathState, act, hits: _Hits, new: _Bounce, u_rr, depth):
         """The paths' new throughput, MIS memory and rays; returns (o, d, act) of the survivors."""
-        Tn = self.throughput(paths, act, paths.T[act], new)
-        alive = np.any(Tn > 0, axis=1)
-        Tn, alive = self._roulette(Tn, alive, u_rr, depth)
-        paths.T[act] = Tn
+        T_after = self.throughput(paths, act, paths.T[act], new)
+        alive = np.any(T_after > 0, axis=1)
+        T_after, alive = self._roulette(T_after, alive, u_rr, depth)
+        paths.T[act] = T_after
         paths.prev_pdf[act] = new.pdf
         paths.prev_lpdf[act] = new.lpdf
         paths.prev_delta[act] = new.delta

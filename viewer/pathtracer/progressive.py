@@ -36,13 +36,13 @@ import time
 
 import numpy as np
 
-from viewer.pathtracer.integrator import Integrator, RenderSetup, check_options
+from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
+from viewer.pathtracer.integrator import Integrator, RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
 
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
 TARGET_CHUNK_PATHS = 8192      # camera samples per chunk (about 60 ms on one core)
 POLL_S = 0.005
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 _WORKER: Integrator | None = None
 _WORKER_KEY: str | None = None
@@ -161,7 +161,10 @@ class ReferenceRenderer:
     """Progressive reference rendering of ``scene`` (``camera``: an ``OrbitCamera`` or anything
     with position, target, up, fov_y; default ``OrbitCamera.from_scene``). ``strategy`` says how
     the environment is reached ("mis" default, "bsdf", "light"), ``mis_heuristic`` weights MIS
-    ("power" default, "balance"), ``russian_roulette`` turns roulette on (default) or off."""
+    ("power" default, "balance"), ``russian_roulette`` turns roulette on (default) or off: the
+    ``options`` (``EstimatorOptions``). The interface is ``viewer.pathtracer.estimator.ReferenceEngine``."""
+
+    engine = "cpu"
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None,
@@ -169,10 +172,8 @@ class ReferenceRenderer:
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _check_kernel(kernel)
-        check_options(strategy, mis_heuristic)
+        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
-        self.strategy, self.mis_heuristic = strategy, mis_heuristic
-        self.russian_roulette = bool(russian_roulette)
         self.seed = int(seed)
         self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
@@ -210,18 +211,13 @@ class ReferenceRenderer:
 
     def _make_setup(self, scene, camera, width, height) -> RenderSetup:
         return self._spectral_setup(scene, RenderSetup.from_scene(
-            scene, camera, width, height, self.max_depth, self.env_image, self.kernel, strategy=self.strategy,
-            mis_heuristic=self.mis_heuristic, russian_roulette=self.russian_roulette))
+            scene, camera, width, height, self.max_depth, self.env_image, self.kernel, **self.options.as_kwargs()))
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
               russian_roulette=None):
         """Start over on a changed scene, camera or size, keeping the worker processes; the
         estimator's options change where given (None: as before)."""
-        check_options(strategy or self.strategy, mis_heuristic or self.mis_heuristic)
-        self.strategy = strategy or self.strategy
-        self.mis_heuristic = mis_heuristic or self.mis_heuristic
-        if russian_roulette is not None:
-            self.russian_roulette = bool(russian_roulette)
+        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
         self._set_setup(self._make_setup(scene, camera, width, height))
         if self._pool is not None:
             fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")
@@ -322,25 +318,12 @@ class ReferenceRenderer:
 
     # ------------------------------------------------------------------ results
     def mean(self) -> np.ndarray:
-        """(H, W, 3) float32 running mean, row 0 = top. Radiance beyond the float32 range
-        saturates at its largest value (3.4e38) instead of becoming inf: possible at the far ends
-        of the parameter ranges, e.g. a Lafortune lobe |C| = 10, n = 5000, whose value is capped
-        at e^80 but whose path weights multiply over the bounces."""
-        if self.spp == 0:
-            return np.zeros((self.height, self.width, 3), dtype=np.float32)
-        return np.minimum(self._sum / self.spp, FLOAT32_MAX).astype(np.float32)
+        """(H, W, 3) float32 running mean, row 0 = top (``estimator.mean_of``)."""
+        return mean_of(self._sum, self.spp)
 
     def variance(self) -> np.ndarray:
-        """(H, W, 3) variance of the mean per pixel: unbiased sample variance / n
-        (inf with fewer than 2 samples)."""
-        n = self.spp
-        if n < 2:
-            return np.full((self.height, self.width, 3), np.inf, dtype=np.float32)
-        m = self._sum / n
-        with np.errstate(over="ignore", invalid="ignore"):  # squares of huge values: inf, never NaN
-            var = np.maximum(self._sum2 - n * m * m, 0.0) / (n - 1)
-            var = np.where(np.isfinite(self._sum2), var, np.inf)
-            return (var / n).astype(np.float32)
+        """(H, W, 3) variance of the mean per pixel (``estimator.variance_of_mean``)."""
+        return variance_of_mean(self._sum, self._sum2, self.spp)
 
     def warm_up(self):
         """Start every worker process now (and build its ray-tracing structures), so the

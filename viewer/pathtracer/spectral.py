@@ -134,13 +134,13 @@ def params_at(p, lam3) -> Params:
 
 class SpectralPaths(PathState):
     """``PathState`` with four wavelength bins ``lam`` (N, 4) per path, its hero index ``hero``
-    (N,) and whether the path has been reduced to its hero (``solo``: T holds the hero alone)."""
+    (N,) and whether the path has been reduced to its hero (``hero_only``: T holds the hero alone)."""
 
     def __init__(self, lam, hero):
         super().__init__(lam.shape[0], 4)
         self.lam = lam
         self.hero = hero
-        self.solo = np.zeros(lam.shape[0], dtype=bool)
+        self.hero_only = np.zeros(lam.shape[0], dtype=bool)
 
 
 class SpectralIntegrator(Integrator):
@@ -215,7 +215,7 @@ class SpectralIntegrator(Integrator):
         # already reduced to its hero (its throughput holds the 4x)
         if self.category[g.mi] != "hero":
             return None
-        return np.where(paths.solo[g.act], 1.0, HERO)
+        return np.where(paths.hero_only[g.act], 1.0, HERO)
 
     def eval_directions(self, g, paths, dirs_w):
         lam_s, hero_s, cat = paths.lam[g.act], paths.hero[g.act], self.category[g.mi]
@@ -233,16 +233,16 @@ class SpectralIntegrator(Integrator):
         return self._sample4(g.mi, g.model, g.info, self.category[g.mi], paths.lam[g.act],
                              paths.hero[g.act], g.wo, rnd_g, g.prm)
 
-    def throughput(self, paths, act, Ta, new):
+    def throughput(self, paths, act, T_before, new):
         # a path that becomes hero-only: the model weighted only the hero's channel; the hero
         # now carries the four wavelengths' share (4x), the others are terminated
-        was_solo = paths.solo[act]
-        became = new.solo & ~was_solo
-        Tn = Ta * new.w
+        was_hero_only = paths.hero_only[act]
+        became = new.hero_only & ~was_hero_only
+        T_after = T_before * new.w
         if np.any(became):
-            Tn[became] *= HERO
-        paths.solo[act] = was_solo | new.solo
-        return Tn
+            T_after[became] *= HERO
+        paths.hero_only[act] = was_hero_only | new.hero_only
+        return T_after
 
     # -- evaluation of one material group at the paths' wavelengths
     def _eval4(self, mi, model, prm, cat, lam, hero, wi, wo):

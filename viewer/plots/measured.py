@@ -93,7 +93,7 @@ def draw_slice(cv, fig, width, height):
     _ticks(cv, box, f"{fig.model}: f (theta_d down)")
     cv.vtext((cv.s(18), (box[1] + box[3]) / 2), "theta_d (deg)", px=12)
     if two:
-        r = np.asarray(info["residual"]) @ np.array([0.2126, 0.7152, 0.0722])
+        r = np.asarray(info["residual"]) @ LUMINANCE
         vm = max(float(np.abs(r).max()), 1e-12)
         t = np.clip(r / vm, -1.0, 1.0)
         img = np.stack([1 - np.clip(-t, 0, 1), 1 - np.abs(t), 1 - np.clip(t, 0, 1)], axis=-1)

@@ -10,11 +10,12 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.scene.model import equal
+from viewer.spectral.colorimetry import LUMINANCE_REC709
 
 MAP_ALLOWED = ("a built-in name (sky, studio) or a lat-long image file (Radiance .hdr, OpenEXR .exr) "
                "relative to the scene file")
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance of linear RGB
+LUMINANCE = LUMINANCE_REC709  # Rec.709 luminance of linear RGB
 MID_GREY = 0.18
 
 

@@ -23,6 +23,14 @@ import pathlib
 import numpy as np
 
 DATA = pathlib.Path(__file__).resolve().parent / "data"
+#: Rec.709 luminance of linear RGB: the Y row of the RGB -> XYZ matrix (ITU-R BT.709), the one
+#: place the weights are written (GLSL: ``luminance`` in shaders/common/math.glsl)
+LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
+
+
+def luminance(rgb):
+    """Rec.709 luminance of linear RGB (..., 3) -> (...)."""
+    return np.asarray(rgb, dtype=np.float64) @ LUMINANCE_REC709
 REC709_XY = ((0.64, 0.33), (0.30, 0.60), (0.15, 0.06))
 
 

@@ -45,7 +45,7 @@ def plan(win):
     m = None if win.view_only else toast(session, win.TOAST_S)
     rv = session.reference
     labels = cmp.overlay_labels(view, rv.spp if rv is not None else 0)
-    bars = cmp.overlay_bars(view) + session.mc.overlay_bars(cmp.reference_rect(view))
+    bars = cmp.overlay_bars(view) + session.monte_carlo.overlay_bars(cmp.reference_rect(view))
     title, caption = ("", "") if win.view_only else session.lecture_title
     # the progressive trace's progress stands where a toast would (a toast comes first)
     texts = dict(labels=labels, toast=m.text if m else session.trace_status, rmse=cmp.metrics_text(), bars=bars, title=title,
@@ -86,7 +86,7 @@ def draw(win) -> None:
         draw_colour_bar(imgui, dl, lay, 0, label, session.compare.scale, t["bars"][0][1])
         j = 1
     if len(t["bars"]) > j and f"bar{j}" in lay:
-        session.mc.draw_overlay(imgui, lay, j, label)
+        session.monte_carlo.draw_overlay(imgui, lay, j, label)
     if t["rmse"] and "rmse" in lay:
         r = lay["rmse"]
         dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom), shade)

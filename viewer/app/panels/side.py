@@ -33,7 +33,7 @@ class SidePanel:
         self.files.draw()
         lecture.draw_section(session)
         display.draw(win)
-        session.mc.draw_settings(session.reference_view(), session.compare.uses_reference)
+        session.monte_carlo.draw_settings(session.reference_view(), session.compare.uses_reference)
         if imgui.collapsing_header("Environment", imgui.TreeNodeFlags_.default_open):
             self.environment.draw()
             if session.scene.render.ibl == "brute_force":

@@ -1,0 +1,104 @@
+"""What the two reference engines share: the interface (``ReferenceEngine``: the CPU engine's
+``ReferenceRenderer`` and the GPU engine's ``GpuReferenceRenderer`` both have it), the
+estimator's options (``EstimatorOptions``) and the mean and variance of a pixel's sums
+(``mean_of``, ``variance_of_mean``), so both engines answer from their sums the same way.
+No GL here (the GPU engine imports this module, never the other way round)."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from viewer.pathtracer.integrator import check_options
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+@dataclasses.dataclass(frozen=True)
+class EstimatorOptions:
+    """How the environment is reached (``strategy``: "mis", "bsdf" or "light"), how MIS
+    weights (``mis_heuristic``: "power" or "balance") and whether Russian roulette ends paths;
+    checked on creation (a one-line ViewerError)."""
+
+    strategy: str = "mis"
+    mis_heuristic: str = "power"
+    russian_roulette: bool = True
+
+    def __post_init__(self):
+        check_options(self.strategy, self.mis_heuristic)
+        object.__setattr__(self, "russian_roulette", bool(self.russian_roulette))
+
+    def updated(self, strategy=None, mis_heuristic=None, russian_roulette=None) -> "EstimatorOptions":
+        """These options with the ones given changed (None: as before)."""
+        given = dict(strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=russian_roulette)
+        return dataclasses.replace(self, **{k: v for k, v in given.items() if v is not None})
+
+    def as_kwargs(self) -> dict:
+        """``strategy=, mis_heuristic=, russian_roulette=`` for ``RenderSetup.from_scene``."""
+        return dataclasses.asdict(self)
+
+
+@runtime_checkable
+class ReferenceEngine(Protocol):
+    """A progressive reference renderer (``viewer.gpupt.select.make_renderer`` makes one of
+    either engine). ``engine``: "cpu" or "gpu"; ``options``: its ``EstimatorOptions``;
+    ``spp``: whole samples per pixel so far; ``bad_values``: NaN / inf samples dropped."""
+
+    engine: str
+    options: EstimatorOptions
+    width: int
+    height: int
+    spp: int
+    is_spectral: bool
+
+    def step(self, spp: int = 1, cancel: threading.Event | None = None, progress=None) -> bool:
+        """Add ``spp`` samples per pixel; False when ``cancel`` stopped it."""
+
+    def mean(self) -> np.ndarray:
+        """(H, W, 3) float32 running mean, row 0 = top."""
+
+    def variance(self) -> np.ndarray:
+        """(H, W, 3) float32 variance of the mean per pixel."""
+
+    def state(self):
+        """(sum, sum of squares, spp) so far, for the reference cache."""
+
+    def resume(self, total, total2, spp: int) -> None:
+        """Continue from stored sums of ``spp`` samples per pixel."""
+
+    def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
+              russian_roulette=None) -> None:
+        """Start over on a changed scene, camera or size; the options given change."""
+
+    def warm_up(self) -> None:
+        """Get ready to render (workers started, programs compiled)."""
+
+    def close(self) -> None:
+        """Release what the engine holds."""
+
+
+def mean_of(total, n) -> np.ndarray:
+    """(H, W, 3) float32 mean of per-pixel sums ``total`` over ``n`` samples (a number, or
+    (H, W, 1) per pixel); 0 where there is no sample. Radiance beyond the float32 range
+    saturates at its largest value (3.4e38) instead of becoming inf: possible at the far ends
+    of the parameter ranges, e.g. a Lafortune lobe |C| = 10, n = 5000, whose value is capped at
+    e^80 but whose path weights multiply over the bounces."""
+    n = np.asarray(n, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m = np.where(n > 0, total / np.maximum(n, 1.0), 0.0)
+    return np.minimum(m, FLOAT32_MAX).astype(np.float32)
+
+
+def variance_of_mean(total, total2, n) -> np.ndarray:
+    """(H, W, 3) float32 variance of the mean: the unbiased sample variance of the sums
+    ``total``, ``total2`` (of the squares) over ``n`` samples, divided by n; inf below 2 samples
+    and where the squares overflowed (never NaN)."""
+    n = np.asarray(n, np.float64)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        m = total / np.maximum(n, 1.0)
+        var = np.maximum(total2 - n * m * m, 0.0) / np.maximum(n - 1.0, 1.0) / np.maximum(n, 1.0)
+        var = np.where(np.isfinite(total2), var, np.inf)
+    return np.where(n >= 2, var, np.inf).astype(np.float32)
