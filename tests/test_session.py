@@ -308,3 +308,14 @@ def test_traced_chains_refine_when_still_and_not_while_interacting(session, monk
     session.changed()
     session.render_view(SIZE, interacting=True)
     assert asked == [False] and not session.refining
+
+
+def test_s_cycles_the_reference_strategy(session):
+    """The S key's action: MIS -> BSDF alone -> light alone -> MIS, each said in one line."""
+    seen = []
+    for _ in range(3):
+        n0 = len(session.messages)
+        seen.append(session.cycle_strategy())
+        assert session.reference.options["strategy"] == seen[-1]
+        assert any("strategy" in m.text for m in new_messages(session, n0))
+    assert seen == ["bsdf", "light", "mis"]

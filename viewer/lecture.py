@@ -170,11 +170,12 @@ TOUR: tuple[Step, ...] = (
     # (test_strategies measures the same scene and checks them): MIS 1.27, BSDF alone 3.51,
     # light alone 4.35.
     Step("importance_sampling", "Importance sampling: BSDF, light and MIS",
-         "Glossy gold under the studio map. Reference > strategy: BSDF sampling alone has 2.8x, light "
-         "sampling alone 3.4x the variance of MIS (power heuristic); error view shows where.",
+         "Glossy gold under the studio map, raster left, reference right. Press S to switch the reference "
+         "between MIS, BSDF sampling alone (2.8x the variance of MIS) and light sampling alone (3.4x): "
+         "watch the speckle.",
          _scene(_camera((0.0, 0.0, 3.2), (0.0, 0.0, 0.0), 40.0), _STUDIO, _render("split_sum"),
                 '[[objects]]\nmesh = "sphere"\nmaterial = "ball"\n',
-                _mat("ball", "gold", alpha=0.15)), "sampling", "reference"),
+                _mat("ball", "gold", alpha=0.15)), "sampling", "split"),
 )
 
 
