@@ -224,7 +224,7 @@ def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_p
         app = App("default", size=(640, 360), restore_state=False)
         app.frame()
         app.session.camera.orbit(40.0, 15.0, 360)  # the saved camera is where the user left it
-        app.session.scene.materials["ball"] = app.session.scene.materials["ball"].replace(albedo=np.array([0.2, 0.5, 0.7]))
+        app.session.scene.materials["ball"] = app.session.scene.materials["ball"].replace(kd=np.array([0.2, 0.5, 0.7]))
         def image():
             app.session.dirty = True
             app.frame()
@@ -242,7 +242,7 @@ def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_p
         # a material file loaded onto another material
         app.session.open_scene("default")
         ok6 = app.session.load_material("ball", {str(tmp_path / "ball.toml")!r})
-        alb = [float(x) for x in app.session.scene.materials["ball"]["albedo"]]
+        alb = [float(x) for x in app.session.scene.materials["ball"]["kd"]]
         bad = app.session.open_scene({str(tmp_path / "missing.toml")!r})
         status = app.session.status
         still = app.session.scene.label

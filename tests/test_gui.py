@@ -37,7 +37,7 @@ def test_starts_renders_and_screenshots(display, tmp_path):
     import tomllib
 
     scene = parse_scene(tomllib.loads(text["brdf-viewer:scene"]), None, load_meshes=False)
-    assert scene.materials["ball"].model == "lambert"
+    assert scene.materials["ball"].model == "microfacet"
     assert not any(p.name.endswith(".part") for p in tmp_path.iterdir())  # atomic write
 
 

@@ -96,3 +96,30 @@ def test_window_draws_the_choice(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     diff = float(r.stdout.split("DIFF")[1])
     assert diff > 0.5, diff
+
+
+def test_glass_with_reflections_off_says_ray_tracing_shows_it(gl_ctx, renderer):
+    """A glass, mirror or soap preset on the default scene with reflections off: one notice
+    (and the Materials panel's line) naming the material and the choice that shows it; none
+    for a rough lobe, none once traced."""
+    from viewer.app.reflections import delta_materials, set_reflection_mode, traced_hint
+    from viewer.app.session import Session
+    from viewer.app.ui import preset_params
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    try:
+        assert traced_hint(s.scene) == ""  # terracotta and a floor: nothing to trace
+        for preset in ("glass", "polished_silver", "soap_bubble"):
+            s.set_material("ball", preset_params("gold"))
+            n0 = len(s.messages)
+            s.set_material("ball", preset_params(preset))
+            new = [m.text for m in s.messages[n0:]]
+            assert delta_materials(s.scene) == ["ball"], preset
+            assert len(new) == 1 and "ball" in new[0] and "ray traced" in new[0], (preset, new)
+        s.set_material("ball", preset_params("gold"))
+        assert traced_hint(s.scene) == ""  # a rough conductor: the environment is its reflection
+        s.set_material("ball", preset_params("glass"))
+        set_reflection_mode(s.scene.render, "ray traced")
+        assert traced_hint(s.scene) == ""
+    finally:
+        s.release()

@@ -43,7 +43,7 @@ def test_notify_keeps_info_and_error_apart(session):
 
 
 def test_scene_save_and_open_round_trip(session, tmp_path):
-    session.set_material_param("ball", "albedo", [0.2, 0.5, 0.7])
+    session.set_material_param("ball", "kd", [0.2, 0.5, 0.7])
     session.camera.orbit(40.0, 15.0, 360)
     before = image(session)
     path = tmp_path / "saved.toml"
@@ -52,7 +52,7 @@ def test_scene_save_and_open_round_trip(session, tmp_path):
     assert not any(p.name.endswith(".part") for p in tmp_path.iterdir())  # written atomically
     assert session.open_scene("sphere") and "sphere" in session.scene.label  # another scene shown
     assert session.open_scene(path)
-    assert np.allclose(session.scene.materials["ball"]["albedo"], [0.2, 0.5, 0.7])
+    assert np.allclose(session.scene.materials["ball"]["kd"], [0.2, 0.5, 0.7])
     after = image(session)
     # the same scene and camera render the same raster (deterministic; 1e-5 covers float32
     # rounding of the camera written as decimal text)
@@ -61,17 +61,17 @@ def test_scene_save_and_open_round_trip(session, tmp_path):
 
 def test_material_parameter_changes_the_image_and_nan_is_refused(session):
     grey = image(session)
-    assert session.set_material_param("ball", "albedo", [0.05, 0.8, 0.05])
-    assert np.allclose(session.scene.materials["ball"]["albedo"], [0.05, 0.8, 0.05])
+    assert session.set_material_param("ball", "kd", [0.05, 0.8, 0.05])
+    assert np.allclose(session.scene.materials["ball"]["kd"], [0.05, 0.8, 0.05])
     green = image(session)
     diff = green - grey
     assert diff[..., 1].max() > 0.05 and diff[..., 0].min() < -0.05  # the ball turned green
     for bad in ([math.nan, 0.5, 0.5], [2.0, 0.5, 0.5], "red"):
         n0 = len(session.messages)
-        assert not session.set_material_param("ball", "albedo", bad)
+        assert not session.set_material_param("ball", "kd", bad)
         msgs = new_messages(session, n0)
-        assert len(msgs) == 1 and msgs[0].error and "albedo" in msgs[0].text, msgs
-        assert np.allclose(session.scene.materials["ball"]["albedo"], [0.05, 0.8, 0.05])  # the old value stays
+        assert len(msgs) == 1 and msgs[0].error and "kd" in msgs[0].text, msgs
+        assert np.allclose(session.scene.materials["ball"]["kd"], [0.05, 0.8, 0.05])  # the old value stays
     n0 = len(session.messages)
     assert not session.set_material_param("ball", "no_such_parameter", 1.0)
     assert len(new_messages(session, n0)) == 1 and session.last_message.error
@@ -114,18 +114,18 @@ def test_mesh_loads_and_a_broken_mesh_is_one_error(session, tmp_path):
 
 def test_material_file_loads_and_a_broken_one_is_one_error(session, tmp_path):
     path = tmp_path / "ball.toml"
-    session.set_material_param("ball", "albedo", [0.6, 0.1, 0.1])
+    session.set_material_param("ball", "kd", [0.6, 0.1, 0.1])
     assert session.save_material("ball", path)
-    session.set_material_param("ball", "albedo", [0.1, 0.1, 0.6])
+    session.set_material_param("ball", "kd", [0.1, 0.1, 0.6])
     assert session.load_material("ball", path) and not session.last_message.error
-    assert np.allclose(session.scene.materials["ball"]["albedo"], [0.6, 0.1, 0.1])
+    assert np.allclose(session.scene.materials["ball"]["kd"], [0.6, 0.1, 0.1])
     bad = tmp_path / "typo.toml"
     bad.write_text('[materials.x]\nmodel = "lambert"\nalbedo = [0.5, nan\n')
     n0 = len(session.messages)
     assert not session.load_material("ball", bad)
     msgs = new_messages(session, n0)
     assert len(msgs) == 1 and msgs[0].error and "typo.toml" in msgs[0].text, msgs
-    assert np.allclose(session.scene.materials["ball"]["albedo"], [0.6, 0.1, 0.1])
+    assert np.allclose(session.scene.materials["ball"]["kd"], [0.6, 0.1, 0.1])
     assert np.isfinite(image(session)).all()
 
 
@@ -208,7 +208,7 @@ def test_screenshot_is_a_png_of_the_view_size(session, tmp_path):
     img = Image.open(path)
     assert img.size == (64, 40) and img.mode == "RGB"
     assert np.asarray(img).std() > 5  # the scene, not a blank image
-    assert "lambert" in read_png_text(path)["brdf-viewer:scene"]
+    assert "microfacet" in read_png_text(path)["brdf-viewer:scene"]
     assert not any(p.name.endswith(".part") for p in tmp_path.iterdir())
     n0 = len(session.messages)
     assert session.take_screenshot(tmp_path / "no" / "such" / "folder.png", size=(64, 40)) is None
@@ -222,7 +222,7 @@ def test_state_round_trip(gl_ctx, renderer, session, tmp_path):
     session.set_image_mode("side by side")
     session.compare.split = 0.3
     session.set_view_mode(1)
-    session.set_material_param("ball", "albedo", [0.3, 0.6, 0.9])
+    session.set_material_param("ball", "kd", [0.3, 0.6, 0.9])
     path = tmp_path / "state.toml"
     assert session.save_state({"ui_scale": 1.5, "show_ui": False}, path)
     st = state_mod.load_state(path)
@@ -232,7 +232,7 @@ def test_state_round_trip(gl_ctx, renderer, session, tmp_path):
     try:
         assert again.image_mode == "side by side" and again.compare.split == 0.3 and again.view_mode == 1
         assert again.open_scene(path.with_name("last_scene.toml"))  # the last session's scene
-        assert np.allclose(again.scene.materials["ball"]["albedo"], [0.3, 0.6, 0.9])
+        assert np.allclose(again.scene.materials["ball"]["kd"], [0.3, 0.6, 0.9])
     finally:
         again.release()
 
@@ -243,7 +243,7 @@ def test_brute_force_accumulation_restarts_on_a_change(session):
     for _ in range(3):
         session.render_view(SIZE)
     assert session.bf_count == 3 and session.refining
-    session.set_material_param("ball", "albedo", [0.7, 0.7, 0.2])
+    session.set_material_param("ball", "kd", [0.7, 0.7, 0.2])
     session.render_view(SIZE)
     assert session.bf_count == 1  # a change starts the average over
 
@@ -312,3 +312,14 @@ def test_traced_chains_refine_when_still_and_not_while_interacting(session, monk
     session.changed()
     session.render_view(SIZE, interacting=True)
     assert asked == [False] and not session.refining
+
+
+def test_s_cycles_the_reference_strategy(session):
+    """The S key's action: MIS -> BSDF alone -> light alone -> MIS, each said in one line."""
+    seen = []
+    for _ in range(3):
+        n0 = len(session.messages)
+        seen.append(session.cycle_strategy())
+        assert session.reference.options["strategy"] == seen[-1]
+        assert any("strategy" in m.text for m in new_messages(session, n0))
+    assert seen == ["bsdf", "light", "mis"]

@@ -32,6 +32,12 @@ _FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n'
 # under the bright lights of the highlight steps: a dark floor, so the ball is the brightest thing
 _DARK_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.06, 0.06, 0.06]\n'
 _KEY_LIGHT = '[[lights]]\ntype = "point"\nposition = [-2.0, 4.0, 3.0]\nintensity = [30.0, 30.0, 30.0]\n'
+# the prism narrowed to a 30 degree apex (a 60 degree SF11 prism totally reflects a level view at
+# its back face): it bends the view about 27 degrees down, red and blue 2.4 degrees apart, onto
+# the floor behind it, where these white bars lie across a black floor (edges of high contrast)
+_BLACK_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.02, 0.02, 0.02]\n'
+_BARS = "".join(f'[[objects]]\nmesh = "cube"\nmaterial = "bar"\nscale = [0.8, 0.005, 0.025]\n'
+                f"translate = [-0.6, 0.005, {-0.35 - 0.15 * k:.2f}]\n" for k in range(10))
 # just above and left of the camera: the mirror direction lands on the ball's front, so the
 # highlight sits where the audience looks
 _HIGHLIGHT_LIGHT = '[[lights]]\ntype = "point"\nposition = [-0.8, 2.2, 4.0]\nintensity = [120.0, 120.0, 120.0]\n'
@@ -145,11 +151,14 @@ TOUR: tuple[Step, ...] = (
                 _mat("copper", "polished_copper")), "spectral"),
     Step("dispersion", "Dispersion: a flint prism and a diamond",
          "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
-         "The raster traces each colour channel with its own n: red and blue part at the edges.",
-         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True), _FLOOR,
-                '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = 0.5\n'
-                'translate = [-0.6, 0.6, 0.0]\nrotate_y_deg = 90.0\n',
-                _sphere("diamond", 0.7, 0.45), _FLOOR_MAT,
+         "Through the prism the white bars on the black floor behind it split into rainbow bands; "
+         "the raster traces each colour channel with its own n.",
+         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True),
+                _KEY_LIGHT, _FLOOR,
+                '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = [0.28, 0.6, 0.5]\n'
+                'translate = [-0.6, 0.3, 0.0]\nrotate_y_deg = 90.0\n',
+                _BARS, _sphere("diamond", 0.7, 0.45), _BLACK_FLOOR_MAT,
+                '[materials.bar]\nmodel = "lambert"\nalbedo = [0.9, 0.9, 0.9]\n',
                 '[materials.flint]\nmodel = "dielectric"\nspectral = "SF11"\n',
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
     Step("soap_bubble", "Soap bubbles: thin-film interference",
@@ -161,11 +170,12 @@ TOUR: tuple[Step, ...] = (
     # (test_strategies measures the same scene and checks them): MIS 1.27, BSDF alone 3.51,
     # light alone 4.35.
     Step("importance_sampling", "Importance sampling: BSDF, light and MIS",
-         "Glossy gold under the studio map. Reference > strategy: BSDF sampling alone has 2.8x, light "
-         "sampling alone 3.4x the variance of MIS (power heuristic); error view shows where.",
+         "Glossy gold under the studio map, raster left, reference right. Press S to switch the reference "
+         "between MIS, BSDF sampling alone (2.8x the variance of MIS) and light sampling alone (3.4x): "
+         "watch the speckle.",
          _scene(_camera((0.0, 0.0, 3.2), (0.0, 0.0, 0.0), 40.0), _STUDIO, _render("split_sum"),
                 '[[objects]]\nmesh = "sphere"\nmaterial = "ball"\n',
-                _mat("ball", "gold", alpha=0.15)), "sampling", "reference"),
+                _mat("ball", "gold", alpha=0.15)), "sampling", "split"),
 )
 
 

@@ -19,6 +19,9 @@ from viewer.compare import auto_scale, error_map, metrics, ramp
 
 MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
 USES_REFERENCE = frozenset(MODES[1:])
+# what the view says before the reference's first pass (its side of the view stays empty)
+PENDING = "reference: first pass coming"
+PENDING_DIFFERENCE = "difference: waiting for the reference's first pass"
 METRICS_INTERVAL_S = 0.5  # recompute RMSE / relMSE at most this often (a readback + numpy pass)
 
 
@@ -136,7 +139,17 @@ class CompareView:
         ctx = self.ctx
         x, y, w, h = view
         m = self.mode
-        if m == "raster" or (ref_tex is None and m in ("split", "side by side")):
+        if m == "split" and ref_tex is None:
+            # no reference yet: the raster on its side only; the reference's side stays empty
+            # under its label ("first pass coming"), never the raster shown as the reference
+            if raster_tex is not None:
+                ctx.scissor = (x, y, int(round(w * self.split)), h)
+                try:
+                    renderer.tonemap_to(fbo, raster_tex, exposure, tonemap, viewport=view)
+                finally:
+                    ctx.scissor = None
+            return
+        if m == "raster" or (ref_tex is None and m == "side by side"):
             if raster_tex is not None:
                 renderer.tonemap_to(fbo, raster_tex, exposure, tonemap, viewport=self.raster_rect(view))
             return
@@ -200,7 +213,9 @@ class CompareView:
     def overlay_labels(self, view_logical, ref_spp: int) -> list:
         """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``)."""
         x, y, w, h = view_logical
-        ref_label = f"reference ({ref_spp} spp)" if ref_spp else "reference (starting...)"
+        ref_label = f"reference ({ref_spp} spp)" if ref_spp else PENDING
+        if self.mode in ("difference", "relative difference") and self._pair is None:
+            return [(x, PENDING_DIFFERENCE)]
         if self.mode == "split":
             return [(x, "raster"), (self.divider_x(view_logical), ref_label)]
         if self.mode == "side by side":
@@ -210,8 +225,9 @@ class CompareView:
         return []
 
     def overlay_bars(self, view_logical) -> list:
-        """[(owner rect, what)] of the colour bar of a difference view."""
-        if self.mode not in ("difference", "relative difference"):
+        """[(owner rect, what)] of the colour bar of a difference view (none before there is a
+        difference: a 0-1 bar over an empty view would claim a scale)."""
+        if self.mode not in ("difference", "relative difference") or self._pair is None:
             return []
         from viewer.app.layout import Rect
 

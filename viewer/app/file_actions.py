@@ -24,9 +24,15 @@ class FileActions:
 
     # ------------------------------------------------------------------ materials
     def set_material(self, name: str, params) -> None:
-        """Replace material ``name`` with validated ``params`` (the editor's result)."""
+        """Replace material ``name`` with validated ``params`` (the editor's result). A mirror
+        or smooth glass arriving while reflections are not traced says what shows it."""
+        from viewer.app.reflections import delta_materials, traced_hint
+
+        was = name in delta_materials(self.scene)
         self.scene.materials[name] = params
         self.dirty = True
+        if not was and name in delta_materials(self.scene) and traced_hint(self.scene):
+            self.notify(traced_hint(self.scene))
 
     def set_material_param(self, name: str, param: str, value) -> bool:
         """Set one parameter of material ``name``, validated through the model's spec: NaN, Inf,

@@ -4,7 +4,7 @@ and every action) through the panels of ``viewer.app.panels``.
 
 Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
 F12 screenshot (PNG whose text chunks hold the scene and all parameters), C cycle the compare
-views, P the BRDF plots, L lecture mode (then 1-9, 0 and the arrow / page keys step the tour),
+views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode (then 1-9, 0 and the arrow / page keys step the tour),
 H hide the UI, F11 fullscreen, Ctrl +/- the UI scale. Files dropped on the window load by kind:
 .toml / .png scenes, .hdr / .exr environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
 
@@ -26,7 +26,7 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
 _TAP_KEYS = ("h", "f11", "c", "p", "l", "right", "page_down", "space", "left", "page_up", "escape",
-             "1", "2", "3", "4", "5", "6", "7", "8", "9", "0", "r", "f12")
+             "1", "2", "3", "4", "5", "6", "7", "8", "9", "0", "r", "f12", "s")
 
 
 class App:
@@ -419,6 +419,8 @@ class App:
             self.toggle_fullscreen()
         elif key == "c":
             s.cycle_image_mode()
+        elif key == "s":
+            s.cycle_strategy()
         elif key == "p":
             self.plots.visible = not self.plots.visible
             s.changed()

@@ -51,3 +51,29 @@ def set_reflection_mode(render, mode: str, ssr_on_glossy: bool | None = None) ->
             ssr_on_glossy = bool(render.ssr) if render.raytrace else False
         render.ssr, render.raytrace = bool(ssr_on_glossy), True
     return (bool(render.ssr), bool(render.raytrace)) != before
+
+
+def delta_materials(scene) -> list[str]:
+    """The scene's materials with a delta lobe (a mirror, smooth glass, a soap film): what
+    they reflect and refract shows only in traced reflections (or SSR, for what is on screen)."""
+    from viewer import brdf
+
+    out = []
+    for name, p in scene.materials.items():
+        spec = brdf.get(p.model).spec
+        if spec.delta and not ("alpha" in p and float(p["alpha"]) > 0.0):
+            out.append(name)
+    return out
+
+
+def traced_hint(scene) -> str:
+    """"" unless reflections are not traced and a material has a delta lobe: then the line
+    saying that ray tracing shows them (the Display panel's choice)."""
+    if reflection_mode(scene.render) == "ray traced":
+        return ""
+    names = delta_materials(scene)
+    if not names:
+        return ""
+    what = ", ".join(names)
+    return (f"{what}: a mirror or smooth glass shows the scene around it only when ray traced "
+            "(Display > reflections / refraction: ray traced)")

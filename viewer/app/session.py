@@ -380,6 +380,18 @@ class Session(FileActions):
             self.reference = ReferenceView(self.ctx, wake=self.wake)
         return self.reference
 
+    def cycle_strategy(self) -> str:
+        """The reference's next way of reaching the light (MIS, BSDF sampling alone, light
+        sampling alone; the S key): it restarts with it. Returns the strategy now used."""
+        from viewer.pathtracer.integrator import STRATEGIES, STRATEGY_LABELS
+
+        rv = self.reference_view()
+        now = STRATEGIES[(STRATEGIES.index(rv.options["strategy"]) + 1) % len(STRATEGIES)]
+        self.mc.set_options(rv, strategy=now)
+        self.changed()
+        self.notify(f"reference strategy: {STRATEGY_LABELS[now]} (S: next)")
+        return now
+
     def extents(self) -> dict:
         """material -> [(object, diameter)]: the smallest side of each solid object's bounding box
         (a sphere's diameter, the path through its centre), for the plots' Bouguer tab."""

@@ -123,18 +123,49 @@ def shown_params(params: Params) -> list[str]:
     return out
 
 
+def out_of_range(label: str, values, lo: float, hi: float) -> str:
+    """"" when every number of ``values`` is finite and in [lo, hi]; else the one-line refusal
+    naming the widget (``label``, as the student reads it) and its range."""
+    for x in np.asarray(values, float).reshape(-1):
+        if not math.isfinite(x):
+            return f"{label}: {x:g} is not a number; allowed: {lo:g} to {hi:g}; the old value stays"
+        if not lo <= x <= hi:
+            return f"{label}: {x:g} is out of range; allowed: {lo:g} to {hi:g}; the old value stays"
+    return ""
+
+
+ROUGHNESS_LABEL = "roughness r"
+
+
+def roughness_alpha(r: float, lo: float, hi: float) -> tuple[float | None, str]:
+    """The alpha = r^2 of a roughness r the slider gave (typed or dragged) for an alpha range
+    [lo, hi]: (alpha, "") or (None, the refusal naming the roughness slider and its r range)."""
+    r_lo, r_hi = perceptual(lo), perceptual(hi)
+    msg = out_of_range(ROUGHNESS_LABEL, [r], r_lo, r_hi)
+    if msg:
+        return None, msg.replace("; the old", f" (alpha = r^2 in [{lo:g}, {hi:g}]); the old")
+    return float(r) ** 2, ""
+
+
 def perceptual(alpha: float) -> float:
     """Perceptual roughness r of a Walter alpha (alpha = r^2)."""
     return math.sqrt(max(float(alpha), 0.0))
 
 
-def _roughness_slider(label: str, alpha: float, lo: float, hi: float):
-    """One slider in perceptual roughness r = sqrt(alpha), labelled as such; returns (changed, alpha)."""
+def _roughness_slider(label: str, alpha: float, lo: float, hi: float, on_error=None):
+    """One slider in perceptual roughness r = sqrt(alpha), labelled as such; returns (changed,
+    alpha). A typed r outside the slider's range is refused naming this slider (not alpha_x)."""
     r_lo, r_hi = perceptual(max(lo, 1e-4)), perceptual(hi)
     changed, r = imgui.slider_float(label, perceptual(alpha), r_lo, r_hi, "%.3f")
     if imgui.is_item_hovered():
         imgui.set_tooltip(f"perceptual roughness r; the model's alpha = r^2 = {alpha:.4g}")
-    return changed, float(min(max(r, r_lo), r_hi)) ** 2
+    if not changed:
+        return False, alpha
+    a, msg = roughness_alpha(r, lo, hi)
+    if a is None:
+        _report(on_error, msg)
+        return False, alpha
+    return True, a
 
 
 def material_editor(params: Params, prefix: str, nested: bool = False, on_error=None):
@@ -172,7 +203,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
         px = by_name["alpha_x"]
         lo, hi = px.slider_range
         if not aniso:
-            c, a = _roughness_slider(f"roughness r (perceptual, alpha = r^2)##{prefix}r", params.alpha_x, lo, hi)
+            c, a = _roughness_slider(f"{ROUGHNESS_LABEL} (alpha = r^2)##{prefix}r", params.alpha_x, lo, hi, on_error)
             if c:
                 new = new.replace(alpha_x=a, alpha_y=a)
                 any_change = True
@@ -191,7 +222,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
             continue
         if p.name == "alpha" and p.kind == "float":
             lo, hi = p.slider_range
-            c, v = _roughness_slider(f"roughness r (perceptual, alpha = r^2)##{prefix}alpha", params[p.name], lo, hi)
+            c, v = _roughness_slider(f"{ROUGHNESS_LABEL} (alpha = r^2)##{prefix}alpha", params[p.name], lo, hi, on_error)
         else:
             c, v = param_widget(p, params[p.name], prefix, on_error)
             if imgui.is_item_hovered() and p.doc:

@@ -16,6 +16,13 @@ def draw(session) -> None:
     def on_error(text):
         session.notify(text, error=True)
 
+    from viewer.app.reflections import traced_hint
+
+    hint = traced_hint(s)
+    if hint:  # glass with reflections off is a flat silhouette: say what shows it
+        imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(1.0, 0.8, 0.35, 1.0))
+        imgui.text_wrapped(hint)
+        imgui.pop_style_color()
     for i, name in enumerate(list(s.materials)):
         imgui.push_id(f"mat_{name}")
         if i == 0:  # the first material starts open

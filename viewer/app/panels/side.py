@@ -1,5 +1,7 @@
-"""The side panel: the sections (scene, files, lecture, display, reference, environment,
-lights, materials) one under another, the screenshot button and the latest message."""
+"""The side panel: the sections (scene, materials, files, lecture, display, reference,
+environment, lights) one under another, the screenshot button and the latest message. The
+material editor comes second, so it opens above the fold at 1280 x 720 (``materials_y``: where
+it started on the last frame, window points)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ class SidePanel:
         self.win = win
         self.files = FilesPanel(win.session)
         self.environment = EnvironmentPanel(win.session)
+        self.materials_y = 0.0
 
     def poll(self) -> None:
         """The file dialogs that closed since the last frame."""
@@ -30,6 +33,8 @@ class SidePanel:
         flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
         imgui.begin("brdf-viewer", None, flags)
         scene.draw(session, win.frame_ms)
+        self.materials_y = imgui.get_cursor_screen_pos().y
+        materials.draw(session)
         self.files.draw()
         lecture.draw_section(session)
         display.draw(win)
@@ -39,7 +44,6 @@ class SidePanel:
             if session.scene.render.ibl == "brute_force":
                 imgui.text(f"brute force: {session.bf_count} frames x 16 samples per pixel")
         lights.draw(session)
-        materials.draw(session)
         imgui.separator()
         if imgui.button("Screenshot (F12)"):
             win.take_screenshot()

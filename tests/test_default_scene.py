@@ -1,0 +1,47 @@
+"""The scene a new user sees first: a glazed ball whose highlight stands out of its diffuse
+shading (measured against the same ball with the highlight's lobe removed), and the material
+editor opening above the fold of a 1280 x 720 window."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from gui_harness import run_py
+
+LUM = np.array([0.2126, 0.7152, 0.0722])
+
+
+def test_default_ball_has_a_visible_highlight():
+    from viewer import api
+    from viewer.scene import load_scene
+
+    sc = load_scene("default")
+    ball = sc.materials["ball"]
+    kd = [float(x) for x in ball["kd"]]
+    size = ["camera.width=480", "camera.height=270"]
+    glossy = api.render(load_scene("default", size)) @ LUM
+    matte = api.render(load_scene("default", size + [f'materials.ball={{model="lambert", albedo={kd}}}'])) @ LUM
+    spec = glossy - matte
+    print(f"default scene: highlight adds {spec.max():.3f} (linear luminance) over a diffuse peak of "
+          f"{matte.max():.3f}; peak ratio {glossy.max() / matte.max():.2f}")
+    # the lobe adds at least half the diffuse peak at the highlight: a spot, not a shading change
+    assert spec.max() > 0.5 * matte.max(), (spec.max(), matte.max())
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_material_editor_is_above_the_fold_at_1280x720(display):
+    r = run_py("""
+        from viewer.app.main import App
+        app = App("default", size=(1280, 720), restore_state=False)
+        app.session.warm = []
+        for _ in range(3):
+            app.frame()
+        line = app.imgui.get_frame_height_with_spacing()
+        print("MATERIALS_Y", app.side_panel.materials_y, line)
+        app.close()
+    """, display)
+    assert r.returncode == 0, r.stdout + r.stderr
+    y, line = [float(v) for v in r.stdout.split("MATERIALS_Y")[1].split()[:2]]
+    # the header, the ball's node, the preset and model pickers and the first sliders: 8 rows
+    assert y + 8 * line < 720, (y, line)
