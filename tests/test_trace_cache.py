@@ -49,8 +49,15 @@ def test_cache_hit_is_the_live_trace(renderer, gl_ctx, cache_dir):
         assert live.stored is not None and live.stored.parent == cache_dir and live.stored.is_file()
         assert not list(cache_dir.glob(".*.part"))
         traced = live.image()
-        again.start(renderer, scene, None, *SIZE, cache=True)
+        calls = []
+        real = renderer.render
+        renderer.render = lambda *a, **k: calls.append(k) or real(*a, **k)
+        try:
+            again.start(renderer, scene, None, *SIZE, cache=True)
+        finally:
+            del renderer.render
         assert again.from_cache and again.done and again.progress == 1.0 and again.steps == 0
+        assert calls == []  # at once: no frame rendered
         assert np.array_equal(again.image(), traced)
         # and both are the composition of one traced frame (no MSAA) and the untraced view
         one_shot = renderer.read_linear(renderer.render(scene, None, *SIZE, msaa=0))
@@ -87,7 +94,7 @@ def test_key_follows_size_scene_camera_and_view(renderer):
     assert key != frame_key(other, OrbitCamera.from_scene(other), 64, 48)
 
 
-@pytest.mark.parametrize("damage", ["garbage", "truncated", "other mask"])
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "other size", "not finite"])
 def test_damaged_entry_is_set_aside_and_traced_again(renderer, gl_ctx, cache_dir, damage):
     from viewer.gl import trace_cache
     from viewer.gl.raytrace import ProgressiveTrace
@@ -104,8 +111,10 @@ def test_damaged_entry_is_set_aside_and_traced_again(renderer, gl_ctx, cache_dir
             path.write_bytes(b"not an npz file")
         elif damage == "truncated":
             path.write_bytes(path.read_bytes()[:200])
-        else:  # a well-formed entry of another view under this key
-            trace_cache.store(pt.cache_key, np.zeros_like(pt.mask), np.zeros((0, 4), np.float32))
+        elif damage == "other size":  # a well-formed entry of another view under this key
+            trace_cache.store(pt.cache_key, np.zeros((SIZE[1] + 1, SIZE[0], 4), np.float32))
+        else:
+            trace_cache.store(pt.cache_key, np.full((SIZE[1], SIZE[0], 4), np.nan, np.float32))
         pt.start(renderer, scene, None, *SIZE, cache=True, store=True, coarse=False)
         assert not pt.from_cache and "set aside" in pt.cache_message and "\n" not in pt.cache_message
         assert path.with_name(path.name + ".damaged").is_file()

@@ -225,7 +225,8 @@ class ProgressiveTrace:
     its trace: never a hole. Once ``done`` the texture holds the untraced view with every masked
     pixel replaced by its traced value (float32 texels, pixels are independent): the same image
     whether traced in tiles, in one piece, or read from the traced-frame cache
-    (``viewer.gl.trace_cache``, when ``start(cache=True)``), which a finished trace fills."""
+    (``viewer.gl.trace_cache``, when ``start(cache=True)``: then no frame is rendered at all),
+    which a finished trace fills (``store=True``)."""
 
     def __init__(self, ctx):
         self.ctx = ctx
@@ -234,7 +235,7 @@ class ProgressiveTrace:
         self._job = None
         self._passes: list[_Pass] = []
         self.base = None       # (H, W, 4) float32: the untraced view, texture row order
-        self.mask = None       # (H, W) bool: the pixels traced at full resolution
+        self.mask = None       # (H, W) bool: the pixels traced at full resolution (None from the cache)
         self.steps = 0         # tiles traced since start
         self.height = 0
         self.width = 0
@@ -290,11 +291,7 @@ class ProgressiveTrace:
         from viewer.gl import trace_cache
 
         self.started = time.perf_counter()
-        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
         tex = self._target(w, h)
-        self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
-        self.base = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
-        self.mask = renderer.traced_mask(scene, camera, w, h)
         self._job = (renderer, scene, camera, w, h, view_mode)
         self.height, self.width = h, w
         self.steps, self.trace_s, self.elapsed_s, self.traced_px = 0, 0.0, 0.0, 0
@@ -302,21 +299,24 @@ class ProgressiveTrace:
         self.pixels = min(self.max_pixels, max(1, int(rows) if rows else 2) * w)
         self.from_cache, self.cache_message, self.stored = False, "", None
         self.cache_key = None
+        self._store = bool(store)
+        self._passes = []
         if cache or store:
             self.cache_key = trace_cache.frame_key(scene, camera, w, h, view_mode, msaa,
                                                    renderer.ctx.info.get("GL_RENDERER", ""))
-        self._store = bool(store)
-        if cache:
-            values, self.cache_message = trace_cache.load(self.cache_key, self.mask)
-            if values is not None:
-                img = self.base.copy()
-                img[self.mask] = values
-                tex.write(img)
-                self._passes = []
+        if cache:  # a hit: the finished view at once, no frame rendered
+            image, self.cache_message = trace_cache.load(self.cache_key, (h, w))
+            if image is not None:
+                tex.write(image)
+                self.base, self.mask = image, None
                 self.from_cache = True
-                self.total_px = self.traced_px = int(self.mask.sum())
+                self.total_px = self.traced_px = 1
                 self.elapsed_s = time.perf_counter() - self.started
                 return tex
+        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
+        self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
+        self.base = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
+        self.mask = renderer.traced_mask(scene, camera, w, h)
         self._passes = []
         if coarse and self.mask.any() and w >= 8 and h >= 8:
             w2, h2 = (w + 1) // 2, (h + 1) // 2
@@ -395,7 +395,7 @@ class ProgressiveTrace:
             from viewer.gl import trace_cache
 
             img = np.frombuffer(self.texture.read(), np.float32).reshape(self.height, self.width, 4)
-            self.stored = trace_cache.store(self.cache_key, self.mask, img[self.mask])
+            self.stored = trace_cache.store(self.cache_key, img)
 
     def image(self) -> np.ndarray:
         """(H, W, 3) float32 linear radiance of the texture, row 0 = top (as ``read_linear``)."""

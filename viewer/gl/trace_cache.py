@@ -2,22 +2,20 @@
 
 *Prepare lecture* (the window) and ``brdf-viewer bake --lecture --width W --height H`` trace every
 lecture step that has traced chains at one view size and store the result here, so a prepared
-step opens fully traced. Only the pixels the chain changes are stored (the mask of pixels whose
-front-most surface is a mirror or smooth glass, ``Renderer.traced_mask``); the rest of the view
-is the untraced frame, rendered when the step opens anyway. ``viewer.gl.raytrace.ProgressiveTrace``
-composes the two the same way live and from the cache, so a cache hit is the live trace bit for
-bit.
+step opens fully traced, without rendering a frame. An entry is the finished view as float32
+texels (the untraced frame where no chain starts, the traced pixels where one does: see
+``viewer.gl.raytrace.ProgressiveTrace``), so a cache hit is the live trace bit for bit.
 
 An entry's key is the SHA-256 of everything that changes the traced pixels: this module's
 ``VERSION``, the renderer version (the content of every shader file and the OpenGL renderer
 string: another driver rounds differently), the scene as TOML (``scene_to_toml``: materials,
 lights, environment, render switches), every object's mesh arrays and model matrix, the
 environment map's texels, the camera's view and projection matrices, the view size, the view
-mode and the untraced frame's MSAA. Files: ``<cache folder>/traced/<key>.npz`` (the packed mask
-and the masked texels as float32), written atomically; an entry that cannot be read or does not
-match the view it is keyed for is moved aside to ``<key>.npz.damaged`` and traced again. The
-folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the newest
-``MAX_ENTRIES`` entries.
+mode and the untraced frame's MSAA. Files: ``<cache folder>/traced/<key>.npz`` (``image``:
+(H, W, 4) float32, 33 MB at 1920 x 1080), written atomically; an entry that cannot be read or
+does not match the view it is keyed for is moved aside to ``<key>.npz.damaged`` and traced
+again. The folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the
+newest ``MAX_ENTRIES`` entries.
 """
 
 from __future__ import annotations
@@ -35,7 +33,7 @@ from viewer.io import cache_root
 
 #: bump when what the progressive trace stores (or how it composes) changes
 VERSION = "1"
-MAX_ENTRIES = 64
+MAX_ENTRIES = 24
 
 _shader_hash: dict = {}
 _array_hash: dict = {}
@@ -124,44 +122,44 @@ def set_aside(path: Path) -> Path | None:
     return target
 
 
-def load(key: str, mask: np.ndarray, folder: Path | None = None):
-    """The stored texels of the masked pixels ((N, 4) float32, in the order of ``mask``'s
-    nonzero entries), or (None, why): why is "" when there is no entry, else the reason the
-    entry was set aside (damaged, or not of this view)."""
+def load(key: str, shape, folder: Path | None = None):
+    """(the stored view as (H, W, 4) float32 texels, "") or (None, why): why is "" when there
+    is no entry, else the reason the entry was set aside (unreadable, or not of this view's
+    size)."""
     p = path_for(key, folder)
     if not p.is_file():
         return None, ""
     try:
         with np.load(p, allow_pickle=False) as z:
-            shape = tuple(int(x) for x in z["shape"])
-            bits = z["mask"]
-            values = np.asarray(z["values"], np.float32)
-        stored = np.unpackbits(bits, count=shape[0] * shape[1]).reshape(shape).astype(bool)
+            image = np.asarray(z["image"], np.float32)
         why = ""
-        if shape != tuple(mask.shape) or not np.array_equal(stored, mask):
-            why = "its mask is not the view's"
-        elif values.shape != (int(mask.sum()), 4) or not np.all(np.isfinite(values)):
-            why = "its texels do not match its mask"
+        if image.shape != (int(shape[0]), int(shape[1]), 4):
+            why = f"it holds a {image.shape} image, not the view's {int(shape[1])}x{int(shape[0])}"
+        elif not np.all(np.isfinite(image)):
+            why = "it holds values that are not finite"
     except (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile) as e:
         why = f"unreadable ({type(e).__name__})"
     if why:
         set_aside(p)
         return None, f"traced cache entry {p.name} set aside: {why}"
-    return values, ""
+    return image, ""
 
 
-def store(key: str, mask: np.ndarray, values: np.ndarray, folder: Path | None = None) -> Path | None:
-    """Write an entry atomically; its path, or None when the cache folder cannot be written
-    (never an error: the view is traced live then). Keeps the newest ``MAX_ENTRIES``."""
+def store(key: str, image: np.ndarray, folder: Path | None = None) -> Path | None:
+    """Write an entry ((H, W, 4) float32 texels, texture row order) atomically; its path, or
+    None when the cache folder cannot be written (never an error: the view is traced live
+    then). Keeps the newest ``MAX_ENTRIES``."""
     from viewer.io import atomic_write_bytes
 
     buf = io.BytesIO()
-    np.savez(buf, shape=np.asarray(mask.shape, np.int64), mask=np.packbits(mask.astype(bool).ravel()),
-             values=np.ascontiguousarray(values, np.float32))
+    np.save(buf, np.ascontiguousarray(image, np.float32))
+    data = io.BytesIO()
+    with zipfile.ZipFile(data, "w", zipfile.ZIP_STORED) as z:
+        z.writestr("image.npy", buf.getvalue())
     p = path_for(key, folder)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(p, buf.getvalue())
+        atomic_write_bytes(p, data.getvalue())
         entries = sorted(p.parent.glob("*.npz"), key=lambda q: q.stat().st_mtime_ns)
         for old in entries[:-MAX_ENTRIES]:
             old.unlink(missing_ok=True)

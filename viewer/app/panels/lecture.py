@@ -21,6 +21,13 @@ def draw_section(session) -> None:
     if imgui.button("next >"):
         session.lecture_next()
     imgui.text_disabled("keys: L on/off, 1-9 0, arrows, PgUp/PgDn, Esc")
+    if imgui.button("Cancel preparing" if session.preparing else "Prepare lecture"):
+        session.prepare_lecture()
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("trace every step with glass or mirrors at this view's size into the cache,\n"
+                          "so each opens fully traced (keep the window at this size)")
+    if session.prep is not None:
+        imgui.text_wrapped(session.prep.progress_text())
     if session.prefetch is not None:
         imgui.text_wrapped(session.prefetch.progress_text())
 
