@@ -146,6 +146,10 @@ def _plot_material(name: str, assignments):
     from viewer.brdf.spec import validate_params
     from viewer.scene import apply_override, dotted_key
 
+    if name.lower().endswith(".brdf"):  # a BRDF Explorer file: its declarations are the parameters
+        from viewer.check_cli import file_params
+
+        return file_params(brdf.load(name), assignments)
     if name.endswith(".binary"):  # a measured BRDF file (MERL format)
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):

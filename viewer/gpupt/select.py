@@ -244,6 +244,8 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
     that needs wavelengths takes the ordinary choice (both engines trace them). ``spectral`` is
     kept for the callers' sake."""
     if requested == "auto":
+        if any(any(m.model == "custom" for m in s.materials.values()) for s in scenes):
+            return "gpu", "a .brdf file material: the gpu engine runs its GLSL (on software OpenGL too)"
         if any(uses_measured(s) for s in scenes):
             return "cpu", "the scene has measured (MERL) materials: only the cpu engine renders them"
         if any(uses_random_walk(s) for s in scenes):
