@@ -384,3 +384,35 @@ def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_pat
         viewer.reference(file_scene, spp=1, engine="cpu", workers=1)
     assert "numpy twin" in str(e.value) and "lambert_twin.py" in str(e.value) and "\n" not in str(e.value)
     assert choose_for_scenes("auto", [load_scene(file_scene)])[0] == "gpu"
+
+
+# ----------------------------------------------------------------------------- the lecture step
+
+
+def test_the_lecture_step_shows_the_shipped_cook_torrance_beside_the_built_in_microfacet():
+    """The shipped textbook Cook-Torrance is the built-in microfacet (Beckmann, V-cavity,
+    dielectric Fresnel, no diffuse) written out: the step's left ball drawn with the built-in
+    model gives the same image (float32 GLSL of two formulations of one BRDF: 1e-4 relative,
+    the twins' tolerance), and the file passes its report card with its numpy twin."""
+    import viewer
+    from viewer.brdf.report_card import report
+    from viewer.lecture import TOUR
+    from viewer.scene import load_scene
+
+    n = len(TOUR)
+    assert TOUR[-1].key == "brdf_file"
+    sc = load_scene(f"lecture:{n}")
+    p = sc.materials["file"]
+    assert p.model == "custom" and Path(p.file).name == "cooktorrance.brdf" and Path(p.file).is_file()
+    model = brdf.load(p.file)
+    assert model.twin is not None
+    rep = report(model, p, "cooktorrance.brdf")
+    assert rep["pass"], rep
+    size = ["camera.width=96", "camera.height=54"]
+    a = viewer.render(f"lecture:{n}", overrides=size)
+    b = viewer.render(f"lecture:{n}", overrides=size + [
+        "materials.file.model=microfacet", "materials.file.distribution=beckmann",
+        "materials.file.shadowing=v_cavity", "materials.file.fresnel=dielectric", "materials.file.ior=1.5",
+        "materials.file.alpha=0.3", "materials.file.kd=0"])
+    assert b.max() > 0.05
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
