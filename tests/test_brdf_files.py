@@ -267,3 +267,152 @@ def test_every_published_file_loads_and_compiles():
         m = brdf.load(f)
         file_brdf_evaluator().check(m.bfile)
         assert m.eval(None, wi, wi).shape == (1, 3)
+
+
+# ----------------------------------------------------------------------------- scenes and the raster
+
+SCENE = """
+[camera]
+position = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+fov_y = 40.0
+width = 64
+height = 64
+
+[[lights]]
+type = "point"
+position = [2.0, 3.0, 2.0]
+intensity = [10.0, 10.0, 10.0]
+
+[[objects]]
+mesh = "sphere"
+material = "ball"
+
+[materials.ball]
+model = "custom"
+file = "lambert_twin.brdf"
+gain = 0.8
+"""
+
+
+@pytest.fixture
+def file_scene(tmp_path):
+    shutil.copy(DATA / "lambert_twin.brdf", tmp_path)
+    shutil.copy(DATA / "lambert_twin.py", tmp_path)
+    p = tmp_path / "scene.toml"
+    p.write_text(SCENE)
+    return p
+
+
+def test_scene_materials_validate_the_files_declarations(file_scene):
+    from viewer.scene import load_scene
+
+    s = load_scene(file_scene)
+    p = s.materials["ball"]
+    assert p.model == "custom" and Path(p.file) == file_scene.parent / "lambert_twin.brdf" and p.gain == 0.8
+    for override, words in ((["materials.ball.gain=2"], "materials.ball.gain: 2 is out of range"),
+                            (["materials.ball.gian=0.2"], "materials.ball.gian: unknown parameter"),
+                            (["materials.ball.albedo=[0.1, 0.2]"], "materials.ball.albedo: expected 3 numbers"),
+                            (["materials.ball.gain=true"], "materials.ball.gain: expected a number"),
+                            (["materials.ball.file=\"nothing.brdf\""], "no such BRDF file"),
+                            (["materials.ball.file=\"scene.toml\""], "is not a .brdf file")):
+        with pytest.raises(ViewerError) as e:
+            load_scene(file_scene, overrides=override)
+        assert words in str(e.value) and "\n" not in str(e.value)
+
+
+def test_set_file_puts_a_brdf_file_on_a_material(file_scene, tmp_path):
+    from viewer.scene import load_scene
+
+    shutil.copy(DATA / "every_declaration.brdf", tmp_path)
+    s = load_scene(file_scene, overrides=["materials.ball.file=every_declaration.brdf", "materials.ball.n=10"])
+    p = s.materials["ball"]
+    assert Path(p.file).name == "every_declaration.brdf" and p.n == 10.0 and "gain" not in p
+    # from a built-in model too: the material becomes the file's defaults
+    s = load_scene(file_scene, overrides=["materials.ball.model=lambert", "materials.ball.file=lambert_twin.brdf"])
+    assert s.materials["ball"].model == "custom" and s.materials["ball"].gain == 1.0
+
+
+@pytest.mark.parametrize("env", [[], ["environment.constant=[0.5, 0.5, 0.5]", "render.ibl=\"split_sum\""],
+                                 ["environment.constant=[0.5, 0.5, 0.5]", "render.ibl=\"brute_force\""]])
+def test_the_raster_draws_a_file_lambert_as_the_built_in_lambert(file_scene, env):
+    """Point light with shadows, and environment light: the file's f = gain albedo / pi is the
+    built-in Lambert of albedo gain x albedo; both run the same passes, so they agree to float32
+    rounding (the file model's environment light is importance sampled even in split_sum mode,
+    and a constant environment over a Lambertian makes that exact)."""
+    import viewer
+
+    a = viewer.render(file_scene, overrides=env)
+    # in split_sum mode the file material is drawn as fis (no split sum for an unknown lobe)
+    ref_env = [e.replace("split_sum", "fis") for e in env]
+    b = viewer.render(file_scene, overrides=ref_env + ["materials.ball.model=lambert",
+                                                       "materials.ball.albedo=[0.64, 0.48, 0.32]"])
+    assert b.max() > 0.1
+    np.testing.assert_allclose(a, b, atol=1e-6 * max(1.0, float(b.max())) * 4)
+    if "split_sum" in "".join(env):  # and the split sum of the built-in gives the same light on average
+        c = viewer.render(file_scene, overrides=env + ["materials.ball.model=lambert",
+                                                       "materials.ball.albedo=[0.64, 0.48, 0.32]"])
+        assert abs(a.mean() - c.mean()) < 0.01 * c.mean()
+
+
+# ----------------------------------------------------------------------------- the reference engines
+
+
+def test_the_gpu_engine_runs_the_files_glsl_as_the_built_in_lambert(file_scene):
+    """The same seeds and the same estimator: the file Lambert's image is the built-in Lambert's
+    to float32 rounding (the generic cosine sampler is Lambert's own sampler)."""
+    import viewer
+
+    a = viewer.reference(file_scene, spp=4, engine="gpu")
+    b = viewer.reference(file_scene, spp=4, engine="gpu", overrides=["materials.ball.model=lambert",
+                                                                    "materials.ball.albedo=[0.64, 0.48, 0.32]"])
+    assert b.max() > 0.1
+    np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path):
+    import viewer
+    from viewer.gpupt.select import choose_for_scenes
+    from viewer.scene import load_scene
+
+    cpu = viewer.reference(file_scene, spp=8, engine="cpu", workers=1)
+    gpu = viewer.reference(file_scene, spp=8, engine="gpu")
+    # two independent estimates of one image: their means agree within the noise of 64x64x8 paths
+    np.testing.assert_allclose(cpu.mean(axis=(0, 1)), gpu.mean(axis=(0, 1)), rtol=0.02)
+    (tmp_path / "lambert_twin.py").unlink()
+    with pytest.raises(ViewerError) as e:
+        viewer.reference(file_scene, spp=1, engine="cpu", workers=1)
+    assert "numpy twin" in str(e.value) and "lambert_twin.py" in str(e.value) and "\n" not in str(e.value)
+    assert choose_for_scenes("auto", [load_scene(file_scene)])[0] == "gpu"
+
+
+# ----------------------------------------------------------------------------- the lecture step
+
+
+def test_the_lecture_step_shows_the_shipped_cook_torrance_beside_the_built_in_microfacet():
+    """The shipped textbook Cook-Torrance is the built-in microfacet (Beckmann, V-cavity,
+    dielectric Fresnel, no diffuse) written out: the step's left ball drawn with the built-in
+    model gives the same image (float32 GLSL of two formulations of one BRDF: 1e-4 relative,
+    the twins' tolerance), and the file passes its report card with its numpy twin."""
+    import viewer
+    from viewer.brdf.report_card import report
+    from viewer.lecture import TOUR
+    from viewer.scene import load_scene
+
+    n = len(TOUR)
+    assert TOUR[-1].key == "brdf_file"
+    sc = load_scene(f"lecture:{n}")
+    p = sc.materials["file"]
+    assert p.model == "custom" and Path(p.file).name == "cooktorrance.brdf" and Path(p.file).is_file()
+    model = brdf.load(p.file)
+    assert model.twin is not None
+    rep = report(model, p, "cooktorrance.brdf")
+    assert rep["pass"], rep
+    size = ["camera.width=96", "camera.height=54"]
+    a = viewer.render(f"lecture:{n}", overrides=size)
+    b = viewer.render(f"lecture:{n}", overrides=size + [
+        "materials.file.model=microfacet", "materials.file.distribution=beckmann",
+        "materials.file.shadowing=v_cavity", "materials.file.fresnel=dielectric", "materials.file.ior=1.5",
+        "materials.file.alpha=0.3", "materials.file.kd=0"])
+    assert b.max() > 0.05
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)

@@ -22,26 +22,15 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def file_params(model, assignments):
-    """Validated parameters of a file model with --set NAME=VALUE applied."""
-    from viewer.scene import apply_override
-
-    raw = model.params().to_plain()
-    raw.pop("model", None)
-    for a in assignments:
-        apply_override(raw, a)
-    return model.params(**raw)
-
-
 def model_and_params(target: str, assignments):
     from viewer import brdf
 
+    from viewer.scene import file_material, material_from_name
+
     if target.lower().endswith(".brdf"):
         model = brdf.load(target)
-        return model, file_params(model, assignments)
-    from viewer.cli import plot_material
-
-    p = plot_material(target, assignments)
+        return model, file_material(model, assignments)
+    p = material_from_name(target, assignments)
     return brdf.get(p.model), p
 
 

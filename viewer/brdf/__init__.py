@@ -141,6 +141,14 @@ class FileModel(Model):
         values.setdefault("file", str(self.bfile.path))
         return super().params(**values)
 
+    def numpy_model(self) -> Model:
+        """The model the CPU reference evaluates: the numpy twin (its sampler, or cosine-weighted
+        sampling); a one-line ViewerError when the file has no twin."""
+        if self.module.numpy_module is None:
+            raise ViewerError(f"{self.bfile.path.name}: the cpu engine evaluates numpy twins and this file has none "
+                              f"({self.bfile.path.with_suffix('.py').name} beside it); use --engine gpu or auto")
+        return Model(self.module.numpy_module, where=self.bfile.path.with_suffix(".py").name)
+
     def twin_eval(self, p, wi, wo):
         """f from the numpy twin (a ViewerError when the file has none)."""
         if self.module.twin_eval is None:

@@ -162,6 +162,21 @@ def make_module(bfile: BrdfFile, twin=None) -> FileModule:
             return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pd, 0.0)
 
     mod = FileModule(SPEC=spec, eval=glsl_eval, sample=sample, pdf=pdf)
+    mod.numpy_module = None
+    if twin is not None:  # the CPU reference's model: numpy only
+        if sampler == "numpy twin":
+            mod.numpy_module = FileModule(SPEC=spec, eval=twin_eval, sample=sample, pdf=pdf)
+        else:
+            def twin_pdf(p, wi, wo):
+                return np.where(_upper(wi, wo), np.maximum(wi[:, 2], 0.0) * INV_PI, 0.0)
+
+            def twin_sample(p, wo, u):
+                wi, pd = cosine_sample(u)
+                ok = (wo[:, 2] > 0) & (pd > 0)
+                w = twin_eval(p, wi, wo) * np.pi
+                return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pd, 0.0)
+
+            mod.numpy_module = FileModule(SPEC=spec, eval=twin_eval, sample=twin_sample, pdf=twin_pdf)
     mod.source_file = bfile
     mod.numpy_twin = twin
     mod.twin_eval = twin_eval if twin is not None else None

@@ -14,9 +14,11 @@ of direction pairs, the same for a ``.brdf`` file and a built-in model.
   (1, or a built-in model's documented ``ALBEDO_BOUND``) by more than 4 standard errors of the
   estimate. A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean
   of its sampler's weights.
-* ``twin`` (a file with a numpy twin): the largest relative difference of the GLSL and numpy f;
-  passes within 1e-4 relative + 1e-6 absolute (the GLSL runs in float32: the tolerance of the
-  built-in models' twins).
+* ``twin`` (a file with a numpy twin): the largest relative difference of the GLSL and numpy f
+  (the twin at the float32 directions the GLSL gets), for directions up to 88 degrees from the
+  normal; passes within 1e-4 relative + 1e-6 absolute (the GLSL runs in float32: the tolerance of
+  the built-in models' twins). Closer to the horizon a microfacet BRDF's 1 / cos factors and the
+  cancellation in L + V for nearly opposite directions make float32 rounding errors of 1e-4 and more.
 * ``sampling`` (a model with a sampler of its own): the chi-square test of the sampler against
   its pdf (``viewer.brdf.chi2``, at a view 40 degrees from the normal) where a pdf exists; a
   file's ``isFunc`` sampler, which gives its pdf only where it samples, is tested instead for
@@ -37,6 +39,7 @@ N_RANDOM = 6000
 N_ALBEDO = 64 * 64
 RECIPROCITY_TOL = 1e-3
 TWIN_RTOL, TWIN_ATOL = 1e-4, 1e-6
+TWIN_MIN_COS = 0.035  # 88 degrees
 P_MIN = 1e-3
 N_SAMPLING = 100_000
 
@@ -143,13 +146,18 @@ def report(model, p, name: str) -> dict:
         checks["energy"].update(bound=bound, why=model.hook("ALBEDO_BOUND_WHY", ""))
 
     if isinstance(model, FileModel) and model.twin is not None:
-        ft = np.asarray(model.twin_eval(p, wi, wo), float)
-        both = np.all(fin & np.isfinite(ft), axis=1)
+        # the twin at the float32 directions the GLSL received; pairs within TWIN_MIN_COS of the
+        # horizon are left out: there 1 / cos factors and the cancellation in L + V for nearly
+        # opposite directions turn float32 rounding into relative errors of 1e-4 and more
+        wi32, wo32 = wi.astype(np.float32).astype(float), wo.astype(np.float32).astype(float)
+        ft = np.asarray(model.twin_eval(p, wi32, wo32), float)
+        inner = (wi[:, 2] >= TWIN_MIN_COS) & (wo[:, 2] >= TWIN_MIN_COS)
+        both = np.all(fin & np.isfinite(ft), axis=1) & inner
         diff = np.abs(f - ft)
         tol = TWIN_RTOL * np.abs(ft) + TWIN_ATOL
         good = both & np.all(diff <= tol, axis=1)
         rel_t = float(np.max(diff[both] / (np.abs(ft[both]) + TWIN_ATOL))) if np.any(both) else 0.0
-        checks["twin"] = {"pass": bool(np.all(good) and np.all(both == np.all(fin, axis=1))),
+        checks["twin"] = {"pass": bool(np.all(good[inner]) and np.all(both[inner] == np.all(fin[inner], axis=1))),
                           "max_rel_error": rel_t}
 
     sampler = _sampler_kind(model, p)

@@ -14,7 +14,7 @@ import numpy as np
 
 from viewer.brdf.albedo import N_SIDE, PHIS, TABLE_SIZE, stratified_u
 from viewer.gl import texture_units
-from viewer.gl.brdf_glsl import choice_constants, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
+from viewer.gl.brdf_glsl import choice_constants, custom_virtual, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
 from viewer.gl.shaders import build_program, set_uniform
 
 _VERT = """#version 410 core
@@ -107,7 +107,7 @@ class GPUAlbedoTables:
         key = (models, tuple(sorted((m, tuple(sorted(c.items()))) for m, c in fixed.items())), tuple(defines))
         prog = self._programs.get(key)
         if prog is None:
-            virtual = {"brdf/dispatch.glsl": generate_dispatch(models, fixed)}
+            virtual = {"brdf/dispatch.glsl": generate_dispatch(models, fixed), **custom_virtual(models)}
             prog = build_program(self.ctx, vertex_source=_VERT, fragment_source=_SAMPLE_FRAG, virtual=virtual,
                                  defines=defines or None)
             self._programs[key] = prog

@@ -50,12 +50,70 @@ def block_size(spec: ModelSpec) -> int:
 
 
 def model_index(name: str) -> int:
+    """The model id of a registry name, or of a file BRDF's program name (``custom:PATH``): the one
+    slot after the registry's (a program holds at most one file BRDF)."""
+    if is_custom(name):
+        return len(brdf.names())
     return brdf.names().index(name)
 
 
 def _has_film(values) -> bool:
     tf = values.get("thin_film")
     return tf is not None and (float(tf.thickness_nm) > 0.0 or float(tf.get("thickness_top_nm", -1.0)) > 0.0)
+
+
+CUSTOM_PREFIX = "custom:"
+
+
+def is_custom(name: str) -> bool:
+    """``name`` is a file BRDF's program name ``custom:PATH`` (see ``models_used``)."""
+    return name.startswith(CUSTOM_PREFIX)
+
+
+def custom_file(name: str):
+    """The parsed ``.brdf`` file of the program name ``custom:PATH``."""
+    return brdf.load(name[len(CUSTOM_PREFIX):]).bfile
+
+
+def custom_virtual(only) -> dict[str, str]:
+    """The virtual include ``NAME.brdf`` (the file's GLSL block) of each file BRDF in ``only``."""
+    from viewer.gl.file_brdf import virtual_files
+
+    out: dict[str, str] = {}
+    for n in only or ():
+        if is_custom(n):
+            out.update(virtual_files(custom_file(n)))
+    return out
+
+
+def _custom_glue(name: str) -> list[str]:
+    """The family functions of a file BRDF over its block: custom_params (its offset),
+    custom_eval (the file's BRDF above the surface, negative values as 0), and cosine-weighted
+    custom_sample / custom_pdf (the sampler that works for any BRDF)."""
+    from viewer.gl.file_brdf import set_params_glsl
+
+    bfile = custom_file(name)
+    sets = set_params_glsl(bfile, read=lambda k: f"mat_f(p.o + {k})")
+    return [f'#include "{bfile.path.name}"',
+            "struct custom_params {\n    int o;\n};",
+            "custom_params custom_unpack(int o) { custom_params p; p.o = o; return p; }",
+            "vec3 custom_eval(custom_params p, vec3 wi, vec3 wo) {",
+            "    if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);",
+            f"    {sets}",
+            "    vec3 f = vec3(bxf_BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)));",
+            "    return max(f, vec3(0.0));",
+            "}",
+            "float custom_pdf(custom_params p, vec3 wi, vec3 wo) {",
+            "    return (wi.z > 0.0 && wo.z > 0.0) ? wi.z * 0.31830988618379067 : 0.0;",
+            "}",
+            "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
+            "    float r = sqrt(u.x);",
+            "    float phi = 6.283185307179586 * u.y;",
+            "    wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));",
+            "    pdf = custom_pdf(p, wi, wo);",
+            "    if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }",
+            "    return custom_eval(p, wi, wo) * 3.141592653589793;  // f cos / (cos / pi)",
+            "}", ""]
 
 
 def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
@@ -97,6 +155,14 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
     Nested materials (the layered model's base) are appended after the main block; their
     offset is stored as an absolute float index into u_mat. ``limit``: the floats the block
     holds (None: no bound, for a material texture holding many materials)."""
+    if params.model == "custom":  # a file BRDF: its declarations' floats
+        from viewer.gl.file_brdf import n_floats, param_floats
+
+        bfile = brdf.load(params["file"]).bfile
+        data = param_floats(bfile, params)[: n_floats(bfile)].astype(np.float32)
+        if limit is not None and offset + data.size > limit:
+            raise ValueError(f"material {bfile.path.name} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
+        return model_index(CUSTOM_PREFIX + str(bfile.path)), data
     spec = brdf.get(params.model).spec
     main: list[float] = []
     tail: list[float] = []
@@ -206,6 +272,8 @@ def _glsl_reads(params_spec, target: str, o: list[int], fixed: dict | None = Non
 
 
 def family_source(name: str) -> str:
+    if is_custom(name):
+        return "\n".join(_custom_glue(name))
     path = shader_root() / "brdf" / f"{name}.glsl"  # the hot-reload / BRDF_VIEWER_SHADERS folder
     try:
         return path.read_text()
@@ -215,7 +283,10 @@ def family_source(name: str) -> str:
 
 
 def models_used(params: Params) -> tuple[str, ...]:
-    """The models a material needs in its program: itself and any nested base material."""
+    """The models a material needs in its program: itself and any nested base material; a file
+    BRDF is ``custom:PATH`` (its program holds that file's GLSL)."""
+    if params.model == "custom":
+        return (CUSTOM_PREFIX + str(brdf.load(params["file"]).bfile.path),)
     out = [params.model]
     for v in params.values():
         if isinstance(v, Params) and v.model:
@@ -333,8 +404,14 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
     out.extend(f"#define BRDF_MODEL_{name.upper()} {model_index(name)}" for name in brdf.names())
     out.append("")
     plain, nesting = [], []
-    for name in brdf.names():
+    customs = [n for n in (only or ()) if is_custom(n)]
+    if customs:
+        out.append(f"#define BRDF_MODEL_CUSTOM {model_index(customs[0])}")
+    for name in list(brdf.names()) + customs[:1]:
         if only is not None and name not in only:
+            continue
+        if is_custom(name):
+            plain.append(name)
             continue
         spec = brdf.get(name).spec
         (nesting if spec.nests_material else plain).append(name)
@@ -359,16 +436,22 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
 
     def dispatch(fn_name, names_, fallback, kind):
         lines = [f"vec3 {fn_name}(int model, int o, vec3 wi, vec3 wo) {{"]
-        for n in names_:
+        for name in names_:
+            n = "custom" if is_custom(name) else name
+            if is_custom(name) and kind != "eval":
+                continue  # a file BRDF has no separate terms
             if kind == "eval":
-                lines.append(f"    if (model == {model_index(n)}) return {n}_eval({n}_unpack(o), wi, wo);")
-            elif has_terms(n):
-                lines.append(f"    if (model == {model_index(n)}) return {n}_terms({n}_unpack(o), wi, wo);")
+                lines.append(f"    if (model == {model_index(name)}) return {n}_eval({n}_unpack(o), wi, wo);")
+            elif has_terms(name):
+                lines.append(f"    if (model == {model_index(name)}) return {n}_terms({n}_unpack(o), wi, wo);")
         lines.append(f"    return {fallback};\n}}\n")
         return lines
 
     for n in plain:
-        out.append(f'#include "brdf/{n}.glsl"')
+        if is_custom(n):
+            out.extend(_custom_glue(n))
+        else:
+            out.append(f'#include "brdf/{n}.glsl"')
     out.append("")
     out.extend(dispatch("brdf_eval_base", plain, "vec3(0.0)", "eval"))
     out.extend(_sampling_dispatch("base", plain, None))
@@ -394,13 +477,14 @@ def _sampling_dispatch(level: str, names_, fallback: str | None) -> list[str]:
     sample = [f"vec3 brdf_sample_{level}(int model, int o, vec3 wo, vec3 u, out vec3 wi, out float pdf) {{"]
     pdf = [f"float brdf_pdf_{level}(int model, int o, vec3 wi, vec3 wo) {{"]
     delta = [f"bool brdf_is_delta_{level}(int model, int o) {{"]
-    for n in names_:
-        i = model_index(n)
-        if f"{n}_sample(" in src(n):
+    for name in names_:
+        i = model_index(name)
+        n = "custom" if is_custom(name) else name
+        if f"{n}_sample(" in src(name):
             sample.append(f"    if (model == {i}) return {n}_sample({n}_unpack(o), wo, u, wi, pdf);")
-        if f"{n}_pdf(" in src(n):
+        if f"{n}_pdf(" in src(name):
             pdf.append(f"    if (model == {i}) return {n}_pdf({n}_unpack(o), wi, wo);")
-        if f"{n}_is_delta(" in src(n):
+        if f"{n}_is_delta(" in src(name):
             delta.append(f"    if (model == {i}) return {n}_is_delta({n}_unpack(o));")
     if fallback is None:
         sample.append("    wi = vec3(0.0, 0.0, 1.0);\n    pdf = 0.0;\n    return vec3(0.0);\n}\n")

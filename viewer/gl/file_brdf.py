@@ -47,19 +47,20 @@ def param_floats(bfile: BrdfFile, p) -> np.ndarray:
     return np.array(out + [0.0] * max(1, MAX_PARAMS - len(out)), dtype="f4")[:max(MAX_PARAMS, len(out))]
 
 
-def set_params_glsl(bfile: BrdfFile, array: str = "u_p", offset: str = "0") -> str:
-    """GLSL statements copying the float array ``array`` (from ``offset``) into the file's globals."""
+def set_params_glsl(bfile: BrdfFile, read=lambda k: f"u_p[{k}]") -> str:
+    """GLSL statements copying the parameter floats (``read(k)``: the GLSL expression of float k,
+    declaration order) into the file's globals."""
     lines, k = [], 0
     for d in bfile.declarations:
         g = PREFIX + d.name
         if d.kind == "color":
-            lines.append(f"{g} = vec3({array}[{offset} + {k}], {array}[{offset} + {k + 1}], {array}[{offset} + {k + 2}]);")
+            lines.append(f"{g} = vec3({read(k)}, {read(k + 1)}, {read(k + 2)});")
             k += 3
         elif d.kind == "bool":
-            lines.append(f"{g} = {array}[{offset} + {k}] > 0.5;")
+            lines.append(f"{g} = {read(k)} > 0.5;")
             k += 1
         else:
-            lines.append(f"{g} = {array}[{offset} + {k}];")
+            lines.append(f"{g} = {read(k)};")
             k += 1
     return "\n    ".join(lines)
 

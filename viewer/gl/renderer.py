@@ -557,8 +557,11 @@ class Renderer:
             obj = group[0][1]
             params = scene.materials[obj.material]
             traced = rt is not None and chain_kind(params) != KIND_SHADED
+            # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
+            # environment light is importance sampled (fis, or brute force when asked for)
+            custom_fis = params.model == "custom" and f.env_on and scene.render.ibl == "split_sum"
             try:
-                prog = self.forward_program(params, ssr=f.ssr_on, ibl_sampled=ibl_sampled, env_light=f.env_on,
+                prog = self.forward_program(params, ssr=f.ssr_on, ibl_sampled=ibl_sampled or custom_fis, env_light=f.env_on,
                                             env_constant=f.env_map is None, traced=rt[1] if traced else None,
                                             dispersion=traced and rt[2])
             except ShaderError:
@@ -571,6 +574,8 @@ class Renderer:
                 # always: unbound samplers default to unit 0, where the shadow atlas (a different
                 # sampler type) is, and that makes the draw call invalid
                 self._ibl.bind(prog, scene.environment.rotation_deg)
+                if custom_fis:
+                    _set(prog, "u_ibl_mode", IBL_MODES["fis"])
                 ready.add(id(prog))
             if traced:  # every frame: the shadow atlas and IBL share no units with these
                 rt[0].bind(prog, first_unit=texture_units.TRACED)

@@ -121,9 +121,9 @@ def load(rel: str, virtual: dict[str, str] | None = None, defines: dict[str, str
 
 
 def default_virtual(only: tuple[str, ...] | None = None) -> dict[str, str]:
-    from viewer.gl.brdf_glsl import generate_dispatch
+    from viewer.gl.brdf_glsl import custom_virtual, generate_dispatch
 
-    return {"brdf/dispatch.glsl": generate_dispatch(only)}
+    return {"brdf/dispatch.glsl": generate_dispatch(only), **custom_virtual(only)}
 
 
 def program_sources(vertex: str | None = None, fragment: str | None = None, *, geometry: str | None = None,

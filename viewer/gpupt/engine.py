@@ -35,7 +35,7 @@ import time
 import numpy as np
 
 from viewer import ViewerError
-from viewer.gl.brdf_glsl import generate_dispatch, models_used, pack_material, program_defines
+from viewer.gl.brdf_glsl import custom_virtual, generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
@@ -229,7 +229,8 @@ class GpuReferenceRenderer:
         if entry is None:
             models, defines = key[1]
             prog = build_program(self.ctx, "passes/fullscreen.vert", "passes/pathtrace.frag",
-                                 virtual={"brdf/dispatch.glsl": dispatch_from_texture(models)},
+                                 virtual={"brdf/dispatch.glsl": dispatch_from_texture(models),
+                                          **custom_virtual(models)},
                                  defines=dict(defines))
             entry = _PROGRAMS[key] = (prog, self.ctx.vertex_array(prog, []))
         self._vao = entry[1]

@@ -182,6 +182,8 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
     that needs wavelengths takes the ordinary choice (both engines trace them). ``spectral`` is
     kept for the callers' sake."""
     if requested == "auto":
+        if any(any(m.model == "custom" for m in s.materials.values()) for s in scenes):
+            return "gpu", "a .brdf file material: the gpu engine runs its GLSL (on software OpenGL too)"
         for s in scenes:
             limit = cpu_only(s, spectral)
             if limit is not None:

@@ -87,6 +87,8 @@ def reference_model(m: "MaterialInfo"):
     """The model the reference evaluates a material with: its registry model, or for a layered
     material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
     random walk (viewer/brdf/layered_walk.py)."""
+    if m.model_name == "custom":  # a .brdf file: its numpy twin (never its GLSL: no GL here)
+        return brdf.get("custom").of(m.params).numpy_model()
     model = brdf.get(m.model_name)
     p = m.params
     if m.model_name == "layered" and p.get("reference") == "random_walk" and m.kind != "mixed":
@@ -98,6 +100,8 @@ def reference_model(m: "MaterialInfo"):
 
 def material_info(name: str, p) -> MaterialInfo:
     model = brdf.get(p.model)
+    if p.model == "custom":
+        model.of(p).numpy_model()  # refused here, in one line, without a twin
     spec = model.spec
     kind = model.flags(p)  # "delta", "mixed" (a layered coat over a delta base) or "smooth"
     sigma = np.zeros(3)

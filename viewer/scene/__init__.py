@@ -38,7 +38,7 @@ atomically). None of them imports GL or the window.
 
 from viewer.resources import SCENE_DIR
 from viewer.scene.environment import LUMINANCE, MAP_ALLOWED, MID_GREY, Environment
-from viewer.scene.load import (LECTURE_NAME, SCREENSHOT_KEY, builtin_scene_names, lecture_scene_names,
+from viewer.scene.load import (LECTURE_NAME, SCREENSHOT_KEY, builtin_scene_names, file_material, lecture_scene_names,
                                load_material_file, load_scene, load_scene_text, material_from_name)
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, FLOAT32_MAX, IBL_MODES,
                                 LIGHT_TYPES, MAX_SIZE, MIN_VIEW_DISTANCE, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS,
@@ -54,7 +54,7 @@ __all__ = [
     "LIGHT_TYPES", "LUMINANCE", "MAP_ALLOWED", "MAX_NESTING", "MAX_SIZE", "MID_GREY", "MIN_VIEW_DISTANCE",
     "MSAA_SAMPLES", "OBJECT_KEYS", "POINT_KEYS", "RENDER_KEYS", "SCENE_DIR", "SCENE_VERSION", "SCREENSHOT_KEY",
     "TONEMAPS", "TOP_KEYS", "Camera", "Environment", "Light", "RenderSettings", "Scene", "SceneObject",
-    "apply_override", "builtin_scene_names", "check_replaced", "dotted_key", "lecture_scene_names",
+    "apply_override", "builtin_scene_names", "check_replaced", "dotted_key", "file_material", "lecture_scene_names",
     "load_material_file", "load_scene", "load_scene_text", "material_from_name", "material_to_toml",
     "parse_scene", "save_material", "save_scene", "scene_to_data", "scene_to_toml",
 ]

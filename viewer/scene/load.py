@@ -176,6 +176,16 @@ def load_material_file(path) -> tuple[str, Any]:
     return name, parse_materials(Checker(label), {name: mats[name]}, path.parent.absolute())[name]
 
 
+def file_material(model, assignments=()):
+    """Validated parameters of a file BRDF (``viewer.brdf.load``) with ``--set NAME=VALUE``
+    applied to its declared parameters."""
+    raw = model.params().to_plain()
+    raw.pop("model", None)
+    for a in assignments:
+        apply_override(raw, a)
+    return model.params(**raw)
+
+
 def material_from_name(name: str, assignments=()):
     """Validated Params of a material named on the command line (``plot MODEL``, ``fit --model``):
     a model (its defaults), a preset, a material file (.toml) or a measured file (.binary), with
@@ -185,6 +195,8 @@ def material_from_name(name: str, assignments=()):
     from viewer.brdf.presets import PRESETS, get_preset
     from viewer.brdf.spec import validate_params
 
+    if name.lower().endswith(".brdf"):  # a BRDF Explorer file: its declarations are the parameters
+        return file_material(brdf.load(name), assignments)
     if name.endswith(".binary"):  # a measured BRDF file (MERL format)
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):
