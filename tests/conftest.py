@@ -8,7 +8,38 @@ os.environ.setdefault("PYTHONHASHSEED", "0")
 # subprocesses started by the tests inherit it
 os.environ["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
 # the reference cache and the engine measurements likewise (never the user's ~/.cache)
-os.environ["BRDF_VIEWER_CACHE"] = tempfile.mkdtemp(prefix="brdf-viewer-cache-")
+SESSION_CACHE = tempfile.mkdtemp(prefix="brdf-viewer-cache-")
+os.environ["BRDF_VIEWER_CACHE"] = SESSION_CACHE
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path_factory, monkeypatch):
+    """Each test gets a cache folder of its own, so that no test sees a reference or an engine
+    measurement another test stored (which tests ran before in this process depends on how
+    xdist shares the files out). Prefiltered environments and DFG tables (the folder's top-level
+    .npz entries, keyed by content: the same bytes whoever computed them) are shared: linked in
+    before the test, new ones moved to the session's folder after it, so each is computed once
+    per process. A module that sets its own cache folder keeps it."""
+    from pathlib import Path
+
+    if os.environ.get("BRDF_VIEWER_CACHE") != SESSION_CACHE:
+        yield
+        return
+    shared = Path(SESSION_CACHE)
+    mine = tmp_path_factory.mktemp("cache")
+    for f in shared.glob("*.npz"):
+        try:
+            os.link(f, mine / f.name)
+        except OSError:
+            pass   # a file system without hard links: computed again
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(mine))
+    yield
+    for f in mine.glob("*.npz"):
+        if not (shared / f.name).exists():
+            try:
+                os.replace(f, shared / f.name)
+            except OSError:
+                pass
 
 
 @pytest.fixture(scope="session")

@@ -345,8 +345,8 @@ class ReferenceRenderer:
         pool = self._pool
         if pool is None:
             return []
-        # concurrent.futures names a pool's processes only in this attribute
-        return sorted(getattr(pool, "_processes", None) or {})
+        # the standard library keeps a pool's processes only in this attribute (pid -> Process)
+        return sorted(pool._processes or {})
 
     def close(self):
         if self._pool is not None:
