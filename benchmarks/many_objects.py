@@ -44,7 +44,9 @@ def grid_scene(n: int, mesh: str, width: int, height: int) -> str:
 def timed(args: list[str]) -> tuple[float, str]:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "viewer", *args], capture_output=True, text=True, env=env)
+    # cwd: not a checkout (``-m`` puts the working folder first on the path, before PYTHONPATH)
+    r = subprocess.run([sys.executable, "-m", "viewer", *args], capture_output=True, text=True, env=env,
+                       cwd=tempfile.gettempdir())
     wall = time.perf_counter() - t0
     return wall, ("" if r.returncode == 0 else f" (exit {r.returncode}: {r.stderr.strip().splitlines()[-1]})")
 
