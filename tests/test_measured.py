@@ -271,3 +271,57 @@ def test_reference_and_engines(lambert_file):
     assert means[1].mean() > 0.005
     # direct light is next-event estimated identically; only the bounce's sampling differs
     assert abs(means[0].mean() - means[1].mean()) < 0.02 * means[1].mean()
+
+
+# ---------------------------------------------------------------- bin centres, the sampler's floor
+def _centre_file(path, fn):
+    """A MERL file of fn written at the bins' centres, computed here from the index mapping
+    (theta_h = ((i + 1/2) / 90)^2 pi / 2, theta_d = (i + 1/2) / 90 pi / 2, phi_d = (i + 1/2) / 180 pi)."""
+    i = np.arange(90)
+    th = ((i + 0.5) / 90) ** 2 * np.pi / 2
+    td = (i + 0.5) / 90 * np.pi / 2
+    pd = (np.arange(180) + 0.5) / 180 * np.pi
+    TH, TD, PD = np.meshgrid(th, td, pd, indexing="ij")
+    wi, wo = merl.from_half_diff(TH.ravel(), TD.ravel(), PD.ravel())
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    t = np.zeros((wi.shape[0], 3))
+    t[ok] = fn(wi[ok], wo[ok])
+    merl.write(path, t.reshape(90, 90, 180, 3))
+    return path
+
+
+@pytest.fixture(scope="module")
+def example_file(tmp_path_factory):
+    return _centre_file(tmp_path_factory.mktemp("merl") / "example.binary", measured.example_brdf)
+
+
+def test_entries_are_read_at_their_bins_centres(example_file):
+    # the built-in example (diffuse floor + GGX alpha 0.25) written at the bins' centres reads
+    # back with a median relative error of 0.07% (measured; 1.8% when entries stood at their
+    # bins' lower edges, half a bin off). Bound 0.3%: linear interpolation's error of a smooth
+    # lobe over one bin, (bin / 2)^2 f'' / 2, is ~1e-3 relative away from the peak
+    m = brdf.get("measured")
+    p = m.params(file=str(example_file))
+    rng = np.random.default_rng(1)
+    wi, wo = _dirs(rng, 50_000), _dirs(rng, 50_000)
+    ref = measured.example_brdf(wi, wo)
+    got = m.eval(p, wi, wo)
+    big = ref > 1e-3
+    rel = np.abs(got - ref)[big] / ref[big]
+    assert np.median(rel) < 3e-3, np.median(rel)
+
+
+@pytest.mark.parametrize("theta, most", [(0.0, 0.06), (45.0, 0.08)])
+def test_sampler_half_vectors_leave_the_floor_to_the_cosine(example_file, theta, most):
+    # the half-vector density is built from the profile minus its diffuse floor (the cosine part
+    # samples that): 4.8% / 6.5% of the samples fall below the horizon at 0 / 45 deg (measured;
+    # 14.1% / 15.1% with the floor in the half-vector density; at 80 deg 17% / 20%, where any
+    # half-vector sampler reflects part of its lobe below). The pdf stays exact: chi-square.
+    m = brdf.get("measured")
+    p = m.params(file=str(example_file))
+    wo = np.array([np.sin(np.radians(theta)), 0.0, np.cos(np.radians(theta))])
+    u = np.random.default_rng(8).random((50_000, 2))
+    wi, _, pdf = m.sample(p, np.broadcast_to(wo, (50_000, 3)), u)
+    assert (pdf <= 0).mean() < most
+    res = chi2.chi2_test(m, p, wo, 100_000, np.random.default_rng(7), alpha=1e-4)
+    assert res.ok, res.message

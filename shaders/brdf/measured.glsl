@@ -39,9 +39,11 @@ vec3 measured_half_diff(vec3 wi, vec3 wo) {
 }
 
 vec3 measured_lookup(vec3 a) {
-    float ch = clamp(sqrt(clamp(a.x, 0.0, MEASURED_HALF_PI) / MEASURED_HALF_PI) * 90.0, 0.0, 89.0);
-    float cd = clamp(clamp(a.y, 0.0, MEASURED_HALF_PI) / MEASURED_HALF_PI * 90.0, 0.0, 89.0);
-    float cp = a.z / PI * 180.0;
+    // between the bins' centres (viewer/brdf/merl.py lookup): index coordinates minus 1/2
+    float ch = clamp(sqrt(clamp(a.x, 0.0, MEASURED_HALF_PI) / MEASURED_HALF_PI) * 90.0 - 0.5, 0.0, 89.0);
+    float cd = clamp(clamp(a.y, 0.0, MEASURED_HALF_PI) / MEASURED_HALF_PI * 90.0 - 0.5, 0.0, 89.0);
+    float cp = a.z / PI * 180.0 - 0.5;
+    if (cp < 0.0) cp += 180.0;
     int h0 = min(int(floor(ch)), 88);
     int d0 = min(int(floor(cd)), 88);
     float fp = floor(cp);

@@ -31,6 +31,7 @@ uniform int u_frame_index;               // brute force: a new sample set each f
 uniform int u_ms_on;                     // multiple-scattering compensation (Fdez-Aguera 2019)
 uniform vec3 u_ms_f0;                    // the specular lobe's normal-incidence reflectance
 uniform float u_ms_ess[ALBEDO_TABLE];    // E_ss: that lobe's single-scattering albedo with F = 1
+uniform float u_ms_eavg;                 // E_avg: its hemispherical average (viewer/ms_compare.py e_avg)
 uniform int u_view_mode;                 // VIEW_MODE_SHADED, _F, _D, _G, _N_L, _F_COS, _SHADOW
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / ALBEDO_TABLE
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
@@ -114,6 +115,25 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
 
 #endif
 
+// E_ss(cos) from the table u_ms_ess at cos = (k + 0.5) / ALBEDO_TABLE (linear, held at the ends).
+float ms_ess_at(float c) {
+    float x = clamp(c, 0.0, 1.0) * float(ALBEDO_TABLE) - 0.5;
+    int k0 = clamp(int(floor(x)), 0, ALBEDO_TABLE - 1);
+    int k1 = min(k0 + 1, ALBEDO_TABLE - 1);
+    return mix(u_ms_ess[k0], u_ms_ess[k1], clamp(x - float(k0), 0.0, 1.0));
+}
+
+// Kulla & Conty 2017's multiple-scattering lobe for point and directional lights (twin of
+// viewer/ms_compare.py kulla_conty_eval): (1 - E_ss(mu_i)) (1 - E_ss(mu_o)) / (pi (1 - E_avg)) times
+// F_avg^2 E_avg / (1 - F_avg (1 - E_avg)); its albedo is the energy single scattering loses.
+vec3 ms_kulla_conty(float cos_i, float cos_o) {
+    if (!any(greaterThan(u_ms_f0, vec3(0.0)))) return vec3(0.0);  // no specular lobe
+    vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
+    vec3 f_add = f_avg * f_avg * u_ms_eavg / (1.0 - f_avg * (1.0 - u_ms_eavg));
+    float lobe = (1.0 - ms_ess_at(cos_i)) * (1.0 - ms_ess_at(cos_o)) / (PI * max(1.0 - u_ms_eavg, 1e-6));
+    return lobe * f_add;
+}
+
 void main() {
     // relative height on the object, for a thin film whose thickness varies with it
     brdf_film_height = u_film_y.y > u_film_y.x ? clamp((v_position.y - u_film_y.x) / (u_film_y.y - u_film_y.x), 0.0, 1.0) : 0.0;
@@ -160,7 +180,8 @@ void main() {
         if (cos_i <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
         float vis = shadow_visibility(i, is_point, u_light_pos[i], v_position, ng, dot(ng, wi_w));
         if (i == 0) first_visibility = vis;
-        radiance += f * e * cos_i * vis;
+        vec3 f_ms = u_ms_on != 0 ? ms_kulla_conty(cos_i, wo.z) : vec3(0.0);
+        radiance += (f + f_ms) * e * cos_i * vis;
     }
 #ifdef ENV_LIGHT  // compiled in only where the environment lights the scene (see IBL_SAMPLED)
 #ifdef ENV_CONSTANT

@@ -62,8 +62,10 @@ def _check_file(value, where):
 # The GLSL twin agrees to 1e-3 relative, not 1e-4: its continuous table coordinates carry the
 # float32 rounding of the angles (about 90 x 6e-8 = 5e-6 of a cell), and trilinear weights multiply
 # that by the difference between neighbouring entries, which near grazing theta_d (f ~ 1 / cos)
-# and at sharp peaks is up to ~100 times the value (measured: 6e-4 at most over 4000 pairs).
-GLSL_RTOL = 1e-3
+# and at sharp peaks is up to ~100 times the value (measured: 6e-4 at most over 4000 pairs with
+# entries at their bins' lower edges; 1.04e-3 at a pair 1.4 / 3 deg above the horizon with entries
+# at the centres, which put the last theta_h entry at 89.0 deg, where f ~ 1 / cos is steepest).
+GLSL_RTOL = 2e-3
 
 SPEC = ModelSpec(
     name="measured",

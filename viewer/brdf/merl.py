@@ -15,16 +15,22 @@ File format (facts of the format as published with the database's reference read
   them as "below horizon"); they are read as 0 and counted in one warning line.
 
 Interpolation (both twins, shaders/brdf/measured.glsl does the same with texelFetch): trilinear
-on the index grid, entry i standing at its bin's lower edge (the angle that the floor mapping
-above maps to exactly i): continuous coordinates c_h = sqrt(theta_h / (pi/2)) * 90,
-c_d = theta_d / (pi/2) * 90 (both clamped to [0, 89]), c_p = phi_d / pi * 180 (periodic, 180).
-At the grid points the lookup returns the stored values exactly.
+on the index grid, entry i standing at its bin's centre (an entry is the mean of the
+measurements in its bin, so between centres it is interpolated; on average this is the reference
+reader's floor lookup): continuous coordinates c_h = sqrt(theta_h / (pi/2)) * 90 - 1/2,
+c_d = theta_d / (pi/2) * 90 - 1/2 (both clamped to [0, 89]: the half bins at either end hold
+their entry), c_p = phi_d / pi * 180 - 1/2 (periodic, 180). At the grid points (the centres,
+``grid_angles``) the lookup returns the stored values exactly. (Placing entries at the lower
+edges, as before, read a smooth lobe written at the centres back with a 2.2% median error.)
 
 Importance sampling (exact about its pdf): a mixture of the cosine-weighted hemisphere and a
 half-vector density tabulated from the data, piecewise constant per solid angle within each of
 the 90 theta_h bins (weights: the luminance of the table at small theta_d, averaged over phi_d,
-times cos theta_h, the shape of D(h) cos theta_h of a microfacet BRDF), phi_h uniform; the
-mixture weight of the cosine part is the diffuse share of that profile clamped to [0.1, 0.9].
+minus its minimum over theta_h, times cos theta_h, the shape of D(h) cos theta_h of a microfacet
+BRDF's peak), phi_h uniform; the mixture weight of the cosine part is the diffuse share of that
+profile (its minimum against its mean) clamped to [0.1, 0.9]. The diffuse floor is the cosine
+part's: left in the half-vector density it gave the large theta_h bins (most of the solid
+angle) weight, and 13.6% (normal view) to 20% (80 deg) of the samples fell below the horizon.
 """
 
 from __future__ import annotations
@@ -94,10 +100,11 @@ def from_half_diff(th, td, pd, ph=0.0):
 
 
 def grid_angles():
-    """The angles of the table's entries: theta_h (90,), theta_d (90,), phi_d (180,) (radians)."""
-    th = (np.arange(N_TH) / N_TH) ** 2 * HALF_PI
-    td = np.arange(N_TD) / N_TD * HALF_PI
-    pd = np.arange(N_PD) / N_PD * np.pi
+    """The angles of the table's entries, their bins' centres in the index mapping: theta_h (90,),
+    theta_d (90,), phi_d (180,) (radians)."""
+    th = ((np.arange(N_TH) + 0.5) / N_TH) ** 2 * HALF_PI
+    td = (np.arange(N_TD) + 0.5) / N_TD * HALF_PI
+    pd = (np.arange(N_PD) + 0.5) / N_PD * np.pi
     return th, td, pd
 
 
@@ -117,10 +124,12 @@ def merl_index(th, td, pd):
 
 
 def lookup(table, th, td, pd):
-    """Trilinear interpolation of ``table`` (90, 90, 180, 3) at Rusinkiewicz coordinates."""
+    """Trilinear interpolation of ``table`` (90, 90, 180, 3) at Rusinkiewicz coordinates, between
+    the bins' centres."""
     ch, cd, cp = continuous_index(th, td, pd)
-    ch = np.clip(ch, 0.0, N_TH - 1)
-    cd = np.clip(cd, 0.0, N_TD - 1)
+    ch = np.clip(ch - 0.5, 0.0, N_TH - 1)
+    cd = np.clip(cd - 0.5, 0.0, N_TD - 1)
+    cp = cp - 0.5
     h0 = np.minimum(np.floor(ch).astype(int), N_TH - 2)
     d0 = np.minimum(np.floor(cd).astype(int), N_TD - 2)
     fp = np.floor(cp)
@@ -231,7 +240,7 @@ class Measured:
         profile = lum[:, : max(1, N_TD // 9)].mean(axis=(1, 2))  # theta_d < 10 degrees
         profile = np.maximum(profile, 0.0)
         centre = 0.5 * (self.edges[:-1] + self.edges[1:])
-        dens = profile * np.cos(centre)
+        dens = (profile - profile.min()) * np.cos(centre)  # the peak: the floor is the cosine part's
         floor_ = 1e-3 * dens.max() if dens.max() > 0 else 1.0
         dens = np.maximum(dens, floor_)  # no empty bin: every h has some density
         mass = dens * self.d_omega

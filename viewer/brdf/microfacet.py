@@ -70,7 +70,8 @@ SPEC = ModelSpec(
         spectral_fresnel.param(),
         Param("multiple_scattering", "bool", False, "light scattered between microfacets too: the "
               "reference's random walk on the microsurface (Heitz et al. 2016; GGX or Beckmann with "
-              "Smith G); the rasterizer approximates it with its compensation (Fdez-Aguera 2019)"),
+              "Smith G); the rasterizer approximates it with its compensation (Fdez-Aguera 2019 "
+              "under environment light, Kulla & Conty 2017 for point and directional lights)"),
     ),
     source="Torrance & Sparrow 1967; Blinn 1977; Cook & Torrance 1981; Walter et al. 2007 eq. 20 "
            "(f = F G D / (4 cos_i cos_o)); Heitz 2014 eq. 99 (Smith G2); Heitz 2018 (GGX VNDF); "

@@ -476,9 +476,13 @@ class Renderer:
             thickness = self._thick.render(absorbers, f.cam, f.w, f.h, self._programs.get("thickness", _THICKNESS),
                                            self.draw_objects)
         self.ibl().set_environment(f.env_map, constant=None if f.env_map is not None else f.env_rad)
-        if f.ssr_on or f.env_on:
-            for name in dict.fromkeys(o.material for o in scene.objects):   # each material once
-                self.albedo_tables(scene.materials[name])
+        ms_scene = bool(getattr(scene.render, "ms_compensation", False))
+        for name in dict.fromkeys(o.material for o in scene.objects):   # each material once
+            params = scene.materials[name]
+            if f.ssr_on or f.env_on:
+                self.albedo_tables(params)
+            if ms_scene or bool(params.get("multiple_scattering", False)):
+                self.tables.ms_terms(params)  # point and directional lights use them too
         return thickness
 
     def _draw_background(self, scene, f: _Frame):
@@ -591,27 +595,35 @@ class Renderer:
             _set(prog, "u_mat", block.tobytes())
             if "u_measured" in prog:
                 self._measured_textures().bind(prog, params)
+            self._ms_uniforms(prog, params, bool(uniforms["u_ms_on"]))
             if f.env_on or f.ssr_on:
-                self._environment_uniforms(prog, params, bool(uniforms["u_ms_on"]), thickness)
+                self._environment_uniforms(prog, params, thickness)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
 
-    def _environment_uniforms(self, prog, params, ms_scene: bool, thickness):
-        """A material's environment-lighting uniforms: its albedo tables, lobe width, the
-        multiple-scattering compensation, transmission and absorption."""
+    def _ms_uniforms(self, prog, params, ms_scene: bool):
+        """The multiple-scattering compensation of a material (environment light: Fdez-Aguera;
+        point and directional lights: Kulla-Conty; viewer/ms_compare.py): for the whole scene, or
+        for a material whose reference has the multiple-scattering random walk (the raster's
+        approximation of the same light)."""
+        from viewer import ms_compare
+
+        ms_on = ms_scene or bool(params.get("multiple_scattering", False))
+        _set(prog, "u_ms_on", int(ms_on))
+        if ms_on:  # the shader reads u_ms_f0, u_ms_ess and u_ms_eavg only then
+            ms_ess, ms_f0 = self.tables.ms_terms(params)
+            _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
+            _set(prog, "u_ms_ess", ms_ess.tobytes())
+            _set(prog, "u_ms_eavg", ms_compare.e_avg(ms_ess))
+
+    def _environment_uniforms(self, prog, params, thickness):
+        """A material's environment-lighting uniforms: its albedo tables, lobe width,
+        transmission and absorption."""
         refl, trans, spec, alpha = self.tables.tables(params)
         _set(prog, "u_albedo", refl.tobytes())
         _set(prog, "u_albedo_t", trans.tobytes())
         _set(prog, "u_albedo_s", spec.tobytes())
         _set(prog, "u_ibl_alpha", alpha)
         _set(prog, "u_ibl_delta", int(brdf_spec(params).delta and alpha == 0.0))
-        # compensation for the whole scene, or for a material whose reference has the
-        # multiple-scattering random walk (the raster's approximation of the same light)
-        ms_on = ms_scene or bool(params.get("multiple_scattering", False))
-        _set(prog, "u_ms_on", int(ms_on))
-        if ms_on:  # the shader reads u_ms_f0 and u_ms_ess only then
-            ms_ess, ms_f0 = self.tables.ms_terms(params)
-            _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
-            _set(prog, "u_ms_ess", ms_ess.tobytes())
         absorbing = "sigma_a" in params and brdf_spec(params).transmissive
         _set(prog, "u_transmit_on", int(bool(np.any(trans > 0))))
         _set(prog, "u_sigma_a", tuple(float(x) for x in (params.sigma_a if absorbing else np.zeros(3))))

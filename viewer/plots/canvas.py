@@ -90,7 +90,7 @@ class Canvas:
         if style == "solid":
             draw.line(pts, fill=color, width=w, joint="curve")
             return
-        on, off = (9, 5) if style == "dashed" else (2.2, 3.5)
+        on, off = {"dashed": (9, 5), "dashdot": (5, 2.5)}.get(style, (2.2, 3.5))
         on, off = on * self.ss * width / 2, off * self.ss * width / 2
         # walk along the polyline, emitting 'on' pieces
         seg, drawing, remaining = [pts[0]], True, on

@@ -17,7 +17,7 @@ class Curve:
     x: np.ndarray
     y: np.ndarray
     color: tuple = NEUTRAL
-    style: str = "solid"  # solid | dashed | dotted
+    style: str = "solid"  # solid | dashed | dashdot (short dashes) | dotted
     extra: dict = field(default_factory=dict)  # more arrays at the same x (e.g. f without cos)
 
 

@@ -154,7 +154,8 @@ def _albedo_figure(r: _Request) -> Figure:
         ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])), known={
             "walk" if walks(p) else "single": d["albedo"]})
         curves = _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
-        curves += _rgb_curves(d["theta"], ms["compensated"], "compensated (raster)", channel, "dashed")
+        curves += _rgb_curves(d["theta"], ms["compensated"], "compensated, environment (raster)", channel, "dashed")
+        curves += _rgb_curves(d["theta"], ms["kulla_conty"], "compensated, lights (raster)", channel, "dashdot")
         curves += _rgb_curves(d["theta"], ms["walk"], "random walk (reference)", channel)
     if r.overlay is not None:
         d2 = albedo_curve(r.overlay)
