@@ -5,6 +5,14 @@ Both images are linear radiance (H, W, 3). Metrics, per channel and as the mean 
   relative MSE  mean((raster - reference)^2 / (reference^2 + eps)), eps = 1e-2 (Rousselle et al.
                 2011's relMSE; the eps keeps black pixels from dominating)
   mean          mean of each image (the difference of means shows a bias at a glance)
+
+Scene agreement (``agreement``, the per-scene raster-vs-reference figures of the tests and
+benchmarks/scenes_vs_reference.py), on the mean over channels:
+  mean rel      |mean(raster) - mean(reference)| / mean(reference), the image's overall bias
+  block p90     the 90th percentile over 8 x 8 pixel blocks of |block mean difference| /
+                max(block mean of the reference, 0.1 x the reference's image mean): where the
+                raster is locally wrong, not hidden by averaging; the floor keeps dark blocks
+                (noise over almost nothing) from counting as 100% errors
 """
 
 from __future__ import annotations
@@ -83,3 +91,24 @@ def heat_map(raster: np.ndarray, reference: np.ndarray, relative: bool = False, 
     except Exception:  # noqa: BLE001 - the label is a convenience; the scale is in metrics.json
         pass
     return out, scale
+
+
+def agreement(raster: np.ndarray, reference: np.ndarray, block: int = 8) -> dict:
+    """``{"mean_rel", "block_p90", "block_rel"}`` of two (H, W, 3) images (see the module's
+    docstring); a partial block at the right / bottom edge is left out."""
+    r = np.asarray(raster, np.float64).mean(axis=-1)
+    ref = np.asarray(reference, np.float64).mean(axis=-1)
+    if r.shape != ref.shape:
+        raise ValueError(f"image shapes differ: {r.shape} vs {ref.shape}")
+    m = float(ref.mean())
+    h, w = (r.shape[0] // block) * block, (r.shape[1] // block) * block
+    if h == 0 or w == 0:
+        raise ValueError(f"image {r.shape} smaller than one {block} x {block} block")
+
+    def blocks(x):
+        return x[:h, :w].reshape(h // block, block, w // block, block).mean(axis=(1, 3))
+
+    br, bref = blocks(r), blocks(ref)
+    rel = np.abs(br - bref) / np.maximum(bref, 0.1 * max(m, 1e-12))
+    return {"mean_rel": float(abs(r.mean() - m) / max(m, 1e-12)), "block_p90": float(np.percentile(rel, 90)),
+            "block_rel": rel}
