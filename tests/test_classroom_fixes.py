@@ -55,9 +55,9 @@ def test_ssr_without_environment_writes_its_targets(renderer):
     the surface: rho_s > 0 on the glossy floor and the normal's length 1 where there is a surface."""
     scene = scene_with_switches("reflective_floor", True, "off", "none")
     renderer.render(scene, width=W, height=H)
-    t = renderer.ssr()._t
-    spec = np.frombuffer(t["resolved"][1].read(), np.float32).reshape(H, W, 4)
-    geom = np.frombuffer(t["resolved"][2].read(), np.float32).reshape(H, W, 4)
+    t = renderer.ssr().current
+    spec = np.frombuffer(t.resolved[1].read(), np.float32).reshape(H, W, 4)
+    geom = np.frombuffer(t.resolved[2].read(), np.float32).reshape(H, W, 4)
     assert np.isfinite(spec).all() and np.isfinite(geom).all()
     cov = np.linalg.norm(geom[..., :3], axis=-1)
     surface = cov > 0.5

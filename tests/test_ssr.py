@@ -220,8 +220,8 @@ def test_hiz_pyramid_is_min_pooling(renderer, size):
     scene = load_scene("reflective_floor")
     renderer.render_arrays(scene, width=w, height=h)
     ssr = renderer.ssr()
-    t = ssr._t
-    geom = np.frombuffer(t["resolved"][2].read(), np.float32).reshape(h, w, 4)
+    t = ssr.current
+    geom = np.frombuffer(t.resolved[2].read(), np.float32).reshape(h, w, 4)
     depth = depth_from_geom(geom)
     gpu = ssr.read_hiz()
     assert len(gpu) == 1 + int(np.floor(np.log2(max(w, h))))

@@ -303,7 +303,7 @@ class Renderer:
             self._render_error = e
             w = int(width or scene.camera.width)
             h = int(height or scene.camera.height)
-            return self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)["resolved"]
+            return self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa).resolved
         self._render_error = None
         return hdr
 
@@ -313,7 +313,7 @@ class Renderer:
             self._shadows.update(scene, self.programs["shadow"], self._mesh_vao)
         thickness = self._environment(scene, f)
         if f.region is not None:  # applied by every use() of the frame's colour target
-            f.targets["draw_fbo"].scissor = f.region
+            f.targets.draw_fbo.scissor = f.region
         try:
             self._draw_background(scene, f)
             uniforms = self._frame_uniforms(scene, f, frame_index)
@@ -321,16 +321,16 @@ class Renderer:
             self._draw_objects(scene, f, uniforms, rt, thickness)
         finally:
             if f.region is not None:
-                f.targets["draw_fbo"].scissor = None
-                f.targets["draw_fbo"].use()
+                f.targets.draw_fbo.scissor = None
+                f.targets.draw_fbo.use()
         return self._finish(scene, f, frame_index)
 
     def resolved_framebuffer(self, hdr):
         """The framebuffer of ``hdr``, a texture ``render`` returned (to read or copy from)."""
         t = self._frame_targets
-        if t is None or t.get("resolved") is not hdr or "resolved_fbo" not in t:
+        if t is None or t.resolved is not hdr:
             raise ValueError("not the resolved target of this renderer's last frame (an SSR frame has its own)")
-        return t["resolved_fbo"]
+        return t.resolved_fbo
 
     def traces(self, scene) -> bool:
         """Whether a render of ``scene`` traces specular chains (``raytrace`` on and a mirror or
@@ -345,7 +345,7 @@ class Renderer:
         ssr_on = bool(scene.render.ssr)
         targets = self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)
         if ssr_on:  # the same sample count, with the SSR pass's three attachments
-            targets = self.ssr().targets(w, h, targets["samples"])
+            targets = self.ssr().targets(w, h, targets.samples)
         ssr_debug = view_mode - SSR_VIEW_BASE if view_mode > SSR_VIEW_BASE else 0
         if ssr_debug:
             view_mode = 0  # the forward pass shades; the SSR pass shows its debug output
@@ -382,7 +382,7 @@ class Renderer:
     def _draw_background(self, scene, f: _Frame):
         """Clear the colour target to the constant environment and draw the map behind the scene."""
         ctx = self.ctx
-        fbo = f.targets["draw_fbo"]
+        fbo = f.targets.draw_fbo
         fbo.use()
         fbo.viewport = (0, 0, f.w, f.h)
         fbo.clear(*[float(x) for x in f.env_rad], 1.0, depth=1.0)
@@ -515,9 +515,9 @@ class Renderer:
             return self._ssr.resolve_and_trace(self._ibl, f.cam, f.w, f.h, f.env_on, scene.environment.rotation_deg,
                                                f.ssr_debug, frame_index)
         t = f.targets
-        if t["draw_fbo"] is not t["resolved_fbo"]:
-            self.ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])
-        return t["resolved"]
+        if t.draw_fbo is not t.resolved_fbo:
+            self.ctx.copy_framebuffer(t.resolved_fbo, t.draw_fbo)
+        return t.resolved
 
     def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
         """Exposure, tone mapping and sRGB encoding of ``hdr`` into ``fbo`` (e.g. ctx.screen)."""
