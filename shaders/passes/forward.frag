@@ -201,7 +201,7 @@ void main() {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
                     // energy; bounces return the geometric series F_ms = FssEss F_avg /
                     // (1 - E_ms F_avg), spread like a diffuse lobe. E_ss is the lobe's own
-                    // albedo with F = 1 (table u_ms_ess, viewer/ms_compare.py: any D, not only
+                    // albedo with F = 1 (table u_ms_ess, viewer/ms_compensation.py: any D, not only
                     // GGX), FssEss its albedo with its own Fresnel (the table rho_s).
                     float e_ms = clamp(1.0 - mix(u_ms_ess[k0], u_ms_ess[k1], fx), 0.0, 1.0);
                     vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
@@ -262,7 +262,7 @@ void main() {
     } else if (u_view_mode <= VIEW_MODE_G) {  // F, D, G in the order brdf_terms returns them
         float v = first_terms[u_view_mode - VIEW_MODE_F];
         // F and G linear in [0,1]; D on a log scale so peaks and tails are both visible (the
-        // scales, generated from viewer/termview.py, which draws the colour bars)
+        // scales, generated from viewer/term_scales.py, which draws the colour bars)
         float t = u_view_mode == VIEW_MODE_D ? term_t(v, TERM_D_K, TERM_D_MAX)
                 : u_view_mode == VIEW_MODE_F ? term_t(v, TERM_F_K, TERM_F_MAX) : term_t(v, TERM_G_K, TERM_G_MAX);
         frag_color = vec4(v < 0.0 ? vec3(TERM_NOT_APPLICABLE) : false_colour(t), 1.0);
