@@ -65,7 +65,6 @@ const bool SSR_ON = false;
 #include "common/specular_chain.glsl"
 #endif
 
-
 #ifdef IBL_SAMPLED
 // Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
 // density: a GGX lobe of the material's alpha about the normal (reflected half vectors, Walter
