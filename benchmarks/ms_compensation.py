@@ -25,7 +25,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n-side", type=int, default=24, help="sqrt of the samples per angle and azimuth")
     args = ap.parse_args(argv)
-    from viewer import brdf, ms_compare
+    from viewer import brdf, ms_compensation
 
     mf = brdf.get("microfacet")
     theta = np.radians(np.arange(0.0, 86.0, 5.0))
@@ -38,8 +38,8 @@ def main(argv=None):
         for label, kw in materials.items():
             for alpha in (0.1, 0.25, 0.5, 0.75, 1.0):
                 p = mf.params(distribution=dist, alpha=alpha, **kw)
-                a = ms_compare.albedos(p, cos_o, n_side=args.n_side)
-                old = ms_compare.albedos(p, cos_o, n_side=args.n_side, rule="ggx",
+                a = ms_compensation.albedos(p, cos_o, n_side=args.n_side)
+                old = ms_compensation.albedos(p, cos_o, n_side=args.n_side, rule="ggx",
                                          known={"single": a["single"], "walk": a["walk"]})
                 s, c, w = (a[k].mean(axis=1) for k in ("single", "compensated", "walk"))
                 err = np.abs(a["compensated"] - a["walk"]).mean(axis=1)

@@ -271,11 +271,11 @@ def test_counts_are_singular_and_plural():
 
 @pytest.mark.parametrize("view", ["F", "D", "G", "N.L", "f cos"])
 def test_term_scale_round_trips_and_ticks_are_ordered(view):
-    from viewer import termview
+    from viewer import term_scales
 
     t = np.linspace(0.0, 1.0, 11)
-    assert np.allclose(termview.to_t(view, termview.from_t(view, t)), t)
-    ticks = termview.ticks(view)
+    assert np.allclose(term_scales.to_t(view, term_scales.from_t(view, t)), t)
+    ticks = term_scales.ticks(view)
     assert ticks[0] == (0.0, "0") and all(b[0] > a[0] for a, b in zip(ticks, ticks[1:]))
     assert len(ticks) >= 3
 
@@ -284,22 +284,22 @@ def test_fcos_view_is_false_colour_on_its_scale(renderer):
     """The f cos view was grey radiance; now each pixel is the ramp colour of its value's scale
     position: the shaded image's f cos on a Lambert sphere (albedo / pi x cos) comes back from
     the colours through the numpy twin of the ramp."""
-    from viewer import termview
+    from viewer import term_scales
     from viewer.gl.renderer import VIEW_MODES
     from viewer.scene import load_scene
 
     s = load_scene("sphere", ["render.msaa=0", "render.shadows=false"])
     lin, _ = renderer.render_arrays(s, width=W, height=H, view_mode=VIEW_MODES["f cos"])
     ramp_t = np.linspace(0.0, 1.0, 1001)
-    ramp = termview.false_colour(ramp_t)
+    ramp = term_scales.false_colour(ramp_t)
     centre = lin[H // 2, W // 2]
     t = ramp_t[np.argmin(np.sum((ramp - centre) ** 2, axis=-1))]
     assert not np.allclose(centre, centre.mean(), atol=0.02)  # not grey
     # the centre of the sphere faces the camera; f cos = albedo / pi * cos theta_i there
     ndotl_lin, _ = renderer.render_arrays(s, width=W, height=H, view_mode=VIEW_MODES["N.L"])
     ti = ramp_t[np.argmin(np.sum((ramp - ndotl_lin[H // 2, W // 2]) ** 2, axis=-1))]
-    expect = 0.8 / np.pi * termview.from_t("N.L", ti)
-    assert termview.from_t("f cos", t) == pytest.approx(expect, rel=0.05, abs=0.005)
+    expect = 0.8 / np.pi * term_scales.from_t("N.L", ti)
+    assert term_scales.from_t("f cos", t) == pytest.approx(expect, rel=0.05, abs=0.005)
 
 
 def test_render_term_view_has_a_colour_bar(tmp_path):

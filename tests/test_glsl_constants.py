@@ -87,14 +87,14 @@ def _header_floats() -> dict[str, float]:
 
 def test_header_floats_are_pythons():
     """The empty depth of the SSR pyramid and the term views' scales, as their modules see them."""
-    from viewer import termview
+    from viewer import term_scales
     from viewer.gl import ssr
 
     f = _header_floats()
-    assert f == constants.float_values() and len(f) == 2 + 2 * len(termview.SCALES)
+    assert f == constants.float_values() and len(f) == 2 + 2 * len(term_scales.SCALES)
     assert f["EMPTY_DEPTH"] == ssr.EMPTY_DEPTH == 1e30
-    assert f["TERM_NOT_APPLICABLE"] == termview.NOT_APPLICABLE
-    for view, (_, k, vmax) in termview.SCALES.items():
+    assert f["TERM_NOT_APPLICABLE"] == term_scales.NOT_APPLICABLE
+    for view, (_, k, vmax) in term_scales.SCALES.items():
         assert (f[constants.glsl_name("TERM", view, "K")], f[constants.glsl_name("TERM", view, "MAX")]) == (k, vmax)
 
 

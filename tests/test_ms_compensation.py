@@ -1,12 +1,12 @@
 """The rasterizer's multiple-scattering compensation (Fdez-Aguera 2019) against the reference's
 random walk (Heitz et al. 2016), as white-furnace albedo: E_ss is the lobe's own single-scattering
-albedo with F = 1 (viewer/ms_compare.py, for every microfacet distribution), and the raster's
-environment-lit sphere shows what ``ms_compare`` computes."""
+albedo with F = 1 (viewer/ms_compensation.py, for every microfacet distribution), and the raster's
+environment-lit sphere shows what ``ms_compensation`` computes."""
 
 import numpy as np
 import pytest
 
-from viewer import brdf, ms_compare
+from viewer import brdf, ms_compensation
 from viewer.brdf.albedo import TABLE_SIZE
 from viewer.camera import OrbitCamera
 from viewer.scene import load_scene
@@ -27,12 +27,12 @@ def test_white_furnace_compensation_is_one_like_the_walk(dist, alpha):
     same sample points): 1 up to rounding, for Beckmann as for GGX. The former rule (E_ss from the
     GGX DFG table for every lobe) is off by up to 0.7 for Beckmann (the bug this guards)."""
     p = MF.params(distribution=dist, alpha=alpha, fresnel="schlick", f0=1.0)
-    a = ms_compare.albedos(p, COS_O, n_side=16)
+    a = ms_compensation.albedos(p, COS_O, n_side=16)
     assert np.all(a["single"] < 1.0 + 1e-9)
     assert np.abs(a["walk"] - 1.0).max() < 2e-3, np.abs(a["walk"] - 1.0).max()
     assert np.abs(a["compensated"] - 1.0).max() < 1e-9, np.abs(a["compensated"] - 1.0).max()
     if dist == "beckmann" and alpha >= 0.5:
-        old = ms_compare.albedos(p, COS_O, n_side=16, rule="ggx", known=a)
+        old = ms_compensation.albedos(p, COS_O, n_side=16, rule="ggx", known=a)
         assert np.abs(old["compensated"] - 1.0).max() > 0.2
 
 
@@ -44,15 +44,15 @@ def test_white_lobe_is_the_f1_single_scattering_lobe():
     from viewer.brdf.albedo import directional_albedo
 
     gold = MF.params(distribution="beckmann", alpha=0.5, kd=[0.3, 0.2, 0.1], multiple_scattering=True)
-    w = ms_compare.white_lobe(MF.module.ibl_split(gold)[0])
+    w = ms_compensation.white_lobe(MF.module.ibl_split(gold)[0])
     assert w.distribution == "beckmann" and w.alpha_x == 0.5 and not MF.module.walks(w)
     assert np.all(w.kd == 0) and np.all(MF.module.fresnel_rgb(w, np.array([0.1, 0.5, 1.0])) == 1.0)
     e_b = directional_albedo(MF, w, [1.0]).mean()
-    assert abs(e_b - 0.95) < 0.01 and abs(ms_compare.ess_ggx([1.0], 0.5)[0] - 0.69) < 0.01
-    g = ms_compare.white_lobe(MF.params(distribution="ggx", alpha=0.5))
+    assert abs(e_b - 0.95) < 0.01 and abs(ms_compensation.ess_ggx([1.0], 0.5)[0] - 0.69) < 0.01
+    g = ms_compensation.white_lobe(MF.params(distribution="ggx", alpha=0.5))
     e_g = directional_albedo(MF, g, COS_O).mean(axis=1)
-    assert np.abs(e_g - ms_compare.ess_ggx(COS_O, 0.5)).max() < 5e-3
-    assert ms_compare.white_lobe(brdf.get("phong").params()) is None  # no Fresnel: the GGX table
+    assert np.abs(e_g - ms_compensation.ess_ggx(COS_O, 0.5)).max() < 5e-3
+    assert ms_compensation.white_lobe(brdf.get("phong").params()) is None  # no Fresnel: the GGX table
 
 
 @pytest.mark.parametrize("dist", ["ggx", "beckmann"])
@@ -70,7 +70,7 @@ def test_coloured_fresnel_residual_is_bounded(dist, fresnel):
     errs = []
     for alpha in (0.1, 0.5, 1.0):
         p = MF.params(distribution=dist, alpha=alpha, **fresnel)
-        a = ms_compare.albedos(p, COS_O, n_side=16)
+        a = ms_compensation.albedos(p, COS_O, n_side=16)
         d = (a["compensated"] - a["walk"]).mean(axis=1)
         errs.append(np.abs(d).max())
         assert d.max() < 0.01, (alpha, d.max())
@@ -91,10 +91,10 @@ def _pixel_cos(cam):
     dict(distribution="beckmann", alpha=0.6, fresnel="conductor"),
     dict(distribution="ggx", alpha=1.0, fresnel="conductor", kd=[0.2, 0.1, 0.05]),
 ])
-def test_raster_furnace_sphere_shows_ms_compare(tmp_path, renderer, mat):
+def test_raster_furnace_sphere_shows_ms_compensation(tmp_path, renderer, mat):
     """A gold sphere in a constant white environment with ``ms_compensation``: every pixel shows
-    its albedo at its view angle, and that is ``ms_compare``'s compensated albedo. The raster
-    interpolates its 32-node tables linearly in cos(theta_o) (so ms_compare is evaluated at the
+    its albedo at its view angle, and that is ``ms_compensation``'s compensated albedo. The raster
+    interpolates its 32-node tables linearly in cos(theta_o) (so ms_compensation is evaluated at the
     nodes and interpolated the same way), its tables come from the GLSL samplers (float32) and
     its normals from the icosphere's interpolated vertex normals; pixels with cos > 0.3 (the
     tessellation's normal error grows toward the silhouette, where the albedo also varies
@@ -108,7 +108,7 @@ def test_raster_furnace_sphere_shows_ms_compare(tmp_path, renderer, mat):
     c = _pixel_cos(scene.camera)
     mask = np.nan_to_num(c) > 0.3
     nodes = (np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE
-    want = ms_compare.albedos(scene.materials["m"], nodes, n_side=24, known={"walk": np.zeros((TABLE_SIZE, 3))})
+    want = ms_compensation.albedos(scene.materials["m"], nodes, n_side=24, known={"walk": np.zeros((TABLE_SIZE, 3))})
     comp = np.stack([np.interp(c[mask], nodes, want["compensated"][:, k]) for k in range(3)], axis=-1)
     single = np.stack([np.interp(c[mask], nodes, want["single"][:, k]) for k in range(3)], axis=-1)
     err = np.abs(img[mask] - comp).max()
@@ -128,7 +128,7 @@ def test_kulla_conty_follows_the_walk_for_rough_gold():
     # and tints it with the hemispherical F_avg, both approximations at alpha 1.
     p = MF.params(fresnel="conductor", eta=[0.18, 0.42, 1.37], k=[3.42, 2.35, 1.77], alpha=1.0)
     mus = np.array([1.0, 0.7, 0.5, 0.2])
-    a = ms_compare.albedos(p, mus, n_side=24)
+    a = ms_compensation.albedos(p, mus, n_side=24)
     rel = np.abs(a["kulla_conty"] - a["walk"]) / a["walk"]
     assert np.all(rel[:, 0] < 0.03) and np.all(rel[:, 1:] < 0.10), rel
     assert np.all(a["walk"] - a["single"] > 0.05)  # not vacuous: single scattering is far off
@@ -142,22 +142,22 @@ def test_kulla_conty_lobe_albedo_is_the_lost_energy():
     # Gauss-Legendre over mu_i on the tabulated E_ss)
     e_tab = np.linspace(0.4, 0.9, TABLE_SIZE)
     mu_t = (np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE
-    ea = ms_compare.e_avg(e_tab)
+    ea = ms_compensation.e_avg(e_tab)
     f0 = np.array([0.9, 0.6, 0.3])
     x, w = np.polynomial.legendre.leggauss(200)
     mu = 0.5 * (x + 1)
     e_i = np.interp(mu, mu_t, e_tab)
     for mo in (1.0, 0.5, 0.1):
         e_o = np.interp([mo], mu_t, e_tab)[0]
-        f = ms_compare.kulla_conty_eval(e_i, np.full(mu.size, e_o), ea, f0)
+        f = ms_compensation.kulla_conty_eval(e_i, np.full(mu.size, e_o), ea, f0)
         got = np.sum((0.5 * w * 2 * np.pi * mu)[:, None] * f, axis=0)
         # the midpoint E_avg against the interpolated curve's integral: 1e-3
-        np.testing.assert_allclose(got, (1 - e_o) * ms_compare.kulla_conty_fadd(f0, ea), rtol=2e-3)
+        np.testing.assert_allclose(got, (1 - e_o) * ms_compensation.kulla_conty_fadd(f0, ea), rtol=2e-3)
 
 
 def test_raster_directional_light_gets_the_kulla_conty_term(tmp_path, renderer):
     """A rough gold sphere lit by one directional light from the camera's side (no environment,
-    no shadows): ``ms_compensation`` adds f_ms E cos_i per pixel, ``ms_compare.kulla_conty_eval``
+    no shadows): ``ms_compensation`` adds f_ms E cos_i per pixel, ``ms_compensation.kulla_conty_eval``
     at each pixel's cosines with the renderer's own tables (float32 GLSL: 1e-4 relative), within
     2e-3 (the icosphere's interpolated normals, cos > 0.3 as above). It was 0 before: direct light
     had no compensation."""
@@ -187,8 +187,8 @@ def test_raster_directional_light_gets_the_kulla_conty_term(tmp_path, renderer):
     ess, f0 = renderer.tables.ms_terms(scene_.materials["m"])
     ess = np.asarray(ess, dtype=np.float64)
     mu_t = (np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE
-    want = ms_compare.kulla_conty_eval(np.interp(cos_i[mask], mu_t, ess), np.interp(cos_o[mask], mu_t, ess),
-                                       ms_compare.e_avg(ess), f0) * 2.0 * cos_i[mask][:, None]
+    want = ms_compensation.kulla_conty_eval(np.interp(cos_i[mask], mu_t, ess), np.interp(cos_o[mask], mu_t, ess),
+                                       ms_compensation.e_avg(ess), f0) * 2.0 * cos_i[mask][:, None]
     got = (comp - plain)[mask]
     assert np.abs(got - want).max() < 2e-3, np.abs(got - want).max()
     assert want.mean() > 0.05  # visible

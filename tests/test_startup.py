@@ -74,9 +74,9 @@ def test_first_frame_of_the_default_scene_makes_no_dfg_table(gl_ctx, monkeypatch
 
     monkeypatch.setattr(dfg, "dfg_table", refuse)
     # the renderer keeps the table once made (an earlier test in the session may have made it)
-    from viewer import ms_compare
+    from viewer import ms_compensation
 
-    monkeypatch.setattr(ms_compare, "_DFG", None)
+    monkeypatch.setattr(ms_compensation, "_DFG", None)
     scene = load_scene("default", ["camera.width=32", "camera.height=18"])
     r = Renderer(gl_ctx)
     try:

@@ -282,12 +282,12 @@ def cmd_render(args) -> int:
         raise ViewerError(f"--supersample: {args.supersample} is out of range; allowed: 1 to 8")
     linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view],
                                           supersample=args.supersample)
-    from viewer import termview
+    from viewer import term_scales
 
-    if args.view in termview.SCALES:  # false colour: no exposure or tone mapping, a colour bar below
+    if args.view in term_scales.SCALES:  # false colour: no exposure or tone mapping, a colour bar below
         from viewer.colour import to_srgb8
 
-        srgb = termview.with_colour_bar(to_srgb8(linear, 0.0, "none"), args.view)
+        srgb = term_scales.with_colour_bar(to_srgb8(linear, 0.0, "none"), args.view)
     _write_all([(lin_path, lambda: write_npy(lin_path, linear)),
                 (out, lambda: write_png(out, srgb, png_text(scene, camera)))])
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))

@@ -77,7 +77,7 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "x"),
     Field("render", "ms_compensation", "boolean",
           "adds the energy that single scattering loses on glossy lobes: Fdez-Aguera 2019 under environment "
-          "light, Kulla & Conty 2017 for point and directional lights (viewer/ms_compare.py)", 1),
+          "light, Kulla & Conty 2017 for point and directional lights (viewer/ms_compensation.py)", 1),
     Field("render", "raytrace", "boolean",
           "traces specular chains (mirror bounces, smooth-glass refraction, total internal reflection, "
           "absorption inside) through the scene's triangles on the GPU instead of looking the environment up "

@@ -34,7 +34,7 @@ vec3 false_colour(float t) {
     return mix(b, vec3(0.9, 0.1, 0.05), smoothstep(0.7, 1.0, t));
 }
 
-// A term view's value v as a position on that ramp (viewer/termview.py's scales, generated):
+// A term view's value v as a position on that ramp (viewer/term_scales.py's scales, generated):
 // t = log(1 + k v) / log(1 + k v_max), or v / v_max for k = 0; negative v counts as 0.
 float term_t(float v, float k, float vmax) {
     v = max(v, 0.0);

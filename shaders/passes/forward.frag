@@ -31,7 +31,7 @@ uniform int u_frame_index;               // brute force: a new sample set each f
 uniform int u_ms_on;                     // multiple-scattering compensation (Fdez-Aguera 2019)
 uniform vec3 u_ms_f0;                    // the specular lobe's normal-incidence reflectance
 uniform float u_ms_ess[ALBEDO_TABLE];    // E_ss: that lobe's single-scattering albedo with F = 1
-uniform float u_ms_eavg;                 // E_avg: its hemispherical average (viewer/ms_compare.py e_avg)
+uniform float u_ms_eavg;                 // E_avg: its hemispherical average (viewer/ms_compensation.py e_avg)
 uniform int u_view_mode;                 // VIEW_MODE_SHADED, _F, _D, _G, _N_L, _F_COS, _SHADOW
 uniform vec3 u_albedo[ALBEDO_TABLE];     // directional albedo at cos(theta_o) = (k + 0.5) / ALBEDO_TABLE
 uniform vec3 u_albedo_t[ALBEDO_TABLE];   // its transmitted part (wi below the surface)
@@ -66,7 +66,6 @@ const bool SSR_ON = false;
 #ifdef RAYTRACE
 #include "common/specular_chain.glsl"
 #endif
-
 
 #ifdef IBL_SAMPLED
 // Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
@@ -124,7 +123,7 @@ float ms_ess_at(float c) {
 }
 
 // Kulla & Conty 2017's multiple-scattering lobe for point and directional lights (twin of
-// viewer/ms_compare.py kulla_conty_eval): (1 - E_ss(mu_i)) (1 - E_ss(mu_o)) / (pi (1 - E_avg)) times
+// viewer/ms_compensation.py kulla_conty_eval): (1 - E_ss(mu_i)) (1 - E_ss(mu_o)) / (pi (1 - E_avg)) times
 // F_avg^2 E_avg / (1 - F_avg (1 - E_avg)); its albedo is the energy single scattering loses.
 vec3 ms_kulla_conty(float cos_i, float cos_o) {
     if (!any(greaterThan(u_ms_f0, vec3(0.0)))) return vec3(0.0);  // no specular lobe
@@ -220,7 +219,7 @@ void main() {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
                     // energy; bounces return the geometric series F_ms = FssEss F_avg /
                     // (1 - E_ms F_avg), spread like a diffuse lobe. E_ss is the lobe's own
-                    // albedo with F = 1 (table u_ms_ess, viewer/ms_compare.py: any D, not only
+                    // albedo with F = 1 (table u_ms_ess, viewer/ms_compensation.py: any D, not only
                     // GGX), FssEss its albedo with its own Fresnel (the table rho_s).
                     float e_ms = clamp(1.0 - mix(u_ms_ess[k0], u_ms_ess[k1], fx), 0.0, 1.0);
                     vec3 f_avg = u_ms_f0 + (1.0 - u_ms_f0) / 21.0;
@@ -281,7 +280,7 @@ void main() {
     } else if (u_view_mode <= VIEW_MODE_G) {  // F, D, G in the order brdf_terms returns them
         float v = first_terms[u_view_mode - VIEW_MODE_F];
         // F and G linear in [0,1]; D on a log scale so peaks and tails are both visible (the
-        // scales, generated from viewer/termview.py, which draws the colour bars)
+        // scales, generated from viewer/term_scales.py, which draws the colour bars)
         float t = u_view_mode == VIEW_MODE_D ? term_t(v, TERM_D_K, TERM_D_MAX)
                 : u_view_mode == VIEW_MODE_F ? term_t(v, TERM_F_K, TERM_F_MAX) : term_t(v, TERM_G_K, TERM_G_MAX);
         frag_color = vec4(v < 0.0 ? vec3(TERM_NOT_APPLICABLE) : false_colour(t), 1.0);

@@ -55,7 +55,6 @@ uniform int u_frame_index;
 in vec2 v_uv;
 out vec4 frag_color;
 
-
 // Surface depth (positive, along -z of the view) at a pixel; 0 = no surface. A pixel whose
 // samples saw different surfaces (a silhouette under MSAA: the averaged normal is shorter than
 // u_min_coverage) holds a depth between them that no surface has, and a ray passing behind the

@@ -13,7 +13,7 @@ from viewer.brdf.albedo import TABLE_SIZE
 from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TABLE
 from viewer.brdf.spectral_fresnel import TABLE_N
 from viewer.geometry.bvh_flat import STACK_SIZE
-from viewer.termview import NOT_APPLICABLE, SCALES
+from viewer.term_scales import NOT_APPLICABLE, SCALES
 
 MAX_LIGHTS = 4            # point and directional lights with shadow maps in the rasterizer
 ALBEDO_TABLE = TABLE_SIZE  # entries of a directional-albedo table: cos(theta_o) = (k + 0.5) / size
@@ -62,7 +62,7 @@ _SIZES = ("MAX_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAI
 
 def float_values() -> dict[str, float]:
     """{GLSL name: value} of the header's float constants: the empty depth, and the term views'
-    scales (viewer/termview.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
+    scales (viewer/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
     log(1 + k v_max) (k = 0: t = v / v_max), ``TERM_NOT_APPLICABLE`` the grey of "no such term"."""
     out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE)}
     for view, (_, k, vmax) in SCALES.items():

@@ -1,7 +1,7 @@
 """The per-material data of environment lighting, cached by parameter values: directional-albedo
 tables (reflected, transmitted, and the specular part's alone, the model's ``ibl_split`` hook),
 that part's lobe width, and for the multiple-scattering compensation the lobe's single-scattering
-albedo with F = 1 (E_ss) and its normal-incidence Fresnel (the rule of ``viewer.ms_compare``). Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
+albedo with F = 1 (E_ss) and its normal-incidence Fresnel (the rule of ``viewer.ms_compensation``). Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
 numpy estimator's points) or from numpy (``viewer.brdf.albedo``: the oracle and the fallback)."""
 
 from __future__ import annotations
@@ -39,10 +39,10 @@ class MaterialTables:
     def ms_terms(self, params) -> tuple[np.ndarray, np.ndarray]:
         """The multiple-scattering compensation's data (computed on first use: only scenes with
         ``ms_compensation`` need it): float32 (32,) E_ss, the specular lobe's single-scattering
-        albedo with F = 1 (``viewer.ms_compare.white_lobe``, built like the other tables; the
+        albedo with F = 1 (``viewer.ms_compensation.white_lobe``, built like the other tables; the
         GGX DFG table's A + B for lobes without one), and F0 = the specular albedo over E_ss at
-        the table's normal-incidence node (``viewer.ms_compare.ms_f0``)."""
-        from viewer import ms_compare
+        the table's normal-incidence node (``viewer.ms_compensation.ms_f0``)."""
+        from viewer import ms_compensation
 
         key = json.dumps(params.to_plain(), sort_keys=True)
         terms = self._ms_cache.get(key)
@@ -54,12 +54,12 @@ class MaterialTables:
                 from viewer import brdf
 
                 split = brdf.get(params.model).hook("ibl_split")
-                white = ms_compare.white_lobe(split(params)[0]) if split is not None else None
+                white = ms_compensation.white_lobe(split(params)[0]) if split is not None else None
                 if white is not None:
                     e_ss = self._albedo_pair(brdf.get(white.model), white)[0].mean(axis=1)
                 else:  # about a second of numpy the first time: the DFG table
-                    e_ss = ms_compare.ess_ggx((np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE, alpha)
-                terms = (np.clip(e_ss, 0.0, 1.0).astype("f4"), ms_compare.ms_f0(spec[-1], e_ss[-1]))
+                    e_ss = ms_compensation.ess_ggx((np.arange(TABLE_SIZE) + 0.5) / TABLE_SIZE, alpha)
+                terms = (np.clip(e_ss, 0.0, 1.0).astype("f4"), ms_compensation.ms_f0(spec[-1], e_ss[-1]))
             if len(self._ms_cache) > 256:
                 self._ms_cache.clear()
             self._ms_cache[key] = terms

@@ -364,7 +364,7 @@ class Renderer:
             self._render_error = e
             w = int(width or scene.camera.width)
             h = int(height or scene.camera.height)
-            return self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)["resolved"]
+            return self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa).resolved
         self._render_error = None
         return hdr
 
@@ -374,7 +374,7 @@ class Renderer:
             self._shadows.update(scene, self.programs["shadow"], self.draw_objects)
         thickness = self._environment(scene, f)
         if f.region is not None:  # applied by every use() of the frame's colour target
-            f.targets["draw_fbo"].scissor = f.region
+            f.targets.draw_fbo.scissor = f.region
         try:
             self._draw_background(scene, f)
             uniforms = self._frame_uniforms(scene, f, frame_index)
@@ -382,16 +382,16 @@ class Renderer:
             self._draw_objects(scene, f, uniforms, rt, thickness)
         finally:
             if f.region is not None:
-                f.targets["draw_fbo"].scissor = None
-                f.targets["draw_fbo"].use()
+                f.targets.draw_fbo.scissor = None
+                f.targets.draw_fbo.use()
         return self._finish(scene, f, frame_index)
 
     def resolved_framebuffer(self, hdr):
         """The framebuffer of ``hdr``, a texture ``render`` returned (to read or copy from)."""
         t = self._frame_targets
-        if t is None or t.get("resolved") is not hdr or "resolved_fbo" not in t:
+        if t is None or t.resolved is not hdr:
             raise ValueError("not the resolved target of this renderer's last frame (an SSR frame has its own)")
-        return t["resolved_fbo"]
+        return t.resolved_fbo
 
     def traces(self, scene) -> bool:
         """Whether a render of ``scene`` traces specular chains (``raytrace`` on and a mirror or
@@ -447,7 +447,7 @@ class Renderer:
         ssr_on = bool(scene.render.ssr)
         targets = self._ensure_targets(w, h, scene.render.msaa if msaa is None else msaa)
         if ssr_on:  # the same sample count, with the SSR pass's three attachments
-            targets = self.ssr().targets(w, h, targets["samples"])
+            targets = self.ssr().targets(w, h, targets.samples)
         ssr_debug = view_mode - SSR_VIEW_BASE if view_mode > SSR_VIEW_BASE else 0
         if ssr_debug:
             view_mode = 0  # the forward pass shades; the SSR pass shows its debug output
@@ -488,7 +488,7 @@ class Renderer:
     def _draw_background(self, scene, f: _Frame):
         """Clear the colour target to the constant environment and draw the map behind the scene."""
         ctx = self.ctx
-        fbo = f.targets["draw_fbo"]
+        fbo = f.targets.draw_fbo
         fbo.use()
         fbo.viewport = (0, 0, f.w, f.h)
         fbo.clear(*[float(x) for x in f.env_rad], 1.0, depth=1.0)
@@ -602,10 +602,10 @@ class Renderer:
 
     def _ms_uniforms(self, prog, params, ms_scene: bool):
         """The multiple-scattering compensation of a material (environment light: Fdez-Aguera;
-        point and directional lights: Kulla-Conty; viewer/ms_compare.py): for the whole scene, or
+        point and directional lights: Kulla-Conty; viewer/ms_compensation.py): for the whole scene, or
         for a material whose reference has the multiple-scattering random walk (the raster's
         approximation of the same light)."""
-        from viewer import ms_compare
+        from viewer import ms_compensation
 
         ms_on = ms_scene or bool(params.get("multiple_scattering", False))
         _set(prog, "u_ms_on", int(ms_on))
@@ -613,7 +613,7 @@ class Renderer:
             ms_ess, ms_f0 = self.tables.ms_terms(params)
             _set(prog, "u_ms_f0", tuple(float(x) for x in ms_f0))
             _set(prog, "u_ms_ess", ms_ess.tobytes())
-            _set(prog, "u_ms_eavg", ms_compare.e_avg(ms_ess))
+            _set(prog, "u_ms_eavg", ms_compensation.e_avg(ms_ess))
 
     def _environment_uniforms(self, prog, params, thickness):
         """A material's environment-lighting uniforms: its albedo tables, lobe width,
@@ -644,9 +644,9 @@ class Renderer:
             return self._ssr.resolve_and_trace(self._ibl, f.cam, f.w, f.h, f.env_on, scene.environment.rotation_deg,
                                                f.ssr_debug, frame_index, back=back)
         t = f.targets
-        if t["draw_fbo"] is not t["resolved_fbo"]:
-            self.ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])
-        return t["resolved"]
+        if t.draw_fbo is not t.resolved_fbo:
+            self.ctx.copy_framebuffer(t.resolved_fbo, t.draw_fbo)
+        return t.resolved
 
     def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
         """Exposure, tone mapping and sRGB encoding of ``hdr`` into ``fbo`` (e.g. ctx.screen)."""

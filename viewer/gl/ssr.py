@@ -47,6 +47,7 @@ path, readback + numpy + ``Texture.write(level=k)``, ~45 ms, is kept as ``build_
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -55,6 +56,7 @@ from viewer.gl import texture_units
 from viewer.gl.constants import EMPTY_DEPTH  # the pyramid's value where there is no surface (ssr_hiz.frag)
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
+from viewer.gl.targets import FrameTargets
 
 #: the pass's programs (name -> recipe), fullscreen passes with the one-model BRDF dispatch
 PROGRAMS = {
@@ -62,6 +64,28 @@ PROGRAMS = {
     "background": Recipe("passes/fullscreen.vert", "passes/ssr_background.frag"),
     "hiz": Recipe("passes/fullscreen.vert", "passes/ssr_hiz.frag"),
 }
+
+
+@dataclass
+class SsrTargets(FrameTargets):
+    """The SSR pass's targets: those of the forward pass (``resolved``: radiance without the
+    specular environment term, the specular weight and lobe width, the normal and view depth),
+    the radiance's mip chain (``mip``, ``levels`` levels; ``color_fbo`` views resolved[0] for the
+    copy into it), the output (``out``), and the Hi-Z pyramid (``hiz``, its ``hiz_sizes``; level 0
+    drawn through ``hiz_fbo0``, levels k > 0 into ``hiz_tmp[k]`` and copied through ``hiz_pbo``)."""
+
+    mip: object = None
+    mip_fbo: object = None
+    levels: int = 1
+    color_fbo: object = None
+    out: object = None
+    out_fbo: object = None
+    hiz: object = None
+    hiz_sizes: list = field(default_factory=list)
+    hiz_fbo0: object = None
+    hiz_tmp: list = field(default_factory=list)
+    hiz_tmp_fbo: list = field(default_factory=list)
+    hiz_pbo: object = None
 
 
 class SSR:
@@ -75,7 +99,7 @@ class SSR:
         self.programs = {name: recipe.build(ctx) for name, recipe in PROGRAMS.items()}
         self.vaos = {name: ctx.vertex_array(prog, []) for name, prog in self.programs.items()}
         self.last_hiz_s = None
-        self._t = None
+        self._targets = None
         self._key = None
         self.last_pass_s = None
 
@@ -93,10 +117,15 @@ class SSR:
         old.release()
 
     # ------------------------------------------------------------------ targets
-    def targets(self, w, h, samples):
+    @property
+    def current(self) -> "SsrTargets | None":
+        """The targets of the last ``targets`` call (the last SSR frame's), or None."""
+        return self._targets
+
+    def targets(self, w, h, samples) -> "SsrTargets":
         key = (w, h, samples)
         if self._key == key:
-            return self._t
+            return self._targets
         self._release_targets()
         ctx = self.ctx
         res = [ctx.texture((w, h), 4, dtype="f4") for _ in range(3)]
@@ -135,28 +164,25 @@ class SSR:
         hiz_tmp = [None] + [ctx.texture(sz, 1, dtype="f4") for sz in hiz_sizes[1:]]
         hiz_tmp_fbo = [None] + [ctx.framebuffer(color_attachments=[t_]) for t_ in hiz_tmp[1:]]
         hiz_pbo = ctx.buffer(reserve=4 * hiz_sizes[1][0] * hiz_sizes[1][1]) if levels > 1 else None
-        self._t = {"hiz": hiz, "hiz_sizes": hiz_sizes, "hiz_fbo0": hiz_fbo0, "hiz_tmp": hiz_tmp,
-                   "hiz_tmp_fbo": hiz_tmp_fbo, "hiz_pbo": hiz_pbo,
-                   "draw_fbo": draw_fbo, "resolved_fbo": resolved_fbo, "resolved": res, "extra": extra,
-                   "samples": samples, "mip": mip, "mip_fbo": mip_fbo, "levels": levels, "out": out,
-                   "out_fbo": out_fbo, "color_fbo": color_fbo}
+        self._targets = SsrTargets(draw_fbo=draw_fbo, resolved_fbo=resolved_fbo, resolved=res, extra=extra,
+                                   samples=samples, mip=mip, mip_fbo=mip_fbo, levels=levels, color_fbo=color_fbo,
+                                   out=out, out_fbo=out_fbo, hiz=hiz, hiz_sizes=hiz_sizes, hiz_fbo0=hiz_fbo0,
+                                   hiz_tmp=hiz_tmp, hiz_tmp_fbo=hiz_tmp_fbo, hiz_pbo=hiz_pbo)
         self._key = key
-        return self._t
+        return self._targets
 
     def _release_targets(self):
-        t = self._t
+        t = self._targets
         if not t:
             return
-        if t["draw_fbo"] is not t["resolved_fbo"]:
-            t["draw_fbo"].release()
-        for k in ("resolved_fbo", "mip_fbo", "out_fbo", "color_fbo", "mip", "out"):
-            t[k].release()
-        for r in t["resolved"] + t["extra"]:
+        if t.draw_fbo is not t.resolved_fbo:
+            t.draw_fbo.release()
+        for r in [t.resolved_fbo, t.mip_fbo, t.out_fbo, t.color_fbo, t.mip, t.out] + t.resolved + t.extra:
             r.release()
-        for r in [t["hiz_fbo0"], t["hiz"], t["hiz_pbo"]] + t["hiz_tmp_fbo"] + t["hiz_tmp"]:
+        for r in [t.hiz_fbo0, t.hiz, t.hiz_pbo] + t.hiz_tmp_fbo + t.hiz_tmp:
             if r is not None:
                 r.release()
-        self._t = None
+        self._targets = None
         self._key = None
 
     # ------------------------------------------------------------------ passes
@@ -181,49 +207,49 @@ class SSR:
         import time
 
         ctx = self.ctx
-        t = self._t
+        t = self._targets
         method = method or self.settings["hiz_build"]
         t0 = time.perf_counter()
-        sizes = t["hiz_sizes"]
+        sizes = t.hiz_sizes
         if method == "cpu":
-            g = np.frombuffer(t["resolved"][2].read(), np.float32).reshape(sizes[0][1], sizes[0][0], 4)
+            g = np.frombuffer(t.resolved[2].read(), np.float32).reshape(sizes[0][1], sizes[0][0], 4)
             for k, z in enumerate(hiz_pyramid_numpy(depth_from_geom(g), len(sizes))):
-                t["hiz"].write(np.ascontiguousarray(z, np.float32).tobytes(), level=k)
+                t.hiz.write(np.ascontiguousarray(z, np.float32).tobytes(), level=k)
         else:
             ctx.disable(ctx.DEPTH_TEST)
             prog = self.programs["hiz"]
             _set(prog, "u_src", 0)
-            t["resolved"][2].use(location=0)
+            t.resolved[2].use(location=0)
             _set(prog, "u_level", 0)
-            t["hiz_fbo0"].use()
-            t["hiz_fbo0"].viewport = (0, 0) + sizes[0]
+            t.hiz_fbo0.use()
+            t.hiz_fbo0.viewport = (0, 0) + sizes[0]
             self.vaos["hiz"].render(vertices=3)
-            t["hiz"].use(location=0)
+            t.hiz.use(location=0)
             for k in range(1, len(sizes)):
                 _set(prog, "u_level", k)
                 _set(prog, "u_src_size", sizes[k - 1])
-                fbo = t["hiz_tmp_fbo"][k]
+                fbo = t.hiz_tmp_fbo[k]
                 fbo.use()
                 fbo.viewport = (0, 0) + sizes[k]
                 self.vaos["hiz"].render(vertices=3)
-                t["hiz_tmp"][k].read_into(t["hiz_pbo"])
-                t["hiz"].write(t["hiz_pbo"], level=k)
+                t.hiz_tmp[k].read_into(t.hiz_pbo)
+                t.hiz.write(t.hiz_pbo, level=k)
         self.last_hiz_s = time.perf_counter() - t0
-        return t["hiz"]
+        return t.hiz
 
     def read_resolved(self, index: int) -> np.ndarray:
         """Resolved forward target ``index`` of the last frame as float32 (H, W, 4), rows bottom
         to top: 1 the specular weight, 2 the geometry (normal, depth)."""
-        tex = self._t["resolved"][index]
+        tex = self._targets.resolved[index]
         w, h = tex.size
         return np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
 
     def read_hiz(self):
         """The pyramid's levels as float32 arrays (rows bottom to top, like the textures)."""
-        t = self._t
+        t = self._targets
         out = []
-        for k, (w, h) in enumerate(t["hiz_sizes"]):
-            out.append(np.frombuffer(t["hiz"].read(level=k), np.float32).reshape(h, w).copy())
+        for k, (w, h) in enumerate(t.hiz_sizes):
+            out.append(np.frombuffer(t.hiz.read(level=k), np.float32).reshape(h, w).copy())
         return out
 
     def resolve_and_trace(self, ibl, cam, w, h, env_on: bool, rotation_deg: float, debug: int = 0,
@@ -235,14 +261,14 @@ class SSR:
         import time
 
         ctx = self.ctx
-        t = self._t
-        if t["draw_fbo"] is not t["resolved_fbo"]:
-            ctx.copy_framebuffer(t["resolved_fbo"], t["draw_fbo"])  # every attachment
+        t = self._targets
+        if t.draw_fbo is not t.resolved_fbo:
+            ctx.copy_framebuffer(t.resolved_fbo, t.draw_fbo)  # every attachment
         t0 = time.perf_counter()
         # framebuffer to framebuffer (a blit keeps the float values; a copy into the texture
         # itself went through an 8-bit format: reflections quantized and clamped at 1)
-        ctx.copy_framebuffer(t["mip_fbo"], t["color_fbo"])
-        t["mip"].build_mipmaps(0, t["levels"] - 1)
+        ctx.copy_framebuffer(t.mip_fbo, t.color_fbo)
+        t.mip.build_mipmaps(0, t.levels - 1)
         view = cam.view()
         proj = cam.projection(w / h)
         near, _ = cam.clip_planes()
@@ -251,17 +277,17 @@ class SSR:
         if use_hiz:
             self.build_hiz()
         prog = self.programs["trace"]
-        t["hiz"].use(location=texture_units.SSR_HIZ)
+        t.hiz.use(location=texture_units.SSR_HIZ)
         _set(prog, "u_hiz_tex", texture_units.SSR_HIZ)
         _set(prog, "u_hiz", int(s["hiz"]))
-        _set(prog, "u_hiz_max_level", len(t["hiz_sizes"]) - 1)
+        _set(prog, "u_hiz_max_level", len(t.hiz_sizes) - 1)
         _set(prog, "u_hiz_max_iter", int(s["hiz_max_iter"]))
         _set(prog, "u_back_on", int(back is not None))
         if back is not None:
             back.use(location=12)  # above the units ibl.bind takes
             _set(prog, "u_back", 12)
         for i, name in enumerate(("u_color", "u_spec", "u_geom")):
-            tex = t["mip"] if i == 0 else t["resolved"][i]
+            tex = t.mip if i == 0 else t.resolved[i]
             tex.use(location=texture_units.SSR_INPUTS + i)
             _set(prog, name, texture_units.SSR_INPUTS + i)
         ty = math.tan(math.radians(cam.fov_y) / 2.0)
@@ -278,7 +304,7 @@ class SSR:
         _set(prog, "u_refine_steps", int(s["refine_steps"]))
         _set(prog, "u_max_roughness", s["max_roughness"])
         _set(prog, "u_edge_fade", s["edge_fade"])
-        _set(prog, "u_max_lod", float(t["levels"] - 1))
+        _set(prog, "u_max_lod", float(t.levels - 1))
         _set(prog, "u_env_on", int(env_on))
         _set(prog, "u_debug", int(debug))
         _set(prog, "u_min_coverage", float(s["min_coverage"]))
@@ -286,13 +312,13 @@ class SSR:
         _set(prog, "u_jitter", int(bool(s["jitter"])))
         _set(prog, "u_frame_index", int(frame_index))
         ibl.bind(prog, rotation_deg)
-        fbo = t["out_fbo"]
+        fbo = t.out_fbo
         fbo.use()
         fbo.viewport = (0, 0, w, h)
         ctx.disable(ctx.DEPTH_TEST)
         self.vaos["trace"].render(vertices=3)
         self.last_pass_s = time.perf_counter() - t0  # CPU side; call ctx.finish() to time the GPU
-        return t["out"]
+        return t.out
 
     def release(self):
         self._release_targets()

@@ -4,9 +4,23 @@ absorbing objects that the forward pass turns into a path length inside them."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 
 from viewer.camera import gl_bytes
 from viewer.gl.shaders import set_uniform as _set
+
+
+@dataclass
+class FrameTargets:
+    """A frame's colour targets: ``draw_fbo`` (multisampled when ``samples`` > 1, with depth) is
+    resolved into ``resolved_fbo``, whose colour is ``resolved`` (one RGBA32F texture, or the
+    SSR pass's three); ``extra``: the renderbuffers behind ``draw_fbo``."""
+
+    draw_fbo: object
+    resolved_fbo: object
+    resolved: object
+    extra: list
+    samples: int
 
 
 class HdrTarget:
@@ -18,8 +32,8 @@ class HdrTarget:
         self._targets = None
         self._key = None
 
-    def ensure(self, w, h, samples) -> dict:
-        """{"resolved", "resolved_fbo", "draw_fbo", "extra", "samples"} for this size."""
+    def ensure(self, w, h, samples) -> FrameTargets:
+        """The targets of this size and sample count."""
         samples = samples if samples > 1 else 0
         samples = min(samples, self.ctx.max_samples)
         key = (w, h, samples)
@@ -39,19 +53,19 @@ class HdrTarget:
             depth = ctx.depth_renderbuffer((w, h))
             ms_fbo = ctx.framebuffer(color_attachments=[resolved], depth_attachment=depth)
             extra = [depth]
-        self._targets = {"resolved": resolved, "resolved_fbo": resolved_fbo, "draw_fbo": ms_fbo,
-                         "extra": extra, "samples": samples}
+        self._targets = FrameTargets(draw_fbo=ms_fbo, resolved_fbo=resolved_fbo, resolved=resolved, extra=extra,
+                                     samples=samples)
         self._key = key
         return self._targets
 
     def release(self):
         if self._targets:
             t = self._targets
-            if t["draw_fbo"] is not t["resolved_fbo"]:
-                t["draw_fbo"].release()
-            t["resolved_fbo"].release()
-            t["resolved"].release()
-            for r in t["extra"]:
+            if t.draw_fbo is not t.resolved_fbo:
+                t.draw_fbo.release()
+            t.resolved_fbo.release()
+            t.resolved.release()
+            for r in t.extra:
                 r.release()
         self._targets = None
         self._key = None

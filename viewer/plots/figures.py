@@ -146,12 +146,12 @@ def _albedo_figure(r: _Request) -> Figure:
     p, channel = r.p, r.channel
     d = albedo_curve(p)
     curves = _rgb_curves(d["theta"], d["albedo"], "albedo", channel)
-    from viewer import ms_compare
+    from viewer import ms_compensation
 
-    if ms_compare.applies(p):  # single scattering, the raster's compensation, the random walk
+    if ms_compensation.applies(p):  # single scattering, the raster's compensation, the random walk
         from viewer.brdf.microfacet import walks
 
-        ms = ms_compare.albedos(p, np.cos(np.radians(d["theta"])), known={
+        ms = ms_compensation.albedos(p, np.cos(np.radians(d["theta"])), known={
             "walk" if walks(p) else "single": d["albedo"]})
         curves = _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
         curves += _rgb_curves(d["theta"], ms["compensated"], "compensated, environment (raster)", channel, "dashed")

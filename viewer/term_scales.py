@@ -1,6 +1,7 @@
 """Term views' scales: how a value of F, D, G, N.L or f cos maps to the false-colour ramp, its
 inverse for colour-bar labels, and the ramp itself (the numpy twin of ``false_colour`` in
-shaders/passes/forward.frag). No GL here: the window, ``render`` and the tests share it.
+shaders/common/colour.glsl; the scales reach the shaders through generated/constants.glsl). No GL
+here: the window, ``render`` and the tests share it.
 
 F, G and N.L lie in [0, 1] and are shown linearly. D and f cos span orders of magnitude (a sharp
 lobe's peak against its tail), so they are shown on t = log(1 + k v) / log(1 + k v_max): D with
