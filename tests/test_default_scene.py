@@ -45,3 +45,27 @@ def test_material_editor_is_above_the_fold_at_1280x720(display):
     y, line = [float(v) for v in r.stdout.split("MATERIALS_Y")[1].split()[:2]]
     # the header, the ball's node, the preset and model pickers and the first sliders: 8 rows
     assert y + 8 * line < 720, (y, line)
+
+
+def test_gallery_fits_a_view_narrowed_by_the_panel():
+    """Every sphere of the gallery lies whole inside a view of 1380 x 1080 (a 1920 x 1080 window
+    less the side panel at UI scale 1.5): its centre's image plus its radius, in normalized
+    device x, within [-1, 1]."""
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    sc = load_scene("gallery")
+    cam = OrbitCamera.from_scene(sc)
+    aspect = 1380 / 1080
+    vp = cam.projection(aspect) @ cam.view()
+    worst = 0.0
+    for o in sc.objects:
+        if o.mesh != "sphere":
+            continue
+        r = float(np.max(o.scale))
+        c = vp @ np.append(np.asarray(o.translate, float), 1.0)
+        x = c[0] / c[3]
+        half = r / c[3] * vp[0, 0] * 1.05  # the silhouette's half-width (a little over r)
+        worst = max(worst, abs(x) + half)
+    print(f"gallery at 1.28:1: outermost sphere edge at |x| = {worst:.3f} (NDC)")
+    assert worst < 1.0, worst
