@@ -567,7 +567,8 @@ class Session(FileActions):
                 # the raster alone, as shown when the view holds it at full quality (a traced
                 # view, finished or not, is saved as it stands: nothing waits, nothing restarts);
                 # otherwise rendered afresh at the view's size
-                if self.hdr is not None and self.quality in ("full", "tracing") and tuple(self.hdr.size) == (vw, vh):
+                shown = self.hdr is not None and not self.dirty and self.quality in ("full", "tracing")
+                if shown and tuple(self.hdr.size) == (vw, vh):
                     srgb = self.renderer.read_srgb(self.hdr, self.scene.render.exposure, self.scene.render.tonemap)
                 else:
                     srgb = self.render_image(vw, vh)
