@@ -283,7 +283,13 @@ class Session(FileActions):
         for msg in self.prep.messages:
             self.notify(msg)
         self.prep.messages.clear()
-        if res is not None and self.prep.done:
+        if res is not None and not res.cached and res.stored is None:
+            from viewer.gl.trace_cache import cache_folder
+
+            self.prep.cancel()
+            self.notify(f"Prepare lecture stopped: the traced-frame cache {cache_folder()} cannot be written "
+                        "(the steps will trace live)", error=True)
+        elif res is not None and self.prep.done:
             traced = [r for r in self.prep.results if not r.cached]
             self.notify(f"{self.prep.progress_text()} ({len(self.prep.results)} steps, {len(traced)} traced now)")
         elif res is not None:
