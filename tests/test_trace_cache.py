@@ -168,6 +168,22 @@ def test_prepare_twice_cancels(session, cache_dir, monkeypatch):
     assert not session.prepare_lecture(SIZE) and not session.preparing and "cancelled" in session.status
 
 
+def test_prepare_with_an_unwritable_cache_says_so_once(session, tmp_path, monkeypatch):
+    import viewer.app.lecture_prep as prep_mod
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(blocker))
+    monkeypatch.setattr(prep_mod, "traced_steps", lambda: [_step("tir")])
+    assert session.prepare_lecture((24, 16))
+    frames = 0
+    while session.preparing:
+        session.render_view((24, 16))
+        frames += 1
+        assert frames < 200
+    assert session.last_message.error and "cannot be written" in session.status and "\n" not in session.status
+
+
 def test_screenshot_of_a_traced_view_neither_waits_nor_restarts(session, cache_dir, tmp_path, monkeypatch):
     # F12 while the view traces: the image as shown, no traced frame rendered for it, and the
     # trace goes on where it was

@@ -286,7 +286,13 @@ class Session(FileActions):
         for msg in self.prep.messages:
             self.notify(msg)
         self.prep.messages.clear()
-        if res is not None and self.prep.done:
+        if res is not None and not res.cached and res.stored is None:
+            from viewer.gl.trace_cache import cache_folder
+
+            self.prep.cancel()
+            self.notify(f"Prepare lecture stopped: the traced-frame cache {cache_folder()} cannot be written "
+                        "(the steps will trace live)", error=True)
+        elif res is not None and self.prep.done:
             traced = [r for r in self.prep.results if not r.cached]
             self.notify(f"{self.prep.progress_text()} ({len(self.prep.results)} steps, {len(traced)} traced now)")
         elif res is not None:
@@ -584,7 +590,8 @@ class Session(FileActions):
                 # the raster alone, as shown when the view holds it at full quality (a traced
                 # view, finished or not, is saved as it stands: nothing waits, nothing restarts);
                 # otherwise rendered afresh at the view's size
-                if self.hdr is not None and self.quality in ("full", "tracing") and tuple(self.hdr.size) == (vw, vh):
+                shown = self.hdr is not None and not self.dirty and self.quality in ("full", "tracing")
+                if shown and tuple(self.hdr.size) == (vw, vh):
                     srgb = self.renderer.read_srgb(self.hdr, self.scene.render.exposure, self.scene.render.tonemap)
                 else:
                     srgb = self.render_image(vw, vh)
