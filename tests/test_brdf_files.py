@@ -496,3 +496,23 @@ def test_saving_the_file_hot_reloads_it_and_an_error_keeps_the_last_good_program
     kept = _image(s)  # the last good program keeps drawing
     np.testing.assert_allclose(kept, half, atol=1e-7)
     assert s.scene.materials[name].model == "custom"
+
+
+def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):
+    from viewer import plots
+    from viewer.cli import main, plot_material
+
+    for kind in ("polar", "lobe", "albedo"):
+        assert main(["plot", str(DATA / "every_declaration.brdf"), "--kind", kind, "--set", "n=20",
+                     "--out", str(tmp_path / f"{kind}.png")]) == 0
+    mat = tmp_path / "ct.toml"
+    mat.write_text(f'[materials.ct]\nmodel = "custom"\nfile = "{DATA / "every_declaration.brdf"}"\n'
+                   f'halve = true\ntint = [1.0, 0.5, 0.25]\n')
+    p = plot_material(str(mat), ["n=30"])
+    assert p.model == "custom" and p.halve is True and p.n == 30.0 and list(p.tint) == [1.0, 0.5, 0.25]
+    assert main(["plot", "microfacet", "--kind", "polar", "--overlay", str(mat),
+                 "--out", str(tmp_path / "over.png")]) == 0
+    # the polar data of the file: its f cos in the plane, peaked at the mirror direction
+    d = plots.polar_lobe(p, theta_i=30.0)
+    k = int(np.argmax(d["fcos"][:, 0]))
+    assert abs(d["theta_o"][k] - 30.0) < 3.0

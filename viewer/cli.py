@@ -156,6 +156,15 @@ def _plot_material(name: str, assignments):
         from viewer.scene import load_material_file
 
         raw = load_material_file(name)[1].to_plain()
+        if raw.get("model") == "custom":  # a material file holding a .brdf file's material
+            from viewer.check_cli import file_params
+
+            model = brdf.load(raw["file"])
+            raw.pop("model")
+            import json
+
+            return file_params(model, [f"{k}={json.dumps(v)}" for k, v in raw.items() if k != "file"]
+                               + list(assignments))
     elif name in brdf.names():
         raw = {"model": name}
     elif name in PRESETS:
