@@ -416,3 +416,103 @@ def test_the_lecture_step_shows_the_shipped_cook_torrance_beside_the_built_in_mi
         "materials.file.alpha=0.3", "materials.file.kd=0"])
     assert b.max() > 0.05
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- the window's session
+
+
+@pytest.fixture
+def brdf_session(gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    yield s
+    s.release()
+
+
+def _image(s, size=(48, 36)):
+    s.changed()
+    s.render_view(size)
+    return s.renderer.read_linear(s.hdr).astype(np.float64)
+
+
+def test_dropping_a_brdf_file_puts_it_on_the_selected_object(brdf_session, tmp_path):
+    s = brdf_session
+    shutil.copy(DATA / "lambert_twin.brdf", tmp_path)
+    name = s.scene.objects[s.mesh_target].material
+    before = _image(s)
+    s.open_files([str(tmp_path / "lambert_twin.brdf")])
+    p = s.scene.materials[name]
+    assert p.model == "custom" and p.gain == 1.0
+    after = _image(s)
+    assert np.all(np.isfinite(after)) and not np.allclose(before, after)
+    # the declared parameters are the material's controls (validated as every slider's value)
+    assert s.set_material_param(name, "gain", 0.25)
+    dimmer = _image(s)
+    assert dimmer.sum() < after.sum()
+    assert not s.set_material_param(name, "gain", 5.0)  # out of range: kept, one notification
+    assert s.scene.materials[name].gain == 0.25
+    # a file that does not compile keeps the material and names FILE:LINE
+    shutil.copy(DATA / "syntax_error.brdf", tmp_path)
+    seen = []
+    s.notify = lambda text, error=False: seen.append((text, error))
+    assert not s.load_brdf_file(str(tmp_path / "syntax_error.brdf"))
+    assert seen and seen[-1][1] and seen[-1][0].startswith("syntax_error.brdf:8:")
+    assert s.scene.materials[name].model == "custom" and Path(s.scene.materials[name].file).name == "lambert_twin.brdf"
+
+
+def test_saving_the_file_hot_reloads_it_and_an_error_keeps_the_last_good_program(brdf_session, tmp_path):
+    from viewer.app.shader_overlay import HotReload
+
+    s = brdf_session
+    src = tmp_path / "lam.brdf"
+    body = ("analytic\n::begin shader\nvec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)\n{{\n"
+            "    return vec3({}) / 3.14159265;\n}}\n::end shader\n")
+    src.write_text(body.format("0.5"))
+    name = s.scene.objects[s.mesh_target].material
+    assert s.load_brdf_file(str(src))
+    hr = HotReload(s.renderer)
+    first = _image(s)
+    hr.poll(force=True)  # the first look only learns the files
+
+    def save(text):
+        src.write_text(text)
+        st = src.stat()
+        os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+
+    save(body.format("0.25"))
+    assert hr.poll(force=True)
+    half = _image(s)
+    lit = first > 1e-3
+    ratio = half[lit] / first[lit]
+    # the ball's pixels halve (the raster has no interreflection), the rest stays; antialiased
+    # edges mix the two
+    assert np.mean(np.abs(ratio - 0.5) < 1e-3) > 0.05 and np.all(ratio > 0.5 - 1e-3)
+    save(body.format("undefined_thing"))
+    hr.poll(force=True)
+    errs = [e.summary() for e in hr.errors]
+    assert any(e.startswith("lam.brdf:5:") for e in errs), errs
+    kept = _image(s)  # the last good program keeps drawing
+    np.testing.assert_allclose(kept, half, atol=1e-7)
+    assert s.scene.materials[name].model == "custom"
+
+
+def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):
+    from viewer import plots
+    from viewer.cli import main, plot_material
+
+    for kind in ("polar", "lobe", "albedo"):
+        assert main(["plot", str(DATA / "every_declaration.brdf"), "--kind", kind, "--set", "n=20",
+                     "--out", str(tmp_path / f"{kind}.png")]) == 0
+    mat = tmp_path / "ct.toml"
+    mat.write_text(f'[materials.ct]\nmodel = "custom"\nfile = "{DATA / "every_declaration.brdf"}"\n'
+                   f'halve = true\ntint = [1.0, 0.5, 0.25]\n')
+    p = plot_material(str(mat), ["n=30"])
+    assert p.model == "custom" and p.halve is True and p.n == 30.0 and list(p.tint) == [1.0, 0.5, 0.25]
+    assert main(["plot", "microfacet", "--kind", "polar", "--overlay", str(mat),
+                 "--out", str(tmp_path / "over.png")]) == 0
+    # the polar data of the file: its f cos in the plane, peaked at the mirror direction
+    d = plots.polar_lobe(p, theta_i=30.0)
+    k = int(np.argmax(d["fcos"][:, 0]))
+    assert abs(d["theta_o"][k] - 30.0) < 3.0

@@ -45,7 +45,7 @@ class FileActions:
             self.notify(f"material {name!r}: not in the scene; it has {', '.join(self.scene.materials)}",
                         error=True)
             return False
-        spec = brdf.get(mat.model).spec
+        spec = brdf.spec_of(mat)
         by_name = {p.name: p for p in spec.params}
         p = by_name.get(param)
         if p is None:
@@ -219,9 +219,33 @@ class FileActions:
                 self.open_scene(p)
             elif low.endswith(MESH_SUFFIXES):
                 self.load_mesh(p)
+            elif low.endswith(".brdf"):
+                self.load_brdf_file(p)
             else:
                 self.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
-                            "meshes " + " ".join(MESH_SUFFIXES), error=True)
+                            ".brdf files, meshes " + " ".join(MESH_SUFFIXES), error=True)
+
+    def load_brdf_file(self, path, name: str | None = None) -> bool:
+        """Put a BRDF Explorer ``.brdf`` file (its declared defaults) on material ``name`` (default:
+        the material of the selected object, ``mesh_target``). A file that does not parse or
+        compile keeps the material and reports one line naming ``FILE.brdf:LINE``."""
+        from viewer import brdf, file_brdf_evaluator
+
+        if name is None:
+            if not self.scene.objects:
+                self.notify(f"{path}: the scene has no object to put it on", error=True)
+                return False
+            name = self.scene.objects[self.mesh_target].material
+        try:
+            model = brdf.load(path)
+            file_brdf_evaluator().check(model.bfile)
+            params = model.params()
+        except ViewerError as e:
+            self.notify(str(e).splitlines()[0], error=True)
+            return False
+        self.set_material(name, params)
+        self.notify(f"material {name!r} <- {model.bfile.path.name} ({len(model.bfile.declarations)} parameters)")
+        return True
 
     # ------------------------------------------------------------------ environment
     def set_environment(self, ref) -> bool:

@@ -55,7 +55,7 @@ class HotReload:
         """Call once per frame. True when programs were rebuilt (or errors may have gone), i.e.
         when the image must be rendered again."""
         t0 = time.perf_counter()
-        changed = self.watcher.poll(force)
+        changed = self.watcher.poll(force) + self._brdf_files_changed(force)
         if not changed:
             return False
         had_errors = bool(self.renderer.shader_errors)
@@ -67,6 +67,21 @@ class HotReload:
         if self.last_reloaded and not errors:
             self._note_until = time.monotonic() + NOTE_SECONDS
         return bool(self.last_reloaded) or had_errors
+
+    def _brdf_files_changed(self, force: bool) -> list[str]:
+        """Names of the ``.brdf`` files of the renderer's programs changed since the last look
+        (polled with the shader folder); a saved file rebuilds its programs, and an error names
+        the file's line while the last good program keeps drawing."""
+        stats = getattr(self, "_brdf_stats", {})
+        now = {}
+        for p in sorted(self.renderer.file_brdfs()):
+            try:
+                st = os.stat(p)
+                now[p] = (st.st_mtime_ns, st.st_size, st.st_ino)
+            except OSError:
+                now[p] = None
+        self._brdf_stats = now
+        return [Path(p).name for p in now if p in stats and stats[p] != now[p]]
 
     def draw_overlay(self) -> None:
         """Inside an imgui frame: while errors exist, a red-bordered window at the top right of

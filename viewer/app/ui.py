@@ -108,7 +108,7 @@ def shown_params(params: Params) -> list[str]:
     chosen variant (``ior`` only under a dielectric Fresnel, ``eta`` / ``k`` only under a
     conductor one and not when a measured spectral table replaces them, ``f0`` only under
     Schlick; ``alpha_y`` not for the isotropic Blinn-Phong distribution)."""
-    spec = brdf.get(params.model).spec
+    spec = brdf.spec_of(params)
     names = [p.name for p in spec.params]
     fresnel = params["fresnel"] if "fresnel" in names else None
     out = []
@@ -184,11 +184,13 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
         except ViewerError as e:
             _report(on_error, str(e))
     names = [n for n in brdf.names() if not (nested and brdf.get(n).spec.nests_material)]
+    if params.model == "custom":  # a .brdf file (dropped or loaded): shown by its name
+        names = names + ["custom"]
     idx = names.index(params.model) if params.model in names else 0
     changed, idx = imgui.combo(f"model##{prefix}model", idx, names)
-    if changed and names[idx] != params.model:
+    if changed and names[idx] != params.model and names[idx] != "custom":
         return True, brdf.get(names[idx]).params()
-    spec = brdf.get(params.model).spec
+    spec = brdf.spec_of(params)
     by_name = {p.name: p for p in spec.params}
     shown = shown_params(params)
     new = params

@@ -268,6 +268,14 @@ def get(name: str) -> Model:
         raise ViewerError(f"unknown BRDF model {shown}; allowed: {', '.join(names())}") from None
 
 
+def spec_of(p) -> ModelSpec:
+    """The spec of a material's parameters: its model's, or for a file BRDF (``custom``) the
+    file's (its declarations and ``file``)."""
+    if p.model == "custom":
+        return CustomModel.of(p).spec
+    return get(p.model).spec
+
+
 def lookup_spec(name, where: str = "model") -> ModelSpec:
     """The spec of ``name`` or a ViewerError naming ``where`` and the allowed names."""
     reg = _registry()
@@ -289,4 +297,4 @@ def __getattr__(attr):
     raise AttributeError(attr)
 
 
-__all__ = ["CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]
+__all__ = ["spec_of", "CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]

@@ -15,6 +15,8 @@ sampling twins ``brdf_sample(model, offset, wo, u, out wi, out pdf)`` (returns f
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from viewer import brdf
@@ -71,8 +73,21 @@ def is_custom(name: str) -> bool:
 
 
 def custom_file(name: str):
-    """The parsed ``.brdf`` file of the program name ``custom:PATH``."""
-    return brdf.load(name[len(CUSTOM_PREFIX):]).bfile
+    """The parsed ``.brdf`` file of the program name ``custom:PATH``; a file that no longer reads
+    or parses (edited while the window runs) is a ShaderError naming ``FILE.brdf:LINE``, as a
+    compile error is, so hot reload keeps the last good program and shows it."""
+    import re
+
+    from viewer import ViewerError
+
+    try:
+        return brdf.load(name[len(CUSTOM_PREFIX):]).bfile
+    except ViewerError as e:
+        msg = str(e).splitlines()[0]
+        m = re.match(r"([^:\s]+\.brdf):(\d+):\s*(.*)", msg)
+        if m:
+            raise ShaderError(msg, m.group(1), int(m.group(2)), detail=m.group(3)) from None
+        raise ShaderError(msg, Path(name[len(CUSTOM_PREFIX):]).name, None, detail=msg) from None
 
 
 def custom_virtual(only) -> dict[str, str]:

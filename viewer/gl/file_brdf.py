@@ -146,16 +146,26 @@ def compile_program(ctx, bfile: BrdfFile, fragment: str):
 
 
 class FileEvaluator:
-    """Runs files' GLSL on one moderngl context (its own headless one unless given)."""
+    """Runs files' GLSL. Without ``ctx`` it makes a headless context of its own on a thread of its
+    own and does all its GL work there: a thread's current context is its own, so the caller's
+    (a window's, a renderer's) is never touched. With ``ctx`` it works on that context, on the
+    caller's thread."""
 
     def __init__(self, ctx=None):
+        self._pool = None
         if ctx is None:
+            from concurrent.futures import ThreadPoolExecutor
+
             from viewer.gl.context import create_offscreen_context
 
-            ctx = create_offscreen_context()
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="brdf-file-gl")
+            ctx = self._pool.submit(create_offscreen_context).result()
         self.ctx = ctx
         self._programs: dict = {}
         self.compiles = 0
+
+    def _on_gl(self, fn, *args):
+        return fn(*args) if self._pool is None else self._pool.submit(fn, *args).result()
 
     def program(self, bfile: BrdfFile, kind: str = "eval"):
         frag = _eval_fragment(bfile) if kind == "eval" else _sample_fragment(bfile)
@@ -172,10 +182,12 @@ class FileEvaluator:
 
     def check(self, bfile: BrdfFile) -> None:
         """Compile the file's programs (FileBrdfError on a problem)."""
-        with self.ctx:  # current for these calls; the previous context is current again after
+        def work():
             self.program(bfile, "eval")
             if bfile.has_sampler:
                 self.program(bfile, "sample")
+
+        self._on_gl(work)
 
     def _tex(self, a, w, h):
         data = np.zeros((h * w, 4), dtype="f4")
@@ -216,19 +228,22 @@ class FileEvaluator:
         n = len(wi)
         if n == 0:
             return np.zeros((0, 3))
-        with self.ctx:
+        def work():
             prog, vao = self.program(bfile, "eval")
-            (f,) = self._run(prog, vao, {"u_wi": wi, "u_wo": wo}, n, 1, param_floats(bfile, p))
-        return f[:, :3]
+            return self._run(prog, vao, {"u_wi": wi, "u_wo": wo}, n, 1, param_floats(bfile, p))[0]
+
+        return self._on_gl(work)[:, :3]
 
     def sample(self, bfile: BrdfFile, p, wo, u):
         """The file's isFunc sampler: (wi, weight, pdf) for (N, 3) wo and (N, 2) u."""
         wo = np.asarray(wo, np.float64)
         u = np.asarray(u, np.float64)
         n = len(wo)
-        with self.ctx:
+        def work():
             prog, vao = self.program(bfile, "sample")
-            a, b = self._run(prog, vao, {"u_wo": wo, "u_u": u}, n, 2, param_floats(bfile, p))
+            return self._run(prog, vao, {"u_wo": wo, "u_u": u}, n, 2, param_floats(bfile, p))
+
+        a, b = self._on_gl(work)
         return a[:, :3], b[:, :3], a[:, 3]
 
 
@@ -236,7 +251,7 @@ _SHARED: FileEvaluator | None = None
 
 
 def shared_evaluator() -> FileEvaluator:
-    """The process's evaluator (its own headless context, made on first use)."""
+    """The process's evaluator (its own headless context on its own thread, made on first use)."""
     global _SHARED
     if _SHARED is None:
         _SHARED = FileEvaluator()

@@ -196,6 +196,15 @@ class ProgramCache:
             install(prog, text)
             self.last_reloaded.append(key)
 
+    def file_brdfs(self) -> set[str]:
+        """The paths of the ``.brdf`` files the programs hold (their models ``custom:PATH``)."""
+        from viewer.gl.brdf_glsl import CUSTOM_PREFIX, is_custom
+
+        out = set()
+        for r in self._recipes.values():
+            out.update(m[len(CUSTOM_PREFIX):] for m in (r.models or ()) if is_custom(m))
+        return out
+
     def release(self):
         for v in self._fullscreen_vaos.values():
             v.release()

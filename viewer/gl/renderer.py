@@ -224,6 +224,10 @@ class Renderer:
         that failed keeps rendering with its last good version). Empty when all compile."""
         return self._programs.errors([] if self._render_error is None else [self._render_error])
 
+    def file_brdfs(self) -> set[str]:
+        """The paths of the ``.brdf`` files of the programs in use (hot reload watches them)."""
+        return self._programs.file_brdfs()
+
     def reload_shaders(self, changed=None) -> list[ShaderError]:
         """Rebuild programs from the shader files as they are now and return ``shader_errors``.
 
@@ -235,7 +239,7 @@ class Renderer:
         fails keeps the old one in use. Never raises ShaderError. ``last_reloaded`` lists the
         keys of the programs replaced."""
         changed = None if changed is None else {str(c).replace("\\", "/") for c in changed}
-        if changed is None or any(c.startswith(("brdf/", "common/")) for c in changed):
+        if changed is None or any(c.startswith(("brdf/", "common/")) or c.endswith(".brdf") for c in changed):
             self.tables.shaders_changed()  # the albedo tables come from the GLSL samplers
         self._render_error = None  # the next render tries again
         self._programs.reload(changed, passes={"ssr": self._ssr, "ibl": self._ibl})

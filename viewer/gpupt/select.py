@@ -169,8 +169,12 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
                                     spectral=spectral, **estimator)
+    from viewer import brdf
     from viewer.pathtracer import ReferenceRenderer
 
+    for m in scene.materials.values():
+        if m.model == "custom":  # the cpu engine evaluates numpy twins: refused in one line without one
+            brdf.get("custom").of(m).numpy_model()
     return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
                              spectral=spectral, **estimator)
 

@@ -100,8 +100,6 @@ def reference_model(m: "MaterialInfo"):
 
 def material_info(name: str, p) -> MaterialInfo:
     model = brdf.get(p.model)
-    if p.model == "custom":
-        model.of(p).numpy_model()  # refused here, in one line, without a twin
     spec = model.spec
     kind = model.flags(p)  # "delta", "mixed" (a layered coat over a delta base) or "smooth"
     sigma = np.zeros(3)

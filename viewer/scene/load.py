@@ -201,6 +201,12 @@ def material_from_name(name: str, assignments=()):
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):
         raw = load_material_file(name)[1].to_plain()
+        if raw.get("model") == "custom":  # a material file holding a .brdf file's material
+            import json
+
+            return file_material(brdf.load(raw["file"]),
+                                 [f"{k}={json.dumps(v)}" for k, v in raw.items() if k not in ("model", "file")]
+                                 + list(assignments))
     elif name in brdf.names():
         raw = {"model": name}
     elif name in PRESETS:
