@@ -53,9 +53,12 @@ def test_a_restart_storm_leaves_nothing_behind(private_tmp):
 
 
 def test_restarts_without_worker_processes(private_tmp):
+    before = set(lifecycle.children())   # whatever earlier tests of this process left running
     r = lifecycle.restart_storm(200, workers=0, seed=6, max_pause_s=0.01)
     assert not r.errors and r.final_spp >= 1
     assert r.workers_seen == set()   # no pool, no worker process
+    new = {p: c for p, c in lifecycle.children().items() if p not in before and not lifecycle.is_resource_tracker(c)}
+    assert new == {}, new
     assert r.after_close_tasks <= r.baseline_tasks
     assert r.drift_mb < ALLOWED_DRIFT_MB, r.summary()
 
