@@ -556,10 +556,11 @@ class Renderer:
         ibl_sampled = f.env_on and scene.render.ibl in ("fis", "brute_force")
         ready = set()
 
+        own = {name: thin_film.varies(p) for name, p in scene.materials.items()}   # u_film_y: the object's own
+
         def group_key(i_obj):
             i, obj = i_obj
-            own = thin_film.varies(scene.materials[obj.material])   # u_film_y: the object's own
-            return (obj.material, id(obj.mesh_data), i if own else -1)
+            return (obj.material, id(obj.mesh_data), i if own[obj.material] else -1)
 
         for group in group_by(list(enumerate(scene.objects)), group_key):
             obj = group[0][1]
