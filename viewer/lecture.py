@@ -65,9 +65,10 @@ _SKY = _env('map = "sky"\nintensity = 0.006')
 
 
 def _one_ball(preset: str) -> str:
-    """One sphere of ``preset`` on the floor under the key light, dim surroundings, no IBL: the
-    setting of the single-lobe steps."""
-    return _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+    """One sphere of ``preset`` on the floor under the key light and dim surroundings (a constant
+    0.08 that lights the raster too, as it lights the reference): the setting of the single-lobe
+    steps."""
+    return _scene(_camera(), _DIM, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
                   _mat("ball", preset))
 
 
@@ -95,12 +96,12 @@ TOUR: tuple[Step, ...] = (
          _one_ball("lecture_torrance_sparrow_blinn"), "polar"),
     Step("beckmann_ggx", "Beckmann (left) against GGX (right)",
          "Same alpha = 0.2: GGX's long tail leaves a glow around the highlight; Beckmann falls off quickly.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("beckmann", -0.75),
+         _scene(_camera(), _DIM, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("beckmann", -0.75),
                 _sphere("ggx", 0.75), _FLOOR_MAT, _mat("beckmann", "lecture_beckmann"),
                 _mat("ggx", "lecture_ggx")), "polar"),
     Step("oren_nayar", "Oren-Nayar (left) against Lambert (right)",
          "Lit from behind the viewer, rough clay looks flat (backscatter); Lambert darkens toward the rim.",
-         _scene(_camera(), _DIM, _render("off"),
+         _scene(_camera(), _DIM, _render("split_sum"),
                 '[[lights]]\ntype = "point"\nposition = [0.0, 1.2, 6.0]\nintensity = [60.0, 60.0, 60.0]\n',
                 _FLOOR, _sphere("oren_nayar", -0.75), _sphere("lambert", 0.75), _FLOOR_MAT,
                 _mat("oren_nayar", "lecture_oren_nayar"), _mat("lambert", "lecture_lambert")), "polar"),
