@@ -80,9 +80,10 @@ _SKY = _env('map = "sky"\nintensity = 0.006')
 
 
 def _one_ball(preset: str) -> str:
-    """One sphere of ``preset`` on the floor under the key light, dim surroundings, no IBL: the
-    setting of the single-lobe steps."""
-    return _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+    """One sphere of ``preset`` on the floor under the key light and dim surroundings (a constant
+    0.08 that lights the raster too, as it lights the reference): the setting of the single-lobe
+    steps."""
+    return _scene(_camera(), _DIM, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
                   _mat("ball", preset))
 
 
@@ -108,19 +109,19 @@ TOUR: tuple[Step, ...] = (
     Step("torrance_sparrow", "Torrance-Sparrow with a Blinn-Phong distribution",
          "Microfacets: D (Blinn-Phong), V-cavity shadowing G and Fresnel F shape the white highlight; "
          "the dark blue is the diffuse base under it.",
-         _scene(_camera(), _DIM, _render("off"), _HIGHLIGHT_LIGHT, _FLOOR, _sphere("ball"), _DARK_FLOOR_MAT,
+         _scene(_camera(), _DIM, _render("split_sum"), _HIGHLIGHT_LIGHT, _FLOOR, _sphere("ball"), _DARK_FLOOR_MAT,
                 _mat("ball", "lecture_torrance_sparrow_blinn", kd=[0.04, 0.06, 0.14])), "polar"),
     Step("beckmann_ggx", "Beckmann (left) against GGX (right)",
          "Same alpha = 0.2, black base so only the lobe shows: GGX's long tail spreads a glow far around "
          "its highlight; Beckmann's falls off to black within a few degrees.",
-         _scene(_camera(), _env("constant = [0.02, 0.02, 0.025]"), _render("off", exposure=1.5, tonemap="reinhard"),
+         _scene(_camera(), _env("constant = [0.02, 0.02, 0.025]"), _render("split_sum", exposure=1.5, tonemap="reinhard"),
                 _TAIL_LIGHT, _FLOOR,
                 _sphere("beckmann", -0.75), _sphere("ggx", 0.75), _DARK_FLOOR_MAT,
                 _mat("beckmann", "lecture_beckmann", kd=[0.0, 0.0, 0.0]),
                 _mat("ggx", "lecture_ggx", kd=[0.0, 0.0, 0.0])), "polar"),
     Step("oren_nayar", "Oren-Nayar (left) against Lambert (right)",
          "Lit from behind the viewer, rough clay looks flat (backscatter); Lambert darkens toward the rim.",
-         _scene(_camera(), _DIM, _render("off"),
+         _scene(_camera(), _DIM, _render("split_sum"),
                 '[[lights]]\ntype = "point"\nposition = [0.0, 1.2, 6.0]\nintensity = [60.0, 60.0, 60.0]\n',
                 _FLOOR, _sphere("oren_nayar", -0.75), _sphere("lambert", 0.75), _FLOOR_MAT,
                 _mat("oren_nayar", "lecture_oren_nayar"), _mat("lambert", "lecture_lambert")), "polar"),

@@ -79,58 +79,62 @@ float ray_depth(Ray2D r, float t) { return -(r.q0 + r.dq * t) / (r.k0 + r.dk * t
 bool inside(vec2 px) { return all(greaterThanEqual(px, vec2(0.0))) && all(lessThan(px, u_size)); }
 
 // The surface seen at pixel p, taken as its tangent plane (the pixel's normal through the point
-// at its centre's depth): its depth along the view ray through the continuous screen position
-// px, and how much that depth changes per pixel of screen motion there (|d depth / d px|). A
-// surface at a grazing angle to the view changes depth by far more than any fixed thickness
-// within one pixel, so comparing the ray with the pixel centre's depth missed rays that hit it
-// (a speckled edge on a reflected sphere). `far` is how deep the surface reaches: a closed
-// object's nearest back face (u_back) plus the thickness, so a ray that passes behind its front
-// but inside the object hits it (the reflection of a ball's underside, which the camera cannot
-// see: without this a band of background where the ball touches a mirror floor) and one that
-// passes behind the object misses; a one-sided surface (no back face behind it) reaches its
-// front's spread over half a step plus the thickness. Returns 0 where there is no surface (or
-// a silhouette pixel, see scene_depth).
-float surface_depth(ivec2 p, vec2 px, out float spread, out float far) {
-    spread = 0.0;
-    far = 0.0;
+// at its centre's depth). A surface at a grazing angle to the view changes depth by far more
+// than any fixed thickness within one pixel, so comparing the ray with the pixel centre's depth
+// missed rays that hit it (a speckled edge on a reflected sphere); against the plane, the ray
+// and the surface are compared at the same screen positions. `behind` is how deep the surface
+// reaches behind its front: to a closed object's nearest back face (u_back), so a ray that
+// passes behind its front but inside the object hits it (the reflection of a ball's underside,
+// which the camera cannot see: without this a band of background where the ball touches a
+// mirror floor) and one that passes behind the object misses; a one-sided surface (no back
+// face behind it) reaches the thickness. False where there is no surface (or a silhouette
+// pixel, see scene_depth).
+struct Plane { vec3 n; float np; float zc; float behind; };
+
+bool surface_plane(ivec2 p, out Plane s) {
     vec4 g = texelFetch(u_geom, p, 0);
     float cov = length(g.xyz);
-    if (cov <= u_min_coverage) return 0.0;
-    float zc = g.w / cov;
-    vec3 n = mat3(u_view) * (g.xyz / cov);
-    vec3 pc = view_position(vec2(p) + 0.5, zc);
-    vec3 d = vec3((px / u_size * 2.0 - 1.0) * u_tan_half, -1.0);  // view ray with depth 1
-    vec2 dd = 2.0 * u_tan_half / u_size;                          // d's change per pixel
-    float nd = dot(n, d);
-    float z = zc, slope = u_max_slope;
-    if (abs(nd) > 1e-3 * length(d)) {  // nearly edge-on planes keep the centre's depth
-        // the plane's depth at px, within one pixel's worth of depth change of the centre's
-        slope = min(abs(dot(n, pc) / (nd * nd)) * length(n.xy * dd), u_max_slope);
-        z = clamp(dot(n, pc) / nd, zc - slope, zc + slope);
-    }
-    spread = slope * 0.5 * u_stride;
-    far = z + spread + u_thickness;
+    s.n = vec3(0.0, 0.0, 1.0);
+    s.np = 0.0;
+    s.zc = 0.0;
+    s.behind = u_thickness;
+    if (cov <= u_min_coverage) return false;
+    s.zc = g.w / cov;
+    s.n = mat3(u_view) * (g.xyz / cov);
+    s.np = dot(s.n, view_position(vec2(p) + 0.5, s.zc));
     if (u_back_on != 0) {
-        vec3 dc = vec3((vec2(p) + 0.5) / u_size * 2.0 - 1.0, 0.0) * vec3(u_tan_half, 0.0) - vec3(0.0, 0.0, 1.0);
+        vec3 dc = vec3(((vec2(p) + 0.5) / u_size * 2.0 - 1.0) * u_tan_half, -1.0);
         float zb = texelFetch(u_back, p, 0).r / length(dc);  // distance -> linear depth
-        if (zb > zc) far = zb;
+        if (zb > s.zc) s.behind = zb - s.zc;
     }
-    return z;
+    return true;
+}
+
+// The plane's depth along the view ray through the screen position px; nearly edge-on planes
+// are held within u_max_slope per pixel of distance from the pixel's centre depth.
+float plane_depth(Plane s, ivec2 p, vec2 px) {
+    vec3 d = vec3((px / u_size * 2.0 - 1.0) * u_tan_half, -1.0);  // the view ray of depth 1
+    float nd = dot(s.n, d);
+    float lim = u_max_slope * max(1.0, length(px - (vec2(p) + 0.5)));
+    float z = abs(nd) > 1e-6 ? s.np / nd : s.zc + lim;
+    return clamp(z, s.zc - lim, s.zc + lim);
 }
 
 // One step of the DDA at step t (an integer): 0 no hit, 1 hit, 2 off screen (the trace ends).
-// The depth interval the ray spans over this step: from the previous step's end to half a
-// step ahead (the paper's half-pixel extents); it hits when it overlaps the surface's, from
-// its front (less its spread over half a step) to `far`.
+// Over the step's extent (from the previous step's end to half a step ahead, the paper's
+// half-pixel extents) the ray's depth less the surface's, at both ends: a hit where that goes
+// from in front (< 0) to behind, or stays within [0, behind].
 int dda_step(Ray2D r, float t, float t_end) {
     vec2 px = ray_px(r, t);
     if (!inside(px)) return 2;
-    float prev = t <= 1.0 ? ray_depth(r, 0.0) : ray_depth(r, min(t - 0.5, t_end + 1.0));
-    float cur = ray_depth(r, min(t + 0.5, t_end + 1.0));
-    float dmin = min(prev, cur), dmax = max(prev, cur);
-    float spread, far;
-    float zs = surface_depth(ivec2(px), px, spread, far);
-    return (zs > 0.0 && dmax >= zs - spread && dmin <= far) ? 1 : 0;
+    float ta = t <= 1.0 ? 0.0 : min(t - 0.5, t_end + 1.0);
+    float tb = min(t + 0.5, t_end + 1.0);
+    ivec2 p = ivec2(px);
+    Plane s;
+    if (!surface_plane(p, s)) return 0;
+    float da = ray_depth(r, ta) - plane_depth(s, p, ray_px(r, ta));
+    float db = ray_depth(r, tb) - plane_depth(s, p, ray_px(r, tb));
+    return (max(da, db) >= 0.0 && min(da, db) <= s.behind) ? 1 : 0;
 }
 
 // Bisection between the last step that was in front (t - 1) and the hit at step t.
@@ -139,10 +143,10 @@ vec2 refine(Ray2D r, float t) {
     for (int j = 0; j < u_refine_steps; ++j) {
         float mid = 0.5 * (lo + hi);
         vec2 pm = ray_px(r, mid);
-        float spread, far;
-        float zm = surface_depth(ivec2(pm), pm, spread, far);
-        float rd = ray_depth(r, mid);
-        if (zm > 0.0 && rd >= zm && rd <= far) hi = mid; else lo = mid;
+        ivec2 p = ivec2(pm);
+        Plane s;
+        float dm = surface_plane(p, s) ? ray_depth(r, mid) - plane_depth(s, p, pm) : -1.0;
+        if (dm >= 0.0 && dm <= s.behind) hi = mid; else lo = mid;
     }
     return ray_px(r, hi);
 }
@@ -186,9 +190,9 @@ bool trace_hiz(Ray2D r, float t_end, out vec2 hit_px, out float steps) {
         float a = u <= 1.0 ? 0.0 : min(u - 0.5, t_end + 1.0);
         float b = min(u_exit + 0.5, t_end + 1.0);
         float dmax = max(ray_depth(r, a), ray_depth(r, b));
-        // (a step hits from the surface's front less its spread, at most u_max_slope over
-        // half a step: the cell is skipped only in front of that)
-        if (dmax < zmin - u_max_slope * 0.5 * u_stride) {
+        // (a step compares the ray with a pixel's plane up to a step and a pixel from its
+        // centre, at most u_max_slope per pixel in front of its depth: skipped only before that)
+        if (dmax < zmin - u_max_slope * (0.5 * u_stride + 1.5)) {
             u = u_exit;
             level = min(level + 1, u_hiz_max_level);
             continue;
