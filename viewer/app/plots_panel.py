@@ -27,7 +27,7 @@ from imgui_bundle import imgui, implot
 
 from viewer import ViewerError, plots
 
-TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling")
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling", "Check")
 CHANNELS = ("lum", "r", "g", "b")
 CHANNEL_LABELS = ("luminance", "red", "green", "blue")
 # one colour per material, in the order materials are first seen (Tableau 10, then lighter tints)
@@ -246,11 +246,12 @@ class PlotsPanel:
             return
         {"Polar": self._polar, "3D lobe": self._lobe, "Albedo": self._albedo_tab,
          "Fresnel": self._fresnel, "Bouguer": self._bouguer, "Spectral": self._spectral,
-         "Sampling": self._sampling_tab}[tab](names, materials)
+         "Sampling": self._sampling_tab, "Check": self._check_tab}[tab](names, materials)
         for m in self.messages:
             imgui.text_wrapped(m)
 
     _sampling = None
+    _check = None  # CheckTab, made when the Check tab is first shown
     spectral_material: str | None = None  # the Spectral tab's material (the first one with a table)
 
     def _spectral(self, names, materials):
@@ -348,6 +349,14 @@ class PlotsPanel:
 
             self._sampling = SamplingTab()
         self._sampling.draw(names, materials, self.theta_i, self.phi)
+
+    def _check_tab(self, names, materials):
+        """The report card of one material (``viewer.app.check_tab.CheckTab``)."""
+        if self._check is None:
+            from viewer.app.check_tab import CheckTab
+
+            self._check = CheckTab()
+        self._check.draw(names, materials)
 
     def _plot_size(self):
         """The rest of the window, less room for the messages under the plot."""
