@@ -496,6 +496,12 @@ def test_saving_the_file_hot_reloads_it_and_an_error_keeps_the_last_good_program
     kept = _image(s)  # the last good program keeps drawing
     np.testing.assert_allclose(kept, half, atol=1e-7)
     assert s.scene.materials[name].model == "custom"
+    # a mistake in the file's structure (a parameter line): the same, the error on its line
+    save("analytic\n::begin parameters\nfloat k 0 1\n::end parameters\n" + body.format("0.25").split("\n", 1)[1])
+    hr.poll(force=True)
+    errs = [e.summary() for e in hr.errors]
+    assert any(e.startswith("lam.brdf:3:") and "float NAME MIN MAX DEFAULT" in e for e in errs), errs
+    np.testing.assert_allclose(_image(s), half, atol=1e-7)
 
 
 def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):

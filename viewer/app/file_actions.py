@@ -19,6 +19,11 @@ ENV_SUFFIXES = (".hdr", ".exr")
 SCENE_SUFFIXES = (".toml", ".png")
 
 
+#: folders whose .brdf files the material picker offers beside the presets (after the shipped
+#: viewer/brdfs): the folder of each .brdf file the window opens joins it
+BRDF_LIBRARY: list[str] = []
+
+
 class FileActions:
     """Scenes, materials, meshes and environment maps of a ``Session``."""
 
@@ -243,6 +248,9 @@ class FileActions:
         except ViewerError as e:
             self.notify(str(e).splitlines()[0], error=True)
             return False
+        folder = str(model.bfile.path.parent)
+        if folder not in BRDF_LIBRARY:  # its neighbours join the picker's file materials
+            BRDF_LIBRARY.append(folder)
         self.set_material(name, params)
         self.notify(f"material {name!r} <- {model.bfile.path.name} ({len(model.bfile.declarations)} parameters)")
         return True

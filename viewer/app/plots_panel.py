@@ -26,7 +26,7 @@ import numpy as np
 from imgui_bundle import imgui, implot
 
 from viewer import ViewerError, plots
-from viewer.app.plot_tabs import albedo, bouguer, fresnel, lobe, polar, sampling, spectral
+from viewer.app.plot_tabs import albedo, bouguer, check, fresnel, lobe, polar, sampling, spectral
 from viewer.app.plot_tabs.albedo import albedo_note  # noqa: F401 - part of this module's interface
 from viewer.app.plot_tabs.bouguer import bouguer_marks  # noqa: F401
 from viewer.app.plot_tabs.common import (CHANNEL_LABELS, CHANNELS, LIGHT, PALETTE, R_P_COLOUR,  # noqa: F401
@@ -34,9 +34,9 @@ from viewer.app.plot_tabs.common import (CHANNEL_LABELS, CHANNELS, LIGHT, PALETT
 from viewer.app.plot_tabs.fresnel import fresnel_marks  # noqa: F401
 from viewer.app.plot_tabs.lobe import shaded_quads  # noqa: F401
 
-TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling")
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling", "Check")
 TAB_MODULES = {"Polar": polar, "3D lobe": lobe, "Albedo": albedo, "Fresnel": fresnel, "Bouguer": bouguer,
-               "Spectral": spectral, "Sampling": sampling}
+               "Spectral": spectral, "Sampling": sampling, "Check": check}
 _CACHE_MAX = 256
 DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
 
@@ -51,6 +51,7 @@ class PlotsPanel:
 
     def __init__(self):
         self.visible = True
+        self.check_tab = None  # the Check tab's report card (plot_tabs/check.py), made when first shown
         self.extents: dict[str, list] = {}  # material -> [(object label, diameter in m)] (Bouguer tab)
         self.theta_i = 45.0  # degrees (polar, 3D lobe)
         self.phi = 0.0  # azimuth of the plane of incidence: 0 = tangent (x-z), 90 = bitangent (y-z)

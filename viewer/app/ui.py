@@ -93,11 +93,30 @@ def preset_names(nested: bool = False) -> list[str]:
     return sorted(n for n in PRESETS if not (nested and brdf.get(PRESETS[n]["model"]).spec.nests_material))
 
 
+FILE_PREFIX = "file: "
+
+
+def library_files() -> list[str]:
+    """The picker's file materials: ``file: NAME.brdf`` for each .brdf file of the library folders."""
+    from pathlib import Path
+
+    from viewer.app.file_actions import BRDF_LIBRARY
+
+    folders = [Path(brdf.__file__).resolve().parent.parent / "brdfs"] + [Path(f) for f in BRDF_LIBRARY]
+    out = []
+    for folder in dict.fromkeys(folders):
+        out.extend(FILE_PREFIX + str(f) for f in sorted(folder.glob("*.brdf")))
+    return out
+
+
 def preset_params(name: str) -> Params:
-    """A preset's material as validated parameters, the same as ``preset = "name"`` in a scene."""
+    """A preset's material as validated parameters, the same as ``preset = "name"`` in a scene;
+    a picker entry ``file: PATH`` is that .brdf file's material (its declared defaults)."""
     from viewer.brdf.presets import get_preset
     from viewer.brdf.spec import validate_params
 
+    if name.startswith(FILE_PREFIX):
+        return brdf.load(name[len(FILE_PREFIX):]).params()
     raw = get_preset(name)
     model = raw.pop("model")
     return validate_params(brdf.get(model).spec, raw, f"preset {name}", brdf.lookup_spec)
@@ -174,7 +193,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
     ``on_error(text)`` (the session's error notification). A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
     an *anisotropic* toggle that reveals alpha_x / alpha_y; parameters that do nothing in the
     chosen variant are hidden (``shown_params``)."""
-    presets = [PRESET_NONE] + preset_names(nested)
+    presets = [PRESET_NONE] + preset_names(nested) + ([] if nested else library_files())
     ch, i = imgui.combo(f"preset##{prefix}preset", 0, presets)
     if imgui.is_item_hovered():
         imgui.set_tooltip("start this material from a preset (gold, copper, glass...): its model and values")

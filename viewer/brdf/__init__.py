@@ -232,7 +232,9 @@ class CustomModel(Model):
         """The file model of parameters ``p`` (with a ``file``)."""
         if p is None or not p.get("file"):
             raise ViewerError("model 'custom': give file = \"NAME.brdf\" (a BRDF Explorer file)")
-        return load(p["file"])
+        from viewer.brdf import file_model
+
+        return file_model.load_or_last_good(p["file"])
 
     def params(self, **values) -> Params:
         return self.of(values).params(**values)

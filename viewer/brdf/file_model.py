@@ -218,7 +218,24 @@ def load(path, where: str | None = None):
     if len(_CACHE) > 64:
         _CACHE.clear()
     _CACHE[key] = (stamp, model)
+    _LAST_GOOD[key] = model
     return model
+
+
+_LAST_GOOD: dict = {}
+
+
+def load_or_last_good(path):
+    """``load(path)``, or, when the file no longer parses (saved with a mistake while the window
+    shows it), the model it last loaded as in this process: what is drawn keeps drawing while the
+    hot reloader shows the error. A file never loaded raises as ``load`` does."""
+    try:
+        return load(path)
+    except ViewerError:
+        hit = _LAST_GOOD.get(str(Path(path).expanduser().resolve()))
+        if hit is None:
+            raise
+        return hit
 
 
 def takes_view(bfile: BrdfFile) -> bool:

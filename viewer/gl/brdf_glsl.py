@@ -173,7 +173,7 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
     if params.model == "custom":  # a file BRDF: its declarations' floats
         from viewer.gl.file_brdf import n_floats, param_floats
 
-        bfile = brdf.load(params["file"]).bfile
+        bfile = brdf.get("custom").of(params).bfile
         data = param_floats(bfile, params)[: n_floats(bfile)].astype(np.float32)
         if limit is not None and offset + data.size > limit:
             raise ValueError(f"material {bfile.path.name} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
@@ -300,8 +300,8 @@ def family_source(name: str) -> str:
 def models_used(params: Params) -> tuple[str, ...]:
     """The models a material needs in its program: itself and any nested base material; a file
     BRDF is ``custom:PATH`` (its program holds that file's GLSL)."""
-    if params.model == "custom":
-        return (CUSTOM_PREFIX + str(brdf.load(params["file"]).bfile.path),)
+    if params.model == "custom":  # validated: an absolute path (no load: the name of the program)
+        return (CUSTOM_PREFIX + str(Path(params["file"]).expanduser().resolve()),)
     out = [params.model]
     for v in params.values():
         if isinstance(v, Params) and v.model:

@@ -1,0 +1,81 @@
+"""The plots window's *Check* tab: the report card (``viewer.brdf.report_card``, the checks of
+``brdf-viewer check``) of one shown material, built-in or a ``.brdf`` file: each check's result
+and number, and the directional albedo against the incident angle. The card is computed when the
+material (or a parameter) changes and kept until then; it takes about a second on software GL."""
+
+from __future__ import annotations
+
+import json
+
+_FIELDS = ("min", "max_rel_error", "max_albedo", "p_value", "count")
+
+
+def card(p) -> dict:
+    """The report card of material parameters ``p``."""
+    from viewer import brdf
+    from viewer.brdf.report_card import report
+
+    model = brdf.get(p.model)
+    if p.model == "custom":
+        model = model.of(p)
+    return report(model, p, p.model if p.model != "custom" else model.bfile.path.name)
+
+
+class CheckTab:
+    """``draw(names, materials)`` inside the plots window's tab."""
+
+    def __init__(self):
+        self.material = None
+        self._key = None
+        self._card = None
+        self._error = ""
+
+    def draw(self, names, materials) -> None:
+        from imgui_bundle import imgui, implot
+
+        from viewer import ViewerError
+
+        if self.material not in names:
+            self.material = names[0]
+        ch, i = imgui.combo("material##check", names.index(self.material), list(names))
+        if ch:
+            self.material = names[i]
+        p = materials[self.material]
+        key = (self.material, json.dumps(p.to_plain(), sort_keys=True))
+        again = imgui.button("check again##check")
+        if (key != self._key or again) and not imgui.is_any_item_active():
+            self._key = key
+            try:
+                self._card, self._error = card(p), ""
+            except ViewerError as e:
+                self._card, self._error = None, str(e).splitlines()[0]
+        if self._error:
+            imgui.text_colored(imgui.ImVec4(1.0, 0.35, 0.3, 1.0), self._error)
+            return
+        c = self._card
+        if c is None:
+            return
+        imgui.text(f"{c['file']}: {'PASS' if c['pass'] else 'FAIL'}  (brdf-viewer check, see docs/write-your-own-brdf.md)")
+        if imgui.begin_table("##checks", 3, imgui.TableFlags_.borders | imgui.TableFlags_.sizing_stretch_prop):
+            for name, r in c["checks"].items():
+                imgui.table_next_row()
+                imgui.table_next_column()
+                imgui.text(name)
+                imgui.table_next_column()
+                col = imgui.ImVec4(0.3, 0.85, 0.4, 1.0) if r["pass"] else imgui.ImVec4(1.0, 0.35, 0.3, 1.0)
+                imgui.text_colored(col, "pass" if r["pass"] else "FAIL")
+                imgui.table_next_column()
+                imgui.text(", ".join(f"{k} {r[k]:.4g}" if isinstance(r[k], float) else f"{k} {r[k]}"
+                                     for k in _FIELDS if k in r))
+            imgui.end_table()
+        e = c["checks"]["energy"]
+        import numpy as np
+
+        th = np.asarray(e["theta_deg"], dtype=np.float64)
+        alb = np.asarray(e["albedo"], dtype=np.float64)
+        if implot.begin_plot("directional albedo##check", imgui.ImVec2(-1, -1)):
+            implot.setup_axes("theta (deg)", "albedo")
+            for k, label in enumerate(("r", "g", "b")):
+                implot.plot_line(f"albedo {label}", th, np.ascontiguousarray(alb[:, k]))
+            implot.plot_line("1 (energy bound)", np.array([0.0, 90.0]), np.array([1.0, 1.0]))
+            implot.end_plot()
