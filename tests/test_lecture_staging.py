@@ -128,3 +128,39 @@ def test_importance_sampling_step_strategies_differ_in_noise():
     # the caption's 2.8x and 3.4x, with room for the noise of a variance estimate from 64 spp
     # over 576 pixels (light sampling's heavy tail makes it the least certain)
     assert ratios["bsdf"] > 1.8 and ratios["light"] > 1.8, ratios
+
+
+CAPTIONS = r'''
+from viewer.app.main import App
+from viewer.app.panels.overlays import measure, wrap_lines
+from viewer.lecture import TOUR
+app = App("sphere", size=(1920, 1080), restore_state=False)
+app.session.warm = []
+app.set_ui_scale(1.5)
+bad = []
+for i in range(len(TOUR)):
+    app.session.lecture(i)
+    app.session.scene.render.raytrace = False  # the caption is what is measured, not the trace
+    app.session.compare.mode = "raster"
+    app.frame()
+    lay, t = app.overlay_plan()
+    rr, px = lay["caption_text"], lay["caption_px"]
+    m = measure()
+    lines = wrap_lines(t["caption"], rr.w, lambda s: m(s, px.y)[0])
+    h = sum(m(line, px.y)[1] for line in lines)
+    if h > rr.h + 0.5 or any(m(line, px.y)[0] > rr.w + 0.5 for line in lines):
+        bad.append((i + 1, h, rr.h))
+print("BAD", bad)
+app.close()
+'''
+
+
+@pytest.mark.slow  # loads all 14 steps in a window (their maps prefiltered): about 150 s on 2 cores
+@pytest.mark.skipif(__import__("shutil").which("Xvfb") is None, reason="needs Xvfb")
+def test_every_caption_fits_its_box_at_projector_scale(display):
+    """At 1920 x 1080 and UI 1.5 every step's caption, broken into the lines drawn, is no wider
+    and no taller than its box (a word used to run past the right edge)."""
+    from gui_harness import run_py
+
+    r = run_py(CAPTIONS, display, timeout=600)
+    assert r.returncode == 0 and "BAD []" in r.stdout, r.stdout + r.stderr[-2000:]

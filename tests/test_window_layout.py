@@ -210,3 +210,13 @@ def test_lobe_is_shaded():
     levels = [lv for lv, _ in q]
     assert len(levels) >= 4 and max(levels) - min(levels) > 0.4  # not one flat colour
     assert sum(len(xs) for _, (xs, _, _) in q) == 4 * 15 * 30  # every quad drawn once
+
+
+def test_caption_lines_are_broken_to_fit_their_box():
+    from viewer.app.panels.overlays import wrap_lines
+
+    width = lambda s: 10.0 * len(s)  # noqa: E731 - a monospaced measure
+    lines = wrap_lines("Same alpha = 0.2, black base so only the lobe shows", 120.0, width)
+    assert all(width(line) <= 120.0 for line in lines) and " ".join(lines) == \
+        "Same alpha = 0.2, black base so only the lobe shows"
+    assert wrap_lines("a verylongwordindeed b", 50.0, width) == ["a", "verylongwordindeed", "b"]

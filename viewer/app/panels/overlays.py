@@ -108,7 +108,25 @@ def _caption(dl, lay, t, white, font, base) -> None:
     dl.add_rect_filled(imgui.ImVec2(r.x, r.y), imgui.ImVec2(r.right, r.bottom),
                        imgui.get_color_u32(imgui.ImVec4(0, 0, 0, 0.6)), 6.0 * base / 16)
     px = lay["caption_px"]
+    m = measure()
     for key, text, size in (("caption_title", t["title"], px.x), ("caption_text", t["caption"], px.y)):
         rr = lay[key]
-        tw, _ = measure()(text, size, rr.w)
-        dl.add_text(font, size, imgui.ImVec2(rr.x + max((rr.w - tw) / 2, 0.0), rr.y), white, text, rr.w)
+        y = rr.y
+        # each line measured and centred on its own (imgui's wrapped drawing can run a word past
+        # the box that its measuring kept inside)
+        for line in wrap_lines(text, rr.w, lambda s, size=size: m(s, size)[0]):
+            tw, th = m(line, size)
+            dl.add_text(font, size, imgui.ImVec2(rr.x + max((rr.w - tw) / 2, 0.0), y), white, line)
+            y += th
+
+
+def wrap_lines(text: str, width: float, text_width) -> list[str]:
+    """``text`` broken at spaces into lines no wider than ``width`` by ``text_width(line)``
+    (a word wider than ``width`` gets a line of its own)."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and text_width(lines[-1] + " " + word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    return lines
