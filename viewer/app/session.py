@@ -393,7 +393,7 @@ class Session(FileActions):
 
         rv = self.reference_view()
         now = STRATEGIES[(STRATEGIES.index(rv.options["strategy"]) + 1) % len(STRATEGIES)]
-        self.mc.set_options(rv, strategy=now)
+        self.monte_carlo.set_options(rv, strategy=now)
         self.changed()
         self.notify(f"reference strategy: {STRATEGY_LABELS[now]} (S: next)")
         return now

@@ -645,7 +645,7 @@ class Renderer:
             # none, e.g. a one-sided floor), so a reflected ray passing behind a closed object's
             # front within the object hits it and one passing behind the object does not
             back = self._ssr_back.render(scene.objects, f.cam, f.w, f.h,
-                                         self._programs.get("thickness", _THICKNESS), self._mesh_vao)
+                                         self._programs.get("thickness", _THICKNESS), self.draw_objects)
             return self._ssr.resolve_and_trace(self._ibl, f.cam, f.w, f.h, f.env_on, scene.environment.rotation_deg,
                                                f.ssr_debug, frame_index, back=back)
         t = f.targets
