@@ -28,9 +28,11 @@ T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k 
                                                                                     "sigma", "eta", "k"))
 KIND_SHADED, KIND_MIRROR, KIND_GLASS = CHAIN_KINDS["shaded"], CHAIN_KINDS["mirror"], CHAIN_KINDS["glass"]
 MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 needs about 12)
-# most pixels in one strip of the progressive trace: on llvmpipe (2 cores) a pixel of a glass
-# ball costs about 0.04 ms traced, so a strip of 4096 such pixels takes about 180 ms
-STRIP_PIXELS = 4096
+# most pixels in one tile of the progressive trace: on llvmpipe (2 cores) a pixel of a glass
+# ball costs about 0.04 ms traced, so a tile of 16384 such pixels takes about 0.7 s; the budget
+# keeps tiles smaller unless a frame's fixed cost (every triangle through the vertex and geometry
+# stages, whatever the scissor) would dominate
+STRIP_PIXELS = 16384
 
 
 def chain_kind(params) -> int:
@@ -240,6 +242,7 @@ class ProgressiveTrace:
         self.height = 0
         self.width = 0
         self.pixels = 0        # the next tile's pixels
+        self.overhead_s = 0.0  # a tile's fixed cost (the least any tile took), None before the first
         self.max_pixels = STRIP_PIXELS
         self.trace_s = 0.0     # time spent tracing tiles since start
         self.started = 0.0     # perf_counter() at start
@@ -323,6 +326,7 @@ class ProgressiveTrace:
             self._passes.append(_Pass(w2, h2, renderer.traced_mask(scene, camera, w2, h2), 2))
         self._passes.append(_Pass(w, h, self.mask, 1))
         self.total_px = sum(p.total for p in self._passes)
+        self.overhead_s = None
         self._maybe_finish()
         return tex
 
@@ -334,7 +338,7 @@ class ProgressiveTrace:
         t0 = time.perf_counter()
         while self._job is not None and not self.done:
             dt, n = self._tile(budget_s)
-            if time.perf_counter() - t0 + self.pixels * dt / n > budget_s:
+            if time.perf_counter() - t0 + self._predict(self.pixels, dt, n) > budget_s:
                 break
         self._maybe_finish()
         return self.texture
@@ -377,12 +381,24 @@ class ProgressiveTrace:
         self.steps += 1
         self.traced_px += int(p.mask[y:y + th, x:x + tw].sum())
         p.advance(tile)
-        # the next tile: as many pixels as the budget allows at this tile's cost per pixel, at
-        # most 1.5 times as many and max_pixels in all (the cost jumps where a glass object
-        # begins: a tile must stay small where the cost is not known yet)
+        # the next tile: a tile costs a fixed part (the least any tile took: the vertex work of
+        # the whole scene, whatever the scissor) and a part per pixel. As many pixels as fill
+        # the budget at this tile's cost per pixel, or, where the fixed part is most of the
+        # budget, enough that it is a third of the tile's time at most; at most 1.5 times as
+        # many as this tile (the cost jumps where a glass object begins: a tile must stay small
+        # where the cost is not known yet) and max_pixels in all
         n = tw * th
-        self.pixels = max(16, min(int(1.5 * n) + 16, int(n * budget_s / dt), self.max_pixels))
+        self.overhead_s = dt if self.overhead_s is None else min(self.overhead_s, dt)
+        per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
+        target = max(budget_s, 3.0 * self.overhead_s)
+        want = int((target - 0.9 * self.overhead_s) / per_px)
+        self.pixels = max(16, min(int(1.5 * n) + 16, want, self.max_pixels))
         return dt, n
+
+    def _predict(self, pixels, dt, n) -> float:
+        """The predicted time of a tile of ``pixels`` after one of ``n`` took ``dt``."""
+        o = 0.9 * (self.overhead_s or 0.0)
+        return o + pixels * max(dt - o, 1e-9) / n
 
     def _maybe_finish(self):
         """Once done: the true elapsed time, and the cache entry when asked for."""
