@@ -1,0 +1,116 @@
+"""Every built-in scene and lecture step: the raster as the window shows it once the view is still
+(a traced frame where the scene says ``raytrace = true``, its MSAA, SSR in one frame) against the
+CPU reference (max depth 8, the window's), at 64 x 48 and 16 spp; ``-m slow`` repeats it at
+160 x 96 and 128 spp. Figures (``viewer.compare.agreement``): the image's mean relative
+difference and the 90th percentile of the 8 x 8 blocks' relative differences.
+
+Each scene's tolerance stands beside it with its reason: what the rasterizer does not do
+(light between objects, occlusion of the environment) and by how much, measured; the
+reference's own noise at 16 spp is about 3% per block on diffuse scenes and more where a
+small bright source is seen through glass. The reference is deterministic for a seed, so the
+figures do not move between runs. ``benchmarks/scenes_vs_reference.py`` prints the same table."""
+
+import pytest
+
+from viewer.camera import OrbitCamera
+from viewer.compare import agreement
+from viewer.scene import load_scene
+
+pathtracer = pytest.importorskip("viewer.pathtracer")
+
+SMALL = (64, 48, 16)
+LARGE = (160, 96, 128)
+
+# name: (mean rel, block p90, why the raster differs); measured at 64 x 48 / 16 spp in brackets
+TOLERANCE = {
+    "sphere": (0.02, 0.06, "one Lambert-ish ball in a constant sky, direct light and split sum: the "
+               "reference's noise only [0.008 / 0.026]"),
+    "default": (0.08, 0.30, "no light bounced from the floor onto the objects and no occlusion of the "
+                "environment under them [0.050 / 0.201]"),
+    "gallery": (0.08, 0.30, "as default, over several objects [0.047 / 0.196]"),
+    "cornell": (0.45, 0.90, "a closed box: light bounced between the walls is about 40% of the image, "
+                "which the raster leaves out (it keeps the direct light and the constant ambient) "
+                "[0.394 / 0.826]"),
+    "cornell_glossy": (0.42, 0.90, "as cornell; SSR shows the glossy walls' reflections of what is on "
+                       "screen [0.372 / 0.831]"),
+    "reflective_floor": (0.12, 0.65, "the studio's bright panels mirrored by the floor: 16 spp of them "
+                         "are noisy blocks; SSR reflects only what is on screen (the objects' backs "
+                         "and the floor under them are missing), no light between objects "
+                         "[0.093 / 0.550]"),
+    "soap_bubble": (0.05, 0.30, "thin films on ior-1 shells: see the xfail"),
+    "lecture:1": (0.07, 0.15, "no light from the floor onto the ball, no occlusion of the dim "
+                  "environment at the contact [0.041 / 0.086]"),
+    "lecture:2": (0.06, 0.25, "traced glass: the floor's light seen through and in the glass is the "
+                  "raster's diffuse floor shading; 16 spp of refracted sky [0.031 / 0.164]"),
+    "lecture:3": (0.05, 0.25, "traced glass cube, as step 2 [0.020 / 0.159]"),
+    "lecture:4": (0.05, 0.12, "as step 1 [0.022 / 0.057]"),
+    "lecture:5": (0.07, 0.25, "as step 1, two balls that light each other in the reference [0.043 / 0.157]"),
+    "lecture:6": (0.12, 0.25, "a light behind the camera: the floor and the two balls light each other "
+                  "strongly in the reference [0.087 / 0.169]"),
+    "lecture:7": (0.05, 0.12, "as step 1 [0.029 / 0.058]"),
+    "lecture:8": (0.04, 0.10, "as step 1 [0.016 / 0.040]"),
+    "lecture:9": (0.03, 0.20, "split-sum coat over a glossy base under the studio map: the prefiltered "
+                  "environment against the exact lobe [0.000 / 0.118]"),
+    "lecture:10": (0.06, 0.30, "traced absorbing glass, as step 2 [0.030 / 0.217]"),
+    "lecture:11": (0.10, 0.15, "traced metals: the floor they mirror is shaded the raster's way (no "
+                   "light bounced from the balls onto it) [0.066 / 0.083]"),
+    "lecture:12": (0.05, 0.25, "traced dispersion with one index per channel against the spectral "
+                   "reference [0.020 / 0.153]"),
+    "lecture:13": (0.05, 0.30, "soap bubbles: see the xfail"),
+    "lecture:14": (0.10, 0.45, "glossy gold (alpha 0.15) under the studio map: the split sum's "
+                   "prefiltered lights against the lobe's exact reflection of them [0.064 / 0.369]"),
+}
+
+# The raster draws an ior-1 dielectric with a film (a bubble's shell) as an opaque ball with
+# coloured highlights untraced and without the film's reflections traced; the reference shows it
+# transparent with iridescent reflections (mean 0.18 / block p90 0.61 here). Open: the raster's
+# thin shell is not done yet.
+BUBBLE = pytest.mark.xfail(strict=True, reason="the raster's soap bubble is opaque (not yet a thin shell)")
+
+# The default suite runs these (what they guard: traced glass under MSAA on step 2, block p90
+# 0.299 before its fix; the single-lobe steps' lighting on 1 and 4; SSR on reflective_floor,
+# though at this size the old SSR is within its noise: tests/test_ssr.py's ball on a mirror
+# floor is SSR's own check); the rest cost 10-70 s each,
+# mostly compiling their programs, and run with -m slow.
+FAST = ("sphere", "lecture:1", "lecture:2", "lecture:4", "reflective_floor")
+SCENES = tuple(TOLERANCE)
+
+
+def _marks(name, slow):
+    marks = [BUBBLE] if name in ("soap_bubble", "lecture:13") else []
+    if slow:
+        marks.append(pytest.mark.slow)
+    return marks
+
+
+def _compare(renderer, name, size):
+    w, h, spp = size
+    scene = load_scene(name)
+    raster = renderer.render_arrays(scene, width=w, height=h)[0]
+    ref = pathtracer.ReferenceRenderer(scene, camera=OrbitCamera.from_scene(scene), width=w, height=h,
+                                       max_depth=8, seed=1, workers=2)
+    try:
+        ref.step(spp)
+        mean = ref.mean()
+    finally:
+        ref.close()
+    g = agreement(raster, mean)
+    tol_mean, tol_p90, why = TOLERANCE[name]
+    print(f"{name} {w}x{h} {spp} spp: mean rel {g['mean_rel']:.3f} (< {tol_mean}), block p90 "
+          f"{g['block_p90']:.3f} (< {tol_p90}): {why}")
+    return g, tol_mean, tol_p90
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=_marks(n, n not in FAST)) for n in SCENES])
+def test_scene_agrees_with_reference(renderer, name):
+    g, tol_mean, tol_p90 = _compare(renderer, name, SMALL)
+    assert g["mean_rel"] < tol_mean
+    assert g["block_p90"] < tol_p90
+
+
+@pytest.mark.slow  # 160 x 96 at 128 spp: minutes per traced or spectral scene on two cores
+@pytest.mark.parametrize("name", [pytest.param(n, marks=_marks(n, False)) for n in SCENES])
+def test_scene_agrees_with_reference_large(renderer, name):
+    g, tol_mean, tol_p90 = _compare(renderer, name, LARGE)
+    assert g["mean_rel"] < tol_mean
+    assert g["block_p90"] < tol_p90
