@@ -112,8 +112,8 @@ def test_reference_uses_the_walk():
 # base_bounce_tables) against the corrected walk. One bounce only (before) gave 0.381 / 0.416 /
 # 0.592 for the Oren-Nayar case and 0.563 / 0.449 / 0.587 (red) for gold. What remains is the
 # closed form's assumption that the light the coat returns is diffuse: an Oren-Nayar base
-# (back-scattering, not quite Lambertian) measured 3-5% under the walk at cos 1 and 0.5, a glossy
-# gold base up to 6% over at normal incidence (its returned light stays near the mirror
+# (back-scattering, not quite Lambertian) measured 2-3% under the walk at cos 1 and 0.5, a glossy
+# gold base 5% over at normal incidence (its returned light stays near the mirror
 # direction and leaves through the escape cone); the bounds are those plus 4 standard errors.
 @pytest.mark.parametrize("base, rel", [
     ({"model": "oren_nayar", "albedo": [1.0, 1.0, 1.0], "sigma": 30.0}, 0.06),
