@@ -69,3 +69,30 @@ def test_gallery_fits_a_view_narrowed_by_the_panel():
         worst = max(worst, abs(x) + half)
     print(f"gallery at 1.28:1: outermost sphere edge at |x| = {worst:.3f} (NDC)")
     assert worst < 1.0, worst
+
+
+EDITOR = r'''
+from viewer.app import ui
+from viewer.app.main import App
+app = App("default", size=(1280, 720), restore_state=False)
+app.session.warm = []
+bad = []
+for scale in (1.0, 1.5, 2.0):
+    app.set_ui_scale(scale)
+    for preset in ("gold", "glass", "lecture_ashikhmin_shirley", "lecture_layered", "soap_bubble"):
+        app.session.set_material("ball", ui.preset_params(preset))
+        for _ in range(2):
+            ui.CLIPPED.clear()
+            app.frame()
+        bad += [(scale, preset, label) for label in ui.CLIPPED]
+print("CLIPPED", bad)
+app.close()
+'''
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_editor_labels_fit_the_panel_at_every_ui_scale(display):
+    """The material editor's sliders, pickers and boxes end inside the side panel (label
+    included: "roughness r", not "roughness r (pe...") at UI 1, 1.5 and 2 for several models."""
+    r = run_py(EDITOR, display, timeout=600)
+    assert r.returncode == 0 and "CLIPPED []" in r.stdout, r.stdout + r.stderr[-2000:]

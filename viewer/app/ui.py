@@ -171,11 +171,28 @@ def perceptual(alpha: float) -> float:
     return math.sqrt(max(float(alpha), 0.0))
 
 
+CLIPPED: list[str] = []  # editor widgets of this frame whose label ran past the panel (tests read it)
+
+
+def content_right() -> float:
+    """The right edge of the room left on the current line (screen x): call before a widget."""
+    return imgui.get_cursor_screen_pos().x + imgui.get_content_region_avail().x
+
+
+def check_fit(label: str, right: float) -> None:
+    """Record ``label`` in ``CLIPPED`` when the widget just drawn (its label included) ends past
+    ``right`` (``content_right()`` taken before it: where imgui cuts it off)."""
+    if imgui.get_item_rect_max().x > right + 0.5:
+        CLIPPED.append(label.split("##")[0])
+
+
 def _roughness_slider(label: str, alpha: float, lo: float, hi: float, on_error=None):
     """One slider in perceptual roughness r = sqrt(alpha), labelled as such; returns (changed,
     alpha). A typed r outside the slider's range is refused naming this slider (not alpha_x)."""
     r_lo, r_hi = perceptual(max(lo, 1e-4)), perceptual(hi)
+    right = content_right()
     changed, r = imgui.slider_float(label, perceptual(alpha), r_lo, r_hi, "%.3f")
+    check_fit(label, right)
     if imgui.is_item_hovered():
         imgui.set_tooltip(f"perceptual roughness r; the model's alpha = r^2 = {alpha:.4g}")
     if not changed:
@@ -192,7 +209,19 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
     the spec refuses (NaN, out of range) keeps the old one and its message goes to
     ``on_error(text)`` (the session's error notification). A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
     an *anisotropic* toggle that reveals alpha_x / alpha_y; parameters that do nothing in the
-    chosen variant are hidden (``shown_params``)."""
+    chosen variant are hidden (``shown_params``). The widgets are as wide as leaves room for
+    the longest label beside them (never wider than imgui's default), so no label is cut."""
+    labels = ["preset", "model", ROUGHNESS_LABEL] + shown_params(params)
+    room = imgui.get_content_region_avail().x
+    widest = max(imgui.calc_text_size(t).x for t in labels) + imgui.get_style().item_inner_spacing.x
+    imgui.push_item_width(max(min(0.65 * imgui.get_window_width(), room - widest - 2.0), 40.0))
+    try:
+        return _material_editor(params, prefix, nested, on_error)
+    finally:
+        imgui.pop_item_width()
+
+
+def _material_editor(params: Params, prefix: str, nested: bool, on_error):
     presets = [PRESET_NONE] + preset_names(nested) + ([] if nested else library_files())
     ch, i = imgui.combo(f"preset##{prefix}preset", 0, presets)
     if imgui.is_item_hovered():
@@ -224,7 +253,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
         px = by_name["alpha_x"]
         lo, hi = px.slider_range
         if not aniso:
-            c, a = _roughness_slider(f"{ROUGHNESS_LABEL} (alpha = r^2)##{prefix}r", params.alpha_x, lo, hi, on_error)
+            c, a = _roughness_slider(f"{ROUGHNESS_LABEL}##{prefix}r", params.alpha_x, lo, hi, on_error)
             if c:
                 new = new.replace(alpha_x=a, alpha_y=a)
                 any_change = True
@@ -243,9 +272,12 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
             continue
         if p.name == "alpha" and p.kind == "float":
             lo, hi = p.slider_range
-            c, v = _roughness_slider(f"{ROUGHNESS_LABEL} (alpha = r^2)##{prefix}alpha", params[p.name], lo, hi, on_error)
+            c, v = _roughness_slider(f"{ROUGHNESS_LABEL}##{prefix}alpha", params[p.name], lo, hi, on_error)
         else:
+            right = content_right()
             c, v = param_widget(p, params[p.name], prefix, on_error)
+            if p.kind in ("float", "rgb", "choice", "bool"):
+                check_fit(p.name, right)
             if imgui.is_item_hovered() and p.doc:
                 imgui.set_tooltip(f"{p.doc}\n{p.allowed()}" + (f" [{p.unit}]" if p.unit else ""))
         if c:

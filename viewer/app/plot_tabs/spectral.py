@@ -54,6 +54,7 @@ def draw(panel, names, materials):
     imgui.push_style_color(imgui.Col_.text, imgui.get_style_color_vec4(imgui.Col_.text_disabled))
     imgui.text_wrapped(f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}; {d['source'][:90]}")
     imgui.pop_style_color()
+    imgui.text_wrapped("R(theta, lambda) beside n and k; its right-hand column is the RGB colour per angle")
     size = panel.plot_size()
     k = panel.font_k()
     full = size.x if size.x > 0 else imgui.get_content_region_avail().x
@@ -64,7 +65,7 @@ def draw(panel, names, materials):
     lam = np.ascontiguousarray(d["wavelength_nm"], dtype=np.float64)
     col = panel.colour(name)
     if implot.begin_plot("##spectral_nk", imgui.ImVec2(half_w, half_h)):
-        implot.setup_axes("wavelength (nm)", "n (solid), k (dots)")
+        implot.setup_axes("lambda (nm)", "n (solid), k (dots)")  # short: half a docked panel
         implot.setup_axis_ticks(implot.ImAxis_.x1, list(WAVELENGTH_TICKS))  # readable in half a panel
         panel.legend()
         lo, hi = nk_limits(d["n"], d["k"])
@@ -86,7 +87,7 @@ def draw(panel, names, materials):
     rmax = 1.0  # reflectance: the colour scale spans all of it
     implot.push_colormap(implot.Colormap_.viridis)
     if implot.begin_plot("##spectral_R", imgui.ImVec2(half_w, half_h), implot.Flags_.no_legend):
-        implot.setup_axes("wavelength (nm); RGB at the right", "angle of incidence (deg)")
+        implot.setup_axes("lambda (nm)", "angle of incidence (deg)")
         implot.setup_axis_ticks(implot.ImAxis_.x1, list(WAVELENGTH_TICKS))
         x_sw0, x_sw1 = float(lam[-1]) + 10.0, float(lam[-1]) + 60.0  # the swatch column
         implot.setup_axes_limits(float(lam[0]), x_sw1, 0.0, 90.0, implot.Cond_.always)
@@ -105,7 +106,7 @@ def draw(panel, names, materials):
     implot.colormap_scale("R##scale", 0.0, rmax, imgui.ImVec2(bar, half_h), "%.2f")
     implot.pop_colormap()
     if implot.begin_plot("##spectral_err", imgui.ImVec2(-1, max(140.0, size.y * 0.5 - 4))):
-        implot.setup_axes("angle of incidence (deg)", "RGB error against the spectral integral")
+        implot.setup_axes("angle of incidence (deg)", "RGB - spectral")  # short: the axis is half a panel tall
         panel.legend()
         emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3) * 1.1
         implot.setup_axes_limits(0.0, 90.0, -emax, emax, implot.Cond_.always)
