@@ -7,7 +7,7 @@
 2. a slider move on a file BRDF to the new frame (the raster, parameters in the material block:
    no compile), against the same move on the built-in microfacet;
 3. the GPU engine's samples/second on a file Lambert against the built-in Lambert;
-4. the variance of the generic sampler (cosine-weighted) against the built-in GGX sampler (visible
+4. the variance of the generic sampler (cosine mixed with the tabulated half vectors) against the built-in GGX sampler (visible
    normals) on a GGX written as a .brdf (benchmarks/scenes/ggx.brdf), at equal samples, BSDF
    sampling only, under a constant environment: the ratio of the per-pixel variances over seeds;
 5. with --published: how many of a folder of .brdf files load, get a report card and render.
@@ -132,7 +132,7 @@ def variance_ratio(folder, seeds=12, spp=4):
 
     ggx = HERE / "scenes" / "ggx.brdf"
     res = {}
-    for label, mat in (("generic (cosine) on the .brdf", f'model = "custom"\nfile = "{ggx}"\nalpha = 0.3\nf0 = 0.9'),
+    for label, mat in (("generic on the .brdf", f'model = "custom"\nfile = "{ggx}"\nalpha = 0.3\nf0 = 0.9'),
                        ("built-in (VNDF)", 'model = "microfacet"\ndistribution = "ggx"\nfresnel = "schlick"\n'
                                            'f0 = [0.9, 0.9, 0.9]\nalpha = 0.3\nkd = [0.0, 0.0, 0.0]')):
         sc = load_scene(scene(folder, mat, CONST, 64, 64))
@@ -147,7 +147,7 @@ def variance_ratio(folder, seeds=12, spp=4):
         a = np.stack(imgs)
         mask = a.mean(axis=0).sum(axis=2) > 0
         res[label] = (float(a.var(axis=0, ddof=1)[mask].mean()), float(a.mean(axis=0)[mask].mean()))
-    g, b = res["generic (cosine) on the .brdf"], res["built-in (VNDF)"]
+    g, b = res["generic on the .brdf"], res["built-in (VNDF)"]
     print(f"variance at equal samples ({spp} spp x {seeds} seeds, bsdf sampling, constant environment): "
           f"generic {g[0]:.3g}, built-in {b[0]:.3g}, ratio {g[0] / b[0]:.1f}x (means {g[1]:.4f} / {b[1]:.4f})")
 

@@ -359,15 +359,50 @@ def test_the_raster_draws_a_file_lambert_as_the_built_in_lambert(file_scene, env
 
 
 def test_the_gpu_engine_runs_the_files_glsl_as_the_built_in_lambert(file_scene):
-    """The same seeds and the same estimator: the file Lambert's image is the built-in Lambert's
-    to float32 rounding (the generic cosine sampler is Lambert's own sampler)."""
+    """The file Lambert against the built-in Lambert: two unbiased estimates of one image (the
+    generic sampler differs from Lambert's own), so their means agree within the noise."""
     import viewer
 
-    a = viewer.reference(file_scene, spp=4, engine="gpu")
-    b = viewer.reference(file_scene, spp=4, engine="gpu", overrides=["materials.ball.model=lambert",
+    a = viewer.reference(file_scene, spp=8, engine="gpu")
+    b = viewer.reference(file_scene, spp=8, engine="gpu", overrides=["materials.ball.model=lambert",
                                                                     "materials.ball.albedo=[0.64, 0.48, 0.32]"])
-    assert b.max() > 0.1
-    np.testing.assert_allclose(a, b, atol=1e-6)
+    assert b.max() > 0.1 and np.all(np.isfinite(a))
+    np.testing.assert_allclose(a.mean(axis=(0, 1)), b.mean(axis=(0, 1)), rtol=0.02)
+
+
+def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(tmp_path):
+    """A GGX written as a .brdf under a constant environment, BSDF sampling only, against the
+    built-in GGX (visible-normal sampling): the same mean (both unbiased), and the tabulated
+    half-vector sampler within 5x of the built-in's variance (cosine sampling alone: 23x, measured
+    by benchmarks/brdf_files.py; the table: 2.2x)."""
+    from viewer.camera import OrbitCamera
+    from viewer.gpupt.select import make_renderer
+    from viewer.scene import load_scene
+
+    ggx = Path(__file__).parent.parent / "benchmarks" / "scenes" / "ggx.brdf"
+    scene = SCENE.replace("[[lights]]\ntype = \"point\"\nposition = [2.0, 3.0, 2.0]\nintensity = [10.0, 10.0, 10.0]\n",
+                          "[environment]\nconstant = [1.0, 1.0, 1.0]\n").replace("width = 64", "width = 32") \
+        .replace("height = 64", "height = 32")
+    out = {}
+    for label, mat in (("file", f'model = "custom"\nfile = "{ggx}"\nalpha = 0.3\nf0 = 0.9\n'),
+                       ("builtin", 'model = "microfacet"\ndistribution = "ggx"\nfresnel = "schlick"\n'
+                                   'f0 = [0.9, 0.9, 0.9]\nalpha = 0.3\nkd = [0.0, 0.0, 0.0]\n')):
+        text = scene.split("[materials.ball]")[0] + "[materials.ball]\n" + mat
+        (tmp_path / f"{label}.toml").write_text(text)
+        sc = load_scene(tmp_path / f"{label}.toml")
+        imgs = []
+        for seed in range(8):
+            rr = make_renderer("gpu", sc, OrbitCamera.from_scene(sc), max_depth=1, seed=10 + seed, strategy="bsdf")
+            try:
+                rr.step(4)
+                imgs.append(rr.mean().copy())
+            finally:
+                rr.close()
+        a = np.stack(imgs)
+        mask = a.mean(axis=0).sum(axis=2) > 0
+        out[label] = (a.var(axis=0, ddof=1)[mask].mean(), a.mean(axis=0)[mask].mean())
+    assert abs(out["file"][1] - out["builtin"][1]) < 0.02 * out["builtin"][1]
+    assert out["file"][0] < 5.0 * out["builtin"][0], out
 
 
 def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path):

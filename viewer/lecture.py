@@ -181,14 +181,14 @@ TOUR: tuple[Step, ...] = (
                 _mat("ball", "gold", alpha=0.15)), "sampling", "split"),
     # A BRDF Explorer file beside the built-in model it writes out: viewer/brdfs/cooktorrance.brdf
     # (relative to the built-in scenes' folder, where lecture steps resolve their files)
-    Step("brdf_file", "Your own BRDF: a textbook Cook-Torrance .brdf (left) beside the built-in microfacet (right)",
-         "One text file, opened at run time: D F G / (4 cos cos) with Beckmann D, V-cavity G and Fresnel for "
-         "ior 1.5; the built-in microfacet with the same choices draws the same ball. Check it: brdf-viewer check.",
+    Step("brdf_file", "Your own BRDF: a .brdf file",
+         "Left: a textbook Cook-Torrance in one text file, opened at run time (Beckmann D, V-cavity G, Fresnel "
+         "for ior 1.5). Right: the built-in microfacet with the same choices, the same ball. brdf-viewer check grades it.",
          _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("file", -0.75), _sphere("builtin", 0.75),
                 _FLOOR_MAT,
                 '[materials.file]\nmodel = "custom"\nfile = "../brdfs/cooktorrance.brdf"\nm = 0.3\nior = 1.5\n',
                 '[materials.builtin]\nmodel = "microfacet"\ndistribution = "beckmann"\nshadowing = "v_cavity"\n'
-                'fresnel = "dielectric"\nior = 1.5\nalpha = 0.3\nkd = [0.0, 0.0, 0.0]\n'), "polar"),
+                'fresnel = "dielectric"\nior = 1.5\nalpha = 0.3\nkd = [0.0, 0.0, 0.0]\n'), "polar", "raster"),
 )
 
 

@@ -65,6 +65,50 @@ def _has_film(values) -> bool:
 
 
 CUSTOM_PREFIX = "custom:"
+HALF_TABLE = 32      # bands of theta_h in the generic sampler's table
+COSINE_SHARE = 0.25  # the cosine-weighted share of its mixture (the whole of it for a BRDF that is 0)
+_TABLES: dict = {}
+
+
+def half_vector_table(params) -> np.ndarray:
+    """The generic sampler's table of a file material: the CDF over HALF_TABLE bands of theta_h
+    (equal in angle) of the BRDF's f cos_i 4 (wo.h), the density over half vectors that makes
+    f cos_i / pdf constant, averaged over views at 0, 30, 60 and 75 degrees and azimuths of h
+    (the file's f through its GLSL, for the current parameters). Isotropic by construction; the
+    cosine share keeps every direction reachable. Its last value is 1, or 0 when f is 0."""
+    import json
+
+    model = brdf.get("custom").of(params)
+    key = (str(model.bfile.path), json.dumps(params.to_plain(), sort_keys=True), id(model))
+    hit = _TABLES.get(key)
+    if hit is not None:
+        return hit
+    n, sub = HALF_TABLE, 4
+    dth = 0.5 * np.pi / n
+    th = (np.arange(n * sub) + 0.5) * dth / sub
+    phis = np.radians([0.0, 45.0, 90.0, 135.0, 180.0])
+    vals = np.zeros(n * sub)
+    for tv in np.radians([0.0, 30.0, 60.0, 75.0]):
+        wo = np.array([np.sin(tv), 0.0, np.cos(tv)])
+        for ph in phis:
+            h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
+            woh = h @ wo
+            wi = 2.0 * woh[:, None] * h - wo
+            ok = (wi[:, 2] > 0) & (woh > 0)
+            f = np.asarray(model.eval(params, np.where(ok[:, None], wi, [0.0, 0.0, 1.0]),
+                                      np.broadcast_to(wo, wi.shape)), float)
+            lum = np.where(np.isfinite(f), np.maximum(f, 0.0), 0.0) @ np.array([0.2126, 0.7152, 0.0722])
+            vals += np.where(ok, lum * wi[:, 2] * 4.0 * woh, 0.0)
+    band = 2 * np.pi * (np.cos(np.arange(n) * dth) - np.cos((np.arange(n) + 1) * dth))
+    mass = vals.reshape(n, sub).mean(axis=1) * band
+    total = mass.sum()
+    cdf = np.cumsum(mass) / total if total > 0 and np.isfinite(total) else np.zeros(n)
+    if total > 0:
+        cdf[-1] = 1.0
+    if len(_TABLES) > 256:
+        _TABLES.clear()
+    _TABLES[key] = cdf
+    return cdf
 
 
 def is_custom(name: str) -> bool:
@@ -103,9 +147,11 @@ def custom_virtual(only) -> dict[str, str]:
 
 def _custom_glue(name: str) -> list[str]:
     """The family functions of a file BRDF over its block: custom_params (its offset),
-    custom_eval (the file's BRDF above the surface, negative values as 0), and cosine-weighted
-    custom_sample / custom_pdf (the sampler that works for any BRDF)."""
-    from viewer.gl.file_brdf import set_params_glsl
+    custom_eval (the file's BRDF above the surface, negative values as 0), and custom_sample /
+    custom_pdf, the sampler that works for any BRDF: cosine-weighted directions (share
+    COSINE_SHARE) mixed with half vectors drawn from a table of the BRDF for the current
+    parameters (``half_vector_table``), with the exact pdf of the mixture."""
+    from viewer.gl.file_brdf import n_floats, set_params_glsl
 
     bfile = custom_file(name)
     sets = set_params_glsl(bfile, read=lambda k: f"mat_f(p.o + {k})")
@@ -118,16 +164,52 @@ def _custom_glue(name: str) -> list[str]:
             "    vec3 f = vec3(bxf_BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)));",
             "    return max(f, vec3(0.0));",
             "}",
+            f"#define CUSTOM_T {n_floats(bfile)}  // the half-vector table's CDF after the parameters",
+            f"#define CUSTOM_N {HALF_TABLE}",
+            "float custom_cos_share(custom_params p) { return mat_f(p.o + CUSTOM_T + CUSTOM_N - 1) > 0.5 ? "
+            f"{COSINE_SHARE} : 1.0; }}",
+            "float custom_table_pdf(custom_params p, vec3 wi, vec3 wo) {",
+            "    vec3 h = wi + wo;",
+            "    float l = length(h);",
+            "    if (!(l > 0.0)) return 0.0;",
+            "    h /= l;",
+            "    float woh = dot(wo, h);",
+            "    if (h.z <= 0.0 || woh <= 0.0) return 0.0;",
+            "    float dth = 1.5707963267948966 / float(CUSTOM_N);",
+            "    int k = min(int(acos(clamp(h.z, 0.0, 1.0)) / dth), CUSTOM_N - 1);",
+            "    float pk = mat_f(p.o + CUSTOM_T + k) - (k > 0 ? mat_f(p.o + CUSTOM_T + k - 1) : 0.0);",
+            "    float band = 6.283185307179586 * (cos(float(k) * dth) - cos(float(k + 1) * dth));",
+            "    return pk / max(band, 1e-30) / (4.0 * woh);  // per solid angle of wi: dw_i = 4 (wo.h) dw_h",
+            "}",
             "float custom_pdf(custom_params p, vec3 wi, vec3 wo) {",
-            "    return (wi.z > 0.0 && wo.z > 0.0) ? wi.z * 0.31830988618379067 : 0.0;",
+            "    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;",
+            "    float c = custom_cos_share(p);",
+            "    return c * wi.z * 0.31830988618379067 + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);",
             "}",
             "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
-            "    float r = sqrt(u.x);",
-            "    float phi = 6.283185307179586 * u.y;",
-            "    wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));",
+            "    if (u.z < custom_cos_share(p)) {  // cosine-weighted",
+            "        float r = sqrt(u.x);",
+            "        float phi = 6.283185307179586 * u.y;",
+            "        wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));",
+            "    } else {  // a half vector from the table: its band by the CDF, uniform in cos and phi there",
+            "        int k = 0;",
+            "        float lo = 0.0;",
+            "        for (int i = 0; i < CUSTOM_N - 1; ++i) {",
+            "            float ci = mat_f(p.o + CUSTOM_T + i);",
+            "            if (u.x >= ci) { k = i + 1; lo = ci; }",
+            "        }",
+            "        float hi = mat_f(p.o + CUSTOM_T + k);",
+            "        float t = clamp((u.x - lo) / max(hi - lo, 1e-30), 0.0, 1.0);",
+            "        float dth = 1.5707963267948966 / float(CUSTOM_N);",
+            "        float cz = mix(cos(float(k) * dth), cos(float(k + 1) * dth), t);",
+            "        float sz = sqrt(max(0.0, 1.0 - cz * cz));",
+            "        float phi = 6.283185307179586 * u.y;",
+            "        vec3 h = vec3(sz * cos(phi), sz * sin(phi), cz);",
+            "        wi = 2.0 * dot(wo, h) * h - wo;",
+            "    }",
             "    pdf = custom_pdf(p, wi, wo);",
             "    if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }",
-            "    return custom_eval(p, wi, wo) * 3.141592653589793;  // f cos / (cos / pi)",
+            "    return custom_eval(p, wi, wo) * wi.z / pdf;",
             "}", ""]
 
 
@@ -174,7 +256,8 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
         from viewer.gl.file_brdf import n_floats, param_floats
 
         bfile = brdf.get("custom").of(params).bfile
-        data = param_floats(bfile, params)[: n_floats(bfile)].astype(np.float32)
+        data = np.concatenate([param_floats(bfile, params)[: n_floats(bfile)],
+                               half_vector_table(params)]).astype(np.float32)
         if limit is not None and offset + data.size > limit:
             raise ValueError(f"material {bfile.path.name} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
         return model_index(CUSTOM_PREFIX + str(bfile.path)), data
