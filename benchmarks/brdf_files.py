@@ -157,7 +157,7 @@ def published(folder, out):
     from viewer.brdf.report_card import report
 
     files = sorted(Path(folder).glob("*.brdf"))
-    loaded = carded = passed = rendered = 0
+    loaded = carded = passed = rendered = finite = 0
     import viewer
 
     for f in files:
@@ -169,11 +169,12 @@ def published(folder, out):
             carded += 1
             passed += bool(rep["pass"])
             img = viewer.render(scene(out, f'model = "custom"\nfile = "{f}"', POINT + "\n" + CONST, 48, 48))
-            rendered += bool(np.all(np.isfinite(img)) or True)
+            rendered += 1
+            finite += bool(np.all(np.isfinite(img)))
         except Exception as e:  # noqa: BLE001 - counted, and named
             print(f"  {f.name}: {str(e).splitlines()[0]}")
     print(f"published files: {len(files)}; load and compile {loaded}; report card {carded} "
-          f"({passed} pass every check); render {rendered}")
+          f"({passed} pass every check); render {rendered} ({finite} with every pixel finite)")
 
 
 def main():
