@@ -163,7 +163,7 @@ def load(path) -> FileModel:
     """The model of a BRDF Explorer ``.brdf`` file (and its numpy twin ``NAME.py`` beside it)."""
     from viewer.brdf import file_model
 
-    return file_model.load(path)
+    return file_model.load(path, FileModel)
 
 
 def _sample_args(wo, u):
@@ -234,7 +234,7 @@ class CustomModel(Model):
             raise ViewerError("model 'custom': give file = \"NAME.brdf\" (a BRDF Explorer file)")
         from viewer.brdf import file_model
 
-        return file_model.load_or_last_good(p["file"])
+        return file_model.load_or_last_good(p["file"], FileModel)
 
     def params(self, **values) -> Params:
         return self.of(values).params(**values)

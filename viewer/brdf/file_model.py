@@ -198,9 +198,10 @@ def _stamp(path: Path):
     return tuple(out)
 
 
-def load(path, where: str | None = None):
-    """The model of the ``.brdf`` file ``path`` (cached until the file or its twin changes)."""
-    from viewer.brdf import FileModel
+def load(path, make, where: str | None = None):
+    """The model of the ``.brdf`` file ``path`` (cached until the file or its twin changes), made
+    by ``make(module, where=NAME)`` (``viewer.brdf.FileModel``, which the package passes in: this
+    module sits below the package and does not import it)."""
 
     path = Path(path).expanduser()
     if path.suffix.lower() != ".brdf":
@@ -214,7 +215,7 @@ def load(path, where: str | None = None):
     if hit is not None and hit[0] == stamp:
         return hit[1]
     bfile = parse(path)
-    model = FileModel(make_module(bfile, load_twin(path)), where=path.name)
+    model = make(make_module(bfile, load_twin(path)), where=path.name)
     if len(_CACHE) > 64:
         _CACHE.clear()
     _CACHE[key] = (stamp, model)
@@ -225,12 +226,12 @@ def load(path, where: str | None = None):
 _LAST_GOOD: dict = {}
 
 
-def load_or_last_good(path):
+def load_or_last_good(path, make):
     """``load(path)``, or, when the file no longer parses (saved with a mistake while the window
     shows it), the model it last loaded as in this process: what is drawn keeps drawing while the
     hot reloader shows the error. A file never loaded raises as ``load`` does."""
     try:
-        return load(path)
+        return load(path, make)
     except ViewerError:
         hit = _LAST_GOOD.get(str(Path(path).expanduser().resolve()))
         if hit is None:

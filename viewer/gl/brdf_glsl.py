@@ -136,7 +136,7 @@ def custom_file(name: str):
 
 def custom_virtual(only) -> dict[str, str]:
     """The virtual include ``NAME.brdf`` (the file's GLSL block) of each file BRDF in ``only``."""
-    from viewer.gl.file_brdf import virtual_files
+    from viewer.gl.file_brdf_glsl import virtual_files
 
     out: dict[str, str] = {}
     for n in only or ():
@@ -151,7 +151,7 @@ def _custom_glue(name: str) -> list[str]:
     custom_pdf, the sampler that works for any BRDF: cosine-weighted directions (share
     COSINE_SHARE) mixed with half vectors drawn from a table of the BRDF for the current
     parameters (``half_vector_table``), with the exact pdf of the mixture."""
-    from viewer.gl.file_brdf import n_floats, set_params_glsl
+    from viewer.gl.file_brdf_glsl import n_floats, set_params_glsl
 
     bfile = custom_file(name)
     sets = set_params_glsl(bfile, read=lambda k: f"mat_f(p.o + {k})")
@@ -253,7 +253,7 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
     offset is stored as an absolute float index into u_mat. ``limit``: the floats the block
     holds (None: no bound, for a material texture holding many materials)."""
     if params.model == "custom":  # a file BRDF: its declarations' floats
-        from viewer.gl.file_brdf import n_floats, param_floats
+        from viewer.gl.file_brdf_glsl import n_floats, param_floats
 
         bfile = brdf.get("custom").of(params).bfile
         data = np.concatenate([param_floats(bfile, params)[: n_floats(bfile)],

@@ -16,9 +16,9 @@ import re
 import numpy as np
 
 from viewer.brdf.brdffile import PREFIX, BrdfFile, sampler_takes_view
+from viewer.gl.file_brdf_glsl import MAX_PARAMS, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
 from viewer.gl.shaders import ShaderError, build_program
 
-MAX_PARAMS = 64  # floats of u_p
 WIDTH = 256      # texels per row of the direction textures
 
 _VERT = """#version 410 core
@@ -31,46 +31,6 @@ void main() {
 
 class FileBrdfError(ShaderError):
     """A ``.brdf`` file's GLSL does not compile: ``str()`` is one line ``NAME.brdf:LINE: message``."""
-
-
-def param_floats(bfile: BrdfFile, p) -> np.ndarray:
-    """The parameter values of ``p`` as the flat floats of ``u_p`` (declaration order)."""
-    out = []
-    for d in bfile.declarations:
-        v = p[d.name] if p is not None and d.name in p else d.default
-        if d.kind == "color":
-            out.extend(float(x) for x in np.ravel(v)[:3])
-        elif d.kind == "bool":
-            out.append(1.0 if v else 0.0)
-        else:
-            out.append(float(v))
-    return np.array(out + [0.0] * max(1, MAX_PARAMS - len(out)), dtype="f4")[:max(MAX_PARAMS, len(out))]
-
-
-def set_params_glsl(bfile: BrdfFile, read=lambda k: f"u_p[{k}]") -> str:
-    """GLSL statements copying the parameter floats (``read(k)``: the GLSL expression of float k,
-    declaration order) into the file's globals."""
-    lines, k = [], 0
-    for d in bfile.declarations:
-        g = PREFIX + d.name
-        if d.kind == "color":
-            lines.append(f"{g} = vec3({read(k)}, {read(k + 1)}, {read(k + 2)});")
-            k += 3
-        elif d.kind == "bool":
-            lines.append(f"{g} = {read(k)} > 0.5;")
-            k += 1
-        else:
-            lines.append(f"{g} = {read(k)};")
-            k += 1
-    return "\n    ".join(lines)
-
-
-def n_floats(bfile: BrdfFile) -> int:
-    return sum(3 if d.kind == "color" else 1 for d in bfile.declarations)
-
-
-def virtual_files(bfile: BrdfFile) -> dict[str, str]:
-    return {bfile.path.name: bfile.glsl_block()}
 
 
 def _eval_fragment(bfile: BrdfFile) -> str:
