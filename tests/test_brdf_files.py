@@ -541,7 +541,8 @@ def test_saving_the_file_hot_reloads_it_and_an_error_keeps_the_last_good_program
 
 def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):
     from viewer import plots
-    from viewer.cli import main, plot_material
+    from viewer.cli import main
+    from viewer.scene import material_from_name as plot_material
 
     for kind in ("polar", "lobe", "albedo"):
         assert main(["plot", str(DATA / "every_declaration.brdf"), "--kind", kind, "--set", "n=20",
