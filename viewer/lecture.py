@@ -184,7 +184,12 @@ TOUR: tuple[Step, ...] = (
     Step("brdf_file", "Your own BRDF: a .brdf file",
          "Left: a textbook Cook-Torrance in one text file, opened at run time (Beckmann D, V-cavity G, Fresnel "
          "for ior 1.5). Right: the built-in microfacet with the same choices, the same ball. brdf-viewer check grades it.",
-         _scene(_camera(), _DIM, _render("off"), _KEY_LIGHT, _FLOOR, _sphere("file", -0.75), _sphere("builtin", 0.75),
+         # no environment (a file BRDF's environment light is importance sampled, noisy in one
+         # frame), so the raster and the reference see the same light: the point light alone; seen
+         # from above, the balls stand against the lit floor
+         _scene(_camera((0.0, 2.6, 3.6), (0.0, 0.45, 0.0)), _env("constant = [0.0, 0.0, 0.0]"), _render("off", tonemap="reinhard"),
+                '[[lights]]\ntype = "point"\nposition = [0.0, 5.0, 3.0]\nintensity = [250.0, 250.0, 250.0]\n', _FLOOR,
+                _sphere("file", -0.75), _sphere("builtin", 0.75),
                 _FLOOR_MAT,
                 '[materials.file]\nmodel = "custom"\nfile = "../brdfs/cooktorrance.brdf"\nm = 0.3\nior = 1.5\n',
                 '[materials.builtin]\nmodel = "microfacet"\ndistribution = "beckmann"\nshadowing = "v_cavity"\n'
