@@ -315,7 +315,8 @@ void main() {
     // base holds rho_s * env already (the forward pass's split sum, the same lookup): add the
     // difference, so a miss is the SSR-off pixel exactly
     vec3 ssr = rho_s * reflected;
-    if (u_debug == SSR_DEBUG_COMPOSITE) frag_color = vec4(base + ssr - rho_s * env, 1.0);
+    base -= rho_s * env;
+    if (u_debug == SSR_DEBUG_COMPOSITE) frag_color = vec4(base + ssr, 1.0);
     else if (u_debug == SSR_DEBUG_HIT) frag_color = vec4(surface ? vec3(hit) : vec3(0.0, 0.0, 0.25 * float(cov > 0.5)), 1.0);
     else if (u_debug == SSR_DEBUG_STEPS) frag_color = vec4(surface ? false_colour(steps / float(u_max_steps)) : vec3(0.0), 1.0);
     else if (u_debug == SSR_DEBUG_UV) frag_color = vec4(hit > 0.0 ? vec3(hit_uv, 0.0) : vec3(0.0), 1.0);
