@@ -430,12 +430,9 @@ class Renderer:
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
         _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
-        for obj in scene.objects:
-            m = obj.model_matrix()
-            _set(prog, "u_model", gl_bytes(m))
-            _set(prog, "u_normal_matrix", gl_bytes(np.linalg.inv(m[:3, :3]).T))
+        for obj in scene.objects:  # one draw each, in the forward pass's order (u_traced per object)
             _set(prog, "u_traced", float(chain_kind(scene.materials[obj.material]) != KIND_SHADED))
-            self._gpu_mesh(obj.mesh_data).vao(prog).render()
+            self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([obj]))
         return np.frombuffer(tex.read(alignment=1), np.uint8).reshape(h, w) > 127
 
     def _release_mask(self):
