@@ -54,7 +54,7 @@ def test_glsl_block_keeps_the_files_lines_and_prefixes_its_names():
     assert "bxf_schlick" in block[16] and "bxf_f0" in block[16] and "pow(" in block[16]
     assert set(f.top_level_names()) >= {"n", "f0", "sqr", "schlick", "BRDF", "sampleBRDF"}
     # members after a dot, numbers and comments stay as they are
-    assert brdffile._rename("v.n + n * 1e5 // n", {"n": "bxf_n"}) == "v.n + bxf_n * 1e5 // n"
+    assert brdffile.rename_names("v.n + n * 1e5 // n", {"n": "bxf_n"}) == "v.n + bxf_n * 1e5 // n"
 
 
 def test_hash_lines_are_comments_in_the_shader_too(tmp_path):

@@ -579,11 +579,12 @@ def _bake_traced(w: int, h: int) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
 
+    from viewer.io import atomic_write_bytes
+
     folder = trace_cache.cache_folder()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        probe = folder / f".probe-{os.getpid()}"
-        probe.write_bytes(b"")
+        probe = atomic_write_bytes(folder / f".probe-{os.getpid()}", b"")
         probe.unlink()
     except OSError as e:
         raise ViewerError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({e.strerror or e})")

@@ -112,7 +112,7 @@ class BrdfFile:
         for d in self.declarations:
             out[d.line - 1] = f"{glsl_type[d.kind]} {PREFIX}{d.name};"
         for i in self.shader + (self.sampler if sampler_wrapper else []):
-            out[i - 1] = _rename(self.lines[i - 1], rename)
+            out[i - 1] = rename_names(self.lines[i - 1], rename)
         return "\n".join(out) + "\n"
 
 
@@ -154,7 +154,7 @@ def _declared(code: str) -> list[str]:
     return out
 
 
-def _rename(line: str, rename: dict[str, str]) -> str:
+def rename_names(line: str, rename: dict[str, str]) -> str:
     """``line`` with whole-word identifiers renamed, outside // comments (a /* */ comment on one
     line is renamed too: harmless)."""
     code, sep, comment = line.partition("//")

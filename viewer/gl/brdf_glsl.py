@@ -24,6 +24,7 @@ from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.spec import ModelSpec, Param, Params
 from viewer.gl.constants import MAT_VEC4
 from viewer.gl.shader_folder import ShaderError, shader_root
+from viewer.spectral.colorimetry import luminance
 
 
 
@@ -97,7 +98,7 @@ def half_vector_table(params) -> np.ndarray:
             ok = (wi[:, 2] > 0) & (woh > 0)
             f = np.asarray(model.eval(params, np.where(ok[:, None], wi, [0.0, 0.0, 1.0]),
                                       np.broadcast_to(wo, wi.shape)), float)
-            lum = np.where(np.isfinite(f), np.maximum(f, 0.0), 0.0) @ np.array([0.2126, 0.7152, 0.0722])
+            lum = luminance(np.where(np.isfinite(f), np.maximum(f, 0.0), 0.0))
             vals += np.where(ok, lum * wi[:, 2] * 4.0 * woh, 0.0)
     band = 2 * np.pi * (np.cos(np.arange(n) * dth) - np.cos((np.arange(n) + 1) * dth))
     mass = vals.reshape(n, sub).mean(axis=1) * band
