@@ -164,11 +164,10 @@ TOUR: tuple[Step, ...] = (
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
     Step("soap_bubble", "Soap bubbles: thin-film interference",
          "Water films in air: light reflected at a film's two faces interferes; the colour shifts with "
-         "angle. Split view: the raster draws opaque shells, the reference clear ones, iridescent on both faces.",
-         _scene(_camera(), _STUDIO, _render("split_sum"), _FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
+         "angle. The shells are clear (ior 1, no refraction): the floor shows through, both faces reflect.",
+         _scene(_camera(), _STUDIO, _render("split_sum", raytrace=True), _FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
                 _sphere("thin", 0.75, 0.6, 0.8), _FLOOR_MAT, _mat("bubble", "lecture_soap_bubble"),
-                _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel",
-         "split"),  # the raster cannot show a transparent film shell yet: the reference beside it
+                _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel"),
     # The variances in the caption: per-sample variance averaged over the image at 256 spp
     # (test_strategies measures the same scene and checks them): MIS 1.27, BSDF alone 3.51,
     # light alone 4.35.

@@ -23,7 +23,14 @@
 // offset 256 row), 64.. the albedo table, 96.. its specular part, 128.. the transmitted part,
 // 160 = (model index, specular alpha, kind: CHAIN_SHADED / _MIRROR / _GLASS, transmits),
 // 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel MIRROR_FRESNEL_CONDUCTOR /
-// _DIELECTRIC / _NONE), 163 = (mirror k, mirror dielectric ior).
+// _DIELECTRIC / _NONE), 163 = (mirror k, mirror dielectric ior), 164 = a smooth glass's thin film
+// (film ior, thickness at the bottom, at the top or -1, 1 where there is a film), 165 = the world
+// y range over which its thickness varies.
+//
+// A thin film on smooth glass (a soap bubble: ior 1 with a water film) splits a ray at each face
+// with the film's RGB reflectance R (thin_film_dielectric_rgb, the BRDF's own; 1 past the critical
+// angle) and transmits 1 - R, refracted by the glass's index (for ior 1 straight on), as the
+// dielectric's sampler and the reference do; each face of a shell does this.
 #include "generated/constants.glsl"
 #include "common/albedo_table.glsl"
 #include "common/bvh.glsl"
@@ -141,11 +148,21 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
         a.w = w;
         return 1;
     }
+    b.o = p - eps * ngf;
+    b.d = normalize(dt);
+    vec4 film = rt_texel(row, RT_T_FILM);
+    if (film.w > 0.5) {  // a thin film: RGB R, T = 1 - R (thickness_top_nm: linear in height)
+        vec2 fy = rt_texel(row, RT_T_FILM_Y).xy;
+        float h = fy.y > fy.x ? clamp((p.y - fy.x) / (fy.y - fy.x), 0.0, 1.0) : 0.0;
+        float d_nm = film.z >= 0.0 ? mix(film.y, film.z, h) : film.y;
+        vec3 Rf = thin_film_dielectric_rgb(cos_i, eta_rel, film.x, d_nm);
+        a.w = w * Rf;
+        b.w = w * (1.0 - Rf) / (eta_rel * eta_rel);
+        return 2;
+    }
     float F = fresnel_dielectric(cos_i, eta_rel);
     float T = fresnel_dielectric_transmittance(cos_i, eta_rel);
     a.w = w * F;
-    b.o = p - eps * ngf;
-    b.d = normalize(dt);
     b.w = w * (T / (eta_rel * eta_rel));
     return 2;
 }

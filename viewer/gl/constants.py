@@ -42,8 +42,9 @@ SSR_DEBUG = {"composite": 0, "hit": 1, "steps": 2, "uv": 3, "only": 4}
 CHAIN_KINDS = {"shaded": 0, "mirror": 1, "glass": 2}
 #: a material row of the traced chains' texture (viewer/gl/raytrace.py): where each part starts,
 #: in texels; the u_mat block (64 texels) is first
-CHAIN_TEXELS = {"albedo": 64, "spec": 96, "trans": 128, "info": 160, "sigma": 161, "eta": 162, "k": 163}
-CHAIN_ROW_TEXELS = 164
+CHAIN_TEXELS = {"albedo": 64, "spec": 96, "trans": 128, "info": 160, "sigma": 161, "eta": 162, "k": 163,
+                "film": 164, "film_y": 165}
+CHAIN_ROW_TEXELS = 166
 #: the GPU engine's material kinds: no delta lobe, only delta lobes, a delta base under a coat
 PT_KINDS = {"smooth": 0, "delta": 1, "mixed": 2}
 #: the GPU engine's estimator strategies (the STRATEGY define)

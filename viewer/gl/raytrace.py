@@ -19,6 +19,7 @@ import json
 import numpy as np
 
 from viewer import brdf
+from viewer.brdf import thin_film
 from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 from viewer.gl import texture_units
@@ -26,6 +27,7 @@ from viewer.gl import texture_units
 ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
                                                                                     "sigma", "eta", "k"))
+T_FILM, T_FILM_Y = CHAIN_TEXELS["film"], CHAIN_TEXELS["film_y"]
 KIND_SHADED, KIND_MIRROR, KIND_GLASS = CHAIN_KINDS["shaded"], CHAIN_KINDS["mirror"], CHAIN_KINDS["glass"]
 MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 needs about 12)
 # most pixels in one tile of the progressive trace: on llvmpipe (2 cores) a pixel of a glass
@@ -81,6 +83,15 @@ def material_rows(scene, albedo_tables) -> np.ndarray:
             out[r, T_K] = (*np.asarray(params.k, float), float(params.ior))
         else:
             out[r, T_ETA, :3] = chain_eta(params)
+        film = thin_film.film_of(params) if kind == KIND_GLASS else None
+        if film is not None and max(float(film.thickness_nm), float(film.get("thickness_top_nm", -1.0))) > 0.0:
+            # a film on smooth glass (a soap bubble's shell): (film ior, thickness at the bottom, at
+            # the top or -1 for a uniform film, 1); its height range: the objects' of this material
+            # (exact when one object has it, as the built-in scenes' bubbles; the union otherwise)
+            out[r, T_FILM] = (float(film.ior), float(film.thickness_nm), float(film.get("thickness_top_nm", -1.0)), 1.0)
+            ys = [o.y_range() for o in scene.objects if o.material == name]
+            if thin_film.varies(params) and ys:
+                out[r, T_FILM_Y, :2] = (min(y[0] for y in ys), max(y[1] for y in ys))
     return out
 
 
