@@ -210,10 +210,11 @@ class ReferenceView:
         if self.engine is None:
             self._choose_engine()
         if self.engine == "gpu":
-            from viewer.gpupt.select import uses_measured, uses_random_walk
+            from viewer.gpupt.refusals import cpu_only
 
-            # the microfacet random walk and measured tables: the cpu engine, while a material has one
-            if not uses_random_walk(scene) and not uses_measured(scene):
+            # what only the cpu engine renders (the rules of viewer/gpupt/refusals.py): the cpu
+            # engine, while the scene has it
+            if cpu_only(scene) is None:
                 self._cancel.set()   # a cpu job stops (its samples are stored)
                 self._gpu_update(key, scene, camera, w, h)
                 return
