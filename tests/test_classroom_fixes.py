@@ -202,7 +202,9 @@ def test_mean_luminance_of_a_constant_environment():
     assert Environment(constant=np.zeros(3)).mid_grey_intensity() is None
 
 
-@pytest.mark.parametrize("name", ["sky", "studio"])
+# sky: -m slow (its cold prefilter alone is about 28 s on two cores); studio keeps the check in
+# the default run
+@pytest.mark.parametrize("name", [pytest.param("sky", marks=pytest.mark.slow), "studio"])
 def test_builtin_maps_at_mid_grey_are_neither_white_nor_black(renderer, name):
     """At intensity 1 the sky (in kcd/m^2) gives a white screen; at the mid-grey intensity the
     white diffuse sphere (the centre of the picture) has its median in the middle of the sRGB

@@ -33,6 +33,9 @@ def test_gpu_spectral_agrees_with_cpu_spectral_on_an_rgb_scene(ctx):
     h.check(h.agreement(g, c), "rgb scene, spectral", mean_tol=0.01)
 
 
+# -m slow: about 36 s on two cores (both spectral engines to agreement on a prism); the default
+# run keeps the RGB-scene agreement, the white furnaces and the dispersion step's finite check
+@pytest.mark.slow
 def test_gpu_spectral_agrees_with_cpu_spectral_on_a_dispersive_scene(ctx):
     """Every spectral category at once (tests/spectral_harness.py DISPERSIVE_SCENE): a dispersive
     prism and rough absorbing glass (hero only), rough and varnished gold (tables at four
