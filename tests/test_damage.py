@@ -427,7 +427,11 @@ def test_a_large_scene_says_how_large_on_stderr(tmp_path, capsys, monkeypatch):
     rc, out, err = run_main(["render", str(tmp_path / "many.toml"), "--out", str(tmp_path / "m.png"),
                              "--width", "32", "--height", "24"], capsys)
     assert rc == 0, err
-    assert "1,200 objects, 14,400 triangles" in err and err.count("\n") == 1
+    # one line before the load (it takes seconds at 10,000 objects) and one after it
+    assert err.count("\n") == 2, err
+    before, after = err.splitlines()
+    assert "loading about 1,200 objects" in before
+    assert "1,200 objects, 14,400 triangles" in after
 
 
 # ------------------------------------------------------------------ orphaned workers

@@ -210,14 +210,32 @@ def _load(ref, overrides):
     """``load_scene`` and, for a large scene, one line on stderr saying how large and how long
     the load took, before the rendering starts (``Scene.size_note``)."""
     from viewer.scene import load_scene
+    from viewer.scene.model import LARGE_SCENE_OBJECTS
 
     t0 = time.perf_counter()
+    expected = _objects_in_file(ref)
+    if expected >= LARGE_SCENE_OBJECTS:  # a long load: say so before it starts, not only after
+        print(f"brdf-viewer: {ref}: loading about {expected:,} objects", file=sys.stderr, flush=True)
     scene = load_scene(ref, overrides)
     note = scene.size_note()
     if note:
         print(f"brdf-viewer: {scene.label}: {note}, loaded in {time.perf_counter() - t0:.1f} s; rendering",
               file=sys.stderr, flush=True)
     return scene
+
+
+def _objects_in_file(ref) -> int:
+    """How many ``[[objects]]`` tables a scene file holds, counted in its text without parsing
+    it (0 for a built-in name, a PNG or a file that cannot be read: the load names the problem)."""
+    import os
+
+    try:
+        if not str(ref).endswith(".toml") or os.path.getsize(ref) > (256 << 20):
+            return 0
+        with open(ref, "rb") as f:
+            return f.read().count(b"[[objects]]")
+    except (OSError, TypeError, ValueError):
+        return 0
 
 
 def _write_all(outputs) -> None:
