@@ -158,6 +158,23 @@ def test_dropped_files_go_by_kind(session, tmp_path):
     assert session.scene.objects[session.mesh_target].mesh == str(good.absolute())
 
 
+def test_a_dropped_folder_of_brdf_files_joins_the_picker(session, tmp_path):
+    from pathlib import Path
+
+    from viewer.app.ui import FILE_PREFIX, library_files, preset_params
+
+    folder = Path(__file__).parent / "brdfs"
+    n0 = len(session.messages)
+    session.open_files([str(folder), str(tmp_path)])  # tmp_path holds no .brdf file
+    msgs = new_messages(session, n0)
+    assert [m.error for m in msgs] == [False, True], [m.text for m in msgs]
+    assert "no .brdf files" in msgs[1].text
+    entries = [e for e in library_files() if e.startswith(FILE_PREFIX + str(folder.resolve()))]
+    assert {Path(e[len(FILE_PREFIX):]).name for e in entries} >= {"lambert_twin.brdf", "every_declaration.brdf"}
+    lam = next(e for e in entries if e.endswith("lambert_twin.brdf"))
+    assert preset_params(lam).model == "custom"
+
+
 def test_lecture_steps_forward_and_back(session):
     from viewer.lecture import TOUR
 

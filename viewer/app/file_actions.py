@@ -8,6 +8,7 @@ when it fails and says why through ``notify`` (one message naming the file and t
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -218,7 +219,9 @@ class FileActions:
         environment maps, meshes."""
         for p in paths:
             low = p.lower()
-            if low.endswith(ENV_SUFFIXES):
+            if os.path.isdir(p):  # a folder of .brdf files: a library for the material picker
+                self.open_brdf_library(p)
+            elif low.endswith(ENV_SUFFIXES):
                 self.set_environment(p)
             elif low.endswith(SCENE_SUFFIXES):
                 self.open_scene(p)
@@ -228,7 +231,20 @@ class FileActions:
                 self.load_brdf_file(p)
             else:
                 self.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
-                            ".brdf files, meshes " + " ".join(MESH_SUFFIXES), error=True)
+                            ".brdf files or a folder of them, meshes " + " ".join(MESH_SUFFIXES), error=True)
+
+    def open_brdf_library(self, folder) -> bool:
+        """A folder of ``.brdf`` files: its files join the material picker beside the presets
+        (``file: NAME.brdf``), each loaded when picked. A folder without one is one error."""
+        folder = os.path.abspath(os.path.expanduser(str(folder)))
+        names = sorted(f for f in os.listdir(folder) if f.lower().endswith(".brdf")) if os.path.isdir(folder) else []
+        if not names:
+            self.notify(f"{folder}: no .brdf files in the folder", error=True)
+            return False
+        if folder not in BRDF_LIBRARY:
+            BRDF_LIBRARY.append(folder)
+        self.notify(f"{len(names)} .brdf files from {folder} in the material picker")
+        return True
 
     def load_brdf_file(self, path, name: str | None = None) -> bool:
         """Put a BRDF Explorer ``.brdf`` file (its declared defaults) on material ``name`` (default:
