@@ -32,8 +32,10 @@ from viewer import OutputError, ViewerError
 from viewer.io import cache_root  # noqa: F401  (the cache folder's one definition; re-exported)
 from viewer.scene.validation import short
 
-#: bump when the estimator changes what it converges to (or its noise), so old entries are unused
-ESTIMATOR_VERSION = "1"
+#: bump when the estimator changes what it converges to (or its noise), so old entries are unused;
+#: 2: the layered walk's coat scatters multiply, measured tables are read at their bins' centres,
+#: tabulated metals keep RGB above 1 (gold's red) and films on them use the metal's own table
+ESTIMATOR_VERSION = "2"
 
 
 def cache_folder() -> Path:
