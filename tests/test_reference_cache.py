@@ -91,3 +91,20 @@ def test_bake_keys_a_dispersive_scene_as_the_renderers_do(tmp_path):
         assert rr.setup.extra["spectral"]
         want = cache.path_for(cache.setup_key(rr.setup), tmp_path)
     assert [f.name for f in (tmp_path / "references").glob("*.npz")] == [want.name]
+
+
+def test_the_key_does_not_follow_numpys_print_options():
+    """The key hashes numbers, not their repr under numpy's global print options (a library may
+    set legacy="1.13", which writes np.float64(2.0) as 2.: the window then looked up another key)."""
+    import numpy as np
+
+    scene = load_scene("sphere")
+    with ReferenceRenderer(scene, width=12, height=8, max_depth=3, workers=0) as rr:
+        key = cache.setup_key(rr.setup)
+        saved = np.get_printoptions()
+        try:
+            np.set_printoptions(legacy="1.13")
+            assert cache.setup_key(rr.setup) == key
+        finally:
+            np.set_printoptions(**saved)
+

@@ -64,10 +64,15 @@ def setup_key(setup) -> str:
     for m in setup.materials:
         add("material", (m.name, m.model_name, repr(m.params.to_plain()) if hasattr(m.params, "to_plain")
                          else repr(m.params)))
+    # numbers as Python floats: the repr of a numpy scalar or array follows numpy's global print
+    # options, which an imported library may change (legacy="1.13" writes 2. for np.float64(2.0))
+    def floats(a):
+        return tuple(float(x) for x in np.round(np.asarray(a, float), 12).ravel())
+
     for kind, a, v in setup.lights:
-        add("light", (kind, tuple(np.round(np.asarray(a, float), 12)), tuple(np.round(np.asarray(v, float), 12))))
+        add("light", (kind, floats(a), floats(v)))
     env = setup.env
-    add("env", (tuple(env.constant), env.rotation_deg, env.intensity))
+    add("env", (floats(env.constant), float(env.rotation_deg), float(env.intensity)))
     if env.image is not None:
         add("envmap", np.asarray(env.image, np.float32))
     add("camera", tuple(round(float(x), 12) for x in (*setup.cam_pos, *setup.cam_forward, *setup.cam_right,
