@@ -26,18 +26,18 @@ def rss_bytes(pid: str | int = "self") -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-def children() -> dict[int, str]:
-    """pid -> command line of every live process whose parent is this one."""
-    me = os.getpid()
+def children(parent: int | None = None, zombies: bool = True) -> dict[int, str]:
+    """pid -> command line of every process whose parent is ``parent`` (default: this one);
+    ``zombies=False`` leaves out the ended ones no one has reaped (they hold no memory)."""
+    me = os.getpid() if parent is None else parent
     out = {}
     for d in os.listdir("/proc"):
         if not d.isdigit():
             continue
         try:
             with open(f"/proc/{d}/stat") as f:
-                stat = f.read()
-            ppid = int(stat.rsplit(")", 1)[1].split()[1])
-            if ppid != me:
+                fields = f.read().rsplit(")", 1)[1].split()
+            if int(fields[1]) != me or (not zombies and fields[0] == "Z"):
                 continue
             with open(f"/proc/{d}/cmdline", "rb") as f:
                 out[int(d)] = f.read().replace(b"\0", b" ").decode(errors="replace").strip()

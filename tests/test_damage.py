@@ -438,20 +438,9 @@ def test_a_large_scene_says_how_large_on_stderr(tmp_path, capsys, monkeypatch):
 
 def _children(pid: int) -> dict[int, str]:
     """pid -> command line of the live (not zombie) processes whose parent is ``pid``."""
-    out = {}
-    for d in os.listdir("/proc"):
-        if not d.isdigit():
-            continue
-        try:
-            with open(f"/proc/{d}/stat") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-            if int(fields[1]) != pid or fields[0] == "Z":
-                continue
-            with open(f"/proc/{d}/cmdline", "rb") as f:
-                out[int(d)] = f.read().replace(b"\0", b" ").decode(errors="replace")
-        except (OSError, IndexError, ValueError):
-            continue
-    return out
+    from lifecycle import children
+
+    return children(pid, zombies=False)
 
 
 def _alive(pid: int, cmdline: str) -> bool:
@@ -460,7 +449,7 @@ def _alive(pid: int, cmdline: str) -> bool:
         with open(f"/proc/{pid}/stat") as f:
             state = f.read().rsplit(")", 1)[1].split()[0]
         with open(f"/proc/{pid}/cmdline", "rb") as f:
-            now = f.read().replace(b"\0", b" ").decode(errors="replace")
+            now = f.read().replace(b"\0", b" ").decode(errors="replace").strip()  # as lifecycle.children
     except (OSError, IndexError):
         return False
     return state != "Z" and now == cmdline
