@@ -58,6 +58,14 @@ layout(location = 1) out vec4 frag_spec;   // rho_s, alpha of the specular part
 layout(location = 2) out vec4 frag_geom;   // world shading normal, linear view depth
 uniform mat4 u_view;
 const bool SSR_ON = true;
+#elif defined(THIN_SHELL)
+// A thin shell (a dielectric of ior 1) over the opaque frame, with dual-source blending
+// (GL_ONE, GL_SRC1_COLOR; viewer/gl/renderer.py _draw_shells): the destination becomes
+// destination x frag_transmit + frag_color. Light crosses the shell without bending, so what
+// lies behind it is the frame already drawn there, not an environment lookup.
+layout(location = 0, index = 0) out vec4 frag_color;
+layout(location = 0, index = 1) out vec4 frag_transmit;
+const bool SSR_ON = false;
 #else
 out vec4 frag_color;
 const bool SSR_ON = false;
@@ -235,6 +243,7 @@ void main() {
 #endif
             }
         }
+#ifndef THIN_SHELL  // a shell's transmission is the blend with the frame behind it (below)
         if (u_transmit_on != 0 && wo.z > 0.0) {
             // Glass: light refracted in crosses the object and leaves through the back. The
             // rasterizer's approximation: one straight traversal of length d = back - front
@@ -254,6 +263,7 @@ void main() {
             if (dot(t_out, t_out) == 0.0) t_out = reflect(t_in, -n_out);  // total internal reflection
             radiance += rho_t * exp(-u_sigma_a * d) * ENV_PREFILTERED(normalize(t_out), u_ibl_alpha);
         }
+#endif
     }
 #endif  // ENV_LIGHT
 #ifdef SSR
@@ -274,6 +284,27 @@ void main() {
 #endif
 #ifdef RAYTRACE
     radiance += rt_specular(v_position, wo_w, n, v_geometric_normal);
+#endif
+#ifdef THIN_SHELL
+    // the fraction of the light behind the face that it lets through: its transmitted albedo
+    // at this angle (air on both sides: no ior^2 factor), with Bouguer absorption over the
+    // straight path to the far side where the inside absorbs; opaque in the term views
+    vec3 shell_t = vec3(0.0);
+    if (u_view_mode == VIEW_MODE_SHADED && wo.z <= 0.0) {
+        // the interpolated normal turned away at the silhouette: nothing reflected, let the
+        // light behind through rather than draw a black rim of samples
+        radiance = vec3(0.0);
+        shell_t = vec3(1.0);
+    } else if (u_view_mode == VIEW_MODE_SHADED) {
+        int k0, k1;
+        float fx;
+        albedo_lerp(wo.z, k0, k1, fx);
+        float front = length(v_position - u_camera_pos);
+        float back = texelFetch(u_thickness, ivec2(gl_FragCoord.xy), 0).r;
+        float d = (gl_FrontFacing && any(greaterThan(u_sigma_a, vec3(0.0))) && back > front) ? back - front : 0.0;
+        shell_t = clamp(mix(u_albedo_t[k0], u_albedo_t[k1], fx), 0.0, 1.0) * exp(-u_sigma_a * d);
+    }
+    frag_transmit = vec4(shell_t, 1.0);
 #endif
     if (u_view_mode == VIEW_MODE_SHADED) {
         frag_color = vec4(radiance, 1.0);

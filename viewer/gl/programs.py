@@ -219,16 +219,20 @@ FORWARD_STAGES = ("passes/forward.vert", "passes/forward.frag", "passes/forward.
 
 def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
                     env_light: bool = True, env_constant: bool = False, traced=None,
-                    dispersion: bool = False) -> tuple[str, tuple[str, ...], dict[str, str]]:
+                    dispersion: bool = False, shell: bool = False) -> tuple[str, tuple[str, ...], dict[str, str]]:
     """(cache key, BRDF models, ``#define``s) of the forward program that draws a material.
 
     Its models are the material's (and a nested base's); ``traced``: the scene's materials
     when the material's specular chain is traced (viewer/gl/raytrace.py; the chain may hit any
     of them), ``dispersion`` traces each colour channel's chain apart. ``ibl_sampled`` compiles
     in the per-pixel environment sampling of the fis and brute_force modes (software GL pays
-    for untaken loops). The materials' own variants come from ``program_defines``."""
+    for untaken loops). ``shell``: a thin shell (a dielectric of ior 1), drawn after the opaque
+    objects with dual-source blending (its transmittance multiplies what lies behind it; never
+    with SSR's extra outputs). The materials' own variants come from ``program_defines``."""
     from viewer.gl.brdf_glsl import models_used, program_defines
 
+    if shell and ssr:
+        raise ValueError("a thin shell's program has no SSR outputs (it blends into the radiance alone)")
     used = models_used(params)
     materials = [params]
     if traced is not None:
@@ -238,12 +242,12 @@ def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
         materials += traced
     flags = {"SSR": ssr, "IBL_SAMPLED": ibl_sampled, "ENV_LIGHT": env_light,
              "ENV_CONSTANT": env_constant, "RAYTRACE": traced is not None, "MAT_TEXTURE": traced is not None,
-             "RT_DISPERSION": traced is not None and dispersion}
+             "RT_DISPERSION": traced is not None and dispersion, "THIN_SHELL": shell}
     defines = {k: "1" for k, on in flags.items() if on}
     defines.update(program_defines(materials))
     key = ("forward:" + "+".join(used) + (":ssr" if ssr else "")
            + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
            + (":const" if env_constant else "") + (":rt" if traced is not None else "")
            + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else "")
-           + (":coatfilm" if "COAT_FILM" in defines else ""))
+           + (":coatfilm" if "COAT_FILM" in defines else "") + (":shell" if "THIN_SHELL" in defines else ""))
     return key, used, defines

@@ -30,6 +30,8 @@ from viewer.gl.raytrace import MAX_SEGMENTS as RT_MAX_SEGMENTS
 from viewer.gl.shadow import SHADOW_TILE, ShadowMaps, shadow_lights
 from viewer.gl.targets import HdrTarget, ThicknessPass
 
+GL_SRC1_COLOR = 0x88F9  # dual-source blending (core since OpenGL 3.3); moderngl names no constant
+
 __all__ = ["Renderer", "GpuMesh", "MAX_LIGHTS", "SHADOW_TILE", "TONEMAPS", "IBL_MODES", "VIEW_MODES",
            "SSR_VIEW_BASE"]
 
@@ -38,6 +40,13 @@ def brdf_spec(params):
     from viewer import brdf
 
     return brdf.get(params.model).spec
+
+
+def thin_shell(params) -> bool:
+    """A dielectric of ior 1 (air on both sides, e.g. a soap film's bubble): light crosses it
+    without bending, so the rasterizer blends what lies behind it through its transmittance
+    instead of looking the refracted ray up in the environment."""
+    return brdf_spec(params).transmissive and float(params.get("ior", 1.5)) == 1.0
 
 
 def _absorbing(params) -> bool:
@@ -247,13 +256,13 @@ class Renderer:
 
     def forward_program(self, params, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
-                        traced=None, dispersion: bool = False):
+                        traced=None, dispersion: bool = False, shell: bool = False):
         """The forward program for a material (its model, and a nested base model if any); the
         variants are ``programs.forward_variant``'s (``traced``: the scene's materials, for a
-        mirror or smooth glass whose specular chain is traced)."""
+        mirror or smooth glass whose specular chain is traced; ``shell``: a thin shell's)."""
         key, models, defines = forward_variant(params, ssr=ssr, ibl_sampled=ibl_sampled,
                                                env_light=env_light, env_constant=env_constant, traced=traced,
-                                               dispersion=dispersion)
+                                               dispersion=dispersion, shell=shell)
         prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
         if prog is not None:
             return prog
@@ -559,10 +568,14 @@ class Renderer:
             i, obj = i_obj
             return (obj.material, id(obj.mesh_data), i if own[obj.material] else -1)
 
+        shells = []  # untraced thin shells: drawn after everything opaque, back to front
         for group in group_by(list(enumerate(scene.objects)), group_key):
             obj = group[0][1]
             params = scene.materials[obj.material]
             traced = rt is not None and chain_kind(params) != KIND_SHADED
+            if not traced and thin_shell(params):
+                shells += [o for _, o in group]
+                continue
             # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
             # environment light is importance sampled (fis, or brute force when asked for)
             custom_fis = params.model == "custom" and f.env_on and scene.render.ibl == "split_sum"
@@ -590,17 +603,67 @@ class Renderer:
                 _set(prog, "u_mat_base", row * MAT_FLOATS)
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
-            idx, block = uniform_block(params)
-            _set(prog, "u_model_id", idx)
-            # the object's world y range: a film over height (thickness_top_nm); (0, 0) a uniform one
-            _set(prog, "u_film_y", obj.y_range() if thin_film.varies(params) else (0.0, 0.0))
-            _set(prog, "u_mat", block.tobytes())
-            if "u_measured" in prog:
-                self._measured_textures().bind(prog, params)
-            self._ms_uniforms(prog, params, bool(uniforms["u_ms_on"]))
-            if f.env_on or f.ssr_on:
-                self._environment_uniforms(prog, params, thickness)
+            self._material_uniforms(prog, obj, params, uniforms, thickness, env=f.env_on or f.ssr_on)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
+        if shells:
+            self._draw_shells(scene, f, uniforms, thickness, shells, ibl_sampled)
+
+    def _material_uniforms(self, prog, obj, params, uniforms: dict, thickness, env: bool):
+        idx, block = uniform_block(params)
+        _set(prog, "u_model_id", idx)
+        # the object's world y range: a film over height (thickness_top_nm); (0, 0) a uniform one
+        _set(prog, "u_film_y", obj.y_range() if thin_film.varies(params) else (0.0, 0.0))
+        _set(prog, "u_mat", block.tobytes())
+        if "u_measured" in prog:
+            self._measured_textures().bind(prog, params)
+        self._ms_uniforms(prog, params, bool(uniforms["u_ms_on"]))
+        if env:
+            self._environment_uniforms(prog, params, thickness)
+
+    def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells, ibl_sampled: bool):
+        """Thin shells over the opaque frame, farthest first, each in two draws (its far faces,
+        then its near ones) with dual-source blending: destination x transmittance + reflected
+        radiance, i.e. each face lets its transmitted fraction of what lies behind it through
+        and adds what it reflects (forward.frag, THIN_SHELL). No depth writes: what a shell
+        covers stays the depth and, with SSR, the geometry of what lies behind it."""
+        ctx = self.ctx
+        fbo = f.targets.shell_fbo
+        own_scissor = f.region is not None and fbo is not f.targets.draw_fbo
+        if own_scissor:
+            fbo.scissor = f.region
+        fbo.use()
+        eye = np.asarray(f.cam.position, float)
+        shells = sorted(shells, key=lambda o: -float(np.linalg.norm(np.asarray(o.translate, float) - eye)))
+        ctx.enable(ctx.BLEND | ctx.CULL_FACE | ctx.DEPTH_TEST)
+        ctx.blend_func = (ctx.ONE, GL_SRC1_COLOR)
+        fbo.depth_mask = False
+        try:
+            for obj in shells:
+                params = scene.materials[obj.material]
+                try:
+                    prog = self.forward_program(params, ibl_sampled=ibl_sampled, env_light=f.env_on,
+                                                env_constant=f.env_map is None, shell=True)
+                except ShaderError:
+                    if not self.hot_reload:
+                        raise
+                    continue
+                for k, v in uniforms.items():
+                    _set(prog, k, v)
+                self._ibl.bind(prog, scene.environment.rotation_deg)
+                # always: the transmittance comes from the material's albedo tables
+                self._material_uniforms(prog, obj, params, uniforms, thickness, env=True)
+                mesh = self._gpu_mesh(obj.mesh_data)
+                for side in ("front", "back"):  # culled: far faces first, then near ones
+                    ctx.cull_face = side
+                    mesh.draw(prog, instance_data([obj]))
+        finally:
+            fbo.depth_mask = True
+            ctx.cull_face = "back"
+            ctx.disable(ctx.BLEND | ctx.CULL_FACE)
+            ctx.blend_func = ctx.DEFAULT_BLENDING
+            if own_scissor:
+                fbo.scissor = None
+            f.targets.draw_fbo.use()
 
     def _ms_uniforms(self, prog, params, ms_scene: bool):
         """The multiple-scattering compensation of a material (environment light: Fdez-Aguera;

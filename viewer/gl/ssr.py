@@ -142,6 +142,9 @@ class SSR:
             depth = ctx.depth_renderbuffer((w, h))
             draw_fbo = ctx.framebuffer(color_attachments=res, depth_attachment=depth)
             extra = [depth]
+        # the radiance attachment and depth alone: thin shells blend into the radiance only and
+        # leave the specular weight and geometry of what lies behind them to the SSR pass
+        shell_fbo = ctx.framebuffer(color_attachments=[(ms if samples else res)[0]], depth_attachment=depth)
         levels = 1 + int(math.floor(math.log2(max(w, h))))
         mip = ctx.texture((w, h), 4, dtype="f4")
         mip.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
@@ -165,7 +168,7 @@ class SSR:
         hiz_tmp_fbo = [None] + [ctx.framebuffer(color_attachments=[t_]) for t_ in hiz_tmp[1:]]
         hiz_pbo = ctx.buffer(reserve=4 * hiz_sizes[1][0] * hiz_sizes[1][1]) if levels > 1 else None
         self._targets = SsrTargets(draw_fbo=draw_fbo, resolved_fbo=resolved_fbo, resolved=res, extra=extra,
-                                   samples=samples, mip=mip, mip_fbo=mip_fbo, levels=levels, color_fbo=color_fbo,
+                                   samples=samples, shell_fbo=shell_fbo, mip=mip, mip_fbo=mip_fbo, levels=levels, color_fbo=color_fbo,
                                    out=out, out_fbo=out_fbo, hiz=hiz, hiz_sizes=hiz_sizes, hiz_fbo0=hiz_fbo0,
                                    hiz_tmp=hiz_tmp, hiz_tmp_fbo=hiz_tmp_fbo, hiz_pbo=hiz_pbo)
         self._key = key
@@ -177,7 +180,7 @@ class SSR:
             return
         if t.draw_fbo is not t.resolved_fbo:
             t.draw_fbo.release()
-        for r in [t.resolved_fbo, t.mip_fbo, t.out_fbo, t.color_fbo, t.mip, t.out] + t.resolved + t.extra:
+        for r in [t.resolved_fbo, t.shell_fbo, t.mip_fbo, t.out_fbo, t.color_fbo, t.mip, t.out] + t.resolved + t.extra:
             r.release()
         for r in [t.hiz_fbo0, t.hiz, t.hiz_pbo] + t.hiz_tmp_fbo + t.hiz_tmp:
             if r is not None:

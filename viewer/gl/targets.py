@@ -14,13 +14,16 @@ from viewer.gl.shaders import set_uniform as _set
 class FrameTargets:
     """A frame's colour targets: ``draw_fbo`` (multisampled when ``samples`` > 1, with depth) is
     resolved into ``resolved_fbo``, whose colour is ``resolved`` (one RGBA32F texture, or the
-    SSR pass's three); ``extra``: the renderbuffers behind ``draw_fbo``."""
+    SSR pass's three); ``extra``: the renderbuffers behind ``draw_fbo``; ``shell_fbo``: the
+    first colour attachment of ``draw_fbo`` and its depth alone, for the thin shells' pass
+    (dual-source blending writes one draw buffer; ``draw_fbo`` itself when it has one)."""
 
     draw_fbo: object
     resolved_fbo: object
     resolved: object
     extra: list
     samples: int
+    shell_fbo: object = None
 
 
 class HdrTarget:
@@ -54,7 +57,7 @@ class HdrTarget:
             ms_fbo = ctx.framebuffer(color_attachments=[resolved], depth_attachment=depth)
             extra = [depth]
         self._targets = FrameTargets(draw_fbo=ms_fbo, resolved_fbo=resolved_fbo, resolved=resolved, extra=extra,
-                                     samples=samples)
+                                     samples=samples, shell_fbo=ms_fbo)
         self._key = key
         return self._targets
 
