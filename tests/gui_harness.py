@@ -26,6 +26,9 @@ def window_env(display: str) -> dict:
     env = dict(os.environ)
     env["DISPLAY"] = display
     env["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-viewer-state-"), "state.toml")
+    # no compile-ahead child beside each test window (its preset warm-up would load the two
+    # cores for minutes); tests/test_compile_ahead.py runs it
+    env.setdefault("BRDF_VIEWER_COMPILE_AHEAD", "0")
     env.pop("WAYLAND_DISPLAY", None)
     return env
 

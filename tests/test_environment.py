@@ -412,3 +412,21 @@ def test_cli_exits_2_on_a_bad_map(tmp_path, capsys):
     out = tmp_path / "out.png"
     assert main(["render", str(p), "--out", str(out)]) == 2
     assert "pic.hdr" in capsys.readouterr().err and not out.exists()
+
+
+def test_stored_dfg_table_is_the_computed_one(tmp_path, monkeypatch):
+    """The DFG table kept in the disk cache reads back as computed, and a damaged entry is
+    computed again (the multiple-scattering terms take it from there in every process)."""
+    from viewer.environment.dfg import dfg_table, stored_dfg_table
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    want = dfg_table(8, 64)
+    first = stored_dfg_table(8, 64)
+    files = list(tmp_path.glob("dfg-*.npz"))
+    assert len(files) == 1
+    assert np.array_equal(first, want)
+    with monkeypatch.context() as m:  # read from the file: nothing is computed
+        m.setattr(dfg, "dfg_table", lambda *a: pytest.fail("computed again"))
+        assert np.array_equal(stored_dfg_table(8, 64), want)
+    files[0].write_bytes(b"not an npz")
+    assert np.array_equal(stored_dfg_table(8, 64), want)

@@ -89,6 +89,7 @@ def test_window_draws_the_choice(tmp_path):
     """)
     env = dict(os.environ)
     env["BRDF_VIEWER_STATE"] = str(tmp_path / "state.toml")
+    env["BRDF_VIEWER_COMPILE_AHEAD"] = "0"  # the switch's programs compile at once, in the frame
     cmd = [sys.executable, "-c", code]
     if not env.get("DISPLAY"):
         cmd = ["xvfb-run", "-a"] + cmd

@@ -42,6 +42,9 @@ def _parser_window() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int, help="window height in pixels (default: the last session's, else 720)")
     p.add_argument("--frames", type=int, default=0, help="quit after this many frames (0 = run until closed)")
     p.add_argument("--screenshot", metavar="PNG", help="save a screenshot of the last frame (with --frames)")
+    p.add_argument("--no-compile-ahead", dest="compile_ahead", action="store_false", default=None,
+                   help="compile shader programs on the window's thread instead of in a background process "
+                        "(a preset or model change then stops the frames while it compiles)")
     return p
 
 
@@ -639,7 +642,7 @@ def cmd_window(args) -> int:
 
     size = None if args.width is None and args.height is None else (args.width or 1280, args.height or 720)
     return run_app(args.scene, args.overrides, size=size, frames=args.frames,
-                   screenshot=args.screenshot)
+                   screenshot=args.screenshot, compile_ahead=args.compile_ahead)
 
 
 def _first_line(e: Exception) -> str:

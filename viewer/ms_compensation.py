@@ -40,10 +40,10 @@ def applies(p) -> bool:
 
 def _dfg(nov, alpha):
     global _DFG
-    from viewer.environment.dfg import dfg_table, lookup_dfg
+    from viewer.environment.dfg import lookup_dfg, stored_dfg_table
 
     if _DFG is None:
-        _DFG = dfg_table()
+        _DFG = stored_dfg_table()
     return lookup_dfg(_DFG, nov, max(float(alpha), 1e-3))
 
 

@@ -22,6 +22,9 @@ import numpy as np
 from viewer import ViewerError
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
+# "0" turns the compile-ahead child off (viewer/app/compile_ahead.py): programs then compile on
+# the window's thread, as with --no-compile-ahead
+COMPILE_AHEAD_ENV = "BRDF_VIEWER_COMPILE_AHEAD"
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
@@ -48,7 +51,8 @@ class App:
     show_ui = True
     view_only = False   # one frame of the view alone: no windows, no caption, no toast
 
-    def __init__(self, scene_ref=None, overrides=(), size=None, title="brdf-viewer", restore_state: bool = True):
+    def __init__(self, scene_ref=None, overrides=(), size=None, title="brdf-viewer", restore_state: bool = True,
+                 compile_ahead: bool | None = None):
         import glfw
         import moderngl
         from imgui_bundle import imgui, implot
@@ -89,7 +93,9 @@ class App:
         imgui.backends.opengl3_init("#version 410")
         glfw.set_drop_callback(self.window, self.on_drop)  # imgui installs no drop callback
         self._load_font()
-        self.session = Session(self.ctx, scene_ref, scene=scene, state=state)
+        if compile_ahead is None:  # on unless the environment turns it off (the window tests do)
+            compile_ahead = os.environ.get(COMPILE_AHEAD_ENV, "1") != "0"
+        self.session = Session(self.ctx, scene_ref, scene=scene, state=state, compile_ahead=compile_ahead)
         self.session.step_listeners.append(self._on_step)
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
@@ -525,8 +531,8 @@ def check_writable(path) -> Path:
     return p
 
 
-def run_app(scene_ref=None, overrides=(), size=None, frames=0, screenshot=None) -> int:
+def run_app(scene_ref=None, overrides=(), size=None, frames=0, screenshot=None, compile_ahead=None) -> int:
     if screenshot:
         check_writable(screenshot)
-    app = App(scene_ref, overrides, size)
+    app = App(scene_ref, overrides, size, compile_ahead=compile_ahead)
     return app.run(frames=frames, screenshot=screenshot)

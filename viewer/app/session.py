@@ -29,6 +29,9 @@ STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel":
              "bouguer": "Bouguer", "spectral": "Spectral", "sampling": "Sampling"}
 
 
+KEEP_IMAGE = object()  # _held_back: keep the view shown as it is
+
+
 @dataclasses.dataclass(frozen=True)
 class Message:
     """One notification: its text, whether it reports a problem, when (perf_counter seconds)."""
@@ -43,10 +46,12 @@ class Session(FileActions):
     ``scene``: a loaded Scene, else ``scene_ref`` / ``overrides`` are loaded (``lecture:N``
     starts lecture mode at step N). ``state``: the saved window state (``viewer.app.state``)
     whose compare mode, divider and view mode are restored. ``prefetch``: prefilter the lecture's
-    environment maps in a background process when lecture mode starts."""
+    environment maps in a background process when lecture mode starts. ``compile_ahead``:
+    compile a changed material's programs in a background process (viewer/app/compile_ahead.py)
+    and keep drawing it as it was meanwhile; the scene's presets compile ahead while idle."""
 
     def __init__(self, ctx, scene_ref=None, overrides=(), *, scene=None, renderer=None,
-                 state: dict | None = None, prefetch: bool = True):
+                 state: dict | None = None, prefetch: bool = True, compile_ahead: bool = False):
         from viewer import brdf
         from viewer.app.compare_view import MODES, CompareView
         from viewer.app.monte_carlo import MonteCarloPanel
@@ -85,6 +90,12 @@ class Session(FileActions):
         self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
         self.wake = None           # called from any thread when the reference has a new image
         self._prefetch_on = prefetch
+        self._compile_ahead_on = compile_ahead
+        self.compile_ahead = None  # the CompileAhead child, started on first need
+        self.pending: list[str] = []  # materials drawn as they were while their programs compile
+        self._drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
+        self._awaiting = None      # the compile-ahead request the view waits for
+        self._ahead_sent = False  # the presets still to send to the child (False: not begun)
         self._mesh_target = None
         self._bf_sum = None
         self._bf_tex = None
@@ -120,6 +131,8 @@ class Session(FileActions):
             self.reference.close()
         if self.prefetch is not None:
             self.prefetch.stop()
+        if self.compile_ahead is not None:
+            self.compile_ahead.stop()
         self.compare.release()
         self.monte_carlo.release()
         if self._bf_tex is not None:
@@ -194,6 +207,9 @@ class Session(FileActions):
         progressive = (self.tracing or (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) \
             and not interacting
         stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
+        if self._awaiting is not None and self.compile_ahead.answered(self._awaiting):
+            self._awaiting = None
+            self.dirty = True  # the programs are ready: draw the material as it now is
         if not (self.dirty or want_full or stale or progressive):
             if self.preparing and not interacting:
                 self._prepare_step()
@@ -204,8 +220,19 @@ class Session(FileActions):
             self.bf_count, self._bf_sum = 0, None
         traced = self._progressive()
         quality = "preview" if interacting else "full"
+        held = self._held_back(False if traced and interacting else None, False if traced else None, stale) \
+            if self._compile_ahead_on else None
         try:
-            if traced and not interacting:  # still: the untraced view, then the traced one in strips
+            if held is KEEP_IMAGE:
+                quality = self.quality
+            elif held is not None:  # a changed material's programs compile beside: draw it as it was
+                if self._trace is not None:
+                    self._trace.cancel()
+                self.hdr = self.renderer.render(held, self.camera, rw, rh, self.view_mode,
+                                                msaa=0 if interacting else None, raytrace=False if traced else None)
+                # not "preview" when still: that would draw it again each frame until the
+                # answer comes, which marks the view dirty by itself
+            elif traced and not interacting:  # still: the untraced view, then the traced one in strips
                 quality = self._trace_step(rw, rh, restart)
             else:
                 if self._trace is not None:
@@ -215,6 +242,8 @@ class Session(FileActions):
                                                 raytrace=False if traced else None)
                 if self.scene.render.ibl == "brute_force" and not interacting:
                     self.hdr = self._accumulate(self.hdr)
+            if held is None:  # what a held frame may show of these materials while others compile
+                self._drawn_materials = (self.scene, dict(self.scene.materials))
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
             self.notify(str(e), error=True)
         self.ctx.finish()
@@ -366,11 +395,80 @@ class Session(FileActions):
             print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
         self._nonfinite_said = msg
 
+    @property
+    def compiling(self) -> bool:
+        """A changed material's programs are compiling beside the window (``pending`` names
+        the materials drawn as they were meanwhile)."""
+        return self._awaiting is not None and not self.compile_ahead.answered(self._awaiting)
+
+    def _compile_worker(self):
+        """The compile-ahead child (started on first use), None when it cannot run."""
+        if self.compile_ahead is None:
+            from viewer.app.compile_ahead import CompileAhead
+
+            self.compile_ahead = CompileAhead(on_done=lambda: self.wake and self.wake())
+        return self.compile_ahead if self.compile_ahead.alive else None
+
+    def _held_back(self, rt_now, rt_held, stale: bool):
+        """What to draw while programs compile beside the window: None (the scene, now: nothing
+        to compile, or no child to compile it), a copy of the scene with the changed materials
+        as they were last drawn (their programs are ready), or KEEP_IMAGE (the view shown
+        stays). ``rt_now`` / ``rt_held``: the traced-chain switch of the frame and of a held one."""
+        import dataclasses
+
+        from viewer.app.compile_ahead import params_key
+
+        keys = self.renderer.forward_keys(self.scene, raytrace=rt_now)
+        progs = self.renderer.programs
+        tables = self.renderer.tables
+        missing = [n for n, k in keys.items() if k not in progs or not tables.ready(self.scene.materials[n])]
+        if not missing:
+            self.pending = []
+            return None
+        ca = self._compile_worker()
+        rid = None if ca is None else ca.request(self.scene, urgent=True)
+        done_beside = ca is not None and all(
+            (keys[n] in progs or keys[n] in ca.compiled) and params_key(self.scene.materials[n]) in ca.tables
+            for n in missing)
+        if rid is None or ca.answered(rid) or done_beside:
+            # compiled beside (the driver's cache has the programs; the tables come along), or
+            # it failed there: compile here, which reports the error as always
+            for n in missing:
+                data = ca.tables.get(params_key(self.scene.materials[n])) if ca is not None else None
+                if data is not None:
+                    tables.adopt(self.scene.materials[n], data)
+            self.pending = []
+            return None
+        drawn_scene, drawn = self._drawn_materials or (None, {})
+        # the same scene with materials edited (another scene, e.g. a lecture step, is never
+        # mixed with what was drawn before)
+        before = {n: drawn.get(n) for n in missing} if drawn_scene is self.scene else {}
+        out = None
+        if before and all(p is not None for p in before.values()):
+            held = dataclasses.replace(self.scene, materials={**self.scene.materials, **before})
+            if all(k in progs for k in self.renderer.forward_keys(held, raytrace=rt_held).values()):
+                out = held
+        if out is None and not stale and drawn_scene is self.scene:
+            out = KEEP_IMAGE
+        if out is None:  # nothing to show meanwhile: compile here
+            self.pending = []
+            return None
+        if self._awaiting != rid:
+            self.notify(f"compiling {', '.join(missing)} in the background: drawn as before until ready")
+        self._awaiting = rid
+        self.pending = missing
+        return out
+
     def warm_one(self) -> None:
         """Compile one model's forward program while idle, so switching models later does not
-        wait for the shader compiler (software GL compiles take 0.1-0.5 s each)."""
+        wait for the shader compiler (software GL compiles take 0.1-0.5 s each). With the
+        compile-ahead child: ask it once for the scene's presets on its first material instead,
+        and nothing compiles here."""
         from viewer import brdf
 
+        if self._compile_ahead_on:
+            self._warm_presets_ahead()
+            return
         if not self.warm:
             return
         name = self.warm.pop(0)
@@ -378,6 +476,42 @@ class Session(FileActions):
             self.renderer.forward_program(brdf.get(name).params())
         except ViewerError as e:
             self.notify(str(e), error=True)
+
+    def _ask_ahead(self, step: int) -> None:
+        from viewer.lecture import tour_scene
+
+        ca = self._compile_worker()
+        if ca is not None:
+            try:
+                ca.request(tour_scene(step), urgent=False)
+            except ViewerError:
+                pass  # the step reports its own problem when it opens
+
+    def _warm_presets_ahead(self) -> None:
+        """The presets the material picker offers, each on the scene's first non-plane object,
+        sent to the compile-ahead child behind any urgent request, one per idle frame (writing
+        a scene's text takes milliseconds)."""
+        import dataclasses
+
+        from viewer.brdf.presets import PRESETS
+        from viewer.scene import material_from_name
+
+        if self._ahead_sent is False:
+            self._ahead_sent = sorted(PRESETS)
+        if not self._ahead_sent:
+            return
+        preset = self._ahead_sent.pop(0)
+        ca = self._compile_worker()
+        objs = [o for o in self.scene.objects if o.mesh != "plane"] or self.scene.objects
+        if ca is None or not objs:
+            self._ahead_sent = []
+            return
+        try:
+            params = material_from_name(preset)
+        except ViewerError:
+            return
+        name = objs[0].material
+        ca.request(dataclasses.replace(self.scene, materials={**self.scene.materials, name: params}), urgent=False)
 
     def reference_view(self):
         if self.reference is None:
@@ -564,6 +698,8 @@ class Session(FileActions):
             self.prefetch = Prefetch(step)
         if TOUR[step].image:  # a step about the reference shows it
             self.set_image_mode(TOUR[step].image)
+        if self._compile_ahead_on and step + 1 < len(TOUR):  # the next step's programs, compiled ahead
+            self._ask_ahead(step + 1)
         for listener in self.step_listeners:
             listener(step)
 

@@ -109,6 +109,24 @@ def dfg_table(size: int = DFG_SIZE, samples: int = 4096) -> np.ndarray:
     return np.stack([a.reshape(size, size), b.reshape(size, size)], axis=-1).astype(np.float32)
 
 
+DFG_ESTIMATOR = 1  # raise when dfg_ab's estimate changes: the stored tables are then rebuilt
+
+
+def stored_dfg_table(size: int = DFG_SIZE, samples: int = 4096) -> np.ndarray:
+    """``dfg_table``, kept in the disk cache (viewer/environment/cache.py): it is deterministic,
+    and about a second of numpy that every process would spend again (the window's first glass
+    or rough metal, its compile-ahead child, each reference worker)."""
+    from viewer.environment import cache
+
+    key = cache.content_key(None, {"size": size, "samples": samples, "estimator": DFG_ESTIMATOR}, kind="dfg")
+    got = cache.load(key, "dfg", expect={"table": (size, size, 2)})
+    if got is not None:
+        return got["table"].astype(np.float32)
+    table = dfg_table(size, samples)
+    cache.store(key, {"table": table}, "dfg")
+    return table
+
+
 def dfg_reference(nov: float, alpha: float, n: int = 512) -> tuple[float, float]:
     """(A, B) by plain deterministic quadrature, independent of the VNDF sampler: over half
     vectors m, with Gauss-Legendre rules of n nodes in xi and n / 2 in phi (phi in [0, pi],

@@ -98,13 +98,22 @@ class GPUAlbedoTables:
 
     _measured = None  # MeasuredTextures, made for the first measured material
 
-    def _program(self, params):
-        """The sampling program of the material's models with its choices compiled in (a
-        choice switch compiles once; a slider move reuses it)."""
+    @staticmethod
+    def _key(params):
         models = models_used(params)
         fixed = choice_constants(params)
         defines = program_defines([params])
         key = (models, tuple(sorted((m, tuple(sorted(c.items()))) for m, c in fixed.items())), tuple(defines))
+        return key, models, fixed, defines
+
+    def has_program(self, params) -> bool:
+        """Whether the sampling program of ``params`` is built (a table then needs no compile)."""
+        return self._key(params)[0] in self._programs
+
+    def _program(self, params):
+        """The sampling program of the material's models with its choices compiled in (a
+        choice switch compiles once; a slider move reuses it)."""
+        key, models, fixed, defines = self._key(params)
         prog = self._programs.get(key)
         if prog is None:
             virtual = {"brdf/dispatch.glsl": generate_dispatch(models, fixed), **custom_virtual(models)}

@@ -108,6 +108,42 @@ class MaterialTables:
             params = params.replace(multiple_scattering=False)
         return albedo_tables(model, params)
 
+    def ready(self, params) -> bool:
+        """Whether the tables of ``params`` come without compiling a program: cached, built with
+        numpy, or the GPU builder has the sampling programs of the material, its specular part
+        and that part's white lobe (a slider move; a new model or choice compiles one)."""
+        key = json.dumps(params.to_plain(), sort_keys=True)
+        if (key in self._cache and key in self._ms_cache) or not self.gpu:
+            return True
+        if self.gpu_builder is None:
+            return False
+        from viewer import brdf, ms_compensation
+
+        sampled = [params]
+        split = brdf.get(params.model).hook("ibl_split")
+        if split is not None:
+            spec_params = split(params)[0]
+            white = ms_compensation.white_lobe(spec_params)
+            sampled += [spec_params] + ([white] if white is not None else [])
+        return all(self.gpu_builder.has_program(p) for p in sampled)
+
+    def export(self, params) -> dict:
+        """A material's tables and multiple-scattering terms as plain lists (built now where
+        missing), for ``adopt`` in another process: the compile-ahead worker builds them
+        beside the window (viewer/app/compile_ahead.py)."""
+        r, t, spec, alpha = self.tables(params)
+        ess, f0 = self.ms_terms(params)
+        return {"r": r.tolist(), "t": t.tolist(), "spec": spec.tolist(), "alpha": float(alpha),
+                "ess": np.asarray(ess).tolist(), "f0": np.asarray(f0, float).tolist()}
+
+    def adopt(self, params, data: dict) -> None:
+        """Take the tables ``export`` gave for the same parameter values (the same estimator,
+        run elsewhere): the next ``tables`` / ``ms_terms`` of ``params`` read them."""
+        key = json.dumps(params.to_plain(), sort_keys=True)
+        self._cache[key] = (np.asarray(data["r"], "f4"), np.asarray(data["t"], "f4"),
+                            np.asarray(data["spec"], "f4"), float(data["alpha"]))
+        self._ms_cache[key] = (np.asarray(data["ess"], "f4"), np.asarray(data["f0"], float))
+
     def clear(self):
         """Forget the cached tables (they are built again on the next use)."""
         self._cache.clear()

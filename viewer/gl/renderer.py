@@ -170,6 +170,35 @@ class _Frame(NamedTuple):
     region: tuple | None  # (x, y, w, h) scissor of the background and forward draws, else None
 
 
+def frame_switches(scene, raytrace: bool | None = None) -> tuple[bool, bool, bool, bool]:
+    """(SSR on, the environment lights the scene, it is a constant one, traced chains drawn) of
+    a frame of ``scene`` (``raytrace`` overrides the scene's), as ``Renderer.render`` decides
+    them, without loading a map."""
+    env = scene.environment
+    constant = env.map is None
+    lit = constant and env.constant is not None and bool(np.any(np.asarray(env.constant, float) * env.intensity > 0))
+    env_on = scene.render.ibl != "off" and (not constant or lit)
+    rt_on = bool(scene.render.raytrace) if raytrace is None else bool(raytrace)
+    # as _raytrace_setup: the call's switch on, and the scene's (``traces``)
+    traced = rt_on and bool(scene.render.raytrace) and any(
+        chain_kind(scene.materials[o.material]) != KIND_SHADED for o in scene.objects)
+    return bool(scene.render.ssr), env_on, constant, traced
+
+
+def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, traced_frame: bool) -> dict:
+    """The ``Renderer.forward_program`` arguments of the program that draws ``params`` in a frame
+    of ``scene`` with these switches (``traced_frame``: the frame traces specular chains)."""
+    traced = traced_frame and chain_kind(params) != KIND_SHADED
+    shell = not traced and thin_shell(params)
+    # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
+    # environment light is importance sampled (fis, or brute force when asked for)
+    custom_fis = params.model == "custom" and env_on and scene.render.ibl == "split_sum"
+    ibl_sampled = env_on and scene.render.ibl in ("fis", "brute_force")
+    return {"ssr": ssr_on and not shell, "ibl_sampled": ibl_sampled or custom_fis, "env_light": env_on,
+            "env_constant": env_constant, "traced": list(scene.materials.values()) if traced else None,
+            "dispersion": traced and dispersive(scene), "shell": shell}
+
+
 class Renderer:
     # No per-sample shading (GLSL 'sample' inputs): on Mesa llvmpipe 22.3 it gave wrong shadow
     # visibility on fully covered pixels near silhouettes (measured against the reference). For
@@ -268,6 +297,17 @@ class Renderer:
             return prog
         return self._programs.get(key, Recipe(*FORWARD_STAGES, models=tuple(models),
                                               defines=tuple(defines.items())))
+
+    def forward_keys(self, scene, raytrace: bool | None = None) -> dict[str, str]:
+        """material name -> the key of the forward program a frame of ``scene`` draws its
+        objects with (``programs`` holds it once built): what a preset or model change must
+        compile before the frame can show it."""
+        sw = frame_switches(scene, raytrace)
+        out = {}
+        for name in dict.fromkeys(o.material for o in scene.objects):
+            params = scene.materials[name]
+            out[name] = forward_variant(params, **forward_args(scene, params, *sw))[0]
+        return out
 
     # ---------------------------------------------------------------- resources
     def _gpu_mesh(self, mesh) -> GpuMesh:
@@ -465,7 +505,7 @@ class Renderer:
         env = scene.environment
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
         env_map = env.radiance_map() if env.map is not None else None
-        env_on = scene.render.ibl != "off" and (env_map is not None or bool(np.any(env_rad > 0)))
+        env_on = frame_switches(scene, raytrace)[1]
         self._frame_targets = targets
         rt_on = bool(scene.render.raytrace) if raytrace is None else bool(raytrace)
         if region is not None:
@@ -559,7 +599,6 @@ class Renderer:
         """One instanced draw per mesh and material (per object where a thin film varies over
         the object's height) with the forward-program variant of its material; the frame's
         uniforms are set once per program."""
-        ibl_sampled = f.env_on and scene.render.ibl in ("fis", "brute_force")
         ready = set()
 
         own = {name: thin_film.varies(p) for name, p in scene.materials.items()}   # u_film_y: the object's own
@@ -576,13 +615,10 @@ class Renderer:
             if not traced and thin_shell(params):
                 shells += [o for _, o in group]
                 continue
-            # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
-            # environment light is importance sampled (fis, or brute force when asked for)
             custom_fis = params.model == "custom" and f.env_on and scene.render.ibl == "split_sum"
             try:
-                prog = self.forward_program(params, ssr=f.ssr_on, ibl_sampled=ibl_sampled or custom_fis, env_light=f.env_on,
-                                            env_constant=f.env_map is None, traced=rt[1] if traced else None,
-                                            dispersion=traced and rt[2])
+                prog = self.forward_program(params, **forward_args(scene, params, f.ssr_on, f.env_on, f.env_map is None,
+                                                                   rt is not None))
             except ShaderError:
                 if not self.hot_reload:
                     raise
@@ -606,7 +642,7 @@ class Renderer:
             self._material_uniforms(prog, obj, params, uniforms, thickness, env=f.env_on or f.ssr_on)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
         if shells:
-            self._draw_shells(scene, f, uniforms, thickness, shells, ibl_sampled)
+            self._draw_shells(scene, f, uniforms, thickness, shells)
 
     def _material_uniforms(self, prog, obj, params, uniforms: dict, thickness, env: bool):
         idx, block = uniform_block(params)
@@ -620,7 +656,7 @@ class Renderer:
         if env:
             self._environment_uniforms(prog, params, thickness)
 
-    def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells, ibl_sampled: bool):
+    def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells):
         """Thin shells over the opaque frame, farthest first, each in two draws (its far faces,
         then its near ones) with dual-source blending: destination x transmittance + reflected
         radiance, i.e. each face lets its transmitted fraction of what lies behind it through
@@ -641,8 +677,8 @@ class Renderer:
             for obj in shells:
                 params = scene.materials[obj.material]
                 try:
-                    prog = self.forward_program(params, ibl_sampled=ibl_sampled, env_light=f.env_on,
-                                                env_constant=f.env_map is None, shell=True)
+                    prog = self.forward_program(params, **forward_args(scene, params, f.ssr_on, f.env_on,
+                                                                       f.env_map is None, False))
                 except ShaderError:
                     if not self.hot_reload:
                         raise

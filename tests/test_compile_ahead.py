@@ -1,0 +1,168 @@
+"""Programs compiled beside the window (viewer/app/compile_ahead.py): the child's answer (program
+keys, tables equal to the window's own), and the session holding a changed material back
+until the answer comes (driven with a stand-in child whose answer the test releases, so no
+test waits on the timing of a process)."""
+
+import time
+
+import numpy as np
+import pytest
+
+from viewer.app.compile_ahead import CompileAhead, params_key, prepare
+from viewer.gl.material_tables import MaterialTables
+from viewer.scene import load_scene, material_from_name
+
+
+def test_prepare_compiles_the_frames_programs_and_exports_tables_the_window_would_build(gl_ctx):
+    from viewer.gl.renderer import Renderer
+
+    scene = load_scene("default", overrides=["materials.ball.preset=glass"])
+    r = Renderer(gl_ctx)
+    try:
+        out = prepare(r, scene)
+        want = set(r.forward_keys(scene).values()) | set(r.forward_keys(scene, raytrace=False).values())
+        assert set(out["keys"]) == want and want <= set(r.programs)
+        mine = MaterialTables(gl_ctx)
+        try:
+            for name in ("ball", "floor"):
+                p = scene.materials[name]
+                theirs = MaterialTables(gl_ctx)
+                theirs.adopt(p, out["tables"][params_key(p)])
+                assert theirs.ready(p)
+                for a, b in zip(theirs.tables(p), mine.tables(p)):
+                    assert np.array_equal(a, b)  # the same estimator on the same points
+                for a, b in zip(theirs.ms_terms(p), mine.ms_terms(p)):
+                    assert np.array_equal(a, b)
+        finally:
+            mine.release()
+    finally:
+        r.release()
+
+
+def _wait(cond, what, limit=300.0):
+    # a generous bound for a child process on a loaded two-core machine; no speed is asserted
+    t0 = time.monotonic()
+    while not cond():
+        if time.monotonic() - t0 > limit:
+            pytest.fail(f"no answer after {limit:.0f} s: {what}")
+        time.sleep(0.05)
+
+
+def test_the_child_answers_with_the_programs_and_tables_and_reports_a_bad_scene():
+    ca = CompileAhead()
+    try:
+        scene = load_scene("sphere")
+        rid = ca.request(scene)
+        assert ca.request(scene) == rid  # asked twice, done once
+        _wait(lambda: ca.answered(rid), "sphere")
+        ans = ca.done[rid]
+        assert ans["ok"], ans
+        assert ans["keys"] and set(ans["keys"]) <= ca.compiled
+        assert {params_key(p) for p in scene.materials.values()} <= set(ca.tables)
+        broken = load_scene("sphere")
+        broken.base_dir = None
+        broken.objects[0].mesh = "/no/such/mesh.obj"
+        bad = ca.request(broken)
+        _wait(lambda: ca.answered(bad), "a scene whose mesh is missing")
+        assert not ca.done[bad]["ok"] and "mesh" in ca.done[bad]["error"].lower()
+    finally:
+        ca.stop()
+    assert not ca.alive
+
+
+class StandIn:
+    """A compile-ahead child whose answer the test releases."""
+
+    alive = True
+
+    def __init__(self):
+        self.compiled, self.tables, self.requests, self.released = set(), {}, [], False
+
+    def request(self, scene, urgent=True):
+        self.requests.append((scene, urgent))
+        return 1
+
+    def answered(self, rid):
+        return self.released
+
+    def stop(self):
+        pass
+
+
+def test_a_changed_material_is_drawn_as_before_until_its_programs_are_ready(gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    stand_in = s.compile_ahead = StandIn()
+    try:
+        s.render_view((96, 64))
+        before = renderer.read_linear(s.hdr).copy()
+        s.set_material("ball", material_from_name("soap_bubble"))
+        key = renderer.forward_keys(s.scene)["ball"]
+        assert key not in renderer.programs
+        s.render_view((96, 64))
+        assert s.compiling and s.pending == ["ball"]
+        assert "compiling ball" in s.status
+        assert key not in renderer.programs  # nothing compiled on this thread
+        assert np.array_equal(renderer.read_linear(s.hdr), before)  # the ball as it was
+        assert stand_in.requests and stand_in.requests[-1][1] is True
+        drawn = s.raster_version
+        s.render_view((96, 64))  # nothing changed: the view is not drawn again while waiting
+        assert s.raster_version == drawn
+        stand_in.released = True
+        s.render_view((96, 64))
+        assert not s.compiling and s.pending == []
+        assert key in renderer.programs
+        assert not np.array_equal(renderer.read_linear(s.hdr), before)
+    finally:
+        s.compile_ahead = None
+        s.release()
+
+
+def test_idle_frames_send_the_presets_ahead_one_at_a_time(gl_ctx, renderer):
+    from viewer.brdf.presets import PRESETS
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    stand_in = s.compile_ahead = StandIn()
+    try:
+        s.warm_one()
+        assert len(stand_in.requests) == 1
+        for _ in range(len(PRESETS) + 3):
+            s.warm_one()
+        assert len(stand_in.requests) == len(PRESETS)
+        assert all(urgent is False for _, urgent in stand_in.requests)
+        ball = {params_key(sc.materials["ball"]) for sc, _ in stand_in.requests}
+        # each preset on the ball, the rest of the scene as it is (some presets are equal)
+        assert ball == {params_key(material_from_name(n)) for n in PRESETS}
+        assert all(sc.materials["floor"] is s.scene.materials["floor"] for sc, _ in stand_in.requests)
+    finally:
+        s.compile_ahead = None
+        s.release()
+
+
+def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, renderer, tmp_path):
+    """A new scene (a lecture step, a file opened) with programs still to compile is compiled
+    at once, not shown with materials of the scene before."""
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    s.compile_ahead = StandIn()
+    try:
+        s.render_view((96, 64))
+        s.scene = load_scene("default", overrides=["materials.ball.preset=red_plastic", "materials.ball.alpha=0.41"])
+        s.changed()
+        s.render_view((96, 64))
+        assert s.pending == [] and not s.compiling
+        assert renderer.forward_keys(s.scene)["ball"] in renderer.programs
+    finally:
+        s.compile_ahead = None
+        s.release()
+
+
+def test_the_viewer_command_can_turn_it_off(capsys):
+    from viewer import cli
+
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    assert "--no-compile-ahead" in capsys.readouterr().out

@@ -1,0 +1,216 @@
+"""Compile a changed material's programs beside the window, so that a preset or model change never
+stops the window's frames while the shader compiler works (on a software rasterizer a program
+takes 0.1-6 s: the GLSL link and llvmpipe's code generation at the first draw).
+
+A child process (``python -m viewer.app.compile_ahead``), at a lower priority and on its own
+headless OpenGL context (EGL), renders a tiny frame of each scene the window sends it, with the
+window's renderer and switches, once as the window draws a still view and once as it draws while
+the user drags (no MSAA, no traced chains). That fills the driver's on-disk shader cache (Mesa's),
+so the window's own compile of the same program afterwards is a cache hit; and it builds the
+materials' albedo tables and multiple-scattering terms, which it sends back for the window to
+adopt (``MaterialTables.adopt``) instead of building them itself. A process, not a thread: a GL
+call holds the interpreter lock for its whole duration.
+
+The window keeps drawing the material as it was until the child reports the new one done
+(``Session`` does the holding back). Requests marked ``urgent`` (the material just changed) go
+before the compile-ahead of the scene's presets. Without a driver cache (a driver that keeps
+none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program itself, after
+the child's tables, and the frames of that compile are as long as before. Any failure of the child
+(no EGL, a crash) turns it off with ``error`` set: the window then compiles as it always did.
+
+Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "urgent"}``.
+Out: ``{"id", "ok": true, "keys": [program keys compiled], "tables": {params JSON: exported
+tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+
+SIZE = (32, 24)  # the child's frames: the programs and their code do not depend on the size
+
+
+def params_key(params) -> str:
+    """The key tables travel under: the parameter values (``MaterialTables``' own key)."""
+    return json.dumps(params.to_plain(), sort_keys=True)
+
+
+def prepare(renderer, scene) -> dict:
+    """Render ``scene`` as the window does (still, then as while dragging) on ``renderer`` and
+    export the albedo tables of its materials: the child's work for one request."""
+    renderer.render(scene, width=SIZE[0], height=SIZE[1])
+    keys = set(renderer.forward_keys(scene).values())
+    renderer.render(scene, width=SIZE[0], height=SIZE[1], msaa=0, raytrace=False)
+    keys |= set(renderer.forward_keys(scene, raytrace=False).values())
+    renderer.ctx.finish()
+    used = dict.fromkeys(o.material for o in scene.objects)
+    tables = {params_key(scene.materials[n]): renderer.tables.export(scene.materials[n]) for n in used}
+    return {"keys": sorted(keys), "tables": tables}
+
+
+def serve(inp=sys.stdin, out=sys.stdout) -> int:
+    """The child: read requests, urgent ones first, and answer each on one line."""
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import load_scene_text
+
+    queue: collections.deque = collections.deque()
+    cond = threading.Condition()
+    closed = []
+
+    def read():
+        for line in inp:
+            try:
+                req = json.loads(line)
+            except ValueError:
+                continue
+            with cond:
+                if req.get("urgent"):
+                    queue.appendleft(req)
+                else:
+                    queue.append(req)
+                cond.notify()
+        with cond:
+            closed.append(True)
+            cond.notify()
+
+    threading.Thread(target=read, name="compile-ahead-reader", daemon=True).start()
+    ctx = create_offscreen_context()
+    renderer = Renderer(ctx)
+    print(json.dumps({"ready": True}), file=out, flush=True)
+    while True:
+        with cond:
+            while not queue and not closed:
+                cond.wait()
+            if not queue:
+                break
+            req = queue.popleft()
+        t0 = time.perf_counter()
+        try:
+            scene = load_scene_text(req["scene"], base_dir=req.get("base_dir"), label="<compile ahead>")
+            answer = {"id": req["id"], "ok": True, **prepare(renderer, scene)}
+        except Exception as e:  # noqa: BLE001 - the window compiles it itself and reports the error
+            answer = {"id": req["id"], "ok": False, "error": f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"}
+        answer["seconds"] = round(time.perf_counter() - t0, 3)
+        print(json.dumps(answer), file=out, flush=True)
+    renderer.release()
+    ctx.release()
+    return 0
+
+
+class CompileAhead:
+    """The child process and what it has done: ``compiled`` (program keys), ``tables`` (params
+    JSON -> exported tables), ``done`` (request ids answered). ``on_done`` is called from the
+    reader thread after each answer (the window wakes its loop with it)."""
+
+    def __init__(self, on_done=None):
+        self.on_done = on_done
+        self.compiled: set[str] = set()
+        self.tables: dict[str, dict] = {}
+        self.done: dict[int, dict] = {}
+        self.error = ""
+        self.ready = False
+        self._lock = threading.Lock()
+        self._next = 0
+        self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
+        self._proc = None
+        try:
+            self._proc = subprocess.Popen([sys.executable, "-m", "viewer.app.compile_ahead"],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                          text=True, env=dict(os.environ), cwd=os.getcwd())
+        except OSError as e:
+            self.error = f"cannot start ({e})"
+            return
+        threading.Thread(target=self._read, name="brdf-viewer-compile-ahead", daemon=True).start()
+
+    @property
+    def alive(self) -> bool:
+        return self._proc is not None and not self.error
+
+    def request(self, scene, urgent: bool = True) -> int | None:
+        """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
+        already asked for), None when the child is not running."""
+        from viewer.scene import scene_to_toml
+
+        if not self.alive:
+            return None
+        text = scene_to_toml(scene, absolute_paths=True)
+        base = None if scene.base_dir is None else str(scene.base_dir)
+        with self._lock:
+            key = f"{base}\n{text}"
+            if key in self._ids:
+                return self._ids[key]
+            rid = self._ids[key] = self._next
+            self._next += 1
+        try:
+            self._proc.stdin.write(json.dumps({"id": rid, "scene": text, "base_dir": base, "urgent": urgent}) + "\n")
+            self._proc.stdin.flush()
+        except (OSError, ValueError) as e:
+            self.error = f"stopped ({e})"
+            return None
+        return rid
+
+    def answered(self, rid) -> bool:
+        return rid in self.done or not self.alive
+
+    def _read(self):
+        proc = self._proc
+        for line in proc.stdout:
+            try:
+                msg = json.loads(line)
+            except ValueError:
+                continue
+            if msg.get("ready"):
+                self.ready = True
+                continue
+            with self._lock:
+                if msg.get("ok"):
+                    self.compiled.update(msg.get("keys", ()))
+                    self.tables.update(msg.get("tables", {}))
+                self.done[msg["id"]] = msg
+            if self.on_done is not None:
+                self.on_done()
+        err = proc.stderr.read()
+        rc = proc.wait()
+        if not self.error:
+            last = [x for x in err.strip().splitlines() if x.strip()]
+            self.error = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
+        if self.on_done is not None:
+            self.on_done()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """End the child (a request half done is simply not answered)."""
+        if self._proc is not None and self._proc.poll() is None:
+            try:
+                self._proc.stdin.close()
+            except OSError:
+                pass
+            self._proc.terminate()
+            try:
+                self._proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+        self.error = self.error or "stopped"
+
+
+def main(argv=None) -> int:
+    try:
+        os.nice(10)  # behind the window's own frames
+    except (OSError, AttributeError):
+        pass
+    try:
+        return serve()
+    except Exception as e:  # noqa: BLE001 - one line for the window's panel
+        print(f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
