@@ -1,5 +1,5 @@
 """Thin shells in the untraced raster: a dielectric of ior 1 (a soap bubble) lets what lies behind
-it through, drawn over the opaque frame with dual-source blending (renderer._draw_shells,
+it through, drawn over the opaque frame with dual-source blending (the renderer's shell pass,
 forward.frag THIN_SHELL). Oracles: a shell that reflects nothing (ior 1, no film: R = 0
 exactly) leaves the frame as it was; a film's shell lets (1 - R)^2 of the floor through, which
 is at least 0.8 for a water film at the angles seen on a sphere's inner disc."""

@@ -96,6 +96,7 @@ class Session(FileActions):
         self._drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
         self._awaiting = None      # the compile-ahead request the view waits for
         self._ahead_sent = False  # the presets still to send to the child (False: not begun)
+        self.presets_ahead = True  # with compile_ahead: the picker's presets compile ahead while idle
         self._mesh_target = None
         self._bf_sum = None
         self._bf_tex = None
@@ -467,7 +468,8 @@ class Session(FileActions):
         from viewer import brdf
 
         if self._compile_ahead_on:
-            self._warm_presets_ahead()
+            if self.presets_ahead:
+                self._warm_presets_ahead()
             return
         if not self.warm:
             return
