@@ -558,3 +558,58 @@ def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):
     d = plots.polar_lobe(p, theta_i=30.0)
     k = int(np.argmax(d["fcos"][:, 0]))
     assert abs(d["theta_o"][k] - 30.0) < 3.0
+
+
+TWO_FILES = """
+[camera]
+position = [0.0, 0.0, 5.0]
+target = [0.0, 0.0, 0.0]
+fov_y = 40.0
+width = 64
+height = 32
+
+[[lights]]
+type = "point"
+position = [0.0, 3.0, 4.0]
+intensity = [20.0, 20.0, 20.0]
+
+[[objects]]
+mesh = "sphere"
+material = "left"
+translate = [-1.1, 0.0, 0.0]
+
+[[objects]]
+mesh = "sphere"
+material = "right"
+translate = [1.1, 0.0, 0.0]
+
+[materials.left]
+model = "custom"
+file = "lambert_twin.brdf"
+
+[materials.right]
+model = "custom"
+file = "other/lambert_twin.brdf"
+"""
+
+
+def test_two_files_in_one_program_are_told_apart(tmp_path):
+    """Two .brdf files of the same name in different folders, one per ball: the GPU engine holds
+    both in one program, and each ball keeps its own file (the second one swaps red and blue).
+    Its per-ball means against the raster's (one program per material): two estimates of the
+    same direct light, 8 spp of a point light over a Lambertian, so within a few per cent."""
+    import viewer
+
+    shutil.copy(DATA / "lambert_twin.brdf", tmp_path)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "lambert_twin.brdf").write_text(
+        (DATA / "lambert_twin.brdf").read_text().replace("gain * albedo / PI", "gain * albedo.bgr / PI"))
+    scene = tmp_path / "two.toml"
+    scene.write_text(TWO_FILES)
+    raster = viewer.render(scene)
+    ref = viewer.reference(scene, spp=8, engine="gpu")
+    for img in (raster, ref):
+        left, right = img[:, :32].reshape(-1, 3).mean(axis=0), img[:, 32:].reshape(-1, 3).mean(axis=0)
+        assert left[0] > 1.5 * left[2] and right[2] > 1.5 * right[0], (left, right)
+    np.testing.assert_allclose(ref[:, :32].mean(axis=(0, 1)), raster[:, :32].mean(axis=(0, 1)), rtol=0.05)
+    np.testing.assert_allclose(ref[:, 32:].mean(axis=(0, 1)), raster[:, 32:].mean(axis=(0, 1)), rtol=0.05)

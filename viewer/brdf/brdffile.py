@@ -34,8 +34,16 @@ from pathlib import Path
 
 from viewer import ViewerError
 
-#: the prefix of every top-level name of a file's GLSL in this viewer's programs
+#: the prefix of every top-level name of a file's GLSL in this viewer's programs (the file in a
+#: program's slot k > 0 gets ``prefix_for(k)``, so several files can share one program)
 PREFIX = "bxf_"
+#: any slot's prefix, for taking it out of compiler messages
+PREFIX_RE = r"\bbxf\d*_"
+
+
+def prefix_for(slot: int) -> str:
+    """The prefix of the file BRDF in slot ``slot`` of a program (``PREFIX`` for the first)."""
+    return PREFIX if slot == 0 else f"bxf{slot}_"
 SECTIONS = ("parameters", "shader", "isFunc")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*|\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|\S")
@@ -102,15 +110,15 @@ class BrdfFile:
     def _code(self, line_set) -> str:
         return "\n".join(_strip_comments_line(self.lines[i - 1]) for i in line_set)
 
-    def glsl_block(self, sampler_wrapper: bool = True) -> str:
+    def glsl_block(self, sampler_wrapper: bool = True, prefix: str = PREFIX) -> str:
         """The file as GLSL for this viewer: one output line per file line (the file's line
-        numbers survive, for messages), parameters as globals ``PREFIX + name`` on their own
+        numbers survive, for messages), parameters as globals ``prefix + name`` on their own
         lines, the shader and sampler with their top-level names prefixed, everything else blank."""
-        rename = {n: PREFIX + n for n in self.top_level_names()}
+        rename = {n: prefix + n for n in self.top_level_names()}
         out = [""] * len(self.lines)
         glsl_type = {"float": "float", "bool": "bool", "color": "vec3"}
         for d in self.declarations:
-            out[d.line - 1] = f"{glsl_type[d.kind]} {PREFIX}{d.name};"
+            out[d.line - 1] = f"{glsl_type[d.kind]} {prefix}{d.name};"
         for i in self.shader + (self.sampler if sampler_wrapper else []):
             out[i - 1] = rename_names(self.lines[i - 1], rename)
         return "\n".join(out) + "\n"

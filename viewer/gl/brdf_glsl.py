@@ -53,11 +53,37 @@ def block_size(spec: ModelSpec) -> int:
 
 
 def model_index(name: str) -> int:
-    """The model id of a registry name, or of a file BRDF's program name (``custom:PATH``): the one
-    slot after the registry's (a program holds at most one file BRDF)."""
+    """The model id of a registry name, or of a file BRDF's program name (``custom:PATH``): the
+    ids after the registry's, one per file (its slot, ``custom_slot``), so that the programs
+    holding several files (traced chains, the GPU engine) tell them apart."""
     if is_custom(name):
-        return len(brdf.names())
+        return len(brdf.names()) + custom_slot(name)
     return brdf.names().index(name)
+
+
+_SLOTS: dict[str, int] = {}  # custom:PATH -> its slot, in the order the files were first used
+
+
+def custom_slot(name: str) -> int:
+    """The slot of the file BRDF ``custom:PATH`` in this process: 0 for the first file used, 1
+    for the next... Its GLSL names carry the slot (``brdffile.prefix_for``, ``custom<k>_``), so
+    that any set of files can share a program; the same file keeps its slot in every program."""
+    slot = _SLOTS.get(name)
+    if slot is None:
+        slot = _SLOTS[name] = len(_SLOTS)
+    return slot
+
+
+def _custom_names(name: str) -> tuple[str, str, str]:
+    """(GLSL function prefix, the file's name prefix, its include name) of ``custom:PATH``: the
+    include is the file's name, or its whole path where a file of the same name in another
+    folder took a slot before it (two such files can share a program)."""
+    from viewer.brdf.brdffile import prefix_for
+
+    slot = custom_slot(name)
+    path = Path(name[len(CUSTOM_PREFIX):])
+    clash = any(Path(n[len(CUSTOM_PREFIX):]).name == path.name and k < slot for n, k in _SLOTS.items())
+    return ("custom" if slot == 0 else f"custom{slot}"), prefix_for(slot), (str(path) if clash else path.name)
 
 
 def _has_film(values) -> bool:
@@ -142,7 +168,8 @@ def custom_virtual(only) -> dict[str, str]:
     out: dict[str, str] = {}
     for n in only or ():
         if is_custom(n):
-            out.update(virtual_files(custom_file(n)))
+            _, prefix, include = _custom_names(n)
+            out.update(virtual_files(custom_file(n), prefix=prefix, name=include))
     return out
 
 
@@ -152,11 +179,14 @@ def _custom_glue(name: str) -> list[str]:
     custom_pdf, the sampler that works for any BRDF: cosine-weighted directions (share
     COSINE_SHARE) mixed with half vectors drawn from a table of the BRDF for the current
     parameters (``half_vector_table``), with the exact pdf of the mixture."""
+    import re
+
     from viewer.gl.file_brdf_glsl import n_floats, set_params_glsl
 
     bfile = custom_file(name)
-    sets = set_params_glsl(bfile, read=lambda k: f"mat_f(p.o + {k})")
-    return [f'#include "{bfile.path.name}"',
+    c, prefix, include = _custom_names(name)
+    sets = set_params_glsl(bfile, read=lambda k: f"mat_f(p.o + {k})", prefix=prefix)
+    lines = [f'#include "{include}"',
             "struct custom_params {\n    int o;\n};",
             "custom_params custom_unpack(int o) { custom_params p; p.o = o; return p; }",
             "vec3 custom_eval(custom_params p, vec3 wi, vec3 wo) {",
@@ -212,6 +242,9 @@ def _custom_glue(name: str) -> list[str]:
             "    if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }",
             "    return custom_eval(p, wi, wo) * wi.z / pdf;",
             "}", ""]
+    # the slot's names: custom<k>_... and CUSTOM<k>_T / _N, the file's globals with its prefix
+    return lines[:1] + [re.sub(r"\bcustom_", f"{c}_", re.sub(r"\bCUSTOM_([TN])\b", f"{c.upper()}_\\1", x))
+                        .replace("bxf_BRDF(", f"{prefix}BRDF(") for x in lines[1:]]
 
 
 def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
@@ -504,9 +537,7 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
     out.append("")
     plain, nesting = [], []
     customs = [n for n in (only or ()) if is_custom(n)]
-    if customs:
-        out.append(f"#define BRDF_MODEL_CUSTOM {model_index(customs[0])}")
-    for name in list(brdf.names()) + customs[:1]:
+    for name in list(brdf.names()) + customs:
         if only is not None and name not in only:
             continue
         if is_custom(name):
@@ -536,7 +567,7 @@ def generate_dispatch(only: tuple[str, ...] | None = None, fixed: dict[str, dict
     def dispatch(fn_name, names_, fallback, kind):
         lines = [f"vec3 {fn_name}(int model, int o, vec3 wi, vec3 wo) {{"]
         for name in names_:
-            n = "custom" if is_custom(name) else name
+            n = _custom_names(name)[0] if is_custom(name) else name
             if is_custom(name) and kind != "eval":
                 continue  # a file BRDF has no separate terms
             if kind == "eval":
@@ -578,7 +609,7 @@ def _sampling_dispatch(level: str, names_, fallback: str | None) -> list[str]:
     delta = [f"bool brdf_is_delta_{level}(int model, int o) {{"]
     for name in names_:
         i = model_index(name)
-        n = "custom" if is_custom(name) else name
+        n = _custom_names(name)[0] if is_custom(name) else name
         if f"{n}_sample(" in src(name):
             sample.append(f"    if (model == {i}) return {n}_sample({n}_unpack(o), wo, u, wi, pdf);")
         if f"{n}_pdf(" in src(name):

@@ -15,7 +15,7 @@ import re
 
 import numpy as np
 
-from viewer.brdf.brdffile import PREFIX, BrdfFile, sampler_takes_view
+from viewer.brdf.brdffile import PREFIX, PREFIX_RE, BrdfFile, sampler_takes_view
 from viewer.gl.file_brdf_glsl import MAX_PARAMS, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
 from viewer.gl.shaders import ShaderError, build_program
 
@@ -87,7 +87,7 @@ def _first_error(log: str, name: str):
                 break
     if first is None:
         return None, None
-    msg = re.sub(r"\b" + PREFIX + r"(\w+)", r"\1", first[2]).strip()
+    msg = re.sub(PREFIX_RE + r"(\w+)", r"\1", first[2]).strip()
     return (first[1] if first[0] == name else None), msg
 
 
@@ -99,7 +99,7 @@ def compile_program(ctx, bfile: BrdfFile, fragment: str):
     except ShaderError as e:
         line, msg = _first_error(str(e), name)
         if msg is None:
-            msg = re.sub(r"\b" + PREFIX + r"(\w+)", r"\1", e.detail)
+            msg = re.sub(PREFIX_RE + r"(\w+)", r"\1", e.detail)
         if line is None:  # outside the file's lines: the viewer's call of BRDF / sampleBRDF
             line = (bfile.sampler if "sampleBRDF" in fragment else bfile.shader)[0]
         raise FileBrdfError(f"{name}:{line}: {msg}", name, line, detail=msg) from None

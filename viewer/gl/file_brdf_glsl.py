@@ -26,12 +26,12 @@ def param_floats(bfile: BrdfFile, p) -> np.ndarray:
     return np.array(out + [0.0] * max(1, MAX_PARAMS - len(out)), dtype="f4")[:max(MAX_PARAMS, len(out))]
 
 
-def set_params_glsl(bfile: BrdfFile, read=lambda k: f"u_p[{k}]") -> str:
+def set_params_glsl(bfile: BrdfFile, read=lambda k: f"u_p[{k}]", prefix: str = PREFIX) -> str:
     """GLSL statements copying the parameter floats (``read(k)``: the GLSL expression of float k,
-    declaration order) into the file's globals."""
+    declaration order) into the file's globals (named with ``prefix``)."""
     lines, k = [], 0
     for d in bfile.declarations:
-        g = PREFIX + d.name
+        g = prefix + d.name
         if d.kind == "color":
             lines.append(f"{g} = vec3({read(k)}, {read(k + 1)}, {read(k + 2)});")
             k += 3
@@ -48,5 +48,6 @@ def n_floats(bfile: BrdfFile) -> int:
     return sum(3 if d.kind == "color" else 1 for d in bfile.declarations)
 
 
-def virtual_files(bfile: BrdfFile) -> dict[str, str]:
-    return {bfile.path.name: bfile.glsl_block()}
+def virtual_files(bfile: BrdfFile, prefix: str = PREFIX, name: str | None = None) -> dict[str, str]:
+    """The file as a virtual include, under ``name`` (default: the file's name)."""
+    return {name or bfile.path.name: bfile.glsl_block(prefix=prefix)}
