@@ -40,6 +40,36 @@ def test_samples_per_chunk_fills_a_chunk():
     assert r.samples_per_chunk() == 2   # one row of 4000 px per block
 
 
+def test_an_uncached_view_opens_on_a_coarse_preview_then_full_passes(tmp_path, monkeypatch):
+    """A view with nothing cached shows a quarter-resolution image first (marked a preview, 0
+    spp, no variance: no metrics are computed from it), then the passes at full resolution; a
+    view the cache holds, and a tiny view, start with their passes."""
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(None, scale=0.5, max_depth=1, workers=0)
+    try:
+        rv.update(scene, cam, (256, 192))   # 128 x 96: the preview is 32 x 24
+        assert _wait(lambda: rv.spp > 0), rv.error
+        assert rv.previews == 1 and not rv.preview
+        img, spp = rv.latest()
+        assert img.shape == (96, 128, 3) and spp == rv.spp
+        assert rv.snapshot() is not None
+        assert rv.stop()  # its samples go to the cache
+        rv.update(scene, cam, (256, 192))   # the same view again: from the cache, no preview
+        assert _wait(lambda: rv.spp > 0), rv.error
+        assert rv.previews == 1
+        rv.update(scene, cam, (100, 60))    # 50 x 30: below the preview's size
+        assert _wait(lambda: rv.spp > 0), rv.error
+        assert rv.previews == 1
+    finally:
+        rv.close()
+
+
 def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
     from viewer.app.reference_view import ReferenceView
     from viewer.camera import OrbitCamera

@@ -1,6 +1,6 @@
 // Shadow maps in one depth atlas: light i owns row i; a point light uses six 90-degree (plus a
 // margin) perspective tiles, one per cube face, a directional light one orthographic tile.
-// Filtering: 4 taps of hardware 2x2 comparison (bilinear PCF), a 3x3-texel tent.
+// Filtering: 9 taps of hardware 2x2 comparison (bilinear PCF) with tent weights, 4 texels wide.
 #include "generated/constants.glsl"
 
 uniform sampler2DShadow u_shadow_atlas;
@@ -24,16 +24,19 @@ float shadow_lookup(int light, int face, vec3 p) {
     vec2 uv = ndc.xy * 0.5 + 0.5;
     float depth = ndc.z * 0.5 + 0.5;
     float texel = 1.0 / u_shadow_tile_size;
-    // four bilinear comparison taps at +-half a texel: a 3x3-texel tent filter for 4 fetches
+    // nine bilinear comparison taps one texel apart, weighted 1 2 1 / 2 4 2 / 1 2 1: the
+    // bilinear tent convolved with a discrete tent, a smooth bell four texels wide, so that a
+    // shadow edge seen up close (a texel covering several pixels) is a soft ramp, not steps
     float sum = 0.0;
-    for (int k = 0; k < 4; ++k) {
-        vec2 o = vec2((k & 1) == 0 ? -0.5 : 0.5, (k & 2) == 0 ? -0.5 : 0.5);
+    for (int k = 0; k < 9; ++k) {
+        vec2 o = vec2(float(k % 3 - 1), float(k / 3 - 1));
+        float w = (2.0 - abs(o.x)) * (2.0 - abs(o.y));
         // stay inside this tile so taps never read a neighbouring face
         vec2 t = clamp(uv + o * texel, vec2(texel), vec2(1.0 - texel));
         vec2 a = (vec2(float(face), float(light)) + t) / u_shadow_atlas_tiles;
-        sum += textureLod(u_shadow_atlas, vec3(a, depth), 0.0);  // explicit LOD: no derivatives needed
+        sum += w * textureLod(u_shadow_atlas, vec3(a, depth), 0.0);  // explicit LOD: no derivatives needed
     }
-    return 0.25 * sum;
+    return sum / 16.0;
 }
 
 // Visibility of light `light` from world point p with geometric normal ng.

@@ -21,6 +21,7 @@ MODES = ("raster", "reference", "split", "side by side", "difference", "relative
 USES_REFERENCE = frozenset(MODES[1:])
 # what the view says before the reference's first pass (its side of the view stays empty)
 PENDING = "reference: first pass coming"
+PREVIEW = "reference: coarse preview, first pass coming"
 PENDING_DIFFERENCE = "difference: waiting for the reference's first pass"
 METRICS_INTERVAL_S = 0.5  # recompute RMSE / relMSE at most this often (a readback + numpy pass)
 
@@ -97,7 +98,7 @@ class CompareView:
         """Recompute RMSE / relMSE when the reference has a new pass or the raster image changed
         (at most every METRICS_INTERVAL_S)."""
         img = ref_view.latest()
-        if img is None or raster_tex is None:
+        if img is None or raster_tex is None or img[1] == 0:  # nothing, or the coarse preview
             self.metrics = None
             return
         ref, spp = img
@@ -210,10 +211,11 @@ class CompareView:
             return ""
         return f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)"
 
-    def overlay_labels(self, view_logical, ref_spp: int) -> list:
-        """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``)."""
+    def overlay_labels(self, view_logical, ref_spp: int, preview: bool = False) -> list:
+        """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``);
+        ``preview``: the reference shows its coarse first image."""
         x, y, w, h = view_logical
-        ref_label = f"reference ({ref_spp} spp)" if ref_spp else PENDING
+        ref_label = f"reference ({ref_spp} spp)" if ref_spp else (PREVIEW if preview else PENDING)
         if self.mode in ("difference", "relative difference") and self._pair is None:
             return [(x, PENDING_DIFFERENCE)]
         if self.mode == "split":

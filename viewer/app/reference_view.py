@@ -83,6 +83,10 @@ def _store(renderer, key, engine, seed=0, report=None):
             report(str(e), error=True)
 
 
+PREVIEW_SPP = 4              # the coarse first image's samples per pixel, at a quarter of the resolution
+PREVIEW_MIN_PIXELS = 64 * 64  # smaller views start with full passes at once (a pass is quick there)
+
+
 class ReferenceView:
     def __init__(self, ctx, scale: float = 0.5, max_depth: int = 8, workers: int | None = None,
                  engine: str = "auto", frame_budget_s: float = 0.02, wake=None):
@@ -117,6 +121,8 @@ class ReferenceView:
         self.error = ""
         self.samples_per_second = 0.0
         self.started_at = 0.0
+        self.preview = False      # the image shown is the coarse first one (quarter resolution)
+        self.previews = 0         # coarse first images shown so far
         # the estimator (ReferenceRenderer's options); a change restarts the render
         self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
         self._variance = None     # latest variance of the mean, (H, W, 3) float32
@@ -239,6 +245,7 @@ class ReferenceView:
             self._key = None
             with self._lock:
                 self._image, self._image_spp, self._variance = None, 0, None
+                self.preview = False
                 self.curve = ConvergenceCurve(self.options["strategy"])
                 self.version += 1
 
@@ -328,6 +335,7 @@ class ReferenceView:
             self._cancel.set()
             with self._lock:
                 self._image, self._image_spp, self._variance = None, 0, None
+                self.preview = False
                 self.curve = ConvergenceCurve(self.options["strategy"])
                 self.version += 1
             self.error = ""
@@ -383,6 +391,23 @@ class ReferenceView:
                     if self._current(gen):
                         self._image, self._image_spp, self._variance = img, r.spp, var
                         self._published()
+            elif w * h >= PREVIEW_MIN_PIXELS:
+                # nothing cached: a coarse image first (a quarter of the resolution, PREVIEW_SPP),
+                # in a twentieth of a full pass's time, so the view opens on a converging image
+                # rather than an empty one; shown as a preview (0 spp, no variance: no metrics,
+                # no error views), then the passes at full resolution start from nothing
+                r.reset(scene, camera=camera, width=max(1, w // 4), height=max(1, h // 4), **options)
+                r.step(PREVIEW_SPP, cancel)
+                img = r.mean()
+                with self._lock:
+                    if self._current(gen):
+                        self._image, self._image_spp, self._variance = img, 0, None
+                        self.preview = True
+                        self.previews += 1
+                        self._published()
+                r.reset(scene, camera=camera, width=w, height=h, **options)
+                if cancel.is_set():
+                    return
             # passes of the samples that fill a chunk: a pass of 1 spp runs chunks of a quarter of
             # the paths at nearly the same cost (gallery, 460 x 360: 66 k against 259 k samples/s)
             per_pass = r.samples_per_chunk()
@@ -394,6 +419,7 @@ class ReferenceView:
                     with self._lock:
                         if self._current(gen):
                             self._image, self._image_spp, self._variance = img, r.spp, var
+                            self.preview = False
                             self.curve.add(r.spp, rmse_estimate(var))
                             elapsed = time.perf_counter() - self.started_at
                             self.samples_per_second = (r.spp - have) * w * h / max(elapsed, 1e-9)
