@@ -224,13 +224,16 @@ def test_check_passes_a_file_with_a_sampler(capsys):
 
 
 @pytest.mark.parametrize("name, failing", [("nonreciprocal", "reciprocity"), ("too_bright", "energy"),
-                                           ("nan", "finite")])
+                                           ("nan", "finite"), ("wrong_pdf", "sampling")])
 def test_check_fails_each_implausible_file_on_its_check(capsys, name, failing):
     rc, rep, _ = _check(capsys, str(DATA / f"{name}.brdf"))
     assert rc == 1 and not rep["pass"]
     assert [k for k, c in rep["checks"].items() if not c["pass"]] == [failing]
     if failing == "energy":
         assert rep["checks"]["energy"]["max_albedo"] == pytest.approx(1.5, rel=1e-5)
+    if failing == "sampling":  # its weights average to the albedo: only the density test sees it
+        assert rep["checks"]["sampling"]["albedo_p_value"] > 0.01
+        assert rep["checks"]["sampling"]["density_p_value"] < 1e-6
 
 
 def test_check_of_a_file_that_does_not_compile_exits_2_naming_file_and_line(capsys):

@@ -184,8 +184,13 @@ def test_scene_key_and_messages(tmp_path):
 
 def test_reference_furnace_sphere(tmp_path):
     """The CPU reference, a rough F = 1 sphere (GGX alpha 1) in a white environment: with the walk
-    every pixel of the sphere is 1 within noise (4 standard errors + 5e-3 for the tessellation's
-    cut directions); with single scattering alone the sphere's mean is below 0.8."""
+    every ring of the sphere's disc (the view at normal incidence, halfway and towards grazing)
+    is 1 within noise (4 standard errors of the ring's mean + 5e-3 for the tessellation's cut
+    directions); with single scattering alone the sphere's mean is below 0.8. Rings, not pixels:
+    a walk's weights are heavy-tailed, and a pixel's variance estimated from 16 samples is too
+    often far too small (one pixel in about a hundred then sits 5-7 of its estimated standard
+    errors off, which a change of random stream moves from pixel to pixel); a ring's, summed
+    over dozens of pixels, is not."""
     from viewer.pathtracer import ReferenceRenderer
     from viewer.scene import load_scene
 
@@ -205,7 +210,11 @@ def test_reference_furnace_sphere(tmp_path):
         inner = (yy - 11.5) ** 2 + (xx - 11.5) ** 2 < 6.0 ** 2   # well inside the sphere's disc
         means[ms] = float(m[inner].mean())
         if ms:
-            assert np.all(np.abs(m[inner] - 1.0) <= 4 * np.sqrt(var[inner]) + 5e-3)
+            rad = np.sqrt((yy - 11.5) ** 2 + (xx - 11.5) ** 2)
+            for lo, hi in ((0.0, 2.5), (2.5, 4.5), (4.5, 6.0)):
+                ring = (rad >= lo) & (rad < hi)
+                se_ring = math.sqrt(float(var[ring].sum())) / ring.sum()
+                assert abs(float(m[ring].mean()) - 1.0) <= 4 * se_ring + 5e-3, (lo, hi, float(m[ring].mean()), se_ring)
             se = math.sqrt(float(var[inner].sum())) / inner.sum()   # of the mean over the disc
             assert abs(means[ms] - 1.0) <= 4 * se + 5e-3, (means[ms], se)
     print("furnace sphere mean, walk / single scattering:", means)

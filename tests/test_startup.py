@@ -73,6 +73,7 @@ def test_first_frame_of_the_default_scene_makes_no_dfg_table(gl_ctx, monkeypatch
         raise AssertionError("dfg_table was computed")
 
     monkeypatch.setattr(dfg, "dfg_table", refuse)
+    monkeypatch.setattr(dfg, "stored_dfg_table", refuse)  # nor read it from the disk cache
     # the renderer keeps the table once made (an earlier test in the session may have made it)
     from viewer import ms_compensation
 

@@ -22,8 +22,10 @@ of direction pairs, the same for a ``.brdf`` file and a built-in model.
 * ``sampling`` (a model with a sampler of its own): the chi-square test of the sampler against
   its pdf (``viewer.brdf.chi2``, at a view 40 degrees from the normal) where a pdf exists; a
   file's ``isFunc`` sampler, which gives its pdf only where it samples, is tested instead for
-  its estimate of the albedo: the mean weight f cos / pdf against the quadrature's (a z test).
-  Passes when the p-value is above ``P_MIN`` = 0.001.
+  its estimate of the albedo (the mean weight f cos / pdf against the quadrature's, a z test)
+  and for its pdf being the density of its samples (a chi-square over equal-area bins of each
+  bin's solid angle estimated as the mean of 1 / pdf there, ``_pdf_consistency``). Passes when
+  the p-value is above ``P_MIN`` = 0.001.
 """
 
 from __future__ import annotations
@@ -196,7 +198,60 @@ def _sampling(model, p, kind, alb, err) -> dict:
     mean, se = w.mean(axis=0), w.std(axis=0) / math.sqrt(n)
     z = np.abs(mean - alb[k]) / np.sqrt(se ** 2 + err[k] ** 2 + 1e-30)
     zmax = float(np.max(z))
-    p_value = float(math.erfc(zmax / math.sqrt(2.0)))
-    p_value = min(1.0, 3.0 * p_value)  # three channels (Bonferroni)
-    return {"pass": p_value > P_MIN, "p_value": p_value, "mean_weight": [float(x) for x in mean],
-            "albedo": [float(x) for x in alb[k]]}
+    p_albedo = float(math.erfc(zmax / math.sqrt(2.0)))
+    p_albedo = min(1.0, 3.0 * p_albedo)  # three channels (Bonferroni)
+    p_density, bins = _pdf_consistency(model, p, wo[0], *model.sample(p, wo, rng.random((n, 2)))[:2])
+    p_value = min(1.0, 2.0 * min(p_albedo, p_density))  # both tests (Bonferroni)
+    return {"pass": p_value > P_MIN, "p_value": p_value, "albedo_p_value": p_albedo,
+            "density_p_value": p_density, "density_bins": bins,
+            "mean_weight": [float(x) for x in mean], "albedo": [float(x) for x in alb[k]]}
+
+
+DENSITY_BANDS, DENSITY_SECTORS, DENSITY_MIN_COUNT = 8, 16, 50
+
+
+def _pdf_consistency(model, p, wo, wi, w) -> tuple[float, int]:
+    """Whether a sampler's pdf is the density of its samples where f is not 0, from its weights
+    w = f cos / pdf: for any region A, E[1_A(wi) w] = the integral of f cos over A. Over equal-area
+    bins of the hemisphere (DENSITY_BANDS in cos theta x DENSITY_SECTORS in phi), each bin's
+    estimate (luminance) against the bin's integral by midpoint quadrature (16 x 16 points; its
+    error, taken as the difference from 8 x 8, joins the variance), a z value from the samples'
+    own variance; the sum of the squares is chi-square distributed with one degree of freedom
+    per bin (bins with at least DENSITY_MIN_COUNT samples: the albedo test catches a sampler that
+    misses where f is not 0). A wrong pdf scales each bin by (true density / reported pdf).
+    (p-value, bins used)."""
+    from scipy import stats
+
+    from viewer.brdf.sampling import luminance
+
+    wi = np.asarray(wi, float)
+    n = len(wi)
+    lw = luminance(np.where(np.isfinite(w), w, 0.0))
+    ok = np.all(np.isfinite(wi), axis=1) & (wi[:, 2] > 0)
+    band = np.minimum((np.clip(wi[:, 2], 0.0, 1.0) * DENSITY_BANDS).astype(int), DENSITY_BANDS - 1)
+    sector = np.minimum(((np.arctan2(wi[:, 1], wi[:, 0]) % (2 * np.pi)) / (2 * np.pi) * DENSITY_SECTORS).astype(int),
+                        DENSITY_SECTORS - 1)
+    b = (band * DENSITY_SECTORS + sector)[ok]
+    nb = DENSITY_BANDS * DENSITY_SECTORS
+    count = np.bincount(b, minlength=nb)
+    s1 = np.bincount(b, weights=lw[ok], minlength=nb) / n
+    s2 = np.bincount(b, weights=lw[ok] ** 2, minlength=nb) / n
+    var = np.maximum(s2 - s1 ** 2, 0.0) / n
+
+    def quadrature(k):  # k x k midpoints per bin, in (cos theta, phi): equal solid angle each
+        c = (np.arange(DENSITY_BANDS * k) + 0.5) / (DENSITY_BANDS * k)
+        ph = (np.arange(DENSITY_SECTORS * k) + 0.5) / (DENSITY_SECTORS * k) * 2 * np.pi
+        C, P = np.meshgrid(c, ph, indexing="ij")
+        S = np.sqrt(1.0 - C * C)
+        d = np.stack([S * np.cos(P), S * np.sin(P), C], axis=-1).reshape(-1, 3)
+        f = np.asarray(model.eval(p, d, np.broadcast_to(wo, d.shape)), float)
+        val = luminance(np.where(np.isfinite(f), np.maximum(f, 0.0), 0.0)) * d[:, 2] * (2 * np.pi / len(d))
+        return val.reshape(DENSITY_BANDS, k, DENSITY_SECTORS, k).sum(axis=(1, 3)).ravel()
+
+    fine, coarse = quadrature(16), quadrature(8)
+    var = var + (fine - coarse) ** 2
+    use = (count >= DENSITY_MIN_COUNT) & (var > 0)
+    if not np.any(use):
+        return 0.0, 0
+    stat = float(np.sum((s1[use] - fine[use]) ** 2 / var[use]))
+    return float(stats.chi2.sf(stat, int(use.sum()))), int(use.sum())
