@@ -96,3 +96,68 @@ def test_editor_labels_fit_the_panel_at_every_ui_scale(display):
     included: "roughness r", not "roughness r (pe...") at UI 1, 1.5 and 2 for several models."""
     r = run_py(EDITOR, display, timeout=600)
     assert r.returncode == 0 and "CLIPPED []" in r.stdout, r.stdout + r.stderr[-2000:]
+
+
+EDGE_SCENE = """
+[camera]
+position = [0.75, 1.2, 0.0]
+target = [0.75, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y = 30.0
+width = 320
+height = 320
+
+[render]
+msaa = 1
+ibl = "off"
+
+[environment]
+constant = [0.0, 0.0, 0.0]
+
+[[lights]]
+type = "point"
+position = [0.0, 8.0, 0.0]
+intensity = [64.0, 64.0, 64.0]
+
+[[objects]]
+mesh = "plane"
+material = "floor"
+scale = 6.0
+
+[[objects]]
+mesh = "cube"
+material = "floor"
+scale = 0.5
+translate = [0.0, 2.0, 0.0]
+rotate_y_deg = 30.0
+
+[materials.floor]
+model = "lambert"
+albedo = [0.8, 0.8, 0.8]
+"""
+
+
+def test_a_point_lights_shadow_edge_is_straight_at_close_range(renderer):
+    """A cube's shadow on the floor, seen from 1.2 above it: the edge of a straight side must be
+    a straight line, not steps of the shadow map's texels. Each point light's cube face draws
+    only the part of the face its casters cover (here a turned unit cube 5.5-6.5 from the light,
+    about an eighth of the face's width), so a texel is about 1 pixel here where it was 8. The
+    figure: the rms distance of the shadow's 50% line from a straight line fit, per row (0.13 px;
+    0.95 px with the whole face in the tile)."""
+    from viewer.gl.constants import VIEW_MODES
+    from viewer.scene import load_scene_text
+
+    vis = renderer.render_arrays(load_scene_text(EDGE_SCENE), view_mode=VIEW_MODES["shadow"])[0][..., 0]
+    pts = []
+    for y in range(10, 270):  # the edge runs from the top down to the corner near the bottom
+        row = vis[y]
+        idx = np.where((row[:-1] < 0.5) & (row[1:] >= 0.5))[0]  # shadow on the left, lit on the right
+        if len(idx) == 1:
+            i = idx[0]
+            pts.append((y, i + (0.5 - row[i]) / (row[i + 1] - row[i])))
+    pts = np.array(pts)
+    assert len(pts) > 100, len(pts)
+    res = pts[:, 1] - np.polyval(np.polyfit(pts[:, 0], pts[:, 1], 1), pts[:, 0])
+    rms = float(np.sqrt(np.mean(res ** 2)))
+    print(f"shadow edge: rms {rms:.3f} px from a straight line over {len(pts)} rows")
+    assert rms < 0.5, rms

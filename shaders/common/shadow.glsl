@@ -1,6 +1,6 @@
 // Shadow maps in one depth atlas: light i owns row i; a point light uses six 90-degree (plus a
 // margin) perspective tiles, one per cube face, a directional light one orthographic tile.
-// Filtering: 9 taps of hardware 2x2 comparison (bilinear PCF) with tent weights, 4 texels wide.
+// Filtering: 4 taps of hardware 2x2 comparison (bilinear PCF), a 3x3-texel tent.
 #include "generated/constants.glsl"
 
 uniform sampler2DShadow u_shadow_atlas;
@@ -22,21 +22,20 @@ float shadow_lookup(int light, int face, vec3 p) {
     vec3 ndc = c.xyz / c.w;
     if (c.w <= 0.0 || ndc.z > 1.0) return 1.0;
     vec2 uv = ndc.xy * 0.5 + 0.5;
+    // a point light's tile covers only the part of its face the casters do: no caster outside
+    if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) return 1.0;
     float depth = ndc.z * 0.5 + 0.5;
     float texel = 1.0 / u_shadow_tile_size;
-    // nine bilinear comparison taps one texel apart, weighted 1 2 1 / 2 4 2 / 1 2 1: the
-    // bilinear tent convolved with a discrete tent, a smooth bell four texels wide, so that a
-    // shadow edge seen up close (a texel covering several pixels) is a soft ramp, not steps
+    // four bilinear comparison taps at +-half a texel: a 3x3-texel tent filter for 4 fetches
     float sum = 0.0;
-    for (int k = 0; k < 9; ++k) {
-        vec2 o = vec2(float(k % 3 - 1), float(k / 3 - 1));
-        float w = (2.0 - abs(o.x)) * (2.0 - abs(o.y));
+    for (int k = 0; k < 4; ++k) {
+        vec2 o = vec2((k & 1) == 0 ? -0.5 : 0.5, (k & 2) == 0 ? -0.5 : 0.5);
         // stay inside this tile so taps never read a neighbouring face
         vec2 t = clamp(uv + o * texel, vec2(texel), vec2(1.0 - texel));
         vec2 a = (vec2(float(face), float(light)) + t) / u_shadow_atlas_tiles;
-        sum += w * textureLod(u_shadow_atlas, vec3(a, depth), 0.0);  // explicit LOD: no derivatives needed
+        sum += textureLod(u_shadow_atlas, vec3(a, depth), 0.0);  // explicit LOD: no derivatives needed
     }
-    return sum / 16.0;
+    return 0.25 * sum;
 }
 
 // Visibility of light `light` from world point p with geometric normal ng.
@@ -44,15 +43,21 @@ float shadow_lookup(int light, int face, vec3 p) {
 // grazing light), so a surface never shadows itself (acne) while contact shadows stay attached
 // (no peter-panning, which a large constant depth bias would cause).
 uniform float u_shadow_texel_world[MAX_LIGHTS];  // directional: world size of one texel
+// point: the width of each face's tile in tan units (2: the whole face; it is cropped to the part
+// the casters cover, viewer/gl/shadow.py; 0: no caster in that face)
+uniform float u_shadow_face_tan[MAX_LIGHTS * 6];
 
 float shadow_visibility(int light, bool point_light, vec3 light_pos, vec3 p, vec3 ng, float ndotl) {
     if (u_shadows_on == 0) return 1.0;
     float slope = 1.0 + 2.0 * (1.0 - clamp(ndotl, 0.0, 1.0));
     if (point_light) {
-        // a 90-degree face spans 2 * dist world units over the tile at distance dist
-        float texel_world = 2.0 * length(p - light_pos) / u_shadow_tile_size;
+        // a face's tile spans face_tan * dist world units at distance dist (2 dist uncropped)
+        float face_tan = u_shadow_face_tan[light * 6 + cube_face(p - light_pos)];
+        float texel_world = max(face_tan, 0.05) * length(p - light_pos) / u_shadow_tile_size;
         vec3 q = p + ng * texel_world * slope;
-        return shadow_lookup(light, cube_face(q - light_pos), q);
+        int face = cube_face(q - light_pos);
+        if (u_shadow_face_tan[light * 6 + face] <= 0.0) return 1.0;  // no caster in that face
+        return shadow_lookup(light, face, q);
     }
     vec3 q = p + ng * u_shadow_texel_world[light] * slope;
     return shadow_lookup(light, 0, q);

@@ -1,6 +1,7 @@
 """The shadow pass: one depth atlas for the first MAX_LIGHTS lights (shaders/common/shadow.glsl).
 Light i owns row i of the atlas: a point light six perspective tiles (one per cube face, a little
-wider than 90 degrees), a directional light one orthographic tile over the scene's bounds. The
+wider than 90 degrees, each cropped to the part of its face the casters cover), a directional
+light one orthographic tile over the scene's bounds. The
 atlas is rendered again only when a light or an object moves."""
 
 from __future__ import annotations
@@ -26,6 +27,52 @@ def shadow_lights(scene):
     return scene.lights[:MAX_LIGHTS]
 
 
+def _caster_corners(scene) -> np.ndarray:
+    """(8 k, 3) corners of the world boxes of the objects that can shadow anything: every object
+    but a plane with nothing below it (a floor: it shadows no object, and its box would cover a
+    point light's whole view)."""
+    boxes = []
+    for o in scene.objects:
+        if o.mesh_data is None:
+            continue
+        pts = o.world_positions()
+        if len(pts):
+            boxes.append((o, pts.min(axis=0), pts.max(axis=0)))
+    out = []
+    for o, lo, hi in boxes:
+        flat = hi[1] - lo[1] <= 1e-9 * max(1.0, float(np.max(hi - lo)))
+        if flat and not any(b[1][1] < lo[1] - 1e-9 for b in boxes if b[0] is not o):
+            continue
+        out.extend([lo[0] if i & 1 else hi[0], lo[1] if i & 2 else hi[1], lo[2] if i & 4 else hi[2]]
+                   for i in range(8))
+    return np.asarray(out, float).reshape(-1, 3)
+
+
+def _crop(view_proj, corners, S) -> tuple[np.ndarray, float]:
+    """The crop matrix that fits a cube face's tile to the part of the face the casters cover
+    (their boxes' projected corners, with a margin of 6 texels for the PCF kernel), and the
+    cropped width in the face's NDC (2: the whole face; 0: no caster in the face, nothing to
+    draw or look up). A corner behind the light's plane of the face: the whole face."""
+    if not len(corners):
+        return np.eye(4), 0.0
+    c = np.c_[corners, np.ones(len(corners))] @ view_proj.T
+    if np.any(c[:, 3] <= 1e-9):
+        return np.eye(4), 2.0
+    ndc = c[:, :2] / c[:, 3:4]
+    lo = np.maximum(ndc.min(axis=0), -1.0)
+    hi = np.minimum(ndc.max(axis=0), 1.0)
+    if np.any(hi <= lo):
+        return np.eye(4), 0.0
+    size = float(np.max(hi - lo))  # square texels: one scale for both axes
+    size = min(2.0, size * (1.0 + 12.0 / S) + 1e-6)
+    mid = 0.5 * (lo + hi)
+    scale = 2.0 / size
+    crop = np.eye(4)
+    crop[0, 0] = crop[1, 1] = scale
+    crop[0, 3], crop[1, 3] = -mid * scale
+    return crop, size
+
+
 class ShadowMaps:
     def __init__(self, ctx):
         self.ctx = ctx
@@ -33,6 +80,7 @@ class ShadowMaps:
         self._key = None
         self._mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
         self._texel = np.zeros(MAX_LIGHTS)
+        self._face_tan = np.zeros(MAX_LIGHTS * 6)
 
     def update(self, scene, prog, draw):
         """Render the atlas with the shadow program ``prog`` unless the lights and objects are
@@ -76,6 +124,8 @@ class ShadowMaps:
         light's texel, into ``_texel``)."""
         S = SHADOW_TILE
         lo, hi = scene.bounds()
+        corners = _caster_corners(scene)
+        self._face_tan[:] = 0.0
         center = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
         mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
@@ -85,10 +135,14 @@ class ShadowMaps:
                 far = float(np.linalg.norm(p - center)) + radius * 1.1
                 near = max(far * 1e-3, 1e-3)
                 # a little wider than 90 degrees: 3 texels of margin per side for the PCF kernel
-                fov = 2.0 * math.degrees(math.atan(S / (S - 6.0)))
+                t = S / (S - 6.0)
+                fov = 2.0 * math.degrees(math.atan(t))
                 proj = perspective(fov, 1.0, near, far)
                 for f, (fwd, up) in enumerate(_FACES):
-                    mats[i * 6 + f] = proj @ look_at(p, p + np.array(fwd, float), up)
+                    view_proj = proj @ look_at(p, p + np.array(fwd, float), up)
+                    crop, width = _crop(view_proj, corners, S)
+                    mats[i * 6 + f] = crop @ view_proj
+                    self._face_tan[i * 6 + f] = width * t  # the tile's width in tan units (0: empty)
             else:
                 d = np.asarray(light.direction, float)
                 d = d / np.linalg.norm(d)
@@ -107,6 +161,7 @@ class ShadowMaps:
             "u_shadow_atlas_tiles": (6.0, float(self._atlas["rows"])),
             "u_shadow_tile_size": float(SHADOW_TILE),
             "u_shadow_texel_world": self._texel.astype("f4").tobytes(),
+            "u_shadow_face_tan": self._face_tan.astype("f4").tobytes(),
         }
 
     def release(self):
