@@ -242,9 +242,32 @@ def _custom_glue(name: str) -> list[str]:
             "    if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }",
             "    return custom_eval(p, wi, wo) * wi.z / pdf;",
             "}", ""]
+    if bfile.has_sampler:
+        # the file's own sampler (its isFunc), where no MIS weight needs the pdf of a direction it
+        # did not draw (FILE_SAMPLERS: the GPU engine with BSDF or light sampling alone, or with
+        # no environment): its direction and pdf, the weight f cos / pdf from the file's BRDF
+        from viewer.brdf.brdffile import sampler_takes_view
+
+        view = "wo, " if sampler_takes_view(bfile) else ""
+        i = lines.index("vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {")
+        lines[i:i + 1] = [
+            "#ifdef FILE_SAMPLERS",
+            "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
+            f"    {sets}",
+            "    wi = vec3(0.0, 0.0, 1.0);",
+            "    pdf = 0.0;",
+            f"    bxf_sampleBRDF({view}u.x, u.y, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0), wi, pdf);",
+            "    if (!(pdf > 0.0) || !(wi.z > 0.0) || wo.z <= 0.0) { pdf = 0.0; return vec3(0.0); }",
+            "    return custom_eval(p, wi, wo) * wi.z / pdf;",
+            "}",
+            "vec3 custom_sample_generic(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
+            "#else",
+            "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
+            "#endif"]
     # the slot's names: custom<k>_... and CUSTOM<k>_T / _N, the file's globals with its prefix
     return lines[:1] + [re.sub(r"\bcustom_", f"{c}_", re.sub(r"\bCUSTOM_([TN])\b", f"{c.upper()}_\\1", x))
-                        .replace("bxf_BRDF(", f"{prefix}BRDF(") for x in lines[1:]]
+                        .replace("bxf_BRDF(", f"{prefix}BRDF(").replace("bxf_sampleBRDF(", f"{prefix}sampleBRDF(")
+                        for x in lines[1:]]
 
 
 def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):

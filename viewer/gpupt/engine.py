@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from viewer import ViewerError
+from viewer import ViewerError, brdf
 from viewer.gl.brdf_glsl import custom_virtual, generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
 from viewer.gl.scene_textures import SceneTextures, float_texture
@@ -216,6 +216,11 @@ class GpuReferenceRenderer:
             defines["BALANCE_HEURISTIC"] = "1"
         if not s.russian_roulette:
             defines["NO_ROULETTE"] = "1"
+        if (s.strategy != "mis" or self.env_mode == ENV_MODES["black"]) and any(
+                m.params.model == "custom" and brdf.get("custom").of(m.params).bfile.has_sampler for m in s.materials):
+            # a .brdf file's own sampler (isFunc) draws its directions where no MIS weight needs
+            # the pdf of a direction it did not draw (which sampleBRDF does not give)
+            defines["FILE_SAMPLERS"] = "1"
         if self.is_spectral:
             defines["SPECTRAL"] = "1"
         return models, tuple(sorted(defines.items()))
