@@ -186,17 +186,14 @@ class CompileAhead:
 
     def stop(self, timeout: float = 10.0) -> None:
         """End the child (a request half done is simply not answered)."""
+        from viewer.app.prefetch import stop_child
+
         if self._proc is not None and self._proc.poll() is None:
             try:
                 self._proc.stdin.close()
             except OSError:
                 pass
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
+        stop_child(self._proc, timeout)
         self.error = self.error or "stopped"
 
 

@@ -109,13 +109,18 @@ class Prefetch:
 
     def stop(self, timeout: float = 10.0) -> None:
         """End the child process (a map half prefiltered is simply not cached)."""
-        if self._proc is not None and self._proc.poll() is None:
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
+        stop_child(self._proc, timeout)
+
+
+def stop_child(proc, timeout: float = 10.0) -> None:
+    """Terminate a child process still running (None: none), killing it after ``timeout`` s."""
+    if proc is not None and proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def main(argv=None) -> int:
