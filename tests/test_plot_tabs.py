@@ -118,7 +118,9 @@ app.side_panel.draw = lambda *a: (draw(*a), panel.draw(materials, state["rect"])
 for scale in (1.0, 1.5, 2.0):
     app.set_ui_scale(scale)
     state["rect"] = window_layout(1600, 900, scale, lecture=True, plots=True)["plots"]
-    for solo in (None, "lambert", "glass", "soap", "sf11"):
+    # every material alone at the projector's 1.5; all of them and the soap film's long labels at
+    # 1 and 2 (a label's room scales with the UI: the extremes clip first, whatever the material)
+    for solo in ((None, "lambert", "glass", "soap", "sf11") if scale == 1.5 else (None, "soap")):
         panel.solo = solo
         for tab in TABS:
             panel.select_tab(tab)
@@ -144,8 +146,8 @@ print("TABS OK")
 
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
 def test_docked_tabs_fit_at_every_ui_scale(display):
-    """Docked beside the lecture's view at UI 1, 1.5 and 2, for each material alone and all of
-    them: no label wider than its room, the polar plot at equal aspect (pixels per unit along x
+    """Docked beside the lecture's view at UI 1, 1.5 and 2, for all materials and each alone (at
+    1.5; at 1 and 2 all of them and the soap film alone): no label wider than its room, the polar plot at equal aspect (pixels per unit along x
     over y from implot's transform, within 1 %: a Lambert lobe is a circle), and the states of
     the tabs named above."""
     r = run_py(GUI, display, timeout=600)
