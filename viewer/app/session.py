@@ -419,10 +419,19 @@ class Session(FileActions):
 
         from viewer.app.compile_ahead import params_key
 
+        from viewer.gl.renderer import frame_switches
+
         keys = self.renderer.forward_keys(self.scene, raytrace=rt_now)
         progs = self.renderer.programs
         tables = self.renderer.tables
-        missing = [n for n, k in keys.items() if k not in progs or not tables.ready(self.scene.materials[n])]
+        ssr_on, env_on = frame_switches(self.scene, rt_now)[:2]
+        ms_scene = bool(self.scene.render.ms_compensation)
+
+        def needs_tables(p):  # as Renderer._environment builds them: for IBL, SSR and compensation
+            return ssr_on or env_on or ms_scene or bool(p.get("multiple_scattering", False))
+
+        missing = [n for n, k in keys.items() if k not in progs
+                   or (needs_tables(self.scene.materials[n]) and not tables.ready(self.scene.materials[n]))]
         if not missing:
             self.pending = []
             return None

@@ -615,10 +615,11 @@ class Renderer:
             if not traced and thin_shell(params):
                 shells += [o for _, o in group]
                 continue
-            custom_fis = params.model == "custom" and f.env_on and scene.render.ibl == "split_sum"
+            args = forward_args(scene, params, f.ssr_on, f.env_on, f.env_map is None, rt is not None)
+            # sampled in split_sum mode: a file BRDF's environment light (forward_args)
+            custom_fis = args["ibl_sampled"] and scene.render.ibl == "split_sum"
             try:
-                prog = self.forward_program(params, **forward_args(scene, params, f.ssr_on, f.env_on, f.env_map is None,
-                                                                   rt is not None))
+                prog = self.forward_program(params, **args)
             except ShaderError:
                 if not self.hot_reload:
                     raise
