@@ -29,6 +29,9 @@ def window_env(display: str) -> dict:
     # no compile-ahead child beside each test window (its preset warm-up would load the two
     # cores for minutes); tests/test_compile_ahead.py runs it
     env.setdefault("BRDF_VIEWER_COMPILE_AHEAD", "0")
+    # every still frame whole: a test reads the frame a change drew (tests/test_tiled_frames.py
+    # tiles them)
+    env.setdefault("BRDF_VIEWER_TILED_FRAMES", "0")
     env.pop("WAYLAND_DISPLAY", None)
     return env
 

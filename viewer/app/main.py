@@ -25,6 +25,8 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 # "0" turns the compile-ahead child off (viewer/app/compile_ahead.py): programs then compile on
 # the window's thread, as with --no-compile-ahead
 COMPILE_AHEAD_ENV = "BRDF_VIEWER_COMPILE_AHEAD"
+# "0" draws every still frame whole, however long it takes (Session's tiled_frames off)
+TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
@@ -95,7 +97,9 @@ class App:
         self._load_font()
         if compile_ahead is None:  # on unless the environment turns it off (the window tests do)
             compile_ahead = os.environ.get(COMPILE_AHEAD_ENV, "1") != "0"
-        self.session = Session(self.ctx, scene_ref, scene=scene, state=state, compile_ahead=compile_ahead)
+        tiled = os.environ.get(TILED_FRAMES_ENV, "1") != "0"
+        self.session = Session(self.ctx, scene_ref, scene=scene, state=state, compile_ahead=compile_ahead,
+                               tiled_frames=tiled)
         self.session.step_listeners.append(self._on_step)
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)

@@ -23,6 +23,10 @@ from viewer.app.file_actions import FileActions
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
 PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view is still)
+# tiled frames: a still view whose whole frame took longer than this is drawn at half resolution
+# first, then in tiles of about this much time per frame (the window then answers input within a
+# frame's budget on software OpenGL, where one frame at 1280 x 720 with MSAA takes 0.3 s)
+TILE_BUDGET_S = 0.07
 
 # the plot tab each lecture step's ``plot`` names
 STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
@@ -48,10 +52,14 @@ class Session(FileActions):
     whose compare mode, divider and view mode are restored. ``prefetch``: prefilter the lecture's
     environment maps in a background process when lecture mode starts. ``compile_ahead``:
     compile a changed material's programs in a background process (viewer/app/compile_ahead.py)
-    and keep drawing it as it was meanwhile; the scene's presets compile ahead while idle."""
+    and keep drawing it as it was meanwhile; the scene's presets compile ahead while idle.
+    ``tiled_frames``: a still view whose whole frame takes longer than ``TILE_BUDGET_S`` is
+    drawn at half resolution first, then at full quality in tiles over the next frames
+    (``quality`` "refining" meanwhile)."""
 
     def __init__(self, ctx, scene_ref=None, overrides=(), *, scene=None, renderer=None,
-                 state: dict | None = None, prefetch: bool = True, compile_ahead: bool = False):
+                 state: dict | None = None, prefetch: bool = True, compile_ahead: bool = False,
+                 tiled_frames: bool = False):
         from viewer import brdf
         from viewer.app.compare_view import MODES, CompareView
         from viewer.app.monte_carlo import MonteCarloPanel
@@ -105,6 +113,9 @@ class Session(FileActions):
         self._nonfinite_said = None
         self._extents_for = None
         self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
+        self._tiles_on = tiled_frames
+        self._tiles = None         # the still raster frame drawn in tiles (a ProgressiveTrace, traced=False)
+        self._whole_s = None       # ((w, h), seconds): what the last whole full-quality frame cost
         self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
         self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
@@ -139,9 +150,10 @@ class Session(FileActions):
         if self._bf_tex is not None:
             self._bf_tex.release()
             self._bf_tex = None
-        if self._trace is not None:
-            self._trace.release()
-            self._trace = None
+        for t in (self._trace, self._tiles):
+            if t is not None:
+                t.release()
+        self._trace = self._tiles = None
         if self.prep is not None:
             self.prep.cancel()
         if self._shown is not None:
@@ -157,7 +169,12 @@ class Session(FileActions):
         """Frames should follow without waiting for input (brute-force IBL still averaging, or
         the traced chains still refining)."""
         return ((self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
-                or self.preparing)
+                or self.preparing or self.tiling)
+
+    @property
+    def tiling(self) -> bool:
+        """The still view's raster frame is being drawn in tiles (``tiled_frames``)."""
+        return self._tiles is not None and self._tiles.active and not self._tiles.done
 
     @property
     def trace(self):
@@ -178,6 +195,8 @@ class Session(FileActions):
     @property
     def trace_status(self) -> str:
         """What the view says while the traced image refines ("" otherwise)."""
+        if self.tiling:
+            return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest as it was)"
         if not self.tracing:
             return self.prep.progress_text() if self.preparing else ""
         t = self._trace
@@ -205,8 +224,8 @@ class Session(FileActions):
         scale = 0.5 if interacting else 1.0
         rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
         want_full = not interacting and self.quality == "preview"
-        progressive = (self.tracing or (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) \
-            and not interacting
+        progressive = (self.tracing or self.tiling
+                       or (self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) and not interacting
         stale = self.hdr is None or self._hdr_for != (rw_full, rh_full)
         if self._awaiting is not None and self.compile_ahead.answered(self._awaiting):
             self._awaiting = None
@@ -226,23 +245,29 @@ class Session(FileActions):
         try:
             if held is KEEP_IMAGE:
                 quality = self.quality
-            elif held is not None:  # a changed material's programs compile beside: draw it as it was
-                if self._trace is not None:
-                    self._trace.cancel()
-                self.hdr = self.renderer.render(held, self.camera, rw, rh, self.view_mode,
-                                                msaa=0 if interacting else None, raytrace=False if traced else None)
-                # not "preview" when still: that would draw it again each frame until the
-                # answer comes, which marks the view dirty by itself
-            elif traced and not interacting:  # still: the untraced view, then the traced one in strips
+            elif traced and not interacting and held is None:  # still: untraced, then traced in strips
                 quality = self._trace_step(rw, rh, restart)
             else:
                 if self._trace is not None:
                     self._trace.cancel()
-                self.hdr = self.renderer.render(self.scene, self.camera, rw, rh, self.view_mode,
-                                                msaa=0 if interacting else None, frame_index=self.bf_count,
-                                                raytrace=False if traced else None)
-                if self.scene.render.ibl == "brute_force" and not interacting:
-                    self.hdr = self._accumulate(self.hdr)
+                # held: a changed material's programs compile beside, so it is drawn as it was
+                # (not "preview" when still: that would draw it again each frame until the
+                # answer comes, which marks the view dirty by itself)
+                drawn = self.scene if held is None else held
+                if not interacting and self._tiled(drawn, rw, rh):
+                    quality = self._tile_step(drawn, rw, rh, restart)
+                else:
+                    if self._tiles is not None:
+                        self._tiles.cancel()
+                    t2 = time.perf_counter()
+                    self.hdr = self.renderer.render(drawn, self.camera, rw, rh, self.view_mode,
+                                                    msaa=0 if interacting else None, frame_index=self.bf_count,
+                                                    raytrace=False if traced else None)
+                    if drawn.render.ibl == "brute_force" and not interacting:
+                        self.hdr = self._accumulate(self.hdr)
+                    elif not interacting:
+                        self.ctx.finish()
+                        self._whole_s = ((rw, rh), time.perf_counter() - t2)
             if held is None:  # what a held frame may show of these materials while others compile
                 self._drawn_materials = (self.scene, dict(self.scene.materials))
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
@@ -259,6 +284,43 @@ class Session(FileActions):
             self._step_shown()
         if self.preparing and not interacting and not self.tracing:
             self._prepare_step()
+
+    def _tiled(self, scene, w, h) -> bool:
+        """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
+        whole frame (or tiled one) at this size over ``TILE_BUDGET_S``, a frame that tiles (not
+        SSR, whose pass reads the whole frame, nor brute-force IBL, which averages whole frames)."""
+        if not self._tiles_on or scene.render.ssr or scene.render.ibl == "brute_force":
+            return False
+        if self.tiling:
+            return True
+        return self._whole_s is not None and self._whole_s[0] == (w, h) and self._whole_s[1] > TILE_BUDGET_S
+
+    def _tile_step(self, scene, w, h, restart: bool) -> str:
+        """The tiled raster frame: (re)start it, or draw its next tiles; "refining" until it is
+        whole. Meanwhile the view shows what it showed (materials edited in the same scene at
+        the same size: the new look replaces the old from the top) or its preview (the
+        half-resolution frame just drawn while the view moved, else one drawn now)."""
+        from viewer.gl.raytrace import ProgressiveTrace
+
+        if self._tiles is None:
+            self._tiles = ProgressiveTrace(self.ctx)
+        t = self._tiles
+        if restart or not t.active:
+            under = None
+            same = self._drawn_materials is not None and self._drawn_materials[0] is self.scene
+            if self.hdr is not None and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
+                under = np.frombuffer(self.hdr.read(), np.float32).reshape(self.hdr.height, self.hdr.width, 4)
+            # the first tile: a 32nd of the view (the cost per pixel of a changed material is
+            # not known yet); the next follow the time of the last
+            self.hdr = t.start(self.renderer, scene, self.camera, w, h, self.view_mode, traced=False,
+                               under=under, rows=max(4, h // 32), max_pixels=w * h)
+            if under is None:  # this frame drew the preview
+                return "refining"
+        self.hdr = t.step(TILE_BUDGET_S)
+        if not t.done:
+            return "refining"
+        self._whole_s = ((w, h), t.trace_s)
+        return "full"
 
     def _trace_step(self, w, h, restart: bool) -> str:
         """The progressive trace: (re)start it with the untraced view, or trace its next strip;

@@ -239,7 +239,15 @@ class ProgressiveTrace:
     pixel replaced by its traced value (float32 texels, pixels are independent): the same image
     whether traced in tiles, in one piece, or read from the traced-frame cache
     (``viewer.gl.trace_cache``, when ``start(cache=True)``: then no frame is rendered at all),
-    which a finished trace fills (``store=True``)."""
+    which a finished trace fills (``store=True``).
+
+    ``start(traced=False)`` builds a raster frame the same way, for a view whose whole frame
+    takes longer than a frame's budget (the window after a change, on software OpenGL): the
+    texture first holds an image given for the meantime (the view as it was before the change)
+    or the view at half resolution without MSAA (each pixel standing for its 2 x 2), then every
+    pixel is drawn in tiles from the top with the view's MSAA and no traced chains. Once
+    ``done`` it holds exactly the whole frame ``Renderer.render(raytrace=False)`` draws: the
+    tiles are scissors of it."""
 
     def __init__(self, ctx):
         self.ctx = ctx
@@ -265,6 +273,8 @@ class ProgressiveTrace:
         self.cache_message = ""  # why an entry was set aside ("" when none was)
         self.stored = None       # the cache entry a finished trace wrote, or None
         self._store = False
+        self._tile_args = {"msaa": 0, "raytrace": None}  # how a tile is drawn
+        self._worst_px = None    # a raster frame's highest cost per pixel so far (None: a trace)
 
     @property
     def active(self) -> bool:
@@ -294,12 +304,16 @@ class ProgressiveTrace:
         return self.texture
 
     def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0,
-              coarse: bool = True, cache: bool = False, store: bool = False, max_pixels: int = STRIP_PIXELS):
+              coarse: bool = True, cache: bool = False, store: bool = False, max_pixels: int = STRIP_PIXELS,
+              traced: bool = True, under=None):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
         ``rows``: the first tile's height (default 2: the cost per pixel is not known yet);
         ``coarse``: a half-resolution pass first; ``cache``: open from the traced-frame cache
         when it holds this view (then ``done`` at once); ``store``: write the finished trace
-        there; ``max_pixels``: the largest tile."""
+        there; ``max_pixels``: the largest tile. ``traced=False``: the raster frame in tiles
+        (see the class), over ``under`` when given (an (h, w, 4) float32 image, or the view at
+        half resolution, texture row order) or over the half-resolution view drawn here;
+        ``coarse``, ``cache`` and ``store`` do not apply."""
         import time
 
         from viewer.gl import trace_cache
@@ -313,8 +327,12 @@ class ProgressiveTrace:
         self.pixels = min(self.max_pixels, max(1, int(rows) if rows else 2) * w)
         self.from_cache, self.cache_message, self.stored = False, "", None
         self.cache_key = None
-        self._store = bool(store)
+        self._store = bool(store) and traced
         self._passes = []
+        if not traced:
+            return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under)
+        self._tile_args = {"msaa": 0, "raytrace": None}
+        self._worst_px = None
         if cache or store:
             self.cache_key = trace_cache.frame_key(scene, camera, w, h, view_mode, msaa,
                                                    renderer.ctx.info.get("GL_RENDERER", ""))
@@ -340,6 +358,25 @@ class ProgressiveTrace:
         self.overhead_s = None
         self._maybe_finish()
         return tex
+
+    def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under):
+        """``start(traced=False)``: the meantime's image in the texture, every pixel to draw."""
+        w2, h2 = (w + 1) // 2, (h + 1) // 2
+        if under is None or under.shape[:2] not in ((h, w), (h2, w2)):
+            hdr = renderer.render(scene, camera, w2, h2, view_mode, msaa=0, raytrace=False)
+            under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
+                                  np.float32).reshape(h2, w2, 4)
+        if under.shape[:2] != (h, w):
+            under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]
+        self.base = np.array(under, np.float32, order="C")
+        self.texture.write(self.base)
+        self.mask = np.ones((h, w), bool)
+        self._tile_args = {"msaa": msaa, "raytrace": False}
+        self._worst_px = 0.0
+        self._passes = [_Pass(w, h, self.mask, 1)]
+        self.total_px = self._passes[0].total
+        self.overhead_s = None
+        return self.texture
 
     def step(self, budget_s: float = 0.15):
         """Trace tiles into the texture (returned) until about ``budget_s`` is spent (at least
@@ -374,7 +411,7 @@ class ProgressiveTrace:
         tile = p.next_tile(self.pixels)
         x, y, tw, th = tile
         t0 = time.perf_counter()
-        hdr = renderer.render(scene, camera, p.w, p.h, view_mode, msaa=0, region=tile)
+        hdr = renderer.render(scene, camera, p.w, p.h, view_mode, region=tile, **self._tile_args)
         data = renderer.resolved_framebuffer(hdr).read(viewport=tile, components=4, dtype="f4")
         traced = np.frombuffer(data, np.float32).reshape(th, tw, 4)
         s = p.scale
@@ -402,6 +439,12 @@ class ProgressiveTrace:
         self.overhead_s = dt if self.overhead_s is None else min(self.overhead_s, dt)
         per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
         target = max(budget_s, 3.0 * self.overhead_s)
+        if self._worst_px is not None:
+            # a raster frame: tiles of a third of the budget at the highest cost per pixel seen
+            # (the cost jumps several times over where the view reaches an object from the
+            # floor above it; a tile that overruns by that much is still within the frame)
+            self._worst_px = max(self._worst_px, per_px)
+            per_px, target = self._worst_px, max(budget_s / 3.0, 3.0 * self.overhead_s)
         want = int((target - 0.9 * self.overhead_s) / per_px)
         self.pixels = max(16, min(int(1.5 * n) + 16, want, self.max_pixels))
         return dt, n
@@ -409,7 +452,7 @@ class ProgressiveTrace:
     def _predict(self, pixels, dt, n) -> float:
         """The predicted time of a tile of ``pixels`` after one of ``n`` took ``dt``."""
         o = 0.9 * (self.overhead_s or 0.0)
-        return o + pixels * max(dt - o, 1e-9) / n
+        return o + pixels * max(max(dt - o, 1e-9) / n, self._worst_px or 0.0)
 
     def _maybe_finish(self):
         """Once done: the true elapsed time, and the cache entry when asked for."""

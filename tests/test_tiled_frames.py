@@ -1,0 +1,136 @@
+"""Tiled frames: a still view whose whole frame takes longer than a frame's budget is drawn over
+several frames, in tiles, over the view as it was (or its half-resolution preview), and ends
+exactly as the whole frame. The budget is set to 0 here so that every frame tiles whatever this
+machine's speed; the cost the window meets is benchmarks/preset_switch.py's."""
+
+import numpy as np
+import pytest
+
+from viewer.scene import material_from_name
+
+SIZE = (120, 80)
+
+
+def _whole(renderer, scene, camera, size):
+    return renderer.read_linear(renderer.render(scene, camera, size[0], size[1], raytrace=False)).copy()
+
+
+def test_a_raster_frame_in_tiles_is_the_whole_frame_and_shows_the_meantime_until_then(gl_ctx, renderer):
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.scene import load_scene
+
+    scene = load_scene("default")
+    w, h = SIZE
+    whole = _whole(renderer, scene, None, SIZE)
+    under = np.full((h, w, 4), 7.0, np.float32)  # a value no pixel of the view has
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        pt.start(renderer, scene, None, w, h, traced=False, under=under, rows=4, max_pixels=w * 8)
+        assert not pt.done
+        assert np.array_equal(pt.image(), under[::-1, :, :3])  # the meantime, before any tile
+        pt.step(0.0)  # one tile (a step draws at least one)
+        img = pt.image()
+        drawn = np.all(img != 7.0, axis=2)
+        assert 0 < drawn.mean() < 1
+        assert drawn[0].all() and not drawn[-1].any()  # from the top
+        assert np.array_equal(img[drawn], whole[drawn])
+        while not pt.done:
+            pt.step(0.0)
+        assert pt.steps > 2
+        # the tiles are scissors of the whole frame (MSAA 4 included): the same texels
+        assert np.array_equal(pt.image(), whole)
+        # without an image for the meantime: the half-resolution view, each pixel for its 2 x 2
+        pt.start(renderer, scene, None, w, h, traced=False)
+        preview = renderer.read_linear(renderer.render(scene, None, w // 2, h // 2, msaa=0, raytrace=False))
+        assert np.array_equal(pt.image()[::2, ::2], preview)
+        assert np.array_equal(pt.image()[1::2, 1::2], preview)
+        pt.finish()
+        assert np.array_equal(pt.image(), whole)
+    finally:
+        pt.release()
+
+
+@pytest.fixture
+def tiled(monkeypatch):
+    import viewer.app.session as session
+
+    monkeypatch.setattr(session, "TILE_BUDGET_S", 0.0)  # every frame is over the budget
+    return session
+
+
+def test_a_change_is_drawn_over_the_old_view_in_tiles_then_whole(gl_ctx, renderer, tiled):
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
+    try:
+        s.render_view(SIZE)  # the first frame: whole (no cost known yet)
+        assert s.quality == "full" and not s.tiling
+        before = renderer.read_linear(s.hdr).copy()
+        s.set_material("ball", material_from_name("gold"))
+        s.render_view(SIZE)
+        assert s.quality == "refining" and s.tiling and s.refining
+        first = renderer.read_linear(s.hdr).copy()
+        # tiles from the top; below them the view as it was (same scene, same size), not a
+        # preview: the bottom row is the old frame's, texel for texel
+        assert np.array_equal(first[-1], before[-1])
+        frames = 1
+        while s.quality != "full":
+            s.render_view(SIZE)
+            frames += 1
+            assert frames < 500
+        assert frames > 2 and not s.tiling
+        final = renderer.read_linear(s.hdr)
+        assert not np.array_equal(final, before)  # gold, not the terracotta
+        assert np.array_equal(final, _whole(renderer, s.scene, s.camera, SIZE))
+        # nothing changed: no frame is drawn again
+        version = s.raster_version
+        s.render_view(SIZE)
+        assert s.raster_version == version
+    finally:
+        s.release()
+
+
+def test_a_drag_stops_the_tiles_and_its_end_tiles_over_the_preview(gl_ctx, renderer, tiled):
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
+    try:
+        s.render_view(SIZE)
+        s.set_material("ball", material_from_name("copper"))
+        s.render_view(SIZE)
+        assert s.tiling
+        s.camera.orbit(20.0, 0.0, SIZE[1])
+        s.dirty = True
+        s.render_view(SIZE, interacting=True)
+        assert s.quality == "preview" and not s.tiling
+        s.render_view(SIZE)  # the drag paused: tiles over the preview just shown
+        assert s.quality == "refining"
+        while s.quality != "full":
+            s.render_view(SIZE)
+        assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
+    finally:
+        s.release()
+
+
+def test_frames_that_read_the_whole_frame_or_average_frames_are_never_tiled(gl_ctx, renderer, tiled):
+    from viewer.scene import load_scene
+
+    for name, setting in (("ssr", ("ssr", True)), ("brute force", ("ibl", "brute_force"))):
+        scene = load_scene("default")
+        setattr(scene.render, *setting)
+        s = tiled.Session(gl_ctx, scene=scene, renderer=renderer, prefetch=False, tiled_frames=True)
+        try:
+            s.render_view(SIZE)
+            s.set_material("ball", material_from_name("gold"))
+            s.render_view(SIZE)
+            assert not s.tiling, name
+        finally:
+            s.release()
+
+
+def test_without_tiled_frames_a_change_is_drawn_whole_at_once(gl_ctx, renderer, tiled):
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    try:
+        s.render_view(SIZE)
+        s.set_material("ball", material_from_name("gold"))
+        s.render_view(SIZE)
+        assert s.quality == "full" and not s.tiling
+        assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
+    finally:
+        s.release()
