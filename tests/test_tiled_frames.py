@@ -104,6 +104,15 @@ def test_a_drag_stops_the_tiles_and_its_end_tiles_over_the_preview(gl_ctx, rende
         while s.quality != "full":
             s.render_view(SIZE)
         assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
+        # the camera reset (no drag): not the old view under the tiles, a preview of the new one
+        s.camera.reset()
+        s.dirty = True
+        s.render_view(SIZE)
+        assert s.quality == "refining"
+        shown = renderer.read_linear(s.hdr)
+        preview = renderer.read_linear(renderer.render(s.scene, s.camera, SIZE[0] // 2, SIZE[1] // 2, msaa=0,
+                                                       raytrace=False))
+        assert np.array_equal(shown[::2, ::2], preview)
     finally:
         s.release()
 

@@ -23,9 +23,10 @@ from viewer.app.file_actions import FileActions
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
 PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view is still)
-# tiled frames: a still view whose whole frame took longer than this is drawn at half resolution
-# first, then in tiles of about this much time per frame (the window then answers input within a
-# frame's budget on software OpenGL, where one frame at 1280 x 720 with MSAA takes 0.3 s)
+# tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
+# this much time per frame, over the view as it was or its half-resolution preview (the window
+# then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
+# with MSAA takes 0.3 s)
 TILE_BUDGET_S = 0.07
 
 # the plot tab each lecture step's ``plot`` names
@@ -54,7 +55,7 @@ class Session(FileActions):
     compile a changed material's programs in a background process (viewer/app/compile_ahead.py)
     and keep drawing it as it was meanwhile; the scene's presets compile ahead while idle.
     ``tiled_frames``: a still view whose whole frame takes longer than ``TILE_BUDGET_S`` is
-    drawn at half resolution first, then at full quality in tiles over the next frames
+    drawn in tiles over the next frames, over the view as it was or its half-resolution preview
     (``quality`` "refining" meanwhile)."""
 
     def __init__(self, ctx, scene_ref=None, overrides=(), *, scene=None, renderer=None,
@@ -116,6 +117,7 @@ class Session(FileActions):
         self._tiles_on = tiled_frames
         self._tiles = None         # the still raster frame drawn in tiles (a ProgressiveTrace, traced=False)
         self._whole_s = None       # ((w, h), seconds): what the last whole full-quality frame cost
+        self._drawn_view = None    # the camera and view mode of the frame shown (_view_key)
         self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
         self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
@@ -270,6 +272,8 @@ class Session(FileActions):
                         self._whole_s = ((rw, rh), time.perf_counter() - t2)
             if held is None:  # what a held frame may show of these materials while others compile
                 self._drawn_materials = (self.scene, dict(self.scene.materials))
+            if held is not KEEP_IMAGE:
+                self._drawn_view = self._view_key()
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
             self.notify(str(e), error=True)
         self.ctx.finish()
@@ -295,6 +299,9 @@ class Session(FileActions):
             return True
         return self._whole_s is not None and self._whole_s[0] == (w, h) and self._whole_s[1] > TILE_BUDGET_S
 
+    def _view_key(self):
+        return (self.view_mode, self.camera.fov_y, tuple(self.camera.position), tuple(self.camera.target))
+
     def _tile_step(self, scene, w, h, restart: bool) -> str:
         """The tiled raster frame: (re)start it, or draw its next tiles; "refining" until it is
         whole. Meanwhile the view shows what it showed (materials edited in the same scene at
@@ -307,7 +314,8 @@ class Session(FileActions):
         t = self._tiles
         if restart or not t.active:
             under = None
-            same = self._drawn_materials is not None and self._drawn_materials[0] is self.scene
+            same = (self._drawn_materials is not None and self._drawn_materials[0] is self.scene
+                    and self._drawn_view == self._view_key())  # the same scene seen the same way
             if self.hdr is not None and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
                 under = np.frombuffer(self.hdr.read(), np.float32).reshape(self.hdr.height, self.hdr.width, 4)
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
