@@ -317,7 +317,7 @@ class Session(FileActions):
             same = (self._drawn_materials is not None and self._drawn_materials[0] is self.scene
                     and self._drawn_view == self._view_key())  # the same scene seen the same way
             if self.hdr is not None and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
-                under = np.frombuffer(self.hdr.read(), np.float32).reshape(self.hdr.height, self.hdr.width, 4)
+                under = self.hdr  # read before any tile draws over the renderer's target
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last
             self.hdr = t.start(self.renderer, scene, self.camera, w, h, self.view_mode, traced=False,

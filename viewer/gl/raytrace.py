@@ -311,7 +311,7 @@ class ProgressiveTrace:
         ``coarse``: a half-resolution pass first; ``cache``: open from the traced-frame cache
         when it holds this view (then ``done`` at once); ``store``: write the finished trace
         there; ``max_pixels``: the largest tile. ``traced=False``: the raster frame in tiles
-        (see the class), over ``under`` when given (an (h, w, 4) float32 image, or the view at
+        (see the class), over ``under`` when given (an (h, w, 4) float32 image or a texture, or the view at
         half resolution, texture row order) or over the half-resolution view drawn here;
         ``coarse``, ``cache`` and ``store`` do not apply."""
         import time
@@ -360,16 +360,30 @@ class ProgressiveTrace:
         return tex
 
     def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under):
-        """``start(traced=False)``: the meantime's image in the texture, every pixel to draw."""
+        """``start(traced=False)``: the meantime's image in the texture, every pixel to draw.
+        ``under``: an array, or a texture (this one: kept as it is; another of the view's size:
+        copied on the GPU)."""
         w2, h2 = (w + 1) // 2, (h + 1) // 2
-        if under is None or under.shape[:2] not in ((h, w), (h2, w2)):
+        if under is not None and not isinstance(under, np.ndarray):  # a texture
+            if under is self.texture or tuple(under.size) == (w, h):
+                if under is not self.texture:
+                    fbo = self.ctx.framebuffer(color_attachments=[under])
+                    self.ctx.copy_framebuffer(self._fbo, fbo)
+                    fbo.release()
+                under = True  # in the texture now
+            else:
+                under = np.frombuffer(under.read(), np.float32).reshape(under.height, under.width, 4)
+        if isinstance(under, np.ndarray) and under.shape[:2] not in ((h, w), (h2, w2)):
+            under = None
+        if under is None:
             hdr = renderer.render(scene, camera, w2, h2, view_mode, msaa=0, raytrace=False)
             under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
                                   np.float32).reshape(h2, w2, 4)
-        if under.shape[:2] != (h, w):
-            under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]
-        self.base = np.array(under, np.float32, order="C")
-        self.texture.write(self.base)
+        if isinstance(under, np.ndarray):
+            if under.shape[:2] != (h, w):
+                under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]
+            self.texture.write(np.ascontiguousarray(under, np.float32))
+        self.base = None  # every pixel is a tile's
         self.mask = np.ones((h, w), bool)
         self._tile_args = {"msaa": msaa, "raytrace": False}
         self._worst_px = 0.0
@@ -421,7 +435,7 @@ class ProgressiveTrace:
         if s > 1:  # each half-resolution pixel stands for its 2 x 2 where both masks agree
             traced = np.repeat(np.repeat(traced, s, axis=0), s, axis=1)[:fh, :fw]
             sel = sel & np.repeat(np.repeat(p.mask[y:y + th, x:x + tw], s, axis=0), s, axis=1)[:fh, :fw]
-        out = np.where(sel[..., None], traced, self.base[fy:fy + fh, fx:fx + fw])
+        out = traced if self.base is None else np.where(sel[..., None], traced, self.base[fy:fy + fh, fx:fx + fw])
         self.texture.write(np.ascontiguousarray(out), viewport=(fx, fy, fw, fh))
         self.ctx.finish()
         dt = max(time.perf_counter() - t0, 1e-6)
