@@ -3,6 +3,8 @@ several frames, in tiles, over the view as it was (or its half-resolution previe
 exactly as the whole frame. The budget is set to 0 here so that every frame tiles whatever this
 machine's speed; the cost the window meets is benchmarks/preset_switch.py's."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,15 @@ def test_a_raster_frame_in_tiles_is_the_whole_frame_and_shows_the_meantime_until
         assert pt.steps > 2
         # the tiles are scissors of the whole frame (MSAA 4 included): the same texels
         assert np.array_equal(pt.image(), whole)
+        # the same view again, its tiles sized by the last frame's rows: the same texels
+        gold = dict(scene.materials, ball=material_from_name("gold"))
+        scene2 = dataclasses.replace(scene, materials=gold)
+        pt.start(renderer, scene2, None, w, h, traced=False, under=pt.texture, like_last=True, rows=4,
+                 max_pixels=w * 8)
+        assert np.array_equal(pt.image(), whole)  # the old frame stays until its tiles come
+        while not pt.done:
+            pt.step(0.0)
+        assert np.array_equal(pt.image(), _whole(renderer, scene2, None, SIZE))
         # without an image for the meantime: the half-resolution view, each pixel for its 2 x 2
         pt.start(renderer, scene, None, w, h, traced=False)
         preview = renderer.read_linear(renderer.render(scene, None, w // 2, h // 2, msaa=0, raytrace=False))

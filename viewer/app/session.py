@@ -321,7 +321,7 @@ class Session(FileActions):
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last
             self.hdr = t.start(self.renderer, scene, self.camera, w, h, self.view_mode, traced=False,
-                               under=under, rows=max(4, h // 32), max_pixels=w * h)
+                               under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h)
             if under is None:  # this frame drew the preview
                 return "refining"
         self.hdr = t.step(TILE_BUDGET_S)

@@ -275,6 +275,11 @@ class ProgressiveTrace:
         self._store = False
         self._tile_args = {"msaa": 0, "raytrace": None}  # how a tile is drawn
         self._worst_px = None    # a raster frame's highest cost per pixel so far (None: a trace)
+        self._rows_cost = None   # a raster frame's cost per pixel in each block of 4 rows (NaN: not drawn)
+        self._rows_prior = None  # the last raster frame's, for a view of the same size
+        self._scale = 1.0        # this frame's cost over the last one's, on its last tile
+        self._next_s = 0.0       # a raster frame's predicted time of its next tile
+        self._raster_w = 0
 
     @property
     def active(self) -> bool:
@@ -305,7 +310,7 @@ class ProgressiveTrace:
 
     def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0,
               coarse: bool = True, cache: bool = False, store: bool = False, max_pixels: int = STRIP_PIXELS,
-              traced: bool = True, under=None):
+              traced: bool = True, under=None, like_last: bool = False):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
         ``rows``: the first tile's height (default 2: the cost per pixel is not known yet);
         ``coarse``: a half-resolution pass first; ``cache``: open from the traced-frame cache
@@ -313,7 +318,9 @@ class ProgressiveTrace:
         there; ``max_pixels``: the largest tile. ``traced=False``: the raster frame in tiles
         (see the class), over ``under`` when given (an (h, w, 4) float32 image or a texture, or the view at
         half resolution, texture row order) or over the half-resolution view drawn here;
-        ``coarse``, ``cache`` and ``store`` do not apply."""
+        ``like_last``: the same scene seen as the last raster frame, with materials or lights
+        edited (its tiles are sized by the cost of the last one's rows); ``coarse``, ``cache``
+        and ``store`` do not apply."""
         import time
 
         from viewer.gl import trace_cache
@@ -330,7 +337,7 @@ class ProgressiveTrace:
         self._store = bool(store) and traced
         self._passes = []
         if not traced:
-            return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under)
+            return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last)
         self._tile_args = {"msaa": 0, "raytrace": None}
         self._worst_px = None
         if cache or store:
@@ -359,7 +366,7 @@ class ProgressiveTrace:
         self._maybe_finish()
         return tex
 
-    def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under):
+    def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under, like_last):
         """``start(traced=False)``: the meantime's image in the texture, every pixel to draw.
         ``under``: an array, or a texture (this one: kept as it is; another of the view's size:
         copied on the GPU)."""
@@ -387,6 +394,11 @@ class ProgressiveTrace:
         self.mask = np.ones((h, w), bool)
         self._tile_args = {"msaa": msaa, "raytrace": False}
         self._worst_px = 0.0
+        nb = (h + 3) // 4
+        last = self._rows_cost
+        same = like_last and last is not None and last.shape == (nb,) and self._raster_w == w
+        self._rows_prior = last if same else None
+        self._rows_cost, self._raster_w, self._scale = np.full(nb, np.nan), w, 1.0
         self._passes = [_Pass(w, h, self.mask, 1)]
         self.total_px = self._passes[0].total
         self.overhead_s = None
@@ -454,19 +466,60 @@ class ProgressiveTrace:
         per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
         target = max(budget_s, 3.0 * self.overhead_s)
         if self._worst_px is not None:
-            # a raster frame: tiles of a third of the budget at the highest cost per pixel seen
-            # (the cost jumps several times over where the view reaches an object from the
-            # floor above it; a tile that overruns by that much is still within the frame)
-            self._worst_px = max(self._worst_px, per_px)
-            per_px, target = self._worst_px, max(budget_s / 3.0, 3.0 * self.overhead_s)
+            self._raster_next(p, y, th, per_px, budget_s, n)
+            return dt, n
         want = int((target - 0.9 * self.overhead_s) / per_px)
         self.pixels = max(16, min(int(1.5 * n) + 16, want, self.max_pixels))
         return dt, n
 
+    def _raster_next(self, p, y, th, per_px, budget_s, n):
+        """A raster frame's next tile, after one over rows [y, y + th) cost ``per_px`` a pixel:
+        whole blocks of rows from the next one down, as many as a third of the budget covers.
+        The cost of a block is the last frame's there (``like_last``), times what this frame
+        cost over the last one on this tile, at least 1 (a changed material: the costly rows are
+        where they were, the cost differs); where the last frame gives none, the highest cost
+        per pixel seen so far, at
+        most 1.5 times as many pixels as this tile (the cost jumps 5-20 times over where the
+        tiles reach an object from the sky above it)."""
+        b0, b1 = y // 4, (y + th - 1) // 4
+        self._rows_cost[b0:b1 + 1] = per_px
+        self._worst_px = max(self._worst_px, per_px)
+        prior = self._rows_prior
+        ref = np.inf  # the last frame's cost where the scale was measured
+        if prior is not None:
+            before = prior[b0:b1 + 1]
+            before = before[np.isfinite(before)]
+            if before.size and before.mean() > 0:  # never below the last frame's: a cheaper
+                # first tile (the sky) says nothing of the object below it
+                ref = float(before.mean())
+                self._scale = max(1.0, per_px / ref)
+        o = 0.9 * self.overhead_s
+        target = max(budget_s / 3.0, 3.0 * self.overhead_s)
+        row_px = 4 * p.w
+        total, blocks, b, guessed, dearer = o, 0, p.block, False, 0
+        while b >= 0:
+            c = prior[b] * self._scale if prior is not None and np.isfinite(prior[b]) else np.nan
+            if not np.isfinite(c):
+                c, guessed = self._worst_px, True
+            elif prior[b] > 2.0 * ref:  # rows dearer than where the scale was measured: a
+                dearer += 1             # changed material may cost more there, take two
+            if blocks and (total + c * row_px > target or dearer > 2):
+                break
+            total += c * row_px
+            blocks += 1
+            b -= 1
+        pixels = blocks * row_px
+        if guessed:
+            pixels = min(pixels, int(1.5 * n) + 16)
+        self.pixels = max(16, min(pixels, self.max_pixels))
+        self._next_s = total
+
     def _predict(self, pixels, dt, n) -> float:
         """The predicted time of a tile of ``pixels`` after one of ``n`` took ``dt``."""
+        if self._worst_px is not None:
+            return self._next_s
         o = 0.9 * (self.overhead_s or 0.0)
-        return o + pixels * max(max(dt - o, 1e-9) / n, self._worst_px or 0.0)
+        return o + pixels * max(dt - o, 1e-9) / n
 
     def _maybe_finish(self):
         """Once done: the true elapsed time, and the cache entry when asked for."""
