@@ -310,6 +310,7 @@ class App:
         view = self.viewport()
         _, _, rw, rh = s.compare.raster_rect(view)
         interacting = time.perf_counter() - self._last_interaction < 0.3
+        drawn = s.raster_version
         s.render_view((rw, rh), interacting=interacting)
         _, _, ref_w, ref_h = s.compare.reference_rect(view)
         ref_tex = s.update_reference((ref_w, ref_h), interacting) if view[2] > 0 and view[3] > 0 else None
@@ -327,6 +328,9 @@ class App:
             self.first_frame_s = time.perf_counter() - self.t_start
             print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
+        if s.raster_version != drawn:  # the rest of a frame that drew the view: the tiles' budget
+            rest = max(0.0, self.frame_ms - s.render_ms) / 1000
+            s.frame_rest_s = rest if s.frame_rest_s == 0.0 else 0.7 * s.frame_rest_s + 0.3 * rest
 
     def _draw_panels(self):
         from viewer.app.panels import lecture

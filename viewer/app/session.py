@@ -26,8 +26,9 @@ PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view 
 # tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
 # this much time per frame, over the view as it was or its half-resolution preview (the window
 # then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
-# with MSAA takes 0.3 s)
+# with MSAA takes 0.3 s); less where the rest of the window's frame leaves less of FRAME_GOAL_S
 TILE_BUDGET_S = 0.07
+FRAME_GOAL_S = 0.12
 
 # the plot tab each lecture step's ``plot`` names
 STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel": "Fresnel",
@@ -88,6 +89,7 @@ class Session(FileActions):
         self.hdr = None            # the raster image shown (a texture), None before the first
         self.raster_version = 0
         self.render_ms = 0.0
+        self.frame_rest_s = 0.0    # what the window's frame costs beside render_view (the window sets it)
         self.quality = "full"      # "preview" after an interactive (half-resolution) frame
         self.bf_count = 0          # brute-force IBL: frames in the running mean
         self.lecture_step = -1     # -1: lecture mode off; else the tour's step shown
@@ -297,7 +299,14 @@ class Session(FileActions):
             return False
         if self.tiling:
             return True
-        return self._whole_s is not None and self._whole_s[0] == (w, h) and self._whole_s[1] > TILE_BUDGET_S
+        return self._whole_s is not None and self._whole_s[0] == (w, h) and self._whole_s[1] > self.tile_budget_s
+
+    @property
+    def tile_budget_s(self) -> float:
+        """A tiled frame's time per frame: ``TILE_BUDGET_S``, or less where the rest of the
+        window's frame (``frame_rest_s``: the interface, the view's tone mapping) leaves less of
+        ``FRAME_GOAL_S``, though not under 30 ms."""
+        return min(TILE_BUDGET_S, max(0.03, FRAME_GOAL_S - self.frame_rest_s))
 
     def _view_key(self):
         return (self.view_mode, self.camera.fov_y, tuple(self.camera.position), tuple(self.camera.target))
@@ -324,7 +333,7 @@ class Session(FileActions):
                                under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h)
             if under is None:  # this frame drew the preview
                 return "refining"
-        self.hdr = t.step(TILE_BUDGET_S)
+        self.hdr = t.step(self.tile_budget_s)
         if not t.done:
             return "refining"
         self._whole_s = ((w, h), t.trace_s)

@@ -477,8 +477,8 @@ class ProgressiveTrace:
         whole blocks of rows from the next one down, as many as a third of the budget covers.
         The cost of a block is the last frame's there (``like_last``), times what this frame
         cost over the last one on this tile, at least 1 (a changed material: the costly rows are
-        where they were, the cost differs); where the last frame gives none, the highest cost
-        per pixel seen so far, at
+        where they were, the cost differs), and at least the highest cost per pixel seen so far
+        in this frame; where the last frame gives none, that highest cost alone, at
         most 1.5 times as many pixels as this tile (the cost jumps 5-20 times over where the
         tiles reach an object from the sky above it)."""
         b0, b1 = y // 4, (y + th - 1) // 4
@@ -501,8 +501,12 @@ class ProgressiveTrace:
             c = prior[b] * self._scale if prior is not None and np.isfinite(prior[b]) else np.nan
             if not np.isfinite(c):
                 c, guessed = self._worst_px, True
-            elif prior[b] > 2.0 * ref:  # rows dearer than where the scale was measured: a
-                dearer += 1             # changed material may cost more there, take two
+            else:
+                if prior[b] > 2.0 * ref:  # rows dearer than where the scale was measured: a
+                    dearer += 1           # changed material may cost more there, take two
+                # never below the dearest pixel of this frame so far: a block of the last frame
+                # holds the mean of a tile, which may have spanned the sky and the object
+                c = max(c, self._worst_px)
             if blocks and (total + c * row_px > target or dearer > 2):
                 break
             total += c * row_px

@@ -747,7 +747,15 @@ class Renderer:
                                                f.ssr_debug, frame_index, back=back)
         t = f.targets
         if t.draw_fbo is not t.resolved_fbo:
-            self.ctx.copy_framebuffer(t.resolved_fbo, t.draw_fbo)
+            if f.region is not None:  # a blit honours the scissor: resolve the region alone
+                t.resolved_fbo.scissor = f.region
+                t.resolved_fbo.use()
+            try:
+                self.ctx.copy_framebuffer(t.resolved_fbo, t.draw_fbo)
+            finally:
+                if f.region is not None:
+                    t.resolved_fbo.scissor = None
+                    t.resolved_fbo.use()
         return t.resolved
 
     def tonemap_to(self, fbo, hdr, exposure: float = 0.0, tonemap: str = "none", viewport=None):
