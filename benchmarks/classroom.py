@@ -8,6 +8,7 @@ view while the reference renders: idle (the raster image cached, the reference's
 uploaded and both halves tone mapped) and while the camera moves (a new raster frame and a
 reference restart every frame)."""
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -15,6 +16,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+# each figure is one whole frame (a still view drawn in tiles would take several frames to be
+# whole; benchmarks/preset_switch.py measures those)
+os.environ.setdefault("BRDF_VIEWER_TILED_FRAMES", "0")
 
 
 def main():

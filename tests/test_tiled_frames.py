@@ -154,3 +154,24 @@ def test_without_tiled_frames_a_change_is_drawn_whole_at_once(gl_ctx, renderer, 
         assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
     finally:
         s.release()
+
+
+def test_changing_the_frames_size_or_samples_and_tiling_raise_no_gl_error(gl_ctx, renderer):
+    """Each change of the frame's sample count or size remakes its framebuffers; releasing the
+    bound one used to leave moderngl to bind a deleted name again (GL_INVALID_OPERATION)."""
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.scene import load_scene
+
+    scene = load_scene("default")
+    gl_ctx.error  # noqa: B018 - reading clears the flag: only this test's calls count
+    steps = [dict(), dict(msaa=0), dict(msaa=0, region=(0, 0, 32, 8)), dict(region=(0, 0, 32, 8)),
+             dict(width=60, height=40), dict()]
+    for kw in steps:
+        kw = {"width": SIZE[0], "height": SIZE[1], **kw}
+        renderer.render(scene, None, kw.pop("width"), kw.pop("height"), **kw)
+        assert gl_ctx.error == "GL_NO_ERROR", kw
+    pt = ProgressiveTrace(gl_ctx)
+    pt.start(renderer, scene, None, SIZE[0], SIZE[1], traced=False)
+    pt.finish()
+    pt.release()
+    assert gl_ctx.error == "GL_NO_ERROR"

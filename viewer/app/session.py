@@ -19,6 +19,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.app.file_actions import FileActions
+from viewer.gl.context import release_gl
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
@@ -161,8 +162,7 @@ class Session(FileActions):
         if self.prep is not None:
             self.prep.cancel()
         if self._shown is not None:
-            self._shown[1].release()
-            self._shown[0].release()
+            release_gl(self._shown[1], self._shown[0])
             self._shown = None
         if self._own_renderer:
             self.renderer.release()
@@ -240,6 +240,7 @@ class Session(FileActions):
             return
         t1 = time.perf_counter()
         restart = self.dirty or want_full or stale
+        whole_from = None
         if restart:
             self.bf_count, self._bf_sum = 0, None
         traced = self._progressive()
@@ -270,8 +271,7 @@ class Session(FileActions):
                     if drawn.render.ibl == "brute_force" and not interacting:
                         self.hdr = self._accumulate(self.hdr)
                     elif not interacting:
-                        self.ctx.finish()
-                        self._whole_s = ((rw, rh), time.perf_counter() - t2)
+                        whole_from = t2  # a whole still frame: its cost, once finished below
             if held is None:  # what a held frame may show of these materials while others compile
                 self._drawn_materials = (self.scene, dict(self.scene.materials))
             if held is not KEEP_IMAGE:
@@ -279,6 +279,8 @@ class Session(FileActions):
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
             self.notify(str(e), error=True)
         self.ctx.finish()
+        if whole_from is not None:
+            self._whole_s = ((rw, rh), time.perf_counter() - whole_from)
         if quality == "full" and self.hdr is not None:
             self._check_finite(self.hdr)
         self.raster_version += 1
@@ -416,8 +418,7 @@ class Session(FileActions):
         size = self.hdr.size
         if self._shown is None or self._shown[0].size != size:
             if self._shown is not None:
-                self._shown[1].release()
-                self._shown[0].release()
+                release_gl(self._shown[1], self._shown[0])
             tex = self.ctx.texture(size, 4, dtype="f4")
             tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
             self._shown = (tex, self.ctx.framebuffer(color_attachments=[tex]))
@@ -425,7 +426,7 @@ class Session(FileActions):
         try:
             self.ctx.copy_framebuffer(self._shown[1], src)
         finally:
-            src.release()
+            release_gl(src)
         self.hdr = self._shown[0]
 
     def update_reference(self, size, interacting: bool = False):
@@ -763,7 +764,8 @@ class Session(FileActions):
                     shown={name: name != "floor" for name in self.scene.materials})
 
     def _step_shown(self):
-        """The step's first full frame is drawn: say how long the key press took to show it."""
+        """The step's first frame is drawn (its preview where the view is drawn in tiles, its
+        untraced view where it traces): say how long the key press took to show it."""
         from viewer.lecture import TOUR
 
         step, t0 = self._step_timer

@@ -15,6 +15,7 @@ import numpy as np
 from viewer.brdf.albedo import N_SIDE, PHIS, TABLE_SIZE, stratified_u
 from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import choice_constants, custom_virtual, generate_dispatch, glsl_u, models_used, program_defines, uniform_block
+from viewer.gl.context import release_gl
 from viewer.gl.shaders import build_program, set_uniform
 
 _VERT = """#version 410 core
@@ -187,9 +188,8 @@ class GPUAlbedoTables:
         if self._measured is not None:
             self._measured.release()
             self._measured = None
-        for obj in [self._fbo1, self._fbo2, *self._t1, *self._t2, *self._pattern_tex.values(),
-                    *self._vaos.values(), *self._programs.values(), self._reduce]:
-            obj.release()
+        release_gl(self._fbo1, self._fbo2, *self._t1, *self._t2, *self._pattern_tex.values(),
+                   *self._vaos.values(), *self._programs.values(), self._reduce)
         self._programs.clear()
         self._pattern_tex.clear()
         self._vaos.clear()

@@ -30,6 +30,22 @@ def create_offscreen_context():
     return ctx
 
 
+def release_gl(*objects) -> None:
+    """Release moderngl objects (None skipped). A framebuffer that is the bound one is unbound
+    first, the default framebuffer bound instead: moderngl binds its last bound framebuffer again
+    after making another, and a deleted name there is GL_INVALID_OPERATION (every change of the
+    frame's size or sample count raised it)."""
+    import moderngl
+
+    for o in objects:
+        if o is None:
+            continue
+        if isinstance(o, moderngl.Framebuffer) and o.ctx.fbo is o:
+            ctx = o.ctx
+            (ctx.screen if ctx.screen is not None else ctx.detect_framebuffer(0)).use()
+        o.release()
+
+
 def have_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or os.name == "nt" or \
         __import__("sys").platform == "darwin"

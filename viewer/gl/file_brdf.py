@@ -16,6 +16,7 @@ import re
 import numpy as np
 
 from viewer.brdf.brdffile import PREFIX, PREFIX_RE, BrdfFile, sampler_takes_view
+from viewer.gl.context import release_gl
 from viewer.gl.file_brdf_glsl import MAX_PARAMS, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
 from viewer.gl.shaders import ShaderError, build_program
 
@@ -176,9 +177,7 @@ class FileEvaluator:
             vao.render(mode=self.ctx.TRIANGLES, vertices=3)
             res = [np.frombuffer(o.read(), dtype="f4").reshape(-1, 4)[:n].astype(np.float64) for o in outs]
         finally:
-            for o in texs + outs:
-                o.release()
-            fbo.release()
+            release_gl(*texs, *outs, fbo)
         return res
 
     def eval(self, bfile: BrdfFile, p, wi, wo) -> np.ndarray:

@@ -65,6 +65,7 @@ from viewer.environment import cache
 from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
 from viewer.environment.latlong import rotation_y
 from viewer.gl.constants import IBL_MAX_LEVELS
+from viewer.gl.context import release_gl
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 
@@ -319,8 +320,7 @@ class IBL:
                 dw, dh = sizes[k]
                 if scratch is None or scratch[0].size != (dw, dh):
                     if scratch is not None:
-                        scratch[1].release()
-                        scratch[0].release()
+                        release_gl(scratch[1], scratch[0])
                     scratch = self._target(dw, dh)
                 _set(prog, "u_src_level", k - 1)
                 _set(prog, "u_src_size", (float(sw), float(sh_)))
@@ -330,8 +330,7 @@ class IBL:
                 tex.write(np.ascontiguousarray(data).tobytes(), level=k)
         finally:
             if scratch is not None:
-                scratch[1].release()
-                scratch[0].release()
+                release_gl(scratch[1], scratch[0])
         tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
         tex.repeat_x = True
         tex.repeat_y = False
@@ -356,8 +355,7 @@ class IBL:
             data = np.frombuffer(tex.read(), dtype="f4").reshape(nl, lh, lw, 4)[..., :3]
             return np.ascontiguousarray(data)
         finally:
-            fbo.release()
-            tex.release()
+            release_gl(fbo, tex)
 
     # ------------------------------------------------------------------ DFG
     def _ensure_dfg(self):
@@ -407,9 +405,7 @@ class IBL:
             data = np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :2]
             return np.ascontiguousarray(data)
         finally:
-            fbo.release()
-            tex.release()
-            qtex.release()
+            release_gl(fbo, tex, qtex)
 
     # ------------------------------------------------------------------ cube map
     def cubemap(self, size: int | None = None, rotation_deg: float = 0.0, supersample: int = 1):
@@ -436,8 +432,7 @@ class IBL:
                 self._draw("ibl_cubemap", fbo, (0, 0, size, size))
                 faces.append(np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :3].copy())
         finally:
-            fbo.release()
-            tex.release()
+            release_gl(fbo, tex)
         if self.cube is not None:
             self.cube.release()
         cube = ctx.texture_cube((size, size), 3, None, dtype="f4")

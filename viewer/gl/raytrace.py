@@ -22,6 +22,7 @@ from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
+from viewer.gl.context import release_gl
 from viewer.gl import texture_units
 
 ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
@@ -274,7 +275,8 @@ class ProgressiveTrace:
         self.stored = None       # the cache entry a finished trace wrote, or None
         self._store = False
         self._tile_args = {"msaa": 0, "raytrace": None}  # how a tile is drawn
-        self._worst_px = None    # a raster frame's highest cost per pixel so far (None: a trace)
+        self.raster = False      # a raster frame in tiles (start(traced=False)), not a trace
+        self._worst_px = 0.0     # a raster frame's highest cost per pixel so far
         self._rows_cost = None   # a raster frame's cost per pixel in each block of 4 rows (NaN: not drawn)
         self._rows_prior = None  # the last raster frame's, for a view of the same size
         self._scale = 1.0        # this frame's cost over the last one's, on its last tile
@@ -339,7 +341,7 @@ class ProgressiveTrace:
         if not traced:
             return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last)
         self._tile_args = {"msaa": 0, "raytrace": None}
-        self._worst_px = None
+        self.raster = False
         if cache or store:
             self.cache_key = trace_cache.frame_key(scene, camera, w, h, view_mode, msaa,
                                                    renderer.ctx.info.get("GL_RENDERER", ""))
@@ -376,7 +378,7 @@ class ProgressiveTrace:
                 if under is not self.texture:
                     fbo = self.ctx.framebuffer(color_attachments=[under])
                     self.ctx.copy_framebuffer(self._fbo, fbo)
-                    fbo.release()
+                    release_gl(fbo)
                 under = True  # in the texture now
             else:
                 under = np.frombuffer(under.read(), np.float32).reshape(under.height, under.width, 4)
@@ -393,7 +395,7 @@ class ProgressiveTrace:
         self.base = None  # every pixel is a tile's
         self.mask = np.ones((h, w), bool)
         self._tile_args = {"msaa": msaa, "raytrace": False}
-        self._worst_px = 0.0
+        self.raster, self._worst_px = True, 0.0
         nb = (h + 3) // 4
         last = self._rows_cost
         same = like_last and last is not None and last.shape == (nb,) and self._raster_w == w
@@ -465,7 +467,7 @@ class ProgressiveTrace:
         self.overhead_s = dt if self.overhead_s is None else min(self.overhead_s, dt)
         per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
         target = max(budget_s, 3.0 * self.overhead_s)
-        if self._worst_px is not None:
+        if self.raster:
             self._raster_next(p, y, th, per_px, budget_s, n)
             return dt, n
         want = int((target - 0.9 * self.overhead_s) / per_px)
@@ -520,7 +522,7 @@ class ProgressiveTrace:
 
     def _predict(self, pixels, dt, n) -> float:
         """The predicted time of a tile of ``pixels`` after one of ``n`` took ``dt``."""
-        if self._worst_px is not None:
+        if self.raster:
             return self._next_s
         o = 0.9 * (self.overhead_s or 0.0)
         return o + pixels * max(dt - o, 1e-9) / n
@@ -549,6 +551,5 @@ class ProgressiveTrace:
     def release(self):
         self._job = None
         if self._fbo is not None:
-            self._fbo.release()
-            self.texture.release()
+            release_gl(self._fbo, self.texture)
         self._fbo = self.texture = None

@@ -21,6 +21,7 @@ from viewer.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAT_FLOATS, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
+from viewer.gl.context import release_gl
 from viewer.gl.material_tables import MaterialTables
 from viewer.gl.programs import FORWARD_STAGES, ProgramCache, Recipe, forward_variant
 from viewer.gl.shaders import ShaderError
@@ -486,8 +487,7 @@ class Renderer:
 
     def _release_mask(self):
         if self._mask_target is not None:
-            for r in self._mask_target[1:]:
-                r.release()
+            release_gl(*self._mask_target[1:])
             self._mask_target = None
 
     def _begin_frame(self, scene, camera, width, height, view_mode, msaa, raytrace=None, region=None) -> _Frame:
@@ -786,8 +786,7 @@ class Renderer:
         w, h = hdr.size
         if self._ldr is None or self._ldr[0].size != (w, h):
             if self._ldr is not None:
-                self._ldr[1].release()
-                self._ldr[0].release()
+                release_gl(self._ldr[1], self._ldr[0])
             tex = self.ctx.texture((w, h), 4, dtype="f1")
             self._ldr = (tex, self.ctx.framebuffer(color_attachments=[tex]))
         self.tonemap_to(self._ldr[1], hdr, exposure, tonemap, viewport=(0, 0, w, h))
@@ -831,8 +830,7 @@ class Renderer:
         self._meshes.clear()
         self._shadows.release()
         if self._ldr:
-            self._ldr[1].release()
-            self._ldr[0].release()
+            release_gl(self._ldr[1], self._ldr[0])
         self._release_mask()
         for part in (self._thick, self._ssr_back, self._ibl, self._ssr, self.tables, self._rt, self._measured):
             if part is not None:

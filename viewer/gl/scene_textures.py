@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.gl.shaders import set_uniform
+from viewer.gl.context import release_gl
 from viewer.geometry.bvh_flat import FlatScene, flatten_scene
 
 SAMPLERS = ("u_bvh_nodes", "u_bvh_tris", "u_tri_shading")
@@ -123,8 +124,7 @@ class RayQuery:
             self.vao.render(vertices=3)
             res = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(-1, 4)[:n]
         finally:
-            for x in (fbo, out, to, td):
-                x.release()
+            release_gl(fbo, out, to, td)
         return res
 
     def intersect(self, scene_tex: SceneTextures, o, d, tmin: float = 0.0, tmax=np.inf):

@@ -13,6 +13,7 @@ import numpy as np
 from viewer.camera import gl_bytes, look_at, orthographic, perspective
 from viewer.gl import texture_units
 from viewer.gl.constants import MAX_LIGHTS
+from viewer.gl.context import release_gl
 from viewer.gl.shaders import set_uniform as _set
 
 SHADOW_TILE = 1024
@@ -166,6 +167,5 @@ class ShadowMaps:
 
     def release(self):
         if self._atlas is not None:
-            self._atlas["fbo"].release()
-            self._atlas["tex"].release()
+            release_gl(self._atlas["fbo"], self._atlas["tex"])
             self._atlas = None

@@ -54,6 +54,7 @@ import numpy as np
 from viewer.camera import gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.constants import EMPTY_DEPTH  # the pyramid's value where there is no surface (ssr_hiz.frag)
+from viewer.gl.context import release_gl
 from viewer.gl.programs import Recipe
 from viewer.gl.shaders import set_uniform as _set
 from viewer.gl.targets import FrameTargets
@@ -178,13 +179,9 @@ class SSR:
         t = self._targets
         if not t:
             return
-        if t.draw_fbo is not t.resolved_fbo:
-            t.draw_fbo.release()
-        for r in [t.resolved_fbo, t.shell_fbo, t.mip_fbo, t.out_fbo, t.color_fbo, t.mip, t.out] + t.resolved + t.extra:
-            r.release()
-        for r in [t.hiz_fbo0, t.hiz, t.hiz_pbo] + t.hiz_tmp_fbo + t.hiz_tmp:
-            if r is not None:
-                r.release()
+        release_gl(t.draw_fbo if t.draw_fbo is not t.resolved_fbo else None,
+                   t.resolved_fbo, t.shell_fbo, t.mip_fbo, t.out_fbo, t.color_fbo, t.mip, t.out, *t.resolved, *t.extra,
+                   t.hiz_fbo0, t.hiz, t.hiz_pbo, *t.hiz_tmp_fbo, *t.hiz_tmp)
         self._targets = None
         self._key = None
 

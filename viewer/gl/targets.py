@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from viewer.camera import gl_bytes
+from viewer.gl.context import release_gl
 from viewer.gl.shaders import set_uniform as _set
 
 
@@ -64,12 +65,7 @@ class HdrTarget:
     def release(self):
         if self._targets:
             t = self._targets
-            if t.draw_fbo is not t.resolved_fbo:
-                t.draw_fbo.release()
-            t.resolved_fbo.release()
-            t.resolved.release()
-            for r in t.extra:
-                r.release()
+            release_gl(t.draw_fbo if t.draw_fbo is not t.resolved_fbo else None, t.resolved_fbo, t.resolved, *t.extra)
         self._targets = None
         self._key = None
 
@@ -110,6 +106,5 @@ class ThicknessPass:
 
     def release(self):
         if self._thick is not None:
-            for r in self._thick[1:]:
-                r.release()
+            release_gl(*self._thick[1:])
             self._thick = None

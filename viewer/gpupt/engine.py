@@ -37,6 +37,7 @@ import numpy as np
 from viewer import ViewerError, brdf
 from viewer.gl.brdf_glsl import custom_virtual, generate_dispatch, models_used, pack_material, program_defines
 from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
+from viewer.gl.context import release_gl
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
@@ -128,8 +129,7 @@ class GpuReferenceRenderer:
         self._set_setup(self._make_setup(scene, camera, width, height))
 
     def _release_scene(self):
-        for t in self._textures + self._targets:
-            t.release()
+        release_gl(*self._textures, *self._targets)
         self._textures, self._targets = [], []
         if self._scene_tex is not None:
             self._scene_tex.release()
