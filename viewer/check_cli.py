@@ -10,6 +10,8 @@ import argparse
 import json
 import sys
 
+from viewer.commands import add_trust_option
+
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer check",
@@ -19,7 +21,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NAME=VALUE",
                    help="a parameter value (repeatable), e.g. --set alpha=0.3")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
-    return p
+    return add_trust_option(p)
 
 
 def model_and_params(target: str, assignments):

@@ -11,10 +11,17 @@ import time
 
 import viewer
 from viewer import OutputError, ViewerError
-from viewer.commands import COMMANDS, HEADLESS_HINT
+from viewer.commands import COMMANDS, HEADLESS_HINT, add_trust_option
 
 ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
                "GPU, else whichever measured faster here; the choice is printed)")
+
+
+def _trust(args) -> None:
+    from viewer.brdf import twin_trust
+
+    for path in getattr(args, "trust_twin", None) or []:
+        twin_trust.trust(path)
 
 
 def _engine(args, ctx=None, scenes=()):
@@ -45,6 +52,7 @@ def _parser_window() -> argparse.ArgumentParser:
     p.add_argument("--no-compile-ahead", dest="compile_ahead", action="store_false", default=None,
                    help="compile shader programs on the window's thread instead of in a background process "
                         "(a preset or model change then stops the frames while it compiles)")
+    add_trust_option(p)
     return p
 
 
@@ -62,6 +70,7 @@ def _parser_render() -> argparse.ArgumentParser:
     p.add_argument("--supersample", type=int, default=1, metavar="K",
                    help="K x K shading points per pixel, averaged (an exact box filter, as the reference "
                         "computes pixels); default 1 = the scene's MSAA, shading once per pixel")
+    add_trust_option(p)
     return p
 
 
@@ -86,6 +95,7 @@ def _parser_reference() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
     _add_estimator_options(p)
+    add_trust_option(p)
     return p
 
 
@@ -132,6 +142,7 @@ def _parser_plot() -> argparse.ArgumentParser:
     p.add_argument("--data", metavar="JSON", help="also write the plotted numbers as JSON")
     p.add_argument("--width", type=int, default=900, help="image width (default 900)")
     p.add_argument("--height", type=int, default=600, help="image height (default 600)")
+    add_trust_option(p)
     return p
 
 
@@ -194,6 +205,7 @@ def _parser_models() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer models",
                                 description="List every BRDF model with its parameters, ranges and defaults.")
     p.add_argument("files", nargs="*", metavar="FILE.brdf", help="list these .brdf files' parameters instead")
+    add_trust_option(p)
     return p
 
 
@@ -392,6 +404,7 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     _add_estimator_options(p)
+    add_trust_option(p)
     return p
 
 
@@ -458,7 +471,7 @@ def cmd_models(args) -> int:
         for f in args.files:
             model = brdf.load(f)
             print(f"{f}: model = \"custom\", file = {f!r}; sampler: {model.sampled_by or 'cosine-weighted (generic)'}"
-                  f"; numpy twin: {'yes' if model.twin is not None else 'no'}")
+                  f"; numpy twin: {_twin_state(model)}")
             for p in model.spec.params[1:]:
                 print(f"    {_describe_param(p)}")
         return 0
@@ -475,6 +488,12 @@ def cmd_models(args) -> int:
     for name in sorted(PRESETS):
         print(f"    {name}: {PRESETS[name]['model']}")
     return 0
+
+
+def _twin_state(model) -> str:
+    if model.twin is not None:
+        return "yes"
+    return "not run (not trusted: --trust-twin PATH)" if model.twin_not_run else "no"
 
 
 def _describe_param(p, indent="    ") -> str:
@@ -518,6 +537,7 @@ def _parser_bake() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    add_trust_option(p)
     return p
 
 
@@ -665,10 +685,12 @@ def main(argv=None) -> int:
                       "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models,
                       "fit": measured_cli.parser, "check": check_cli.parser}[cmd]()
             args = parser.parse_args(rest)
+            _trust(args)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
                     "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit,
                     "check": check_cli.cmd_check}[cmd](args)
         args = _parser_window().parse_args(argv)
+        _trust(args)
         return cmd_window(args)
     except OutputError as e:   # a file that could not be written: exit 1
         print(f"brdf-viewer: error: {_first_line(e)}", file=sys.stderr)

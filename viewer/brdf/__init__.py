@@ -130,6 +130,12 @@ class FileModel(Model):
         return self.module.numpy_twin
 
     @property
+    def twin_not_run(self) -> str | None:
+        """The line saying that the file's twin exists but was not run (the user has not trusted
+        it: ``viewer.brdf.twin_trust``), else None."""
+        return self.module.twin_not_run
+
+    @property
     def sampled_by(self) -> str | None:
         """"numpy twin", "isFunc" or None (the generic cosine-weighted sampler)."""
         return self.module.sampled_by
@@ -145,6 +151,9 @@ class FileModel(Model):
         """The model the CPU reference evaluates: the numpy twin (its sampler, or cosine-weighted
         sampling); a one-line ViewerError when the file has no twin."""
         if self.module.numpy_module is None:
+            if self.module.twin_not_run:
+                raise ViewerError(f"{self.module.twin_not_run}; the cpu engine evaluates numpy twins: use --engine "
+                                  f"gpu or auto, or trust it")
             raise ViewerError(f"{self.bfile.path.name}: the cpu engine evaluates numpy twins and this file has none "
                               f"({self.bfile.path.with_suffix('.py').name} beside it); use --engine gpu or auto")
         return Model(self.module.numpy_module, where=self.bfile.path.with_suffix(".py").name)
@@ -152,6 +161,8 @@ class FileModel(Model):
     def twin_eval(self, p, wi, wo):
         """f from the numpy twin (a ViewerError when the file has none)."""
         if self.module.twin_eval is None:
+            if self.module.twin_not_run:
+                raise ViewerError(self.module.twin_not_run)
             raise ViewerError(f"{self.bfile.path.name}: no numpy twin {self.bfile.path.with_suffix('.py').name} "
                               f"beside it")
         wi, wo, single = _dirs(wi, wo)

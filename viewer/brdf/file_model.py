@@ -16,7 +16,6 @@ files' model name for file BRDFs.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import types
 from pathlib import Path
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
+from viewer.brdf import twin_trust
 from viewer.brdf.brdffile import BrdfFile, parse, sampler_takes_view
 from viewer.brdf.spec import ModelSpec, Param, Params
 
@@ -72,29 +72,18 @@ def params_of(bfile: BrdfFile) -> tuple[Param, ...]:
 
 
 def load_twin(path: Path):
-    """The numpy twin module ``NAME.py`` beside ``NAME.brdf``, or None; a twin that cannot be
-    imported or lacks ``eval(p, wi, wo)`` is a one-line ViewerError."""
-    twin = path.with_suffix(".py")
+    """The numpy twin module ``NAME.py`` beside ``NAME.brdf``, or None when there is none or the
+    user has not trusted it (``viewer.brdf.twin_trust``: then one line says it was not run). A
+    trusted twin is first tried in a child process within a time limit; a twin that cannot be
+    imported, misbehaves there or lacks ``eval(p, wi, wo)`` is a one-line ViewerError."""
+    twin = twin_trust.twin_of(path)
     if not twin.is_file():
         return None
-    name = f"brdf_twin_{abs(hash(str(twin.resolve())))}"
-    spec = importlib.util.spec_from_file_location(name, twin)
-    mod = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(mod)
-    except Exception as e:  # noqa: BLE001 - a student's file: any error is theirs, in one line
-        import traceback
-
-        tb = traceback.extract_tb(e.__traceback__)
-        line = next((fr.lineno for fr in reversed(tb) if fr.filename == str(twin)), None)
-        where = f"{twin.name}:{line}" if line else twin.name
-        raise ViewerError(f"{where}: the numpy twin cannot be loaded: {type(e).__name__}: {e}") from None
-    if not callable(getattr(mod, "eval", None)):
-        raise ViewerError(f"{twin.name}: a numpy twin needs eval(p, wi, wo)")
-    has_s, has_p = callable(getattr(mod, "sample", None)), callable(getattr(mod, "pdf", None))
-    if has_s != has_p:
-        raise ViewerError(f"{twin.name}: a numpy twin's sampler needs both sample(p, wo, u) and pdf(p, wi, wo)")
-    return mod
+    if not twin_trust.is_trusted(twin):
+        twin_trust.untrusted(path, twin)
+        return None
+    twin_trust.probe(twin, path)
+    return twin_trust.import_twin(twin)
 
 
 def _upper(wi, wo):
@@ -123,20 +112,13 @@ def make_module(bfile: BrdfFile, twin=None) -> FileModule:
         f = np.asarray(glsl_evaluator().eval(bfile, p, wi, wo), dtype=np.float64)
         return np.where(_upper(wi, wo)[:, None], f, 0.0)
 
-    def twin_eval(p, wi, wo):
-        f = np.asarray(twin.eval(p, wi, wo), dtype=np.float64)
-        f = np.broadcast_to(f.reshape(len(wi), -1), (len(wi), 3)) if f.ndim else np.full((len(wi), 3), float(f))
-        return np.where(_upper(wi, wo)[:, None], f, 0.0)
+    twin_path = twin_trust.twin_of(bfile.path)
+    if twin is not None:  # every call checked: what it raises or returns wrong is one line naming it
+        twin_eval, twin_sample, twin_pdf = twin_trust.guarded(twin_path, twin)
 
-    if twin is not None and callable(getattr(twin, "sample", None)):
+    if twin is not None and twin_sample is not None:
         sampler = "numpy twin"
-
-        def pdf(p, wi, wo):
-            return np.where(_upper(wi, wo), np.asarray(twin.pdf(p, wi, wo), dtype=np.float64), 0.0)
-
-        def sample(p, wo, u):
-            wi, w, pd = twin.sample(p, wo, u)
-            return np.asarray(wi, float), np.asarray(w, float), np.asarray(pd, float)
+        pdf, sample = twin_pdf, twin_sample
     elif bfile.has_sampler:
         sampler = "isFunc"
 
@@ -179,6 +161,9 @@ def make_module(bfile: BrdfFile, twin=None) -> FileModule:
             mod.numpy_module = FileModule(SPEC=spec, eval=twin_eval, sample=twin_sample, pdf=twin_pdf)
     mod.source_file = bfile
     mod.numpy_twin = twin
+    mod.twin_not_run = None
+    if twin is None and twin_path.is_file() and not twin_trust.is_trusted(twin_path):
+        mod.twin_not_run = twin_trust.not_run_message(bfile.path, twin_path)
     mod.twin_eval = twin_eval if twin is not None else None
     mod.sampled_by = sampler  # "numpy twin" | "isFunc" | None (cosine-weighted)
     return mod
@@ -188,7 +173,10 @@ _CACHE: dict = {}
 
 
 def _stamp(path: Path):
-    out = []
+    """What the cached model depends on: both files' times and sizes, and whether the twin is
+    trusted (a trust given later loads the twin)."""
+    twin = twin_trust.twin_of(path)
+    out = [twin.is_file() and twin_trust.is_trusted(twin)]
     for p in (path, path.with_suffix(".py")):
         try:
             st = p.stat()

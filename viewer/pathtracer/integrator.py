@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewer import brdf
-from viewer.brdf import thin_film
+from viewer.brdf import thin_film, twin_trust
 from viewer.pathtracer.envmap import EnvironmentLight
 from viewer.geometry.soup import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
 
@@ -164,7 +164,10 @@ class RenderSetup:
         return cls(geom, mats, lights, env, pos, fwd, right, cam_up,
                    math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel,
                    extra={"object_y": np.array([o.y_range() if o.mesh_data is not None else (0.0, 0.0)
-                                                for o in scene.objects] or [(0.0, 0.0)])},
+                                                for o in scene.objects] or [(0.0, 0.0)]),
+                          # the twins this process trusts: the workers take this decision as theirs
+                          "trusted_twins": twin_trust.trusted_twins(
+                              m.params["file"] for m in mats if m.model_name == "custom")},
                    strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
 
 

@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+from viewer.brdf import twin_trust
 from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
 from viewer.pathtracer.integrator import Integrator, RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
@@ -112,6 +113,8 @@ def _worker_for(key: str, path: str | None) -> Integrator:
             with open(path, "rb") as f:
                 setup = pickle.load(f)
         _WORKER, _WORKER_KEY = None, None  # free the old scene before building the next
+        # a worker runs the numpy twins its parent trusted, and no others (never its own decision)
+        twin_trust.decide(setup.extra.get("trusted_twins", ()))
         _WORKER = _build(setup)
         _WORKER_KEY = key
     return _WORKER
