@@ -95,3 +95,17 @@ def display():
     yield f":{num}"
     proc.terminate()
     proc.wait(10)
+
+
+@pytest.fixture
+def trust_twins():
+    """Trust the numpy twins of these folders or files for one test, as ``--trust-twin PATH``
+    does (a twin runs only when trusted: viewer/brdf/twin_trust.py)."""
+    from viewer.brdf import twin_trust
+
+    def trust(*paths):
+        for p in paths:
+            twin_trust.trust(p)
+
+    yield trust
+    twin_trust.forget()

@@ -214,6 +214,11 @@ def load(path, make, where: str | None = None):
 _LAST_GOOD: dict = {}
 
 
+def clear_cache() -> None:
+    """Forget every loaded model (the next ``load`` reads the files again)."""
+    _CACHE.clear()
+
+
 def load_or_last_good(path, make):
     """``load(path)``, or, when the file no longer parses (saved with a mistake while the window
     shows it), the model it last loaded as in this process: what is drawn keeps drawing while the

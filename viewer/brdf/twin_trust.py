@@ -104,9 +104,9 @@ def trusted_twins(brdf_paths) -> list[str]:
 
 def decide(twins) -> None:
     """In a worker process: trust exactly ``twins`` (real paths, the parent's ``trusted_twins``),
-    whatever this process's environment says."""
+    whatever this process's environment says; None: back to this process's own rule."""
     global _DECIDED
-    _DECIDED = frozenset(str(t) for t in twins)
+    _DECIDED = None if twins is None else frozenset(str(t) for t in twins)
 
 
 def not_run_message(brdf_path, twin) -> str:
