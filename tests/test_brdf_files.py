@@ -102,7 +102,8 @@ def _cosine_dirs(n, seed):
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def test_load_gives_the_registry_interface_and_runs_the_glsl():
+def test_load_gives_the_registry_interface_and_runs_the_glsl(trust_twins):
+    trust_twins(DATA)
     m = brdf.load(DATA / "lambert_twin.brdf")
     p = m.params(gain=0.5)
     assert p.model == "custom" and p.file.endswith("lambert_twin.brdf") and p.gain == 0.5
@@ -184,7 +185,8 @@ def test_a_changed_file_is_read_again(tmp_path):
     assert brdf.load(src).eval(None, wi, wi)[0, 0] == pytest.approx(0.5)
 
 
-def test_a_broken_twin_is_one_line_naming_it(tmp_path):
+def test_a_broken_twin_is_one_line_naming_it(tmp_path, trust_twins):
+    trust_twins(tmp_path)
     shutil.copy(DATA / "lambert_twin.brdf", tmp_path / "x.brdf")
     (tmp_path / "x.py").write_text("import numpy as np\n\ndef eval(p, wi, wo):\n    return np.zeros(3)\n1 / 0\n")
     with pytest.raises(ViewerError) as e:
@@ -206,7 +208,8 @@ def _check(capsys, *argv):
     return rc, (json.loads(out.out) if out.out.strip() else None), out.err
 
 
-def test_check_passes_a_plausible_file_with_its_twin(capsys):
+def test_check_passes_a_plausible_file_with_its_twin(capsys, trust_twins):
+    trust_twins(DATA)
     rc, rep, _ = _check(capsys, str(DATA / "lambert_twin.brdf"), "--set", "gain=0.9")
     assert rc == 0 and rep["pass"]
     c = rep["checks"]
@@ -408,7 +411,8 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
     assert out["file"][0] < 5.0 * out["builtin"][0], out
 
 
-def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path):
+def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path, trust_twins):
+    trust_twins(tmp_path)
     import viewer
     from viewer.gpupt.select import choose_for_scenes
     from viewer.scene import load_scene

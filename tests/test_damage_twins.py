@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gui_harness import HAVE_X, run_py
+
 from viewer import ViewerError, brdf
 from viewer.brdf import file_model, twin_trust
 
@@ -295,3 +297,97 @@ def test_a_twin_that_ends_its_process_is_one_line(tmp_path, trust_twins):
     with pytest.raises(ViewerError) as e:
         brdf.load(tmp_path / "gone.brdf")
     assert str(e.value).startswith("gone.py: ") and "exit status 3" in str(e.value)
+
+
+# ----------------------------------------------------------------------------- the window's question
+
+
+@pytest.fixture
+def twin_session(gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    made = []
+
+    def make(scene=None, state=None):
+        from viewer.scene import load_scene
+
+        s = Session(gl_ctx, "default", scene=load_scene(scene) if scene else None, renderer=renderer,
+                    prefetch=False, state=state)
+        s.warm = []
+        made.append(s)
+        return s
+
+    yield make
+    for s in made:
+        s.release()
+
+
+def test_the_window_asks_before_running_a_twin_and_not_now_keeps_it_off(hostile, twin_session):
+    path, scene, marker = hostile
+    s = twin_session(scene)   # a scene file naming the .brdf grants nothing: it asks
+    brdf_path, twin = s.twins.current
+    assert brdf_path.name == "hostile.brdf" and twin.name == "hostile.py"
+    assert str(twin.resolve()) in s.twins.question() and "hostile.brdf" in s.twins.question()
+    s.twins.answer(False)
+    assert s.twins.current is None and "not now" in s.status and not marker.exists()
+    assert "trusted_twin_folders" not in s.state
+    s.open_files([str(path)])   # a drop of the same folder's file: not asked again this session
+    assert s.twins.current is None and not marker.exists()
+    s.render_view((16, 12))     # the file draws without its twin
+    assert not marker.exists()
+
+
+def test_running_the_twin_trusts_its_folder_remembered_in_the_state_file(hostile, tmp_path, twin_session):
+    from viewer.app import state as state_mod
+
+    path, scene, marker = hostile
+    s = twin_session()
+    s.open_files([str(path.parent)])   # a dropped folder grants nothing either
+    assert s.twins.current is None and not marker.exists() and not twin_trust.is_trusted(path.with_suffix(".py"))
+    s.open_files([str(path)])          # a dropped file: the question names it
+    assert s.twins.current[1].name == "hostile.py" and not marker.exists()
+    s.twins.answer(True)
+    assert s.twins.current is None and twin_trust.is_trusted(path.with_suffix(".py"))
+    assert brdf.load(path).twin is not None and marker.is_file()
+    folder = str(path.parent.resolve())
+    assert s.state["trusted_twin_folders"] == [folder]
+    assert s.save_state(path=tmp_path / "state.toml")
+    saved = state_mod.load_state(tmp_path / "state.toml")
+    assert saved["trusted_twin_folders"] == [folder]
+    # the next session trusts the remembered folder without asking
+    twin_trust.forget()
+    assert not twin_trust.is_trusted(path.with_suffix(".py"))
+    s2 = twin_session(scene, state=saved)
+    assert s2.twins.current is None and twin_trust.is_trusted(path.with_suffix(".py"))
+
+
+def test_a_damaged_trusted_folder_list_in_the_state_file_is_ignored(tmp_path, capsys):
+    from viewer.app import state as state_mod
+
+    (tmp_path / "state.toml").write_text('trusted_twin_folders = [1, 2]\nui_scale = 1.5\n')
+    st = state_mod.load_state(tmp_path / "state.toml")
+    assert st == {"ui_scale": 1.5} and "trusted_twin_folders: ignored" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not HAVE_X, reason="needs Xvfb (apt-get install xvfb) or a display")
+def test_the_window_draws_the_question_as_a_modal_naming_the_file(display, hostile):
+    path, scene, marker = hostile
+    r = run_py(f"""
+        from viewer.app.main import App
+        from viewer.app.panels import twin_dialog
+        shown = []
+        draw = twin_dialog.draw
+        twin_dialog.draw = lambda imgui, q: shown.append((draw(imgui, q), q.question())) or shown[-1][0]
+        app = App({str(scene)!r}, size=(640, 400), restore_state=False)
+        app.session.warm = []
+        for _ in range(3):
+            app.frame(wait=False)
+        print("SHOWN", shown[-1][0], "hostile.py" in shown[-1][1])
+        app.session.twins.answer(False)
+        app.frame(wait=False)
+        print("AFTER", shown[-1][0])
+        app.close()
+        """, display)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "SHOWN True True" in r.stdout and "AFTER False" in r.stdout, r.stdout
+    assert not marker.exists()

@@ -37,6 +37,8 @@ class FileActions:
         was = name in delta_materials(self.scene)
         self.scene.materials[name] = params
         self.dirty = True
+        if getattr(self, "twins", None) is not None:  # a file material whose twin is not trusted: ask
+            self.twins.scan_material(params)
         if not was and name in delta_materials(self.scene) and traced_hint(self.scene):
             self.notify(traced_hint(self.scene))
 
@@ -105,6 +107,8 @@ class FileActions:
         self.camera = OrbitCamera.from_scene(scene)
         self.hdr = None
         self.dirty = True
+        if getattr(self, "twins", None) is not None:  # its file materials' untrusted twins: ask
+            self.twins.scan(scene)
 
     def open_scene(self, ref) -> bool:
         """Load a scene file, a screenshot (.png) or a built-in name; on failure keep the old."""

@@ -64,11 +64,13 @@ class App:
         from viewer.app.panels.side import SidePanel
         from viewer.app.session import Session
         from viewer.app.shader_overlay import HotReload
+        from viewer.app.twin_question import trust_remembered
         from viewer.scene import load_scene
 
         self.t_start = time.perf_counter()
-        scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
         state = state_mod.load_state() if restore_state else {}
+        trust_remembered(state)  # the folders whose numpy twins the user let run before
+        scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
         self._save_state_on_close = restore_state
         if size is None:
             size = (state.get("window_width", 1280), state.get("window_height", 720))
@@ -285,6 +287,8 @@ class App:
 
     def frame(self, wait: bool = True):
         """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
+        from viewer.app.panels import twin_dialog
+
         glfw, imgui, s = self.glfw, self.imgui, self.session
         t0 = time.perf_counter()
         if s.dirty or s.quality != "full" or s.refining or not wait:
@@ -307,6 +311,7 @@ class App:
             self._draw_panels()
         if not self.view_only:
             self.hot_reload.draw_overlay()
+            twin_dialog.draw(imgui, s.twins)  # a .brdf file's numpy twin waits for the user's answer
         view = self.viewport()
         _, _, rw, rh = s.compare.raster_rect(view)
         interacting = time.perf_counter() - self._last_interaction < 0.3

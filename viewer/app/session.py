@@ -129,6 +129,9 @@ class Session(FileActions):
         note = self.scene.size_note()   # a large scene: its first frame takes a while; say why
         if note:
             self.notify(f"{self.scene.label}: {note}")
+        from viewer.app.twin_question import TwinQuestion
+
+        self.twins = TwinQuestion(self)  # a .brdf file's numpy twin runs only when the user says so
 
     # ------------------------------------------------------------------ notifications
     def notify(self, text: str, error: bool = False) -> None:
@@ -144,6 +147,7 @@ class Session(FileActions):
 
     def release(self) -> None:
         """Stop the reference and the prefetch, free the GL objects this session made."""
+        self.twins.release()
         if self.reference is not None:
             self.reference.close()
         if self.prefetch is not None:

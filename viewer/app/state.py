@@ -27,6 +27,7 @@ SCHEMA = {
     "split": (float, 0.0, 1.0),
     "view_mode": (int, 0, 64),
     "plots_visible": (bool,),
+    "trusted_twin_folders": (list,),  # folders whose numpy twins the user let run (app/twin_question.py)
 }
 
 
@@ -61,6 +62,9 @@ def load_state(path: Path | None = None) -> dict:
             v = float(v)
         if not isinstance(v, t) or (t is int and isinstance(v, bool)):
             print(f"brdf-viewer: {path}: {k}: ignored (expected {t.__name__})", file=sys.stderr)
+            continue
+        if t is list and not all(isinstance(x, str) for x in v):
+            print(f"brdf-viewer: {path}: {k}: ignored (expected a list of strings)", file=sys.stderr)
             continue
         if t in (int, float) and not (spec[1] <= v <= spec[2]):
             print(f"brdf-viewer: {path}: {k}: ignored (out of range {spec[1]}..{spec[2]})", file=sys.stderr)
