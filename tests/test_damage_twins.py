@@ -112,6 +112,8 @@ def test_no_command_runs_an_untrusted_twin(hostile, tmp_path, capsys):
     assert rc == 0 and "engine: gpu" in out and (tmp_path / "g.png").is_file()
     rc, out, err = _main(capsys, "bake", scene, "--spp", 1)
     assert rc == 0 and "1 spp" in out
+    rc, out, err = _main(capsys, "compare", scene, "--spp", 1, "--supersample", 1, "--out", tmp_path / "cmp")
+    assert rc == 0 and (tmp_path / "cmp" / "metrics.json").is_file()
     assert not marker.exists()
 
 
@@ -361,6 +363,15 @@ def test_running_the_twin_trusts_its_folder_remembered_in_the_state_file(hostile
     assert s2.twins.current is None and twin_trust.is_trusted(path.with_suffix(".py"))
 
 
+def test_a_twin_that_misbehaves_once_trusted_in_the_window_is_one_error(tmp_path, twin_session):
+    path = _bad_twin(tmp_path, "raise_in_eval")
+    s = twin_session()
+    s.open_files([str(path)])
+    assert s.twins.current[1].name == "raise_in_eval.py"
+    s.twins.answer(True)
+    assert s.messages[-1].error and s.status.startswith("raise_in_eval.py:3: ") and "RuntimeError: boom" in s.status
+
+
 def test_a_damaged_trusted_folder_list_in_the_state_file_is_ignored(tmp_path, capsys):
     from viewer.app import state as state_mod
 
@@ -391,3 +402,16 @@ def test_the_window_draws_the_question_as_a_modal_naming_the_file(display, hosti
     assert r.returncode == 0, r.stderr[-3000:]
     assert "SHOWN True True" in r.stdout and "AFTER False" in r.stdout, r.stdout
     assert not marker.exists()
+
+
+@pytest.mark.skipif(not HAVE_X, reason="needs Xvfb (apt-get install xvfb) or a display")
+def test_the_window_with_a_trusted_twin_that_exits_exits_2_with_one_line(display, tmp_path):
+    _bad_twin(tmp_path, "exit_at_import")
+    (tmp_path / "s.toml").write_text(SCENE.replace("hostile.brdf", "exit_at_import.brdf"))
+    r = run_py(f"""
+        import sys
+        from viewer.cli import main
+        sys.exit(main([{str(tmp_path / 's.toml')!r}, "--frames", "2", "--trust-twin", {str(tmp_path)!r}]))
+        """, display)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert r.stderr.startswith("brdf-viewer: error: exit_at_import.py: the numpy twin called sys.exit(0)")

@@ -104,6 +104,13 @@ class TwinQuestion:
         with self._lock:
             self._pending = [(b, t) for b, t in self._pending if not twin_trust.is_trusted(t)]
         self.session.changed()
+        from viewer import ViewerError, brdf
+
+        try:
+            brdf.load(brdf_path)  # a twin that misbehaves says so now, in one line
+        except ViewerError as e:
+            self.session.notify(str(e).splitlines()[0], error=True)
+            return
         self.session.notify(f"{brdf_path.name}: its numpy twin {twin.name} runs; the twins of {folder} are "
                             f"trusted (remembered)")
 
