@@ -415,3 +415,12 @@ def test_the_window_with_a_trusted_twin_that_exits_exits_2_with_one_line(display
         """, display)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
     assert r.stderr.startswith("brdf-viewer: error: exit_at_import.py: the numpy twin called sys.exit(0)")
+
+
+@pytest.mark.parametrize("command", ["render", "reference", "compare", "bake", "plot", "models", "check", None])
+def test_every_command_that_opens_materials_takes_trust_twin(command, capsys):
+    from viewer.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(([command] if command else []) + ["--help"])
+    assert e.value.code == 0 and "--trust-twin PATH" in capsys.readouterr().out

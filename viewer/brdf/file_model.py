@@ -6,7 +6,8 @@ evaluator is found through ``viewer.file_brdf_evaluator()``, the top-level packa
 set with ``set_glsl_evaluator``). A numpy twin ``NAME.py`` beside ``NAME.brdf`` with
 ``eval(p, wi, wo)`` (and optionally ``sample(p, wo, u)`` with ``pdf(p, wi, wo)``) in the shading
 frame of the conventions is what the CPU reference evaluates, and the report card compares the
-two. Sampling: the twin's sampler when it has one, else the file's ``isFunc`` sampler (GLSL), else
+two; it is Python from the file's author and runs only once the user trusts it
+(``viewer.brdf.twin_trust``, which also runs it guarded). Sampling: the twin's sampler when it has one, else the file's ``isFunc`` sampler (GLSL), else
 cosine-weighted sampling (pdf cos / pi), which works for any BRDF.
 
 Parameters: the file's declarations (``float`` a number in its range, ``bool``, ``color`` an RGB
