@@ -13,7 +13,7 @@ HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCEN
                  ".toml file, a built-in name or lecture:N; see README)")
 
 
-TRUST_HELP = ("run the numpy twin NAME.py of the .brdf files in this folder, or of this file (repeatable; also "
+TRUST_HELP = ("run the numpy twin NAME.py of the .brdf files in this folder (and below), or of this file (repeatable; also "
               "$BRDF_VIEWER_TRUST_TWINS, paths joined by ':'); a twin is Python code and runs only when trusted "
               "so, never because a scene, a screenshot or a folder names it (the program's own viewer/brdfs is "
               "trusted)")

@@ -58,13 +58,14 @@ def twin_of(brdf_path) -> Path:
 
 
 def trust(path, where: str = "--trust-twin") -> Path:
-    """Trust the twins in the folder ``path``, or the twin ``path`` names (the ``.py`` itself or
-    its ``.brdf``); a path that does not exist is a one-line ViewerError. Returns what is trusted."""
+    """Trust the twins in the folder ``path`` (and the folders inside it), or the twin ``path``
+    names (the ``.py`` itself or its ``.brdf``); a path that does not exist is a one-line
+    ViewerError. Returns what is trusted."""
     p = Path(os.path.expanduser(os.fspath(path)))
     if not p.exists():
         raise ViewerError(f"{where} {path}: no such file or folder")
     if p.is_file() and p.suffix.lower() == ".brdf":
-        p = twin_of(p)
+        p = twin_of(real(p))  # the twin beside the file itself, as viewer.brdf.load finds it
     root = real(p)
     if root not in _GRANTED:
         _GRANTED.append(root)
@@ -79,7 +80,7 @@ def forget() -> None:
 def roots() -> list[Path]:
     """What is trusted now: the built-in folder, the environment's paths, ``trust``'s."""
     env = [real(s) for s in os.environ.get(TRUST_ENV, "").split(os.pathsep) if s.strip()]
-    env = [real(twin_of(p)) if p.suffix.lower() == ".brdf" else p for p in env]
+    env = [real(twin_of(p)) if p.suffix.lower() == ".brdf" and p.is_file() else p for p in env]
     return [BUILT_IN, *env, *_GRANTED]
 
 
