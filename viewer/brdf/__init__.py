@@ -152,8 +152,9 @@ class FileModel(Model):
         sampling); a one-line ViewerError when the file has no twin."""
         if self.module.numpy_module is None:
             if self.module.twin_not_run:
-                raise ViewerError(f"{self.module.twin_not_run}; the cpu engine evaluates numpy twins: use --engine "
-                                  f"gpu or auto, or trust it")
+                twin = self.bfile.path.with_suffix(".py")
+                raise ViewerError(f"{self.bfile.path.name}: the cpu engine evaluates numpy twins and {twin.name} was "
+                                  f"not run (not trusted); use --engine gpu or auto, or --trust-twin {twin}")
             raise ViewerError(f"{self.bfile.path.name}: the cpu engine evaluates numpy twins and this file has none "
                               f"({self.bfile.path.with_suffix('.py').name} beside it); use --engine gpu or auto")
         return Model(self.module.numpy_module, where=self.bfile.path.with_suffix(".py").name)
