@@ -227,6 +227,15 @@ def _load(ref, overrides):
     return scene
 
 
+def _raster_note(scene) -> None:
+    """One line on stderr for a scene whose lights outnumber the raster's shadow maps."""
+    from viewer.gl.shadow import unshadowed_note
+
+    note = unshadowed_note(scene)
+    if note:
+        print(f"brdf-viewer: {scene.label}: {note}", file=sys.stderr, flush=True)
+
+
 def _objects_in_file(ref) -> int:
     """How many ``[[objects]]`` tables a scene file holds, counted in its text without parsing
     it (0 for a built-in name, a PNG or a file that cannot be read: the load names the problem)."""
@@ -294,6 +303,7 @@ def cmd_render(args) -> int:
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
     scene = _load(args.scene, _screenshot_size(args) + _overrides(args))
+    _raster_note(scene)
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
@@ -419,6 +429,7 @@ def cmd_compare(args) -> int:
     if out.exists() and not out.is_dir():
         raise ViewerError(f"--out {out}: exists and is not a folder")
     scene = load_scene(args.scene, _overrides(args))
+    _raster_note(scene)
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
