@@ -618,8 +618,9 @@ def _bake_traced(w: int, h: int) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         probe = atomic_write_bytes(folder / f".probe-{os.getpid()}", b"")
         probe.unlink()
-    except OSError as e:
-        raise ViewerError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({e.strerror or e})")
+    except OSError as e:   # a full disk or an unwritable folder: an output problem, exit 1
+        why = e.strerror or (os.strerror(e.errno) if e.errno else str(e))   # viewer.io keeps the errno
+        raise OutputError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({why})") from None
     steps = traced_steps()
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
@@ -633,7 +634,8 @@ def _bake_traced(w: int, h: int) -> int:
             if r.cached:
                 print(f"lecture step {r.step + 1}: {w}x{h} already prepared")
             elif r.stored is None:
-                raise ViewerError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}")
+                why = trace_cache.store_failure() or "the cache folder could not be written"
+                raise OutputError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}: {why}")
             else:
                 print(f"lecture step {r.step + 1}: traced {w}x{h} in {r.seconds:.1f} s -> {r.stored}")
 
