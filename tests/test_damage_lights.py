@@ -205,3 +205,18 @@ def test_cli_refuses_too_many_lights_in_one_line(tmp_path, capsys):
     assert rc == 2
     assert err.count("\n") == 1 and "Traceback" not in err and "at most 16" in err, err
     assert not (tmp_path / "many.png").exists()
+
+
+def test_the_window_says_once_which_lights_are_unshadowed(tmp_path, gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    (tmp_path / "six.toml").write_text(_n_lights(6))
+    s = Session(gl_ctx, str(tmp_path / "six.toml"), renderer=renderer, prefetch=False)
+    try:
+        said = [m.text for m in s.messages if "without shadows" in m.text]
+        assert len(said) == 1 and said[0].endswith(": lights 5-6 are drawn without shadows (the raster shadow-maps 4)"), said
+        assert s.open_scene(str(tmp_path / "six.toml"))            # opened again: said in the open line
+        opened = s.messages[-1].text
+        assert opened.startswith("opened ") and "lights 5-6 are drawn without shadows" in opened, opened
+    finally:
+        s.release()
