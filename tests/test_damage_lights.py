@@ -152,6 +152,11 @@ def test_the_note_names_the_unshadowed_lights():
     assert unshadowed_note(_parse(five_lights())) == "light 5 is drawn without shadows (the raster shadow-maps 4)"
     four = five_lights().replace(point_light(L5, I5), "")
     assert len(_parse(four).lights) == 4 and unshadowed_note(_parse(four)) is None
+    # the scene format's page (written from viewer/docgen.py, which imports no GL) says the same numbers
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parent.parent / "docs" / "scene-format.md").read_text()
+    assert f"at most {MAX_LIGHTS} lights; the rasterizer shadow-maps the first {SHADOW_LIGHTS} " in page
 
 
 def _n_lights(n: int) -> str:
