@@ -54,7 +54,8 @@ def test_header_values_are_pythons():
     assert n_choices > 40
     assert h["MICROFACET_FRESNEL_DIELECTRIC"] == 0 and h["MIRROR_FRESNEL_CONDUCTOR"] == 0  # per model
     # sizes and modes, as the modules that use them see them
-    assert h["MAX_LIGHTS"] == renderer.MAX_LIGHTS == 4
+    assert h["MAX_LIGHTS"] == renderer.MAX_LIGHTS == 16
+    assert h["SHADOW_LIGHTS"] == constants.SHADOW_LIGHTS == 4
     assert h["ALBEDO_TABLE"] == TABLE_SIZE
     assert h["IBL_MAX_LEVELS"] == ibl.MAX_LEVELS
     assert h["MAX_MATERIALS"] == engine.MAX_MATERIALS

@@ -251,7 +251,7 @@ def test_bake_lecture_refuses_bad_sizes_in_one_line(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     r = run_cli("bake", "--lecture", "--width", "8", "--height", "8", env=dict(env, BRDF_VIEWER_CACHE=str(blocker)))
-    assert r.returncode == 2 and "cannot be written" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert r.returncode == 1 and "cannot be written" in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "traced").exists()
 
 

@@ -239,6 +239,15 @@ def _load(ref, overrides):
     return scene
 
 
+def _raster_note(scene) -> None:
+    """One line on stderr for a scene whose lights outnumber the raster's shadow maps."""
+    from viewer.gl.shadow import unshadowed_note
+
+    note = unshadowed_note(scene)
+    if note:
+        print(f"brdf-viewer: {scene.label}: {note}", file=sys.stderr, flush=True)
+
+
 def _objects_in_file(ref) -> int:
     """How many ``[[objects]]`` tables a scene file holds, counted in its text without parsing
     it (0 for a built-in name, a PNG or a file that cannot be read: the load names the problem)."""
@@ -306,6 +315,7 @@ def cmd_render(args) -> int:
     if args.view not in VIEW_MODES:
         raise ViewerError(f"--view: {args.view!r} is not a view; allowed: {', '.join(VIEW_MODES)}")
     scene = _load(args.scene, _screenshot_size(args) + _overrides(args))
+    _raster_note(scene)
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     from viewer.camera import OrbitCamera
@@ -432,6 +442,7 @@ def cmd_compare(args) -> int:
     if out.exists() and not out.is_dir():
         raise ViewerError(f"--out {out}: exists and is not a folder")
     scene = load_scene(args.scene, _overrides(args))
+    _raster_note(scene)
     camera = OrbitCamera.from_scene(scene)
     ctx = create_offscreen_context()
     raster = Renderer(ctx).render_arrays(scene, camera, supersample=args.supersample)[0]
@@ -627,8 +638,9 @@ def _bake_traced(w: int, h: int) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         probe = atomic_write_bytes(folder / f".probe-{os.getpid()}", b"")
         probe.unlink()
-    except OSError as e:
-        raise ViewerError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({e.strerror or e})")
+    except OSError as e:   # a full disk or an unwritable folder: an output problem, exit 1
+        why = e.strerror or (os.strerror(e.errno) if e.errno else str(e))   # viewer.io keeps the errno
+        raise OutputError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({why})") from None
     steps = traced_steps()
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
@@ -642,7 +654,8 @@ def _bake_traced(w: int, h: int) -> int:
             if r.cached:
                 print(f"lecture step {r.step + 1}: {w}x{h} already prepared")
             elif r.stored is None:
-                raise ViewerError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}")
+                why = trace_cache.store_failure() or "the cache folder could not be written"
+                raise OutputError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}: {why}")
             else:
                 print(f"lecture step {r.step + 1}: traced {w}x{h} in {r.seconds:.1f} s -> {r.stored}")
 

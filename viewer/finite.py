@@ -9,6 +9,7 @@ silently. Numpy only (no GL): the renderer is passed in as a function.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -27,17 +28,42 @@ def nonfinite_count(image) -> int:
 def culprits(scene, render_linear: Callable[[object], np.ndarray]) -> list[str]:
     """The objects that give non-finite pixels when drawn alone (same camera, lights and
     environment): ``render_linear(scene)`` returns the linear image. ``["the background"]``
-    when the empty scene already has them. Costs one render per object; call it only after
-    ``nonfinite_count`` found something."""
+    when the empty scene already has them. An object that draws finite pixels once its material
+    is a plain Lambert one is named by its material's BRDF (the model, or the ``.brdf`` file,
+    returned NaN or Inf: the material's fault, not the renderer's). Costs one or two renders per
+    object; call it only after ``nonfinite_count`` found something."""
     if nonfinite_count(render_linear(dataclasses.replace(scene, objects=[]))):
         return ["the background (environment)"]
     out = []
     for o in scene.objects:
-        if nonfinite_count(render_linear(dataclasses.replace(scene, objects=[o]))):
+        alone = dataclasses.replace(scene, objects=[o])
+        if nonfinite_count(render_linear(alone)):
             params = scene.materials.get(o.material)
-            model = getattr(params, "model", None) or "?"
-            out.append(f"{o.mesh} with material {o.material!r} ({model})")
+            model = material_model_name(params)
+            if params is not None and params.model != "lambert" and _finite_as_lambert(alone, o, render_linear):
+                out.append(f"the BRDF of material {o.material!r} ({model}) on {o.mesh}, which returns NaN or Inf "
+                           "(the material's fault, not the renderer's)")
+            else:
+                out.append(f"{o.mesh} with material {o.material!r} ({model})")
     return out
+
+
+def material_model_name(params) -> str:
+    """``"microfacet"``, or for a ``.brdf`` material ``"custom inf.brdf"`` (its file's name)."""
+    model = getattr(params, "model", None) or "?"
+    file = params.get("file") if isinstance(params, dict) else None
+    return f"{model} {Path(str(file)).name}" if file else model
+
+
+def _finite_as_lambert(alone, obj, render_linear) -> bool:
+    """Whether the object alone draws finite pixels with its material made a default Lambert one
+    (same name, so only the BRDF differs)."""
+    from viewer import brdf
+    from viewer.brdf.spec import validate_params
+
+    lambert = validate_params(brdf.get("lambert").spec, {}, "lambert")
+    probe = dataclasses.replace(alone, materials={**alone.materials, obj.material: lambert})
+    return nonfinite_count(render_linear(probe)) == 0
 
 
 def nonfinite_message(image, source: str, found: Sequence[str] = (), switches: str = "") -> str | None:

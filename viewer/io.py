@@ -80,6 +80,13 @@ def one_line_errors(fn):
     return wrapper
 
 
+#: the most radiance (W / (m^2 sr)) a cached image's pixel may hold: a stored reference or traced
+#: frame above it is taken for garbage (finite nonsense such as 3e38 everywhere) and set aside.
+#: The brightest pixel of any built-in scene or lecture step is below 100; the sharpest highlight
+#: the models allow (GGX at alpha 1e-4, D up to 3e7 /sr) under a light of I / r^2 = 10 is ~1e8.
+MAX_CACHED_RADIANCE = 1e9
+
+
 def cache_root() -> Path:
     """The folder of every on-disk cache (references, traced frames, environment maps):
     ``$BRDF_VIEWER_CACHE``, else ``$XDG_CACHE_HOME/brdf-viewer``, else ``~/.cache/brdf-viewer``."""

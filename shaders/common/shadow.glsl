@@ -1,10 +1,11 @@
-// Shadow maps in one depth atlas: light i owns row i; a point light uses six 90-degree (plus a
-// margin) perspective tiles, one per cube face, a directional light one orthographic tile.
+// Shadow maps in one depth atlas for the first SHADOW_LIGHTS lights: light i owns row i; a point
+// light uses six 90-degree (plus a margin) perspective tiles, one per cube face, a directional
+// light one orthographic tile. Lights SHADOW_LIGHTS.. (up to MAX_LIGHTS) are drawn unshadowed.
 // Filtering: 4 taps of hardware 2x2 comparison (bilinear PCF), a 3x3-texel tent.
 #include "generated/constants.glsl"
 
 uniform sampler2DShadow u_shadow_atlas;
-uniform mat4 u_shadow_mat[MAX_LIGHTS * 6];
+uniform mat4 u_shadow_mat[SHADOW_LIGHTS * 6];
 uniform vec2 u_shadow_atlas_tiles;   // (tiles per row = 6, rows)
 uniform float u_shadow_tile_size;     // texels per tile side
 uniform int u_shadows_on;
@@ -42,13 +43,13 @@ float shadow_lookup(int light, int face, vec3 p) {
 // Normal-offset bias: move the lookup point along ng by about a texel's world size (more at
 // grazing light), so a surface never shadows itself (acne) while contact shadows stay attached
 // (no peter-panning, which a large constant depth bias would cause).
-uniform float u_shadow_texel_world[MAX_LIGHTS];  // directional: world size of one texel
+uniform float u_shadow_texel_world[SHADOW_LIGHTS];  // directional: world size of one texel
 // point: the width of each face's tile in tan units (2: the whole face; it is cropped to the part
 // the casters cover, viewer/gl/shadow.py; 0: no caster in that face)
-uniform float u_shadow_face_tan[MAX_LIGHTS * 6];
+uniform float u_shadow_face_tan[SHADOW_LIGHTS * 6];
 
 float shadow_visibility(int light, bool point_light, vec3 light_pos, vec3 p, vec3 ng, float ndotl) {
-    if (u_shadows_on == 0) return 1.0;
+    if (u_shadows_on == 0 || light >= SHADOW_LIGHTS) return 1.0;  // beyond the atlas: unshadowed
     float slope = 1.0 + 2.0 * (1.0 - clamp(ndotl, 0.0, 1.0));
     if (point_light) {
         // a face's tile spans face_tan * dist world units at distance dist (2 dist uncropped)

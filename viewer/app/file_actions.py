@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
+from viewer.gl.shadow import unshadowed_note
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 ENV_SUFFIXES = (".hdr", ".exr")
@@ -124,8 +125,8 @@ class FileActions:
             return False
         self._set_scene(scene)
         self.lecture_step = -1
-        note = scene.size_note()   # a large scene: say how large (its first frame takes a while)
-        self.notify(f"opened {ref}" + (f" ({note})" if note else ""))
+        notes = [n for n in (scene.size_note(), unshadowed_note(scene)) if n]   # how large; lights unshadowed
+        self.notify(f"opened {ref}" + (f" ({'; '.join(notes)})" if notes else ""))
         return True
 
     def save_scene(self, path) -> bool:

@@ -20,6 +20,7 @@ import numpy as np
 from viewer import ViewerError
 from viewer.app.file_actions import FileActions
 from viewer.gl.context import release_gl
+from viewer.gl.shadow import unshadowed_note
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
@@ -127,6 +128,9 @@ class Session(FileActions):
         if m is not None:  # opened as lecture:N: lecture mode at that step
             self._enter_step(int(m.group(1)) - 1)
         note = self.scene.size_note()   # a large scene: its first frame takes a while; say why
+        if note:
+            self.notify(f"{self.scene.label}: {note}")
+        note = unshadowed_note(self.scene)   # lights beyond the shadow atlas
         if note:
             self.notify(f"{self.scene.label}: {note}")
         from viewer.app.twin_question import TwinQuestion

@@ -13,9 +13,13 @@ from viewer.brdf.albedo import TABLE_SIZE
 from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TABLE
 from viewer.brdf.spectral_fresnel import TABLE_N
 from viewer.geometry.bvh_flat import STACK_SIZE
+from viewer.scene.model import MAX_LIGHTS
 from viewer.term_scales import NOT_APPLICABLE, SCALES
 
-MAX_LIGHTS = 4            # point and directional lights with shadow maps in the rasterizer
+# MAX_LIGHTS (viewer/scene/model.py): the point and directional lights a scene may hold, the length
+# of the rasterizer's light arrays; the first SHADOW_LIGHTS of them have shadow maps, the rest are
+# drawn without shadows
+SHADOW_LIGHTS = 4
 ALBEDO_TABLE = TABLE_SIZE  # entries of a directional-albedo table: cos(theta_o) = (k + 0.5) / size
 IBL_MAX_LEVELS = 8        # prefiltered environment levels at most (level 0 is the map itself)
 MAX_MATERIALS = 64        # materials the GPU reference engine holds
@@ -56,7 +60,7 @@ ENV_MODES = {"black": 0, "constant": 1, "map": 2}
 _TABLES = (("LIGHT", LIGHT_TYPES), ("TONEMAP", TONEMAPS), ("IBL_MODE", IBL_MODES), ("VIEW_MODE", VIEW_MODES),
            ("SSR_DEBUG", SSR_DEBUG), ("CHAIN", CHAIN_KINDS), ("RT_T", CHAIN_TEXELS), ("PT_KIND", PT_KINDS), ("STRATEGY", STRATEGIES),
            ("ENV_MODE", ENV_MODES))
-_SIZES = ("MAX_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
+_SIZES = ("MAX_LIGHTS", "SHADOW_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
           "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE", "LAYERED_BASE_TABLE", "LAYERED_BASE_TABLES_AT",
           "SPECTRAL_TABLE_N", "BVH_STACK", "MAT_VEC4", "MAT_FLOATS")
 

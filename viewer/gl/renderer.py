@@ -501,7 +501,7 @@ class Renderer:
         ssr_debug = view_mode - SSR_VIEW_BASE if view_mode > SSR_VIEW_BASE else 0
         if ssr_debug:
             view_mode = 0  # the forward pass shades; the SSR pass shows its debug output
-        lights = shadow_lights(scene)
+        lights = scene.lights[:MAX_LIGHTS]   # all of them (the validator refuses more); 4 shadowed
         env = scene.environment
         env_rad = np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
         env_map = env.radiance_map() if env.map is not None else None
@@ -513,7 +513,7 @@ class Renderer:
             x0, y0 = max(0, x), max(0, y)
             region = (x0, y0, max(0, min(w, x + rw) - x0), max(0, min(h, y + rh) - y0))
         return _Frame(w, h, camera or OrbitCamera.from_scene(scene), targets, view_mode, ssr_on, ssr_debug,
-                      lights, bool(scene.render.shadows) and len(lights) > 0, env_rad, env_map, env_on, rt_on, region)
+                      lights, bool(scene.render.shadows) and len(shadow_lights(scene)) > 0, env_rad, env_map, env_on, rt_on, region)
 
     def _environment(self, scene, f: _Frame):
         """The thickness of absorbing objects (or None), the IBL textures of the environment, and

@@ -1,4 +1,5 @@
-"""The shadow pass: one depth atlas for the first MAX_LIGHTS lights (shaders/common/shadow.glsl).
+"""The shadow pass: one depth atlas for the first SHADOW_LIGHTS lights (shaders/common/shadow.glsl;
+the rasterizer draws the scene's other lights, up to MAX_LIGHTS, without shadows).
 Light i owns row i of the atlas: a point light six perspective tiles (one per cube face, a little
 wider than 90 degrees, each cropped to the part of its face the casters cover), a directional
 light one orthographic tile over the scene's bounds. The
@@ -12,7 +13,7 @@ import numpy as np
 
 from viewer.camera import gl_bytes, look_at, orthographic, perspective
 from viewer.gl import texture_units
-from viewer.gl.constants import MAX_LIGHTS
+from viewer.gl.constants import SHADOW_LIGHTS
 from viewer.gl.context import release_gl
 from viewer.gl.shaders import set_uniform as _set
 
@@ -24,8 +25,20 @@ _FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)
 
 
 def shadow_lights(scene):
-    """The lights the rasterizer draws (and casts shadows of): the first MAX_LIGHTS."""
-    return scene.lights[:MAX_LIGHTS]
+    """The lights the rasterizer casts shadows of: the first SHADOW_LIGHTS (it draws them all)."""
+    return scene.lights[:SHADOW_LIGHTS]
+
+
+def unshadowed_note(scene) -> str | None:
+    """One line for a scene with more lights than the shadow atlas holds ("lights 5-9 are drawn
+    without shadows (the raster shadow-maps 4)"), else None. The CLI prints it on stderr, the
+    window in its status line."""
+    n = len(scene.lights)
+    if n <= SHADOW_LIGHTS:
+        return None
+    which = f"light {n}" if n == SHADOW_LIGHTS + 1 else f"lights {SHADOW_LIGHTS + 1}-{n}"
+    verb = "is" if n == SHADOW_LIGHTS + 1 else "are"
+    return f"{which} {verb} drawn without shadows (the raster shadow-maps {SHADOW_LIGHTS})"
 
 
 def _caster_corners(scene) -> np.ndarray:
@@ -79,9 +92,9 @@ class ShadowMaps:
         self.ctx = ctx
         self._atlas = None  # {"tex", "fbo", "rows"}
         self._key = None
-        self._mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
-        self._texel = np.zeros(MAX_LIGHTS)
-        self._face_tan = np.zeros(MAX_LIGHTS * 6)
+        self._mats = np.zeros((SHADOW_LIGHTS * 6, 4, 4))
+        self._texel = np.zeros(SHADOW_LIGHTS)
+        self._face_tan = np.zeros(SHADOW_LIGHTS * 6)
 
     def update(self, scene, prog, draw):
         """Render the atlas with the shadow program ``prog`` unless the lights and objects are
@@ -129,7 +142,7 @@ class ShadowMaps:
         self._face_tan[:] = 0.0
         center = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
-        mats = np.zeros((MAX_LIGHTS * 6, 4, 4))
+        mats = np.zeros((SHADOW_LIGHTS * 6, 4, 4))
         for i, light in enumerate(lights):
             if light.type == "point":
                 p = np.asarray(light.position, float)

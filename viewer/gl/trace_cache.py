@@ -14,7 +14,8 @@ environment map's texels, the camera's view and projection matrices, the view si
 mode and the untraced frame's MSAA. Files: ``<cache folder>/traced/<key>.npz`` (``image``:
 (H, W, 4) float32, 33 MB at 1920 x 1080), written atomically; an entry that cannot be read or
 does not match the view it is keyed for is moved aside to ``<key>.npz.damaged`` and traced
-again. The folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the
+again, and so is one of implausible texels (negative, or above ``viewer.io.MAX_CACHED_RADIANCE``:
+finite garbage such as 3e38 everywhere). The folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the
 newest ``MAX_ENTRIES`` entries.
 """
 
@@ -29,13 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import cache_root
+from viewer.io import MAX_CACHED_RADIANCE, cache_root
 
 #: bump when what the progressive trace stores (or how it composes) changes
 VERSION = "1"
 MAX_ENTRIES = 24
 
 _shader_hash: dict = {}
+_last_failure: list[str] = []   # why the last store wrote nothing (store_failure)
 _array_hash: dict = {}
 
 
@@ -124,19 +126,26 @@ def set_aside(path: Path) -> Path | None:
 
 def load(key: str, shape, folder: Path | None = None):
     """(the stored view as (H, W, 4) float32 texels, "") or (None, why): why is "" when there
-    is no entry, else the reason the entry was set aside (unreadable, or not of this view's
-    size)."""
+    is no entry, else the reason the entry was set aside (unreadable, not float32, not of this
+    view's size, not finite, negative or beyond ``MAX_CACHED_RADIANCE``)."""
     p = path_for(key, folder)
     if not p.is_file():
         return None, ""
     try:
         with np.load(p, allow_pickle=False) as z:
-            image = np.asarray(z["image"], np.float32)
+            stored = z["image"]
+        image = np.asarray(stored, np.float32)
         why = ""
-        if image.shape != (int(shape[0]), int(shape[1]), 4):
+        if stored.dtype != np.float32:
+            why = f"it holds {stored.dtype} values, not float32 texels"
+        elif image.shape != (int(shape[0]), int(shape[1]), 4):
             why = f"it holds a {image.shape} image, not the view's {int(shape[1])}x{int(shape[0])}"
         elif not np.all(np.isfinite(image)):
             why = "it holds values that are not finite"
+        elif image.min(initial=0.0) < -1e-3:
+            why = f"it holds negative radiance ({float(image.min()):.3g})"
+        elif image.max(initial=0.0) > MAX_CACHED_RADIANCE:
+            why = f"it holds a radiance of {float(image.max()):.3g}; plausible: at most {MAX_CACHED_RADIANCE:.0e}"
     except (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile) as e:
         why = f"unreadable ({type(e).__name__})"
     if why:
@@ -157,12 +166,22 @@ def store(key: str, image: np.ndarray, folder: Path | None = None) -> Path | Non
     with zipfile.ZipFile(data, "w", zipfile.ZIP_STORED) as z:
         z.writestr("image.npy", buf.getvalue())
     p = path_for(key, folder)
+    _last_failure.clear()
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(p, data.getvalue())
         entries = sorted(p.parent.glob("*.npz"), key=lambda q: q.stat().st_mtime_ns)
         for old in entries[:-MAX_ENTRIES]:
             old.unlink(missing_ok=True)
-    except (OSError, ViewerError):
+    except (OSError, ViewerError) as e:
+        # viewer.io's errors name the file and why; a plain OSError (mkdir) says why
+        why = str(e) if isinstance(e, ViewerError) else f"{p}: cannot be written ({e.strerror or e})"
+        _last_failure.append(why.splitlines()[0] if why else type(e).__name__)
         return None
     return p
+
+
+def store_failure() -> str:
+    """Why the last ``store`` wrote nothing (one line naming the file and the reason, e.g. "No
+    space left on device"), or "" when it wrote its entry."""
+    return _last_failure[-1] if _last_failure else ""

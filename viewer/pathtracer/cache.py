@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import OutputError, ViewerError
-from viewer.io import cache_root  # noqa: F401  (the cache folder's one definition; re-exported)
+from viewer.io import MAX_CACHED_RADIANCE, cache_root  # noqa: F401  (cache_root: the folder's one definition; re-exported)
 from viewer.scene.validation import short
 
 #: bump when the estimator changes what it converges to (or its noise), so old entries are unused;
@@ -132,9 +132,10 @@ def say(message: str) -> None:
 
 def entry_problem(e: Entry, shape: tuple | None = None) -> str | None:
     """What makes ``e`` unusable (wrong shapes, a sample count out of range, NaN, Inf or negative
-    sums), or None. Sums of radiance are >= 0 (the renderers replace NaN, Inf and negative
-    values by 0 before adding); a sum of squares may overflow float32 to +inf (its variance then
-    reads as unknown), never NaN or < 0."""
+    sums, a mean radiance no scene makes), or None. Sums of radiance are >= 0 (the renderers
+    replace NaN, Inf and negative values by 0 before adding) and their mean is at most
+    ``MAX_CACHED_RADIANCE`` (finite garbage such as 3e38 everywhere is not an image); a sum of
+    squares may overflow float32 to +inf (its variance then reads as unknown), never NaN or < 0."""
     if e.sum.ndim != 3 or e.sum.shape[2] != 3:
         return f"sums of shape {e.sum.shape}, not (H, W, 3)"
     if e.sum2.shape != e.sum.shape:
@@ -149,6 +150,9 @@ def entry_problem(e: Entry, shape: tuple | None = None) -> str | None:
         return "NaN or Inf in the sums"
     if np.any(e.sum < 0):
         return "negative sums"
+    top = float(e.sum.max(initial=0.0)) / e.spp
+    if top > MAX_CACHED_RADIANCE:
+        return f"a mean radiance of {top:.3g}; plausible: at most {MAX_CACHED_RADIANCE:.0e}"
     if np.any(np.isnan(e.sum2)) or np.any(e.sum2 < 0):
         return "NaN or negative sums of squares"
     return None
@@ -187,12 +191,14 @@ def load(key: str, folder: Path | None = None, shape: tuple | None = None, repor
         return None
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            kinds = {k: z[k].dtype for k in ("sum", "sum2")}
             e = Entry(np.asarray(z["sum"], np.float64), np.asarray(z["sum2"], np.float64),
                       int(z["spp"]), str(z["engine"]), int(z["seed"]))
     except Exception as ex:  # noqa: BLE001 - BadZipFile, zlib.error, ValueError, KeyError, EOFError, ...
         set_aside(p, short(f"{type(ex).__name__}: {ex}".splitlines()[0], 80), report)
         return None
-    why = entry_problem(e, shape)
+    bad_kind = [f"{k} of dtype {d}" for k, d in kinds.items() if d.kind != "f"]
+    why = ("sums stored as " + ", ".join(bad_kind) + ", not floats") if bad_kind else entry_problem(e, shape)
     if why is not None:
         set_aside(p, why, report)
         return None

@@ -36,6 +36,9 @@ SIZE_ALLOWED = f"an integer of pixels in [1, {MAX_SIZE}]"  # camera.width, camer
 # 20 million triangles; 10,000 cubes 120,000.
 MAX_OBJECTS = 100_000
 MAX_TRIANGLES = 30_000_000
+# The most lights a scene may hold (docs/scene-format.md, [[lights]]): the rasterizer's and the
+# GPU engine's uniform arrays are this long; the rasterizer shadow-maps the first 4 of them.
+MAX_LIGHTS = 16
 LARGE_SCENE_OBJECTS = 1_000   # from here on, loading says how large the scene is (Scene.size_note)
 EXPOSURE_RANGE = (-20.0, 20.0)
 # Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):

@@ -13,7 +13,7 @@ from viewer import ViewerError
 from viewer.io import expand_user, one_line_errors, path_problem
 from viewer.scene.environment import MAP_ALLOWED, Environment
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, IBL_MODES, LIGHT_TYPES,
-                                MAX_OBJECTS, MAX_SIZE, MAX_TRIANGLES, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
+                                MAX_LIGHTS, MAX_OBJECTS, MAX_SIZE, MAX_TRIANGLES, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
                                 SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene, SceneObject)
 from viewer.scene.overrides import apply_override, is_material_switch, switch_material
 from viewer.scene.validation import Checker, check_nesting, describe, short
@@ -183,6 +183,8 @@ def _parse_lights(ck: Checker, lst) -> list[Light]:
         ck.fail("lights", "is a single table", "an array of tables: write [[lights]] for each light")
     if not isinstance(lst, list):
         ck.fail("lights", f"expected an array of tables, got {describe(lst)}", "[[lights]] tables")
+    if len(lst) > MAX_LIGHTS:
+        ck.fail("lights", f"{len(lst):,} lights", f"at most {MAX_LIGHTS} [[lights]] tables (see docs/scene-format.md)")
     out = []
     for i, t in enumerate(lst):
         fld = f"lights[{i}]"
