@@ -23,7 +23,6 @@ from viewer.gl.context import release_gl
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
-PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view is still)
 # tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
 # this much time per frame, over the view as it was or its half-resolution preview (the window
 # then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
@@ -122,6 +121,7 @@ class Session(FileActions):
         self._whole_s = None       # ((w, h), seconds): what the last whole full-quality frame cost
         self._drawn_view = None    # the camera and view mode of the frame shown (_view_key)
         self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
+        self.window_px = None      # the window's framebuffer size (w, h), set by the window each frame
         self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
         if m is not None:  # opened as lecture:N: lecture mode at that step
@@ -173,7 +173,7 @@ class Session(FileActions):
         """Frames should follow without waiting for input (brute-force IBL still averaging, or
         the traced chains still refining)."""
         return ((self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
-                or self.preparing or self.tiling)
+                or self.tiling)
 
     @property
     def tiling(self) -> bool:
@@ -188,7 +188,8 @@ class Session(FileActions):
 
     @property
     def preparing(self) -> bool:
-        """Prepare lecture is tracing the lecture's steps into the traced-frame cache."""
+        """Prepare lecture is tracing the lecture's steps into the traced-frame cache (in a child
+        process: the window's frames go on as usual)."""
         return self.prep is not None and not self.prep.done
 
     @property
@@ -234,9 +235,9 @@ class Session(FileActions):
         if self._awaiting is not None and self.compile_ahead.answered(self._awaiting):
             self._awaiting = None
             self.dirty = True  # the programs are ready: draw the material as it now is
+        if self.preparing:
+            self._prepare_step()
         if not (self.dirty or want_full or stale or progressive):
-            if self.preparing and not interacting:
-                self._prepare_step()
             return
         t1 = time.perf_counter()
         restart = self.dirty or want_full or stale
@@ -290,8 +291,6 @@ class Session(FileActions):
         self.dirty = False
         if self._step_timer is not None and not interacting:
             self._step_shown()
-        if self.preparing and not interacting and not self.tracing:
-            self._prepare_step()
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
@@ -366,47 +365,38 @@ class Session(FileActions):
         return "full"
 
     # ------------------------------------------------------------------ Prepare lecture
-    def prepare_lecture(self, size=None) -> bool:
-        """Trace every lecture step with traced chains at the view's size (``size`` = (w, h), by
-        default the view's last size) into the traced-frame cache, a slice per frame while the
-        view is still (``viewer.app.lecture_prep``). Again while it runs: cancelled."""
-        from viewer.app.lecture_prep import LecturePrep
+    def prepare_lecture(self, size=None, steps=None) -> bool:
+        """Trace every lecture step with traced chains (``steps``: only those) for the window's
+        size (``size`` = (w, h) framebuffer pixels; by default ``window_px``, which the window
+        sets each frame, else the view's last size) into the traced-frame cache, in a child
+        process (``viewer.app.lecture_prep.BackgroundPrep``: ``bake --lecture``), so that every
+        layout of a window of that size finds its steps prepared. Again while it runs: cancelled."""
+        from viewer.app.lecture_prep import BackgroundPrep
 
         if self.preparing:
             self.prep.cancel()
             self.notify("Prepare lecture cancelled")
             return False
-        size = size or self._hdr_for
+        size = size or self.window_px or self._hdr_for
         if not size or size[0] <= 0 or size[1] <= 0:
             self.notify("Prepare lecture: no view to size it by yet (draw a frame first)", error=True)
             return False
-        self.prep = LecturePrep(self.ctx, self.renderer, size)
-        self.notify(self.prep.progress_text())
-        return True
+        self.prep = BackgroundPrep(size, steps)
+        self.notify(self.prep.progress_text(), error=bool(self.prep.error))
+        return not self.prep.error
 
     def _prepare_step(self):
-        """One slice of the preparation, the view kept as it is shown (the preparation renders
-        other scenes with the same renderer)."""
-        self._keep_view()
-        try:
-            res = self.prep.step(PREP_BUDGET_S)
-        except ViewerError as e:
-            self.prep.cancel()
-            self.notify(f"Prepare lecture stopped: {e}", error=True)
-            return
+        """What the preparation's child said since the last frame, as the view's messages."""
+        results = self.prep.poll()
         for msg in self.prep.messages:
             self.notify(msg)
         self.prep.messages.clear()
-        if res is not None and not res.cached and res.stored is None:
-            from viewer.gl.trace_cache import cache_folder
-
-            self.prep.cancel()
-            self.notify(f"Prepare lecture stopped: the traced-frame cache {cache_folder()} cannot be written "
-                        "(the steps will trace live)", error=True)
-        elif res is not None and self.prep.done:
+        if self.prep.error:
+            self.notify(self.prep.error, error=True)
+        elif results and self.prep.done:
             traced = [r for r in self.prep.results if not r.cached]
             self.notify(f"{self.prep.progress_text()} ({len(self.prep.results)} steps, {len(traced)} traced now)")
-        elif res is not None:
+        elif results or self.prep.done:
             self.notify(self.prep.progress_text())
 
     def _keep_view(self):
