@@ -229,9 +229,10 @@ def test_prepare_twice_cancels(session, cache_dir, monkeypatch):
     assert not session.prepare_lecture()  # no view drawn yet: nothing to size it by
     assert session.last_message.error and "no view" in session.status
     assert session.prepare_lecture(SIZE, steps=[_step("tir")]) and session.preparing
-    proc = session.prep._proc
+    prep = session.prep
+    assert prep.running
     assert not session.prepare_lecture(SIZE) and not session.preparing and "cancelled" in session.status
-    assert proc.poll() is not None  # the child is gone
+    assert not prep.running  # the child is gone
 
 
 def test_prepare_with_an_unwritable_cache_says_so_once(session, tmp_path, monkeypatch):

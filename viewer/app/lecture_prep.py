@@ -231,6 +231,11 @@ class BackgroundPrep:
         return self._finished
 
     @property
+    def running(self) -> bool:
+        """The child process is still running."""
+        return self._proc is not None and self._proc.poll() is None
+
+    @property
     def current(self) -> int | None:
         if self.done:
             return None
