@@ -361,3 +361,40 @@ def test_bake_lecture_cli_every_traced_step(tmp_path):
     assert len(list((tmp_path / "traced").glob("*.npz"))) == len(steps)
     r = run_cli("bake", "--lecture", "--width", "32", "--height", "18", env=env)
     assert r.returncode == 0 and r.stdout.count("already prepared") == len(steps)
+
+
+def test_prepare_lecture_child_ends_with_the_window(tmp_path):
+    # the window's bake child watches the window's pid: killed with SIGKILL, the window leaves
+    # no bake running (here a stand-in parent process that starts BackgroundPrep, then dies)
+    import signal
+    import textwrap
+
+    script = tmp_path / "parent.py"
+    script.write_text(textwrap.dedent(f"""
+        import sys, time
+        from viewer.app.lecture_prep import BackgroundPrep
+        p = BackgroundPrep((1920, 1080), steps=[{_step("tir")}])
+        print(p.child_pid, flush=True)
+        time.sleep(600)
+    """))
+    env = dict(os.environ, BRDF_VIEWER_CACHE=str(tmp_path / "cache"))
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
+    child = int(parent.stdout.readline())
+    with open(f"/proc/{child}/cmdline", "rb") as f:
+        assert b"bake" in f.read()  # running, not ended by itself
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    for _ in range(200):  # it checks its parent every PARENT_CHECK_S
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            break
+        with open(f"/proc/{child}/stat") as f:
+            if f.read().split(") ")[-1].startswith("Z"):
+                break
+        import time
+
+        time.sleep(0.05)
+    else:
+        os.kill(child, signal.SIGKILL)
+        raise AssertionError("the bake child outlived its window")

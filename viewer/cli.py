@@ -633,7 +633,7 @@ def _bake_traced(w: int, h: int, steps=None) -> int:
     the end."""
     import os
 
-    from viewer.app.lecture_prep import LecturePrep, prepared_text, traced_steps, view_size
+    from viewer.app.lecture_prep import PARENT_ENV, LecturePrep, prepared_text, traced_steps, view_size
     from viewer.gl import trace_cache
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
@@ -647,6 +647,11 @@ def _bake_traced(w: int, h: int, steps=None) -> int:
         probe.unlink()
     except OSError as e:
         raise ViewerError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({e.strerror or e})")
+    parent = os.environ.get(PARENT_ENV, "")
+    if parent.isdigit():  # run by the window's Prepare lecture: it ends when the window does
+        from viewer.pathtracer.progressive import watch_parent
+
+        watch_parent(int(parent))
     steps = [i for i in traced_steps() if steps is None or i in steps]
     vw, vh = view_size((w, h))
     print(f"preparing lecture for {prepared_text((w, h))}: {len(steps)} traced steps", flush=True)

@@ -12,6 +12,7 @@ full resolution only), so the entry is what the window would have traced live.""
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import subprocess
 import sys
@@ -20,6 +21,8 @@ import time
 
 #: the largest tile when nobody waits for a frame (the bake): a whole frame of 1920 x 1080
 BAKE_TILE_PIXELS = 1 << 22
+#: set for ``bake --lecture`` run by the window: the window's pid, whose end ends the bake too
+PARENT_ENV = "BRDF_VIEWER_PREP_PARENT"
 
 
 @dataclasses.dataclass
@@ -181,8 +184,9 @@ class BackgroundPrep:
         cmd = list(command) if command is not None else [sys.executable, "-m", "viewer", "bake", "--lecture"]
         cmd += ["--width", str(w), "--height", str(h), "--steps", ",".join(str(i + 1) for i in self.steps)]
         try:
+            env = dict(os.environ, **{PARENT_ENV: str(os.getpid())})  # it ends when the window dies
             self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                          stderr=subprocess.STDOUT, text=True, bufsize=1)
+                                          stderr=subprocess.STDOUT, text=True, bufsize=1, env=env)
         except OSError as e:
             self._proc = None
             self.error = f"Prepare lecture could not start ({e})"
@@ -229,6 +233,10 @@ class BackgroundPrep:
     @property
     def done(self) -> bool:
         return self._finished
+
+    @property
+    def child_pid(self) -> int | None:
+        return None if self._proc is None else self._proc.pid
 
     @property
     def running(self) -> bool:
