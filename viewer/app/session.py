@@ -101,6 +101,12 @@ class Session(FileActions):
         self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
         self.wake = None           # called from any thread when the reference has a new image
         self._prefetch_on = prefetch
+        # a map the disk cache lacks: drawn at once with a quick prefilter, its full prefilter in
+        # a child process (viewer.app.prefetch.MapPrefilter), never on this thread
+        self._env_job = None
+        self._env_failed: set[str] = set()
+        if prefetch:
+            self.renderer.ibl().defer = True
         self._compile_ahead_on = compile_ahead
         self.compile_ahead = None  # the CompileAhead child, started on first need
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
@@ -148,6 +154,9 @@ class Session(FileActions):
             self.reference.close()
         if self.prefetch is not None:
             self.prefetch.stop()
+        if self._env_job is not None:
+            self._env_job.stop()
+            self._env_job = None
         if self.compile_ahead is not None:
             self.compile_ahead.stop()
         self.compare.release()
@@ -237,6 +246,7 @@ class Session(FileActions):
             self.dirty = True  # the programs are ready: draw the material as it now is
         if self.preparing:
             self._prepare_step()
+        self._watch_environment()
         if not (self.dirty or want_full or stale or progressive):
             return
         t1 = time.perf_counter()
@@ -289,8 +299,48 @@ class Session(FileActions):
         self._hdr_for = (rw_full, rh_full)
         self.quality = quality
         self.dirty = False
+        self._watch_environment()
         if self._step_timer is not None and not interacting:
             self._step_shown()
+
+    @property
+    def environment_provisional(self) -> bool:
+        """The environment light is drawn with a quick prefilter while the full one runs in the
+        background (or failed there)."""
+        ibl = self.renderer.ibl()
+        return ibl.defer and ibl.provisional is not None
+
+    def _watch_environment(self):
+        """A map drawn with a quick prefilter (``viewer.gl.ibl.IBL.defer``): its full prefilter
+        in a child process; once the disk cache holds it, the view is drawn again with it."""
+        ibl = self.renderer.ibl()
+        job = self._env_job
+        if job is not None:
+            if job.key != ibl.provisional:  # another map now (or the full one is read): not needed
+                job.stop()
+                self._env_job = job = None
+            elif job.ready:
+                self._env_job = None
+                self.dirty = True  # the next frame reads it from the disk cache
+                self.notify(f"environment light: fully prefiltered in the background "
+                            f"({time.perf_counter() - job.started:.1f} s)")
+                return
+            elif job.finished:
+                self._env_job = None
+                self._env_failed.add(job.key)
+                self.notify(f"environment light stays a quick prefilter: {job.error}", error=True)
+                return
+        if ibl.defer and ibl.provisional is not None and job is None and ibl.provisional not in self._env_failed:
+            from viewer.app.prefetch import MapPrefilter
+
+            self._env_job = MapPrefilter(ibl.provisional, ibl.pending_map)
+            if self._env_job.error:
+                self._env_failed.add(ibl.provisional)
+                self.notify(self._env_job.error, error=True)
+                self._env_job = None
+            else:
+                self.notify("environment light: a quick low-resolution prefilter until the full one, "
+                            "prefiltered in the background, is ready")
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
@@ -351,6 +401,8 @@ class Session(FileActions):
         if restart or not t.active:
             self.hdr = t.start(self.renderer, self.scene, self.camera, w, h, self.view_mode, cache=True,
                                store=self.lecture_step >= 0)
+            if self.environment_provisional:  # a quick prefilter lights it: not for the cache
+                t.keep_out_of_cache()
             if t.cache_message:
                 self.notify(t.cache_message)
             if not t.from_cache:
@@ -765,7 +817,9 @@ class Session(FileActions):
         dt = time.perf_counter() - t0
         why = ""
         st = getattr(self.renderer.ibl(), "stats", {})
-        if st.get("prefilter_passes"):
+        if st.get("provisional"):
+            why = "; the environment light is a quick prefilter until the full one is ready (in the background)"
+        elif st.get("prefilter_passes"):
             why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
         self.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
 
