@@ -78,12 +78,13 @@ def ibl_settings(ibl):
             "fis_bias": ibl.fis_bias, "estimator": "ggx-dcos-n=v=r-nol-weighted-fis"}
 
 
-def test_the_window_never_prefilters_a_new_map_on_its_thread(gl_ctx, renderer, cache_dir, tmp_path):
+def test_the_window_never_prefilters_a_new_map_on_its_thread(gl_ctx, renderer, cache_dir, tmp_path, monkeypatch):
     import time
 
-    from viewer.app.session import Session
+    from viewer.app.session import DEFER_ENV, Session
     from viewer.environment.io import save_environment
 
+    monkeypatch.setenv(DEFER_ENV, "1")  # the window's default (the suite turns it off)
     env = tmp_path / "env.hdr"
     save_environment(env, _map(2))
     s = Session(gl_ctx, "sphere", [f"environment.map={env}"], renderer=renderer, prefetch=True)
@@ -101,3 +102,18 @@ def test_the_window_never_prefilters_a_new_map_on_its_thread(gl_ctx, renderer, c
         assert s.renderer.ibl().stats.get("cached")
     finally:
         s.release()
+
+
+def test_a_small_or_constant_map_is_prefiltered_at_once(gl_ctx, cache_dir):
+    # nothing to gain from the quick prefilter where the full one is as small
+    from viewer.gl import ibl as ibl_mod
+
+    ibl = ibl_mod.IBL(gl_ctx)
+    try:
+        ibl.defer = True
+        ibl.set_environment(None, constant=(0.3, 0.3, 0.3))
+        assert ibl.provisional is None and not ibl.stats["provisional"]
+        ibl.set_environment(_map(3, w=ibl_mod.QUICK_LAYER_WIDTH, h=ibl_mod.QUICK_LAYER_WIDTH // 2))
+        assert ibl.provisional is None and ibl.stats["prefilter_passes"] == 1
+    finally:
+        ibl.release()

@@ -28,6 +28,9 @@ TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of r
 # then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
 # with MSAA takes 0.3 s); less where the rest of the window's frame leaves less of FRAME_GOAL_S
 TILE_BUDGET_S = 0.07
+#: "0": the window prefilters a new environment map in the frame, as offscreen rendering does
+#: (tests that compare the window with offscreen images); else a quick prefilter meanwhile
+DEFER_ENV = "BRDF_VIEWER_DEFER_PREFILTER"
 FRAME_GOAL_S = 0.12
 
 # the plot tab each lecture step's ``plot`` names
@@ -105,7 +108,7 @@ class Session(FileActions):
         # a child process (viewer.app.prefetch.MapPrefilter), never on this thread
         self._env_job = None
         self._env_failed: set[str] = set()
-        if prefetch:
+        if prefetch and os.environ.get(DEFER_ENV, "1") != "0":
             self.renderer.ibl().defer = True
         self._compile_ahead_on = compile_ahead
         self.compile_ahead = None  # the CompileAhead child, started on first need

@@ -283,7 +283,7 @@ class IBL:
             coeffs = hit["sh"].astype(np.float64)
             cached = True
             t_pre = t_sh = 0.0
-        elif self.defer and self.use_cache:  # for the meantime: see QUICK_LAYER_WIDTH
+        elif self.defer and self.use_cache and lw > QUICK_LAYER_WIDTH:  # for the meantime: see QUICK_LAYER_WIDTH
             lw, lh = min(QUICK_LAYER_WIDTH, lw), max(1, min(QUICK_LAYER_WIDTH // 2, lh))
             used = tuple(min(s, QUICK_SAMPLES) for s in self.samples)
             pre = self._prefilter(lw, lh, samples=used)
