@@ -11,8 +11,9 @@ For every lecture step with traced glass or mirrors, at a view of W x H pixels:
   rows from the top, tiles of at most 4,096 pixels, the view's MSAA in every tile, the whole
   frame's MSAA resolve per tile): emulated here with the renderer's ``region`` frames, so both
   run on the same machine in the same minute (the machine is shared: compare the ratio);
-- *prepared*: the step opened again from the traced-frame cache (Prepare lecture filled it):
-  the untraced frame, the mask and the cache read.
+- *prepared*: the step opened again from the traced-frame cache (Prepare lecture filled it) at
+  the size it was traced, and *lecture view*: opened in the view a W x H window lays out in
+  lecture mode with the plots docked at UI scale 1.5 (the entry's centre columns).
 
 Then the whole tour's preparation (``LecturePrep.run``, what Prepare lecture and
 ``brdf-viewer bake --lecture`` do) from an empty cache. The cache is a temporary folder; the
@@ -72,6 +73,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     os.environ["BRDF_VIEWER_CACHE"] = tempfile.mkdtemp(prefix="brdf-viewer-bench-")
 
+    from viewer.app.layout import view_columns, window_layout
     from viewer.app.lecture_prep import LecturePrep, traced_steps
     from viewer.app.session import TRACE_BUDGET_S
     from viewer.gl.context import create_offscreen_context
@@ -85,7 +87,8 @@ def main(argv=None) -> int:
     steps = [int(s) - 1 for s in args.steps.split(",") if s] or traced_steps()
     print(f"{ctx.info['GL_RENDERER']}, view {w}x{h}, frame budget {TRACE_BUDGET_S * 1000:.0f} ms, "
           f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}", flush=True)
-    print(f"{'step':<40} {'masked':>7} {'coarse s':>9} {'cold s':>8} {'before s':>9} {'ratio':>6} {'prepared s':>11}")
+    print(f"{'step':<40} {'masked':>7} {'coarse s':>9} {'cold s':>8} {'before s':>9} {'ratio':>6} {'prepared s':>11} "
+          f"{'lecture view s':>15}")
     for i in steps:
         scene = tour_scene(i)
         renderer.render(scene, None, 64, 36)
@@ -102,11 +105,15 @@ def main(argv=None) -> int:
         masked = pt.mask.mean()
         pt.start(renderer, scene, None, w, h, cache=True)
         prepared = pt.elapsed_s if pt.from_cache else float("nan")
+        # the lecture's own view in a window of w x h (strip, plots docked, UI 1.5): the entry's centre
+        lw = view_columns(window_layout(w, h, 1.5, lecture=True, plots=True)["view"], 1.0, w)[1]
+        pt.start(renderer, scene, None, lw, h, cache=True)
+        lecture_view = pt.elapsed_s if pt.from_cache else float("nan")
         pt.release()
         old = float("nan") if args.no_before else before(renderer, ctx, scene, w, h, TRACE_BUDGET_S)
         label = f"{i + 1}. {TOUR[i].title}"[:40]
         print(f"{label:<40} {100 * masked:6.1f}% {coarse_s or 0.0:9.1f} {cold:8.1f} {old:9.1f} "
-              f"{old / cold:6.2f} {prepared:11.2f}", flush=True)
+              f"{old / cold:6.2f} {prepared:11.2f} {lecture_view:15.2f}", flush=True)
     os.environ["BRDF_VIEWER_CACHE"] = tempfile.mkdtemp(prefix="brdf-viewer-bench-")
     prep = LecturePrep(ctx, renderer, (w, h), steps)
     prep.run()

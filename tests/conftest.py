@@ -10,6 +10,9 @@ os.environ["BRDF_VIEWER_STATE"] = os.path.join(tempfile.mkdtemp(prefix="brdf-vie
 # the reference cache and the engine measurements likewise (never the user's ~/.cache)
 SESSION_CACHE = tempfile.mkdtemp(prefix="brdf-viewer-cache-")
 os.environ["BRDF_VIEWER_CACHE"] = SESSION_CACHE
+# a window or session draws a new environment map fully prefiltered, as offscreen rendering does
+# (tests compare the two); tests/test_env_background.py turns the quick prefilter on
+os.environ["BRDF_VIEWER_DEFER_PREFILTER"] = "0"
 
 
 @pytest.fixture(autouse=True)

@@ -530,19 +530,22 @@ def _describe_param(p, indent="    ") -> str:
 def _parser_bake() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer bake",
                                 description="Fill the reference cache in advance (the window shows a cached "
-                                            "reference at once and keeps refining it); with --lecture --width W "
-                                            "--height H also the traced-frame cache: every lecture step with "
-                                            "traced glass or mirrors, traced for a W x H view, opens fully traced "
-                                            "(the window's Prepare lecture does the same for its view).")
+                                            "reference at once and keeps refining it); with --lecture also the "
+                                            "traced-frame cache: every lecture step with traced glass or mirrors, "
+                                            "traced for a window of --width x --height (default: the size of the "
+                                            "window the last session used), opens fully traced in every layout of "
+                                            "that window (the window's Prepare lecture does the same for its size).")
     p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files or built-in scene names")
     p.add_argument("--lecture", action="store_true", help="also every lecture step")
+    p.add_argument("--steps", default=None, metavar="LIST",
+                   help="with --lecture: only these steps (1-based, e.g. 2,3,10-13)")
     p.add_argument("--spp", type=int, help="samples per pixel each reference should reach (required unless "
-                                           "only the traced frames of --lecture --width --height are wanted)")
+                                           "only the lecture's traced frames are wanted)")
     p.add_argument("--width", type=int, help="reference width (default: half the scene camera's width, "
                                              "as the window's reference view renders); with --lecture also "
-                                             "the width of the view the traced frames are for")
+                                             "the width of the window the traced frames are for")
     p.add_argument("--height", type=int, help="reference height (default: half the scene camera's height); "
-                                              "with --lecture also the traced frames' view height")
+                                              "with --lecture also the traced frames' window height")
     p.add_argument("--max-depth", type=int, default=8, dest="max_depth")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=None)
@@ -562,16 +565,18 @@ def cmd_bake(args) -> int:
         v = getattr(args, name)
         if v is not None and not 1 <= v <= 16384:
             raise ViewerError(f"--{name}: {v} is out of range; allowed: an integer from 1 to 16384")
-    traced = args.lecture and (args.width is not None or args.height is not None)
-    if traced and (args.width is None or args.height is None):
-        raise ViewerError("bake --lecture: give both --width and --height (the view size the traced frames are for)")
+    if args.lecture and (args.width is None) != (args.height is None):
+        raise ViewerError("bake --lecture: give both --width and --height (the window size the traced frames are "
+                          "for) or neither (the last session's window)")
+    steps = _lecture_steps(args.steps) if args.steps is not None else None
+    if steps is not None and not args.lecture:
+        raise ViewerError("bake: --steps goes with --lecture")
     if args.spp is None:
-        if not traced:
-            raise ViewerError("bake: --spp N is required (or --lecture --width W --height H for the traced "
-                              "frames alone)")
+        if not args.lecture:
+            raise ViewerError("bake: --spp N is required (or --lecture for the lecture's traced frames alone)")
         if args.scenes:
             raise ViewerError("bake: scenes other than the lecture's need --spp N (their references)")
-        return _bake_traced(args.width, args.height)
+        return _bake_traced(*_lecture_window(args), steps)
     if args.spp < 1:
         raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
     if args.max_depth < 1:
@@ -580,7 +585,8 @@ def cmd_bake(args) -> int:
     if args.lecture:
         from viewer.lecture import TOUR, tour_scene
 
-        jobs += [(f"lecture step {i + 1}", lambda i=i: tour_scene(i)) for i in range(len(TOUR))]
+        jobs += [(f"lecture step {i + 1}", lambda i=i: tour_scene(i)) for i in range(len(TOUR))
+                 if steps is None or i in steps]
     if not jobs:
         raise ViewerError("bake: name at least one SCENE, or --lecture")
     scenes = [(label, make()) for label, make in jobs]   # every scene loads before any rendering
@@ -618,15 +624,47 @@ def cmd_bake(args) -> int:
             total, total2, spp = r.state()
         cache.store(key, cache.Entry(total, total2, spp, engine, args.seed))  # CacheError: one line, exit 1
         print(f"{label}: {w}x{h} {spp} spp in {time.perf_counter() - start:.1f} s -> {cache.path_for(key)}")
-    return _bake_traced(args.width, args.height) if traced else 0
+    return _bake_traced(*_lecture_window(args), steps) if args.lecture else 0
 
 
-def _bake_traced(w: int, h: int) -> int:
-    """The traced-frame cache for a w x h view: every lecture step with traced chains
-    (``viewer.app.lecture_prep``), one line per step and one at the end."""
+def _lecture_steps(text: str) -> list[int]:
+    """``--steps 2,3,10-13`` as 0-based lecture steps, in the tour's order."""
+    from viewer.lecture import TOUR
+
+    out: set[int] = set()
+    for part in str(text).split(","):
+        part = part.strip()
+        lo, _, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi or lo)
+        except ValueError:
+            raise ViewerError(f"--steps: {part!r} is not a step or a range (e.g. 2,3,10-13)") from None
+        if not (1 <= a <= b <= len(TOUR)):
+            raise ViewerError(f"--steps: {part!r} is out of range; the lecture has steps 1 to {len(TOUR)}")
+        out.update(range(a - 1, b))
+    return sorted(out)
+
+
+def _lecture_window(args) -> tuple[int, int]:
+    """The window size the lecture's traced frames are for: --width and --height, else the
+    window the last session used (its state file), else the window's default size."""
+    if args.width is not None:
+        return args.width, args.height
+    from viewer.app.state import DEFAULT_WINDOW, load_state
+
+    st = load_state()
+    if "window_width" in st and "window_height" in st:
+        return st["window_width"], st["window_height"]
+    return DEFAULT_WINDOW
+
+
+def _bake_traced(w: int, h: int, steps=None) -> int:
+    """The traced-frame cache for a w x h window: every lecture step with traced chains
+    (``viewer.app.lecture_prep``; ``steps``: only those of them), one line per step and one at
+    the end."""
     import os
 
-    from viewer.app.lecture_prep import LecturePrep, traced_steps
+    from viewer.app.lecture_prep import PARENT_ENV, LecturePrep, prepared_text, traced_steps, view_size
     from viewer.gl import trace_cache
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
@@ -641,7 +679,14 @@ def _bake_traced(w: int, h: int) -> int:
     except OSError as e:   # a full disk or an unwritable folder: an output problem, exit 1
         why = e.strerror or (os.strerror(e.errno) if e.errno else str(e))   # viewer.io keeps the errno
         raise OutputError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({why})") from None
-    steps = traced_steps()
+    parent = os.environ.get(PARENT_ENV, "")
+    if parent.isdigit():  # run by the window's Prepare lecture: it ends when the window does
+        from viewer.pathtracer.progressive import watch_parent
+
+        watch_parent(int(parent))
+    steps = [i for i in traced_steps() if steps is None or i in steps]
+    vw, vh = view_size((w, h))
+    print(f"preparing lecture for {prepared_text((w, h))}: {len(steps)} traced steps", flush=True)
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
     try:
@@ -649,18 +694,18 @@ def _bake_traced(w: int, h: int) -> int:
 
         def said(r):
             for msg in prep.messages:
-                print(msg)
+                print(msg, flush=True)
             prep.messages.clear()
             if r.cached:
-                print(f"lecture step {r.step + 1}: {w}x{h} already prepared")
+                print(f"lecture step {r.step + 1}: {vw}x{vh} already prepared", flush=True)
             elif r.stored is None:
                 why = trace_cache.store_failure() or "the cache folder could not be written"
                 raise OutputError(f"bake --lecture: lecture step {r.step + 1} traced but not stored in {folder}: {why}")
             else:
-                print(f"lecture step {r.step + 1}: traced {w}x{h} in {r.seconds:.1f} s -> {r.stored}")
+                print(f"lecture step {r.step + 1}: traced {vw}x{vh} in {r.seconds:.1f} s -> {r.stored}", flush=True)
 
         prep.run(said)
-        print(f"lecture prepared for a {w}x{h} view: {len(steps)} traced steps in {prep.elapsed_s:.1f} s")
+        print(f"lecture prepared for {prepared_text((w, h))}: {len(steps)} traced steps in {prep.elapsed_s:.1f} s")
     finally:
         renderer.release()
     return 0
@@ -673,7 +718,9 @@ def cmd_window(args) -> int:
         raise ViewerError(f"no display found (DISPLAY is not set); {HEADLESS_HINT}")
     from viewer.app.main import run_app
 
-    size = None if args.width is None and args.height is None else (args.width or 1280, args.height or 720)
+    from viewer.app.state import DEFAULT_WINDOW
+
+    size = None if args.width is None and args.height is None else (args.width or DEFAULT_WINDOW[0], args.height or DEFAULT_WINDOW[1])
     return run_app(args.scene, args.overrides, size=size, frames=args.frames,
                    screenshot=args.screenshot, compile_ahead=args.compile_ahead)
 

@@ -86,6 +86,20 @@ def window_layout(win_w: float, win_h: float, ui_scale: float, *, show_ui: bool 
     return out
 
 
+def view_columns(view: Rect, scale: float, fb_w: int) -> tuple[int, int]:
+    """The 3D view's first framebuffer column and its width, for ``view`` in window points and
+    ``scale`` framebuffer pixels a point: always an even width (the pixel it leaves goes to the
+    panel, or at the window's left edge to the right edge), so that one prepared trace of the
+    window's full width holds every layout's view (``viewer.gl.trace_cache``)."""
+    x0, x1 = int(round(view.x * scale)), min(int(round(view.right * scale)), int(fb_w))
+    if (x1 - x0) % 2 and x1 - x0 > 1:
+        if x0 > 0:
+            x0 += 1
+        else:
+            x1 -= 1
+    return x0, max(x1 - x0, 0)
+
+
 def text_model(char_k: float = 0.52, line_k: float = 1.2):
     """A fixed-advance text measure (each character ``char_k`` x the size wide, lines
     ``line_k`` x the size high, wrapped at spaces), for tests and for planning without imgui."""

@@ -73,7 +73,8 @@ class App:
         scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
         self._save_state_on_close = restore_state
         if size is None:
-            size = (state.get("window_width", 1280), state.get("window_height", 720))
+            size = (state.get("window_width", state_mod.DEFAULT_WINDOW[0]),
+                    state.get("window_height", state_mod.DEFAULT_WINDOW[1]))
         self.glfw, self.imgui = glfw, imgui
         self.window = self._open_window(size, title)
         if "window_x" in state and "window_y" in state:
@@ -225,12 +226,14 @@ class App:
 
     def viewport(self):
         """The 3D view in framebuffer pixels (x, y from the bottom-left, w, h)."""
+        from viewer.app.layout import view_columns
+
         fw, fh = self.glfw.get_framebuffer_size(self.window)
         ww, _ = self.glfw.get_window_size(self.window)
         scale = fw / ww if ww else 1.0
         v = self.layout()["view"]
-        x0, x1 = int(round(v.x * scale)), int(round(v.right * scale))
-        return x0, 0, max(min(x1, fw) - x0, 0), fh
+        x0, w = view_columns(v, scale, fw)  # an even width: see viewer.gl.trace_cache
+        return x0, 0, w, fh
 
     def view_logical(self):
         """The 3D view in imgui's coordinates (window points, y down)."""
@@ -300,6 +303,7 @@ class App:
         if fw == 0 or fh == 0:  # minimized: nothing to draw into
             time.sleep(0.02)
             return
+        s.window_px = (fw, fh)  # what Prepare lecture prepares for
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
         imgui.new_frame()

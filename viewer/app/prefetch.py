@@ -112,6 +112,89 @@ class Prefetch:
         stop_child(self._proc, timeout)
 
 
+def prefilter_file(path, out=sys.stdout) -> int:
+    """Prefilter one map, a float32 ``.npy`` (H, W, 3) as the window's renderer holds it, into the
+    disk cache under the key the window's renderer computes for it; ``done SECONDS`` on ``out``."""
+    import numpy as np
+
+    from viewer.gl.context import create_offscreen_context
+    from viewer.gl.ibl import IBL
+
+    img = np.load(path, allow_pickle=False)
+    ctx = create_offscreen_context()
+    ibl = IBL(ctx)
+    try:
+        t0 = time.perf_counter()
+        ibl.set_environment(img)
+        ctx.finish()
+        print(f"done {time.perf_counter() - t0:.2f}", file=out, flush=True)
+    finally:
+        ibl.release()
+        ctx.release()
+    return 0
+
+
+class MapPrefilter:
+    """The full prefilter of the map the window's renderer drew with a quick one
+    (``viewer.gl.ibl.IBL.defer``): ``prefilter_file`` in a child process. ``key`` is the map's
+    cache key; ``ready`` once the disk cache holds it; ``error`` when the child failed (the window
+    keeps the quick prefilter then, and says so)."""
+
+    def __init__(self, key: str, image):
+        import numpy as np
+
+        from viewer.environment import cache
+        from viewer.io import atomic_write_bytes
+
+        self.key = key
+        self.error = ""
+        self.started = time.perf_counter()
+        self._proc = None
+        self._path = cache.cache_dir() / f"pending-{key}.npy"
+        try:
+            self._path.parent.mkdir(parents=True, exist_ok=True)
+            import io
+
+            buf = io.BytesIO()
+            np.save(buf, np.ascontiguousarray(image, np.float32))
+            atomic_write_bytes(self._path, buf.getvalue())
+            self._proc = subprocess.Popen([sys.executable, "-m", "viewer.app.prefetch", "--map", str(self._path)],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                          env=dict(os.environ), cwd=os.getcwd())
+        except OSError as e:
+            self.error = f"the environment map cannot be prefiltered in the background ({e})"
+
+    @property
+    def ready(self) -> bool:
+        from viewer.environment import cache
+
+        return cache.path_for(self.key).is_file()
+
+    @property
+    def finished(self) -> bool:
+        """The child has ended (ready, or failed: ``error``)."""
+        if self._proc is None:
+            return True
+        rc = self._proc.poll()
+        if rc is None:
+            return False
+        if rc != 0 and not self.error:
+            err = [x for x in (self._proc.stderr.read() or "").strip().splitlines() if x.strip()]
+            self.error = f"the background prefilter failed: {err[-1] if err else f'exit status {rc}'}"
+        self._cleanup()
+        return True
+
+    def _cleanup(self):
+        try:
+            self._path.unlink()
+        except OSError:
+            pass
+
+    def stop(self, timeout: float = 10.0) -> None:
+        stop_child(self._proc, timeout)
+        self._cleanup()
+
+
 def stop_child(proc, timeout: float = 10.0) -> None:
     """Terminate a child process still running (None: none), killing it after ``timeout`` s."""
     if proc is not None and proc.poll() is None:
@@ -130,6 +213,8 @@ def main(argv=None) -> int:
     except (OSError, AttributeError):
         pass
     try:
+        if argv[:1] == ["--map"]:
+            return prefilter_file(argv[1])
         return prefilter_tour(int(argv[0]) if argv else 0)
     except Exception as e:  # noqa: BLE001 - one line for the window's panel
         print(f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}", file=sys.stderr)

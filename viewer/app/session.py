@@ -24,12 +24,14 @@ from viewer.gl.shadow import unshadowed_note
 
 BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
-PREP_BUDGET_S = 0.25   # Prepare lecture: the time one frame gives it (the view is still)
 # tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
 # this much time per frame, over the view as it was or its half-resolution preview (the window
 # then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
 # with MSAA takes 0.3 s); less where the rest of the window's frame leaves less of FRAME_GOAL_S
 TILE_BUDGET_S = 0.07
+#: "0": the window prefilters a new environment map in the frame, as offscreen rendering does
+#: (tests that compare the window with offscreen images); else a quick prefilter meanwhile
+DEFER_ENV = "BRDF_VIEWER_DEFER_PREFILTER"
 FRAME_GOAL_S = 0.12
 
 # the plot tab each lecture step's ``plot`` names
@@ -103,6 +105,12 @@ class Session(FileActions):
         self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
         self.wake = None           # called from any thread when the reference has a new image
         self._prefetch_on = prefetch
+        # a map the disk cache lacks: drawn at once with a quick prefilter, its full prefilter in
+        # a child process (viewer.app.prefetch.MapPrefilter), never on this thread
+        self._env_job = None
+        self._env_failed: set[str] = set()
+        if prefetch and os.environ.get(DEFER_ENV, "1") != "0":
+            self.renderer.ibl().defer = True
         self._compile_ahead_on = compile_ahead
         self.compile_ahead = None  # the CompileAhead child, started on first need
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
@@ -123,6 +131,7 @@ class Session(FileActions):
         self._whole_s = None       # ((w, h), seconds): what the last whole full-quality frame cost
         self._drawn_view = None    # the camera and view mode of the frame shown (_view_key)
         self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
+        self.window_px = None      # the window's framebuffer size (w, h), set by the window each frame
         self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
         m = LECTURE_NAME.fullmatch(str(scene_ref)) if scene_ref is not None else None
         if m is not None:  # opened as lecture:N: lecture mode at that step
@@ -156,6 +165,9 @@ class Session(FileActions):
             self.reference.close()
         if self.prefetch is not None:
             self.prefetch.stop()
+        if self._env_job is not None:
+            self._env_job.stop()
+            self._env_job = None
         if self.compile_ahead is not None:
             self.compile_ahead.stop()
         self.compare.release()
@@ -181,7 +193,7 @@ class Session(FileActions):
         """Frames should follow without waiting for input (brute-force IBL still averaging, or
         the traced chains still refining)."""
         return ((self.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
-                or self.preparing or self.tiling)
+                or self.tiling)
 
     @property
     def tiling(self) -> bool:
@@ -196,7 +208,8 @@ class Session(FileActions):
 
     @property
     def preparing(self) -> bool:
-        """Prepare lecture is tracing the lecture's steps into the traced-frame cache."""
+        """Prepare lecture is tracing the lecture's steps into the traced-frame cache (in a child
+        process: the window's frames go on as usual)."""
         return self.prep is not None and not self.prep.done
 
     @property
@@ -242,9 +255,10 @@ class Session(FileActions):
         if self._awaiting is not None and self.compile_ahead.answered(self._awaiting):
             self._awaiting = None
             self.dirty = True  # the programs are ready: draw the material as it now is
+        if self.preparing:
+            self._prepare_step()
+        self._watch_environment()
         if not (self.dirty or want_full or stale or progressive):
-            if self.preparing and not interacting:
-                self._prepare_step()
             return
         t1 = time.perf_counter()
         restart = self.dirty or want_full or stale
@@ -296,10 +310,48 @@ class Session(FileActions):
         self._hdr_for = (rw_full, rh_full)
         self.quality = quality
         self.dirty = False
+        self._watch_environment()
         if self._step_timer is not None and not interacting:
             self._step_shown()
-        if self.preparing and not interacting and not self.tracing:
-            self._prepare_step()
+
+    @property
+    def environment_provisional(self) -> bool:
+        """The environment light is drawn with a quick prefilter while the full one runs in the
+        background (or failed there)."""
+        ibl = self.renderer.ibl()
+        return ibl.defer and ibl.provisional is not None
+
+    def _watch_environment(self):
+        """A map drawn with a quick prefilter (``viewer.gl.ibl.IBL.defer``): its full prefilter
+        in a child process; once the disk cache holds it, the view is drawn again with it."""
+        ibl = self.renderer.ibl()
+        job = self._env_job
+        if job is not None:
+            if job.key != ibl.provisional:  # another map now (or the full one is read): not needed
+                job.stop()
+                self._env_job = job = None
+            elif job.ready:
+                self._env_job = None
+                self.dirty = True  # the next frame reads it from the disk cache
+                self.notify(f"environment light: fully prefiltered in the background "
+                            f"({time.perf_counter() - job.started:.1f} s)")
+                return
+            elif job.finished:
+                self._env_job = None
+                self._env_failed.add(job.key)
+                self.notify(f"environment light stays a quick prefilter: {job.error}", error=True)
+                return
+        if ibl.defer and ibl.provisional is not None and job is None and ibl.provisional not in self._env_failed:
+            from viewer.app.prefetch import MapPrefilter
+
+            self._env_job = MapPrefilter(ibl.provisional, ibl.pending_map)
+            if self._env_job.error:
+                self._env_failed.add(ibl.provisional)
+                self.notify(self._env_job.error, error=True)
+                self._env_job = None
+            else:
+                self.notify("environment light: a quick low-resolution prefilter until the full one, "
+                            "prefiltered in the background, is ready")
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
@@ -360,6 +412,8 @@ class Session(FileActions):
         if restart or not t.active:
             self.hdr = t.start(self.renderer, self.scene, self.camera, w, h, self.view_mode, cache=True,
                                store=self.lecture_step >= 0)
+            if self.environment_provisional:  # a quick prefilter lights it: not for the cache
+                t.keep_out_of_cache()
             if t.cache_message:
                 self.notify(t.cache_message)
             if not t.from_cache:
@@ -374,47 +428,38 @@ class Session(FileActions):
         return "full"
 
     # ------------------------------------------------------------------ Prepare lecture
-    def prepare_lecture(self, size=None) -> bool:
-        """Trace every lecture step with traced chains at the view's size (``size`` = (w, h), by
-        default the view's last size) into the traced-frame cache, a slice per frame while the
-        view is still (``viewer.app.lecture_prep``). Again while it runs: cancelled."""
-        from viewer.app.lecture_prep import LecturePrep
+    def prepare_lecture(self, size=None, steps=None) -> bool:
+        """Trace every lecture step with traced chains (``steps``: only those) for the window's
+        size (``size`` = (w, h) framebuffer pixels; by default ``window_px``, which the window
+        sets each frame, else the view's last size) into the traced-frame cache, in a child
+        process (``viewer.app.lecture_prep.BackgroundPrep``: ``bake --lecture``), so that every
+        layout of a window of that size finds its steps prepared. Again while it runs: cancelled."""
+        from viewer.app.lecture_prep import BackgroundPrep
 
         if self.preparing:
             self.prep.cancel()
             self.notify("Prepare lecture cancelled")
             return False
-        size = size or self._hdr_for
+        size = size or self.window_px or self._hdr_for
         if not size or size[0] <= 0 or size[1] <= 0:
             self.notify("Prepare lecture: no view to size it by yet (draw a frame first)", error=True)
             return False
-        self.prep = LecturePrep(self.ctx, self.renderer, size)
-        self.notify(self.prep.progress_text())
-        return True
+        self.prep = BackgroundPrep(size, steps)
+        self.notify(self.prep.progress_text(), error=bool(self.prep.error))
+        return not self.prep.error
 
     def _prepare_step(self):
-        """One slice of the preparation, the view kept as it is shown (the preparation renders
-        other scenes with the same renderer)."""
-        self._keep_view()
-        try:
-            res = self.prep.step(PREP_BUDGET_S)
-        except ViewerError as e:
-            self.prep.cancel()
-            self.notify(f"Prepare lecture stopped: {e}", error=True)
-            return
+        """What the preparation's child said since the last frame, as the view's messages."""
+        results = self.prep.poll()
         for msg in self.prep.messages:
             self.notify(msg)
         self.prep.messages.clear()
-        if res is not None and not res.cached and res.stored is None:
-            from viewer.gl.trace_cache import cache_folder
-
-            self.prep.cancel()
-            self.notify(f"Prepare lecture stopped: the traced-frame cache {cache_folder()} cannot be written "
-                        "(the steps will trace live)", error=True)
-        elif res is not None and self.prep.done:
+        if self.prep.error:
+            self.notify(self.prep.error, error=True)
+        elif results and self.prep.done:
             traced = [r for r in self.prep.results if not r.cached]
             self.notify(f"{self.prep.progress_text()} ({len(self.prep.results)} steps, {len(traced)} traced now)")
-        elif res is not None:
+        elif results or self.prep.done:
             self.notify(self.prep.progress_text())
 
     def _keep_view(self):
@@ -783,7 +828,9 @@ class Session(FileActions):
         dt = time.perf_counter() - t0
         why = ""
         st = getattr(self.renderer.ibl(), "stats", {})
-        if st.get("prefilter_passes"):
+        if st.get("provisional"):
+            why = "; the environment light is a quick prefilter until the full one is ready (in the background)"
+        elif st.get("prefilter_passes"):
             why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
         self.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
 

@@ -15,6 +15,9 @@ import sys
 import tomllib
 from pathlib import Path
 
+#: the window's size when neither the command line nor the last session gives one
+DEFAULT_WINDOW = (1280, 720)
+
 # key -> (type, lo, hi) for numbers, (type, choices) for strings; anything else is dropped
 SCHEMA = {
     "window_width": (int, 64, 16384),

@@ -83,6 +83,12 @@ ALPHAS = (0.0, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
 SAMPLES = (0, 1024, 1024, 1024, 1024, 1024, 1024, 1024)
 #: width of every prefiltered layer (height = width / 2), or the map's width if smaller
 LAYER_WIDTH = 256
+#: a map the disk cache does not hold, with ``IBL.defer`` set (the window): prefiltered at once
+#: at layers this wide with this many samples per texel (about a thousandth of the full
+#: prefilter's work: milliseconds), for the meantime, while the full prefilter runs elsewhere
+#: (the window's background child) and fills the disk cache, which the next frame then reads
+QUICK_LAYER_WIDTH = 32
+QUICK_SAMPLES = 64
 #: DFG table: size and quadrature points, as viewer.environment.dfg.dfg_table's defaults
 DFG_SAMPLES = 4096
 #: a constant environment is a small constant map (the same code path, exact results)
@@ -132,6 +138,12 @@ class IBL:
         self.layer_width = int(layer_width)
         self.use_cache = use_cache
         self.fis_bias = float(fis_bias)
+        #: a cache miss draws with a quick low-resolution prefilter (``QUICK_LAYER_WIDTH``) instead
+        #: of waiting for the full one; ``provisional`` then holds the map's cache key and
+        #: ``pending_map`` the map, for whoever prefilters it fully into the disk cache
+        self.defer = False
+        self.provisional = None
+        self.pending_map = None
         self.stats: dict = {}
         self._key = None
         self.map_tex = None
@@ -230,8 +242,10 @@ class IBL:
         last = getattr(self, "_last_ident", None)
         if last is not None and self._key is not None and last[0] == ident[0] and (
                 last[1] is ident[1] if ident[0] == "map" else last[1] == ident[1]):
-            self.stats.update({"unchanged": True, "hash_s": 0.0, "prefilter_passes": 0})
-            return
+            if self.provisional is None or not cache.path_for(self.provisional).is_file():
+                self.stats.update({"unchanged": True, "hash_s": 0.0, "prefilter_passes": 0})
+                return
+            self._key = None  # the full prefilter is in the disk cache now: read it below
         if latlong is None:
             c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
             w, h = CONSTANT_MAP_SIZE
@@ -262,11 +276,25 @@ class IBL:
         passes = 0
         t2 = time.perf_counter()
         hit = cache.load(key, expect={"prefiltered": (nl, lh, lw, 3), "sh": (9, 3)}) if self.use_cache else None
+        provisional = None
+        used = self.samples
         if hit is not None:
             pre = hit["prefiltered"].astype("f4")
             coeffs = hit["sh"].astype(np.float64)
             cached = True
             t_pre = t_sh = 0.0
+        elif self.defer and self.use_cache and lw > QUICK_LAYER_WIDTH:  # for the meantime: see QUICK_LAYER_WIDTH
+            lw, lh = min(QUICK_LAYER_WIDTH, lw), max(1, min(QUICK_LAYER_WIDTH // 2, lh))
+            used = tuple(min(s, QUICK_SAMPLES) for s in self.samples)
+            pre = self._prefilter(lw, lh, samples=used)
+            passes = 1
+            t_pre = time.perf_counter() - t2
+            from viewer.environment.sh import project_latlong
+
+            t3 = time.perf_counter()
+            coeffs = project_latlong(img)
+            t_sh = time.perf_counter() - t3
+            provisional = key
         else:
             pre = self._prefilter(lw, lh)
             passes = 1
@@ -290,14 +318,17 @@ class IBL:
         self.sh = coeffs
         self.layer_size = (lw, lh)
         self._key = key
+        self.provisional = provisional
+        self.pending_map = img if provisional is not None else None
         self._last_ident = ident  # only once everything for it is built
         self._cube_key = None
         t_up = time.perf_counter() - t4
         self.stats = {"cached": cached, "prefilter_passes": passes, "unchanged": False,
+                      "provisional": provisional is not None,
                       "prefilter_s": t_pre, "sh_s": t_sh, "map_s": t_map, "hash_s": t_hash,
                       "upload_s": t_up, "compile_s": t_compile, "dfg_s": self._dfg_s,
                       "total_s": time.perf_counter() - t0,
-                      "levels": len(self.alphas), "alphas": self.alphas, "samples": self.samples,
+                      "levels": len(self.alphas), "alphas": self.alphas, "samples": used,
                       "map_size": (w, h), "layer_size": (lw, lh)}
 
     def _upload_map(self, img: np.ndarray):
@@ -337,8 +368,9 @@ class IBL:
         self.map_tex = tex
         self.map_size = (w, h)
 
-    def _prefilter(self, lw: int, lh: int) -> np.ndarray:
-        """All prefiltered levels in one draw into a (lw, lh * levels) target; (L, lh, lw, 3)."""
+    def _prefilter(self, lw: int, lh: int, samples=None) -> np.ndarray:
+        """All prefiltered levels in one draw into a (lw, lh * levels) target; (L, lh, lw, 3).
+        ``samples``: per level, instead of ``self.samples``."""
         nl = len(self.alphas) - 1
         prog = self._program("ibl_prefilter")
         self.map_tex.use(0)
@@ -347,7 +379,7 @@ class IBL:
         _set(prog, "u_layer_size", (float(lw), float(lh)))
         _set(prog, "u_fis_bias", self.fis_bias)
         smp = np.zeros(MAX_LEVELS, "i4")
-        smp[: len(self.samples)] = self.samples
+        smp[: len(self.samples)] = self.samples if samples is None else samples
         _set(prog, "u_samples", smp.tobytes())
         tex, fbo = self._target(lw, lh * nl)
         try:

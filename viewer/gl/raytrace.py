@@ -548,6 +548,10 @@ class ProgressiveTrace:
     def cancel(self):
         self._job = None
 
+    def keep_out_of_cache(self):
+        """Do not store this trace when it finishes (what it shows is provisional)."""
+        self._store = False
+
     def release(self):
         self._job = None
         if self._fbo is not None:

@@ -24,8 +24,8 @@ def draw_section(session) -> None:
     if imgui.button("Cancel preparing" if session.preparing else "Prepare lecture"):
         session.prepare_lecture()
     if imgui.is_item_hovered():
-        imgui.set_tooltip("trace every step with glass or mirrors at this view's size into the cache,\n"
-                          "so each opens fully traced (keep the window at this size)")
+        imgui.set_tooltip("trace every step with glass or mirrors for this window's size into the cache,\n"
+                          "in the background, so each opens fully traced in every layout of this window")
     if session.prep is not None:
         imgui.text_wrapped(session.prep.progress_text())
     if session.prefetch is not None:
