@@ -35,9 +35,10 @@ TIMEOUT_ENV = "BRDF_VIEWER_PROBE_TIMEOUT"  # seconds
 MEMORY_ENV = "BRDF_VIEWER_PROBE_MEMORY_MB"
 OFF_ENV = "BRDF_VIEWER_PROBE"              # "0": no probe (the child itself, and nothing else)
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_MEMORY_MB = 4096
+DEFAULT_MEMORY_MB = 2048
 VERSION = 1
 
+started = 0                                # the probes' children started in this process
 _VERDICTS: dict[str, str] = {}             # content key -> "" (passed) or the refusal's line
 _RUNNING: set = set()                      # the probes' children now running
 _LOCK = threading.Lock()
@@ -95,6 +96,7 @@ def _remember(key: str) -> None:
     from viewer.io import atomic_write_bytes
 
     try:
+        _cache_file(key).parent.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(_cache_file(key), b"passed\n")
     except (OSError, ViewerError):
         pass  # no cache: probed again next time
@@ -113,6 +115,7 @@ def cancel_all() -> None:
 
 def _run_child(bfile, t: float, mb: int):
     """The verdict: "" passed, a refusal's line; None: no verdict (the child could not run)."""
+    global started
     name = bfile.path.name
     env = dict(os.environ, **{OFF_ENV: "0", MEMORY_ENV: str(mb)})
     try:
@@ -120,6 +123,7 @@ def _run_child(bfile, t: float, mb: int):
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     except OSError:
         return None
+    started += 1
     with _LOCK:
         _RUNNING.add(proc)
     try:
