@@ -264,6 +264,41 @@ def test_a_signal_to_check_during_the_probe_ends_it_with_no_child_left(tmp_path,
                 os.kill(c, signal.SIGKILL)
 
 
+def test_saving_a_file_with_a_loop_that_cannot_end_into_a_window_keeps_the_last_good_program(gl_ctx, renderer,
+                                                                                                 tmp_path):
+    from viewer.app.session import Session
+    from viewer.app.shader_overlay import HotReload
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    try:
+        src = tmp_path / "live.brdf"
+        src.write_text("analytic\n::begin shader\n" + _brdf("    return vec3(0.2);") + "\n::end shader\n")
+        assert s.load_brdf_file(str(src))
+        hr = HotReload(s.renderer)
+
+        def image():
+            s.changed()
+            s.render_view((48, 36))
+            return s.renderer.read_linear(s.hdr).astype(np.float64)
+
+        good = image()
+        hr.poll(force=True)  # the first look only learns the files
+        for n, (code, words) in enumerate([
+                ("    float s = 0.0;\n    while (true) { s += 1.0; }\n    return vec3(s);", "live.brdf:6: the loop"),
+                ("    float s = 0.0;\n    for (int i = 0; i < 1000000000; i++) s += 1e-9;\n    return vec3(s);",
+                 "16,384 steps")]):
+            src.write_text("analytic\n::begin shader\n" + _brdf(code) + "\n::end shader\n")
+            st = src.stat()
+            os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns + (n + 1) * 10 ** 9))
+            hr.poll(force=True)
+            errs = [e.summary() for e in hr.errors]
+            assert any(words in e and e.startswith("live.brdf") for e in errs), errs
+            np.testing.assert_allclose(image(), good, atol=1e-7)  # the last good program keeps drawing
+    finally:
+        s.release()
+
+
 # ------------------------------------------------------------------ the leash
 
 NEVER_ANSWERS = [sys.executable, "-c", "import sys; print('{\"ready\": true}', flush=True); sys.stdin.read()"]

@@ -12,7 +12,7 @@ adopt (``MaterialTables.adopt``) instead of building them itself. A process, not
 call holds the interpreter lock for its whole duration.
 
 The window keeps drawing the material as it was until the child reports the new one done
-(``Session`` does the holding back), or until the child has been silent for ``LEASH_S`` seconds
+(``Session`` does the holding back), or until the child has been silent for ``LEASH_S`` seconds (``viewer.app.prefetch``)
 with work outstanding: then it is replaced and the window compiles the change itself. Requests marked ``urgent`` (the material just changed) go
 before the compile-ahead of the scene's presets. Without a driver cache (a driver that keeps
 none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program itself, after
@@ -34,9 +34,9 @@ import sys
 import threading
 import time
 
+from viewer.app.prefetch import leash_seconds
+
 SIZE = (32, 24)  # the child's frames: the programs and their code do not depend on the size
-LEASH_ENV = "BRDF_VIEWER_CHILD_LEASH"
-LEASH_S = 30.0   # a request's longest wait with no word from the child (a program takes 0.1-6 s)
 
 
 def params_key(params) -> str:
@@ -105,15 +105,6 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
     renderer.release()
     ctx.release()
     return 0
-
-
-def leash_seconds() -> float:
-    """How long a child with work outstanding may stay silent before it is replaced
-    (``BRDF_VIEWER_CHILD_LEASH`` seconds, default ``LEASH_S``)."""
-    try:
-        return max(0.05, float(os.environ.get(LEASH_ENV, LEASH_S)))
-    except ValueError:
-        return LEASH_S
 
 
 class CompileAhead:

@@ -21,6 +21,19 @@ import sys
 import threading
 import time
 
+LEASH_ENV = "BRDF_VIEWER_CHILD_LEASH"
+LEASH_S = 30.0   # the longest silence of a compile-ahead child with work outstanding (a program: 0.1-6 s)
+PREFETCH_LEASH_S = 120.0  # of a prefetch child (one map's prefilter on a loaded machine: tens of seconds)
+
+
+def leash_seconds(default: float = LEASH_S) -> float:
+    """How long a child with work outstanding may stay silent before it is replaced
+    (``BRDF_VIEWER_CHILD_LEASH`` seconds, else ``default``)."""
+    try:
+        return max(0.05, float(os.environ.get(LEASH_ENV, default)))
+    except ValueError:
+        return default
+
 
 def tour_maps(start: int = 0) -> list:
     """The tour's distinct environments with a map, as (step index, Environment), from step
@@ -67,8 +80,8 @@ def prefilter_tour(start: int = 0, out=sys.stdout) -> int:
 class Prefetch:
     """``prefilter_tour`` in a child process, its progress read by a thread.
 
-    On a leash: a child silent for ``leash`` seconds before it is done (``leash_seconds()`` of
-    ``viewer.app.compile_ahead``: stopped, hung) is killed and started again once, from the same
+    On a leash: a child silent for ``leash`` seconds before it is done (``PREFETCH_LEASH_S``,
+    ``BRDF_VIEWER_CHILD_LEASH``: stopped, hung) is killed and started again once, from the same
     step (the maps it finished are cached, so they cost a read); silent again, it is ended with
     ``error`` set, and the window prefilters the remaining maps itself as it would without it.
     ``command``: the child's command line (a stand-in in tests)."""
@@ -76,8 +89,6 @@ class Prefetch:
     RESTARTS = 1
 
     def __init__(self, start_step: int = 0, command=None, leash: float | None = None):
-        from viewer.app.compile_ahead import leash_seconds
-
         self.total = 0
         self.finished = 0
         self.current = ""
@@ -86,7 +97,7 @@ class Prefetch:
         self.replaced = 0
         self.seconds: list[tuple[str, float, bool]] = []  # (map, seconds, was it cached already)
         self.command = list(command or [sys.executable, "-m", "viewer.app.prefetch", str(int(start_step))])
-        self.leash = leash_seconds() if leash is None else float(leash)
+        self.leash = leash_seconds(PREFETCH_LEASH_S) if leash is None else float(leash)
         self._proc = None
         self._heard = time.monotonic()
         self._stopping = False
