@@ -299,6 +299,57 @@ def test_saving_a_file_with_a_loop_that_cannot_end_into_a_window_keeps_the_last_
         s.release()
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process tree from Linux /proc")
+def test_sigterm_to_a_window_waiting_on_a_saved_files_test_render_closes_it_and_saves_its_state(display, tmp_path):
+    """A file saved into a running window whose test render would take minutes: SIGTERM ends the
+    wait (the child killed) and the window closes as always, saving its state."""
+    from gui_harness import window_env
+    from lifecycle import children
+
+    src = tmp_path / "live.brdf"
+    src.write_text("analytic\n::begin shader\n" + _brdf("    return vec3(0.2);") + "\n::end shader\n")
+    scene = tmp_path / "scene.toml"
+    scene.write_text((ROOT / "viewer" / "scenes" / "sphere.toml").read_text().replace(
+        'model  = "lambert"\nalbedo = [0.8, 0.8, 0.8]', f'model = "custom"\nfile = "{src}"'))
+    env = window_env(display)
+    env.update(PYTHONPATH=str(ROOT), BRDF_VIEWER_PROBE_TIMEOUT="600")
+    state = Path(env["BRDF_VIEWER_STATE"])
+    p = subprocess.Popen([sys.executable, "-m", "viewer", str(scene)], env=env, stderr=subprocess.PIPE,
+                         stdout=subprocess.PIPE, text=True, cwd=tmp_path)
+    probes: list[int] = []
+    try:
+        line = ""
+        t0 = time.monotonic()
+        while "first frame" not in line and time.monotonic() - t0 < 600:
+            line = p.stderr.readline()
+            if not line and p.poll() is not None:
+                break
+        assert "first frame" in line, line + p.stderr.read()
+        src.write_text("analytic\n::begin shader\n" + _bomb(8) + "\n::end shader\n")
+
+        def probing():
+            probes[:] = [pid for pid, c in children(p.pid, zombies=False).items() if "file_probe" in c]
+            return bool(probes) or p.poll() is not None
+
+        _wait(probing, "the saved file's test render to start")
+        assert probes
+        assert not state.exists()
+        p.send_signal(signal.SIGTERM)
+        rc = p.wait(120)  # a hang detector
+        err = p.stderr.read()
+        assert rc == 0 and "Traceback" not in err, err
+        assert state.is_file() and "window_width" in state.read_text()
+        _wait(lambda: not any(_alive(c) for c in probes), "the test render's child to end", 60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        for c in probes:
+            if _alive(c):
+                os.kill(c, signal.SIGKILL)
+
+
 # ------------------------------------------------------------------ the leash
 
 NEVER_ANSWERS = [sys.executable, "-c", "import sys; print('{\"ready\": true}', flush=True); sys.stdin.read()"]
