@@ -208,6 +208,55 @@ def test_a_verdict_is_kept_per_content_in_the_process_and_on_disk(tmp_path):
     assert file_probe.started == before + 1
 
 
+def test_load_asks_the_probe_set_for_the_process(tmp_path):
+    from viewer import brdf
+    from viewer.brdf import file_model
+
+    seen = []
+
+    def refuse(bfile):
+        seen.append(bfile.path.name)
+        raise ViewerError(f"{bfile.path.name}: refused by the stand-in")
+
+    p = _file(tmp_path, "vetted.brdf", _brdf("return vec3(0.1);"))
+    file_model.set_file_probe(refuse)
+    try:
+        with pytest.raises(ViewerError, match="vetted.brdf: refused by the stand-in"):
+            brdf.load(p)
+    finally:
+        file_model.set_file_probe(None)
+    assert seen == ["vetted.brdf"]
+    brdf.load(p)  # the default probe again: it passes
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process tree from Linux /proc")
+def test_cancel_all_ends_a_running_test_render_without_a_verdict(tmp_path, monkeypatch):
+    import threading
+
+    from lifecycle import children
+
+    from viewer.gl import file_probe
+
+    monkeypatch.setenv("BRDF_VIEWER_PROBE_TIMEOUT", "600")
+    bfile = parse(_file(tmp_path, "waited.brdf", _bomb(8)))
+    out = []
+
+    def run():
+        try:
+            file_probe.probe(bfile)
+            out.append("passed")
+        except ViewerError as e:
+            out.append(str(e))
+
+    t = threading.Thread(target=run)
+    t.start()
+    _wait(lambda: any("file_probe" in c for c in children(zombies=False).values()) or out, "the probe's child")
+    file_probe.cancel_all()
+    t.join(120)  # a hang detector
+    assert out == ["waited.brdf: the test render of its GLSL was stopped"]
+    assert not [c for c in children(zombies=False).values() if "file_probe" in c]
+
+
 def test_a_compile_error_passes_the_probe_and_is_reported_on_its_line():
     from viewer import brdf
     from viewer.gl.file_brdf import FileBrdfError
