@@ -62,6 +62,14 @@ def file_brdf_evaluator():
     return shared_evaluator()
 
 
+def file_brdf_probe():
+    """The function that vets a ``.brdf`` file's GLSL in a child process with a time and a memory
+    limit before it is used (``viewer.gl.file_probe.probe``): the same wiring."""
+    from viewer.gl.file_probe import probe
+
+    return probe
+
+
 def render(scene, width=None, height=None, overrides=()):
     """Rasterize ``scene`` offscreen; (H, W, 3) float32 linear radiance (see viewer.api.render)."""
     from viewer.api import render as _render

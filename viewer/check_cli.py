@@ -2,13 +2,18 @@
 (``viewer.brdf.report_card``) of a ``.brdf`` file or a built-in model or preset.
 
 Exit status: 0 when every check passes, 1 when one fails, 2 when the file cannot be read or
-compiled (one line naming ``FILE:LINE``) or an argument is wrong."""
+compiled (one line naming ``FILE:LINE``), is over a size limit, or its GLSL is refused by the
+loop budget or the test render (``viewer.brdf.glsl_guard``, ``viewer.gl.file_probe``), or an
+argument is wrong; 130 after Ctrl-C, 143 after SIGTERM (at once, the test render's child killed)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 
 from viewer.commands import add_trust_option
 
@@ -58,7 +63,33 @@ def _format(rep: dict) -> str:
     return "\n".join(lines)
 
 
+def _stop_now(signum, _frame):
+    """Ctrl-C or SIGTERM: end at once, whatever GL work runs (a file's test render in its child,
+    which is killed, or the card's evaluation on the evaluator's thread, which is not waited for)."""
+    from viewer.gl.file_probe import cancel_all
+
+    cancel_all()
+    for f in (sys.stdout, sys.stderr):
+        try:
+            f.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(128 + signum)
+
+
 def cmd_check(args) -> int:
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, _stop_now)
+    try:
+        return _check(args)
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _check(args) -> int:
     from viewer.brdf.report_card import report
 
     model, p = model_and_params(args.target, args.overrides)

@@ -12,7 +12,8 @@ adopt (``MaterialTables.adopt``) instead of building them itself. A process, not
 call holds the interpreter lock for its whole duration.
 
 The window keeps drawing the material as it was until the child reports the new one done
-(``Session`` does the holding back). Requests marked ``urgent`` (the material just changed) go
+(``Session`` does the holding back), or until the child has been silent for ``LEASH_S`` seconds (``viewer.app.prefetch``)
+with work outstanding: then it is replaced and the window compiles the change itself. Requests marked ``urgent`` (the material just changed) go
 before the compile-ahead of the scene's presets. Without a driver cache (a driver that keeps
 none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program itself, after
 the child's tables, and the frames of that compile are as long as before. Any failure of the child
@@ -32,6 +33,8 @@ import subprocess
 import sys
 import threading
 import time
+
+from viewer.app.prefetch import leash_seconds
 
 SIZE = (32, 24)  # the child's frames: the programs and their code do not depend on the size
 
@@ -107,27 +110,47 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
 class CompileAhead:
     """The child process and what it has done: ``compiled`` (program keys), ``tables`` (params
     JSON -> exported tables), ``done`` (request ids answered). ``on_done`` is called from the
-    reader thread after each answer (the window wakes its loop with it)."""
+    reader thread after each answer (the window wakes its loop with it).
 
-    def __init__(self, on_done=None):
+    The child is on a leash: when a request has waited ``leash`` seconds (``leash_seconds()``)
+    with no word from the child (a stopped, hung or swapped-out child), ``answered`` kills it,
+    answers its outstanding requests with a failure (so the window compiles them itself), starts
+    a new child and passes a one-line notice to ``on_notice`` (the session's status line).
+    ``command``: the child's command line (a stand-in in tests)."""
+
+    def __init__(self, on_done=None, on_notice=None, command=None, leash: float | None = None):
         self.on_done = on_done
+        self.on_notice = on_notice
+        self.command = list(command or [sys.executable, "-m", "viewer.app.compile_ahead"])
+        self.leash = leash_seconds() if leash is None else float(leash)
         self.compiled: set[str] = set()
         self.tables: dict[str, dict] = {}
         self.done: dict[int, dict] = {}
         self.error = ""
         self.ready = False
+        self.replaced = 0               # children killed for silence
         self._lock = threading.Lock()
         self._next = 0
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
+        self._sent: dict[int, float] = {}  # unanswered request id -> when it was sent
+        self._heard = time.monotonic()  # the child's last word
         self._proc = None
+        self._start()
+
+    def _start(self) -> None:
         try:
-            self._proc = subprocess.Popen([sys.executable, "-m", "viewer.app.compile_ahead"],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                          text=True, env=dict(os.environ), cwd=os.getcwd())
+            proc = subprocess.Popen(self.command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, text=True, env=dict(os.environ), cwd=os.getcwd())
         except OSError as e:
             self.error = f"cannot start ({e})"
             return
-        threading.Thread(target=self._read, name="brdf-viewer-compile-ahead", daemon=True).start()
+        self._proc, self.ready, self._heard = proc, False, time.monotonic()
+        threading.Thread(target=self._read, args=(proc,), name="brdf-viewer-compile-ahead", daemon=True).start()
+
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None: none started)."""
+        return None if self._proc is None else self._proc.pid
 
     @property
     def alive(self) -> bool:
@@ -149,6 +172,7 @@ class CompileAhead:
             rid = self._ids[key] = self._next
             self._next += 1
         try:
+            self._sent[rid] = time.monotonic()
             self._proc.stdin.write(json.dumps({"id": rid, "scene": text, "base_dir": base, "urgent": urgent}) + "\n")
             self._proc.stdin.flush()
         except (OSError, ValueError) as e:
@@ -157,15 +181,45 @@ class CompileAhead:
         return rid
 
     def answered(self, rid) -> bool:
-        return rid in self.done or not self.alive
+        """The request ``rid`` was answered, or will not be (no child, or the child stayed silent
+        past the leash and was replaced)."""
+        if rid in self.done or not self.alive:
+            return True
+        sent = self._sent.get(rid)
+        if sent is not None and time.monotonic() - max(sent, self._heard) > self.leash:
+            self._replace()
+            return True
+        return False
 
-    def _read(self):
-        proc = self._proc
+    def _replace(self) -> None:
+        """Kill the silent child (SIGKILL: a stopped one too), fail what it had, start another."""
+        old = self._proc
+        with self._lock:
+            for rid in list(self._sent):
+                self.done.setdefault(rid, {"id": rid, "ok": False, "error": f"no answer within {self.leash:g} s"})
+            self._sent.clear()
+        self._proc = None
+        if old is not None and old.poll() is None:
+            try:
+                old.kill()
+            except OSError:
+                pass
+            old.wait()
+        self.replaced += 1
+        self._start()
+        if self.on_notice is not None:
+            self.on_notice(f"the compile-ahead process did not answer within {self.leash:g} s: restarted it; "
+                           f"compiling here meanwhile")
+
+    def _read(self, proc):
         for line in proc.stdout:
             try:
                 msg = json.loads(line)
             except ValueError:
                 continue
+            if proc is not self._proc:
+                continue  # a replaced child's last words
+            self._heard = time.monotonic()
             if msg.get("ready"):
                 self.ready = True
                 continue
@@ -174,10 +228,13 @@ class CompileAhead:
                     self.compiled.update(msg.get("keys", ()))
                     self.tables.update(msg.get("tables", {}))
                 self.done[msg["id"]] = msg
+                self._sent.pop(msg["id"], None)
             if self.on_done is not None:
                 self.on_done()
         err = proc.stderr.read()
         rc = proc.wait()
+        if proc is not self._proc:
+            return  # replaced: the new child carries on
         if not self.error:
             last = [x for x in err.strip().splitlines() if x.strip()]
             self.error = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"

@@ -156,7 +156,10 @@ class App:
 
     # ------------------------------------------------------------------ lifecycle
     def request_close(self, *_):
+        from viewer.gl.file_probe import cancel_all
+
         self._closing = True
+        cancel_all()  # a file's test render the frame waits on ends now: the window closes at once
         try:
             self.glfw.set_window_should_close(self.window, True)
         except Exception:  # noqa: BLE001 - during teardown the window may be gone

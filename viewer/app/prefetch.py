@@ -15,10 +15,24 @@ the prefetch with ``error`` set; the window works as before without it.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import threading
 import time
+
+LEASH_ENV = "BRDF_VIEWER_CHILD_LEASH"
+LEASH_S = 30.0   # the longest silence of a compile-ahead child with work outstanding (a program: 0.1-6 s)
+PREFETCH_LEASH_S = 120.0  # of a prefetch child (one map's prefilter on a loaded machine: tens of seconds)
+
+
+def leash_seconds(default: float = LEASH_S) -> float:
+    """How long a child with work outstanding may stay silent before it is replaced
+    (``BRDF_VIEWER_CHILD_LEASH`` seconds, else ``default``)."""
+    try:
+        return max(0.05, float(os.environ.get(LEASH_ENV, default)))
+    except ValueError:
+        return default
 
 
 def tour_maps(start: int = 0) -> list:
@@ -64,25 +78,66 @@ def prefilter_tour(start: int = 0, out=sys.stdout) -> int:
 
 
 class Prefetch:
-    """``prefilter_tour`` in a child process, its progress read by a thread."""
+    """``prefilter_tour`` in a child process, its progress read by a thread.
 
-    def __init__(self, start_step: int = 0):
+    On a leash: a child silent for ``leash`` seconds before it is done (``PREFETCH_LEASH_S``,
+    ``BRDF_VIEWER_CHILD_LEASH``: stopped, hung) is killed and started again once, from the same
+    step (the maps it finished are cached, so they cost a read); silent again, it is ended with
+    ``error`` set, and the window prefilters the remaining maps itself as it would without it.
+    ``command``: the child's command line (a stand-in in tests)."""
+
+    RESTARTS = 1
+
+    def __init__(self, start_step: int = 0, command=None, leash: float | None = None):
         self.total = 0
         self.finished = 0
         self.current = ""
         self.error = ""
         self.done = False
+        self.replaced = 0
         self.seconds: list[tuple[str, float, bool]] = []  # (map, seconds, was it cached already)
+        self.command = list(command or [sys.executable, "-m", "viewer.app.prefetch", str(int(start_step))])
+        self.leash = leash_seconds(PREFETCH_LEASH_S) if leash is None else float(leash)
         self._proc = None
+        self._heard = time.monotonic()
+        self._stopping = False
+        self._start()
+        if self._proc is not None:
+            threading.Thread(target=self._watch, name="brdf-viewer-prefetch-leash", daemon=True).start()
+
+    def _start(self) -> None:
         try:
-            self._proc = subprocess.Popen([sys.executable, "-m", "viewer.app.prefetch", str(int(start_step))],
-                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                          env=dict(os.environ), cwd=os.getcwd())
+            proc = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                    env=dict(os.environ), cwd=os.getcwd())
         except OSError as e:
             self.error, self.done = f"cannot start ({e})", True
             return
-        self._thread = threading.Thread(target=self._read, name="brdf-viewer-prefetch", daemon=True)
+        self._proc, self._heard = proc, time.monotonic()
+        self._thread = threading.Thread(target=self._read, args=(proc,), name="brdf-viewer-prefetch", daemon=True)
         self._thread.start()
+
+    @property
+    def pid(self) -> int | None:
+        return None if self._proc is None else self._proc.pid
+
+    def _watch(self):
+        while not self.done and not self._stopping:
+            time.sleep(min(0.5, self.leash / 4))
+            if self.done or self._stopping or time.monotonic() - self._heard <= self.leash:
+                continue
+            old = self._proc
+            self._proc = None
+            try:
+                old.kill()
+            except OSError:
+                pass
+            old.wait()
+            if self.replaced >= self.RESTARTS:
+                self.error = f"the prefetch process did not answer within {self.leash:g} s (twice)"
+                self.done = True
+                return
+            self.replaced += 1
+            self._start()
 
     def progress_text(self) -> str:
         if self.error:
@@ -91,9 +146,11 @@ class Prefetch:
             return f"environment maps prepared: {self.finished}/{self.total}"
         return f"preparing environment maps {self.finished}/{self.total}"
 
-    def _read(self):
-        proc = self._proc
+    def _read(self, proc):
         for line in proc.stdout:
+            if proc is not self._proc:
+                continue
+            self._heard = time.monotonic()
             parts = line.split()
             if parts[:1] == ["total"]:
                 self.total = int(parts[1])
@@ -102,6 +159,8 @@ class Prefetch:
                 self.seconds.append((parts[2], float(parts[3]), parts[4] == "cached"))
         err = proc.stderr.read()
         rc = proc.wait()
+        if proc is not self._proc:
+            return  # replaced (or being replaced) by the leash
         if rc not in (0, -15) and not self.error:  # -15: stopped by us (SIGTERM)
             last = [x for x in err.strip().splitlines() if x.strip()]
             self.error = last[-1] if last else f"exit status {rc}"
@@ -109,6 +168,7 @@ class Prefetch:
 
     def stop(self, timeout: float = 10.0) -> None:
         """End the child process (a map half prefiltered is simply not cached)."""
+        self._stopping = True
         stop_child(self._proc, timeout)
 
 
@@ -199,6 +259,10 @@ def stop_child(proc, timeout: float = 10.0) -> None:
     """Terminate a child process still running (None: none), killing it after ``timeout`` s."""
     if proc is not None and proc.poll() is None:
         proc.terminate()
+        try:
+            os.kill(proc.pid, signal.SIGCONT)  # a stopped child receives the SIGTERM now
+        except OSError:
+            pass
         try:
             proc.wait(timeout)
         except subprocess.TimeoutExpired:

@@ -540,7 +540,7 @@ class Session(FileActions):
         if self.compile_ahead is None:
             from viewer.app.compile_ahead import CompileAhead
 
-            self.compile_ahead = CompileAhead(on_done=lambda: self.wake and self.wake())
+            self.compile_ahead = CompileAhead(on_done=lambda: self.wake and self.wake(), on_notice=self.notify)
         return self.compile_ahead if self.compile_ahead.alive else None
 
     def _held_back(self, rt_now, rt_held, stale: bool):

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from viewer import ViewerError
+from viewer.brdf.glsl_guard import check_code, check_file_size, check_sizes, guard_globals, guard_loops
 
 #: the prefix of every top-level name of a file's GLSL in this viewer's programs (the file in a
 #: program's slot k > 0 gets ``prefix_for(k)``, so several files can share one program)
@@ -115,13 +116,35 @@ class BrdfFile:
         numbers survive, for messages), parameters as globals ``prefix + name`` on their own
         lines, the shader and sampler with their top-level names prefixed, everything else blank."""
         rename = {n: prefix + n for n in self.top_level_names()}
+        # the entry points run under the loop budget (viewer.brdf.glsl_guard): the file's own
+        # BRDF / sampleBRDF become prefix + "0BRDF" / "0sampleBRDF", called by wrappers that set
+        # the budget's counter to 0
+        rename.update(BRDF=prefix + "0BRDF", sampleBRDF=prefix + "0sampleBRDF")
         out = [""] * len(self.lines)
         glsl_type = {"float": "float", "bool": "bool", "color": "vec3"}
         for d in self.declarations:
             out[d.line - 1] = f"{glsl_type[d.kind]} {prefix}{d.name};"
-        for i in self.shader + (self.sampler if sampler_wrapper else []):
-            out[i - 1] = rename_names(self.lines[i - 1], rename)
+        code_lines = self.shader + (self.sampler if sampler_wrapper else [])
+        guarded = guard_loops({i: self.lines[i - 1] for i in code_lines}, prefix + "0step")
+        for i in code_lines:
+            out[i - 1] = rename_names(guarded[i], rename)
+        # the budget before the file's code (on its type line, blank otherwise), each wrapper
+        # after its section's last line (a line of the section's end, blank otherwise)
+        out[self.type_line - 1] = guard_globals(prefix)
+        c = f"{prefix}0steps = 0;"
+        out[self.shader[-1]] = (f"vec3 {prefix}BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y) {{ {c} "
+                                f"return vec3({prefix}0BRDF(L, V, N, X, Y)); }}")
+        if self.sampler and sampler_wrapper:
+            v, vc = ("vec3 V, ", "V, ") if sampler_takes_view(self) else ("", "")
+            out[self.sampler[-1]] = (f"vec3 {prefix}sampleBRDF({v}float u, float v, vec3 N, vec3 X, vec3 Y, "
+                                     f"out vec3 wi, out float pdf) {{ {c} return vec3({prefix}0sampleBRDF("
+                                     f"{vc}u, v, N, X, Y, wi, pdf)); }}")
         return "\n".join(out) + "\n"
+
+    @property
+    def type_line(self) -> int:
+        """The 1-based line naming the type (the first line that is not blank)."""
+        return next(i + 1 for i, t in enumerate(self.lines) if t.strip())
 
 
 def _strip_comments_line(text: str) -> str:
@@ -223,13 +246,15 @@ def parse(path, text: str | None = None) -> BrdfFile:
     """Parse a ``.brdf`` file (``text`` instead of reading ``path``); one-line ViewerError naming
     ``FILE.brdf:LINE`` on a problem."""
     path = Path(path)
+    name = path.name
     if text is None:
         try:
+            check_file_size(name, path.stat().st_size)  # a huge file is never read
             text = path.read_text(encoding="utf-8", errors="replace")
         except OSError as e:
             raise ViewerError(f"{path}: cannot read BRDF file: {e.strerror or e}") from None
+    check_sizes(name, text)
     lines = text.splitlines()
-    name = path.name
     first = next((i for i, l in enumerate(lines) if l.strip()), None)
     if first is None:
         raise ViewerError(f"{name}:1: empty BRDF file; the first line names the type ('analytic')")
@@ -276,6 +301,7 @@ def parse(path, text: str | None = None) -> BrdfFile:
         raise ViewerError(f"{name}: no '::begin shader' section with a vec3 BRDF(vec3 L, vec3 V, vec3 N, "
                           f"vec3 X, vec3 Y) function")
     f = BrdfFile(path, kind, decls, lines, sections["shader"], sections["isFunc"])
+    check_code(name, {ln: _strip_comments_line(lines[ln - 1]) for ln in f.shader + f.sampler})
     code = f._code(f.shader)
     if not re.search(r"\bBRDF\s*\(", code):
         raise ViewerError(f"{name}:{f.shader[0]}: the shader section defines no function "

@@ -46,6 +46,26 @@ def set_glsl_evaluator(evaluator) -> None:
     _EVALUATOR = evaluator
 
 
+_PROBE = None
+
+
+def set_file_probe(probe) -> None:
+    """Set the function that vets a parsed file before its model is made: ``probe(bfile)`` raises
+    a one-line ViewerError to refuse it; None: back to the default (``viewer.file_brdf_probe()``,
+    the compile and a tiny render in a child process with a time and a memory limit)."""
+    global _PROBE
+    _PROBE = probe
+
+
+def file_probe():
+    global _PROBE
+    if _PROBE is None:
+        from viewer import file_brdf_probe
+
+        _PROBE = file_brdf_probe()
+    return _PROBE
+
+
 def glsl_evaluator():
     global _EVALUATOR
     if _EVALUATOR is None:
@@ -204,6 +224,7 @@ def load(path, make, where: str | None = None):
     if hit is not None and hit[0] == stamp:
         return hit[1]
     bfile = parse(path)
+    file_probe()(bfile)  # before its GLSL reaches any context of this process
     model = make(make_module(bfile, load_twin(path)), where=path.name)
     if len(_CACHE) > 64:
         _CACHE.clear()

@@ -15,7 +15,9 @@ import re
 
 import numpy as np
 
+from viewer import ViewerError
 from viewer.brdf.brdffile import PREFIX, PREFIX_RE, BrdfFile, sampler_takes_view
+from viewer.brdf.glsl_guard import over_budget_glsl, over_budget_message
 from viewer.gl.context import release_gl
 from viewer.gl.file_brdf_glsl import MAX_PARAMS, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
 from viewer.gl.shaders import ShaderError, build_program
@@ -46,7 +48,8 @@ void main() {{
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec3 wi = texelFetch(u_wi, px, 0).xyz;
     vec3 wo = texelFetch(u_wo, px, 0).xyz;
-    color = vec4(vec3({PREFIX}BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0))), 1.0);
+    vec3 f = vec3({PREFIX}BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)));
+    color = vec4(f, {over_budget_glsl(PREFIX)} ? -1.0 : 1.0);
 }}
 """
 
@@ -70,7 +73,7 @@ void main() {{
     vec3 w = vec3({PREFIX}sampleBRDF({view}u.x, u.y, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0),
                                      wi, pdf));
     out_wi_pdf = vec4(wi, pdf);
-    out_weight = vec4(w, 0.0);
+    out_weight = vec4(w, {over_budget_glsl(PREFIX)} ? -1.0 : 1.0);
 }}
 """
 
@@ -104,6 +107,12 @@ def compile_program(ctx, bfile: BrdfFile, fragment: str):
         if line is None:  # outside the file's lines: the viewer's call of BRDF / sampleBRDF
             line = (bfile.sampler if "sampleBRDF" in fragment else bfile.shader)[0]
         raise FileBrdfError(f"{name}:{line}: {msg}", name, line, detail=msg) from None
+
+
+def _within_budget(bfile: BrdfFile, flags) -> None:
+    """Refuse the results of a call that reached the loop budget (flag -1 at some pair)."""
+    if np.any(np.asarray(flags) < 0):
+        raise ViewerError(over_budget_message(bfile.path.name))
 
 
 class FileEvaluator:
@@ -191,7 +200,9 @@ class FileEvaluator:
             prog, vao = self.program(bfile, "eval")
             return self._run(prog, vao, {"u_wi": wi, "u_wo": wo}, n, 1, param_floats(bfile, p))[0]
 
-        return self._on_gl(work)[:, :3]
+        out = self._on_gl(work)
+        _within_budget(bfile, out[:, 3])
+        return out[:, :3]
 
     def sample(self, bfile: BrdfFile, p, wo, u):
         """The file's isFunc sampler: (wi, weight, pdf) for (N, 3) wo and (N, 2) u."""
@@ -203,6 +214,7 @@ class FileEvaluator:
             return self._run(prog, vao, {"u_wo": wo, "u_u": u}, n, 2, param_floats(bfile, p))
 
         a, b = self._on_gl(work)
+        _within_budget(bfile, b[:, 3])
         return a[:, :3], b[:, :3], a[:, 3]
 
 
