@@ -275,7 +275,8 @@ GALLERY = ("floor", "lambert", "oren_nayar", "lafortune", "ashikhmin_shirley", "
 
 def _many_curves(kind, names):
     x = np.linspace(-90.0, 90.0, 91) if kind == "polar" else np.linspace(0.0, 90.0, 91)
-    curves = [plots.Curve(n, x, np.full_like(x, 0.5 + 0.02 * i), (20 * i, 100, 200 - 10 * i)) for i, n in enumerate(names)]
+    curves = [plots.Curve(n, x, np.full_like(x, 0.5 + 0.02 * i), (20 * i, 100, 200 - 10 * i))
+              for i, n in enumerate(names)]
     return plots.Figure(kind, "lambert", {}, "many", "x", "y", curves, x_range=(x[0], x[-1]), y_range=(0.0, 1.0),
                         info={"theta_i": 45.0, "delta": []})
 
