@@ -1,12 +1,14 @@
 """The lecture's steps show what their captions say, measured on the raster image (offscreen,
 the window's renderer) with pixel masks from independent camera rays (render_util): step 4's
 Torrance-Sparrow highlight stands out of its diffuse base; step 5's GGX tail carries several
-times the energy of Beckmann's at the same alpha."""
+times the energy of Beckmann's at the same alpha; the glass steps are exposed for a projector
+(their brightest percent near white, in the raster and the reference alike); step 7's
+retro-reflection shows on the ball; step 9's floor stays under white where the caption lies."""
 
 import numpy as np
 import pytest
 
-from render_util import camera_rays, hit_sphere
+from render_util import camera_rays, hit_plane_y, hit_sphere
 from viewer.lecture import TOUR
 
 W, H = 480, 270
@@ -164,3 +166,111 @@ def test_every_caption_fits_its_box_at_projector_scale(display):
 
     r = run_py(CAPTIONS, display, timeout=600)
     assert r.returncode == 0 and "BAD []" in r.stdout, r.stdout + r.stderr[-2000:]
+
+
+def _srgb8(key, w, h):
+    from viewer import api
+    from viewer.colour import to_srgb8
+    from viewer.scene import load_scene
+
+    ref = f"lecture:{_step(key) + 1}"
+    sc = load_scene(ref, [f"camera.width={w}", f"camera.height={h}"])
+    return sc, to_srgb8(api.render(ref, w, h), sc.render.exposure, sc.render.tonemap)
+
+
+# the glass steps: every one traces its specular chains (a few seconds a step at 160 x 90, the
+# dispersion and soap-bubble steps about ten)
+GLASS = ("fresnel", "tir", "absorbing_glass", "complex_ior")
+GLASS_SLOW = ("dispersion", "soap_bubble")
+
+
+def _glass_p99(key):
+    sc, s8 = _srgb8(key, 160, 90)
+    assert sc.render.raytrace
+    p99 = float(np.percentile(s8, 99))
+    print(f"step {_step(key) + 1} ({key}): 99th percentile {p99:.0f}/255 at EV {sc.render.exposure:g}, "
+          f"tone map {sc.render.tonemap}")
+    return p99
+
+
+@pytest.mark.parametrize("key", GLASS)
+def test_glass_step_is_exposed_for_a_projector(key):
+    """The brightest percent of the 8-bit image reads at least 180/255 (steps 2, 3 and 10, lit
+    by the sky alone, read 77, 78 and 76 before they had an exposure of their own)."""
+    assert _glass_p99(key) >= 180
+
+
+@pytest.mark.slow  # about ten seconds each at 160 x 90
+@pytest.mark.parametrize("key", GLASS_SLOW)
+def test_slow_glass_step_is_exposed_for_a_projector(key):
+    assert _glass_p99(key) >= 180  # step 12 read 136 at EV 0
+
+
+def test_glass_step_reference_follows_the_scene_exposure():
+    """The exposure is the scene's, so the reference's image is exposed as the raster's: step 2
+    path-traced at 48 x 27, 4 spp, written as ``brdf-viewer reference`` writes it."""
+    from viewer import api
+    from viewer.colour import to_srgb8
+    from viewer.scene import load_scene
+
+    ref = f"lecture:{_step('fresnel') + 1}"
+    sc = load_scene(ref)
+    assert sc.render.exposure > 0
+    lin = api.reference(ref, spp=4, engine="cpu", width=48, height=27, workers=0)
+    p99 = float(np.percentile(to_srgb8(lin, sc.render.exposure, sc.render.tonemap), 99))
+    at_ev0 = float(np.percentile(to_srgb8(lin), 99))
+    print(f"step 2 reference: 99th percentile {p99:.0f}/255 (at EV 0: {at_ev0:.0f})")
+    assert p99 >= 180 > at_ev0
+
+
+def _ball_cos(sc, material, w, h):
+    """cos(angle between the sphere's normal and the view ray) per pixel of the sphere made of
+    ``material`` (NaN off it)."""
+    c = sc.camera
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, w, h)
+    (o,) = [o for o in sc.objects if o.material == material and o.mesh == "sphere"]
+    r, centre = float(np.max(o.scale)), np.asarray(o.translate, float)
+    t = hit_sphere(c.position, d, centre, r)
+    hit = np.isfinite(t)
+    n = (np.asarray(c.position) + np.where(hit, t, 0.0)[..., None] * d - centre) / r
+    return np.where(hit, -np.sum(n * d, axis=-1), np.nan)
+
+
+def test_lafortune_step_shows_its_retro_reflection_on_the_ball():
+    """Step 7 lit from behind the viewer: wherever the forward lobe is out of the way (toward the
+    rim, cos theta 0.25 .. 0.6), the Lafortune ball is much brighter than the Lambert ball of its
+    diffuse base beside it. Expected from the model in luminance: (kd / pi + 0.7^5) / (kd / pi)
+    = (0.096 + 0.168) / 0.096 = 2.8 with the light on the view ray; the lamp 1.4 m off it and the
+    dim ambient bring it a little lower. Under the former key light (50 degrees off the view) the
+    retro lobe added 15%."""
+    w, h = 480, 270
+    sc, lum = _render("lafortune")
+    lum = lum.astype(np.float64)
+    rings = {}
+    for m in ("lafortune", "lambert"):
+        cos = _ball_cos(sc, m, w, h)
+        rim, centre = (cos > 0.25) & (cos < 0.6), cos > 0.95
+        rings[m] = (float(lum[rim].mean()), float(lum[centre].mean()))
+    gain = rings["lafortune"][0] / rings["lambert"][0]
+    ratios = {m: round(r / c, 3) for m, (r, c) in rings.items()}
+    print(f"step 7 rim gain Lafortune / Lambert {gain:.2f}; rim / centre {ratios}")
+    assert gain > 2.0, rings
+
+
+def test_layered_step_floor_is_not_blown_out_under_the_caption():
+    """Step 9 (studio map and key light together): the floor pixels in the bottom 35% of the view,
+    where the caption's box lies, stay under white. With a 0.5 floor they read 239/255 at the
+    median, 46% of them at 240 or above."""
+    w, h = 320, 180
+    sc, s8 = _srgb8("layered", w, h)
+    c = sc.camera
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, w, h)
+    (ball,) = [o for o in sc.objects if o.mesh == "sphere"]
+    floor = np.isfinite(hit_plane_y(c.position, d, 0.0)) & ~np.isfinite(
+        hit_sphere(c.position, d, ball.translate, 1.05 * float(np.max(ball.scale))))
+    floor[: int(0.65 * h)] = False
+    v = s8.max(axis=-1)[floor]
+    assert v.size > 0.2 * w * h
+    hot, white = float(np.mean(v >= 240)), float(np.mean(v == 255))
+    print(f"step 9 floor under the caption: median {np.median(v):.0f}/255, {hot:.1%} at >= 240, {white:.1%} at 255")
+    assert white == 0.0 and hot < 0.05, (hot, white)

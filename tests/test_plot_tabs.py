@@ -152,3 +152,121 @@ def test_docked_tabs_fit_at_every_ui_scale(display):
     the tabs named above."""
     r = run_py(GUI, display, timeout=600)
     assert r.returncode == 0 and "TABS OK" in r.stdout, r.stdout + r.stderr[-3000:]
+
+
+# ---------------------------------------------------------------------- many materials
+
+def _gallery_names():
+    from viewer.scene import load_scene
+
+    return list(load_scene("gallery", load_meshes=False).materials)
+
+
+def test_legend_layout_of_the_gallery_fits_every_name_in_its_cell():
+    """The gallery's materials (and the light) in a legend 300 points wide, text about 9 points
+    a letter: rows of entries, every text no wider than its cell's room, every cell inside the
+    legend's box and none over another; a name wider than the whole legend is ellipsized, never
+    cut."""
+    from viewer.app.plot_tabs.common import ellipsize, legend_layout
+
+    def width_of(t):
+        return 9.0 * len(t)
+
+    entries = [("light (wi)", (1, 1, 0))] + [(n, (0.5, 0.5, 0.5)) for n in _gallery_names()]
+    entries.append(("glass (refracted at 28.1 deg, T = 0.96)", (0.2, 0.3, 0.9)))  # 351 points of text
+    cells, (w, h) = legend_layout(entries, width_of, 300.0, 20.0, 6.0, 12.0, 18.0)
+    assert [c.full for c in cells] == [t for t, _ in entries]
+    for a in cells:
+        assert a.text_w <= a.text_room + 1e-9, a
+        assert 0.0 <= a.x and a.x + a.w <= w + 1e-9 and 0.0 <= a.y and a.y + a.h <= h + 1e-9, a
+        for b in cells:
+            assert a is b or a.y != b.y or a.x + a.w <= b.x or b.x + b.w <= a.x, (a, b)
+    assert w <= 300.0 and h == 18.0 * len({c.y for c in cells})
+    assert [c.text == c.full for c in cells].count(False) == 1 and cells[-1].text.endswith("...")
+    assert cells[-1].text_w <= 300.0 - 26.0
+    assert ellipsize("torrance_sparrow", 60.0, width_of) == "tor..."
+    wide, _ = legend_layout(entries, width_of, 2000.0, 20.0, 6.0, 12.0, 18.0)
+    assert all(c.text == c.full for c in wide) and len({c.y for c in wide}) == 1
+
+
+GALLERY_GUI = r'''
+from viewer import plots
+from viewer.app.layout import window_layout
+from viewer.app.main import App
+
+app = App("gallery", size=(1920, 1080), restore_state=False)
+app.session.warm = []
+app.set_ui_scale(1.5)
+app.plots.visible = False
+panel = app.plots.__class__()
+materials = app.session.scene.materials
+rect = window_layout(1920, 1080, 1.5, lecture=True, plots=True)["plots"]
+draw = app.side_panel.draw
+app.side_panel.draw = lambda *a: (draw(*a), panel.draw(materials, rect))
+for tab in ("Polar", "3D lobe", "Fresnel", "Albedo"):
+    panel.select_tab(tab)
+    app.frame(); app.frame()
+    box, frame, cells = panel.legend_boxes[tab], panel.plot_rects[tab], panel.legend_cells[tab]
+    print("TAB", tab, "frame", [round(v) for v in frame], "legend", [round(v) for v in box], "entries", len(cells),
+          "ellipsized", [c.full for c in cells if c.text != c.full])
+    overlap = not (box[2] <= frame[0] or box[0] >= frame[2] or box[3] <= frame[1] or box[1] >= frame[3])
+    assert not overlap, (tab, box, frame)
+    assert box[1] >= frame[3] and box[3] <= rect.y + rect.h + 0.5, (tab, box, frame)  # under the plot, in the window
+    for c in cells:
+        assert c.text_w <= c.text_room + 0.5, (tab, c)
+        assert box[0] + c.x + c.w <= box[2] + 0.5 and box[1] + c.y + c.h <= box[3] + 0.5, (tab, c)
+    words = {w for c in cells for w in c.full.replace("=", " ").split()}
+    want = {n for n, p in materials.items() if tab != "Fresnel" or "fresnel" in plots.applicable_kinds(p)}
+    assert want <= words, (tab, want - words)  # every material named (those with one curve together)
+    assert panel.clipped == [], (tab, panel.clipped)
+panel.close()
+app.close()
+print("GALLERY OK")
+'''
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_gallery_legends_lie_under_the_plots_and_fit(display):
+    """The gallery's 11 materials in the plots docked beside the lecture's view at 1920 x 1080,
+    UI 1.5: in the Polar, 3D lobe, Fresnel and Albedo tabs the legend's box lies under the
+    plot's frame (no overlap with the axes, so no curve is covered) and inside the window, and
+    every entry's text fits its cell (ellipsized where it would not)."""
+    r = run_py(GALLERY_GUI, display, timeout=600)
+    print(r.stdout)
+    assert r.returncode == 0 and "GALLERY OK" in r.stdout, r.stdout + r.stderr[-3000:]
+
+
+COLOURS = r'''
+import json
+from viewer.app.plots_panel import PlotsPanel
+from viewer.scene import load_scene
+
+gallery = list(load_scene("gallery", load_meshes=False).materials)
+a = PlotsPanel()
+a.set_materials(load_scene("lecture:11", load_meshes=False).materials)  # gold seen first elsewhere
+a.set_materials(gallery)
+b = PlotsPanel()
+b.set_materials(gallery[::-1])
+print(json.dumps({"a": {n: a.colour(n) for n in gallery}, "b": {n: b.colour(n) for n in gallery}}))
+'''
+
+
+def test_a_material_keeps_its_colour_from_run_to_run():
+    """Two processes with different string-hash salts (PYTHONHASHSEED), each giving the gallery's
+    materials their colours after another scene and in the reverse order: the same colour for
+    every material, and no two materials of the scene alike."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    runs = []
+    for seed in ("1", "4242"):
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        r = subprocess.run([sys.executable, "-c", COLOURS], env=env, capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr[-2000:]
+        runs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    first = runs[0]["a"]
+    for run in runs:
+        assert run["a"] == first and run["b"] == first
+    assert len({tuple(c) for c in first.values()}) == len(first)

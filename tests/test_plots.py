@@ -265,3 +265,55 @@ def test_plots_panel_draws_every_tab(tmp_path):
     r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", sys.executable, str(script)],
                        capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode == 0 and "PANEL OK" in r.stdout, r.stdout + r.stderr
+
+
+# ---------------------------------------------------------------------- legends outside the axes
+
+GALLERY = ("floor", "lambert", "oren_nayar", "lafortune", "ashikhmin_shirley", "layered", "torrance_sparrow",
+           "ggx", "gold", "mirror", "glass", "copper")  # the gallery's materials and one more: 12
+
+
+def _many_curves(kind, names):
+    x = np.linspace(-90.0, 90.0, 91) if kind == "polar" else np.linspace(0.0, 90.0, 91)
+    curves = [plots.Curve(n, x, np.full_like(x, 0.5 + 0.02 * i), (20 * i, 100, 200 - 10 * i))
+              for i, n in enumerate(names)]
+    return plots.Figure(kind, "lambert", {}, "many", "x", "y", curves, x_range=(x[0], x[-1]), y_range=(0.0, 1.0),
+                        info={"theta_i": 45.0, "delta": []})
+
+
+def _disjoint(a, b):
+    return a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+
+
+def _check_cells(plan, rect, canvas):
+    for text, _, _, x, y, text_w, room in plan.cells:
+        assert text_w <= room + 1e-9, (text, text_w, room)  # every name fits its room
+        assert rect[0] + x + room <= rect[2] + 1e-9 and rect[1] + y <= rect[3], (text, rect)
+    assert 0 <= rect[0] and 0 <= rect[1] and rect[2] <= canvas.w and rect[3] <= canvas.h, (rect, canvas.w, canvas.h)
+
+
+@pytest.mark.parametrize("size", [(900, 600), (1920, 1080), (480, 320)])
+def test_a_legend_of_twelve_materials_lies_outside_the_axes(size):
+    """Twelve curves named after the gallery's materials: the legend's box lies outside the data
+    rect (the cartesian axes, the polar semicircle with its angle labels) and inside the canvas,
+    each name no wider than its room; at 900 x 600 and up nothing is ellipsized."""
+    from viewer.plots.canvas import Canvas
+    from viewer.plots.draw import cartesian_frame, polar_frame
+
+    w, h = size
+    cv = Canvas(w, h)
+    fig = _many_curves("fresnel", GALLERY)
+    box, plan, corner = cartesian_frame(cv, fig, w, h)
+    rect = plan.rect(*corner)
+    assert _disjoint(rect, box), (rect, box)
+    _check_cells(plan, rect, cv)
+    fig = _many_curves("polar", GALLERY)
+    cx, cy, R, plan, corner = polar_frame(cv, fig, w, h)
+    rect = plan.rect(*corner)
+    semicircle = (cx - R - cv.s(24), cy - R - cv.s(20), cx + R + cv.s(24), cy + cv.s(36))  # labels included
+    assert _disjoint(rect, semicircle), (rect, semicircle)
+    _check_cells(plan, rect, cv)
+    if w >= 900:
+        assert all(c[0] == n for c, n in zip(plan.cells, GALLERY))
+    img = plots.render_figure(fig, w, h)  # and it draws
+    assert img.shape == (h, w, 3)

@@ -29,6 +29,9 @@ def _camera(pos=(0.0, 0.9, 4.2), target=(0.0, 0.6, 0.0), fov=36.0) -> str:
 
 _FLOOR = '[[objects]]\nmesh = "plane"\nmaterial = "floor"\nscale = 6.0\n'
 _FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n'
+# under the studio map and the key light together a 0.5 floor reads 0.86-0.97 (near white, where
+# the caption lies over it): a darker grey keeps it well under white
+_GREY_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.25, 0.25, 0.25]\n'
 # under the bright lights of the highlight steps: a dark floor, so the ball is the brightest thing
 _DARK_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.06, 0.06, 0.06]\n'
 _KEY_LIGHT = '[[lights]]\ntype = "point"\nposition = [-2.0, 4.0, 3.0]\nintensity = [30.0, 30.0, 30.0]\n'
@@ -42,6 +45,7 @@ _BARS = "".join(f'[[objects]]\nmesh = "cube"\nmaterial = "bar"\nscale = [0.8, 0.
 # highlight sits where the audience looks
 _HIGHLIGHT_LIGHT = '[[lights]]\ntype = "point"\nposition = [-0.8, 2.2, 4.0]\nintensity = [120.0, 120.0, 120.0]\n'
 # behind the camera, between the two balls: both highlights face the viewer at the same angle
+_RETRO_LIGHT = '[[lights]]\ntype = "point"\nposition = [0.0, 1.6, 5.6]\nintensity = [70.0, 70.0, 70.0]\n'
 _TAIL_LIGHT = '[[lights]]\ntype = "point"\nposition = [0.0, 1.4, 5.0]\nintensity = [400.0, 400.0, 400.0]\n'
 
 
@@ -77,6 +81,10 @@ _DIM = _env("constant = [0.08, 0.08, 0.09]")
 _STUDIO = _env('map = "studio"\nintensity = 1.0')
 # the sky model is in cd/m^2 (thousands): scaled so the horizon reads about 0.3 (EV 0)
 _SKY = _env('map = "sky"\nintensity = 0.006')
+# the steps lit by that sky alone (no lamp): +3 EV, so on a projector the brightest sky and glass
+# read near 200/255 (at EV 0 they read 77); nothing in them reaches white at that exposure, so
+# no tone map is needed and the image stays linear (4% against 100% stays 1:25)
+_SKY_EV = 3.0
 
 
 def _one_ball(preset: str) -> str:
@@ -95,14 +103,16 @@ TOUR: tuple[Step, ...] = (
          "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (the black glass's "
          "rims). The clear ball refracts what lies behind it: "
          "floor and sky upside down.",
-         _scene(_camera(), _SKY, _render("split_sum", raytrace=True), _FLOOR, _sphere("black_glass", -0.75),
+         _scene(_camera(), _SKY, _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
+                _sphere("black_glass", -0.75),
                 _sphere("glass", 0.75), _FLOOR_MAT,
                 '[materials.black_glass]\nmodel = "mirror"\nfresnel = "dielectric"\nior = 1.5\n',
                 _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("tir", "Total internal reflection",
          "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects: the bottom "
          "turns into a mirror, so the near faces' lower half shows the sky, not the floor.",
-         _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY, _render("split_sum", raytrace=True), _FLOOR,
+         _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY,
+                _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
                 '[[objects]]\nmesh = "cube"\nmaterial = "glass"\nscale = 0.55\n'
                 'translate = [0.0, 0.56, 0.0]\nrotate_y_deg = 35.0\n',
                 _FLOOR_MAT, _mat("glass", "lecture_air_glass")), "fresnel"),
@@ -125,20 +135,29 @@ TOUR: tuple[Step, ...] = (
                 '[[lights]]\ntype = "point"\nposition = [0.0, 1.2, 6.0]\nintensity = [60.0, 60.0, 60.0]\n',
                 _FLOOR, _sphere("oren_nayar", -0.75), _sphere("lambert", 0.75), _FLOOR_MAT,
                 _mat("oren_nayar", "lecture_oren_nayar"), _mat("lambert", "lecture_lambert")), "polar"),
-    Step("lafortune", "Lafortune's generalized cosine lobes",
-         "A forward lobe about the mirror direction plus a retro-reflective lobe, over a diffuse base.",
-         _one_ball("lecture_lafortune"), "polar"),
+    # the lamp just behind and above the camera: light returns toward it, so the retro lobe
+    # (C = 0.7, n = 5: 0.7^5 = 0.17 /sr back along wi) adds more than the base's kd / pi =
+    # 0.13 /sr to every pixel of the left ball; the forward lobe's highlight lands near its centre
+    Step("lafortune", "Lafortune's generalized cosine lobes (left) against their diffuse base (right)",
+         "Lit from behind the viewer: the retro-reflective lobe sends the light back, so the left ball "
+         "is over twice as bright as its diffuse base alone (right, Lambert, same kd), out to the rim; "
+         "the forward lobe adds the highlight.",
+         _scene(_camera(), _DIM, _render("split_sum"), _RETRO_LIGHT, _FLOOR,
+                _sphere("lafortune", -0.75), _sphere("lambert", 0.75), _FLOOR_MAT,
+                _mat("lafortune", "lecture_lafortune"),
+                '[materials.lambert]\nmodel = "lambert"\nalbedo = [0.4, 0.3, 0.2]\n'), "polar"),
     Step("ashikhmin_shirley", "Ashikhmin-Shirley anisotropy",
          "n_u = 10, n_v = 1000: the highlight stretches across the tangent direction, as on brushed metal.",
          _one_ball("lecture_ashikhmin_shirley"), "lobe"),
     Step("layered", "Weidlich-Wilkie layered coat",
          "A clear coat over a coloured base: a sharp Fresnel reflection on top of a glossy, tinted layer.",
-         _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _FLOOR_MAT,
+         _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _GREY_FLOOR_MAT,
                 _mat("ball", "lecture_layered")), "albedo"),
     Step("absorbing_glass", "Absorbing glass (Bouguer / Beer-Lambert)",
          "Transmittance exp(-sigma_a d) over each traced path: the floor and sky seen through the big "
          "sphere come out a deeper green than through the small one, darkest where the path is longest.",
-         _scene(_camera(), _SKY, _render("split_sum", raytrace=True), _FLOOR, _sphere("glass_big", -0.6, 0.7),
+         _scene(_camera(), _SKY, _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
+                _sphere("glass_big", -0.6, 0.7),
                 _sphere("glass_small", 0.9, 0.3), _FLOOR_MAT, _mat("glass_big", "lecture_absorbing_glass"),
                 _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
     Step("complex_ior", "Complex IOR: gold, silver, copper",
@@ -154,7 +173,9 @@ TOUR: tuple[Step, ...] = (
          "n(lambda) falls with wavelength (SF11: 1.83 at 420 nm, 1.77 at 680 nm): blue bends most. "
          "Through the prism the white bars on the black floor behind it split into rainbow bands; "
          "the raster traces each colour channel with its own n.",
-         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY, _render("split_sum", raytrace=True),
+         _scene(_camera((0.0, 0.8, 3.6), (0.0, 0.5, 0.0), 36.0), _SKY,
+                # +1.5 EV: the black floor leaves the bars and the sky the brightest things
+                _render("split_sum", raytrace=True, exposure=1.5),
                 _KEY_LIGHT, _FLOOR,
                 '[[objects]]\nmesh = "prism"\nmaterial = "flint"\nscale = [0.28, 0.6, 0.5]\n'
                 'translate = [-0.6, 0.3, 0.0]\nrotate_y_deg = 90.0\n',

@@ -5,7 +5,8 @@ against pdf), each a module of ``viewer.app.plot_tabs``, drawing the scene's mat
 (implot / implot3d) from the data functions of ``viewer.plots`` (the same numbers
 ``brdf-viewer plot`` draws).
 
-Each material keeps one colour in every tab (BRDF Explorer's convention); a checkbox shows or
+Each material keeps one colour in every tab (BRDF Explorer's convention) and from run to run
+(chosen from its name, ``colour_slots``); a checkbox shows or
 hides it and 'solo' shows it alone. Data are cached per (kind, material parameters, angles) and
 recomputed only when those change; the albedo curve (tens of ms per material) waits while a
 slider is held and is recomputed when it is released. The tab names flow onto a second row
@@ -30,7 +31,7 @@ from viewer.app.plot_tabs import albedo, bouguer, check, fresnel, lobe, polar, s
 from viewer.app.plot_tabs.albedo import albedo_note  # noqa: F401 - part of this module's interface
 from viewer.app.plot_tabs.bouguer import bouguer_marks  # noqa: F401
 from viewer.app.plot_tabs.common import (CHANNEL_LABELS, CHANNELS, LIGHT, PALETTE, R_P_COLOUR,  # noqa: F401
-                                         R_S_COLOUR, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
+                                         R_S_COLOUR, colour_slot, colour_slots, legend_layout, legend_text, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
 from viewer.app.plot_tabs.fresnel import fresnel_marks  # noqa: F401
 from viewer.app.plot_tabs.lobe import shaded_quads  # noqa: F401
 
@@ -70,9 +71,16 @@ class PlotsPanel:
         self.lobe_extent = 1.0  # the 3D lobe's axis half-width of the last frame
         self.nk_range = (0.0, 1.0)  # the Spectral tab's n, k axis of the last frame
         self.clipped: list[str] = []  # labels that did not fit this frame (should stay empty)
+        # the legend under the plot, by tab, from the last frame (window pixels): its box, its
+        # cells (plot_tabs.common.LegendCell, from the box's corner) and the plot's frame above it
+        self.legend_boxes: dict[str, tuple] = {}
+        self.legend_cells: dict[str, list] = {}
+        self.plot_rects: dict[str, tuple] = {}
+        self._keys: list[tuple[str, tuple]] = []
         self.albedo_stale: set[str] = set()
         self._select: str | None = None
-        self._colours: dict[str, int] = {}
+        self._colours: dict[str, int] = {}  # palette entry by material, for the scene's names
+        self._colour_names: frozenset = frozenset()
         self._cache: dict = {}
         self._albedo_shown: dict[str, tuple] = {}
         self._own_implot3d = False
@@ -84,10 +92,18 @@ class PlotsPanel:
             raise ValueError(f"unknown tab {tab!r}; allowed: {', '.join(TABS)}")
         self._select = tab
 
+    def set_materials(self, names) -> None:
+        """The materials the colours are shared out among (``colour_slots``: a function of the
+        names alone, the same in every run)."""
+        names = frozenset(names)
+        if names != self._colour_names:
+            self._colour_names = names
+            self._colours = colour_slots(names)
+
     def colour(self, name: str) -> tuple:
-        if name not in self._colours:
-            self._colours[name] = len(self._colours)
-        return PALETTE[self._colours[name] % len(PALETTE)]
+        """The material's colour: its entry among the scene's materials (``set_materials``), or,
+        for a name outside them, the entry its name asks for."""
+        return PALETTE[self._colours.get(name, colour_slot(name))]
 
     def active(self, materials) -> list[str]:
         """The materials drawn: the solo one, else every checked one."""
@@ -116,8 +132,7 @@ class PlotsPanel:
         3D view, not over it), else a free window."""
         if not self.visible:
             return
-        for name in materials:
-            self.colour(name)
+        self.set_materials(materials)
         flags = 0
         pushed = False
         if rect is not None:
@@ -167,10 +182,62 @@ class PlotsPanel:
             self.clipped.append(text)
 
     def plot_size(self):
-        """The rest of the window, less room for the messages under the plot."""
+        """The rest of the window, less room for the legend (its height in the last frame) and
+        the messages under the plot."""
         avail = imgui.get_content_region_avail()
         lines = sum(1 + len(m) * imgui.calc_text_size("x").x // max(avail.x, 1.0) for m in self.messages)
-        return imgui.ImVec2(-1, max(150.0, avail.y - lines * imgui.get_text_line_height_with_spacing()))
+        box = self.legend_boxes.get(self.tab)
+        below = box[3] - box[1] + imgui.get_style().item_spacing.y if box else 0.0
+        return imgui.ImVec2(-1, max(150.0, avail.y - below - lines * imgui.get_text_line_height_with_spacing()))
+
+    def key(self, label: str, colour) -> None:
+        """A legend entry for the plot item ``label`` (its text before ``##``; none for a hidden
+        one) in ``colour``, once per text and colour: the tabs that draw their legend under the
+        plot (``legend_below``) call it beside each item they plot."""
+        entry = (legend_text(label), tuple(float(c) for c in colour[:3]))
+        if entry[0] and entry not in self._keys:
+            self._keys.append(entry)
+
+    def begin_frame_rect(self, size) -> None:
+        """Record the frame of the plot about to begin at the cursor (``size`` as given to
+        ``begin_plot``), for the legend's check against it."""
+        pos = imgui.get_cursor_screen_pos()
+        w = size.x if size.x > 0 else imgui.get_content_region_avail().x
+        self.plot_rects[self.tab] = (pos.x, pos.y, pos.x + w, pos.y + size.y)
+
+    def legend_below(self) -> None:
+        """The entries given to ``key`` as a legend under the plot, outside the axes (so it never
+        covers a curve, however many materials): a grid of equal cells, as many columns as the
+        widest entry allows, an entry wider than the window ellipsized (its whole text in a
+        tooltip)."""
+        entries, self._keys = self._keys, []
+        if not entries:
+            self.legend_boxes.pop(self.tab, None)
+            self.legend_cells.pop(self.tab, None)
+            return
+        k = self.font_k()
+        style = imgui.get_style()
+        row_h = imgui.get_text_line_height_with_spacing()
+        swatch, gap = 22 * k, style.item_inner_spacing.x + 2 * k
+        cells, (w, h) = legend_layout(entries, lambda t: imgui.calc_text_size(t).x, self.avail_x(), swatch, gap,
+                                      2 * style.item_spacing.x, row_h)
+        o = imgui.get_cursor_screen_pos()
+        dl = imgui.get_window_draw_list()
+        text_col = imgui.get_color_u32(imgui.Col_.text)
+        text_h = imgui.get_text_line_height()
+        for c in cells:
+            x, y = o.x + c.x, o.y + c.y
+            cy = y + row_h / 2
+            dl.add_line(imgui.ImVec2(x, cy), imgui.ImVec2(x + swatch, cy), imgui.get_color_u32(vec4(c.colour)),
+                        3.0 * k)
+            dl.add_text(imgui.ImVec2(x + c.text_x, y + (row_h - text_h) / 2), text_col, c.text)
+            if c.text != c.full and imgui.is_mouse_hovering_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + c.w, y + c.h)):
+                imgui.set_tooltip(c.full)
+            if c.text_w > c.text_room + 0.5:
+                self.clipped.append(c.text)
+        imgui.dummy(imgui.ImVec2(max(w, 1.0), h))
+        self.legend_boxes[self.tab] = (o.x, o.y, o.x + w, o.y + h)
+        self.legend_cells[self.tab] = cells
 
     def legend(self):
         """Outside the plot when the window is wide, inside (top left, where the curves rarely
@@ -229,7 +296,14 @@ class PlotsPanel:
     def _controls(self, materials):
         k = self.font_k()
         avail = imgui.get_content_region_avail().x
-        cols = max(1, min(len(materials), 3, int(avail // (150 * k))))
+        style = imgui.get_style()
+        sp_x = style.item_spacing.x
+        # a cell: the swatch, "solo", the checkbox and the longest name whole (names were cut
+        # to "ashikhmin_shirle" in two columns of a docked panel)
+        fixed = (14 * k + sp_x + imgui.calc_text_size("solo").x + 2 * style.frame_padding.x + sp_x
+                 + imgui.get_frame_height() + style.item_inner_spacing.x)
+        longest = max((imgui.calc_text_size(n).x for n in materials), default=0.0)
+        cols = max(1, min(len(materials), 3, int((avail + sp_x) // (fixed + longest + 2 * sp_x))))
         if materials and imgui.begin_table("##plot_materials", cols, imgui.TableFlags_.sizing_stretch_same):
             for name in materials:
                 imgui.table_next_column()
@@ -245,7 +319,10 @@ class PlotsPanel:
                 if solo:
                     imgui.pop_style_color()
                 imgui.same_line()
+                room = imgui.get_content_region_avail().x - imgui.get_frame_height() - style.item_inner_spacing.x
                 _, self.shown[name] = imgui.checkbox(name, self.shown.get(name, True))
+                if cols > 1:  # one column: the window's width is all there is
+                    self.check_fits(name, room)
                 if imgui.is_item_hovered():
                     imgui.set_tooltip(f"{name}: {materials[name].model}")
                 imgui.pop_id()
@@ -302,6 +379,8 @@ class PlotsPanel:
         if not names:
             imgui.text("no material shown: tick one above")
             return
+        self._keys = []
         TAB_MODULES[tab].draw(self, names, materials)
+        self.legend_below()
         for m in self.messages:
             imgui.text_wrapped(m)

@@ -1,12 +1,14 @@
 """The drawing library (Pillow): a supersampled canvas with text (DejaVu Sans, Greek letters),
 dashed polylines and rotated labels; nice axis ticks and their labels; the viridis colour map;
-legends placed in the emptiest corner; mark labels placed where they cover the fewest curve
+legends beside or below the plot (never over its curves), names ellipsized only when wider than
+the canvas; mark labels placed where they cover the fewest curve
 points; layers clipped to the plot area; arrows; the figure's header."""
 
 from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -176,27 +178,82 @@ def draw_header(cv, fig, width):
         cv.text((cv.s(width / 2), cv.s(50 + 14 * i)), note, px=11, fill=(70, 70, 70), anchor="ma")
 
 
-def draw_legend(cv, items, box, corner, px=12, draw=True):
-    """items: [(label, color, style)]; box: the plot rect (x0, y0, x1, y1) in canvas pixels.
-    Returns the legend's rect."""
+@dataclass
+class LegendPlan:
+    """A legend laid out (canvas pixels, from its top left corner): ``w`` x ``h``, and per entry
+    (text as drawn, colour, style, x, y of its row's top, the text's width, the text's room)."""
+    w: float
+    h: float
+    row_h: float
+    line_len: float
+    cells: list
+
+    def rect(self, x, y) -> tuple:
+        return (x, y, x + self.w, y + self.h)
+
+
+def ellipsize(cv, text, room, px=12) -> str:
+    """``text`` whole if it is no wider than ``room`` (canvas pixels) at ``px``, else its longest
+    start that fits with "..." after it."""
+    if cv.text_size(text, px)[0] <= room:
+        return text
+    lo, hi = 1, len(text)
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if cv.text_size(text[:mid].rstrip() + "...", px)[0] <= room:
+            lo = mid
+        else:
+            hi = mid - 1
+    return text[:lo].rstrip() + "..."
+
+
+def plan_legend(cv, items, max_w, px=12, max_cols=None):
+    """items: [(label, color, style)] as a legend at most ``max_w`` canvas pixels wide: columns
+    of the widest entry's width (as many as fit, at most ``max_cols``), filled top to bottom; an
+    entry wider than the legend is ellipsized. None without items."""
     if not items:
         return None
-    pad, line_len, gap = cv.s(6), cv.s(28), cv.s(4)
+    pad, line_len, gap, col_gap = cv.s(6), cv.s(28), cv.s(8), cv.s(16)
     sizes = [cv.text_size(lbl, px) for lbl, _, _ in items]
-    row_h = max(cv.s(px + 4), max(h for _, h in sizes) + gap)
-    w = line_len + cv.s(8) + max(tw for tw, _ in sizes) + 2 * pad
-    h = row_h * len(items) + 2 * pad
-    x0, y0, x1, y1 = box
-    m = cv.s(8)
-    lx = x0 + m if corner[1] == "l" else x1 - m - w
-    ly = y0 + m if corner[0] == "t" else y1 - m - h
-    if draw:
-        cv.draw.rectangle([lx, ly, lx + w, ly + h], fill=(255, 255, 255), outline=(170, 170, 170), width=cv.s(1))
-        for i, (lbl, col, style) in enumerate(items):
-            cy = ly + pad + row_h * i + row_h / 2
-            cv.polyline([(lx + pad, cy), (lx + pad + line_len, cy)], col, 2.0, style)
-            cv.text((lx + pad + line_len + cv.s(8), cy), lbl, px=px, anchor="lm")
-    return (lx, ly, lx + w, ly + h)
+    row_h = max(cv.s(px + 4), max(h for _, h in sizes) + cv.s(4))
+    inner = max(max_w - 2 * pad, line_len + gap + cv.s(12))
+    col_w = min(line_len + gap + max(tw for tw, _ in sizes), inner)
+    cols = max(1, int((inner + col_gap) // (col_w + col_gap)))
+    cols = min(cols, len(items), max_cols or len(items))
+    rows = -(-len(items) // cols)
+    room = col_w - line_len - gap
+    cells = []
+    for i, (lbl, col, style) in enumerate(items):
+        c, r = divmod(i, rows)
+        text = ellipsize(cv, lbl, room, px)
+        cells.append((text, col, style, pad + c * (col_w + col_gap), pad + r * row_h, cv.text_size(text, px)[0], room))
+    return LegendPlan(cols * col_w + (cols - 1) * col_gap + 2 * pad, rows * row_h + 2 * pad, row_h, line_len, cells)
+
+
+def draw_legend(cv, plan, x, y, px=12):
+    """The legend ``plan`` (``plan_legend``) with its top left corner at (x, y); its rect."""
+    if plan is None:
+        return None
+    cv.draw.rectangle(list(plan.rect(x, y)), fill=(255, 255, 255), outline=(170, 170, 170), width=cv.s(1))
+    for text, col, style, cx, cy, _, _ in plan.cells:
+        mid = y + cy + plan.row_h / 2
+        cv.polyline([(x + cx, mid), (x + cx + plan.line_len, mid)], col, 2.0, style)
+        cv.text((x + cx + plan.line_len + cv.s(8), mid), text, px=px, anchor="lm")
+    return plan.rect(x, y)
+
+
+def legend_beside_or_below(cv, items, width, height, beside_frac=0.3, px=12):
+    """Where a plot's legend goes, outside its axes: ("beside", plan) when one column of it,
+    nothing ellipsized, takes at most ``beside_frac`` of the canvas width and fits its height;
+    else ("below", plan) in as many columns as the canvas width allows; (None, None) without
+    items. Canvas sizes in unscaled pixels; the plan in canvas pixels."""
+    if not items:
+        return None, None
+    one = plan_legend(cv, items, cv.s(width * beside_frac), px, max_cols=1)
+    whole = all(c[0] == lbl for c, (lbl, _, _) in zip(one.cells, items))
+    if whole and one.h <= cv.s(height * 0.7):
+        return "beside", one
+    return "below", plan_legend(cv, items, cv.s(width - 40), px)
 
 
 def curve_pixels(fig, to_px, step):
@@ -244,22 +301,6 @@ def place_labels(cv, labels, box, px_pts, py_pts, obstacles):
             best = (0, lx + cv.s(5), y0 + cv.s(6), tw, th, None)
         placed.append((best[1], best[2], best[3], best[4], best[5]))
     return placed
-
-
-def best_corner(fig, to_px, box):
-    """The plot corner where the fewest curve points lie (for the legend)."""
-    x0, y0, x1, y1 = box
-    cw, ch = (x1 - x0) * 0.45, (y1 - y0) * 0.4
-    counts = {}
-    for corner in ("tr", "tl", "br", "bl"):
-        cx0 = x0 if corner[1] == "l" else x1 - cw
-        cy0 = y0 if corner[0] == "t" else y1 - ch
-        n = 0
-        for c in fig.curves:
-            px, py = to_px(np.asarray(c.x), np.asarray(c.y))
-            n += int(np.sum((px >= cx0) & (px <= cx0 + cw) & (py >= cy0) & (py <= cy0 + ch)))
-        counts[corner] = n
-    return min(counts, key=lambda k: (counts[k], ("tr", "tl", "br", "bl").index(k)))
 
 
 def clipped_layer(cv):

@@ -9,14 +9,33 @@ import math
 import numpy as np
 
 from viewer import ViewerError
-from viewer.plots.canvas import (Canvas, arrow, best_corner, clipped_layer, colormap, curve_pixels, draw_grid,
-                                 draw_header, draw_legend, nice_ticks, paste_clipped, place_labels, tick_label)
+from viewer.plots.canvas import (Canvas, arrow, clipped_layer, colormap, curve_pixels, draw_grid, draw_header,
+                                 draw_legend, legend_beside_or_below, nice_ticks, paste_clipped, place_labels,
+                                 tick_label)
 from viewer.plots.figure_types import Figure, fmt_value
 
-def _draw_cartesian(cv, fig, width, height):
+def _items(fig):
+    return [(c.label, c.color, c.style) for c in fig.curves]
+
+
+def cartesian_frame(cv, fig, width, height):
+    """The axes' data rect (canvas pixels) of a cartesian figure and its legend outside it:
+    (box, legend plan or None, legend's top left corner). Beside the axes on the right when it
+    fits there in one column, else under the x axis' label."""
     left, right, top, bottom = 78, 24, 58 + 14 * len(fig.notes), 56
+    where, plan = legend_beside_or_below(cv, _items(fig), width, height - top - bottom)
+    if where == "beside":
+        right += plan.w / cv.ss + 14
+    elif where == "below":
+        bottom += plan.h / cv.ss + 8
     x0, y0, x1, y1 = cv.s(left), cv.s(top), cv.s(width - right), cv.s(height - bottom)
-    box = (x0, y0, x1, y1)
+    corner = (x1 + cv.s(14), y0) if where == "beside" else (x0, y1 + cv.s(52))
+    return (x0, y0, x1, y1), plan, corner
+
+
+def _draw_cartesian(cv, fig, width, height):
+    box, plan, corner = cartesian_frame(cv, fig, width, height)
+    x0, y0, x1, y1 = box
     (xa, xb), (ya, yb) = fig.x_range, fig.y_range
 
     def to_px(x, y):
@@ -46,8 +65,7 @@ def _draw_cartesian(cv, fig, width, height):
         px, py = to_px(c.x, c.y)
         cv.polyline(list(zip(px, py)), tuple(c.color) + (255,), 2.2, c.style, draw=ld)
     paste_clipped(cv, layer, box)
-    items = [(c.label, c.color, c.style) for c in fig.curves]
-    legend = draw_legend(cv, items, box, best_corner(fig, to_px, box)) if items else None
+    legend = draw_legend(cv, plan, *corner)
     pts = curve_pixels(fig, to_px, cv.s(2))
     spots = place_labels(cv, [(float(to_px(m.x, ya)[0]), m.label) for m in fig.marks], box, *pts, [legend])
     for m, (tx, ty, tw, th, _) in zip(fig.marks, spots):
@@ -60,11 +78,23 @@ def _shown(fig, v) -> float:
     return float(np.log10(1.0 + v)) if fig.info.get("transform") else float(v)
 
 
-def _draw_polar(cv, fig, width, height):
+def polar_frame(cv, fig, width, height):
+    """The polar figure's semicircle (centre x, y and radius R, canvas pixels) and its legend
+    outside it: (cx, cy, R, legend plan or None, legend's top left corner). Beside the
+    semicircle's right end when it fits there in one column, else under the radius' label."""
     top = 58 + 14 * len(fig.notes)
-    radius_px = min((width - 120) / 2, height - top - 70)
-    cx, cy = cv.s(width / 2), cv.s(top + 24 + radius_px)
-    R = cv.s(radius_px)
+    where, plan = legend_beside_or_below(cv, _items(fig), width, height - top - 70)
+    room_w = width - (plan.w / cv.ss + 12 if where == "beside" else 0)
+    room_h = height - top - 70 - (plan.h / cv.ss + 10 if where == "below" else 0)
+    radius_px = max(20.0, min((room_w - 120) / 2, room_h))
+    cx, cy = cv.s(room_w / 2), cv.s(top + 24 + radius_px)
+    corner = (cv.s(room_w), cv.s(top + 24)) if where == "beside" else (cv.s(width / 2) - (plan.w / 2 if plan else 0),
+                                                                       cy + cv.s(44))
+    return cx, cy, cv.s(radius_px), plan, corner
+
+
+def _draw_polar(cv, fig, width, height):
+    cx, cy, R, plan, corner = polar_frame(cv, fig, width, height)
     rmax = fig.y_range[1]
     d = cv.draw
     # rings and spokes
@@ -118,9 +148,7 @@ def _draw_polar(cv, fig, width, height):
         mid = (cx + 0.55 * rr * math.sin(t), cy - 0.55 * rr * math.cos(t))
         cv.text((mid[0] + cv.s(10) * math.cos(t), mid[1] + cv.s(10) * math.sin(t)),
                 "delta lobe, R = " + fmt_value(refl), px=12, fill=(120, 40, 160), anchor="lt")
-    items = [(c.label, c.color, c.style) for c in fig.curves]
-    box = (cv.s(10), cv.s(top), cv.w - cv.s(10), cy)
-    draw_legend(cv, items, box, "tr" if fig.info["theta_i"] > 20 else "tl")
+    draw_legend(cv, plan, *corner)
 
 
 def _view_basis(elevation: float, azimuth: float):

@@ -20,9 +20,9 @@ def draw(panel, names, materials):
         if note:
             panel.messages.append(f"{n}: {note}")
     size = panel.plot_size()
-    if implot.begin_plot("##albedo", size):
+    panel.begin_frame_rect(size)
+    if implot.begin_plot("##albedo", size, implot.Flags_.no_legend):
         implot.setup_axes("theta (deg) of wo", "directional albedo")
-        panel.legend()
         implot.setup_axes_limits(0.0, 90.0, 0.0, ymax * 1.05, implot.Cond_.always)
         for label, members in panel.groups(names, data, same_data):
             n = members[0]
@@ -31,10 +31,12 @@ def draw(panel, names, materials):
             stale = n in panel.albedo_stale
             implot.plot_line(label, d["theta"], plots.reduce_channel(d["albedo"], panel.channel),
                              implot.Spec(line_color=vec4(col, 0.4 if stale else 1.0), line_weight=2.0))
+            panel.key(label, col)
             if d["transmissive"]:
                 implot.plot_line(f"{label} reflected", d["theta"], plots.reduce_channel(d["reflected"], panel.channel),
                                  implot.Spec(line_color=vec4(col, 0.6), line_weight=1.0,
                                              marker=implot.Marker_.square, marker_size=2.0))
+                panel.key(f"{label} reflected", col)
         implot.end_plot()
 
 

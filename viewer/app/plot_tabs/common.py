@@ -1,23 +1,52 @@
 """What the plots panel's tabs share: the material palette, the light's and the Fresnel
-components' colours, colour vectors, text labels in a plot, the comparison of plot data, and
-the flowed tab row (tabs that never shrink into "Sa...")."""
+components' colours, colour vectors, text labels in a plot, the comparison of plot data, the
+flowed tab row (tabs that never shrink into "Sa...") and the legend's layout under a plot."""
 
 from __future__ import annotations
 
 import json
+import zlib
+from dataclasses import dataclass
 
 import numpy as np
 from imgui_bundle import imgui, implot
 
 CHANNELS = ("lum", "r", "g", "b")
 CHANNEL_LABELS = ("luminance", "red", "green", "blue")
-# one colour per material, in the order materials are first seen (Tableau 10, then lighter tints)
+# the materials' colours (Tableau 10, then lighter tints), chosen by ``colour_slots``
 PALETTE = ((0.12, 0.47, 0.71), (1.00, 0.50, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
            (0.58, 0.40, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.50, 0.50, 0.50),
            (0.74, 0.74, 0.13), (0.09, 0.75, 0.81),
            (0.68, 0.78, 0.91), (1.00, 0.73, 0.47), (0.60, 0.87, 0.54), (1.00, 0.60, 0.59),
            (0.77, 0.69, 0.84), (0.77, 0.61, 0.58), (0.97, 0.71, 0.82), (0.78, 0.78, 0.78),
            (0.86, 0.86, 0.55), (0.62, 0.85, 0.90))
+
+
+STRONG = 10  # PALETTE[:STRONG]: the saturated colours, used before the tints
+
+
+def colour_slot(name: str) -> int:
+    """The palette entry a material called ``name`` asks for, among the saturated ones: CRC-32
+    of its name (the same in every process, unlike ``hash``, which Python salts per process)."""
+    return zlib.crc32(name.encode("utf-8")) % STRONG
+
+
+def colour_slots(names) -> dict[str, int]:
+    """Palette entries for the materials ``names``, all different while there are no more of
+    them than colours: each takes the entry its name asks for (``colour_slot``) or, where an
+    earlier name took it, the next free saturated one, and only when those are all taken a tint
+    (the names taken in sorted order). A function of the set of names alone, so a material keeps
+    its colour from run to run, whatever order the scene lists them in or the window met them."""
+    out: dict[str, int] = {}
+    for name in sorted(set(names)):
+        want = colour_slot(name)
+        order = [(want + i) % STRONG for i in range(STRONG)]
+        order += [STRONG + (want + i) % (len(PALETTE) - STRONG) for i in range(len(PALETTE) - STRONG)]
+        free = [i for i in order if i not in out.values()]
+        out[name] = free[0] if free else want
+    return out
+
+
 # the incident direction: a colour of its own, far from every material's (a test checks it)
 LIGHT = (1.00, 0.92, 0.20)
 # Fresnel components: hues of their own (R keeps the material's colour), as the CLI plot's
@@ -96,3 +125,67 @@ def pixel_aspect(x_unit: float = 1.0, y_unit: float = 1.0) -> float:
     px = implot.plot_to_pixels(x_unit, 0.0)
     py = implot.plot_to_pixels(0.0, y_unit)
     return abs(px.x - o.x) / x_unit / max(abs(py.y - o.y) / y_unit, 1e-12)
+
+
+def legend_text(label: str) -> str:
+    """What a plot item's label shows: the part before ``##`` (implot's hidden id), empty for a
+    label that starts with it."""
+    return label.split("##", 1)[0]
+
+
+def ellipsize(text: str, room: float, width_of) -> str:
+    """``text`` whole when ``width_of(text)`` fits ``room``, else its longest start that fits
+    with "..." after it (at least the first letter)."""
+    if width_of(text) <= room:
+        return text
+    lo, hi = 1, len(text)
+    while lo < hi:  # the longest start that fits, found by bisection
+        mid = (lo + hi + 1) // 2
+        if width_of(text[:mid].rstrip() + "...") <= room:
+            lo = mid
+        else:
+            hi = mid - 1
+    return text[:lo].rstrip() + "..."
+
+
+@dataclass(frozen=True)
+class LegendCell:
+    """One legend entry laid out: its text (ellipsized to its room), the text's width, the
+    colour, the whole text, and its cell (x, y from the legend's top left corner, w, h); the swatch is the
+    cell's first ``swatch`` points, the text starts ``text_x`` from the cell's left."""
+    text: str
+    text_w: float
+    colour: tuple
+    full: str
+    x: float
+    y: float
+    w: float
+    h: float
+    text_x: float
+
+    @property
+    def text_room(self) -> float:
+        return self.w - self.text_x
+
+
+def legend_layout(entries, width_of, avail: float, swatch: float, gap: float, spacing: float,
+                  row_h: float) -> tuple[list[LegendCell], tuple[float, float]]:
+    """A legend of ``entries`` [(text, colour)] in rows under the plot, ``avail`` wide: each
+    entry a swatch, a gap and its text, placed left to right with ``spacing`` between them and
+    a new row where the next would pass ``avail`` (``flow_rows``); an entry wider than ``avail``
+    alone is ellipsized to it. Returns the cells and the legend's (width, height)."""
+    text_x = swatch + gap
+    room = max(avail - text_x, 1.0)
+    shown = [ellipsize(t, room, width_of) for t, _ in entries]
+    text_w = [width_of(t) for t in shown]
+    rows = flow_rows([text_x + w for w in text_w], avail, spacing)
+    cells = []
+    for r, row in enumerate(rows):
+        x = 0.0
+        for i in row:
+            w = text_x + text_w[i]
+            cells.append(LegendCell(shown[i], text_w[i], tuple(entries[i][1]), entries[i][0], x, r * row_h, w,
+                                    row_h, text_x))
+            x += w + spacing
+    width = max((c.x + c.w for c in cells), default=0.0)
+    return cells, (width, len(rows) * row_h)

@@ -84,9 +84,9 @@ def draw(panel, names, materials):
     marks = fresnel_marks(curves, c)
     panel.messages.extend(fresnel_notes(curves, c))
     size = panel.plot_size()
-    if implot.begin_plot("##fresnel", size):
+    panel.begin_frame_rect(size)
+    if implot.begin_plot("##fresnel", size, implot.Flags_.no_legend):
         implot.setup_axes("angle of incidence (deg)", "reflectance")
-        panel.legend()
         implot.setup_axes_limits(0.0, 90.0, 0.0, 1.05, implot.Cond_.always)
         for lab, members in groups:
             n, d = members[0], data[members[0]]
@@ -95,6 +95,7 @@ def draw(panel, names, materials):
             if bare:
                 implot.plot_line(f"{lab} R", d["theta"], np.ascontiguousarray(d["R"][:, c]),
                                  implot.Spec(line_color=vec4(col), line_weight=3.0))
+                panel.key(f"{lab} R", col)
             if panel.show_components and bare:
                 implot.plot_line(f"{lab} R_s", d["theta"], np.ascontiguousarray(d["Rs"][:, c]),
                                  implot.Spec(line_color=vec4(R_S_COLOUR), line_weight=1.5,
@@ -102,14 +103,19 @@ def draw(panel, names, materials):
                 implot.plot_line(f"{lab} R_p", d["theta"], np.ascontiguousarray(d["Rp"][:, c]),
                                  implot.Spec(line_color=vec4(R_P_COLOUR), line_weight=1.5,
                                              marker=implot.Marker_.circle, marker_size=1.5))
+                # one entry each: every material's R_s (R_p) has the same hue
+                panel.key("R_s", R_S_COLOUR)
+                panel.key("R_p", R_P_COLOUR)
             if "thin_film" in d:
                 implot.plot_line(f"{lab} thin film R", d["theta"], np.ascontiguousarray(d["thin_film"][:, c]),
                                  implot.Spec(line_color=vec4(col, 0.9), line_weight=2.0,
                                              marker=implot.Marker_.square, marker_size=1.5))
+                panel.key(f"{lab} thin film R", col)
             if "schlick" in d:
                 implot.plot_line(f"{lab} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
                                  implot.Spec(line_color=vec4(col, 0.8), line_weight=1.0,
                                              marker=implot.Marker_.diamond, marker_size=2.0))
+                panel.key(f"{lab} Schlick", col)
         for k, (angle, tag, text, who) in enumerate(marks):
             col = (0.85, 0.15, 0.15) if tag == "C" else panel.colour(who)
             implot.drag_line_x(1000 + k, angle, vec4(col, 0.8), 1.5 if tag == "C" else 1.0,
@@ -119,5 +125,5 @@ def draw(panel, names, materials):
             label(tag, angle, 1.0 - 0.06 * (k % 2), left=angle > 45.0)
             implot.pop_style_color()
             if len(marks) <= 4:  # more would overlap: the letters remain
-                label(text, angle, 0.55 - 0.07 * k, left=angle > 45.0)  # clear of the legend and curves
+                label(text, angle, 0.55 - 0.07 * k, left=angle > 45.0)  # clear of the curves
         implot.end_plot()

@@ -33,13 +33,15 @@ def draw(panel, names, materials):
     rmax = extent(data, panel.y)
     panel.lobe_extent = rmax
     size = panel.plot_size()
-    if implot3d.begin_plot("##lobe3d", size):
+    panel.begin_frame_rect(size)
+    if implot3d.begin_plot("##lobe3d", size, implot3d.Flags_.no_legend):
         implot3d.setup_axes("x (tangent)", "y", "z (normal)")
         implot3d.setup_axes_limits(-rmax, rmax, -rmax, rmax, 0.0, rmax, implot3d.Cond_.always)
         implot3d.setup_box_initial_rotation(25.0, -60.0)
         wi = plots.direction(panel.theta_i, panel.phi) * rmax
         implot3d.plot_line("light (wi)", np.array([wi[0], 0.0]), np.array([wi[1], 0.0]), np.array([wi[2], 0.0]),
                            implot3d.Spec(line_color=vec4(LIGHT), line_weight=2.5))
+        panel.key("light (wi)", LIGHT)
         for label, members in panel.groups(names, data, same_data):
             n = members[0]
             d = data[n]
@@ -47,6 +49,7 @@ def draw(panel, names, materials):
             col = panel.colour(n)
             quads = shaded_quads(v[..., None] * d["wo"])
             top = len(quads) - 1  # the legend's swatch: the brightest level, the material's colour
+            panel.key(label, col)
             for k, (level, (xs, ys, zs)) in enumerate(quads):
                 implot3d.plot_quad(label if k == top else f"##{label}{k}", xs, ys, zs,
                                    implot3d.Spec(fill_color=vec4(np.asarray(col) * level, 0.95),
@@ -56,6 +59,7 @@ def draw(panel, names, materials):
                 w = x["wo"] * rr
                 implot3d.plot_line(f"{label} (delta, R = {rr:.3g})", np.array([0.0, w[0]]), np.array([0.0, w[1]]),
                                    np.array([0.0, w[2]]), implot3d.Spec(line_color=vec4(col), line_weight=5.0))
+                panel.key(f"{label} (delta, R = {rr:.3g})", col)
         implot3d.end_plot()
 
 

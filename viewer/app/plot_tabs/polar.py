@@ -51,9 +51,9 @@ def draw(panel, names, materials):
     # no taller than the lobe needs at this width (the room below is the messages')
     size = imgui.ImVec2(size.x, min(size.y, max(150.0, area_w * (y1 - y0) / (x1 - x0) + room_h)))
     lim = equal_aspect_limits(x0, x1, y0, y1, area_w, size.y - room_h)
-    if implot.begin_plot("##polar", size):
+    panel.begin_frame_rect(size)
+    if implot.begin_plot("##polar", size, implot.Flags_.no_legend):
         implot.setup_axes("x (theta_o > 0: mirror side)", "z (normal)")
-        panel.legend()
         implot.setup_axes_limits(*lim, implot.Cond_.always)
         grey = implot.Spec(line_color=vec4((0.5, 0.5, 0.5), 0.5), line_weight=1.0)
         t = np.radians(np.linspace(-90.0, 90.0, 91))
@@ -64,6 +64,7 @@ def draw(panel, names, materials):
         ti = math.radians(panel.theta_i)
         implot.plot_line("light (wi)", np.array([-rmax * math.sin(ti), 0.0]), np.array([rmax * math.cos(ti), 0.0]),
                          implot.Spec(line_color=vec4(LIGHT), line_weight=2.5))
+        panel.key("light (wi)", LIGHT)
         implot.plot_line("##mirror", np.array([0.0, rmax * math.sin(ti)]), np.array([0.0, rmax * math.cos(ti)]), grey)
         for label, members in panel.groups(names, data, same_data):
             n = members[0]
@@ -71,16 +72,19 @@ def draw(panel, names, materials):
             t = np.radians(d["theta_o"])
             col = vec4(panel.colour(n))
             implot.plot_line(label, r * np.sin(t), r * np.cos(t), implot.Spec(line_color=col, line_weight=2.0))
+            panel.key(label, panel.colour(n))
             for x in d["delta"]:
                 rr = float(panel.y(plots.reduce_channel(x["reflectance"], panel.channel)))
                 implot.plot_line(delta_label(label, rr, materials[n]), np.array([0.0, rr * math.sin(ti)]),
                                  np.array([0.0, rr * math.cos(ti)]), implot.Spec(line_color=col, line_weight=5.0))
+                panel.key(delta_label(label, rr, materials[n]), panel.colour(n))
             for x in d.get("refracted", []):
                 tt = float(panel.y(plots.reduce_channel(x["transmittance"], panel.channel)))
                 a = math.radians(x["theta_t"])
-                implot.plot_line(f"{label} (refracted at {x['theta_t']:.1f} deg, T = {tt:.3g})##refr",
-                                 np.array([0.0, tt * math.sin(a)]), np.array([0.0, -tt * math.cos(a)]),
+                refr = f"{label} (refracted at {x['theta_t']:.1f} deg, T = {tt:.3g})##refr"
+                implot.plot_line(refr, np.array([0.0, tt * math.sin(a)]), np.array([0.0, -tt * math.cos(a)]),
                                  implot.Spec(line_color=vec4(panel.colour(n), 0.7), line_weight=3.0))
+                panel.key(refr, panel.colour(n))
         area = implot.get_plot_size()
         panel.areas["polar_room"] = (frame_w - area.x, size.y - area.y)
         panel.aspects["polar"] = pixel_aspect()
