@@ -38,14 +38,19 @@ class App:
     """The window: glfw, the imgui backends, input (keys, mouse orbit, drops), the frame loop and
     the toasts. ``session`` holds the scene and the actions; the panels draw it.
 
-    The loop (``run``, one ``tick`` per turn) draws while anything changes and sleeps while only
-    the CPU reference does: then it draws when the reference publishes a pass (its thread wakes
-    the loop), at once on any input, and every ``IDLE_FRAME_S`` otherwise (toasts fade). On
-    software OpenGL a frame costs about a core for 100-200 ms, which the reference's worker
-    processes need (gallery, split view: 31 k samples/s drawing flat out)."""
+    The loop (``run``, one ``tick`` per turn) draws while anything changes and otherwise waits on
+    the window system's events (``loop_wait`` chooses, from the state alone): while something on
+    screen changes with time (a toast, the CPU reference's passes, the lecture maps' prefilter)
+    it draws when the reference publishes a pass (its thread wakes the loop), at once on any
+    input, and every ``IDLE_FRAME_S`` otherwise; once nothing does, it rests: no frame at all
+    until input or a wake-up, the hot reloader and the file dialogs polled every ``POLL_S``.
+    Idle-time warm-up (the presets sent to the compile-ahead child) runs between those waits
+    without a frame. On software OpenGL a frame costs about a core for 100-200 ms, which the
+    reference's worker processes need (gallery, split view: 31 k samples/s drawing flat out)."""
 
     TOAST_S = 6.0
-    IDLE_FRAME_S = 0.5  # a frame at least this often while idle
+    IDLE_FRAME_S = 0.5  # a frame at least this often while something on screen changes with time
+    POLL_S = 0.5        # resting: the hot reloader and the file dialogs are polled this often
     SETTLE_S = 0.5      # frames follow without sleeping for this long after an input event
     throttle = True     # False: ``run`` draws flat out, as ``frame`` does
     panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
@@ -104,7 +109,7 @@ class App:
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
         self.plots = PlotsPanel()
-        self.plots.visible = bool(state.get("plots_visible", False))
+        self.plots.visible = bool(state.get("plots_visible", False)) and self.session.same_scene
         self.side_panel = SidePanel(self)
         self.set_ui_scale(state.get("ui_scale", 1.0))
         self.show_ui = bool(state.get("show_ui", True))
@@ -112,7 +117,7 @@ class App:
         self.frame_count = 0
         self.frame_ms = 0.0
         self.frames_skipped = 0         # turns of ``tick`` that slept instead of drawing
-        self._drawn = (-1, -1.0, None)  # (input events, time, reference version) at the last frame
+        self._drawn = (-1, -1.0, None, None)  # (input events, time, reference version, loop_wait's kind) at the last frame
         self.first_frame_s = None
         self._closing = False
         self._last_interaction = -1.0
@@ -247,41 +252,86 @@ class App:
         return overlays.plan(self)
 
     # ------------------------------------------------------------------ frame
-    def idle(self) -> bool:
-        """Nothing but the CPU reference changes: no raster image to render or refine, no
-        program to compile, no input for ``SETTLE_S``, no GPU reference slicing the frames."""
+    def loop_wait(self) -> tuple[str, float]:
+        """What the loop does next, from the state alone: ("draw", 0) a frame now (the raster
+        renders or refines, a compiled program is ready, input within ``SETTLE_S``, the GPU
+        reference slicing the frames); ("warm", 0) no frame, one step of the idle-time warm-up;
+        ("frames", ``IDLE_FRAME_S``) something on screen changes with time (a toast, the CPU
+        reference's passes, a compile beside the window, the lecture maps' prefilter, the hot
+        reloader's note): a frame on input or a wake-up and at least this often; ("rest",
+        ``POLL_S``) nothing changes: no frame until input or a wake-up."""
         s = self.session
-        if s.dirty or s.quality != "full" or s.refining or s.warm:
-            return False
-        if time.perf_counter() - self._last_event < self.SETTLE_S:
-            return False
-        return not (s.reference is not None and s.reference.needs_frames)
+        if not self.throttle or s.dirty or s.quality != "full" or s.refining:
+            return "draw", 0.0
+        if s.compile_ready or (s.reference is not None and s.reference.needs_frames):
+            return "draw", 0.0
+        now = time.perf_counter()
+        if now - self._last_event < self.SETTLE_S:
+            return "draw", 0.0
+        if s.warming:
+            return "warm", 0.0
+        m = s.last_message
+        if (m is not None and m.text and now - m.time <= self.TOAST_S) or self.hot_reload.noting \
+                or any(w in ("compiling", "reference", "prefetch") for w in s.pending_work()):
+            return "frames", self.IDLE_FRAME_S
+        return "rest", self.POLL_S
+
+    def idle(self) -> bool:
+        """The loop waits on events between frames (``loop_wait``: "frames" or "rest"): no raster
+        image to render or refine, no program to compile here, no input for ``SETTLE_S``, no GPU
+        reference slicing the frames, no warm-up left."""
+        return self.loop_wait()[0] in ("frames", "rest")
+
+    def settled(self) -> bool:
+        """Nothing left to do at all: the loop rests and the session reports no pending work
+        (``Session.pending_work``: the compile-ahead child has answered every request too)."""
+        return self.loop_wait()[0] == "rest" and not self.session.pending_work()
 
     def _reference_version(self):
         rv = self.session.reference
         return None if rv is None else rv.version
 
-    def wants_frame(self) -> bool:
-        """Something to draw since the last frame: input, a new reference image, or
-        ``IDLE_FRAME_S`` gone by (or ``idle`` no more)."""
-        events, at, version = self._drawn
-        return (self.input_events != events or self._reference_version() != version
-                or time.perf_counter() - at >= self.IDLE_FRAME_S or not self.idle())
+    def wants_frame(self, kind: str | None = None) -> bool:
+        """Something to draw since the last frame: input, a new reference image, ``IDLE_FRAME_S``
+        gone by while something changes with time, the first turn of a rest (the frame that
+        shows it: a toast gone), or ``idle`` no more. ``kind``: ``loop_wait``'s (asked when None)."""
+        kind = kind or self.loop_wait()[0]
+        events, at, version, drawn_kind = self._drawn
+        if kind == "draw" or self.input_events != events or self._reference_version() != version:
+            return True
+        if kind == "frames":
+            return time.perf_counter() - at >= self.IDLE_FRAME_S
+        return kind == "rest" and drawn_kind != "rest"
 
     def tick(self) -> bool:
-        """One turn of the loop: a frame (True), or, while ``idle``, a sleep until input, a new
-        reference pass or ``IDLE_FRAME_S`` after the last frame (False when nothing came)."""
-        if self.throttle and self.idle():
-            if not self.wants_frame():
-                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
-                self.glfw.wait_events_timeout(max(wait, 0.001))
-                if not self.wants_frame():
-                    self.frames_skipped += 1
-                    return False
-            self.frame(wait=False)
-        else:
+        """One turn of the loop (``loop_wait``): a frame (True), or a step of the warm-up, or a
+        wait on the window system's events: until input, a wake-up (a reference pass, the
+        compile-ahead child's answer), ``IDLE_FRAME_S`` after the last frame while something
+        changes with time, or ``POLL_S`` while resting (False when no frame followed)."""
+        kind, wait = self.loop_wait()
+        if kind == "draw":
             self.frame()
+            return True
+        if kind == "warm":
+            self.glfw.poll_events()
+            self.session.warm_one()
+        elif not self.wants_frame(kind):
+            if kind == "frames":
+                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
+            self.glfw.wait_events_timeout(max(wait, 0.001))
+            if kind == "rest":
+                self._poll_resting()
+        if not self.wants_frame():
+            self.frames_skipped += 1
+            return False
+        self.frame(wait=False)
         return True
+
+    def _poll_resting(self):
+        """What a frame polls, without the frame: shaders edited (hot reload), file dialogs closed."""
+        if self.hot_reload.poll():
+            self.session.changed()
+        self.side_panel.poll()
 
     def frame(self, wait: bool = True):
         """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
@@ -291,7 +341,7 @@ class App:
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
-        self._drawn = (self.input_events, time.perf_counter(), self._reference_version())
+        self._drawn = (self.input_events, time.perf_counter(), self._reference_version(), self.loop_wait()[0])
         fw, fh = glfw.get_framebuffer_size(self.window)
         if fw == 0 or fh == 0:  # minimized: nothing to draw into
             time.sleep(0.02)

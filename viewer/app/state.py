@@ -27,6 +27,7 @@ SCHEMA = {
     "split": (float, 0.0, 1.0),
     "view_mode": (int, 0, 64),
     "plots_visible": (bool,),
+    "scene_digest": (str, None),  # the scene the session ended on (Session.scene_digest)
 }
 
 

@@ -64,10 +64,12 @@ def _compare_settings(session) -> None:
                 cmp.scale = float(v)
     rv = session.reference
     if cmp.uses_reference and rv is not None:
-        imgui.text(f"reference ({rv.engine or '...'}): {rv.spp} spp, "
+        imgui.text(f"reference ({rv.active_engine or rv.engine or '...'}): {rv.spp} spp, "
                    f"{rv.samples_per_second / 1e3:.1f} k samples/s")
-        if cmp.metrics_text():  # the same words as over the image
-            imgui.text_wrapped(cmp.metrics_text())
+        if session.metrics_text():  # the same words as over the image
+            imgui.text_wrapped(session.metrics_text())
+        if rv.engine_note:
+            imgui.text_wrapped(rv.engine_note)
         if rv.error:
             imgui.text_wrapped(rv.error)
 
