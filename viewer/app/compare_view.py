@@ -58,6 +58,8 @@ def upload_rgb(ctx, tex, img: np.ndarray):
 
 
 class CompareView:
+    metrics_for = None  # the reference's key (scene, camera, size, options) the metrics were taken on
+
     def __init__(self, ctx):
         self.ctx = ctx
         self.mode = "raster"
@@ -72,7 +74,6 @@ class CompareView:
         self._raster_small = None     # (key, array): the raster box-filtered to the reference's size
         self._pair = None             # (raster box-filtered, reference) the metrics were taken of
         self._metrics_key = None      # (the reference pass, the raster frame) of the metrics
-        self.metrics_for = None       # the reference's key (scene, camera, size, options) they were taken on
         self._last_metrics_t = 0.0
 
     # ------------------------------------------------------------------ layout

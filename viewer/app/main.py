@@ -4,8 +4,9 @@ and every action) through the panels of ``viewer.app.panels``.
 
 Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
 F12 screenshot (PNG whose text chunks hold the scene and all parameters), C cycle the compare
-views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode (then 1-9, 0 and the arrow / page keys step the tour),
-H hide the UI, F11 fullscreen, Ctrl +/- the UI scale. Files dropped on the window load by kind:
+views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode (then 1-9
+and 0 for steps 1-10, Shift 1-5 for 11-15, the arrow / page keys step the tour), H hide the UI, F11
+fullscreen, Ctrl + / Ctrl - the UI scale (through 0.5 .. 1.5 .. 3, ``layout.UI_SCALES``), Ctrl 0 scale 1. Files dropped on the window load by kind:
 .toml / .png scenes, .hdr / .exr environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
 
 from __future__ import annotations
@@ -170,10 +171,13 @@ class App:
     def run(self, frames: int = 0, screenshot: str | None = None) -> int:
         old = signal.signal(signal.SIGTERM, self.request_close)
         try:
+            waited_from = None
             while not self.should_close():
-                if not self.tick():
-                    continue
+                self.tick()
                 if frames and self.frame_count >= frames:
+                    if screenshot and not self._finished_for(waited_from):
+                        waited_from = waited_from or time.perf_counter()
+                        continue
                     if screenshot and self.take_screenshot(screenshot) is None:
                         print(f"brdf-viewer: error: {self.session.status}", file=sys.stderr)
                         return 2
@@ -182,6 +186,20 @@ class App:
             signal.signal(signal.SIGTERM, old)
             self.close()
         return 0
+
+    SCREENSHOT_WAIT_S = 600.0  # --screenshot: the longest wait for the finished frame
+
+    def _finished_for(self, waited_from) -> bool:
+        """``--screenshot``: the view is finished (``Session.view_finished``), or it has been waited
+        for ``SCREENSHOT_WAIT_S`` (then saved as it stands, with one line saying so)."""
+        if self.session.view_finished:
+            return True
+        if waited_from is not None and time.perf_counter() - waited_from > self.SCREENSHOT_WAIT_S:
+            print(f"brdf-viewer: --screenshot: the view was not finished after {self.SCREENSHOT_WAIT_S:.0f} s "
+                  f"({', '.join(self.session.pending_work()) or 'the reference'}); saved as it stands",
+                  file=sys.stderr)
+            return True
+        return False
 
     def close(self):
         if self.window is None:
@@ -423,7 +441,9 @@ class App:
         self._on_event(window)
         if action == self.glfw.PRESS and key in self._tap_codes:
             if not mods & (self.glfw.MOD_CONTROL | self.glfw.MOD_ALT | self.glfw.MOD_SUPER):
-                self._taps.append(self._tap_codes[key])
+                name = self._tap_codes[key]
+                # Shift + a digit: lecture steps 11-19 (Shift 1 .. Shift 5 on the tour of 15)
+                self._taps.append("shift+" + name if mods & self.glfw.MOD_SHIFT and name.isdigit() else name)
 
     def on_drop(self, window, paths):
         """glfw's drop callback: the session opens each file by its kind."""
@@ -460,17 +480,20 @@ class App:
         K = imgui.Key
         pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
         if io.key_ctrl:
+            from viewer.app.layout import step_ui_scale
+
             if pressed(K.equal) or pressed(K.keypad_add):
-                self.set_ui_scale(self.ui_scale * 1.25)
+                self.set_ui_scale(step_ui_scale(self.ui_scale, up=True))
             if pressed(K.minus) or pressed(K.keypad_subtract):
-                self.set_ui_scale(self.ui_scale / 1.25)
+                self.set_ui_scale(step_ui_scale(self.ui_scale, up=False))
             if pressed(K._0):
                 self.set_ui_scale(1.0)
         for key in taps:
             self.key_action(key)
 
     def key_action(self, key: str) -> None:
-        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...)."""
+        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...;
+        "shift+1" for Shift and a digit)."""
         s = self.session
         if key == "r":
             s.reset_camera()
@@ -498,7 +521,9 @@ class App:
             elif key in ("left", "page_up"):
                 s.lecture_back()
             elif key.isdigit() and (int(key) - 1) % 10 < len(TOUR):
-                s.lecture((int(key) - 1) % 10)
+                s.lecture((int(key) - 1) % 10)   # 1-9, 0 = 10
+            elif key.startswith("shift+") and key[6:].isdigit() and 10 + (int(key[6:]) - 1) % 10 < len(TOUR):
+                s.lecture(10 + (int(key[6:]) - 1) % 10)   # Shift 1-9 = 11-19, Shift 0 = 20
             elif key == "escape":
                 s.lecture(None)
 
@@ -512,18 +537,21 @@ class App:
         the panels, the lecture caption and the status toast: (H, W, 3) uint8, row 0 = top."""
         self.view_only = True
         try:
-            img = self.capture_window()
+            img = self.capture_window(redraw=False)
         finally:
             self.view_only = False
         vx, _, vw, vh = self.viewport()
         return img[img.shape[0] - vh:, vx:vx + vw].copy()
 
-    def capture_window(self) -> np.ndarray:
-        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top."""
+    def capture_window(self, redraw: bool = True) -> np.ndarray:
+        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top. ``redraw``:
+        render the raster afresh first (False: the view as it stands, e.g. a finished one, never
+        restarted into tiles)."""
         out = []
         self._capture_next = out.append
-        self.session.changed()
-        self.frame()
+        if redraw:
+            self.session.changed()
+        self.frame(wait=False)
         return out[0] if out else None
 
     def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:

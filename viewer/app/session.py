@@ -590,6 +590,26 @@ class Session(FileActions):
             return self.compile_ahead is None or self.compile_ahead.alive
         return bool(self.warm)
 
+    @property
+    def view_finished(self) -> bool:
+        """The view is as it will stay until something changes (what ``--screenshot`` waits for):
+        the raster whole at full quality (no tiles, traced strips or averaging still to come), no
+        material drawn as it was while its programs compile, and where the view shows the
+        reference, a pass of it (not the coarse preview) and its metrics taken on it, or the
+        one line saying why there is none."""
+        if self.dirty or self.quality != "full" or self.refining or self._awaiting is not None or self.pending:
+            return False
+        if not (self.compare.uses_reference or self.monte_carlo.active):
+            return True
+        rv = self.reference
+        if rv is None:
+            return False
+        if rv.error:
+            return True
+        if rv.spp == 0:
+            return False
+        return self.compare.mode == "reference" or not self.compare.uses_reference or self.compare.metrics_for == rv.key
+
     def pending_work(self) -> list[str]:
         """What is still to be done before the session rests, by name (empty: nothing; the
         window then draws no frame until something changes): "raster" (a frame to draw or
@@ -812,7 +832,7 @@ class Session(FileActions):
 
     @property
     def lecture_title(self) -> tuple[str, str]:
-        """("3/14  Total internal reflection", caption) of the step shown, ("", "") when off."""
+        """("3/15  Total internal reflection", caption) of the step shown, ("", "") when off."""
         from viewer.lecture import TOUR
 
         if self.lecture_step < 0:

@@ -26,7 +26,9 @@ def draw(win) -> None:
         win.plots.visible = v
     ch, v = imgui.slider_float("UI scale", float(win.ui_scale), 0.5, 3.0, "%.2f")
     if imgui.is_item_hovered():
-        imgui.set_tooltip("Ctrl + / Ctrl - / Ctrl 0")
+        from viewer.app.layout import UI_SCALES
+
+        imgui.set_tooltip("Ctrl + / Ctrl - step through " + ", ".join(f"{v:g}" for v in UI_SCALES) + "; Ctrl 0: 1")
     if ch and np.isfinite(v):
         win.set_ui_scale(v)
     r = session.scene.render
