@@ -93,8 +93,6 @@ class Checker:
         return int(value)
 
     def boolean(self, value, fld) -> bool:
-        if isinstance(value, int) and not isinstance(value, bool) and value in (0, 1):
-            return bool(value)  # 1 / 0, as a .brdf file writes its bools
         if not isinstance(value, bool):
             self.fail(fld, f"expected true or false, got {describe(value)}", "true, false")
         return value
