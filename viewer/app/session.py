@@ -124,6 +124,7 @@ class Session(FileActions):
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
         self._drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
         self._awaiting = None      # the compile-ahead request the view waits for
+        self._compile_note = None  # the message saying so (a toast only while it is true)
         self._ahead_sent = False  # the presets still to send to the child (False: not begun)
         self.presets_ahead = True  # with compile_ahead: the picker's presets compile ahead while idle
         self._mesh_target = None
@@ -157,7 +158,12 @@ class Session(FileActions):
 
     @property
     def last_message(self) -> Message | None:
-        return self.messages[-1] if self.messages else None
+        """The latest message, as the window shows it (its toast); the note that a material
+        compiles beside the window goes once the compile is over (it is not true any more)."""
+        m = self.messages[-1] if self.messages else None
+        if m is not None and m is self._compile_note and not self.compiling:
+            return None
+        return m
 
     def release(self) -> None:
         """Stop the reference and the prefetch, free the GL objects this session made."""
@@ -543,8 +549,8 @@ class Session(FileActions):
 
         missing = [n for n, k in keys.items() if k not in progs
                    or (needs_tables(self.scene.materials[n]) and not tables.ready(self.scene.materials[n]))]
-        if not missing:
-            self.pending = []
+        if not missing:  # drawn with its own programs: nothing is awaited for this scene
+            self.pending, self._awaiting = [], None
             return None
         ca = self._compile_worker()
         rid = None if ca is None else ca.request(self.scene, urgent=True)
@@ -576,6 +582,7 @@ class Session(FileActions):
             return None
         if self._awaiting != rid:
             self.notify(f"compiling {', '.join(missing)} in the background: drawn as before until ready")
+            self._compile_note = self.messages[-1]
         self._awaiting = rid
         self.pending = missing
         return out
