@@ -4,10 +4,11 @@ and every action) through the panels of ``viewer.app.panels``.
 
 Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
 F12 screenshot (PNG whose text chunks hold the scene and all parameters), C cycle the compare
-views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode (then 1-9
-and 0 for steps 1-10, Shift 1-5 for 11-15, the arrow / page keys step the tour), H hide the UI, F11
-fullscreen, Ctrl + / Ctrl - the UI scale (through 0.5 .. 1.5 .. 3, ``layout.UI_SCALES``), Ctrl 0 scale 1. Files dropped on the window load by kind:
-.toml / .png scenes, .hdr / .exr environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
+views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode
+(then 1-9 and 0 for steps 1-10, Shift 1-5 for 11-15, the arrow / page keys step the tour), H hide
+the UI, F11 fullscreen, Ctrl + / Ctrl - the UI scale (through ``layout.UI_SCALES``: 1, 1.25, 1.5,
+2...), Ctrl 0 scale 1. Files dropped on the window load by kind: .toml / .png scenes, .hdr / .exr
+environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
 
 from __future__ import annotations
 
@@ -118,7 +119,8 @@ class App:
         self.frame_count = 0
         self.frame_ms = 0.0
         self.frames_skipped = 0         # turns of ``tick`` that slept instead of drawing
-        self._drawn = (-1, -1.0, None, None)  # (input events, time, reference version, loop_wait's kind) at the last frame
+        # (input events, time, reference version, loop_wait's kind) at the last frame
+        self._drawn = (-1, -1.0, None, None)
         self.first_frame_s = None
         self._closing = False
         self._last_interaction = -1.0

@@ -260,7 +260,9 @@ class ReferenceView:
 
             why = without_twin(scene)
             if why is not None and self.gpu_failed:
-                engine, note = None, f"no reference: the cpu engine has no numpy twin to run and the gpu engine failed ({self.gpu_failed})"
+                engine = None
+                note = (f"no reference: the cpu engine has no numpy twin to run and the gpu engine "
+                        f"failed ({self.gpu_failed})")
             elif why is not None:
                 engine, note = "gpu", "a .brdf file without a numpy twin: the gpu engine runs its GLSL"
         self._engine_key = (key, engine)

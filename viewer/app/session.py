@@ -615,7 +615,8 @@ class Session(FileActions):
             return True
         if rv.spp == 0:
             return False
-        return self.compare.mode == "reference" or not self.compare.uses_reference or self.compare.metrics_for == rv.key
+        cmp = self.compare
+        return cmp.mode == "reference" or not cmp.uses_reference or cmp.metrics_for == rv.key
 
     def pending_work(self) -> list[str]:
         """What is still to be done before the session rests, by name (empty: nothing; the
