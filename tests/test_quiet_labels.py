@@ -390,3 +390,16 @@ def test_the_compiling_note_goes_with_the_compile(quiet, renderer):
     assert s.last_message is None   # the compile is over: its note is no longer shown
     s.render_view(SIZE)
     assert not s.compiling and s.pending_work() == []
+
+
+def test_without_the_child_the_models_warm_up_after_frames_then_the_loop_rests(gl_ctx, renderer):
+    s = Session(gl_ctx, "sphere", renderer=renderer, prefetch=False)
+    try:
+        loop = Loop(s)
+        s.render_view(SIZE)
+        s.warm = s.warm[:1]   # one model left to compile here: one more frame, then the warm-up
+        assert s.warming and not s.warms_beside and loop.loop_wait()[0] == "draw"
+        s.warm_one()
+        assert s.warm == [] and s.pending_work() == [] and loop.loop_wait()[0] == "rest" and loop.settled()
+    finally:
+        s.release()

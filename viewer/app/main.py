@@ -275,7 +275,8 @@ class App:
     def loop_wait(self) -> tuple[str, float]:
         """What the loop does next, from the state alone: ("draw", 0) a frame now (the raster
         renders or refines, a compiled program is ready, input within ``SETTLE_S``, the GPU
-        reference slicing the frames); ("warm", 0) no frame, one step of the idle-time warm-up;
+        reference slicing the frames, models to compile here while idle: one after each frame);
+        ("warm", 0) no frame, one preset sent to the compile-ahead child;
         ("frames", ``IDLE_FRAME_S``) something on screen changes with time (a toast, the CPU
         reference's passes, a compile beside the window, the lecture maps' prefilter, the hot
         reloader's note): a frame on input or a wake-up and at least this often; ("rest",
@@ -288,8 +289,8 @@ class App:
         now = time.perf_counter()
         if now - self._last_event < self.SETTLE_S:
             return "draw", 0.0
-        if s.warming:
-            return "warm", 0.0
+        if s.warming:  # presets to send to the child take no frame; models compiled here do, as before
+            return ("warm", 0.0) if s.warms_beside else ("draw", 0.0)
         m = s.last_message
         if (m is not None and m.text and now - m.time <= self.TOAST_S) or self.hot_reload.noting \
                 or any(w in ("compiling", "reference", "prefetch") for w in s.pending_work()):

@@ -618,6 +618,12 @@ class Session(FileActions):
         cmp = self.compare
         return cmp.mode == "reference" or not cmp.uses_reference or cmp.metrics_for == rv.key
 
+    @property
+    def warms_beside(self) -> bool:
+        """The idle-time warm-up goes to the compile-ahead child (a preset's scene sent per step,
+        no frame needed), not compiled on this thread."""
+        return self._compile_ahead_on
+
     def pending_work(self) -> list[str]:
         """What is still to be done before the session rests, by name (empty: nothing; the
         window then draws no frame until something changes): "raster" (a frame to draw or
