@@ -245,13 +245,20 @@ def test_state_round_trip(gl_ctx, renderer, session, tmp_path):
     st = state_mod.load_state(path)
     assert st["compare_mode"] == "side by side" and st["split"] == 0.3 and st["view_mode"] == 1
     assert st["ui_scale"] == 1.5 and st["show_ui"] is False
-    again = Session(gl_ctx, "default", renderer=renderer, state=st, prefetch=False)
+    # the scene the session ended on opens in its compare and term views
+    again = Session(gl_ctx, str(path.with_name("last_scene.toml")), renderer=renderer, state=st, prefetch=False)
     try:
         assert again.image_mode == "side by side" and again.compare.split == 0.3 and again.view_mode == 1
-        assert again.open_scene(path.with_name("last_scene.toml"))  # the last session's scene
         assert np.allclose(again.scene.materials["ball"]["kd"], [0.3, 0.6, 0.9])
     finally:
         again.release()
+    other = Session(gl_ctx, "default", renderer=renderer, state=st, prefetch=False)  # not that scene
+    try:
+        assert other.image_mode == "raster" and other.view_mode == 0 and not other.same_scene
+        assert other.open_scene(path.with_name("last_scene.toml"))  # the last session's scene
+        assert np.allclose(other.scene.materials["ball"]["kd"], [0.3, 0.6, 0.9])
+    finally:
+        other.release()
 
 
 def test_brute_force_accumulation_restarts_on_a_change(session):

@@ -159,6 +159,7 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
         out.update(spurious=dict(drew=drew, s=time.perf_counter() - t, frames=app.frame_count - n0,
                                  skipped=app.frames_skipped - k0))
         app.IDLE_FRAME_S = 1.0
+        s.notify("a toast")   # something on screen changes with time: frames every IDLE_FRAME_S
         t = time.perf_counter(); drew = app.tick()   # then the timer's frame
         out.update(timer=dict(drew=drew, s=time.perf_counter() - t))
         # input (a resize: real window events through the callbacks) draws at once

@@ -40,7 +40,13 @@ def _parser_window() -> argparse.ArgumentParser:
         "OpenGL teaching viewer for BRDFs. With no command: open the window on SCENE (a scene "
         "file or a built-in scene name; the built-in default scene when omitted). Commands: "
         + ", ".join(COMMANDS) + " (brdf-viewer COMMAND --help)."))
-    p.add_argument("scene", nargs="?", help="scene file (.toml) or built-in scene name")
+    from viewer.lecture import TOUR
+
+    n = len(TOUR)
+    p.add_argument("scene", nargs="?", help=(
+        f"scene file (.toml) or built-in scene name; lecture:1 .. lecture:{n} open the lecture tour's "
+        f"{n} steps in lecture mode (keys there: 1-9 and 0 for steps 1-10, Shift 1-{n - 10} for 11-{n}, "
+        "the arrows and page keys for every step)"))
     p.add_argument("--version", action="version", version=f"brdf-viewer {viewer.__version__}",
                    help="print the version and exit")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -48,7 +54,8 @@ def _parser_window() -> argparse.ArgumentParser:
     p.add_argument("--width", type=int, help="window width in pixels (default: the last session's, else 1280)")
     p.add_argument("--height", type=int, help="window height in pixels (default: the last session's, else 720)")
     p.add_argument("--frames", type=int, default=0, help="quit after this many frames (0 = run until closed)")
-    p.add_argument("--screenshot", metavar="PNG", help="save a screenshot of the last frame (with --frames)")
+    p.add_argument("--screenshot", metavar="PNG", help="with --frames N: after N frames, save a screenshot once the view is finished "
+                        "(no tiles or compile in progress; a reference pass where the view shows it)")
     p.add_argument("--no-compile-ahead", dest="compile_ahead", action="store_false", default=None,
                    help="compile shader programs on the window's thread instead of in a background process "
                         "(a preset or model change then stops the frames while it compiles)")

@@ -58,6 +58,8 @@ def upload_rgb(ctx, tex, img: np.ndarray):
 
 
 class CompareView:
+    metrics_for = None  # the reference's key (scene, camera, size, options) the metrics were taken on
+
     def __init__(self, ctx):
         self.ctx = ctx
         self.mode = "raster"
@@ -94,9 +96,17 @@ class CompareView:
         return view
 
     # ------------------------------------------------------------------ metrics
+    def forget_metrics(self) -> None:
+        """No metrics (and no heat map) until they are taken again: the view they were taken on
+        is gone."""
+        self.metrics, self._pair, self._metrics_key, self.metrics_for = None, None, None, None
+
     def update_metrics(self, renderer, raster_tex, raster_version, ref_view):
         """Recompute RMSE / relMSE when the reference has a new pass or the raster image changed
-        (at most every METRICS_INTERVAL_S)."""
+        (at most every METRICS_INTERVAL_S). Metrics taken on another view of the reference (its
+        ``key``: scene, camera, size, options) are dropped first, never shown beside this one."""
+        if self.metrics_for != ref_view.key:
+            self.forget_metrics()
         img = ref_view.latest()
         if img is None or raster_tex is None or img[1] == 0:  # nothing, or the coarse preview
             self.metrics = None
@@ -116,9 +126,11 @@ class CompareView:
         self._metrics_key, self._last_metrics_t = key, now
         if not (np.isfinite(small).all() and np.isfinite(ref).all()):
             self.metrics, self._pair = {"error": "non-finite pixels"}, None
+            self.metrics_for = ref_view.key
             return
         self.metrics = metrics(small, ref)
         self.metrics_spp = spp
+        self.metrics_for = ref_view.key
         self._pair = (small, ref)
 
     def heat_texture(self, relative: bool):
@@ -203,21 +215,27 @@ class CompareView:
             return True
         return near
 
-    def metrics_text(self) -> str:
+    def metrics_text(self, key=None) -> str:
         """The RMSE read-out, the same words in the panel and over the image (with the samples
-        per pixel of the reference the metrics were taken of); empty when there is none."""
+        per pixel of the reference the metrics were taken of); empty when there is none, or when
+        ``key`` (the reference's key now) is not the one they were taken on."""
         m = self.metrics
         if not (self.uses_reference and self.mode != "reference" and m and "rmse" in m):
             return ""
+        if key != self.metrics_for:
+            return ""
         return f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)"
 
-    def overlay_labels(self, view_logical, ref_spp: int, preview: bool = False) -> list:
+    def overlay_labels(self, view_logical, ref_spp: int, preview: bool = False, error: str = "") -> list:
         """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``);
-        ``preview``: the reference shows its coarse first image."""
+        ``preview``: the reference shows its coarse first image; ``error``: why there is no
+        reference image (its one line stands where the label would)."""
         x, y, w, h = view_logical
         ref_label = f"reference ({ref_spp} spp)" if ref_spp else (PREVIEW if preview else PENDING)
+        if error and not ref_spp and not preview:
+            ref_label = f"reference: {error}"
         if self.mode in ("difference", "relative difference") and self._pair is None:
-            return [(x, PENDING_DIFFERENCE)]
+            return [(x, f"difference: no reference ({error})" if error else PENDING_DIFFERENCE)]
         if self.mode == "split":
             return [(x, "raster"), (self.divider_x(view_logical), ref_label)]
         if self.mode == "side by side":

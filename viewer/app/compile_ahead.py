@@ -180,6 +180,13 @@ class CompileAhead:
             return None
         return rid
 
+    @property
+    def outstanding(self) -> int:
+        """Requests sent and not answered yet (0: the child has nothing to do and blocks on its
+        pipe)."""
+        with self._lock:
+            return self._next - len(self.done)
+
     def answered(self, rid) -> bool:
         """The request ``rid`` was answered, or will not be (no child, or the child stayed silent
         past the leash and was replaced)."""

@@ -23,6 +23,16 @@ LECTURE_VIEW_MIN = 0.70  # lecture mode: the 3D view keeps at least this fractio
 FONT_PX = 16.0         # the UI font at scale 1
 TITLE_K, CAPTION_K = 1.5, 1.15  # lecture title and caption sizes, times the UI font
 CAPTION_MAX = 0.35     # the lecture caption box's share of the view's height it shrinks its text to keep
+# the UI scales Ctrl + / Ctrl - step through (projectors: 1.5 and 2 among them)
+UI_SCALES = (0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0)
+
+
+def step_ui_scale(scale: float, up: bool) -> float:
+    """The next of ``UI_SCALES`` above ``scale`` (``up``) or below it; the end one at the ends
+    (a scale between two, set by the slider, steps to the next one it passes)."""
+    if up:
+        return next((s for s in UI_SCALES if s > scale + 1e-6), UI_SCALES[-1])
+    return next((s for s in reversed(UI_SCALES) if s < scale - 1e-6), UI_SCALES[0])
 
 
 @dataclass(frozen=True)

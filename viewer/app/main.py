@@ -4,9 +4,11 @@ and every action) through the panels of ``viewer.app.panels``.
 
 Controls: left drag orbit, right or middle drag pan, wheel dolly, double-click or R reset,
 F12 screenshot (PNG whose text chunks hold the scene and all parameters), C cycle the compare
-views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode (then 1-9, 0 and the arrow / page keys step the tour),
-H hide the UI, F11 fullscreen, Ctrl +/- the UI scale. Files dropped on the window load by kind:
-.toml / .png scenes, .hdr / .exr environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
+views, S the reference's sampling strategy (MIS, BSDF, light), P the BRDF plots, L lecture mode
+(then 1-9 and 0 for steps 1-10, Shift 1-5 for 11-15, the arrow / page keys step the tour), H hide
+the UI, F11 fullscreen, Ctrl + / Ctrl - the UI scale (through ``layout.UI_SCALES``: 1, 1.25, 1.5,
+2...), Ctrl 0 scale 1. Files dropped on the window load by kind: .toml / .png scenes, .hdr / .exr
+environment maps, meshes (.obj .ply .stl .off .glb .gltf)."""
 
 from __future__ import annotations
 
@@ -38,14 +40,19 @@ class App:
     """The window: glfw, the imgui backends, input (keys, mouse orbit, drops), the frame loop and
     the toasts. ``session`` holds the scene and the actions; the panels draw it.
 
-    The loop (``run``, one ``tick`` per turn) draws while anything changes and sleeps while only
-    the CPU reference does: then it draws when the reference publishes a pass (its thread wakes
-    the loop), at once on any input, and every ``IDLE_FRAME_S`` otherwise (toasts fade). On
-    software OpenGL a frame costs about a core for 100-200 ms, which the reference's worker
-    processes need (gallery, split view: 31 k samples/s drawing flat out)."""
+    The loop (``run``, one ``tick`` per turn) draws while anything changes and otherwise waits on
+    the window system's events (``loop_wait`` chooses, from the state alone): while something on
+    screen changes with time (a toast, the CPU reference's passes, the lecture maps' prefilter)
+    it draws when the reference publishes a pass (its thread wakes the loop), at once on any
+    input, and every ``IDLE_FRAME_S`` otherwise; once nothing does, it rests: no frame at all
+    until input or a wake-up, the hot reloader and the file dialogs polled every ``POLL_S``.
+    Idle-time warm-up (the presets sent to the compile-ahead child) runs between those waits
+    without a frame. On software OpenGL a frame costs about a core for 100-200 ms, which the
+    reference's worker processes need (gallery, split view: 31 k samples/s drawing flat out)."""
 
     TOAST_S = 6.0
-    IDLE_FRAME_S = 0.5  # a frame at least this often while idle
+    IDLE_FRAME_S = 0.5  # a frame at least this often while something on screen changes with time
+    POLL_S = 0.5        # resting: the hot reloader and the file dialogs are polled this often
     SETTLE_S = 0.5      # frames follow without sleeping for this long after an input event
     throttle = True     # False: ``run`` draws flat out, as ``frame`` does
     panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
@@ -107,7 +114,7 @@ class App:
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
         self.plots = PlotsPanel()
-        self.plots.visible = bool(state.get("plots_visible", False))
+        self.plots.visible = bool(state.get("plots_visible", False)) and self.session.same_scene
         self.side_panel = SidePanel(self)
         self.set_ui_scale(state.get("ui_scale", 1.0))
         self.show_ui = bool(state.get("show_ui", True))
@@ -115,7 +122,8 @@ class App:
         self.frame_count = 0
         self.frame_ms = 0.0
         self.frames_skipped = 0         # turns of ``tick`` that slept instead of drawing
-        self._drawn = (-1, -1.0, None)  # (input events, time, reference version) at the last frame
+        # (input events, time, reference version, loop_wait's kind) at the last frame
+        self._drawn = (-1, -1.0, None, None)
         self.first_frame_s = None
         self._closing = False
         self._last_interaction = -1.0
@@ -171,10 +179,13 @@ class App:
     def run(self, frames: int = 0, screenshot: str | None = None) -> int:
         old = signal.signal(signal.SIGTERM, self.request_close)
         try:
+            waited_from = None
             while not self.should_close():
-                if not self.tick():
-                    continue
+                self.tick()
                 if frames and self.frame_count >= frames:
+                    if screenshot and not self._finished_for(waited_from):
+                        waited_from = waited_from or time.perf_counter()
+                        continue
                     if screenshot and self.take_screenshot(screenshot) is None:
                         print(f"brdf-viewer: error: {self.session.status}", file=sys.stderr)
                         return 2
@@ -183,6 +194,20 @@ class App:
             signal.signal(signal.SIGTERM, old)
             self.close()
         return 0
+
+    SCREENSHOT_WAIT_S = 600.0  # --screenshot: the longest wait for the finished frame
+
+    def _finished_for(self, waited_from) -> bool:
+        """``--screenshot``: the view is finished (``Session.view_finished``), or it has been waited
+        for ``SCREENSHOT_WAIT_S`` (then saved as it stands, with one line saying so)."""
+        if self.session.view_finished:
+            return True
+        if waited_from is not None and time.perf_counter() - waited_from > self.SCREENSHOT_WAIT_S:
+            print(f"brdf-viewer: --screenshot: the view was not finished after {self.SCREENSHOT_WAIT_S:.0f} s "
+                  f"({', '.join(self.session.pending_work()) or 'the reference'}); saved as it stands",
+                  file=sys.stderr)
+            return True
+        return False
 
     def close(self):
         if self.window is None:
@@ -255,41 +280,87 @@ class App:
         return overlays.plan(self)
 
     # ------------------------------------------------------------------ frame
-    def idle(self) -> bool:
-        """Nothing but the CPU reference changes: no raster image to render or refine, no
-        program to compile, no input for ``SETTLE_S``, no GPU reference slicing the frames."""
+    def loop_wait(self) -> tuple[str, float]:
+        """What the loop does next, from the state alone: ("draw", 0) a frame now (the raster
+        renders or refines, a compiled program is ready, input within ``SETTLE_S``, the GPU
+        reference slicing the frames, models to compile here while idle: one after each frame);
+        ("warm", 0) no frame, one preset sent to the compile-ahead child;
+        ("frames", ``IDLE_FRAME_S``) something on screen changes with time (a toast, the CPU
+        reference's passes, a compile beside the window, the lecture maps' prefilter, the hot
+        reloader's note): a frame on input or a wake-up and at least this often; ("rest",
+        ``POLL_S``) nothing changes: no frame until input or a wake-up."""
         s = self.session
-        if s.dirty or s.quality != "full" or s.refining or s.warm:
-            return False
-        if time.perf_counter() - self._last_event < self.SETTLE_S:
-            return False
-        return not (s.reference is not None and s.reference.needs_frames)
+        if not self.throttle or s.dirty or s.quality != "full" or s.refining:
+            return "draw", 0.0
+        if s.compile_ready or (s.reference is not None and s.reference.needs_frames):
+            return "draw", 0.0
+        now = time.perf_counter()
+        if now - self._last_event < self.SETTLE_S:
+            return "draw", 0.0
+        if s.warming:  # presets to send to the child take no frame; models compiled here do, as before
+            return ("warm", 0.0) if s.warms_beside else ("draw", 0.0)
+        m = s.last_message
+        if (m is not None and m.text and now - m.time <= self.TOAST_S) or self.hot_reload.noting \
+                or any(w in ("compiling", "reference", "prefetch") for w in s.pending_work()):
+            return "frames", self.IDLE_FRAME_S
+        return "rest", self.POLL_S
+
+    def idle(self) -> bool:
+        """The loop waits on events between frames (``loop_wait``: "frames" or "rest"): no raster
+        image to render or refine, no program to compile here, no input for ``SETTLE_S``, no GPU
+        reference slicing the frames, no warm-up left."""
+        return self.loop_wait()[0] in ("frames", "rest")
+
+    def settled(self) -> bool:
+        """Nothing left to do at all: the loop rests and the session reports no pending work
+        (``Session.pending_work``: the compile-ahead child has answered every request too)."""
+        return self.loop_wait()[0] == "rest" and not self.session.pending_work()
 
     def _reference_version(self):
         rv = self.session.reference
         return None if rv is None else rv.version
 
-    def wants_frame(self) -> bool:
-        """Something to draw since the last frame: input, a new reference image, or
-        ``IDLE_FRAME_S`` gone by (or ``idle`` no more)."""
-        events, at, version = self._drawn
-        return (self.input_events != events or self._reference_version() != version
-                or time.perf_counter() - at >= self.IDLE_FRAME_S or not self.idle())
+    def wants_frame(self, kind: str | None = None) -> bool:
+        """Something to draw since the last frame: input, a new reference image, ``IDLE_FRAME_S``
+        gone by while something changes with time, the first turn of a rest (the frame that
+        shows it: a toast gone), or ``idle`` no more. ``kind``: ``loop_wait``'s (asked when None)."""
+        kind = kind or self.loop_wait()[0]
+        events, at, version, drawn_kind = self._drawn
+        if kind == "draw" or self.input_events != events or self._reference_version() != version:
+            return True
+        if kind == "frames":
+            return time.perf_counter() - at >= self.IDLE_FRAME_S
+        return kind == "rest" and drawn_kind != "rest"
 
     def tick(self) -> bool:
-        """One turn of the loop: a frame (True), or, while ``idle``, a sleep until input, a new
-        reference pass or ``IDLE_FRAME_S`` after the last frame (False when nothing came)."""
-        if self.throttle and self.idle():
-            if not self.wants_frame():
-                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
-                self.glfw.wait_events_timeout(max(wait, 0.001))
-                if not self.wants_frame():
-                    self.frames_skipped += 1
-                    return False
-            self.frame(wait=False)
-        else:
+        """One turn of the loop (``loop_wait``): a frame (True), or a step of the warm-up, or a
+        wait on the window system's events: until input, a wake-up (a reference pass, the
+        compile-ahead child's answer), ``IDLE_FRAME_S`` after the last frame while something
+        changes with time, or ``POLL_S`` while resting (False when no frame followed)."""
+        kind, wait = self.loop_wait()
+        if kind == "draw":
             self.frame()
+            return True
+        if kind == "warm":
+            self.glfw.poll_events()
+            self.session.warm_one()
+        elif not self.wants_frame(kind):
+            if kind == "frames":
+                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
+            self.glfw.wait_events_timeout(max(wait, 0.001))
+            if kind == "rest":
+                self._poll_resting()
+        if not self.wants_frame():
+            self.frames_skipped += 1
+            return False
+        self.frame(wait=False)
         return True
+
+    def _poll_resting(self):
+        """What a frame polls, without the frame: shaders edited (hot reload), file dialogs closed."""
+        if self.hot_reload.poll():
+            self.session.changed()
+        self.side_panel.poll()
 
     def frame(self, wait: bool = True):
         """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
@@ -301,7 +372,7 @@ class App:
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
-        self._drawn = (self.input_events, time.perf_counter(), self._reference_version())
+        self._drawn = (self.input_events, time.perf_counter(), self._reference_version(), self.loop_wait()[0])
         fw, fh = glfw.get_framebuffer_size(self.window)
         if fw == 0 or fh == 0:  # minimized: nothing to draw into
             time.sleep(0.02)
@@ -385,7 +456,9 @@ class App:
         self._on_event(window)
         if action == self.glfw.PRESS and key in self._tap_codes:
             if not mods & (self.glfw.MOD_CONTROL | self.glfw.MOD_ALT | self.glfw.MOD_SUPER):
-                self._taps.append(self._tap_codes[key])
+                name = self._tap_codes[key]
+                # Shift + a digit: lecture steps 11-19 (Shift 1 .. Shift 5 on the tour of 15)
+                self._taps.append("shift+" + name if mods & self.glfw.MOD_SHIFT and name.isdigit() else name)
 
     def on_drop(self, window, paths):
         """glfw's drop callback: the session opens each file by its kind."""
@@ -422,17 +495,20 @@ class App:
         K = imgui.Key
         pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
         if io.key_ctrl:
+            from viewer.app.layout import step_ui_scale
+
             if pressed(K.equal) or pressed(K.keypad_add):
-                self.set_ui_scale(self.ui_scale * 1.25)
+                self.set_ui_scale(step_ui_scale(self.ui_scale, up=True))
             if pressed(K.minus) or pressed(K.keypad_subtract):
-                self.set_ui_scale(self.ui_scale / 1.25)
+                self.set_ui_scale(step_ui_scale(self.ui_scale, up=False))
             if pressed(K._0):
                 self.set_ui_scale(1.0)
         for key in taps:
             self.key_action(key)
 
     def key_action(self, key: str) -> None:
-        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...)."""
+        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...;
+        "shift+1" for Shift and a digit)."""
         s = self.session
         if key == "r":
             s.reset_camera()
@@ -460,7 +536,9 @@ class App:
             elif key in ("left", "page_up"):
                 s.lecture_back()
             elif key.isdigit() and (int(key) - 1) % 10 < len(TOUR):
-                s.lecture((int(key) - 1) % 10)
+                s.lecture((int(key) - 1) % 10)   # 1-9, 0 = 10
+            elif key.startswith("shift+") and key[6:].isdigit() and 10 + (int(key[6:]) - 1) % 10 < len(TOUR):
+                s.lecture(10 + (int(key[6:]) - 1) % 10)   # Shift 1-9 = 11-19, Shift 0 = 20
             elif key == "escape":
                 s.lecture(None)
 
@@ -474,18 +552,21 @@ class App:
         the panels, the lecture caption and the status toast: (H, W, 3) uint8, row 0 = top."""
         self.view_only = True
         try:
-            img = self.capture_window()
+            img = self.capture_window(redraw=False)
         finally:
             self.view_only = False
         vx, _, vw, vh = self.viewport()
         return img[img.shape[0] - vh:, vx:vx + vw].copy()
 
-    def capture_window(self) -> np.ndarray:
-        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top."""
+    def capture_window(self, redraw: bool = True) -> np.ndarray:
+        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top. ``redraw``:
+        render the raster afresh first (False: the view as it stands, e.g. a finished one, never
+        restarted into tiles)."""
         out = []
         self._capture_next = out.append
-        self.session.changed()
-        self.frame()
+        if redraw:
+            self.session.changed()
+        self.frame(wait=False)
         return out[0] if out else None
 
     def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:

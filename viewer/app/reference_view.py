@@ -96,6 +96,9 @@ class ReferenceView:
         self.engine_request = engine
         self.engine = None        # "cpu" | "gpu" once chosen (first update)
         self.engine_reason = ""
+        self.engine_note = ""     # why the scene shown takes another engine than ``engine`` (or none)
+        self.gpu_failed = ""      # the gpu engine's failure, once it failed (the cpu engine from then on)
+        self._engine_key = None   # (key, engine) of the last choice
         self.frame_budget_s = frame_budget_s
         self._gpu = None          # GpuReferenceRenderer on the GUI thread (engine "gpu")
         self._gpu_key = None      # its cache key
@@ -215,22 +218,56 @@ class ReferenceView:
         key = f"{scene_key(scene, camera, (w, h))}|{sorted(self.options.items())}"
         if self.engine is None:
             self._choose_engine()
-        if self.engine == "gpu":
-            from viewer.gpupt.refusals import cpu_only
-
-            # what only the cpu engine renders (the rules of viewer/gpupt/refusals.py): the cpu
-            # engine, while the scene has it
-            if cpu_only(scene) is None:
-                self._cancel.set()   # a cpu job stops (its samples are stored)
-                self._gpu_update(key, scene, camera, w, h)
-                return
-            self._drop_gpu()
+        engine = self.engine_for(scene, key)
+        if engine == "gpu":
+            self._cancel.set()   # a cpu job stops (its samples are stored)
+            self._gpu_update(key, scene, camera, w, h)
+            return
+        self._drop_gpu()
+        if engine is None:   # neither engine renders it: the reason stands in the view
+            if key != self._key:
+                self.pause()
+                self._key = key
+                self.error = self.engine_note
+                self.version += 1
+            return
         if key != self._key:
             if defer:
                 self.pause()
                 return
             self._key = key
             self.restart(scene, camera, w, h)
+
+    def engine_for(self, scene, key=None):
+        """The engine that renders ``scene`` ("cpu", "gpu", or None: neither can), decided once per
+        key. What only the cpu engine renders (viewer/gpupt/refusals.py) takes it; under ``auto``,
+        a ``.brdf`` file material without a numpy twin the cpu engine may run takes the gpu engine
+        (``select.without_twin``), as on the command line. ``engine_note`` says why, or is empty.
+        ``key``: the view's key, which the choice is kept under (None: chosen afresh)."""
+        if self.engine is None:
+            self._choose_engine()
+        if key is not None and self._engine_key is not None and self._engine_key[0] == key:
+            return self._engine_key[1]
+        engine, note = self.engine, ""
+        if engine == "gpu":
+            from viewer.gpupt.refusals import cpu_only
+
+            limit = cpu_only(scene)
+            if limit is not None:
+                engine, note = "cpu", limit.reason
+        elif self.engine_request == "auto" and self.ctx is not None:
+            from viewer.gpupt.select import without_twin
+
+            why = without_twin(scene)
+            if why is not None and self.gpu_failed:
+                engine = None
+                note = (f"no reference: the cpu engine has no numpy twin to run and the gpu engine "
+                        f"failed ({self.gpu_failed})")
+            elif why is not None:
+                engine, note = "gpu", "a .brdf file without a numpy twin: the gpu engine runs its GLSL"
+        self._engine_key = (key, engine)
+        self.engine_note = note
+        return engine
 
     def pause(self):
         """Cancel the job in progress and show no image until the next restart (returns at once)."""
@@ -248,6 +285,7 @@ class ReferenceView:
                 self.preview = False
                 self.curve = ConvergenceCurve(self.options["strategy"])
                 self.version += 1
+            self.samples_per_second = 0.0
 
     def _choose_engine(self):
         if self.ctx is None:    # no GL context to share: the CPU engine
@@ -287,6 +325,7 @@ class ReferenceView:
                     self.version += 1
                 self.error = ""
                 self.started_at = now
+                self.samples_per_second = 0.0
                 self._gpu_samples = 0
                 self._gpu_read_at = 0.0
             self._gpu_samples += self._gpu.step_for(self.frame_budget_s)
@@ -305,9 +344,10 @@ class ReferenceView:
                 self._gpu_read_at = now
         except Exception as e:  # noqa: BLE001 - shown in the window; fall back to the CPU engine
             self.error = f"gpu reference failed ({type(e).__name__}: {e}); using the cpu engine"
+            self.gpu_failed = f"{type(e).__name__}: {e}"
             self.version += 1
             self._drop_gpu(store=False)
-            self.engine, self._key = "cpu", None
+            self.engine, self._key, self._engine_key = "cpu", None, None
 
     def _drop_gpu(self, store=True):
         gpu, self._gpu = self._gpu, None
@@ -339,6 +379,7 @@ class ReferenceView:
                 self.curve = ConvergenceCurve(self.options["strategy"])
                 self.version += 1
             self.error = ""
+            self.samples_per_second = 0.0
             self.started_at = time.perf_counter()
             self._cond.notify_all()
             if self._thread is None or not self._thread.is_alive():

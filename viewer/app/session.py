@@ -42,6 +42,18 @@ STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel":
 KEEP_IMAGE = object()  # _held_back: keep the view shown as it is
 
 
+def scene_digest(scene) -> str:
+    """What the saved state remembers of the scene a session ended on: a digest of its text
+    without the camera (an orbit, or the camera the last scene file keeps, is the same scene)."""
+    import hashlib
+
+    from viewer.scene import scene_to_data, scene_to_toml
+
+    data = scene_to_data(scene, absolute_paths=True)
+    data.pop("camera", None)
+    return hashlib.sha256(scene_to_toml(data).encode("utf-8")).hexdigest()[:32]
+
+
 @dataclasses.dataclass(frozen=True)
 class Message:
     """One notification: its text, whether it reports a problem, when (perf_counter seconds)."""
@@ -81,11 +93,14 @@ class Session(FileActions):
         self.camera = OrbitCamera.from_scene(self.scene)
         self.compare = CompareView(ctx)
         self.monte_carlo = MonteCarloPanel(ctx)  # reference settings, error views, convergence
-        if self.state.get("compare_mode") in MODES:
+        # the last session's compare view, term view and plots belong to the scene it ended on:
+        # another scene opens in the raster view
+        self.same_scene = self.state.get("scene_digest") == scene_digest(self.scene)
+        if self.state.get("compare_mode") in MODES and self.same_scene:
             self.compare.mode = self.state["compare_mode"]
         self.compare.split = float(self.state.get("split", 0.5))
         self.view_mode = 0
-        if 0 <= self.state.get("view_mode", 0) < len(VIEW_MODES):
+        if 0 <= self.state.get("view_mode", 0) < len(VIEW_MODES) and self.same_scene:
             self.view_mode = self.state.get("view_mode", 0)
         self.messages: list[Message] = []
         self.status = ""           # the latest message's text
@@ -100,7 +115,9 @@ class Session(FileActions):
         self.reference = None      # the ReferenceView, made on first use
         self.prefetch = None       # the lecture maps' background prefilter
         self.nonfinite = None      # the last check's message about NaN / Inf pixels, else None
-        self.warm = list(brdf.names())  # models whose programs compile while idle
+        # models whose programs compile while idle on this thread (with the compile-ahead child
+        # the picker's presets compile there instead, and this list stays empty)
+        self.warm = [] if compile_ahead else list(brdf.names())
         self.screenshot_dir = Path.cwd()
         self.step_listeners: list = []  # called with the step lecture mode shows (None: mode off)
         self.wake = None           # called from any thread when the reference has a new image
@@ -116,6 +133,7 @@ class Session(FileActions):
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
         self._drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
         self._awaiting = None      # the compile-ahead request the view waits for
+        self._compile_note = None  # the message saying so (a toast only while it is true)
         self._ahead_sent = False  # the presets still to send to the child (False: not begun)
         self.presets_ahead = True  # with compile_ahead: the picker's presets compile ahead while idle
         self._mesh_target = None
@@ -156,7 +174,12 @@ class Session(FileActions):
 
     @property
     def last_message(self) -> Message | None:
-        return self.messages[-1] if self.messages else None
+        """The latest message, as the window shows it (its toast); the note that a material
+        compiles beside the window goes once the compile is over (it is not true any more)."""
+        m = self.messages[-1] if self.messages else None
+        if m is not None and m is self._compile_note and not self.compiling:
+            return None
+        return m
 
     def release(self) -> None:
         """Stop the reference and the prefetch, free the GL objects this session made."""
@@ -493,9 +516,18 @@ class Session(FileActions):
         for line, error in rv.take_notices():   # a damaged cache entry repaired, a cache that cannot store
             self.notify(line, error=error)
         tex = rv.texture_for_display()
-        if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None:
+        if self.compare.metrics_for != rv.key:  # taken on another scene or view: gone with it
+            self.compare.forget_metrics()
+        # the raster as the scene now is: whole, at full quality, no material drawn as it was
+        if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None \
+                and self._awaiting is None and not self.pending:
             self.compare.update_metrics(self.renderer, self.hdr, self.raster_version, rv)
         return tex
+
+    def metrics_text(self) -> str:
+        """The RMSE read-out of the view shown (``CompareView.metrics_text``), empty unless its
+        metrics were taken on the reference's view as it is now."""
+        return self.compare.metrics_text(None if self.reference is None else self.reference.key)
 
     def render_image(self, width: int, height: int) -> np.ndarray:
         """The raster image of the scene as seen, rendered afresh: (H, W, 3) uint8 sRGB."""
@@ -535,6 +567,11 @@ class Session(FileActions):
         the materials drawn as they were meanwhile)."""
         return self._awaiting is not None and not self.compile_ahead.answered(self._awaiting)
 
+    @property
+    def compile_ready(self) -> bool:
+        """The programs the view waits for are ready: the next frame draws the material as it is."""
+        return self._awaiting is not None and self.compile_ahead.answered(self._awaiting)
+
     def _compile_worker(self):
         """The compile-ahead child (started on first use), None when it cannot run."""
         if self.compile_ahead is None:
@@ -565,8 +602,8 @@ class Session(FileActions):
 
         missing = [n for n, k in keys.items() if k not in progs
                    or (needs_tables(self.scene.materials[n]) and not tables.ready(self.scene.materials[n]))]
-        if not missing:
-            self.pending = []
+        if not missing:  # drawn with its own programs: nothing is awaited for this scene
+            self.pending, self._awaiting = [], None
             return None
         ca = self._compile_worker()
         rid = None if ca is None else ca.request(self.scene, urgent=True)
@@ -598,8 +635,70 @@ class Session(FileActions):
             return None
         if self._awaiting != rid:
             self.notify(f"compiling {', '.join(missing)} in the background: drawn as before until ready")
+            self._compile_note = self.messages[-1]
         self._awaiting = rid
         self.pending = missing
+        return out
+
+    @property
+    def warming(self) -> bool:
+        """Idle-time warm-up still to do on this thread: models to compile (no compile-ahead
+        child), or presets still to send to the child (one per ``warm_one``)."""
+        if self._compile_ahead_on:
+            if not self.presets_ahead or self._ahead_sent == []:
+                return False
+            return self.compile_ahead is None or self.compile_ahead.alive
+        return bool(self.warm)
+
+    @property
+    def view_finished(self) -> bool:
+        """The view is as it will stay until something changes (what ``--screenshot`` waits for):
+        the raster whole at full quality (no tiles, traced strips or averaging still to come), no
+        material drawn as it was while its programs compile, and where the view shows the
+        reference, a pass of it (not the coarse preview) and its metrics taken on it, or the
+        one line saying why there is none."""
+        if self.dirty or self.quality != "full" or self.refining or self._awaiting is not None or self.pending:
+            return False
+        if not (self.compare.uses_reference or self.monte_carlo.active):
+            return True
+        rv = self.reference
+        if rv is None:
+            return False
+        if rv.error:
+            return True
+        if rv.spp == 0:
+            return False
+        cmp = self.compare
+        return cmp.mode == "reference" or not cmp.uses_reference or cmp.metrics_for == rv.key
+
+    @property
+    def warms_beside(self) -> bool:
+        """The idle-time warm-up goes to the compile-ahead child (a preset's scene sent per step,
+        no frame needed), not compiled on this thread."""
+        return self._compile_ahead_on
+
+    def pending_work(self) -> list[str]:
+        """What is still to be done before the session rests, by name (empty: nothing; the
+        window then draws no frame until something changes): "raster" (a frame to draw or
+        refine), "compiling" (a changed material's programs beside the window), "warm-up"
+        (idle-time warm-up still to send or compile), "compile ahead" (requests the child has
+        not answered), "reference" (a reference render in flight), "prefetch" (the lecture's
+        maps being prefiltered)."""
+        out = []
+        if self.dirty or self.quality != "full" or self.refining:
+            out.append("raster")
+        if self._awaiting is not None:
+            out.append("compiling")
+        if self.warming:
+            out.append("warm-up")
+        ca = self.compile_ahead
+        if ca is not None and ca.alive and getattr(ca, "outstanding", 0):
+            out.append("compile ahead")
+        rv = self.reference
+        if rv is not None and (rv.needs_frames or rv.busy):
+            out.append("reference")
+        if self.prefetch is not None and not self.prefetch.done:
+            out.append("prefetch")
         return out
 
     def warm_one(self) -> None:
@@ -800,7 +899,7 @@ class Session(FileActions):
 
     @property
     def lecture_title(self) -> tuple[str, str]:
-        """("3/14  Total internal reflection", caption) of the step shown, ("", "") when off."""
+        """("3/15  Total internal reflection", caption) of the step shown, ("", "") when off."""
         from viewer.lecture import TOUR
 
         if self.lecture_step < 0:
@@ -881,8 +980,8 @@ class Session(FileActions):
                     self.dirty = True  # the renderer's target was drawn over
             else:  # what the view shows: split, side by side, heat map with its colour bar, labels
                 srgb = capture()
-                if self.compare.metrics_text():
-                    extra["metrics"] = self.compare.metrics_text()
+                if self.metrics_text():
+                    extra["metrics"] = self.metrics_text()
             write_png(path, srgb, png_text(self.scene, self.camera, extra))
         except (OSError, ViewerError) as e:
             self.notify(f"screenshot failed: {e}", error=True)
@@ -893,7 +992,8 @@ class Session(FileActions):
 
     def state_entries(self) -> dict:
         """The session's part of the saved state."""
-        return dict(compare_mode=self.compare.mode, split=self.compare.split, view_mode=self.view_mode)
+        return dict(compare_mode=self.compare.mode, split=self.compare.split, view_mode=self.view_mode,
+                    scene_digest=scene_digest(self.scene))
 
     def save_state(self, window: dict | None = None, path: os.PathLike | None = None) -> bool:
         """The state for the next start (the session's entries and the window's, ``window``) and

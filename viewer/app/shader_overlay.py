@@ -51,6 +51,11 @@ class HotReload:
         every program compiles. Includes failures of programs compiled lazily since the last poll."""
         return self.renderer.shader_errors
 
+    @property
+    def noting(self) -> bool:
+        """The "reloaded" note is on screen (it goes ``NOTE_SECONDS`` after a reload)."""
+        return time.monotonic() <= self._note_until
+
     def poll(self, force: bool = False) -> bool:
         """Call once per frame. True when programs were rebuilt (or errors may have gone), i.e.
         when the image must be rendered again."""

@@ -31,6 +31,7 @@ SCHEMA = {
     "view_mode": (int, 0, 64),
     "plots_visible": (bool,),
     "trusted_twin_folders": (list,),  # folders whose numpy twins the user let run (app/twin_question.py)
+    "scene_digest": (str, None),  # the scene the session ended on (Session.scene_digest)
 }
 
 

@@ -27,7 +27,7 @@ class Param:
       rgb      3 floats (linear RGB); a scalar in a scene file means grey
       float    1 float
       choice   one of ``choices`` (strings); the GLSL side gets its index as an int
-      bool     true or false (the GLSL side gets a bool)
+      bool     true or false, or 1 or 0 as a .brdf file writes them (the GLSL side gets a bool)
       lobes    a list of up to ``max_items`` tables whose fields are ``fields``
       table    a sub-table whose fields are ``fields`` (e.g. the layered model's coating)
       material another material table (any model except those with a ``material`` param)
@@ -228,6 +228,8 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
             param.check(value, where)
         return value
     if k == "bool":
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value in (0, 1):
+            return bool(value)  # 0 / 1, as a .brdf file writes its bools (and --set use_diffuse=0)
         if not isinstance(value, (bool, np.bool_)):
             raise ViewerError(f"{where}: expected {param.allowed()}, got {_show(value)}")
         return bool(value)

@@ -153,6 +153,23 @@ def choose_engine(requested: str = "auto", ctx=None, workers=None, calibrate_if_
             ctx.release()
 
 
+def without_twin(scene) -> str | None:
+    """Why the cpu engine cannot render ``scene``'s ``.brdf`` file materials (a file whose numpy
+    twin is missing or not to be run: the cpu engine evaluates twins only), in one line; None
+    when it can. The window's reference takes the gpu engine for such a scene, as ``auto`` does."""
+    from viewer import ViewerError, brdf
+
+    used = {o.material for o in scene.objects}
+    for name, m in scene.materials.items():
+        if m.model != "custom" or name not in used:
+            continue
+        try:
+            brdf.get("custom").of(m).numpy_model()
+        except ViewerError as e:
+            return str(e)
+    return None
+
+
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:

@@ -26,7 +26,9 @@ def draw(win) -> None:
         win.plots.visible = v
     ch, v = imgui.slider_float("UI scale", float(win.ui_scale), 0.5, 3.0, "%.2f")
     if imgui.is_item_hovered():
-        imgui.set_tooltip("Ctrl + / Ctrl - / Ctrl 0")
+        from viewer.app.layout import UI_SCALES
+
+        imgui.set_tooltip("Ctrl + / Ctrl - step through " + ", ".join(f"{v:g}" for v in UI_SCALES) + "; Ctrl 0: 1")
     if ch and np.isfinite(v):
         win.set_ui_scale(v)
     r = session.scene.render
@@ -64,10 +66,12 @@ def _compare_settings(session) -> None:
                 cmp.scale = float(v)
     rv = session.reference
     if cmp.uses_reference and rv is not None:
-        imgui.text(f"reference ({rv.engine or '...'}): {rv.spp} spp, "
+        imgui.text(f"reference ({rv.active_engine or rv.engine or '...'}): {rv.spp} spp, "
                    f"{rv.samples_per_second / 1e3:.1f} k samples/s")
-        if cmp.metrics_text():  # the same words as over the image
-            imgui.text_wrapped(cmp.metrics_text())
+        if session.metrics_text():  # the same words as over the image
+            imgui.text_wrapped(session.metrics_text())
+        if rv.engine_note:
+            imgui.text_wrapped(rv.engine_note)
         if rv.error:
             imgui.text_wrapped(rv.error)
 

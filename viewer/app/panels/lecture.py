@@ -20,7 +20,7 @@ def draw_section(session) -> None:
     imgui.same_line()
     if imgui.button("next >"):
         session.lecture_next()
-    imgui.text_disabled("keys: L on/off, 1-9 0, arrows, PgUp/PgDn, Esc")
+    imgui.text_disabled(step_keys_text(len(TOUR)))
     if imgui.button("Cancel preparing" if session.preparing else "Prepare lecture"):
         session.prepare_lecture()
     if imgui.is_item_hovered():
@@ -30,6 +30,12 @@ def draw_section(session) -> None:
         imgui.text_wrapped(session.prep.progress_text())
     if session.prefetch is not None:
         imgui.text_wrapped(session.prefetch.progress_text())
+
+
+def step_keys_text(steps: int) -> str:
+    """The lecture keys, for a tour of ``steps`` steps (Shift and a digit reach 11-19)."""
+    shifted = f", Shift 1-{steps - 10} = {11}-{steps}" if steps > 11 else (", Shift 1 = 11" if steps == 11 else "")
+    return f"keys: L on/off, 1-9 0 = steps 1-10{shifted}, arrows, PgUp/PgDn, Esc"
 
 
 def draw_strip(win, rect) -> None:

@@ -44,11 +44,13 @@ def plan(win):
     cmp = session.compare
     m = None if win.view_only else toast(session, win.TOAST_S)
     rv = session.reference
-    labels = cmp.overlay_labels(view, rv.spp if rv is not None else 0, preview=rv is not None and rv.preview)
+    labels = cmp.overlay_labels(view, rv.spp if rv is not None else 0, preview=rv is not None and rv.preview,
+                                error=rv.error if rv is not None else "")
     bars = cmp.overlay_bars(view) + session.monte_carlo.overlay_bars(cmp.reference_rect(view))
     title, caption = ("", "") if win.view_only else session.lecture_title
     # the progressive trace's progress stands where a toast would (a toast comes first)
-    texts = dict(labels=labels, toast=m.text if m else session.trace_status, rmse=cmp.metrics_text(), bars=bars, title=title,
+    status = "" if win.view_only else session.trace_status  # the window's status line, not the view's
+    texts = dict(labels=labels, toast=m.text if m else status, rmse=session.metrics_text(), bars=bars, title=title,
                  caption=caption)
     lay = overlay_layout(Rect(*view), imgui.get_font_size(), measure(), **texts)
     texts["toast_error"] = bool(m and m.error)
