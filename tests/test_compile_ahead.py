@@ -80,7 +80,7 @@ class StandIn:
 
     def request(self, scene, urgent=True):
         self.requests.append((scene, urgent))
-        return 1
+        return len(self.requests)  # a request's id, as the child numbers them
 
     def answered(self, rid):
         return self.released
@@ -95,7 +95,10 @@ def test_a_changed_material_is_drawn_as_before_until_its_programs_are_ready(gl_c
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
     stand_in = s.compile_ahead = StandIn()
     try:
+        stand_in.released = True  # the scene as it opens, with its own programs
         s.render_view((96, 64))
+        assert s.frame_source.form == "own"
+        stand_in.released = False
         before = renderer.read_linear(s.hdr).copy()
         s.set_material("ball", material_from_name("soap_bubble"))
         key = renderer.forward_keys(s.scene)["ball"]
@@ -142,22 +145,37 @@ def test_idle_frames_send_the_presets_ahead_one_at_a_time(gl_ctx, renderer):
 
 
 def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, renderer, tmp_path):
-    """A new scene (a lecture step, a file opened) with programs still to compile is compiled
-    at once, not shown with materials of the scene before."""
-    from viewer.app.session import Session
+    """A new scene (a lecture step, a file opened) with programs still to compile is drawn
+    itself at once, the materials not ready as grey stand-ins, never with materials of the
+    scene before; its own programs once the child has them."""
+    from viewer.app.session import STAND_IN_ALBEDO, Session
+    from viewer.gl.renderer import Renderer
 
+    renderer = Renderer(gl_ctx)  # its own: no program of the new scene compiled by another test
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
-    s.compile_ahead = StandIn()
+    stand_in = s.compile_ahead = StandIn()
     try:
+        stand_in.released = True
         s.render_view((96, 64))
-        s.scene = load_scene("default", overrides=["materials.ball.preset=red_plastic", "materials.ball.alpha=0.41"])
+        stand_in.released = False
+        old_ball = s.scene.materials["ball"]
+        s.scene = load_scene("default", overrides=["materials.ball.model=oren_nayar"])  # a program not built
         s.changed()
         s.render_view((96, 64))
-        assert s.pending == [] and not s.compiling
+        assert s.pending == ["ball"] and s.compiling and "grey stand-ins" in s.status
+        src = s.frame_source
+        assert src.scene is s.scene and src.form == "stand-in"
+        assert src.materials["ball"] is not old_ball and src.materials["ball"].model == "lambert"
+        assert np.allclose(src.materials["ball"]["albedo"], STAND_IN_ALBEDO)
+        assert renderer.forward_keys(s.scene)["ball"] not in renderer.programs  # not compiled here
+        stand_in.released = True
+        s.render_view((96, 64))
+        assert s.pending == [] and not s.compiling and s.frame_source.form == "own"
         assert renderer.forward_keys(s.scene)["ball"] in renderer.programs
     finally:
         s.compile_ahead = None
         s.release()
+        renderer.release()
 
 
 def test_the_viewer_command_can_turn_it_off(capsys):

@@ -39,7 +39,25 @@ STEP_TABS = {"polar": "Polar", "lobe": "3D lobe", "albedo": "Albedo", "fresnel":
              "bouguer": "Bouguer", "spectral": "Spectral", "sampling": "Sampling"}
 
 
-KEEP_IMAGE = object()  # _held_back: keep the view shown as it is
+KEEP_IMAGE = object()  # _held_back: keep the view shown as it is (the same scene, seen the same way)
+UNTRACED = object()    # _held_back: the scene itself, untraced, while its traced programs compile beside
+#: a stand-in material's albedo: a new scene whose programs compile beside is drawn with grey
+#: Lambert stand-ins for the materials not ready (its own objects, never the last scene's frame)
+STAND_IN_ALBEDO = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameSource:
+    """What the raster image shown was drawn from: ``scene`` (the session's scene object then),
+    its materials (``materials``: name -> params as drawn), and ``form``: "own" (every material
+    with its own programs), "held" (the same scene with the edited materials as they were),
+    "untraced" (the scene without its traced chains), "stand-in" (its objects, the materials not
+    ready drawn as grey Lambert stand-ins). ``under``: where the frame is drawn in tiles, the
+    scene of the image the tiles not drawn yet show (the same scene, always)."""
+    scene: object
+    materials: dict
+    form: str
+    under: object = None
 
 
 def scene_digest(scene) -> str:
@@ -132,6 +150,8 @@ class Session(FileActions):
         self.compile_ahead = None  # the CompileAhead child, started on first need
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
         self._drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
+        self.frame_source = None   # what the raster image shown was drawn from (FrameSource)
+        self._tiles_under = None   # the scene of the image under a tiled frame's tiles
         self._awaiting = None      # the compile-ahead request the view waits for
         self._compile_note = None  # the message saying so (a toast only while it is true)
         self._ahead_sent = False  # the presets still to send to the child (False: not begun)
@@ -292,20 +312,26 @@ class Session(FileActions):
         quality = "preview" if interacting else "full"
         held = self._held_back(False if traced and interacting else None, False if traced else None, stale) \
             if self._compile_ahead_on else None
+        source = None
         try:
             if held is KEEP_IMAGE:
                 quality = self.quality
             elif traced and not interacting and held is None:  # still: untraced, then traced in strips
                 quality = self._trace_step(rw, rh, restart)
+                source = FrameSource(self.scene, dict(self.scene.materials), "own")
             else:
                 if self._trace is not None:
                     self._trace.cancel()
                 # held: a changed material's programs compile beside, so it is drawn as it was
                 # (not "preview" when still: that would draw it again each frame until the
                 # answer comes, which marks the view dirty by itself)
-                drawn = self.scene if held is None else held
+                drawn = self.scene if held is None or held is UNTRACED else held
+                form = ("own" if held is None else "untraced" if held is UNTRACED
+                        else "stand-in" if getattr(held, "stand_in", False) else "held")
+                source = FrameSource(self.scene, dict(drawn.materials), form)
                 if not interacting and self._tiled(drawn, rw, rh):
                     quality = self._tile_step(drawn, rw, rh, restart)
+                    source = dataclasses.replace(source, under=self._tiles_under)
                 else:
                     if self._tiles is not None:
                         self._tiles.cancel()
@@ -321,6 +347,7 @@ class Session(FileActions):
                 self._drawn_materials = (self.scene, dict(self.scene.materials))
             if held is not KEEP_IMAGE:
                 self._drawn_view = self._view_key()
+                self.frame_source = source
         except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
             self.notify(str(e), error=True)
         self.ctx.finish()
@@ -410,8 +437,11 @@ class Session(FileActions):
             under = None
             same = (self._drawn_materials is not None and self._drawn_materials[0] is self.scene
                     and self._drawn_view == self._view_key())  # the same scene seen the same way
-            if self.hdr is not None and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
+            # the preview of this scene just drawn while the view moved, never another scene's
+            ours = self.frame_source is not None and self.frame_source.scene is self.scene
+            if self.hdr is not None and ours and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
                 under = self.hdr  # read before any tile draws over the renderer's target
+            self._tiles_under = self.frame_source.scene if under is not None else self.scene
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last
             self.hdr = t.start(self.renderer, scene, self.camera, w, h, self.view_mode, traced=False,
@@ -421,6 +451,7 @@ class Session(FileActions):
         self.hdr = t.step(self.tile_budget_s)
         if not t.done:
             return "refining"
+        self._tiles_under = self.scene
         self._whole_s = ((w, h), t.trace_s)
         return "full"
 
@@ -583,10 +614,11 @@ class Session(FileActions):
     def _held_back(self, rt_now, rt_held, stale: bool):
         """What to draw while programs compile beside the window: None (the scene, now: nothing
         to compile, or no child to compile it), a copy of the scene with the changed materials
-        as they were last drawn (their programs are ready), or KEEP_IMAGE (the view shown
-        stays). ``rt_now`` / ``rt_held``: the traced-chain switch of the frame and of a held one."""
-        import dataclasses
-
+        as they were last drawn (their programs are ready), KEEP_IMAGE (the same scene seen the
+        same way: the view shown stays), UNTRACED (the scene without its traced chains, whose
+        programs are ready) or, for another scene than the one drawn, the scene with the
+        materials not ready as grey stand-ins: never another scene's frame or materials.
+        ``rt_now`` / ``rt_held``: the traced-chain switch of the frame and of a held one."""
         from viewer.app.compile_ahead import params_key
 
         from viewer.gl.renderer import frame_switches
@@ -621,23 +653,38 @@ class Session(FileActions):
             return None
         drawn_scene, drawn = self._drawn_materials or (None, {})
         # the same scene with materials edited (another scene, e.g. a lecture step, is never
-        # mixed with what was drawn before)
+        # mixed with what was drawn before: it is drawn itself, untraced or with stand-ins)
         before = {n: drawn.get(n) for n in missing} if drawn_scene is self.scene else {}
-        out = None
+        out, how = None, "drawn as before until ready"
         if before and all(p is not None for p in before.values()):
             held = dataclasses.replace(self.scene, materials={**self.scene.materials, **before})
             if all(k in progs for k in self.renderer.forward_keys(held, raytrace=rt_held).values()):
                 out = held
         if out is None and not stale and drawn_scene is self.scene:
             out = KEEP_IMAGE
-        if out is None:  # nothing to show meanwhile: compile here
-            self.pending = []
-            return None
+        if out is None and rt_held is False and self.renderer.traces(self.scene):
+            untraced = self.renderer.forward_keys(self.scene, raytrace=False)
+            if all(untraced[n] in progs and (not needs_tables(self.scene.materials[n])
+                                             or tables.ready(self.scene.materials[n])) for n in untraced):
+                out, how = UNTRACED, "drawn untraced until ready"
+        if out is None:  # another scene: its own objects, the materials not ready as stand-ins
+            out, how = self._stand_in(missing), "drawn with grey stand-ins until ready"
         if self._awaiting != rid:
-            self.notify(f"compiling {', '.join(missing)} in the background: drawn as before until ready")
+            self.notify(f"compiling {', '.join(missing)} in the background: {how}")
             self._compile_note = self.messages[-1]
         self._awaiting = rid
         self.pending = missing
+        return out
+
+    def _stand_in(self, missing):
+        """The scene with ``missing`` materials as grey Lambert stand-ins (``STAND_IN_ALBEDO``):
+        its own objects, drawn with the cheapest program there is (compiled here if it must be,
+        a fraction of what the missing ones cost) while theirs compile beside."""
+        from viewer import brdf
+
+        grey = brdf.get("lambert").params(albedo=[STAND_IN_ALBEDO] * 3)
+        out = dataclasses.replace(self.scene, materials={**self.scene.materials, **{n: grey for n in missing}})
+        out.stand_in = True  # FrameSource.form "stand-in"
         return out
 
     @property

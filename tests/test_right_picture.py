@@ -1,0 +1,148 @@
+"""The right picture, always: after any step change (next, back, a digit, wrap-around) and any
+scene change, every frame the window draws is drawn from the scene shown (its own objects and
+materials, or grey stand-ins of the materials whose programs still compile, or the scene
+untraced), never from the scene before. Driven on state with compile-ahead and tiled frames on
+and a stand-in child whose answers the test releases (no timing)."""
+
+import pytest
+
+SIZE = (32, 24)
+FORMS_WHILE_COMPILING = ("own", "untraced", "stand-in")
+
+
+class StandIn:
+    """A compile-ahead child whose answers the test releases."""
+
+    alive = True
+
+    def __init__(self):
+        self.compiled, self.tables, self.requests, self.released = set(), {}, [], False
+
+    def request(self, scene, urgent=True):
+        self.requests.append((scene, urgent))
+        return len(self.requests)
+
+    def answered(self, rid):
+        return self.released
+
+    def stop(self):
+        pass
+
+
+def _session(gl_ctx, renderer):
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True, tiled_frames=True)
+    s.compile_ahead = StandIn()
+    return s
+
+
+def _frames_are_of_this_scene(s, n=2):
+    """``n`` frames; each drawn from the scene the session shows (never another's)."""
+    for _ in range(n):
+        s.render_view(SIZE)
+        src = s.frame_source
+        assert src is not None and src.scene is s.scene, (s.lecture_step, s.status)
+        assert set(src.materials) == set(s.scene.materials)
+        assert src.form in FORMS_WHILE_COMPILING, src.form
+        for name, p in src.materials.items():  # a material as the scene has it, or a grey stand-in
+            assert p is s.scene.materials[name] or (src.form == "stand-in" and p.model == "lambert"), name
+
+
+def _settle(s, limit=400):
+    s.compile_ahead.released = True
+    for _ in range(limit):
+        s.render_view(SIZE)
+        if not (s.compiling or s.tracing or s.tiling):
+            break
+    assert s.frame_source.scene is s.scene and s.frame_source.form == "own"
+    s.compile_ahead.released = False
+
+
+def test_every_step_forwards_and_backwards_shows_its_own_scene(gl_ctx, renderer):
+    from viewer.lecture import TOUR
+
+    s = _session(gl_ctx, renderer)
+    try:
+        _settle(s)
+        s.lecture(0)
+        for i in range(len(TOUR)):  # forwards, each step first drawn while its programs compile beside
+            assert s.lecture_step == i
+            _frames_are_of_this_scene(s)
+            _settle(s)
+            s.lecture_next()
+        assert s.lecture_step == 0  # wrapped around
+        for i in reversed(range(len(TOUR))):  # backwards, wrapping at once to the last step
+            s.lecture_back()
+            assert s.lecture_step == i
+            _frames_are_of_this_scene(s)
+    finally:
+        s.compile_ahead = None
+        s.release()
+
+
+def test_the_class_route_never_shows_the_step_before(gl_ctx):
+    # default scene, L, 9, 0, Right with nothing compiled yet and the child never answering:
+    # every frame of every step is drawn from that step's scene
+    from viewer.gl.renderer import Renderer
+
+    renderer = Renderer(gl_ctx)
+    s = _session(gl_ctx, renderer)
+    try:
+        _frames_are_of_this_scene(s)
+        for action in (lambda: s.lecture(0), lambda: s.lecture(8), lambda: s.lecture(9), s.lecture_next):
+            before = s.scene
+            action()
+            assert s.scene is not before
+            _frames_are_of_this_scene(s, n=3)
+        assert s.lecture_step == 10 and s.compiling and "in the background" in s.status
+    finally:
+        s.compile_ahead = None
+        s.release()
+        renderer.release()
+
+
+def test_a_scene_opened_while_compiling_is_drawn_itself(gl_ctx, renderer):
+    from viewer.scene import load_scene
+
+    s = _session(gl_ctx, renderer)
+    try:
+        _settle(s)
+        for text in ("materials.ball.model=oren_nayar", "materials.ball.preset=soap_bubble"):
+            s.scene = load_scene("default", [text])
+            s.changed()
+            _frames_are_of_this_scene(s)
+    finally:
+        s.compile_ahead = None
+        s.release()
+
+
+def test_tiles_of_a_new_scene_are_never_drawn_over_the_last_scenes_preview(gl_ctx, renderer, monkeypatch):
+    # a preview of scene A (drawn while the view moved), then scene B drawn in tiles: the part
+    # not tiled yet shows B's own preview, not A's
+    import viewer.app.session as smod
+    from viewer.scene import load_scene
+
+    monkeypatch.setattr(smod, "TILE_BUDGET_S", 1e-6)  # every still frame in tiles, one at a time
+    monkeypatch.setattr(smod, "FRAME_GOAL_S", 1e-6)
+    s = _session(gl_ctx, renderer)
+    try:
+        _settle(s)
+        s.camera.orbit(2.0, 0.0, SIZE[1])  # a drag: A's preview
+        s.changed()
+        s.render_view(SIZE, interacting=True)
+        assert s.quality == "preview"
+        a = s.scene
+        s.scene = load_scene("default", ["materials.floor.albedo=[0.2, 0.6, 0.2]"])  # then B, still
+        s.changed()
+        s.render_view(SIZE)
+        assert s.tiling and s.scene is not a and s.frame_source.scene is s.scene
+        assert s.frame_source.under is s.scene, "tiles over the last scene's image"
+        s.camera.orbit(2.0, 0.0, SIZE[1])  # B's own preview stays under B's tiles
+        s.changed()
+        s.render_view(SIZE, interacting=True)
+        s.render_view(SIZE)
+        assert s.tiling and s.frame_source.under is s.scene
+    finally:
+        s.compile_ahead = None
+        s.release()
