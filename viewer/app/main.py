@@ -299,7 +299,9 @@ class App:
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
         imgui.new_frame()
-        if self.hot_reload.poll():
+        reloaded = self.hot_reload.poll()
+        # a .brdf file saved with other parameters (or ranges): its materials fitted to it
+        if s.refit_file_materials() or reloaded:
             s.changed()
         self.side_panel.poll()
         self._handle_input()
