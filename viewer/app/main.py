@@ -70,15 +70,18 @@ class App:
         scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
         state = state_mod.load_state() if restore_state else {}
         self._save_state_on_close = restore_state
+        from_state = size is None  # the state file's size is fitted to the display, an asked one is not
         if size is None:
             size = (state.get("window_width", 1280), state.get("window_height", 720))
         self.glfw, self.imgui = glfw, imgui
-        self.window = self._open_window(size, title)
+        self._size_failed = False  # a frame raised: the window's size is not saved for the next start
+        self.window = self._open_window(size, title, fit_display=from_state)
         if "window_x" in state and "window_y" in state:
             glfw.set_window_pos(self.window, state["window_x"], state["window_y"])
         glfw.make_context_current(self.window)
         glfw.swap_interval(1)
         self.ctx = moderngl.create_context(require=GL_REQUIRED)
+        self._fit_gl_limits()
         imgui.create_context()
         implot.create_context()
         imgui.get_io().set_ini_filename("")  # no imgui.ini in the user's working folder
@@ -121,12 +124,15 @@ class App:
         if self.session.lecture_step >= 0:  # opened as lecture:N
             self._on_step(self.session.lecture_step)
 
-    def _open_window(self, size, title):
+    def _open_window(self, size, title, fit_display: bool = False):
         glfw = self.glfw
+        from viewer.app import window_size
         from viewer.commands import HEADLESS_HINT
 
         if not glfw.init():
             raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")
+        size = window_size.fit(size, *window_size.monitor_bound(glfw)) if fit_display else \
+            window_size.fit(size, None, "")
         glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, GL_REQUIRED // 100)
         glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, (GL_REQUIRED % 100) // 10)
         glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -137,6 +143,20 @@ class App:
             raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
                                 f"(update the graphics driver); {HEADLESS_HINT}")
         return window
+
+    def _fit_gl_limits(self) -> None:
+        """Shrink the window whose framebuffer is larger than the context draws (its textures,
+        renderbuffers and viewport), with one line on stderr."""
+        from viewer.app import window_size
+
+        side = window_size.gl_bound(self.ctx.info)
+        fw, fh = self.glfw.get_framebuffer_size(self.window)
+        if fw <= side and fh <= side:
+            return
+        ww, wh = self.glfw.get_window_size(self.window)
+        sx, sy = fw / max(ww, 1), fh / max(wh, 1)  # framebuffer pixels per window point
+        w, h = window_size.fit((ww, wh), (int(side / sx), int(side / sy)), "this OpenGL's largest framebuffer")
+        self.glfw.set_window_size(self.window, w, h)
 
     def _on_step(self, step):
         """Lecture mode shows ``step`` (None: it ended): the step's plot beside its scene."""
@@ -166,8 +186,12 @@ class App:
         old = signal.signal(signal.SIGTERM, self.request_close)
         try:
             while not self.should_close():
-                if not self.tick():
-                    continue
+                try:
+                    if not self.tick():
+                        continue
+                except Exception:
+                    self._size_failed = True  # never saved: the next start must not fail again
+                    raise
                 if frames and self.frame_count >= frames:
                     if screenshot and self.take_screenshot(screenshot) is None:
                         print(f"brdf-viewer: error: {self.session.status}", file=sys.stderr)
@@ -208,7 +232,7 @@ class App:
             print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
             return False
         st = dict(ui_scale=self.ui_scale, show_ui=self.show_ui, plots_visible=self.plots.visible)
-        if w >= 64 and h >= 64:
+        if w >= 64 and h >= 64 and not self._size_failed:
             st.update(window_width=w, window_height=h, window_x=x, window_y=y)
         return self.session.save_state(st)
 
