@@ -9,7 +9,6 @@ from the CLI) and each is measured: the peak memory of the child that refused it
 from __future__ import annotations
 
 import os
-import resource
 import shutil
 import subprocess
 import sys
@@ -43,17 +42,30 @@ def one_error(err: str) -> str:
     return lines[0]
 
 
+# The child's own peak: VmHWM of /proc/self/status (its memory since the exec), not ru_maxrss,
+# which Linux carries over an exec from the forked parent (this test process, a few hundred MB).
+PEAK = textwrap.dedent("""
+    def peak_kb():
+        try:
+            with open("/proc/self/status") as f:
+                return next(int(l.split()[1]) for l in f if l.startswith("VmHWM:"))
+        except (OSError, StopIteration):
+            import resource
+            return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+""")
+
+
 def run_cli(args, tmp_path, env=None):
-    """``brdf-viewer ARGS`` in a child: (exit status, stdout, stderr, the child's peak RSS in MB).
-    The child reports its own peak (ru_maxrss of RUSAGE_SELF, kB on Linux) on a line of its own."""
-    code = textwrap.dedent("""
-        import resource, sys
+    """``brdf-viewer ARGS`` in a child: (exit status, stdout, stderr, the child's peak RSS in MB),
+    which the child reports on a line of its own as it ends."""
+    code = PEAK + textwrap.dedent("""
+        import sys
         from viewer.cli import main
         try:
             rc = main(sys.argv[1:])
         except SystemExit as e:
             rc = e.code if isinstance(e.code, int) else 1
-        print("MAXRSS_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
+        print("MAXRSS_KB", peak_kb(), file=sys.stderr)
         sys.exit(rc)
     """)
     full_env = dict(os.environ)
@@ -269,3 +281,303 @@ def test_include_names_are_plain_and_distinct():
     odd = [include_name(f"{s}.brdf") for s in ODD + ['quo_te']]
     assert len(set(odd)) == len(odd)
     assert all(n.endswith(".brdf") and n.isascii() and not set(n) & set("\"'\\\n ;") for n in odd), odd
+
+
+# ------------------------------------------------------------------ the window's state
+
+
+def run_child(code: str, *args, env=None):
+    """``code`` in a child Python: (exit status, stdout, stderr, its peak RSS in MB)."""
+    full_env = dict(os.environ)
+    full_env.update(env or {})
+    full_env["PYTHONPATH"] = str(Path(__file__).resolve().parent.parent) + os.pathsep + full_env.get("PYTHONPATH", "")
+    code = PEAK + textwrap.dedent(code) + textwrap.dedent("""
+        import sys as _s
+        print("MAXRSS_KB", peak_kb(), file=_s.stderr)
+    """)
+    r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, env=full_env,
+                       timeout=600)  # a hang detector: a FIFO used to block the read forever
+    lines = r.stderr.splitlines()
+    kb = [int(l.split()[1]) for l in lines if l.startswith("MAXRSS_KB")]
+    err = "\n".join(l for l in lines if not l.startswith("MAXRSS_KB"))
+    return r.returncode, r.stdout, err, (kb[-1] / 1024 if kb else float("nan"))
+
+
+LOAD_STATE = """
+    import sys
+    from viewer.app.state import load_state
+    print("STATE", load_state(sys.argv[1]))
+"""
+
+
+def _fifo(p: Path):
+    os.mkfifo(p)
+
+
+def _dev_zero(p: Path):
+    p.symlink_to("/dev/zero")
+
+
+def _huge(p: Path):
+    with open(p, "wb") as f:
+        f.truncate(2 * 1024 ** 3)  # sparse: no disk spent
+
+
+def _deep(p: Path):
+    p.write_text("a" + ".a" * 8000 + " = 1\n")  # 16 KB: within the size, not the key depth
+
+
+STATE_DAMAGE = {"FIFO": (_fifo, "a FIFO"), "link to /dev/zero": (_dev_zero, "a character device"),
+                "2 GB sparse": (_huge, "2147483648 bytes"), "key of 8001 parts": (_deep, "dotted parts")}
+
+
+@pytest.mark.parametrize("damage", list(STATE_DAMAGE))
+def test_a_state_file_that_is_not_a_small_file_is_ignored_in_one_line_unread(damage, tmp_path):
+    make, words = STATE_DAMAGE[damage]
+    p = tmp_path / "state.toml"
+    make(p)
+    rc, out, err, mb = run_child(LOAD_STATE, str(p))
+    assert rc == 0 and "STATE {}" in out, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "window state ignored" in lines[0] and words in lines[0], err
+    print(f"state file, {damage}: refused at {mb:.0f} MB peak")
+    assert mb < 200, mb
+
+
+def test_a_small_state_file_and_a_link_to_one_still_load(tmp_path):
+    from viewer.app.state import load_state
+
+    real = tmp_path / "real.toml"
+    real.write_text("window_width = 800\nui_scale = 1.5\n")
+    link = tmp_path / "state.toml"
+    link.symlink_to(real)
+    assert load_state(link) == {"window_width": 800, "ui_scale": 1.5}
+    assert load_state(tmp_path / "absent.toml") == {}
+
+
+def test_window_sizes_are_fitted_to_the_display_and_the_context(capsys):
+    from viewer.app import window_size
+
+    assert window_size.fit((8192, 8192), (1600, 1000), "the display") == (1600, 1000)
+    said = capsys.readouterr().err.strip().splitlines()
+    assert said == ["brdf-viewer: window 8192x8192 does not fit the display (1600x1000); opening it at 1600x1000"]
+    assert window_size.fit((1280, 720), (1600, 1000), "the display") == (1280, 720)
+    assert window_size.fit((10, 20000), None, "") == (64, 20000)
+    assert capsys.readouterr().err == ""
+    info = {"GL_MAX_TEXTURE_SIZE": 16384, "GL_MAX_RENDERBUFFER_SIZE": 8192, "GL_MAX_VIEWPORT_DIMS": (16384, 4096)}
+    assert window_size.gl_bound(info) == 4096
+    assert window_size.gl_bound({}) == window_size.NO_MONITOR_MAX
+
+    class NoMonitor:
+        @staticmethod
+        def get_primary_monitor():
+            return None
+
+    assert window_size.monitor_bound(NoMonitor)[0] == (window_size.NO_MONITOR_MAX,) * 2
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_a_state_file_too_large_for_the_display_opens_a_window_that_fits_and_a_failed_size_is_not_saved(display):
+    from gui_harness import run_py
+
+    r = run_py("""
+        import os
+        from viewer.app import state
+        from viewer.app.main import App
+        path = state.state_path()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("window_width = 16384\\nwindow_height = 16384\\n")
+        app = App("sphere")
+        app.session.warm = []
+        print("SIZE", *app.glfw.get_window_size(app.window))
+        app.frame()
+        app.close()
+        print("SAVED", state.load_state().get("window_width"), state.load_state().get("window_height"))
+        # a frame that raises: the window's size is not saved for the next start
+        path.write_text("window_width = 640\\nwindow_height = 400\\n")
+        app = App("sphere")
+        app.session.warm = []
+        def broken(*a, **k):
+            raise RuntimeError("a frame that fails")
+        app.frame = broken
+        try:
+            app.run(frames=1)
+        except RuntimeError:
+            pass
+        print("AFTER", state.load_state().get("window_width"), state.load_state().get("ui_scale"))
+    """, display)
+    assert r.returncode == 0, r.stdout + r.stderr
+    size = [line.split()[1:] for line in r.stdout.splitlines() if line.startswith("SIZE")][0]
+    assert [int(v) for v in size] == [1600, 1000], r.stdout + r.stderr  # the display fixture's screen
+    assert "SAVED 1600 1000" in r.stdout and "does not fit the display" in r.stderr, r.stdout + r.stderr
+    assert "AFTER None 1.0" in r.stdout, r.stdout + r.stderr
+
+
+# ------------------------------------------------------------------ small files, huge memory
+
+
+def _png(chunks: list[tuple[bytes, bytes]]) -> bytes:
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", 4, 4, 8, 2, 0, 0, 0)
+    idat = zlib.compress(b"".join(b"\0" + b"\0" * 12 for _ in range(4)))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + b"".join(chunk(k, d) for k, d in chunks)
+            + chunk(b"IDAT", idat) + chunk(b"IEND", b""))
+
+
+DEEP_KEY = "a" + ".a" * 25000 + " = 1\n"  # 50 KB: used to cost the TOML reader 3.5 GB
+
+
+def _deep_toml(tmp_path):
+    p = tmp_path / "deep.toml"
+    p.write_text(DEEP_KEY)
+    return p
+
+
+def _deep_png(tmp_path):
+    p = tmp_path / "deep.png"
+    p.write_bytes(_png([(b"tEXt", b"brdf-viewer:scene\0" + DEEP_KEY.encode())]))
+    return p
+
+
+def _big_ztxt(tmp_path):
+    import zlib
+
+    p = tmp_path / "big.png"  # 33 MB of text in a chunk of 33 KB
+    p.write_bytes(_png([(b"zTXt", b"brdf-viewer:scene\0\0" + zlib.compress(b"#" * (33 * 1024 * 1024)))]))
+    return p
+
+
+SCENE_PROBES = {
+    "TOML key of 25,001 parts": (_deep_toml, "a key of more than 64 dotted parts"),
+    "PNG scene with that key": (_deep_png, "a key of more than 64 dotted parts"),
+    "PNG zTXt of 33 MB": (_big_ztxt, "a text chunk larger than"),
+}
+
+
+@pytest.mark.parametrize("probe", list(SCENE_PROBES))
+def test_small_scene_files_asking_for_huge_memory_are_refused_in_one_line(probe, tmp_path):
+    make, words = SCENE_PROBES[probe]
+    path = make(tmp_path)
+    rc, out, err, mb = run_cli(["render", str(path), "--out", "o.png"], tmp_path)
+    assert rc == 2 and words in one_error(err) and path.name in one_error(err), err
+    print(f"{probe}: refused at {mb:.0f} MB peak")
+    assert mb < 200, mb
+
+
+def test_a_png_text_chunk_over_a_megabyte_of_scene_still_reopens(tmp_path):
+    """Pillow's own bound (1 MB) is raised to the scene's: a big scene's screenshot reopens."""
+    import zlib
+
+    from viewer.scene import load_scene
+
+    text = 'version = 1\n[materials.m]\nmodel = "lambert"\n' + "#" * (2 * 1024 * 1024) + \
+        '\n[[objects]]\nmesh = "sphere"\nmaterial = "m"\n'
+    p = tmp_path / "shot.png"
+    p.write_bytes(_png([(b"zTXt", b"brdf-viewer:scene\0\0" + zlib.compress(text.encode()))]))
+    assert load_scene(p, load_meshes=False).objects[0].mesh == "sphere"
+
+
+def test_a_toml_value_or_key_of_many_parts_in_set_is_one_line(tmp_path):
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError) as e:
+        load_scene("sphere", ["render.x={" + "a." * 5000 + "b=1}"])
+    assert "dotted parts" in str(e.value) and "\n" not in str(e.value)
+    assert load_scene("sphere", ["materials.ball.albedo=[0.5,0.5,0.5]"]).materials["ball"].albedo[0] == 0.5
+
+
+def _sparse(path: Path, head: bytes = b"", size: int = 2 * 1024 ** 3) -> Path:
+    with open(path, "wb") as f:
+        f.write(head)
+        f.truncate(size)  # sparse: no disk spent
+    return path
+
+
+PLY_HEAD = ("ply\nformat binary_little_endian 1.0\nelement vertex {v}\nproperty float x\nproperty float y\n"
+            "property float z\nelement face {f}\nproperty list uchar int vertex_indices\nend_header\n")
+
+MESH_PROBES = {
+    "2 GB sparse PLY": (lambda d: _sparse(d / "big.ply"), "a mesh file holds at most"),
+    "2 GB sparse OBJ": (lambda d: _sparse(d / "big.obj"), "a mesh file holds at most"),
+    "PLY header of 2 GB": (lambda d: _sparse(d / "hdr.ply", PLY_HEAD.format(v=10 ** 8, f=1).encode()),
+                           "a mesh file holds at most"),
+    "PLY of 500,000,000 faces": (lambda d: _sparse(d / "faces.ply", PLY_HEAD.format(v=3, f=5 * 10 ** 8).encode(),
+                                                   64 * 1024 ** 2), "face elements; at most"),
+    "PLY header past its bytes": (lambda d: _sparse(d / "short.ply", PLY_HEAD.format(v=10 ** 7, f=1).encode(),
+                                                    64 * 1024 ** 2), "the file has"),
+    "900 MB sparse OBJ": (lambda d: _sparse(d / "zeros.obj", b"", 900 * 1024 ** 2), "NUL byte"),
+}
+
+
+@pytest.mark.parametrize("probe", list(MESH_PROBES))
+def test_mesh_files_asking_for_huge_memory_are_refused_before_they_are_parsed(probe, tmp_path):
+    make, words = MESH_PROBES[probe]
+    mesh = make(tmp_path)
+    rc, out, err, mb = run_cli(["render", "sphere", "--out", "o.png", "--width", "16", "--height", "12",
+                                "--set", f'objects.0.mesh="{mesh}"'], tmp_path)
+    assert rc == 2 and words in one_error(err) and mesh.name in one_error(err), err
+    print(f"{probe}: refused at {mb:.0f} MB peak")
+    assert mb < 200, mb
+
+
+def test_real_meshes_pass_the_bounds(tmp_path):
+    from viewer.input_bounds import mesh_problem, ply_problem
+    from viewer.mesh import load_mesh
+    from viewer.resources import MODEL_DIR
+
+    for p in sorted(Path(MODEL_DIR).glob("*.ply")):
+        assert mesh_problem(p, p.stat().st_size) is None, p
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert len(load_mesh(str(obj)).indices) == 1
+    text = PLY_HEAD.replace("binary_little_endian", "ascii").format(v=3, f=1) + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    assert ply_problem(text.encode(), len(text)) is None
+    assert "the file has" in ply_problem(text.encode(), 20)
+
+
+# ------------------------------------------------------------------ numbers that overflow
+
+
+@pytest.mark.parametrize("assignment, words", [
+    ("objects.0.translate=[1e20,0,0]", "objects[0].translate"),
+    ("camera.position=[3e38,0,0]", "camera.position"),
+    ("camera.target=[0,2e6,0]", "camera.target"),
+    ("lights.0.position=[0,0,-1e30]", "lights[0].position"),
+    ("objects.0.scale=1e-30", "objects[0].scale"),
+    ("objects.0.scale=[1,1,1e9]", "objects[0].scale"),
+])
+def test_numbers_past_the_scenes_bounds_are_one_line(assignment, words):
+    from viewer.scene import load_scene
+
+    with pytest.raises(ViewerError) as e:
+        load_scene("sphere", [assignment])
+    msg = str(e.value)
+    assert words in msg and "allowed:" in msg and "\n" not in msg, msg
+
+
+def test_the_bounds_render(renderer):
+    from viewer import api
+    from viewer.scene import load_scene
+
+    sc = load_scene("sphere", ["camera.width=16", "camera.height=12", "objects.0.translate=[1e6,0,0]",
+                               "camera.target=[1e6,0,0]", "camera.position=[1e6,0,4]", "objects.0.scale=1e-6"])
+    assert np.all(np.isfinite(api.render(sc)))
+
+
+def test_a_camera_at_3e38_is_refused_by_render(tmp_path):
+    rc, out, err, _ = run_cli(["render", "sphere", "--out", "o.png", "--set", "camera.position=[3e38,0,0]"], tmp_path)
+    assert rc == 2 and "camera.position" in one_error(err), err
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
+def test_a_camera_at_3e38_is_refused_before_the_window_opens(display, tmp_path):
+    state = tmp_path / "state.toml"
+    rc, out, err, _ = run_cli(["sphere", "--frames", "1", "--set", "camera.position=[3e38,0,0]"], tmp_path,
+                              env={"DISPLAY": display, "BRDF_VIEWER_STATE": str(state)})
+    assert rc == 2 and "camera.position" in one_error(err), err
+    assert not state.exists()  # no window, no state written

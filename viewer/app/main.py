@@ -232,7 +232,10 @@ class App:
             print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
             return False
         st = dict(ui_scale=self.ui_scale, show_ui=self.show_ui, plots_visible=self.plots.visible)
-        if w >= 64 and h >= 64 and not self._size_failed:
+        if self._size_failed:  # neither this size nor the one restored: the next start opens at the default
+            for k in ("window_width", "window_height", "window_x", "window_y"):
+                self.session.state.pop(k, None)
+        elif w >= 64 and h >= 64:
             st.update(window_width=w, window_height=h, window_x=x, window_y=y)
         return self.session.save_state(st)
 
