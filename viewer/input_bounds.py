@@ -34,18 +34,29 @@ MAX_MESH_ELEMENTS = 30_000_000
 #: the bytes of a file's start that are looked at
 HEAD_BYTES = 64 * 1024
 
-_PART = r'(?:[A-Za-z0-9_-]+|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\')'
-_LONG_KEY = re.compile(_PART + r"(?:[ \t]*\.[ \t]*" + _PART + r"){" + str(MAX_KEY_PARTS) + r"}")
+# strings and comments, left to right as TOML reads them (each replaced, its line breaks kept)
+_STRINGS = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"[^"\\\n]*(?:\\.[^"\\\n]*)*"|\'[^\'\n]*\'|#[^\n]*')
+# a stretch without = , brackets, braces or line breaks (a key, or a value) holding more dots
+# than a key may have parts; it starts only after such a character, so each stretch is tried once
+_DEEP = re.compile(r"(?:^|(?<=[=\n,\[\]{}]))(?:[^=\n,\[\]{}.]*\.){" + str(MAX_KEY_PARTS) + "}")
+
+
+def _blank(m) -> str:
+    return ("" if m.group(0).startswith("#") else "Q") + "\n" * m.group(0).count("\n")
 
 
 def toml_problem(text: str) -> str | None:
     """Why the TOML ``text`` is not read (too long, a key of too many dotted parts), or None.
-    A run of dotted names inside a string counts too: no scene has one that long."""
+    Linear in the text's length: its strings and comments are blanked out first, then each
+    stretch between ``= , [ ] { }`` and line breaks has its dots counted."""
     if len(text) > MAX_TOML_BYTES:
         return f"{len(text)} characters; a TOML text holds at most {MAX_TOML_BYTES}"
-    m = _LONG_KEY.search(text)
+    if text.count(".") < MAX_KEY_PARTS:
+        return None
+    code = _STRINGS.sub(_blank, text)
+    m = _DEEP.search(code)
     if m is not None:
-        line = text.count("\n", 0, m.start()) + 1
+        line = code.count("\n", 0, m.start()) + 1
         return f"line {line}: a key of more than {MAX_KEY_PARTS} dotted parts; at most {MAX_KEY_PARTS}"
     return None
 
