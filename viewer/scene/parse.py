@@ -78,7 +78,7 @@ def _e(x: float) -> str:
     return f"{x:.0e}".replace("e+0", "e").replace("e-0", "e-")
 
 
-POINT_ALLOWED = f"3 numbers [x, y, z] in metres, each between -{MAX_COORD:,.0f} and {MAX_COORD:,.0f}"
+POINT_ALLOWED = f"3 finite numbers [x, y, z] in metres, each between -{MAX_COORD:,.0f} and {MAX_COORD:,.0f}"
 
 
 def point(ck: Checker, value, fld: str) -> np.ndarray:
@@ -269,7 +269,7 @@ def _parse_objects(ck: Checker, lst, materials: dict) -> list[SceneObject]:
             obj.translate = point(ck, t["translate"], f"{fld}.translate")
         if "scale" in t:
             s = t["scale"]
-            allowed = f"a number in [{_e(MIN_SCALE)}, {_e(MAX_SCALE)}], or 3 such numbers [sx, sy, sz]"
+            allowed = f"a number > 0, or 3 numbers > 0 [sx, sy, sz], each in [{_e(MIN_SCALE)}, {_e(MAX_SCALE)}]"
             if isinstance(s, list):
                 obj.scale = ck.vec3(s, f"{fld}.scale", allowed, positive=True)
             else:
