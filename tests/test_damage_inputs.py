@@ -171,7 +171,10 @@ def test_the_window_survives_a_brdf_file_saved_with_one_parameter_more(display, 
         s.set_material_param(name, "k", 0.25)
         for _ in range(2):
             app.frame()
-        for text in {edits!r}:
+        print("FIRST", list(s.scene.materials)[0] == name)
+        for i, text in enumerate({edits!r}):
+            if i == 1:  # the material editor fits what it draws by itself (the panel's own path)
+                s.refit_file_materials = lambda: []
             with open({str(src)!r}, "w") as f:
                 f.write(text)
             st = os.stat({str(src)!r})
@@ -184,6 +187,7 @@ def test_the_window_survives_a_brdf_file_saved_with_one_parameter_more(display, 
     """, display)
     assert r.returncode == 0, r.stdout + r.stderr
     seen = [line for line in r.stdout.splitlines() if line.startswith("PARAMS")]
+    assert "FIRST True" in r.stdout, r.stdout + r.stderr  # the first material's editor starts open
     assert seen == ["PARAMS [('k', '0.25'), ('more', '0.75')]",
                     "PARAMS [('k', 'True'), ('more', '[1.  0.5 0.5]')]"], r.stdout + r.stderr
 
