@@ -306,8 +306,8 @@ def _screenshot_size(args) -> list[str]:
 
         with Image.open(path) as im:
             w, h = im.size
-    except OSError:
-        return []  # load_scene names the problem
+    except Exception:  # noqa: BLE001 - Pillow raises many kinds for a broken PNG; load_scene names it
+        return []
     return [f"camera.width={w}", f"camera.height={h}"]
 
 

@@ -273,11 +273,22 @@ def write_npy(path, linear: np.ndarray) -> Path:
 
 
 def read_png_text(path) -> dict[str, str]:
-    from PIL import Image
+    """The text chunks of a PNG; a chunk that inflates past ``input_bounds.MAX_PNG_TEXT`` is a
+    ValueError naming the bound (Pillow stops inflating there: no memory is spent on the rest)."""
+    from PIL import Image, PngImagePlugin
 
-    with Image.open(path) as im:
-        im.load()
-        return dict(getattr(im, "text", {}) or {})
+    from viewer.input_bounds import MAX_PNG_TEXT
+
+    PngImagePlugin.MAX_TEXT_CHUNK = MAX_PNG_TEXT       # Pillow's own bounds, set to ours
+    PngImagePlugin.MAX_TEXT_MEMORY = 2 * MAX_PNG_TEXT
+    try:
+        with Image.open(path) as im:
+            im.load()
+            return dict(getattr(im, "text", {}) or {})
+    except ValueError as e:
+        if "MAX_TEXT" in str(e):
+            raise ValueError(f"a text chunk larger than {MAX_PNG_TEXT} bytes") from None
+        raise
 
 
 def check_output_path(path, suffixes: tuple[str, ...], what: str) -> Path:

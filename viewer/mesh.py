@@ -47,6 +47,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer import meshgen
+from viewer.input_bounds import mesh_problem
 from viewer.io import expand_user, one_line_errors, stat_file
 from viewer.resources import MODEL_DIR
 
@@ -112,6 +113,9 @@ def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> Me
         stem = Path(ref_s).stem
         if (Path(ref_s).name == ref_s and ext == ".ply" and stem in meshgen.GENERATORS):
             return _load_builtin(stem, where)
+        raise ViewerError(f"{where}: {path}: {problem}")
+    problem = mesh_problem(path, st.st_size)  # its size and header, before a parser reads it
+    if problem is not None:
         raise ViewerError(f"{where}: {path}: {problem}")
 
     key = ("file", str(path), st.st_mtime_ns, st.st_size)

@@ -276,6 +276,23 @@ class FileActions:
         self.notify(f"material {name!r} <- {model.bfile.path.name} ({len(model.bfile.declarations)} parameters)")
         return True
 
+    def refit_file_materials(self) -> list[str]:
+        """Fit every file material to its ``.brdf`` file as it is now (after hot reload saw the
+        file saved with parameters added, removed, renamed or retyped): values whose name and
+        kind still match are kept, the others start at the file's defaults
+        (``viewer.brdf.file_carry``). Returns the names of the materials that changed."""
+        from viewer.brdf.file_carry import carry_over
+
+        changed = []
+        for name, params in list(self.scene.materials.items()):
+            fitted = carry_over(params)
+            if fitted is not params:
+                self.scene.materials[name] = fitted
+                changed.append(name)
+        if changed:
+            self.dirty = True
+        return changed
+
     # ------------------------------------------------------------------ environment
     def set_environment(self, ref) -> bool:
         """Switch the environment to a built-in map name, a .hdr/.exr path or None (constant).

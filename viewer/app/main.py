@@ -79,16 +79,19 @@ class App:
         trust_remembered(state)  # the folders whose numpy twins the user let run before
         scene = load_scene(scene_ref, overrides)  # bad input: ViewerError before any window
         self._save_state_on_close = restore_state
+        from_state = size is None  # the state file's size is fitted to the display, an asked one is not
         if size is None:
             size = (state.get("window_width", state_mod.DEFAULT_WINDOW[0]),
                     state.get("window_height", state_mod.DEFAULT_WINDOW[1]))
         self.glfw, self.imgui = glfw, imgui
-        self.window = self._open_window(size, title)
+        self._size_failed = False  # a frame raised: the window's size is not saved for the next start
+        self.window = self._open_window(size, title, fit_display=from_state)
         if "window_x" in state and "window_y" in state:
             glfw.set_window_pos(self.window, state["window_x"], state["window_y"])
         glfw.make_context_current(self.window)
         glfw.swap_interval(1)
         self.ctx = moderngl.create_context(require=GL_REQUIRED)
+        self._fit_gl_limits()
         imgui.create_context()
         implot.create_context()
         imgui.get_io().set_ini_filename("")  # no imgui.ini in the user's working folder
@@ -132,12 +135,15 @@ class App:
         if self.session.lecture_step >= 0:  # opened as lecture:N
             self._on_step(self.session.lecture_step)
 
-    def _open_window(self, size, title):
+    def _open_window(self, size, title, fit_display: bool = False):
         glfw = self.glfw
+        from viewer.app import window_size
         from viewer.commands import HEADLESS_HINT
 
         if not glfw.init():
             raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")
+        size = window_size.fit(size, *window_size.monitor_bound(glfw)) if fit_display else \
+            window_size.fit(size, None, "")
         glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, GL_REQUIRED // 100)
         glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, (GL_REQUIRED % 100) // 10)
         glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -148,6 +154,20 @@ class App:
             raise GLUnavailable("cannot create an OpenGL 4.1 core window: this viewer needs OpenGL 4.1 "
                                 f"(update the graphics driver); {HEADLESS_HINT}")
         return window
+
+    def _fit_gl_limits(self) -> None:
+        """Shrink the window whose framebuffer is larger than the context draws (its textures,
+        renderbuffers and viewport), with one line on stderr."""
+        from viewer.app import window_size
+
+        side = window_size.gl_bound(self.ctx.info)
+        fw, fh = self.glfw.get_framebuffer_size(self.window)
+        if fw <= side and fh <= side:
+            return
+        ww, wh = self.glfw.get_window_size(self.window)
+        sx, sy = fw / max(ww, 1), fh / max(wh, 1)  # framebuffer pixels per window point
+        w, h = window_size.fit((ww, wh), (int(side / sx), int(side / sy)), "this OpenGL's largest framebuffer")
+        self.glfw.set_window_size(self.window, w, h)
 
     def _on_step(self, step):
         """Lecture mode shows ``step`` (None: it ended): the step's plot beside its scene."""
@@ -181,7 +201,11 @@ class App:
         try:
             waited_from = None
             while not self.should_close():
-                self.tick()
+                try:
+                    self.tick()
+                except Exception:
+                    self._size_failed = True  # never saved: the next start must not fail again
+                    raise
                 if frames and self.frame_count >= frames:
                     if screenshot and not self._finished_for(waited_from):
                         waited_from = waited_from or time.perf_counter()
@@ -239,7 +263,10 @@ class App:
             print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
             return False
         st = dict(ui_scale=self.ui_scale, show_ui=self.show_ui, plots_visible=self.plots.visible)
-        if w >= 64 and h >= 64:
+        if self._size_failed:  # neither this size nor the one restored: the next start opens at the default
+            for k in ("window_width", "window_height", "window_x", "window_y"):
+                self.session.state.pop(k, None)
+        elif w >= 64 and h >= 64:
             st.update(window_width=w, window_height=h, window_x=x, window_y=y)
         return self.session.save_state(st)
 
@@ -381,7 +408,9 @@ class App:
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
         imgui.new_frame()
-        if self.hot_reload.poll():
+        reloaded = self.hot_reload.poll()
+        # a .brdf file saved with other parameters (or ranges): its materials fitted to it
+        if s.refit_file_materials() or reloaded:
             s.changed()
         self.side_panel.poll()
         self._handle_input()

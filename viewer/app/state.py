@@ -6,14 +6,19 @@ session's scene in the scene-file format (the window's "Reopen last session" loa
 
 The state is a small TOML table; anything unreadable, of the wrong type or out of range is
 ignored key by key (with one line on stderr), so a damaged state file never stops the viewer.
+A state file that is not a regular file of at most ``MAX_BYTES`` (a FIFO, a link to a device, a
+huge file) is ignored whole, in one line, without being read.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import sys
 import tomllib
 from pathlib import Path
+
+from viewer.input_bounds import toml_problem
 
 #: the window's size when neither the command line nor the last session gives one
 DEFAULT_WINDOW = (1280, 720)
@@ -47,14 +52,53 @@ def last_scene_path() -> Path:
     return state_path().with_name("last_scene.toml")
 
 
+#: the most bytes a state file may hold (a written one is about 300)
+MAX_BYTES = 16 * 1024
+
+
+def read_small_file(path: Path, limit: int = MAX_BYTES) -> bytes:
+    """The bytes of ``path`` when it is a regular file of at most ``limit`` bytes; else OSError
+    saying what it is. Checked with stat before it is opened (a FIFO, a device such as
+    /dev/zero, a symbolic link to one, a huge file are never read), opened without blocking and
+    read to ``limit`` + 1 bytes at most (it may grow between the stat and the read)."""
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise OSError(f"not a regular file ({_kind(st.st_mode)})")
+    if st.st_size > limit:
+        raise OSError(f"{st.st_size} bytes; a state file holds at most {limit}")
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # replaced between the stat and the open
+            raise OSError("not a regular file")
+        data = os.read(fd, limit + 1)
+    finally:
+        os.close(fd)
+    if len(data) > limit:
+        raise OSError(f"over {limit} bytes; a state file holds at most {limit}")
+    return data
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a folder")):
+        if test(mode):
+            return name
+    return "not a file"
+
+
 def load_state(path: Path | None = None) -> dict:
     path = state_path() if path is None else Path(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         return {}
     try:
-        raw = tomllib.loads(path.read_text("utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        print(f"brdf-viewer: {path}: window state ignored ({type(e).__name__}: {e})", file=sys.stderr)
+        text = read_small_file(path).decode("utf-8")
+        problem = toml_problem(text)
+        if problem:
+            raise OSError(problem)
+        raw = tomllib.loads(text)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        print(f"brdf-viewer: {path}: window state ignored ({why})", file=sys.stderr)
         return {}
     out = {}
     for k, v in raw.items():

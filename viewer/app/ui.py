@@ -210,7 +210,15 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
     ``on_error(text)`` (the session's error notification). A microfacet lobe gets one perceptual roughness slider (r, alpha = r^2) and
     an *anisotropic* toggle that reveals alpha_x / alpha_y; parameters that do nothing in the
     chosen variant are hidden (``shown_params``). The widgets are as wide as leaves room for
-    the longest label beside them (never wider than imgui's default), so no label is cut."""
+    the longest label beside them (never wider than imgui's default), so no label is cut.
+    A file material whose ``.brdf`` file was saved with other parameters is first fitted to the
+    file (``viewer.brdf.file_carry``) and returned as changed, so the session stores it."""
+    if params.model == "custom":
+        from viewer.brdf.file_carry import carry_over
+
+        fitted = carry_over(params)
+        if fitted is not params:
+            return True, fitted
     labels = ["preset", "model", ROUGHNESS_LABEL] + shown_params(params)
     room = imgui.get_content_region_avail().x
     widest = max(imgui.calc_text_size(t).x for t in labels) + imgui.get_style().item_inner_spacing.x

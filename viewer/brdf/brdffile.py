@@ -42,6 +42,12 @@ PREFIX = "bxf_"
 PREFIX_RE = r"\bbxf\d*_"
 
 
+#: the parameter floats a file may declare (a colour is three): the renderer's material block holds
+#: 256 floats (``viewer.gl.constants.MAT_FLOATS``), 32 of them the generic sampler's table
+#: (``viewer.gl.brdf_glsl.HALF_TABLE``); ``tests/test_damage_inputs.py`` checks the sum
+MAX_PARAM_FLOATS = 224
+
+
 def prefix_for(slot: int) -> str:
     """The prefix of the file BRDF in slot ``slot`` of a program (``PREFIX`` for the first)."""
     return PREFIX if slot == 0 else f"bxf{slot}_"
@@ -297,6 +303,10 @@ def parse(path, text: str | None = None) -> BrdfFile:
         # lines outside a section and in unknown sections are ignored, as BRDF Explorer does
     if current is not None:
         raise ViewerError(f"{name}:{begun}: section {current!r} is never closed ('::end {current}' missing)")
+    floats = sum(3 if d.kind == "color" else 1 for d in decls)
+    if floats > MAX_PARAM_FLOATS:
+        raise ViewerError(f"{name}: its parameters are {floats} floats (a color is 3); a .brdf file may declare at "
+                          f"most {MAX_PARAM_FLOATS}")
     if not sections["shader"]:
         raise ViewerError(f"{name}: no '::begin shader' section with a vec3 BRDF(vec3 L, vec3 V, vec3 N, "
                           f"vec3 X, vec3 Y) function")

@@ -79,11 +79,12 @@ def _custom_names(name: str) -> tuple[str, str, str]:
     include is the file's name, or its whole path where a file of the same name in another
     folder took a slot before it (two such files can share a program)."""
     from viewer.brdf.brdffile import prefix_for
+    from viewer.gl.file_brdf_glsl import include_name
 
     slot = custom_slot(name)
     path = Path(name[len(CUSTOM_PREFIX):])
     clash = any(Path(n[len(CUSTOM_PREFIX):]).name == path.name and k < slot for n, k in _SLOTS.items())
-    return ("custom" if slot == 0 else f"custom{slot}"), prefix_for(slot), (str(path) if clash else path.name)
+    return ("custom" if slot == 0 else f"custom{slot}"), prefix_for(slot), include_name(path.as_posix() if clash else path.name)
 
 
 def _has_film(values) -> bool:

@@ -19,7 +19,7 @@ from viewer import ViewerError
 from viewer.brdf.brdffile import PREFIX, PREFIX_RE, BrdfFile, sampler_takes_view
 from viewer.brdf.glsl_guard import over_budget_glsl, over_budget_message
 from viewer.gl.context import release_gl
-from viewer.gl.file_brdf_glsl import MAX_PARAMS, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
+from viewer.gl.file_brdf_glsl import MAX_PARAMS, include_name, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
 from viewer.gl.shaders import ShaderError, build_program
 
 WIDTH = 256      # texels per row of the direction textures
@@ -38,7 +38,7 @@ class FileBrdfError(ShaderError):
 
 def _eval_fragment(bfile: BrdfFile) -> str:
     return f"""#version 410 core
-#include "{bfile.path.name}"
+#include "{include_name(bfile.path.name)}"
 uniform sampler2D u_wi;
 uniform sampler2D u_wo;
 uniform float u_p[{max(MAX_PARAMS, n_floats(bfile))}];
@@ -57,7 +57,7 @@ void main() {{
 def _sample_fragment(bfile: BrdfFile) -> str:
     view = "wo, " if sampler_takes_view(bfile) else ""
     return f"""#version 410 core
-#include "{bfile.path.name}"
+#include "{include_name(bfile.path.name)}"
 uniform sampler2D u_wo;
 uniform sampler2D u_u;
 uniform float u_p[{max(MAX_PARAMS, n_floats(bfile))}];
@@ -101,7 +101,7 @@ def compile_program(ctx, bfile: BrdfFile, fragment: str):
     try:
         return build_program(ctx, vertex_source=_VERT, fragment_source=fragment, virtual=virtual_files(bfile))
     except ShaderError as e:
-        line, msg = _first_error(str(e), name)
+        line, msg = _first_error(str(e), include_name(name))
         if msg is None:
             msg = re.sub(PREFIX_RE + r"(\w+)", r"\1", e.detail)
         if line is None:  # outside the file's lines: the viewer's call of BRDF / sampleBRDF

@@ -5,6 +5,9 @@ dispatch (``brdf_glsl``) and the file's evaluation programs (``file_brdf``); com
 
 from __future__ import annotations
 
+import re
+import zlib
+
 import numpy as np
 
 from viewer.brdf.brdffile import PREFIX, BrdfFile
@@ -17,6 +20,8 @@ def param_floats(bfile: BrdfFile, p) -> np.ndarray:
     out = []
     for d in bfile.declarations:
         v = p[d.name] if p is not None and d.name in p else d.default
+        if not _of_kind(d.kind, v):  # a value of a parameter the file since retyped
+            v = d.default
         if d.kind == "color":
             out.extend(float(x) for x in np.ravel(v)[:3])
         elif d.kind == "bool":
@@ -24,6 +29,14 @@ def param_floats(bfile: BrdfFile, p) -> np.ndarray:
         else:
             out.append(float(v))
     return np.array(out + [0.0] * max(1, MAX_PARAMS - len(out)), dtype="f4")[:max(MAX_PARAMS, len(out))]
+
+
+def _of_kind(kind: str, v) -> bool:
+    if kind == "color":
+        return not isinstance(v, (str, bytes)) and np.size(v) == 3
+    if kind == "bool":
+        return isinstance(v, (bool, np.bool_))
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 def set_params_glsl(bfile: BrdfFile, read=lambda k: f"u_p[{k}]", prefix: str = PREFIX) -> str:
@@ -48,6 +61,20 @@ def n_floats(bfile: BrdfFile) -> int:
     return sum(3 if d.kind == "color" else 1 for d in bfile.declarations)
 
 
+_UNSAFE = re.compile(r"[^A-Za-z0-9_.+/-]")
+
+
+def include_name(name: str) -> str:
+    """The name a file (or path) is included under in GLSL: itself when it holds only letters,
+    digits and ``_ . + - /``; else those characters kept, the others as ``_``, and a hash of the
+    whole name, so a quote, a backslash, a newline or a non-ASCII letter never reaches an
+    ``#include "..."`` line and two such names never meet."""
+    if not _UNSAFE.search(name):
+        return name
+    stem, dot, ext = name.rpartition(".") if "." in name else (name, "", "")
+    return f"{_UNSAFE.sub('_', stem)}-{zlib.crc32(name.encode('utf-8', 'surrogatepass')):08x}{dot}{_UNSAFE.sub('_', ext)}"
+
+
 def virtual_files(bfile: BrdfFile, prefix: str = PREFIX, name: str | None = None) -> dict[str, str]:
-    """The file as a virtual include, under ``name`` (default: the file's name)."""
-    return {name or bfile.path.name: bfile.glsl_block(prefix=prefix)}
+    """The file as a virtual include, under ``name`` (default: the file's ``include_name``)."""
+    return {name or include_name(bfile.path.name): bfile.glsl_block(prefix=prefix)}

@@ -151,7 +151,12 @@ def _beside(data: dict, folder: Path) -> dict:
 
 
 def _read_toml(path: Path, label: str) -> dict:
+    from viewer.input_bounds import MAX_TOML_BYTES, file_size_problem
+
     try:
+        problem = file_size_problem(os.stat(path).st_size, MAX_TOML_BYTES, "scene file")
+        if problem:  # before a byte of it is read
+            Checker(label).fail("file", problem, "a scene as in docs/scene-format.md")
         raw = path.read_bytes()
     except OSError as e:
         Checker(label).fail("file", f"cannot be read ({e.strerror or e})", "a readable scene file (.toml)")

@@ -44,6 +44,11 @@ EXPOSURE_RANGE = (-20.0, 20.0)
 # Both renderers store scene numbers as float32 (GPU uniforms, Embree vertices, float32 images):
 # a finite float64 beyond this would turn into inf there.
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+#: m: the largest |coordinate| of a camera, a light or an object's translation (a camera 1e17 m
+#: away has near = far in float64: its projection divides by zero; the renderers compute in float32)
+MAX_COORD = 1e6
+#: the range of an object's scale (each component): within it a unit mesh stays inside MAX_COORD
+MIN_SCALE, MAX_SCALE = 1e-6, 1e6
 MIN_VIEW_DISTANCE = 1e-6  # m, between camera.position and camera.target (viewer.camera clamps there)
 
 

@@ -21,7 +21,12 @@ _INDEX = re.compile(r"\[(\d+)\]")
 
 def _parse_value(text: str):
     """A TOML value (number, bool, array, inline table, quoted string); else the bare text."""
+    from viewer.input_bounds import toml_problem
+
     text = text.strip()
+    problem = toml_problem(f"v = {text}")
+    if problem:
+        Checker(f"--set value {short(text)}").fail("value", problem.split(": ", 1)[-1], "a TOML value")
     try:
         value = tomllib.loads(f"v = {text}")["v"]
     except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError; so is a 5000-digit integer

@@ -13,7 +13,7 @@ from viewer import ViewerError
 from viewer.io import expand_user, one_line_errors, path_problem
 from viewer.scene.environment import MAP_ALLOWED, Environment
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, IBL_MODES, LIGHT_TYPES,
-                                MAX_LIGHTS, MAX_OBJECTS, MAX_SIZE, MAX_TRIANGLES, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
+                                MAX_COORD, MAX_LIGHTS, MAX_OBJECTS, MAX_SCALE, MAX_SIZE, MAX_TRIANGLES, MIN_SCALE, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
                                 SCENE_VERSION, TONEMAPS, TOP_KEYS, Camera, Light, RenderSettings, Scene, SceneObject)
 from viewer.scene.overrides import apply_override, is_material_switch, switch_material
 from viewer.scene.validation import Checker, check_nesting, describe, short
@@ -74,14 +74,29 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
                  objects=objects, materials=materials, data=data, label=label, base_dir=base_dir)
 
 
+def _e(x: float) -> str:
+    return f"{x:.0e}".replace("e+0", "e").replace("e-0", "e-")
+
+
+POINT_ALLOWED = f"3 finite numbers [x, y, z] in metres, each between -{MAX_COORD:,.0f} and {MAX_COORD:,.0f}"
+
+
+def point(ck: Checker, value, fld: str) -> np.ndarray:
+    """A position or translation: 3 numbers of at most MAX_COORD in magnitude (farther, the
+    camera's projection and the float32 the renderers compute in break down)."""
+    arr = ck.vec3(value, fld, POINT_ALLOWED)
+    if np.any(np.abs(arr) > MAX_COORD):
+        ck.fail(fld, f"{[float(x) for x in arr]} is farther than {MAX_COORD:,.0f} m from the origin", POINT_ALLOWED)
+    return arr
+
+
 def _parse_camera(ck: Checker, t) -> Camera:
     ck.table(t, "camera", CAMERA_KEYS)
     cam = Camera()
-    pos_allowed = "3 finite numbers [x, y, z] in metres"
     if "position" in t:
-        cam.position = ck.vec3(t["position"], "camera.position", pos_allowed)
+        cam.position = point(ck, t["position"], "camera.position")
     if "target" in t:
-        cam.target = ck.vec3(t["target"], "camera.target", pos_allowed)
+        cam.target = point(ck, t["target"], "camera.target")
     if "up" in t:
         cam.up = ck.vec3(t["up"], "camera.up", "3 finite numbers, not all zero", nonzero=True)
     if "fov_y" in t:
@@ -196,7 +211,7 @@ def _parse_lights(ck: Checker, lst) -> list[Light]:
             if "position" not in t:
                 ck.fail(f"{fld}.position", "missing (a point light needs a position)", "3 finite numbers [x, y, z] in metres")
             light = Light("point")
-            light.position = ck.vec3(t["position"], f"{fld}.position", "3 finite numbers [x, y, z] in metres")
+            light.position = point(ck, t["position"], f"{fld}.position")
             light.intensity = ck.vec3(t.get("intensity", [1.0, 1.0, 1.0]), f"{fld}.intensity",
                                       "3 numbers >= 0 (radiant intensity, W/sr), or one number for grey",
                                       grey=True, nonneg=True)
@@ -253,14 +268,17 @@ def _parse_objects(ck: Checker, lst, materials: dict) -> list[SceneObject]:
             ck.fail(f"{fld}.material", f"unknown material {mat!r}", mat_allowed)
         obj = SceneObject(mesh=mesh, material=mat)
         if "translate" in t:
-            obj.translate = ck.vec3(t["translate"], f"{fld}.translate", "3 finite numbers [x, y, z] in metres")
+            obj.translate = point(ck, t["translate"], f"{fld}.translate")
         if "scale" in t:
             s = t["scale"]
-            allowed = "a number > 0, or 3 numbers > 0 [sx, sy, sz]"
+            allowed = f"a number > 0, or 3 numbers > 0 [sx, sy, sz], each in [{_e(MIN_SCALE)}, {_e(MAX_SCALE)}]"
             if isinstance(s, list):
                 obj.scale = ck.vec3(s, f"{fld}.scale", allowed, positive=True)
             else:
                 obj.scale = ck.number(s, f"{fld}.scale", allowed, 0.0, lo_open=True)
+            if np.any(np.asarray(obj.scale) < MIN_SCALE) or np.any(np.asarray(obj.scale) > MAX_SCALE):
+                shown = [float(x) for x in obj.scale] if isinstance(obj.scale, np.ndarray) else obj.scale
+                ck.fail(f"{fld}.scale", f"{shown} is outside [{_e(MIN_SCALE)}, {_e(MAX_SCALE)}]", allowed)
         if "rotate_y_deg" in t:
             obj.rotate_y_deg = ck.number(t["rotate_y_deg"], f"{fld}.rotate_y_deg",
                                          "a finite number of degrees (rotation about +y)")

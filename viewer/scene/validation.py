@@ -153,7 +153,14 @@ MAX_NESTING = 32  # tables and arrays inside each other; a scene needs 5
 
 
 def loads_toml(text: str, label: str) -> dict:
+    from viewer.input_bounds import toml_problem
+
     syntax = "TOML syntax (key = value, [table], [[array]], strings in double quotes)"
+    problem = toml_problem(text)  # before the reader spends memory on it
+    if problem:
+        m = re.match(r"line \d+", problem)
+        Checker(label).fail(m.group(0) if m else "TOML", problem[m.end() + 2:] if m else problem,
+                            "a scene as in docs/scene-format.md")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
