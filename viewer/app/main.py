@@ -27,6 +27,9 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 COMPILE_AHEAD_ENV = "BRDF_VIEWER_COMPILE_AHEAD"
 # "0" draws every still frame whole, however long it takes (Session's tiled_frames off)
 TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
+# "0" computes the plots' data on the window's thread, in the frame that shows them (PlotsPanel's
+# background off)
+PLOT_WORKER_ENV = "BRDF_VIEWER_PLOT_WORKER"
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
@@ -104,6 +107,8 @@ class App:
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
         self.plots = PlotsPanel()
+        self.plots.background = os.environ.get(PLOT_WORKER_ENV, "1") != "0"
+        self.plots.wake = glfw.post_empty_event  # a result ready ends the loop's sleep
         self.plots.visible = bool(state.get("plots_visible", False))
         self.side_panel = SidePanel(self)
         self.set_ui_scale(state.get("ui_scale", 1.0))
