@@ -141,23 +141,35 @@ def test_idle_frames_send_the_presets_ahead_one_at_a_time(gl_ctx, renderer):
         s.release()
 
 
-def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, renderer, tmp_path):
-    """A new scene (a lecture step, a file opened) with programs still to compile is compiled
-    at once, not shown with materials of the scene before."""
+def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, tmp_path):
+    """A new scene (a lecture step, a file opened) with programs still to compile keeps the view
+    as it was shown (the last scene whole, never mixed with the new one's materials) until they
+    are compiled beside; then it is drawn with its own."""
     from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
 
+    renderer = Renderer(gl_ctx)  # a cache of its own: the new scene's program is surely missing
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
-    s.compile_ahead = StandIn()
+    stand_in = s.compile_ahead = StandIn()
     try:
         s.render_view((96, 64))
-        s.scene = load_scene("default", overrides=["materials.ball.preset=red_plastic", "materials.ball.alpha=0.41"])
+        before = renderer.read_linear(s.hdr).copy()
+        s.scene = load_scene("default", overrides=["materials.ball.preset=soap_bubble"])
         s.changed()
+        key = renderer.forward_keys(s.scene)["ball"]
+        s.render_view((96, 64))
+        assert s.compiling and s.pending == ["ball"]
+        assert key not in renderer.programs  # nothing compiled on the window's thread
+        assert np.array_equal(renderer.read_linear(s.hdr), before)  # the view as it was
+        stand_in.released = True
         s.render_view((96, 64))
         assert s.pending == [] and not s.compiling
-        assert renderer.forward_keys(s.scene)["ball"] in renderer.programs
+        assert key in renderer.programs
+        assert not np.array_equal(renderer.read_linear(s.hdr), before)
     finally:
         s.compile_ahead = None
         s.release()
+        renderer.release()
 
 
 def test_the_viewer_command_can_turn_it_off(capsys):
