@@ -258,6 +258,8 @@ class App:
         s = self.session
         if s.dirty or s.quality != "full" or s.refining or s.warm:
             return False
+        if s.compare.uses_reference and s.reference is None:  # a compare view's first frame starts it
+            return False
         if time.perf_counter() - self._last_event < self.SETTLE_S:
             return False
         return not (s.reference is not None and s.reference.needs_frames)

@@ -304,9 +304,11 @@ class Session(FileActions):
             return False
         if self.tiling:
             return True
-        if self._whole_s is None or self._whole_s[0] != (w, h):
+        if self._whole_s is None:
             return False
-        return self._whole_s[2] is not scene.objects or self._whole_s[1] > self.tile_budget_s
+        (w0, h0), cost, objects = self._whole_s
+        # another size (side by side, a resize, lecture mode's strip): the cost scaled by the pixels
+        return objects is not scene.objects or cost * (w * h) / max(w0 * h0, 1) > self.tile_budget_s
 
     def _new_scene(self, scene) -> bool:
         """No frame of ``scene`` was drawn whole yet (another scene was)."""
@@ -497,14 +499,18 @@ class Session(FileActions):
 
     def _check_finite(self, hdr):
         """Say in one line (a notification and stderr, once per distinct message) when the view
-        holds NaN or Inf pixels: a renderer bug the class would see as holes."""
+        holds NaN or Inf pixels: a renderer bug the class would see as holes. The texels are
+        tested as read (no flipped copy, no mask: a frame at 1456x1080 costs a quarter of that);
+        only a frame with such pixels is read again to name them."""
         from viewer.finite import nonfinite_message, render_switches
 
         try:
-            img = self.renderer.read_linear(hdr)
+            msg = None
+            if not np.isfinite(np.frombuffer(hdr.read(), dtype="f4")).all():  # alpha too: then looked at closely
+                msg = nonfinite_message(self.renderer.read_linear(hdr), f"view of {self.scene.label}", (),
+                                        render_switches(self.scene))
         except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
             return
-        msg = nonfinite_message(img, f"view of {self.scene.label}", (), render_switches(self.scene))
         self.nonfinite = msg
         if msg and msg != self._nonfinite_said:
             self.notify(msg, error=True)
@@ -696,15 +702,18 @@ class Session(FileActions):
 
     def set_image_mode(self, mode: str):
         """One of ``compare_view.MODES``: raster, reference, split, side by side, difference,
-        relative difference. Modes without the reference stop its render (no CPU spent)."""
+        relative difference. Modes without the reference stop its render (no CPU spent). The
+        raster image shown stays (a mode whose raster has another size, side by side, draws it
+        anew; one after the reference alone, which draws no raster, too)."""
         from viewer.app.compare_view import MODES
 
         if mode not in MODES:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
-        self.compare.mode = mode
+        was, self.compare.mode = self.compare.mode, mode
         if not self.compare.uses_reference and not self.monte_carlo.active and self.reference is not None:
             self.reference.stop()
-        self.dirty = True
+        if was == "reference" or self.hdr is None:
+            self.dirty = True
 
     def cycle_image_mode(self) -> None:
         from viewer.app.compare_view import MODES
