@@ -242,3 +242,28 @@ def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(g
             pt.release()
     finally:
         s.release()
+
+
+def test_a_compare_view_switch_keeps_the_raster_shown(gl_ctx, renderer):
+    """Switching to the split or difference view draws no raster frame again (on a traced scene
+    it would restart the trace); side by side draws it at its own size, and the raster after the
+    reference alone (which draws none) is drawn anew."""
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    try:
+        s.render_view(SIZE)
+        version = s.raster_version
+        for mode in ("split", "difference", "raster"):
+            s.set_image_mode(mode)
+            assert not s.dirty
+            s.render_view(SIZE)
+            assert s.raster_version == version, mode
+        s.set_image_mode("side by side")
+        s.render_view((SIZE[0] // 2, SIZE[1]))  # the raster's half of the view
+        assert s.raster_version > version
+        s.set_image_mode("reference")
+        s.set_image_mode("raster")
+        assert s.dirty
+    finally:
+        s.release()
