@@ -180,7 +180,8 @@ def test_changing_the_frames_size_or_samples_and_tiling_raise_no_gl_error(gl_ctx
 def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_ctx, renderer):
     """A scene opened at the view's size has no known cost (a lecture step's soap bubbles cost
     tens of times the step before): its first still frame tiles over a preview at a quarter of
-    the resolution, whatever the budget, and ends as the whole frame."""
+    the resolution (with the view's MSAA, as the tiles), whatever the budget, and ends as the
+    whole frame."""
     from viewer.app.session import Session
     from viewer.scene import load_scene
 
@@ -194,8 +195,8 @@ def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_
         assert s.quality == "refining" and s.tiling
         assert "drawing the view in tiles" in s.trace_status
         w, h = SIZE
-        preview = renderer.read_linear(renderer.render(s.scene, s.camera, (w + 3) // 4, (h + 3) // 4, msaa=0,
-                                                       raytrace=False)).copy()
+        preview = renderer.read_linear(renderer.render(s.scene, s.camera, (w + 3) // 4, (h + 3) // 4,
+                                                       raytrace=False)).copy()  # with the view's MSAA
         shown = renderer.read_linear(s.hdr)
         bottom = shown[-(h // 2):]  # below the first tile: the preview, each pixel for its 4 x 4
         expect = np.repeat(np.repeat(preview, 4, axis=0), 4, axis=1)[:h, :w][-(h // 2):]

@@ -325,7 +325,8 @@ class ProgressiveTrace:
         and ``store`` do not apply; ``preview_scale``: the preview drawn here at 1 / 2 or 1 / 4
         of the resolution (4: a scene whose cost is not known yet, e.g. thin films over the whole
         view, whose half-resolution frame alone may take seconds on software OpenGL).
-        ``untraced``: a texture of the view's size holding the untraced view already drawn (the
+        The quarter-resolution preview is drawn with the tiles' MSAA (the half-resolution one
+        without). ``untraced``: a texture of the view's size holding the untraced view already drawn (the
         window's tiles): copied instead of rendered again."""
         import time
 
@@ -398,7 +399,9 @@ class ProgressiveTrace:
         if under is None:
             s = 4 if preview_scale >= 4 else 2
             ws, hs = (w + s - 1) // s, (h + s - 1) // s
-            hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=0, raytrace=False)
+            # a quarter-resolution preview with the tiles' MSAA: llvmpipe makes a program's
+            # machine code per sample count at its first draw, so the tiles reuse the preview's
+            hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=msaa if s == 4 else 0, raytrace=False)
             under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
                                   np.float32).reshape(hs, ws, 4)
             under = np.repeat(np.repeat(under, s, axis=0), s, axis=1)[:h, :w]
