@@ -296,9 +296,9 @@ class Session(FileActions):
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
-        whole frame (or tiled one) at this size over ``TILE_BUDGET_S``, or another scene at that
-        size (its cost not known yet: a lecture step's soap bubbles cost 30 times the step
-        before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
+        whole frame (or tiled one) over ``TILE_BUDGET_S`` (at another size, scaled by the pixels),
+        or another scene (its cost not known yet: a lecture step's soap bubbles cost 30 times the
+        step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
         IBL, which averages whole frames)."""
         if not self._tiles_on or scene.render.ssr or scene.render.ibl == "brute_force":
             return False
@@ -369,8 +369,7 @@ class Session(FileActions):
         if (restart or not t.active) and not self._untraced_tiles:
             if self._tiled(self.scene, w, h) and not self._trace_cached(w, h):
                 self._untraced_tiles = True
-                if self._trace is not None:
-                    self._trace.cancel()
+                t.cancel()
         if self._untraced_tiles:
             if self._tile_step(self.scene, w, h, restart) != "full":
                 return "tracing"
