@@ -161,6 +161,12 @@ def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, ren
         old_ball = s.scene.materials["ball"]
         s.scene = load_scene("default", overrides=["materials.ball.model=oren_nayar"])  # a program not built
         s.changed()
+        key = renderer.forward_keys(s.scene)["ball"]
+        s.render_view((96, 64))
+        assert s.compiling and s.pending == ["ball"]
+        assert key not in renderer.programs  # nothing compiled on the window's thread
+        assert np.array_equal(renderer.read_linear(s.hdr), before)  # the view as it was
+        stand_in.released = True
         s.render_view((96, 64))
         assert s.pending == ["ball"] and s.compiling and "grey stand-ins" in s.status
         src = s.frame_source

@@ -175,3 +175,96 @@ def test_changing_the_frames_size_or_samples_and_tiling_raise_no_gl_error(gl_ctx
     pt.finish()
     pt.release()
     assert gl_ctx.error == "GL_NO_ERROR"
+
+
+def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_ctx, renderer):
+    """A scene opened at the view's size has no known cost (a lecture step's soap bubbles cost
+    tens of times the step before): its first still frame tiles over a preview at a quarter of
+    the resolution (with the view's MSAA, as the tiles), whatever the budget, and ends as the
+    whole frame."""
+    from viewer.app.session import Session
+    from viewer.scene import load_scene
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
+    try:
+        s.render_view(SIZE)  # the session's first frame: whole
+        assert s.quality == "full" and not s.tiling
+        s.scene = load_scene("sphere")
+        s.changed()
+        s.render_view(SIZE)
+        assert s.quality == "refining" and s.tiling
+        assert "drawing the view in tiles" in s.trace_status
+        w, h = SIZE
+        preview = renderer.read_linear(renderer.render(s.scene, s.camera, (w + 3) // 4, (h + 3) // 4,
+                                                       raytrace=False)).copy()  # with the view's MSAA
+        shown = renderer.read_linear(s.hdr)
+        bottom = shown[-(h // 2):]  # below the first tile: the preview, each pixel for its 4 x 4
+        expect = np.repeat(np.repeat(preview, 4, axis=0), 4, axis=1)[:h, :w][-(h // 2):]
+        assert np.array_equal(bottom, expect)
+        while s.quality != "full":
+            s.render_view(SIZE)
+        assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
+    finally:
+        s.release()
+
+
+def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(gl_ctx, renderer, tiled):
+    """Ray tracing turned on where the untraced frame is over the budget: no whole frame at
+    once; the untraced frame is drawn in tiles, then traced from it, and the end is the
+    trace of a whole untraced frame."""
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.lecture import TOUR, tour_scene
+
+    scene = tour_scene([t.key for t in TOUR].index("absorbing_glass"))
+    scene.render.raytrace = False
+    s = tiled.Session(gl_ctx, scene=scene, renderer=renderer, prefetch=False, tiled_frames=True)
+    try:
+        s.render_view(SIZE)
+        s.render_view(SIZE)
+        while s.quality != "full":
+            s.render_view(SIZE)
+        s.set_reflection_mode("ray traced")
+        assert renderer.traces(s.scene)
+        s.render_view(SIZE)
+        assert s.tiling and not s.tracing and s.quality == "tracing"
+        seen_tracing = False
+        for _ in range(2000):
+            if s.quality == "full":
+                break
+            s.render_view(SIZE)
+            seen_tracing |= s.tracing
+        assert s.quality == "full" and seen_tracing
+        pt = ProgressiveTrace(gl_ctx)
+        try:
+            pt.start(renderer, s.scene, s.camera, SIZE[0], SIZE[1])
+            pt.finish()
+            assert np.array_equal(renderer.read_linear(s.hdr), pt.image())
+        finally:
+            pt.release()
+    finally:
+        s.release()
+
+
+def test_a_compare_view_switch_keeps_the_raster_shown(gl_ctx, renderer):
+    """Switching to the split or difference view draws no raster frame again (on a traced scene
+    it would restart the trace); side by side draws it at its own size, and the raster after the
+    reference alone (which draws none) is drawn anew."""
+    from viewer.app.session import Session
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    try:
+        s.render_view(SIZE)
+        version = s.raster_version
+        for mode in ("split", "difference", "raster"):
+            s.set_image_mode(mode)
+            assert not s.dirty
+            s.render_view(SIZE)
+            assert s.raster_version == version, mode
+        s.set_image_mode("side by side")
+        s.render_view((SIZE[0] // 2, SIZE[1]))  # the raster's half of the view
+        assert s.raster_version > version
+        s.set_image_mode("reference")
+        s.set_image_mode("raster")
+        assert s.dirty
+    finally:
+        s.release()

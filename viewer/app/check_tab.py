@@ -1,7 +1,8 @@
 """The plots window's *Check* tab: the report card (``viewer.brdf.report_card``, the checks of
 ``brdf-viewer check``) of one shown material, built-in or a ``.brdf`` file: each check's result
 and number, and the directional albedo against the incident angle. The card is computed when the
-material (or a parameter) changes and kept until then; it takes about a second on software GL."""
+material (or a parameter) changes and kept until then; it takes about a second, computed in the
+plots panel's worker thread in the window (the tab says so meanwhile)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,16 @@ def card(p) -> dict:
     return report(model, p, p.model if p.model != "custom" else model.bfile.path.name)
 
 
+def card_or_error(p) -> tuple:
+    """(card, "") or (None, the error's first line)."""
+    from viewer import ViewerError
+
+    try:
+        return card(p), ""
+    except ViewerError as e:
+        return None, str(e).splitlines()[0]
+
+
 class CheckTab:
     """``draw(names, materials)`` inside the plots window's tab."""
 
@@ -29,11 +40,13 @@ class CheckTab:
         self._key = None
         self._card = None
         self._error = ""
+        self._want = None   # the card to show: (material, parameters, how many times checked again)
+        self._round = 0
 
-    def draw(self, names, materials) -> None:
+    def draw(self, names, materials, cached=None) -> None:
+        """``cached(key, fn)``: the plots panel's (None while its worker computes), else the card
+        is computed here."""
         from imgui_bundle import imgui, implot
-
-        from viewer import ViewerError
 
         if self.material not in names:
             self.material = names[0]
@@ -45,10 +58,16 @@ class CheckTab:
         again = imgui.button("check again##check")
         if (key != self._key or again) and not imgui.is_any_item_active():
             self._key = key
-            try:
-                self._card, self._error = card(p), ""
-            except ViewerError as e:
-                self._card, self._error = None, str(e).splitlines()[0]
+            self._round += bool(again)
+            self._want = key + (self._round,)
+            if cached is None:
+                self._card, self._error = card_or_error(p)
+        if cached is not None and self._want is not None:
+            got = cached(("check",) + self._want, lambda p=p: card_or_error(p))
+            if got is None:
+                imgui.text_wrapped(f"computing the report card of {self._want[0]} ...")
+                return
+            self._card, self._error = got
         if self._error:
             imgui.text_colored(imgui.ImVec4(1.0, 0.35, 0.3, 1.0), self._error)
             return

@@ -29,6 +29,9 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 COMPILE_AHEAD_ENV = "BRDF_VIEWER_COMPILE_AHEAD"
 # "0" draws every still frame whole, however long it takes (Session's tiled_frames off)
 TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
+# "0" computes the plots' data on the window's thread, in the frame that shows them (PlotsPanel's
+# background off)
+PLOT_WORKER_ENV = "BRDF_VIEWER_PLOT_WORKER"
 
 # single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
 # clicker) is never lost: a slow frame only delays it
@@ -117,6 +120,8 @@ class App:
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
         self.plots = PlotsPanel()
+        self.plots.background = os.environ.get(PLOT_WORKER_ENV, "1") != "0"
+        self.plots.wake = glfw.post_empty_event  # a result ready ends the loop's sleep
         self.plots.visible = bool(state.get("plots_visible", False)) and self.session.same_scene
         self.side_panel = SidePanel(self)
         self.set_ui_scale(state.get("ui_scale", 1.0))
@@ -320,6 +325,8 @@ class App:
         if not self.throttle or s.dirty or s.quality != "full" or s.refining:
             return "draw", 0.0
         if s.compile_ready or (s.reference is not None and s.reference.needs_frames):
+            return "draw", 0.0
+        if s.compare.uses_reference and s.reference is None:  # a compare view's first frame starts it
             return "draw", 0.0
         now = time.perf_counter()
         if now - self._last_event < self.SETTLE_S:

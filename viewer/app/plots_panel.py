@@ -9,8 +9,11 @@ Each material keeps one colour in every tab (BRDF Explorer's convention) and fro
 (chosen from its name, ``colour_slots``); a checkbox shows or
 hides it and 'solo' shows it alone. Data are cached per (kind, material parameters, angles) and
 recomputed only when those change; the albedo curve (tens of ms per material) waits while a
-slider is held and is recomputed when it is released. The tab names flow onto a second row
-when the panel is narrow (never shortened to "Sa...").
+slider is held and is recomputed when it is released. In the window (``background``) data not
+cached yet are computed in one worker thread beside the frames (numpy releases the interpreter
+for most of the work): the tab says "computing ..." until they arrive, so switching tabs or
+opening a step whose plot needs seconds of numpy never freezes a frame. The tab names flow onto
+a second row when the panel is narrow (never shortened to "Sa...").
 
 Use from the app (one instance for the window's lifetime)::
 
@@ -84,6 +87,12 @@ class PlotsPanel:
         self._cache: dict = {}
         self._albedo_shown: dict[str, tuple] = {}
         self._own_implot3d = False
+        self.background = False  # True (the window): data computed in a worker thread
+        self.wake = None         # called from the worker when a result is ready (the window's loop)
+        self._jobs: dict = {}    # key -> Future of data being computed
+        self._pool = None
+        self._last: dict = {}    # (kind, material) -> the data drawn last
+        self.updating: set[str] = set()  # materials drawn with their last data this frame
 
     # ------------------------------------------------------------------ public
     def select_tab(self, tab: str) -> None:
@@ -111,8 +120,17 @@ class PlotsPanel:
             return [self.solo]
         return [n for n in materials if self.shown.setdefault(n, True)]
 
+    @property
+    def computing(self) -> bool:
+        """Data for a tab drawn are being computed in the worker thread."""
+        return any(not f.done() for f in self._jobs.values())
+
     def close(self) -> None:
-        """Destroy the implot3d context if this panel created it (call before imgui's)."""
+        """Destroy the implot3d context if this panel created it (call before imgui's); the
+        worker thread stops after the job it runs."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
         if self._own_implot3d:
             from imgui_bundle import implot3d
 
@@ -156,6 +174,7 @@ class PlotsPanel:
             self.clipped = []
             self._controls(materials)
             self.messages = []
+            self.updating = set()
             if self._select is not None:
                 self.tab = self._select
                 self._select = None
@@ -272,15 +291,56 @@ class PlotsPanel:
 
     # ------------------------------------------------------------------ data (cached)
     def cached(self, key, fn):
-        if key not in self._cache:
-            if len(self._cache) > _CACHE_MAX:
-                self._cache.clear()
-            self._cache[key] = fn()
-        return self._cache[key]
+        """``fn()`` once per ``key``; with ``background``, None until the worker thread has it."""
+        if key in self._cache:
+            return self._cache[key]
+        if self.background:
+            job = self._jobs.get(key)
+            if job is None:
+                self._submit(key, fn)
+                return None
+            if not job.done():
+                return None
+            del self._jobs[key]
+            value = job.result()  # an exception raised there is raised here, as computed here
+        else:
+            value = fn()
+        if len(self._cache) > _CACHE_MAX:
+            self._cache.clear()
+        self._cache[key] = value
+        return value
+
+    def _submit(self, key, fn):
+        from concurrent.futures import ThreadPoolExecutor
+
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plots")
+        for k in [k for k, f in self._jobs.items() if not f.running() and f.cancel()]:
+            del self._jobs[k]  # queued for a tab or angle no longer drawn: the newest asks first
+        job = self._pool.submit(fn)
+        job.add_done_callback(lambda _: self.wake and self.wake())
+        self._jobs[key] = job
+
+    def waiting(self, data: dict) -> bool:
+        """Some of ``data`` (name -> data or None) is still being computed: the tab says so, in
+        place of its plot (True), and draws nothing else this frame."""
+        names = [n for n, d in data.items() if d is None]
+        if names:
+            imgui.text_wrapped(f"computing the {self.tab} plot for {', '.join(names)} ...")
+        return bool(names)
 
     def data(self, kind, name, p, *args, fn):
-        """``fn()`` cached per (kind, material, its parameters, ``args``)."""
-        return self.cached((kind, name, params_key(p)) + args, fn)
+        """``fn()`` cached per (kind, material, its parameters, ``args``). While the worker
+        computes it, the last data of this kind and material are returned (a slider dragged,
+        another angle; the tab says they are being updated), or None when there are none."""
+        d = self.cached((kind, name, params_key(p)) + args, fn)
+        if d is not None:
+            self._last[(kind, name)] = d
+            return d
+        last = self._last.get((kind, name))
+        if last is not None:
+            self.updating.add(name)
+        return last
 
     def albedo(self, name, p):
         """The albedo curve of ``p``; while a slider is held, the last one shown (marked stale)."""
@@ -289,8 +349,10 @@ class PlotsPanel:
             self.albedo_stale.add(name)  # a slider is held: keep the old curve until it is released
             return self._albedo_shown[name]
         self.albedo_stale.discard(name)
-        self._albedo_shown[name] = self.cached(key, lambda: plots.albedo_curve(p))
-        return self._albedo_shown[name]
+        d = self.cached(key, lambda: plots.albedo_curve(p))
+        if d is not None:
+            self._albedo_shown[name] = d
+        return d
 
     # ------------------------------------------------------------------ controls
     def _controls(self, materials):
@@ -382,5 +444,7 @@ class PlotsPanel:
         self._keys = []
         TAB_MODULES[tab].draw(self, names, materials)
         self.legend_below()
+        if self.updating:
+            self.messages.append("(computing ... drawn as before meanwhile: " + ", ".join(sorted(self.updating)) + ")")
         for m in self.messages:
             imgui.text_wrapped(m)

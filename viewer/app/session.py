@@ -166,7 +166,8 @@ class Session(FileActions):
         self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
         self._tiles_on = tiled_frames
         self._tiles = None         # the still raster frame drawn in tiles (a ProgressiveTrace, traced=False)
-        self._whole_s = None       # ((w, h), seconds): what the last whole full-quality frame cost
+        self._whole_s = None       # ((w, h), seconds, scene's objects): what the last whole full-quality frame cost
+        self._untraced_tiles = False  # a traced view's untraced frame is being drawn in tiles first
         self._drawn_view = None    # the camera and view mode of the frame shown (_view_key)
         self.prep = None           # Prepare lecture's job (viewer.app.lecture_prep), None when none ran
         self.window_px = None      # the window's framebuffer size (w, h), set by the window each frame
@@ -352,7 +353,7 @@ class Session(FileActions):
             self.notify(str(e), error=True)
         self.ctx.finish()
         if whole_from is not None:
-            self._whole_s = ((rw, rh), time.perf_counter() - whole_from)
+            self._whole_s = ((rw, rh), time.perf_counter() - whole_from, drawn.objects)
         if quality == "full" and self.hdr is not None:
             self._check_finite(self.hdr)
         self.raster_version += 1
@@ -361,7 +362,7 @@ class Session(FileActions):
         self.quality = quality
         self.dirty = False
         self._watch_environment()
-        if self._step_timer is not None and not interacting:
+        if self._step_timer is not None and not interacting and held is not KEEP_IMAGE:
             self._step_shown()
 
     @property
@@ -405,13 +406,23 @@ class Session(FileActions):
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
-        whole frame (or tiled one) at this size over ``TILE_BUDGET_S``, a frame that tiles (not
-        SSR, whose pass reads the whole frame, nor brute-force IBL, which averages whole frames)."""
+        whole frame (or tiled one) over ``TILE_BUDGET_S`` (at another size, scaled by the pixels),
+        or another scene (its cost not known yet: a lecture step's soap bubbles cost 30 times the
+        step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
+        IBL, which averages whole frames)."""
         if not self._tiles_on or scene.render.ssr or scene.render.ibl == "brute_force":
             return False
         if self.tiling:
             return True
-        return self._whole_s is not None and self._whole_s[0] == (w, h) and self._whole_s[1] > self.tile_budget_s
+        if self._whole_s is None:
+            return False
+        (w0, h0), cost, objects = self._whole_s
+        # another size (side by side, a resize, lecture mode's strip): the cost scaled by the pixels
+        return objects is not scene.objects or cost * (w * h) / max(w0 * h0, 1) > self.tile_budget_s
+
+    def _new_scene(self, scene) -> bool:
+        """No frame of ``scene`` was drawn whole yet (another scene was)."""
+        return self._whole_s is not None and self._whole_s[2] is not scene.objects
 
     @property
     def tile_budget_s(self) -> float:
@@ -445,24 +456,41 @@ class Session(FileActions):
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last
             self.hdr = t.start(self.renderer, scene, self.camera, w, h, self.view_mode, traced=False,
-                               under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h)
+                               under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h,
+                               preview_scale=4 if self._new_scene(scene) else 2)
             if under is None:  # this frame drew the preview
                 return "refining"
         self.hdr = t.step(self.tile_budget_s)
         if not t.done:
             return "refining"
         self._tiles_under = self.scene
-        self._whole_s = ((w, h), t.trace_s)
+        self._whole_s = ((w, h), t.trace_s, scene.objects)
         return "full"
 
     def _trace_step(self, w, h, restart: bool) -> str:
         """The progressive trace: (re)start it with the untraced view, or trace its next strip;
-        "tracing" until the traced image is complete, then "full"."""
+        "tracing" until the traced image is complete, then "full". Where the untraced frame
+        itself is over the tile budget (or its cost is not known: another scene, ray tracing
+        just turned on) and the traced-frame cache does not hold the view, the untraced frame is
+        drawn in tiles first (``_tile_step``), then traced from it."""
         from viewer.gl.raytrace import ProgressiveTrace
 
         if self._trace is None:
             self._trace = ProgressiveTrace(self.ctx)
         t = self._trace
+        if restart:
+            self._untraced_tiles = False
+        if (restart or not t.active) and not self._untraced_tiles:
+            if self._tiled(self.scene, w, h) and not self._trace_cached(w, h):
+                self._untraced_tiles = True
+                t.cancel()
+        if self._untraced_tiles:
+            if self._tile_step(self.scene, w, h, restart) != "full":
+                return "tracing"
+            self._untraced_tiles = False
+            self.hdr = t.start(self.renderer, self.scene, self.camera, w, h, self.view_mode,
+                               store=self.lecture_step >= 0, untraced=self.hdr)
+            return "tracing" if not t.done else "full"
         if restart or not t.active:
             self.hdr = t.start(self.renderer, self.scene, self.camera, w, h, self.view_mode, cache=True,
                                store=self.lecture_step >= 0)
@@ -480,6 +508,14 @@ class Session(FileActions):
         # the true time: from the still view's first frame to the last tile, frames between included
         self.notify(f"ray traced in {t.elapsed_s:.1f} s ({t.steps} tiles, {t.trace_s:.1f} s of them tracing)")
         return "full"
+
+    def _trace_cached(self, w, h) -> bool:
+        """The traced-frame cache holds the still view at (w, h)."""
+        from viewer.gl import trace_cache
+
+        key = trace_cache.frame_key(self.scene, self.camera, w, h, self.view_mode, None,
+                                    self.ctx.info.get("GL_RENDERER", ""))
+        return trace_cache.path_for(key).exists()
 
     # ------------------------------------------------------------------ Prepare lecture
     def prepare_lecture(self, size=None, steps=None) -> bool:
@@ -578,14 +614,18 @@ class Session(FileActions):
 
     def _check_finite(self, hdr):
         """Say in one line (a notification and stderr, once per distinct message) when the view
-        holds NaN or Inf pixels: a renderer bug the class would see as holes."""
+        holds NaN or Inf pixels: a renderer bug the class would see as holes. The texels are
+        tested as read (no flipped copy, no mask: a frame at 1456x1080 costs a quarter of that);
+        only a frame with such pixels is read again to name them."""
         from viewer.finite import nonfinite_message, render_switches
 
         try:
-            img = self.renderer.read_linear(hdr)
+            msg = None
+            if not np.isfinite(np.frombuffer(hdr.read(), dtype="f4")).all():  # alpha too: then looked at closely
+                msg = nonfinite_message(self.renderer.read_linear(hdr), f"view of {self.scene.label}", (),
+                                        render_switches(self.scene))
         except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
             return
-        msg = nonfinite_message(img, f"view of {self.scene.label}", (), render_switches(self.scene))
         self.nonfinite = msg
         if msg and msg != self._nonfinite_said:
             self.notify(msg, error=True)
@@ -661,7 +701,7 @@ class Session(FileActions):
             if all(k in progs for k in self.renderer.forward_keys(held, raytrace=rt_held).values()):
                 out = held
         if out is None and not stale and drawn_scene is self.scene:
-            out = KEEP_IMAGE
+            out = KEEP_IMAGE  # the same scene seen the same way: the view shown stays
         if out is None and rt_held is False and self.renderer.traces(self.scene):
             untraced = self.renderer.forward_keys(self.scene, raytrace=False)
             if all(untraced[n] in progs and (not needs_tables(self.scene.materials[n])
@@ -859,15 +899,18 @@ class Session(FileActions):
 
     def set_image_mode(self, mode: str):
         """One of ``compare_view.MODES``: raster, reference, split, side by side, difference,
-        relative difference. Modes without the reference stop its render (no CPU spent)."""
+        relative difference. Modes without the reference stop its render (no CPU spent). The
+        raster image shown stays (a mode whose raster has another size, side by side, draws it
+        anew; one after the reference alone, which draws no raster, too)."""
         from viewer.app.compare_view import MODES
 
         if mode not in MODES:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
-        self.compare.mode = mode
+        was, self.compare.mode = self.compare.mode, mode
         if not self.compare.uses_reference and not self.monte_carlo.active and self.reference is not None:
             self.reference.stop()
-        self.dirty = True
+        if was == "reference" or self.hdr is None:
+            self.dirty = True
 
     def cycle_image_mode(self) -> None:
         from viewer.app.compare_view import MODES

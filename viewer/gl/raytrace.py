@@ -312,7 +312,7 @@ class ProgressiveTrace:
 
     def start(self, renderer, scene, camera, w: int, h: int, view_mode: int = 0, msaa=None, rows: int = 0,
               coarse: bool = True, cache: bool = False, store: bool = False, max_pixels: int = STRIP_PIXELS,
-              traced: bool = True, under=None, like_last: bool = False):
+              traced: bool = True, under=None, like_last: bool = False, untraced=None, preview_scale: int = 2):
         """The untraced view (returned, also the texture's content), and the trace set to begin.
         ``rows``: the first tile's height (default 2: the cost per pixel is not known yet);
         ``coarse``: a half-resolution pass first; ``cache``: open from the traced-frame cache
@@ -322,7 +322,12 @@ class ProgressiveTrace:
         half resolution, texture row order) or over the half-resolution view drawn here;
         ``like_last``: the same scene seen as the last raster frame, with materials or lights
         edited (its tiles are sized by the cost of the last one's rows); ``coarse``, ``cache``
-        and ``store`` do not apply."""
+        and ``store`` do not apply; ``preview_scale``: the preview drawn here at 1 / 2 or 1 / 4
+        of the resolution (4: a scene whose cost is not known yet, e.g. thin films over the whole
+        view, whose half-resolution frame alone may take seconds on software OpenGL).
+        The quarter-resolution preview is drawn with the tiles' MSAA (the half-resolution one
+        without). ``untraced``: a texture of the view's size holding the untraced view already drawn (the
+        window's tiles): copied instead of rendered again."""
         import time
 
         from viewer.gl import trace_cache
@@ -339,7 +344,8 @@ class ProgressiveTrace:
         self._store = bool(store) and traced
         self._passes = []
         if not traced:
-            return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last)
+            return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last,
+                                      preview_scale)
         self._tile_args = {"msaa": 0, "raytrace": None}
         self.raster = False
         if cache or store:
@@ -354,8 +360,14 @@ class ProgressiveTrace:
                 self.total_px = self.traced_px = 1
                 self.elapsed_s = time.perf_counter() - self.started
                 return tex
-        hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
-        self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
+        if untraced is not None and tuple(untraced.size) == (w, h):
+            if untraced is not tex:
+                src = self.ctx.framebuffer(color_attachments=[untraced])
+                self.ctx.copy_framebuffer(self._fbo, src)
+                release_gl(src)
+        else:
+            hdr = renderer.render(scene, camera, w, h, view_mode, msaa=msaa, raytrace=False)
+            self.ctx.copy_framebuffer(self._fbo, renderer.resolved_framebuffer(hdr))
         self.base = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
         self.mask = renderer.traced_mask(scene, camera, w, h)
         self._passes = []
@@ -368,7 +380,7 @@ class ProgressiveTrace:
         self._maybe_finish()
         return tex
 
-    def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under, like_last):
+    def _start_raster(self, renderer, scene, camera, w, h, view_mode, msaa, under, like_last, preview_scale=2):
         """``start(traced=False)``: the meantime's image in the texture, every pixel to draw.
         ``under``: an array, or a texture (this one: kept as it is; another of the view's size:
         copied on the GPU)."""
@@ -385,9 +397,14 @@ class ProgressiveTrace:
         if isinstance(under, np.ndarray) and under.shape[:2] not in ((h, w), (h2, w2)):
             under = None
         if under is None:
-            hdr = renderer.render(scene, camera, w2, h2, view_mode, msaa=0, raytrace=False)
+            s = 4 if preview_scale >= 4 else 2
+            ws, hs = (w + s - 1) // s, (h + s - 1) // s
+            # a quarter-resolution preview with the tiles' MSAA: llvmpipe makes a program's
+            # machine code per sample count at its first draw, so the tiles reuse the preview's
+            hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=msaa if s == 4 else 0, raytrace=False)
             under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
-                                  np.float32).reshape(h2, w2, 4)
+                                  np.float32).reshape(hs, ws, 4)
+            under = np.repeat(np.repeat(under, s, axis=0), s, axis=1)[:h, :w]
         if isinstance(under, np.ndarray):
             if under.shape[:2] != (h, w):
                 under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]

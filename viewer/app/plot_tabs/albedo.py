@@ -12,6 +12,8 @@ from viewer.app.plot_tabs.common import same_data, vec4
 
 def draw(panel, names, materials):
     data = {n: panel.albedo(n, materials[n]) for n in names}
+    if panel.waiting(data):
+        return
     ymax = max([1.0] + [float(plots.reduce_channel(d["albedo"], panel.channel).max()) for d in data.values()])
     if panel.albedo_stale:
         panel.messages.append("(updating when the slider is released: " + ", ".join(sorted(panel.albedo_stale)) + ")")

@@ -38,10 +38,14 @@ def draw(panel, names, materials):
             missing.append(n)
             continue
         d = panel.data("bouguer", n, p, fn=lambda p=p: plots.bouguer_curve(p))
-        if absorbs(d):
+        if d is None:
+            data[n] = None
+        elif absorbs(d):
             data[n] = d
         else:
             clear.append(n)
+    if panel.waiting(data):
+        return
     if missing:
         panel.messages.append("no absorption coefficient sigma_a: " + ", ".join(missing))
     if clear:

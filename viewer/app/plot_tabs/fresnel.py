@@ -72,6 +72,8 @@ def draw(panel, names, materials):
         if panel.inside and not inside:
             panel.messages.append(f"{n}: {src['type']} Fresnel, seen from air (no inside)")
         data[n] = panel.data("fresnel", n, p, inside, fn=lambda p=p, inside=inside: plots.fresnel_curves(p, inside))
+    if panel.waiting(data):
+        return
     if missing:
         panel.messages.append("no Fresnel term (no index of refraction): " + ", ".join(missing))
     if panel.channel == "lum" and any(not np.allclose(d["eta"], d["eta"][0]) for d in data.values()):

@@ -30,6 +30,8 @@ def draw(panel, names, materials):
                           fn=lambda n=n: plots.lobe_3d(materials[n], panel.theta_i, panel.phi, n_theta=31,
                                                        n_phi=61, channel=panel.channel))
             for n in names}
+    if panel.waiting(data):
+        return
     rmax = extent(data, panel.y)
     panel.lobe_extent = rmax
     size = panel.plot_size()

@@ -28,6 +28,8 @@ def draw(panel, names, materials):
     data = {n: panel.data("polar", n, materials[n], round(panel.theta_i, 3), round(panel.phi, 3),
                           fn=lambda n=n: plots.polar_lobe(materials[n], panel.theta_i, panel.phi))
             for n in names}
+    if panel.waiting(data):
+        return
     rmax = 0.0
     curves = {}
     below = 0.0  # how far the refracted rays reach under the surface

@@ -17,9 +17,13 @@ PHI_TICKS = (0.0, 180.0, 360.0)  # three ticks fit a third of a docked panel (im
 _sampling_cache: dict = {}
 
 
-def sampling_data(p, theta_i: float, phi: float):
-    """``plots.sampling_histogram`` for the window, cached per (parameters, angles)."""
+def sampling_data(p, theta_i: float, phi: float, cached=None):
+    """``plots.sampling_histogram`` for the window, cached per (parameters, angles); through
+    ``cached(key, fn)`` (the panel's: None while its worker computes it) when given."""
     key = (json.dumps(p.to_plain(), sort_keys=True, default=str), round(theta_i, 3), round(phi, 3))
+    if cached is not None:
+        return cached(("sampling",) + key,
+                      lambda: plots.sampling_histogram(p, theta_i, phi, samples=SAMPLING_SAMPLES, seed=0))
     if key not in _sampling_cache:
         if len(_sampling_cache) > 32:
             _sampling_cache.clear()
@@ -41,7 +45,7 @@ class SamplingTab:
         self.material = None
         self.shown = None   # the last data drawn (kept while a slider is held)
 
-    def draw(self, names, materials, theta_i: float, phi: float) -> None:
+    def draw(self, names, materials, theta_i: float, phi: float, cached=None) -> None:
         ok = [n for n in names if "sampling" in plots.applicable_kinds(materials[n])]
         skipped = [n for n in names if n not in ok]
         if not ok:
@@ -57,7 +61,15 @@ class SamplingTab:
         if imgui.is_any_item_active() and self.shown is not None:
             d = self.shown  # a slider is held: recompute when it is released
         else:
-            d = self.shown = sampling_data(p, theta_i, phi)
+            d = sampling_data(p, theta_i, phi, cached)
+            if d is None and (self.shown is None or self.shown.get("material") != self.material):
+                imgui.text_wrapped(f"computing the sampling histogram for {self.material} ...")
+                return
+            if d is None:
+                d = self.shown
+                imgui.text_wrapped("(computing the new histogram ... drawn as before meanwhile)")
+            else:
+                self.shown = dict(d, material=self.material)
         imgui.text_wrapped(headline(d))
         if skipped:
             imgui.push_style_color(imgui.Col_.text, imgui.get_style_color_vec4(imgui.Col_.text_disabled))
@@ -110,4 +122,4 @@ class SamplingTab:
 
 
 def draw(panel, names, materials):
-    panel.sampling.draw(names, materials, panel.theta_i, panel.phi)
+    panel.sampling.draw(names, materials, panel.theta_i, panel.phi, panel.cached)

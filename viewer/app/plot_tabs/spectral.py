@@ -49,6 +49,8 @@ def draw(panel, names, materials):
     name = panel.spectral_material
     p = materials[name]
     d = panel.data("spectral", name, p, fn=lambda p=p: spectral_data(p))
+    if panel.waiting({name: d}):
+        return
     imgui.text_wrapped(f"{name}: {d['name']} ({d['description']}); max |error| Schlick {d['max_err_schlick']:.3f}, "
                        f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}")
     imgui.push_style_color(imgui.Col_.text, imgui.get_style_color_vec4(imgui.Col_.text_disabled))

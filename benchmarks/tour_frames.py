@@ -1,0 +1,145 @@
+"""The longest frames of a classroom's tour, in a real window at 1920x1080 and UI scale 1.5:
+
+    xvfb-run -a -s "-screen 0 1920x1080x24" python benchmarks/tour_frames.py [--quick]
+
+The window opens on the default scene; then, one action at a time: L (lecture mode), the digit
+keys 1-9 and 0 and Right through all the tour's steps, Esc, a preset change in the material
+editor, a slider dragged over 12 frames, the gallery with ray tracing turned on, the compare
+views (split, difference, side by side, reference, and back to the raster) and every tab of the
+plots window. Each action is followed frame by frame, drawn flat out, until the view settles
+(nothing dirty, compiling, tiling, tracing or computing for three frames; a compare view also
+waits for the reference's first pass and, for the difference, its metrics) or a bound is
+reached (``SETTLE_S`` seconds, ``--quick`` a third). Prints per action the longest frame, the
+frames over 150 ms and over 500 ms, the frames followed and the time until settled (``*``:
+the bound was reached first). Keys go through the window's key path (``App._taps``), the
+editor's actions through the session's, as the panels call them.
+"""
+
+from __future__ import annotations
+
+import cProfile
+import os
+import pstats
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+SIZE = (1920, 1080)
+UI_SCALE = 1.5
+SETTLE_S = 30.0
+GOAL_MS, LIMIT_MS = 150.0, 500.0
+
+
+def busy(app) -> str:
+    """What still changes the view without input ("" when nothing does)."""
+    s = app.session
+    for what in ("dirty", "refining", "compiling", "pending"):
+        if getattr(s, what):
+            return what
+    if s.quality != "full":
+        return s.quality
+    if getattr(app.plots, "computing", False) and app.plots.visible:
+        return "plots computing"
+    if s.compare.uses_reference:
+        rv = s.reference
+        img = None if rv is None else rv.latest()
+        if img is None or img[1] == 0:
+            return "reference"
+        if s.compare.mode.endswith("difference") and s.compare.metrics is None:
+            return "metrics"
+    return ""
+
+
+def follow(app, bound_s: float, during=None, profile: bool = False) -> dict:
+    """Frames until the view settles (or ``bound_s``); ``during(i)`` runs before frame ``i``.
+    ``profile``: the slowest frame's profile is printed (cProfile, by cumulative time)."""
+    frames, calm, t0 = [], 0, time.perf_counter()
+    i, worst = 0, None
+    while True:
+        if during is not None:
+            during(i)
+        prof = cProfile.Profile() if profile else None
+        t = time.perf_counter()
+        if prof is not None:
+            prof.enable()
+        app.frame(wait=False)
+        if prof is not None:
+            prof.disable()
+        frames.append(1000 * (time.perf_counter() - t))
+        if prof is not None and frames[-1] >= max(frames):
+            worst = prof
+        i += 1
+        if during is None or i >= getattr(during, "frames", 0):
+            calm = 0 if busy(app) else calm + 1
+        settled = calm >= 3
+        over = time.perf_counter() - t0 > bound_s
+        if settled or over:
+            if worst is not None:
+                pstats.Stats(worst).sort_stats("cumulative").print_stats(30)
+            return {"frames": frames, "settled": settled, "s": time.perf_counter() - t0, "busy": busy(app)}
+
+
+def main(argv):
+    quick = "--quick" in argv
+    wanted = argv[argv.index("--profile") + 1] if "--profile" in argv else None
+    bound = SETTLE_S / 3 if quick else SETTLE_S
+    from viewer.app.main import App
+    from viewer.app.plots_panel import TABS
+    from viewer.lecture import TOUR
+    from viewer.scene import material_from_name
+
+    app = App("default", size=SIZE, restore_state=False)
+    app.set_ui_scale(UI_SCALE)
+    rows = []
+
+    def act(label, fn=None, during=None):
+        if fn is not None:
+            fn()
+        r = follow(app, bound, during, profile=wanted is not None and wanted in label)
+        r["label"] = label
+        rows.append(r)
+        f = r["frames"]
+        print(f"  {label:<34} {max(f):7.0f} ms  {sum(x > GOAL_MS for x in f):3d} {sum(x > LIMIT_MS for x in f):3d}"
+              f"  {len(f):4d} {r['s']:6.1f} s{'' if r['settled'] else '* ' + r['busy']}", flush=True)
+
+    def key(k):
+        return lambda: app._taps.append(k)
+
+    print(f"window {SIZE[0]}x{SIZE[1]}, UI scale {UI_SCALE}, settle bound {bound:.0f} s")
+    print(f"  {'action':<34} {'longest':>10} >{GOAL_MS:.0f} >{LIMIT_MS:.0f} frames settled")
+    act("open default")
+    act("L (lecture step 1)", key("l"))
+    for i in range(1, len(TOUR)):
+        k = str((i + 1) % 10) if i < 10 else "right"
+        act(f"{k} (step {i + 1}: {TOUR[i].title[:18]})", key(k))
+    act("Esc (lecture off)", key("escape"))
+    act("default scene", lambda: app.session.open_scene("default"))
+    s = app.session
+    ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
+    act("preset gold (material picker)", lambda: s.set_material(ball, material_from_name("gold")))
+
+    def drag(i):
+        app._last_interaction = time.perf_counter()  # what the window sets while a slider is held
+        s.set_material_param(ball, "roughness", 0.2 + 0.05 * i)
+    drag.frames = 12
+    act("roughness slider drag", during=drag)
+    act("gallery", lambda: s.open_scene("gallery"))
+    act("gallery: ray traced", lambda: s.set_reflection_mode("ray traced"))
+    for mode in ("split", "difference", "side by side", "reference", "raster"):
+        act(f"compare: {mode}", lambda m=mode: s.set_image_mode(m))
+    app.plots.visible = True
+    s.changed()
+    for tab in TABS:
+        act(f"plots tab: {tab}", lambda t=tab: app.plots.select_tab(t))
+    app.close()
+    worst = max(max(r["frames"]) for r in rows)
+    n150 = sum(sum(x > GOAL_MS for x in r["frames"]) for r in rows)
+    n500 = sum(sum(x > LIMIT_MS for x in r["frames"]) for r in rows)
+    print(f"longest frame over all actions {worst:.0f} ms; frames over {GOAL_MS:.0f} ms: {n150}, "
+          f"over {LIMIT_MS:.0f} ms: {n500}; load average {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
