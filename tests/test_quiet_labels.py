@@ -125,6 +125,9 @@ def test_the_warm_up_drains_and_the_loop_then_rests(quiet):
     s.render_view(SIZE)
     for rid in range(len(child.requests)):   # the first frame's own programs, if it asked
         child.answer(rid)
+    if child.requests:   # drawn with stand-ins meanwhile: the answer's frame draws its own
+        assert loop.loop_wait()[0] == "draw"
+        s.render_view(SIZE)
     first = len(child.requests)
     assert s.pending_work() == ["warm-up"] and loop.loop_wait()[0] == "warm"   # no frame for it
     while s.warming:
@@ -154,6 +157,9 @@ def test_what_keeps_the_loop_drawing_and_what_slows_it(quiet):
     s, child = quiet
     loop = Loop(s)
     s.presets_ahead = False
+    s.render_view(SIZE)
+    for rid in range(len(child.requests)):   # the first frame's own programs, if it asked
+        child.answer(rid)
     s.render_view(SIZE)
     assert loop.loop_wait()[0] == "rest"
     s.notify("saved it")   # a toast fades: a frame at least every IDLE_FRAME_S
