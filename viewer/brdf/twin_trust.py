@@ -161,15 +161,42 @@ def failure(twin, what: str, e: BaseException) -> str:
     return f"{where}: the numpy twin raised {type(e).__name__}{': ' + text if text else ''} {what}"
 
 
+class _OverTime(BaseException):
+    """A twin's call ran past the time limit (raised by the alarm, caught in ``call``)."""
+
+
+def _alarm(signum, frame):
+    raise _OverTime()
+
+
 def call(twin, what: str, fn, *args):
     """``fn(*args)``, with anything the twin's code raises (``SystemExit`` too) as one
-    ViewerError naming it; ``KeyboardInterrupt`` is the user's and passes through."""
+    ViewerError naming it; ``KeyboardInterrupt`` is the user's and passes through. On a
+    process's main thread (the commands, the reference's workers) each call is also held to
+    ``time_limit()`` by an alarm, so a twin that sleeps or spins in a later call is one line too
+    (elsewhere, e.g. the window's threads, only the first call in the probe's child is)."""
+    import signal
+    import threading
+
+    timed = (hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread()
+             and signal.getitimer(signal.ITIMER_REAL)[0] == 0.0)
+    limit = time_limit()
+    old = signal.signal(signal.SIGALRM, _alarm) if timed else None
     try:
+        if timed:
+            signal.setitimer(signal.ITIMER_REAL, limit)
         return fn(*args)
     except KeyboardInterrupt:
         raise
+    except _OverTime:
+        raise ViewerError(f"{Path(twin).name}: the numpy twin did not return within {limit:g} s {what} "
+                          f"(the time limit; {TIME_LIMIT_ENV} sets it)") from None
     except BaseException as e:  # noqa: BLE001 - a student's file: any error is theirs, in one line
         raise ViewerError(failure(twin, what, e)) from None
+    finally:
+        if timed:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, old)
 
 
 def import_twin(twin):
