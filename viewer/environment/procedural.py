@@ -228,8 +228,26 @@ def builtin_names() -> tuple[str, ...]:
     return tuple(BUILTIN_MAPS)
 
 
-def generate(name: str, width: int = 1024, height: int = 512) -> np.ndarray:
-    """The built-in map ``name`` (``builtin_names()``) at its default parameters."""
+#: bump when a built-in map's formula changes (its disk-cache entries are then not read)
+GENERATOR_VERSION = 1
+
+
+def generate(name: str, width: int = 1024, height: int = 512, cache: bool = True) -> np.ndarray:
+    """The built-in map ``name`` (``builtin_names()``) at its default parameters. ``cache``:
+    kept in the disk cache (``viewer.environment.cache``, kind "procedural"), since generating
+    the sky takes 0.5-1.5 s of numpy on a loaded machine and reading it back a few ms, which the
+    window's frame would otherwise wait for on each step with the map."""
     if name not in BUILTIN_MAPS:
         raise KeyError(f"no built-in environment {name!r}; allowed: {', '.join(BUILTIN_MAPS)}")
-    return BUILTIN_MAPS[name](width, height)
+    if not cache:
+        return BUILTIN_MAPS[name](width, height)
+    from viewer.environment import cache as disk
+
+    key = disk.content_key(None, {"name": name, "width": int(width), "height": int(height),
+                                  "version": GENERATOR_VERSION}, kind="procedural")
+    hit = disk.load(key, kind="procedural", expect={"map": (int(height), int(width), 3)})
+    if hit is not None and hit["map"].dtype == np.float32:
+        return hit["map"]
+    img = np.ascontiguousarray(BUILTIN_MAPS[name](width, height), dtype=np.float32)
+    disk.store(key, {"map": img}, kind="procedural")
+    return img
