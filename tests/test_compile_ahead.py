@@ -89,8 +89,11 @@ class StandIn:
         pass
 
 
-def test_a_changed_material_is_drawn_as_before_until_its_programs_are_ready(gl_ctx, renderer):
+def test_a_changed_material_is_drawn_as_before_until_its_programs_are_ready(gl_ctx):
     from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+
+    renderer = Renderer(gl_ctx)  # its own: the soap bubble's program not compiled by another test
 
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
     stand_in = s.compile_ahead = StandIn()
@@ -120,6 +123,7 @@ def test_a_changed_material_is_drawn_as_before_until_its_programs_are_ready(gl_c
     finally:
         s.compile_ahead = None
         s.release()
+        renderer.release()
 
 
 def test_idle_frames_send_the_presets_ahead_one_at_a_time(gl_ctx, renderer):
