@@ -15,8 +15,9 @@
 // shaded the rasterizer's way (point / directional lights with shadow maps, split-sum IBL from
 // the material's albedo tables); where it leaves the scene it takes the environment.
 // A vertex past u_rt_depth scattering events (the camera's hit counts as one) is not scattered
-// again: the chain ends in the environment along its ray (the reference's max_depth adds nothing
-// there; the environment is the better guess for the light a longer chain would find).
+// again: at a mirror or glass the chain ends in the environment along its ray (times eta^2 where
+// it leaves glass), a surface of any other kind is shaded (the reference's max_depth adds
+// nothing there; the environment is the better guess for the light a longer chain would find).
 // Branches are kept on a small stack, the heavier one followed first;
 // a branch lighter than RT_MIN_WEIGHT or with no room on the stack ends in the environment
 // along its direction.
@@ -214,13 +215,6 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
             total += r.w * rt_env(r.d);
             continue;
         }
-        // out of depth: the environment along the ray stands for the light it would still find
-        // (black before: dotted rims where grazing chains bounced inside glass, black spots in
-        // a glass shader ball's groove), where the reference's max_depth adds nothing
-        if (r.depth + 1 > u_rt_depth) {
-            total += r.w * rt_env(r.d);
-            continue;
-        }
         vec3 v0 = bvh_vertex(h.tri, 0), v1 = bvh_vertex(h.tri, 1), v2 = bvh_vertex(h.tri, 2);
         float bu = h.uv.x, bv = h.uv.y, bw = 1.0 - bu - bv;
         vec3 hp = bw * v0 + bu * v1 + bv * v2;
@@ -233,6 +227,17 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
         int hkind = int(info.z + 0.5);
         bool entering = dot(ng, r.d) < 0.0;
         if (hkind == CHAIN_GLASS && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+        // Out of depth at a mirror or glass: the environment along the ray stands for the light
+        // a longer chain would find (black before: dotted rims where grazing chains bounced
+        // inside glass, black spots in a glass shader ball's groove), where the reference's
+        // max_depth adds nothing; a ray leaving glass there gets the exit's radiance factor
+        // eta^2 (its Fresnel left out). A surface that is not a delta lobe is shaded as at any
+        // depth below (it scatters no further ray).
+        if (r.depth + 1 > u_rt_depth && hkind != CHAIN_SHADED) {
+            float e = (hkind == CHAIN_GLASS && !entering) ? rt_texel(row, RT_T_ETA)[channel] : 1.0;
+            total += r.w * (e * e) * rt_env(r.d);
+            continue;
+        }
         if (hkind == CHAIN_SHADED) {
             // two-sided as in the forward pass: the side the ray arrives on
             vec3 ngs = entering ? ng : -ng;
