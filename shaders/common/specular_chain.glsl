@@ -14,8 +14,11 @@
 // reference assumes). Where a chain meets a surface that is not a delta lobe, that surface is
 // shaded the rasterizer's way (point / directional lights with shadow maps, split-sum IBL from
 // the material's albedo tables); where it leaves the scene it takes the environment.
-// A vertex past u_rt_depth scattering events (the camera's hit counts as one) adds nothing: the
-// reference's max_depth. Branches are kept on a small stack, the heavier one followed first;
+// A vertex past u_rt_depth scattering events (the camera's hit counts as one) is not scattered
+// again: at a mirror or glass the chain ends in the environment along its ray (times eta^2 where
+// it leaves glass), a surface of any other kind is shaded (the reference's max_depth adds
+// nothing there; the environment is the better guess for the light a longer chain would find).
+// Branches are kept on a small stack, the heavier one followed first;
 // a branch lighter than RT_MIN_WEIGHT or with no room on the stack ends in the environment
 // along its direction.
 //
@@ -44,7 +47,18 @@ const int RT_STACK = 8;
 const float RT_MIN_WEIGHT = 1e-3;
 // RT_T_ALBEDO, _SPEC, _TRANS, _INFO, _SIGMA, _ETA, _K: where a row's parts start (generated/constants.glsl)
 
+const float RT_MIN_COS = 1e-3;  // the least cosine between a ray and the normal it scatters at
+
 vec4 rt_texel(int row, int x) { return texelFetch(u_mat_tex, ivec2(x, row), 0); }
+
+// d (unit) on the side of the plane with normal ng that ng points to: mirrored through the plane
+// when it lies on the other side, lifted to at least RT_MIN_COS above it
+vec3 rt_above(vec3 d, vec3 ng) {
+    float c = dot(d, ng);
+    if (c >= RT_MIN_COS) return d;
+    d -= 2.0 * min(c, 0.0) * ng;
+    return normalize(d + max(RT_MIN_COS - dot(d, ng), 0.0) * ng);
+}
 
 vec3 rt_table(int row, int base, float cos_o) {
     int k0, k1;
@@ -123,10 +137,18 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
     bool entering = dot(ng_w, d) < 0.0;
     vec3 ngf = entering ? ng_w : -ng_w;           // faces the incoming ray
     vec3 nf = dot(n, ngf) < 0.0 ? -n : n;
+    // At a silhouette the interpolated normal can turn away from a ray that meets the triangle
+    // itself from the front (and under MSAA the pixel centre lies past the triangle's edge, with
+    // the normal extrapolated further): its mirror direction then points into the surface, where
+    // the chain bounced on between the faces until its depth ran out (dotted black rims). The
+    // normal is bent toward the ray just enough to face it, and a reflected (refracted) ray left
+    // below (above) the triangle's plane is mirrored through that plane.
+    float c_n = dot(-d, nf);
+    if (c_n < RT_MIN_COS) nf = normalize(nf + (RT_MIN_COS - c_n) * (-d));
     float cos_i = clamp(dot(-d, nf), 0.0, 1.0);
     float eps = 1e-4 * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
     a.o = p + eps * ngf;
-    a.d = reflect(d, nf);
+    a.d = rt_above(reflect(d, nf), ngf);
     a.depth = depth;
     b.depth = depth;
     b.w = vec3(0.0);
@@ -149,7 +171,7 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
         return 1;
     }
     b.o = p - eps * ngf;
-    b.d = normalize(dt);
+    b.d = -rt_above(-normalize(dt), ngf);
     vec4 film = rt_texel(row, RT_T_FILM);
     if (film.w > 0.5) {  // a thin film: RGB R, T = 1 - R (thickness_top_nm: linear in height)
         vec2 fy = rt_texel(row, RT_T_FILM_Y).xy;
@@ -193,7 +215,6 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
             total += r.w * rt_env(r.d);
             continue;
         }
-        if (r.depth + 1 > u_rt_depth) continue;
         vec3 v0 = bvh_vertex(h.tri, 0), v1 = bvh_vertex(h.tri, 1), v2 = bvh_vertex(h.tri, 2);
         float bu = h.uv.x, bv = h.uv.y, bw = 1.0 - bu - bv;
         vec3 hp = bw * v0 + bu * v1 + bv * v2;
@@ -206,6 +227,17 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
         int hkind = int(info.z + 0.5);
         bool entering = dot(ng, r.d) < 0.0;
         if (hkind == CHAIN_GLASS && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+        // Out of depth at a mirror or glass: the environment along the ray stands for the light
+        // a longer chain would find (black before: dotted rims where grazing chains bounced
+        // inside glass, black spots in a glass shader ball's groove), where the reference's
+        // max_depth adds nothing; a ray leaving glass there gets the exit's radiance factor
+        // eta^2 (its Fresnel left out). A surface that is not a delta lobe is shaded as at any
+        // depth below (it scatters no further ray).
+        if (r.depth + 1 > u_rt_depth && hkind != CHAIN_SHADED) {
+            float e = (hkind == CHAIN_GLASS && !entering) ? rt_texel(row, RT_T_ETA)[channel] : 1.0;
+            total += r.w * (e * e) * rt_env(r.d);
+            continue;
+        }
         if (hkind == CHAIN_SHADED) {
             // two-sided as in the forward pass: the side the ray arrives on
             vec3 ngs = entering ? ng : -ng;

@@ -150,6 +150,12 @@ void main() {
     // Two-sided surfaces: shade the side the viewer sees.
     if (!gl_FrontFacing) n = -n;
     if (dot(ng, n) < 0.0) ng = -ng;
+#ifndef THIN_SHELL
+    // Mirrors and smooth glass: at the silhouette the interpolated normal turns away from the
+    // viewer on some pixels (wo.z <= 0), which then reflected nothing, a dotted black rim; the
+    // normal is bent toward the viewer just enough to face it (grazing: R near 1 of the horizon).
+    if (u_ibl_delta != 0 && dot(n, wo_w) < 1e-3) n = normalize(n + (1e-3 - dot(n, wo_w)) * wo_w);
+#endif
     // Shading frame: x = tangent (anisotropy axis), z = normal (docs/conventions.md).
     vec3 t = v_tangent.xyz - n * dot(n, v_tangent.xyz);
     t = dot(t, t) > 1e-12 ? normalize(t) : normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
