@@ -442,6 +442,33 @@ def test_a_stopped_compile_ahead_child_is_replaced():
         ca.stop()
 
 
+BUSY_NEVER_ANSWERS = [sys.executable, "-c", "import sys; print('{\"ready\": true}', flush=True); "
+                      "sys.stdin.readline()\nwhile True: pass"]
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process's CPU time from Linux /proc")
+def test_a_child_that_works_without_answering_is_given_time_then_replaced():
+    # a child using CPU is compiling (a traced program takes tens of seconds on a loaded
+    # machine): not replaced at the first leash, only after BUSY_LEASHES of them
+    import time
+
+    from viewer.app.compile_ahead import CompileAhead
+    from viewer.app.prefetch import BUSY_LEASHES
+    from viewer.scene import load_scene
+
+    ca = CompileAhead(command=BUSY_NEVER_ANSWERS, leash=1.0)
+    try:
+        rid = ca.request(load_scene("sphere"))
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 3.0:  # three leashes of silence while it works
+            assert not ca.answered(rid) and ca.replaced == 0
+            time.sleep(0.1)
+        _wait(lambda: ca.answered(rid), "the busy child's last leash", BUSY_LEASHES * 3)
+        assert ca.replaced == 1
+    finally:
+        ca.stop()
+
+
 def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx, renderer):
     from viewer.app.compile_ahead import CompileAhead
     from viewer.app.session import Session

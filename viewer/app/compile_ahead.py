@@ -34,7 +34,7 @@ import sys
 import threading
 import time
 
-from viewer.app.prefetch import leash_seconds
+from viewer.app.prefetch import Silence, leash_seconds
 
 SIZE = (32, 24)  # the child's frames: the programs and their code do not depend on the size
 
@@ -133,7 +133,7 @@ class CompileAhead:
         self._next = 0
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
         self._sent: dict[int, float] = {}  # unanswered request id -> when it was sent
-        self._heard = time.monotonic()  # the child's last word
+        self._silence = Silence()  # the child's last word, and whether it works meanwhile
         self._proc = None
         self._start()
 
@@ -144,7 +144,8 @@ class CompileAhead:
         except OSError as e:
             self.error = f"cannot start ({e})"
             return
-        self._proc, self.ready, self._heard = proc, False, time.monotonic()
+        self._proc, self.ready = proc, False
+        self._silence = Silence(proc.pid)
         threading.Thread(target=self._read, args=(proc,), name="brdf-viewer-compile-ahead", daemon=True).start()
 
     @property
@@ -172,6 +173,8 @@ class CompileAhead:
             rid = self._ids[key] = self._next
             self._next += 1
         try:
+            if not self._sent:  # given work after waiting idle: its silence starts now
+                self._silence.heard(self._proc.pid)
             self._sent[rid] = time.monotonic()
             self._proc.stdin.write(json.dumps({"id": rid, "scene": text, "base_dir": base, "urgent": urgent}) + "\n")
             self._proc.stdin.flush()
@@ -192,8 +195,10 @@ class CompileAhead:
         past the leash and was replaced)."""
         if rid in self.done or not self.alive:
             return True
-        sent = self._sent.get(rid)
-        if sent is not None and time.monotonic() - max(sent, self._heard) > self.leash:
+        # silent past the leash and not working (stopped, hung): replaced; a child still using
+        # CPU is compiling (a traced program takes tens of seconds on a loaded machine), and
+        # the window compiling it itself meanwhile would freeze its frames for as long
+        if rid in self._sent and self._silence.over(self.leash, self.pid):
             self._replace()
             return True
         return False
@@ -226,7 +231,7 @@ class CompileAhead:
                 continue
             if proc is not self._proc:
                 continue  # a replaced child's last words
-            self._heard = time.monotonic()
+            self._silence.heard(proc.pid)
             if msg.get("ready"):
                 self.ready = True
                 continue

@@ -26,6 +26,46 @@ LEASH_S = 30.0   # the longest silence of a compile-ahead child with work outsta
 PREFETCH_LEASH_S = 120.0  # of a prefetch child (one map's prefilter on a loaded machine: tens of seconds)
 
 
+#: a child still burning CPU is working, not hung: its silence is forgiven up to this many leashes
+#: (a traced program compiles for tens of seconds on a loaded software-GL machine)
+BUSY_LEASHES = 10
+
+
+def cpu_seconds(pid) -> float | None:
+    """The CPU time (user + system) process ``pid`` has used, from ``/proc`` (None where there is
+    no ``/proc`` or the process is gone)."""
+    try:
+        with open(f"/proc/{int(pid)}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, TypeError):
+        return None
+
+
+class Silence:
+    """How long a child has been silent, forgiving the time it spent working: ``heard(pid)``
+    when it prints a line (or is given work); ``over(leash, pid)`` is True when it printed
+    nothing for ``leash`` seconds and used no CPU time over the last leash (stopped, or hung
+    waiting), or printed nothing for ``BUSY_LEASHES`` leashes whatever it did. Without ``/proc``
+    its CPU time is unknown and silence alone counts."""
+
+    def __init__(self, pid=None):
+        self.heard(pid)
+
+    def heard(self, pid=None):
+        self.last = self.busy = time.monotonic()
+        self.cpu = cpu_seconds(pid) if pid is not None else None
+
+    def over(self, leash: float, pid) -> bool:
+        now = time.monotonic()
+        cpu = cpu_seconds(pid) if pid is not None else None
+        if cpu is not None and self.cpu is not None and cpu > self.cpu + 0.005:
+            self.busy = now  # it worked since the last look: not hung
+        if cpu is not None:
+            self.cpu = cpu
+        return now - self.busy > leash or now - self.last > BUSY_LEASHES * leash
+
+
 def leash_seconds(default: float = LEASH_S) -> float:
     """How long a child with work outstanding may stay silent before it is replaced
     (``BRDF_VIEWER_CHILD_LEASH`` seconds, else ``default``)."""
@@ -99,7 +139,7 @@ class Prefetch:
         self.command = list(command or [sys.executable, "-m", "viewer.app.prefetch", str(int(start_step))])
         self.leash = leash_seconds(PREFETCH_LEASH_S) if leash is None else float(leash)
         self._proc = None
-        self._heard = time.monotonic()
+        self._silence = Silence()
         self._stopping = False
         self._start()
         if self._proc is not None:
@@ -112,7 +152,8 @@ class Prefetch:
         except OSError as e:
             self.error, self.done = f"cannot start ({e})", True
             return
-        self._proc, self._heard = proc, time.monotonic()
+        self._proc = proc
+        self._silence = Silence(proc.pid)
         self._thread = threading.Thread(target=self._read, args=(proc,), name="brdf-viewer-prefetch", daemon=True)
         self._thread.start()
 
@@ -123,7 +164,7 @@ class Prefetch:
     def _watch(self):
         while not self.done and not self._stopping:
             time.sleep(min(0.5, self.leash / 4))
-            if self.done or self._stopping or time.monotonic() - self._heard <= self.leash:
+            if self.done or self._stopping or not self._silence.over(self.leash, self.pid):
                 continue
             old = self._proc
             self._proc = None
@@ -150,7 +191,7 @@ class Prefetch:
         for line in proc.stdout:
             if proc is not self._proc:
                 continue
-            self._heard = time.monotonic()
+            self._silence.heard(proc.pid)
             parts = line.split()
             if parts[:1] == ["total"]:
                 self.total = int(parts[1])
