@@ -75,7 +75,7 @@ def main(argv=None) -> int:
 
     from viewer.app.layout import view_columns, window_layout
     from viewer.app.lecture_prep import LecturePrep, traced_steps
-    from viewer.app.session import TRACE_BUDGET_S
+    from viewer.app.view_frames import TRACE_BUDGET_S
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.raytrace import ProgressiveTrace
     from viewer.gl.renderer import Renderer

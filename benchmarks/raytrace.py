@@ -95,7 +95,7 @@ def main(argv=None) -> int:
 
 
 def window_frames(ctx, r, scenes, quick):
-    from viewer.app.session import TRACE_BUDGET_S
+    from viewer.app.view_frames import TRACE_BUDGET_S
     from viewer.camera import OrbitCamera
     from viewer.gl.raytrace import ProgressiveTrace
 

@@ -279,8 +279,9 @@ def test_a_new_scene_opens_in_the_raster_view_the_last_one_as_it_was_left(gl_ctx
 @pytest.fixture
 def tiled(monkeypatch):
     import viewer.app.session as session
+    import viewer.app.view_frames as frames
 
-    monkeypatch.setattr(session, "TILE_BUDGET_S", 0.0)  # every frame is over the budget
+    monkeypatch.setattr(frames, "TILE_BUDGET_S", 0.0)  # every frame is over the budget
     return session
 
 

@@ -120,7 +120,7 @@ def test_a_scene_opened_while_compiling_is_drawn_itself(gl_ctx, renderer):
 def test_tiles_of_a_new_scene_are_never_drawn_over_the_last_scenes_preview(gl_ctx, renderer, monkeypatch):
     # a preview of scene A (drawn while the view moved), then scene B drawn in tiles: the part
     # not tiled yet shows B's own preview, not A's
-    import viewer.app.session as smod
+    import viewer.app.view_frames as smod
     from viewer.scene import load_scene
 
     monkeypatch.setattr(smod, "TILE_BUDGET_S", 1e-6)  # every still frame in tiles, one at a time

@@ -298,7 +298,7 @@ def test_traced_chains_refine_when_still_and_not_while_interacting(session, monk
     # the renderer is asked for raytrace=False. Once still the untraced view comes first, then
     # strips of traced rows, frame after frame (``refining``) until the image equals one traced
     # render bit for bit; a move cancels the trace and the next still view starts over.
-    import viewer.app.session as smod
+    import viewer.app.view_frames as smod
     from viewer.lecture import TOUR
 
     monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))  # an empty traced-frame cache

@@ -64,8 +64,9 @@ def test_a_raster_frame_in_tiles_is_the_whole_frame_and_shows_the_meantime_until
 @pytest.fixture
 def tiled(monkeypatch):
     import viewer.app.session as session
+    import viewer.app.view_frames as frames
 
-    monkeypatch.setattr(session, "TILE_BUDGET_S", 0.0)  # every frame is over the budget
+    monkeypatch.setattr(frames, "TILE_BUDGET_S", 0.0)  # every frame is over the budget
     return session
 
 

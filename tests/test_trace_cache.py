@@ -251,7 +251,7 @@ def test_screenshot_of_a_traced_view_neither_waits_nor_restarts(session, cache_d
     # trace goes on where it was
     from PIL import Image
 
-    import viewer.app.session as smod
+    import viewer.app.view_frames as smod
 
     monkeypatch.setattr(smod, "TRACE_BUDGET_S", 1e-9)
     session.lecture(_step("tir"))
@@ -276,7 +276,7 @@ def test_reported_time_is_the_wall_clock(session, cache_dir, monkeypatch):
     # frames between included: here 0.05 s of other work between frames
     import time
 
-    import viewer.app.session as smod
+    import viewer.app.view_frames as smod
 
     monkeypatch.setattr(smod, "TRACE_BUDGET_S", 1e-9)
     session.lecture(_step("tir"))

@@ -2,8 +2,8 @@
 load, save), meshes, environment maps, files dropped on the window. Each keeps what was shown
 when it fails and says why through ``notify`` (one message naming the file and the problem).
 
-``FileActions`` is a part of ``viewer.app.session.Session`` (it uses the session's ``scene``,
-``camera``, ``renderer``, ``dirty`` and ``notify``). No imgui, no glfw."""
+``FileActions`` is held by ``viewer.app.session.Session`` as ``session.files`` (it uses the
+session's ``scene``, ``camera``, ``renderer``, ``dirty`` and ``notify``). No imgui, no glfw."""
 
 from __future__ import annotations
 
@@ -27,7 +27,11 @@ BRDF_LIBRARY: list[str] = []
 
 
 class FileActions:
-    """Scenes, materials, meshes and environment maps of a ``Session``."""
+    """Scenes, materials, meshes and environment maps of the ``Session`` ``session``."""
+
+    def __init__(self, session):
+        self.session = session
+        self._mesh_target = None
 
     # ------------------------------------------------------------------ materials
     def set_material(self, name: str, params) -> None:
@@ -35,13 +39,14 @@ class FileActions:
         or smooth glass arriving while reflections are not traced says what shows it."""
         from viewer.app.reflections import delta_materials, traced_hint
 
-        was = name in delta_materials(self.scene)
-        self.scene.materials[name] = params
-        self.dirty = True
-        if getattr(self, "twins", None) is not None:  # a file material whose twin is not trusted: ask
-            self.twins.scan_material(params)
-        if not was and name in delta_materials(self.scene) and traced_hint(self.scene):
-            self.notify(traced_hint(self.scene))
+        s = self.session
+        was = name in delta_materials(s.scene)
+        s.scene.materials[name] = params
+        s.dirty = True
+        if getattr(s, "twins", None) is not None:  # a file material whose twin is not trusted: ask
+            s.twins.scan_material(params)
+        if not was and name in delta_materials(s.scene) and traced_hint(s.scene):
+            s.notify(traced_hint(s.scene))
 
     def set_material_param(self, name: str, param: str, value) -> bool:
         """Set one parameter of material ``name``, validated through the model's spec: NaN, Inf,
@@ -49,23 +54,23 @@ class FileActions:
         from viewer import brdf
         from viewer.brdf.spec import validate_value
 
-        mat = self.scene.materials.get(name)
+        s = self.session
+        mat = s.scene.materials.get(name)
         if mat is None:
-            self.notify(f"material {name!r}: not in the scene; it has {', '.join(self.scene.materials)}",
-                        error=True)
+            s.notify(f"material {name!r}: not in the scene; it has {', '.join(s.scene.materials)}", error=True)
             return False
         spec = brdf.spec_of(mat)
         by_name = {p.name: p for p in spec.params}
         p = by_name.get(param)
         if p is None:
-            self.notify(f"{mat.model}.{param}: unknown parameter; allowed: {', '.join(by_name)}", error=True)
+            s.notify(f"{mat.model}.{param}: unknown parameter; allowed: {', '.join(by_name)}", error=True)
             return False
         try:
             if p.kind in ("float", "rgb", "choice"):
                 value = validate_value(p, list(np.asarray(value, float).reshape(-1)) if p.kind == "rgb" else value,
                                        f"{mat.model}.{p.name}", brdf.lookup_spec)
         except (ViewerError, TypeError, ValueError) as e:
-            self.notify(str(e) if isinstance(e, ViewerError) else f"{mat.model}.{param}: {e}", error=True)
+            s.notify(str(e) if isinstance(e, ViewerError) else f"{mat.model}.{param}: {e}", error=True)
             return False
         self.set_material(name, mat.replace(**{param: value}))
         return True
@@ -75,13 +80,14 @@ class FileActions:
         from viewer.io import atomic_write_bytes
         from viewer.scene import material_to_toml
 
+        s = self.session
         try:
-            text = material_to_toml(name, self.scene.materials[name])
+            text = material_to_toml(name, s.scene.materials[name])
             atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
         except (OSError, KeyError, ViewerError) as e:
-            self.notify(f"material not saved: {e}", error=True)
+            s.notify(f"material not saved: {e}", error=True)
             return False
-        self.notify(f"saved material {name} to {path}")
+        s.notify(f"saved material {name} to {path}")
         return True
 
     def load_material(self, name: str, path) -> bool:
@@ -89,44 +95,48 @@ class FileActions:
         a whole scene), validated like a scene's; on any problem the old material stays."""
         from viewer.scene import load_material_file
 
+        s = self.session
         try:
             first, params = load_material_file(path)
         except ViewerError as e:
-            self.notify(f"material not loaded: {e}", error=True)
+            s.notify(f"material not loaded: {e}", error=True)
             return False
-        self.scene.materials[name] = params
-        self.dirty = True
-        self.notify(f"material {name} <- {path} [{first}]")
+        s.scene.materials[name] = params
+        s.dirty = True
+        s.notify(f"material {name} <- {path} [{first}]")
         return True
 
     # ------------------------------------------------------------------ scenes and meshes
-    def _set_scene(self, scene):
+    def set_scene(self, scene):
+        """Show ``scene``: a new camera on it, the old scene's mesh buffers freed, drawn anew."""
         from viewer.camera import OrbitCamera
 
-        self.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
-        self.scene = scene
-        self.camera = OrbitCamera.from_scene(scene)
-        self.hdr = None
-        self.dirty = True
-        if getattr(self, "twins", None) is not None:  # its file materials' untrusted twins: ask
-            self.twins.scan(scene)
+        s = self.session
+        s.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
+        s.scene = scene
+        s.camera = OrbitCamera.from_scene(scene)
+        s.hdr = None
+        s.dirty = True
+        if getattr(s, "twins", None) is not None:  # its file materials' untrusted twins: ask
+            s.twins.scan(scene)
 
     def open_scene(self, ref) -> bool:
         """Load a scene file, a screenshot (.png) or a built-in name; on failure keep the old."""
         from viewer.scene import load_scene
 
+        s = self.session
         try:
             scene = load_scene(str(ref))
         except ViewerError as e:
-            self.notify(f"scene not opened: {e}", error=True)
+            s.notify(f"scene not opened: {e}", error=True)
             return False
         except Exception as e:  # noqa: BLE001 - anything unexpected keeps the running scene
-            self.notify(f"scene not opened: {ref}: {type(e).__name__}: {e}", error=True)
+            s.notify(f"scene not opened: {ref}: {type(e).__name__}: {e}", error=True)
             return False
-        self._set_scene(scene)
-        self.lecture_step = -1
+        self.set_scene(scene)
+        s.lecture_step = -1
         notes = [n for n in (scene.size_note(), unshadowed_note(scene)) if n]   # how large; lights unshadowed
-        self.notify(f"opened {ref}" + (f" ({'; '.join(notes)})" if notes else ""))
+        s.notify(f"opened {ref}" + (f" ({'; '.join(notes)})" if notes else ""))
         return True
 
     def save_scene(self, path) -> bool:
@@ -135,23 +145,25 @@ class FileActions:
         from viewer.scene import scene_to_toml
         from viewer.screenshot import scene_with_camera
 
+        s = self.session
         try:
-            text = scene_to_toml(scene_with_camera(self.scene, self.camera))
+            text = scene_to_toml(scene_with_camera(s.scene, s.camera))
             atomic_write_bytes(Path(path).expanduser(), text.encode("utf-8"))
         except (OSError, ViewerError) as e:
-            self.notify(f"scene not saved: {e}", error=True)
+            s.notify(f"scene not saved: {e}", error=True)
             return False
-        self.notify(f"saved scene {path}")
+        s.notify(f"saved scene {path}")
         return True
 
     @property
     def mesh_target(self) -> int:
         """The object a loaded mesh replaces: the one picked in the panel, else the largest
         object that is not a plane."""
-        if self._mesh_target is not None and self._mesh_target < len(self.scene.objects):
+        s = self.session
+        if self._mesh_target is not None and self._mesh_target < len(s.scene.objects):
             return self._mesh_target
         best, best_r = 0, -1.0
-        for i, o in enumerate(self.scene.objects):
+        for i, o in enumerate(s.scene.objects):
             if o.mesh == "plane":
                 continue
             p = o.world_positions()
@@ -169,9 +181,10 @@ class FileActions:
         mesh file, scaled to the same bounding-sphere radius and centre; errors keep the old."""
         from viewer.mesh import load_mesh
 
-        objs = self.scene.objects
+        session = self.session
+        objs = session.scene.objects
         if not objs:
-            self.notify("mesh not loaded: the scene has no objects", error=True)
+            session.notify("mesh not loaded: the scene has no objects", error=True)
             return False
         if object_index is None:
             object_index = self.mesh_target
@@ -180,10 +193,10 @@ class FileActions:
         try:
             md = load_mesh(str(Path(path).expanduser().absolute()), None, where="Files > Load mesh")
         except ViewerError as e:
-            self.notify(f"mesh not loaded: {e}", error=True)
+            session.notify(f"mesh not loaded: {e}", error=True)
             return False
         except Exception as e:  # noqa: BLE001 - trimesh raises many kinds for a broken file
-            self.notify(f"mesh not loaded: {path}: {type(e).__name__}: {e}", error=True)
+            session.notify(f"mesh not loaded: {path}: {type(e).__name__}: {e}", error=True)
             return False
 
         def sphere(points):
@@ -195,18 +208,19 @@ class FileActions:
         s = old_r / new_r
         obj.mesh = str(Path(path).expanduser().absolute())
         obj.mesh_data = md
-        self.renderer.forget_meshes(keep=[o.mesh_data for o in objs])
+        session.renderer.forget_meshes(keep=[o.mesh_data for o in objs])
         obj.scale = s
         obj.rotate_y_deg = 0.0
         obj.translate = old_c - s * new_c
-        self.dirty = True
-        self.notify(f"object {object_index} <- {path} ({len(md.indices):,} triangles)")
+        session.dirty = True
+        session.notify(f"object {object_index} <- {path} ({len(md.indices):,} triangles)")
         return True
 
     def file_action(self, kind: str, path: str) -> bool:
         """A path picked or typed under Files: open / save a scene, load a mesh, load / save the
         material of the object meshes replace."""
-        target = self.scene.objects[self.mesh_target].material if self.scene.objects else None
+        s = self.session
+        target = s.scene.objects[self.mesh_target].material if s.scene.objects else None
         if kind == "scene":
             return self.open_scene(path)
         if kind == "save_scene":
@@ -235,20 +249,21 @@ class FileActions:
             elif low.endswith(".brdf"):
                 self.load_brdf_file(p)
             else:
-                self.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
-                            ".brdf files or a folder of them, meshes " + " ".join(MESH_SUFFIXES), error=True)
+                self.session.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
+                                    ".brdf files or a folder of them, meshes " + " ".join(MESH_SUFFIXES), error=True)
 
     def open_brdf_library(self, folder) -> bool:
         """A folder of ``.brdf`` files: its files join the material picker beside the presets
         (``file: NAME.brdf``), each loaded when picked. A folder without one is one error."""
+        s = self.session
         folder = os.path.abspath(os.path.expanduser(str(folder)))
         names = sorted(f for f in os.listdir(folder) if f.lower().endswith(".brdf")) if os.path.isdir(folder) else []
         if not names:
-            self.notify(f"{folder}: no .brdf files in the folder", error=True)
+            s.notify(f"{folder}: no .brdf files in the folder", error=True)
             return False
         if folder not in BRDF_LIBRARY:
             BRDF_LIBRARY.append(folder)
-        self.notify(f"{len(names)} .brdf files from {folder} in the material picker")
+        s.notify(f"{len(names)} .brdf files from {folder} in the material picker")
         return True
 
     def load_brdf_file(self, path, name: str | None = None) -> bool:
@@ -257,23 +272,24 @@ class FileActions:
         compile keeps the material and reports one line naming ``FILE.brdf:LINE``."""
         from viewer import brdf, file_brdf_evaluator
 
+        s = self.session
         if name is None:
-            if not self.scene.objects:
-                self.notify(f"{path}: the scene has no object to put it on", error=True)
+            if not s.scene.objects:
+                s.notify(f"{path}: the scene has no object to put it on", error=True)
                 return False
-            name = self.scene.objects[self.mesh_target].material
+            name = s.scene.objects[self.mesh_target].material
         try:
             model = brdf.load(path)
             file_brdf_evaluator().check(model.bfile)
             params = model.params()
         except ViewerError as e:
-            self.notify(str(e).splitlines()[0], error=True)
+            s.notify(str(e).splitlines()[0], error=True)
             return False
         folder = str(model.bfile.path.parent)
         if folder not in BRDF_LIBRARY:  # its neighbours join the picker's file materials
             BRDF_LIBRARY.append(folder)
         self.set_material(name, params)
-        self.notify(f"material {name!r} <- {model.bfile.path.name} ({len(model.bfile.declarations)} parameters)")
+        s.notify(f"material {name!r} <- {model.bfile.path.name} ({len(model.bfile.declarations)} parameters)")
         return True
 
     def refit_file_materials(self) -> list[str]:
@@ -283,21 +299,23 @@ class FileActions:
         (``viewer.brdf.file_carry``). Returns the names of the materials that changed."""
         from viewer.brdf.file_carry import carry_over
 
+        s = self.session
         changed = []
-        for name, params in list(self.scene.materials.items()):
+        for name, params in list(s.scene.materials.items()):
             fitted = carry_over(params)
             if fitted is not params:
-                self.scene.materials[name] = fitted
+                s.scene.materials[name] = fitted
                 changed.append(name)
         if changed:
-            self.dirty = True
+            s.dirty = True
         return changed
 
     # ------------------------------------------------------------------ environment
     def set_environment(self, ref) -> bool:
         """Switch the environment to a built-in map name, a .hdr/.exr path or None (constant).
         A file that does not load leaves the previous environment and shows why."""
-        env = self.scene.environment
+        s = self.session
+        env = s.scene.environment
         new = dataclasses.replace(env)
         new.__dict__.pop("_map_cache", None)
         if ref is None:
@@ -312,12 +330,12 @@ class FileActions:
             try:
                 new.radiance_map()
             except ViewerError as e:
-                self.notify(f"environment not changed: {e}", error=True)
+                s.notify(f"environment not changed: {e}", error=True)
                 return False
             except Exception as e:  # noqa: BLE001 - any decoder failure keeps the old map
-                self.notify(f"environment not changed: {ref}: {type(e).__name__}: {e}", error=True)
+                s.notify(f"environment not changed: {ref}: {type(e).__name__}: {e}", error=True)
                 return False
-        self.scene.environment = new
+        s.scene.environment = new
         text = f"environment: {ref or 'constant'}"
         if new.map is not None:  # a map's own units (the sky is in kcd/m^2): start at mid-grey
             auto = new.mid_grey_intensity()
@@ -325,6 +343,6 @@ class FileActions:
                 new.intensity = float(auto)
                 text += (f" (intensity {auto:.3g}: mean luminance {new.mean_luminance():.3g} -> mid-grey "
                          "0.18; edit it under Environment)")
-        self.notify(text)
-        self.dirty = True
+        s.notify(text)
+        s.dirty = True
         return True

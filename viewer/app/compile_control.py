@@ -1,0 +1,214 @@
+"""Programs compiled beside the window: a changed material's programs compile in the
+compile-ahead child (``viewer.app.compile_ahead``) while the view draws it as it was
+(``held_back``: the materials as last drawn, the view kept, the scene untraced, or grey
+stand-ins for another scene), and the idle-time warm-up (the picker's presets sent to the child,
+or without it the models compiled on this thread one per idle frame). ``CompileControl`` is held
+by ``viewer.app.session.Session`` as ``session.compiles``. No imgui, no glfw."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from viewer import ViewerError
+
+KEEP_IMAGE = object()  # held_back: keep the view shown as it is (the same scene, seen the same way)
+UNTRACED = object()    # held_back: the scene itself, untraced, while its traced programs compile beside
+#: a stand-in material's albedo: a new scene whose programs compile beside is drawn with grey
+#: Lambert stand-ins for the materials not ready (its own objects, never the last scene's frame)
+STAND_IN_ALBEDO = 0.5
+
+
+class CompileControl:
+    """What compiles beside ``session``'s window and what is drawn meanwhile (``on``: with the
+    compile-ahead child; the scene's presets compile ahead while idle)."""
+
+    def __init__(self, session, on: bool = False):
+        from viewer import brdf
+
+        self.session = session
+        self.on = on
+        self.child = None          # the CompileAhead child, started on first need
+        self.pending: list[str] = []  # materials drawn as they were while their programs compile
+        self.awaiting = None       # the compile-ahead request the view waits for
+        self.note = None           # the message saying so (a toast only while it is true)
+        self.presets_ahead = True  # with the child: the picker's presets compile ahead while idle
+        # models whose programs compile while idle on this thread (with the compile-ahead child
+        # the picker's presets compile there instead, and this list stays empty)
+        self.warm = [] if on else list(brdf.names())
+        self._ahead_sent = False   # the presets still to send to the child (False: not begun)
+
+    def poll(self) -> None:
+        """The request the view waits for answered: the view is drawn again, with the material
+        as it now is."""
+        if self.awaiting is not None and self.child.answered(self.awaiting):
+            self.awaiting = None
+            self.session.dirty = True
+
+    @property
+    def compiling(self) -> bool:
+        """A changed material's programs are compiling beside the window (``pending`` names
+        the materials drawn as they were meanwhile)."""
+        return self.awaiting is not None and not self.child.answered(self.awaiting)
+
+    @property
+    def compile_ready(self) -> bool:
+        """The programs the view waits for are ready: the next frame draws the material as it is."""
+        return self.awaiting is not None and self.child.answered(self.awaiting)
+
+    def worker(self):
+        """The compile-ahead child (started on first use), None when it cannot run."""
+        if self.child is None:
+            from viewer.app.compile_ahead import CompileAhead
+
+            s = self.session
+            self.child = CompileAhead(on_done=lambda: s.wake and s.wake(), on_notice=s.notify)
+        return self.child if self.child.alive else None
+
+    def held_back(self, rt_now, rt_held, stale: bool):
+        """What to draw while programs compile beside the window: None (the scene, now: nothing
+        to compile, or no child to compile it), a copy of the scene with the changed materials
+        as they were last drawn (their programs are ready), KEEP_IMAGE (the same scene seen the
+        same way: the view shown stays), UNTRACED (the scene without its traced chains, whose
+        programs are ready) or, for another scene than the one drawn, the scene with the
+        materials not ready as grey stand-ins: never another scene's frame or materials.
+        ``rt_now`` / ``rt_held``: the traced-chain switch of the frame and of a held one."""
+        from viewer.app.compile_ahead import params_key
+
+        from viewer.gl.renderer import frame_switches
+
+        s = self.session
+        keys = s.renderer.forward_keys(s.scene, raytrace=rt_now)
+        progs = s.renderer.programs
+        tables = s.renderer.tables
+        ssr_on, env_on = frame_switches(s.scene, rt_now)[:2]
+        ms_scene = bool(s.scene.render.ms_compensation)
+
+        def needs_tables(p):  # as Renderer._environment builds them: for IBL, SSR and compensation
+            return ssr_on or env_on or ms_scene or bool(p.get("multiple_scattering", False))
+
+        missing = [n for n, k in keys.items() if k not in progs
+                   or (needs_tables(s.scene.materials[n]) and not tables.ready(s.scene.materials[n]))]
+        if not missing:  # drawn with its own programs: nothing is awaited for this scene
+            self.pending, self.awaiting = [], None
+            return None
+        ca = self.worker()
+        rid = None if ca is None else ca.request(s.scene, urgent=True)
+        done_beside = ca is not None and all(
+            (keys[n] in progs or keys[n] in ca.compiled) and params_key(s.scene.materials[n]) in ca.tables
+            for n in missing)
+        if rid is None or ca.answered(rid) or done_beside:
+            # compiled beside (the driver's cache has the programs; the tables come along), or
+            # it failed there: compile here, which reports the error as always
+            for n in missing:
+                data = ca.tables.get(params_key(s.scene.materials[n])) if ca is not None else None
+                if data is not None:
+                    tables.adopt(s.scene.materials[n], data)
+            self.pending = []
+            return None
+        drawn_scene, drawn = s.frames.drawn_materials or (None, {})
+        # the same scene with materials edited (another scene, e.g. a lecture step, is never
+        # mixed with what was drawn before: it is drawn itself, untraced or with stand-ins)
+        before = {n: drawn.get(n) for n in missing} if drawn_scene is s.scene else {}
+        out, how = None, "drawn as before until ready"
+        if before and all(p is not None for p in before.values()):
+            held = dataclasses.replace(s.scene, materials={**s.scene.materials, **before})
+            if all(k in progs for k in s.renderer.forward_keys(held, raytrace=rt_held).values()):
+                out = held
+        if out is None and not stale and drawn_scene is s.scene:
+            out = KEEP_IMAGE  # the same scene seen the same way: the view shown stays
+        if out is None and rt_held is False and s.renderer.traces(s.scene):
+            untraced = s.renderer.forward_keys(s.scene, raytrace=False)
+            if all(untraced[n] in progs and (not needs_tables(s.scene.materials[n])
+                                             or tables.ready(s.scene.materials[n])) for n in untraced):
+                out, how = UNTRACED, "drawn untraced until ready"
+        if out is None:  # another scene: its own objects, the materials not ready as stand-ins
+            out, how = self.stand_in(missing), "drawn with grey stand-ins until ready"
+        if self.awaiting != rid:
+            s.notify(f"compiling {', '.join(missing)} in the background: {how}")
+            self.note = s.messages[-1]
+        self.awaiting = rid
+        self.pending = missing
+        return out
+
+    def stand_in(self, missing):
+        """The scene with ``missing`` materials as grey Lambert stand-ins (``STAND_IN_ALBEDO``):
+        its own objects, drawn with the cheapest program there is (compiled here if it must be,
+        a fraction of what the missing ones cost) while theirs compile beside."""
+        from viewer import brdf
+
+        s = self.session
+        grey = brdf.get("lambert").params(albedo=[STAND_IN_ALBEDO] * 3)
+        out = dataclasses.replace(s.scene, materials={**s.scene.materials, **{n: grey for n in missing}})
+        out.stand_in = True  # FrameSource.form "stand-in"
+        return out
+
+    @property
+    def warming(self) -> bool:
+        """Idle-time warm-up still to do on this thread: models to compile (no compile-ahead
+        child), or presets still to send to the child (one per ``warm_one``)."""
+        if self.on:
+            if not self.presets_ahead or self._ahead_sent == []:
+                return False
+            return self.child is None or self.child.alive
+        return bool(self.warm)
+
+    @property
+    def warms_beside(self) -> bool:
+        """The idle-time warm-up goes to the compile-ahead child (a preset's scene sent per step,
+        no frame needed), not compiled on this thread."""
+        return self.on
+
+    def warm_one(self) -> None:
+        """Compile one model's forward program while idle, so switching models later does not
+        wait for the shader compiler (software GL compiles take 0.1-0.5 s each). With the
+        compile-ahead child: ask it once for the scene's presets on its first material instead,
+        and nothing compiles here."""
+        from viewer import brdf
+
+        s = self.session
+        if self.on:
+            if self.presets_ahead:
+                self._warm_presets_ahead()
+            return
+        if not self.warm:
+            return
+        name = self.warm.pop(0)
+        try:
+            s.renderer.forward_program(brdf.get(name).params())
+        except ViewerError as e:
+            s.notify(str(e), error=True)
+
+    def ask_ahead(self, step: int) -> None:
+        from viewer.lecture import tour_scene
+
+        ca = self.worker()
+        if ca is not None:
+            try:
+                ca.request(tour_scene(step), urgent=False)
+            except ViewerError:
+                pass  # the step reports its own problem when it opens
+
+    def _warm_presets_ahead(self) -> None:
+        """The presets the material picker offers, each on the scene's first non-plane object,
+        sent to the compile-ahead child behind any urgent request, one per idle frame (writing
+        a scene's text takes milliseconds)."""
+        from viewer.brdf.presets import PRESETS
+        from viewer.scene import material_from_name
+
+        s = self.session
+        if self._ahead_sent is False:
+            self._ahead_sent = sorted(PRESETS)
+        if not self._ahead_sent:
+            return
+        preset = self._ahead_sent.pop(0)
+        ca = self.worker()
+        objs = [o for o in s.scene.objects if o.mesh != "plane"] or s.scene.objects
+        if ca is None or not objs:
+            self._ahead_sent = []
+            return
+        try:
+            params = material_from_name(preset)
+        except ViewerError:
+            return
+        name = objs[0].material
+        ca.request(dataclasses.replace(s.scene, materials={**s.scene.materials, name: params}), urgent=False)

@@ -1,0 +1,384 @@
+"""What the view draws and how: the raster frame of the still view, whole or in tiles over the
+view as it was (``tiled_frames``), the progressive trace of a scene with traced chains (strips
+over its untraced frame), brute-force IBL's running mean, and the record of what each frame was
+drawn from (``FrameSource``). ``ViewFrames`` is held by ``viewer.app.session.Session`` as
+``session.frames``; it asks the session's other parts what to draw while programs compile
+(``session.compiles``) and tells the lecture when a step's first frame is drawn
+(``session.tour``). No imgui, no glfw."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+
+import numpy as np
+
+from viewer import ViewerError
+from viewer.app.compile_control import KEEP_IMAGE, UNTRACED
+from viewer.gl.context import release_gl
+
+BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
+TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
+# tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
+# this much time per frame, over the view as it was or its half-resolution preview (the window
+# then answers input within a frame's budget on software OpenGL, where one frame at 1280 x 720
+# with MSAA takes 0.3 s); less where the rest of the window's frame leaves less of FRAME_GOAL_S
+TILE_BUDGET_S = 0.07
+FRAME_GOAL_S = 0.12
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameSource:
+    """What the raster image shown was drawn from: ``scene`` (the session's scene object then),
+    its materials (``materials``: name -> params as drawn), and ``form``: "own" (every material
+    with its own programs), "held" (the same scene with the edited materials as they were),
+    "untraced" (the scene without its traced chains), "stand-in" (its objects, the materials not
+    ready drawn as grey Lambert stand-ins). ``under``: where the frame is drawn in tiles, the
+    scene of the image the tiles not drawn yet show (the same scene, always)."""
+    scene: object
+    materials: dict
+    form: str
+    under: object = None
+
+
+class ViewFrames:
+    """The raster frames of ``session``'s view (``tiled_frames``: a still view whose whole frame
+    takes longer than ``TILE_BUDGET_S`` is drawn in tiles over the next frames, ``quality``
+    "refining" meanwhile)."""
+
+    def __init__(self, session, tiled_frames: bool = False):
+        self.session = session
+        self.hdr = None            # the raster image shown (a texture), None before the first
+        self.hdr_for = None        # the view size (w, h) the image shown was drawn for
+        self.raster_version = 0
+        self.render_ms = 0.0
+        self.frame_rest_s = 0.0    # what the window's frame costs beside render_view (the window sets it)
+        self.quality = "full"      # "preview" after an interactive (half-resolution) frame
+        self.bf_count = 0          # brute-force IBL: frames in the running mean
+        self.nonfinite = None      # the last check's message about NaN / Inf pixels, else None
+        self.frame_source = None   # what the raster image shown was drawn from (FrameSource)
+        self.drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
+        self._tiles_under = None   # the scene of the image under a tiled frame's tiles
+        self._bf_sum = None
+        self._bf_tex = None
+        self._nonfinite_said = None
+        self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
+        self._tiles_on = tiled_frames
+        self._tiles = None         # the still raster frame drawn in tiles (a ProgressiveTrace, traced=False)
+        self._whole_s = None       # ((w, h), seconds, scene's objects): what the last whole full-quality frame cost
+        self._untraced_tiles = False  # a traced view's untraced frame is being drawn in tiles first
+        self._drawn_view = None    # the camera and view mode of the frame shown (_view_key)
+        self._shown = None         # (texture, framebuffer): the view kept while the preparation renders
+
+    def release(self) -> None:
+        """Free the textures and traces this part made."""
+        if self._bf_tex is not None:
+            self._bf_tex.release()
+            self._bf_tex = None
+        for t in (self._trace, self._tiles):
+            if t is not None:
+                t.release()
+        self._trace = self._tiles = None
+        if self._shown is not None:
+            release_gl(self._shown[1], self._shown[0])
+            self._shown = None
+
+    @property
+    def refining(self) -> bool:
+        """Frames should follow without waiting for input (brute-force IBL still averaging, or
+        the traced chains still refining)."""
+        return ((self.session.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
+                or self.tiling)
+
+    @property
+    def tiling(self) -> bool:
+        """The still view's raster frame is being drawn in tiles (``tiled_frames``)."""
+        return self._tiles is not None and self._tiles.active and not self._tiles.done
+
+    @property
+    def trace(self):
+        """The progressive trace of the still view (``viewer.gl.raytrace.ProgressiveTrace``), or
+        None before the first traced view."""
+        return self._trace
+
+    @property
+    def tracing(self) -> bool:
+        """The traced image of the still view is being built, strip by strip."""
+        return self._trace is not None and self._trace.active and not self._trace.done
+
+    @property
+    def trace_status(self) -> str:
+        """What the view says while the traced image refines ("" otherwise)."""
+        if self.tiling:
+            return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest as it was)"
+        if not self.tracing:
+            s = self.session
+            return s.prep.progress_text() if s.preparing else ""
+        t = self._trace
+        stage = "half resolution first" if t.coarse else "full resolution"
+        return (f"ray tracing: {100 * t.progress:.0f}%, {stage}, {time.perf_counter() - t.started:.0f} s "
+                "(what is not traced yet is drawn untraced)")
+
+    def _progressive(self) -> bool:
+        """Traced chains drawn untraced while the view moves and traced in strips once it is
+        still: a scene that traces, without SSR (its pass reads the whole frame) and brute-force
+        IBL (which averages whole frames); those trace every full frame at once."""
+        s = self.session
+        r = s.scene.render
+        return s.renderer.traces(s.scene) and not r.ssr and r.ibl != "brute_force"
+
+    def draw(self, size, interacting: bool = False) -> None:
+        """Render the raster image for a view of ``size`` = (w, h) pixels if anything changed:
+        at half resolution without MSAA while the user drags (software GL is slow), at full
+        quality once the interaction pauses; brute-force IBL keeps averaging frames."""
+        s = self.session
+        rw_full, rh_full = size
+        if s.compare.mode == "reference":
+            s.dirty = False  # no raster image is shown; the reference restarts on its own key
+            return
+        if rw_full <= 0 or rh_full <= 0:
+            return
+        scale = 0.5 if interacting else 1.0
+        rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
+        want_full = not interacting and self.quality == "preview"
+        progressive = (self.tracing or self.tiling
+                       or (s.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) and not interacting
+        stale = self.hdr is None or self.hdr_for != (rw_full, rh_full)
+        s.compiles.poll()  # the programs the view waits for are ready: draw the material as it now is
+        if s.preparing:
+            s.tour.prepare_step()
+        s.env.watch()
+        if not (s.dirty or want_full or stale or progressive):
+            return
+        t1 = time.perf_counter()
+        restart = s.dirty or want_full or stale
+        whole_from = None
+        if restart:
+            self.bf_count, self._bf_sum = 0, None
+        traced = self._progressive()
+        quality = "preview" if interacting else "full"
+        held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
+            if s.compiles.on else None
+        source = None
+        try:
+            if held is KEEP_IMAGE:
+                quality = self.quality
+            elif traced and not interacting and held is None:  # still: untraced, then traced in strips
+                quality = self._trace_step(rw, rh, restart)
+                source = FrameSource(s.scene, dict(s.scene.materials), "own")
+            else:
+                if self._trace is not None:
+                    self._trace.cancel()
+                # held: a changed material's programs compile beside, so it is drawn as it was
+                # (not "preview" when still: that would draw it again each frame until the
+                # answer comes, which marks the view dirty by itself)
+                drawn = s.scene if held is None or held is UNTRACED else held
+                form = ("own" if held is None else "untraced" if held is UNTRACED
+                        else "stand-in" if getattr(held, "stand_in", False) else "held")
+                source = FrameSource(s.scene, dict(drawn.materials), form)
+                if not interacting and self._tiled(drawn, rw, rh):
+                    quality = self._tile_step(drawn, rw, rh, restart)
+                    source = dataclasses.replace(source, under=self._tiles_under)
+                else:
+                    if self._tiles is not None:
+                        self._tiles.cancel()
+                    t2 = time.perf_counter()
+                    self.hdr = s.renderer.render(drawn, s.camera, rw, rh, s.view_mode,
+                                                 msaa=0 if interacting else None, frame_index=self.bf_count,
+                                                 raytrace=False if traced else None)
+                    if drawn.render.ibl == "brute_force" and not interacting:
+                        self.hdr = self._accumulate(self.hdr)
+                    elif not interacting:
+                        whole_from = t2  # a whole still frame: its cost, once finished below
+            if held is None:  # what a held frame may show of these materials while others compile
+                self.drawn_materials = (s.scene, dict(s.scene.materials))
+            if held is not KEEP_IMAGE:
+                self._drawn_view = self._view_key()
+                self.frame_source = source
+        except ViewerError as e:  # e.g. a shader that never compiled: keep the last image
+            s.notify(str(e), error=True)
+        s.ctx.finish()
+        if whole_from is not None:
+            self._whole_s = ((rw, rh), time.perf_counter() - whole_from, drawn.objects)
+        if quality == "full" and self.hdr is not None:
+            self._check_finite(self.hdr)
+        self.raster_version += 1
+        self.render_ms = 1000 * (time.perf_counter() - t1)
+        self.hdr_for = (rw_full, rh_full)
+        self.quality = quality
+        s.dirty = False
+        s.env.watch()
+        if s.tour.step_timer is not None and not interacting and held is not KEEP_IMAGE:
+            s.tour.step_shown()
+
+    def _tiled(self, scene, w, h) -> bool:
+        """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
+        whole frame (or tiled one) over ``TILE_BUDGET_S`` (at another size, scaled by the pixels),
+        or another scene (its cost not known yet: a lecture step's soap bubbles cost 30 times the
+        step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
+        IBL, which averages whole frames)."""
+        if not self._tiles_on or scene.render.ssr or scene.render.ibl == "brute_force":
+            return False
+        if self.tiling:
+            return True
+        if self._whole_s is None:
+            return False
+        (w0, h0), cost, objects = self._whole_s
+        # another size (side by side, a resize, lecture mode's strip): the cost scaled by the pixels
+        return objects is not scene.objects or cost * (w * h) / max(w0 * h0, 1) > self.tile_budget_s
+
+    def _new_scene(self, scene) -> bool:
+        """No frame of ``scene`` was drawn whole yet (another scene was)."""
+        return self._whole_s is not None and self._whole_s[2] is not scene.objects
+
+    @property
+    def tile_budget_s(self) -> float:
+        """A tiled frame's time per frame: ``TILE_BUDGET_S``, or less where the rest of the
+        window's frame (``frame_rest_s``: the interface, the view's tone mapping) leaves less of
+        ``FRAME_GOAL_S``, though not under 30 ms."""
+        return min(TILE_BUDGET_S, max(0.03, FRAME_GOAL_S - self.frame_rest_s))
+
+    def _view_key(self):
+        s = self.session
+        return (s.view_mode, s.camera.fov_y, tuple(s.camera.position), tuple(s.camera.target))
+
+    def _tile_step(self, scene, w, h, restart: bool) -> str:
+        """The tiled raster frame: (re)start it, or draw its next tiles; "refining" until it is
+        whole. Meanwhile the view shows what it showed (materials edited in the same scene at
+        the same size: the new look replaces the old from the top) or its preview (the
+        half-resolution frame just drawn while the view moved, else one drawn now)."""
+        from viewer.gl.raytrace import ProgressiveTrace
+
+        s = self.session
+        if self._tiles is None:
+            self._tiles = ProgressiveTrace(s.ctx)
+        t = self._tiles
+        if restart or not t.active:
+            under = None
+            same = (self.drawn_materials is not None and self.drawn_materials[0] is s.scene
+                    and self._drawn_view == self._view_key())  # the same scene seen the same way
+            # the preview of this scene just drawn while the view moved, never another scene's
+            ours = self.frame_source is not None and self.frame_source.scene is s.scene
+            if self.hdr is not None and ours and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
+                under = self.hdr  # read before any tile draws over the renderer's target
+            self._tiles_under = self.frame_source.scene if under is not None else s.scene
+            # the first tile: a 32nd of the view (the cost per pixel of a changed material is
+            # not known yet); the next follow the time of the last
+            self.hdr = t.start(s.renderer, scene, s.camera, w, h, s.view_mode, traced=False,
+                               under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h,
+                               preview_scale=4 if self._new_scene(scene) else 2)
+            if under is None:  # this frame drew the preview
+                return "refining"
+        self.hdr = t.step(self.tile_budget_s)
+        if not t.done:
+            return "refining"
+        self._tiles_under = s.scene
+        self._whole_s = ((w, h), t.trace_s, scene.objects)
+        return "full"
+
+    def _trace_step(self, w, h, restart: bool) -> str:
+        """The progressive trace: (re)start it with the untraced view, or trace its next strip;
+        "tracing" until the traced image is complete, then "full". Where the untraced frame
+        itself is over the tile budget (or its cost is not known: another scene, ray tracing
+        just turned on) and the traced-frame cache does not hold the view, the untraced frame is
+        drawn in tiles first (``_tile_step``), then traced from it."""
+        from viewer.gl.raytrace import ProgressiveTrace
+
+        s = self.session
+        if self._trace is None:
+            self._trace = ProgressiveTrace(s.ctx)
+        t = self._trace
+        if restart:
+            self._untraced_tiles = False
+        if (restart or not t.active) and not self._untraced_tiles:
+            if self._tiled(s.scene, w, h) and not self._trace_cached(w, h):
+                self._untraced_tiles = True
+                t.cancel()
+        if self._untraced_tiles:
+            if self._tile_step(s.scene, w, h, restart) != "full":
+                return "tracing"
+            self._untraced_tiles = False
+            self.hdr = t.start(s.renderer, s.scene, s.camera, w, h, s.view_mode,
+                               store=s.lecture_step >= 0, untraced=self.hdr)
+            return "tracing" if not t.done else "full"
+        if restart or not t.active:
+            self.hdr = t.start(s.renderer, s.scene, s.camera, w, h, s.view_mode, cache=True,
+                               store=s.lecture_step >= 0)
+            if s.environment_provisional:  # a quick prefilter lights it: not for the cache
+                t.keep_out_of_cache()
+            if t.cache_message:
+                s.notify(t.cache_message)
+            if not t.from_cache:
+                return "tracing"
+            s.notify(f"ray traced view from the prepared cache ({t.elapsed_s:.2f} s)")
+            return "full"
+        self.hdr = t.step(TRACE_BUDGET_S)
+        if not t.done:
+            return "tracing"
+        # the true time: from the still view's first frame to the last tile, frames between included
+        s.notify(f"ray traced in {t.elapsed_s:.1f} s ({t.steps} tiles, {t.trace_s:.1f} s of them tracing)")
+        return "full"
+
+    def _trace_cached(self, w, h) -> bool:
+        """The traced-frame cache holds the still view at (w, h)."""
+        from viewer.gl import trace_cache
+
+        s = self.session
+        key = trace_cache.frame_key(s.scene, s.camera, w, h, s.view_mode, None,
+                                    s.ctx.info.get("GL_RENDERER", ""))
+        return trace_cache.path_for(key).exists()
+
+    def _keep_view(self):
+        """Copy the view's image into a texture of the session's own unless it has one already
+        (the trace's, the brute-force mean's, this copy)."""
+        s = self.session
+        own = [x for x in (self._trace and self._trace.texture, self._bf_tex, self._shown and self._shown[0]) if x]
+        if self.hdr is None or any(self.hdr is x for x in own):
+            return
+        size = self.hdr.size
+        if self._shown is None or self._shown[0].size != size:
+            if self._shown is not None:
+                release_gl(self._shown[1], self._shown[0])
+            tex = s.ctx.texture(size, 4, dtype="f4")
+            tex.filter = (s.ctx.NEAREST, s.ctx.NEAREST)
+            self._shown = (tex, s.ctx.framebuffer(color_attachments=[tex]))
+        src = s.ctx.framebuffer(color_attachments=[self.hdr])
+        try:
+            s.ctx.copy_framebuffer(self._shown[1], src)
+        finally:
+            release_gl(src)
+        self.hdr = self._shown[0]
+
+    def _accumulate(self, hdr):
+        """Brute-force IBL: the running mean of frames with new sample sets (as the offscreen
+        ``render_arrays(frames=K)``), shown while it converges."""
+        from viewer.app.compare_view import upload_rgb
+
+        s = self.session
+        img = s.renderer.read_linear(hdr).astype(np.float64)
+        self._bf_sum = img if self._bf_sum is None else self._bf_sum + img
+        self.bf_count += 1
+        self._bf_tex = upload_rgb(s.ctx, self._bf_tex, self._bf_sum / self.bf_count)
+        return self._bf_tex
+
+    def _check_finite(self, hdr):
+        """Say in one line (a notification and stderr, once per distinct message) when the view
+        holds NaN or Inf pixels: a renderer bug the class would see as holes. The texels are
+        tested as read (no flipped copy, no mask: a frame at 1456x1080 costs a quarter of that);
+        only a frame with such pixels is read again to name them."""
+        from viewer.finite import nonfinite_message, render_switches
+
+        s = self.session
+        try:
+            msg = None
+            if not np.isfinite(np.frombuffer(hdr.read(), dtype="f4")).all():  # alpha too: then looked at closely
+                msg = nonfinite_message(s.renderer.read_linear(hdr), f"view of {s.scene.label}", (),
+                                        render_switches(s.scene))
+        except Exception:  # noqa: BLE001 - a lost target is no reason to stop drawing
+            return
+        self.nonfinite = msg
+        if msg and msg != self._nonfinite_said:
+            s.notify(msg, error=True)
+            print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
+        self._nonfinite_said = msg
