@@ -469,10 +469,13 @@ def test_a_child_that_works_without_answering_is_given_time_then_replaced():
         ca.stop()
 
 
-def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx, renderer):
+def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx):
     from viewer.app.compile_ahead import CompileAhead
     from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
     from viewer.scene import material_from_name
+
+    renderer = Renderer(gl_ctx)  # its own: the soap bubble's program not compiled by another test
 
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
     s.compile_ahead = CompileAhead(on_notice=s.notify, command=NEVER_ANSWERS, leash=0.5)
@@ -496,6 +499,7 @@ def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx
         s.compile_ahead.stop()
         s.compile_ahead = None
         s.release()
+        renderer.release()
 
 
 def test_a_prefetch_child_that_stays_silent_is_restarted_once_then_given_up():

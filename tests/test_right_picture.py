@@ -96,6 +96,11 @@ def test_the_class_route_never_shows_the_step_before(gl_ctx):
             assert s.scene is not before
             _frames_are_of_this_scene(s, n=3)
         assert s.lecture_step == 10 and s.compiling and "in the background" in s.status
+        # the view's own label says what it shows, whatever the status line said since
+        assert s.frame_source.form in ("stand-in", "untraced")
+        assert s.trace_status.startswith("compiling ") and "until ready" in s.trace_status
+        s.notify("lecture 11/15: Complex IOR (0.4 s)")
+        assert "until ready" in s.trace_status
     finally:
         s.compile_ahead = None
         s.release()

@@ -28,6 +28,10 @@ TILE_BUDGET_S = 0.07
 FRAME_GOAL_S = 0.12
 
 
+#: what the view says of a frame drawn while the scene's own programs compile beside
+FORM_WORDS = {"stand-in": "drawn with grey stand-ins", "untraced": "drawn untraced", "held": "drawn as before"}
+
+
 @dataclasses.dataclass(frozen=True)
 class FrameSource:
     """What the raster image shown was drawn from: ``scene`` (the session's scene object then),
@@ -109,7 +113,12 @@ class ViewFrames:
 
     @property
     def trace_status(self) -> str:
-        """What the view says while the traced image refines ("" otherwise)."""
+        """What the view says while the traced image refines, or while it stands in for a scene
+        whose programs compile beside ("" otherwise)."""
+        s = self.session
+        src = self.frame_source
+        if s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS:
+            return f"compiling {', '.join(s.pending)} in the background: {FORM_WORDS[src.form]} until ready"
         if self.tiling:
             return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest as it was)"
         if not self.tracing:
