@@ -214,8 +214,10 @@ BAD = {
     "nan": "def eval(p, wi, wo):\n    return np.full((len(wi), 3), np.nan)\n",
     "sleep_at_import": "import time\ntime.sleep(600)\n" + EVAL,
     "sleep_in_eval": "import time\ndef eval(p, wi, wo):\n    time.sleep(600)\n",
-    # well-behaved in the probe's child (viewer.brdf.twin_child), asleep in the command's own calls
-    "sleep_later": ("import sys, time\ndef eval(p, wi, wo):\n    if 'viewer.brdf.twin_child' not in sys.modules:\n"
+    # well-behaved in the probe's child (its arguments: this twin and its file), asleep in the
+    # command's own calls
+    "sleep_later": ("import sys, time\ndef eval(p, wi, wo):\n"
+                    "    if not (len(sys.argv) == 3 and sys.argv[1].endswith('sleep_later.py')):\n"
                     "        time.sleep(600)\n    return np.full((len(wi), 3), 0.5 / np.pi)\n"),
 }
 SAYS = {"exit_at_import": "sys.exit(0)", "exit_in_eval": "sys.exit(0)", "raise_in_eval": "RuntimeError: boom",
