@@ -151,3 +151,57 @@ def test_tiles_of_a_new_scene_are_never_drawn_over_the_last_scenes_preview(gl_ct
     finally:
         s.compile_ahead = None
         s.release()
+
+
+class AnsweringChild(StandIn):
+    """A child whose answers the test gives one request at a time (``answer(rid)``)."""
+
+    def __init__(self):
+        super().__init__()
+        self.done = {}
+
+    def request(self, scene, urgent=True):  # a scene asked for again keeps its id, as the child's
+        for i, (sc, _) in enumerate(self.requests):
+            if sc is scene:
+                return i + 1
+        return super().request(scene, urgent)
+
+    def answered(self, rid):
+        return rid in self.done
+
+    def answer(self, rid):
+        self.done[rid] = {"id": rid, "ok": True}
+
+
+def test_a_traced_step_is_drawn_untraced_once_its_untraced_programs_are_ready(gl_ctx):
+    # the untraced programs are asked for first: once they are answered the step is drawn
+    # untraced (its own materials), long before the traced ones
+    from viewer.gl.renderer import Renderer
+    from viewer.lecture import TOUR
+
+    renderer = Renderer(gl_ctx)
+    s = _session(gl_ctx, renderer)
+    child = s.compile_ahead = AnsweringChild()
+    try:
+        s.lecture([t.key for t in TOUR].index("fresnel"))
+        s.render_view(SIZE)
+        assert s.frame_source.form == "stand-in"
+        mine = [(i + 1, sc) for i, (sc, _) in enumerate(child.requests)
+                if sc is s.scene or sc.objects is s.scene.objects]  # not the next step's, asked ahead
+        flat = [rid for rid, sc in mine if not sc.render.raytrace]
+        traced = [rid for rid, sc in mine if sc.render.raytrace]
+        assert flat and traced and flat[0] < traced[0]  # the untraced first
+        child.answer(flat[0])
+        _frames_are_of_this_scene(s)
+        assert s.frame_source.form == "untraced" and "drawn untraced until ready" in s.trace_status
+        for rid in traced:
+            child.answer(rid)
+        for _ in range(400):
+            s.render_view(SIZE)
+            if not (s.compiling or s.tracing or s.tiling):
+                break
+        assert s.frame_source.form == "own" and s.frame_source.scene is s.scene
+    finally:
+        s.compile_ahead = None
+        s.release()
+        renderer.release()

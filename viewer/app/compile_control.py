@@ -31,6 +31,8 @@ class CompileControl:
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
         self.awaiting = None       # the compile-ahead request the view waits for
         self.note = None           # the message saying so (a toast only while it is true)
+        self._flat = None          # (scene, its untraced copy) asked for first (untraced_copy)
+        self.awaiting_flat = None  # that request, while the view shows stand-ins
         self.presets_ahead = True  # with the child: the picker's presets compile ahead while idle
         # models whose programs compile while idle on this thread (with the compile-ahead child
         # the picker's presets compile there instead, and this list stays empty)
@@ -43,6 +45,9 @@ class CompileControl:
         if self.awaiting is not None and self.child.answered(self.awaiting):
             self.awaiting = None
             self.session.dirty = True
+        if self.awaiting_flat is not None and self.child.answered(self.awaiting_flat):
+            self.awaiting_flat = None  # the untraced programs: drawn untraced from now on
+            self.session.dirty = True
 
     @property
     def compiling(self) -> bool:
@@ -52,8 +57,10 @@ class CompileControl:
 
     @property
     def compile_ready(self) -> bool:
-        """The programs the view waits for are ready: the next frame draws the material as it is."""
-        return self.awaiting is not None and self.child.answered(self.awaiting)
+        """The programs the view waits for are ready (or a traced scene's untraced ones, while it
+        shows stand-ins): the next frame draws the material as it is."""
+        return ((self.awaiting is not None and self.child.answered(self.awaiting))
+                or (self.awaiting_flat is not None and self.child.answered(self.awaiting_flat)))
 
     def worker(self):
         """The compile-ahead child (started on first use), None when it cannot run."""
@@ -89,9 +96,13 @@ class CompileControl:
         missing = [n for n, k in keys.items() if k not in progs
                    or (needs_tables(s.scene.materials[n]) and not tables.ready(s.scene.materials[n]))]
         if not missing:  # drawn with its own programs: nothing is awaited for this scene
-            self.pending, self.awaiting = [], None
+            self.pending, self.awaiting, self.awaiting_flat = [], None, None
             return None
         ca = self.worker()
+        traced = rt_held is False and s.renderer.traces(s.scene)
+        # a traced scene: its untraced programs first (a fraction of the traced ones' compile),
+        # so it is drawn untraced in seconds rather than with stand-ins until the traced are ready
+        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True)
         rid = None if ca is None else ca.request(s.scene, urgent=True)
         done_beside = ca is not None and all(
             (keys[n] in progs or keys[n] in ca.compiled) and params_key(s.scene.materials[n]) in ca.tables
@@ -116,19 +127,32 @@ class CompileControl:
                 out = held
         if out is None and not stale and drawn_scene is s.scene:
             out = KEEP_IMAGE  # the same scene seen the same way: the view shown stays
-        if out is None and rt_held is False and s.renderer.traces(s.scene):
+        if out is None and traced:
             untraced = s.renderer.forward_keys(s.scene, raytrace=False)
-            if all(untraced[n] in progs and (not needs_tables(s.scene.materials[n])
-                                             or tables.ready(s.scene.materials[n])) for n in untraced):
+            beside = rid_flat is not None and ca.answered(rid_flat) and getattr(ca, "done", {}).get(rid_flat, {}).get("ok")
+            if beside:  # compiled beside: the driver's cache has them, the tables come along
+                for n in untraced:
+                    data = ca.tables.get(params_key(s.scene.materials[n]))
+                    if data is not None and not tables.ready(s.scene.materials[n]):
+                        tables.adopt(s.scene.materials[n], data)
+            if beside or all(untraced[n] in progs and (not needs_tables(s.scene.materials[n])
+                                                       or tables.ready(s.scene.materials[n])) for n in untraced):
                 out, how = UNTRACED, "drawn untraced until ready"
         if out is None:  # another scene: its own objects, the materials not ready as stand-ins
             out, how = self.stand_in(missing), "drawn with grey stand-ins until ready"
+            self.awaiting_flat = rid_flat
         if self.awaiting != rid:
             s.notify(f"compiling {', '.join(missing)} in the background: {how}")
             self.note = s.messages[-1]
         self.awaiting = rid
         self.pending = missing
         return out
+
+    def untraced_copy(self, scene):
+        """``scene`` with its traced chains off (the same copy while the scene is the same)."""
+        if self._flat is None or self._flat[0] is not scene:
+            self._flat = (scene, dataclasses.replace(scene, render=dataclasses.replace(scene.render, raytrace=False)))
+        return self._flat[1]
 
     def stand_in(self, missing):
         """The scene with ``missing`` materials as grey Lambert stand-ins (``STAND_IN_ALBEDO``):
