@@ -64,7 +64,7 @@ def child(engine: str) -> None:
     while time.perf_counter() - t2 < 10.0:
         app.session.camera.orbit(8.0, 0.0, vh)
         app.session.changed()
-        app._last_interaction = app._last_event = time.perf_counter()
+        app._last_interaction = app.last_event = time.perf_counter()
         if tick():
             drag.append(app.frame_ms)
     dt = np.array(drag[1:] or [np.nan])

@@ -92,17 +92,19 @@ class StandInReference:
         pass
 
 
+class NoReload:
+    """A hot reloader with nothing to say."""
+    noting = False
+
+
 class Loop(App):
     """The window's loop decision (``App.loop_wait``) over a session, without a window: the last
     input long ago, no hot-reload note."""
 
-    class _NoReload:
-        noting = False
-
     def __init__(self, session):  # noqa: super().__init__ opens a window; the decision needs none
         self.session = session
-        self.hot_reload = self._NoReload()
-        self._last_event = -1e9
+        self.hot_reload = NoReload()
+        self.last_event = -1e9
 
 
 @pytest.fixture

@@ -40,7 +40,9 @@ def culprits(scene, render_linear: Callable[[object], np.ndarray]) -> list[str]:
         if nonfinite_count(render_linear(alone)):
             params = scene.materials.get(o.material)
             model = material_model_name(params)
-            if params is not None and params.model != "lambert" and _finite_as_lambert(alone, o, render_linear):
+            # a Lambert material in its place: finite, the BRDF is at fault (a Lambert material that
+            # is not finite stays not finite in its own place, and the object is named)
+            if params is not None and _finite_as_lambert(alone, o, render_linear):
                 out.append(f"the BRDF of material {o.material!r} ({model}) on {o.mesh}, which returns NaN or Inf "
                            "(the material's fault, not the renderer's)")
             else:

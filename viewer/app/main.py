@@ -101,7 +101,7 @@ class App:
         self._taps: list[str] = []
         self._tap_codes = {getattr(glfw, "KEY_" + k.upper()): k for k in _TAP_KEYS}
         self.input_events = 0           # glfw input and window events so far (``tick`` wakes on them)
-        self._last_event = time.perf_counter()
+        self.last_event = time.perf_counter()  # the last input (public: tests and benchmarks set it)
         glfw.set_key_callback(self.window, self._on_key)  # before imgui's backend, which chains to it
         for name in ("cursor_pos", "mouse_button", "scroll", "char", "cursor_enter", "window_focus"):
             getattr(glfw, f"set_{name}_callback")(self.window, self._on_event)  # imgui chains to these too
@@ -329,7 +329,7 @@ class App:
         if s.compare.uses_reference and s.reference is None:  # a compare view's first frame starts it
             return "draw", 0.0
         now = time.perf_counter()
-        if now - self._last_event < self.SETTLE_S:
+        if now - self.last_event < self.SETTLE_S:
             return "draw", 0.0
         if s.warming:  # presets to send to the child take no frame; models compiled here do, as before
             return ("warm", 0.0) if s.warms_beside else ("draw", 0.0)
@@ -486,7 +486,7 @@ class App:
     # ------------------------------------------------------------------ input
     def _on_event(self, window, *args):
         self.input_events += 1
-        self._last_event = time.perf_counter()
+        self.last_event = time.perf_counter()
 
     def _on_key(self, window, key, scancode, action, mods):
         self._on_event(window)

@@ -74,7 +74,7 @@ class TwinQuestion:
     def scan_material(self, p) -> None:
         from viewer import ViewerError, brdf
 
-        if p is None or p.model != "custom":
+        if not brdf.is_file(p):
             return
         try:
             model = brdf.get("custom").of(p)

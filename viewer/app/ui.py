@@ -213,7 +213,7 @@ def material_editor(params: Params, prefix: str, nested: bool = False, on_error=
     the longest label beside them (never wider than imgui's default), so no label is cut.
     A file material whose ``.brdf`` file was saved with other parameters is first fitted to the
     file (``viewer.brdf.file_carry``) and returned as changed, so the session stores it."""
-    if params.model == "custom":
+    if brdf.is_file(params):
         from viewer.brdf.file_carry import carry_over
 
         fitted = carry_over(params)

@@ -269,6 +269,14 @@ class _CustomModule:
 _CUSTOM: CustomModel | None = None
 
 
+def is_file(params) -> bool:
+    """``params`` is a material drawn from a ``.brdf`` file (the one question about a material
+    that the rest of the program asks by model, answered here)."""
+    from viewer.brdf.file_model import CUSTOM
+
+    return params is not None and getattr(params, "model", None) == CUSTOM
+
+
 def get(name: str) -> Model:
     global _CUSTOM
     if name == "custom":

@@ -161,7 +161,7 @@ def without_twin(scene) -> str | None:
 
     used = {o.material for o in scene.objects}
     for name, m in scene.materials.items():
-        if m.model != "custom" or name not in used:
+        if not brdf.is_file(m) or name not in used:
             continue
         try:
             brdf.get("custom").of(m).numpy_model()
