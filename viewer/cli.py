@@ -130,7 +130,7 @@ def _parser_plot() -> argparse.ArgumentParser:
     p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
     p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling | slice")
     p.add_argument("--overlay", metavar="MODEL", help="polar, albedo, slice: a second material drawn over it (a model, "
-                   "preset, .binary file or material .toml, e.g. one written by brdf-viewer fit)")
+                   "preset, .binary / .dat measured file or material .toml, e.g. one written by brdf-viewer fit)")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")

@@ -193,7 +193,7 @@ def file_material(model, assignments=()):
 
 def material_from_name(name: str, assignments=()):
     """Validated Params of a material named on the command line (``plot MODEL``, ``fit --model``):
-    a model (its defaults), a preset, a material file (.toml) or a measured file (.binary), with
+    a model (its defaults), a preset, a material file (.toml) or a measured file (.binary, .dat), with
     ``--set KEY=VALUE`` applied; KEY is a parameter name, dotted into tables and nested materials
     (coating.ior, base.albedo, lobes.0.n), read as the scene's ``--set`` (``apply_override``)."""
     from viewer import brdf
@@ -202,7 +202,7 @@ def material_from_name(name: str, assignments=()):
 
     if name.lower().endswith(".brdf"):  # a BRDF Explorer file: its declarations are the parameters
         return file_material(brdf.load(name), assignments)
-    if name.endswith(".binary"):  # a measured BRDF file (MERL format)
+    if name.lower().endswith((".binary", ".dat")):  # a measured BRDF file (MERL or MIT format)
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):
         raw = load_material_file(name)[1].to_plain()
