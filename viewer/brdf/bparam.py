@@ -195,3 +195,22 @@ def save(path, model, params, brdf_name: str | None = None) -> Path:
         f = params.get("file") if "file" in model.spec.names else None
         brdf_name = os.path.abspath(os.fspath(f)) if f else model.name
     return atomic_write_bytes(path, text_of(model, params, brdf_name).encode("utf-8"))
+
+
+def overrides(path, prefix: str = "") -> tuple[list[str], str]:
+    """The ``--set`` assignments (``PREFIX + NAME=VALUE``) of a .bparam file's values that match the
+    parameters of the BRDF file it names (by name and kind), and the one-line note of those left
+    out (or ""); the CLI puts them before the user's own ``--set``, which win."""
+    import json
+
+    from viewer import brdf
+
+    bp = parse(path)
+    target = bp.brdf_path()
+    if not bp.brdf:
+        raise ViewerError(one_line(f"{bp.path}:1: the first line names no BRDF file ('bparam FILE')"))
+    model = brdf.load(target)
+    values, left = assignments(model.spec, bp)
+    lines = [f"{prefix}{k}={json.dumps(v)}" for k, v in values.items()]
+    note = one_line(f"{bp.path}: {len(left)} parameters not in {target.name} left out: {', '.join(left)}") if left else ""
+    return lines, note
