@@ -80,3 +80,69 @@ def test_bad_files_give_one_line(tmp_path):
     with pytest.raises(ViewerError) as e:
         bparam.apply(m, m.params(), bparam.parse(tmp_path / "range.bparam"))
     assert "\n" not in str(e.value) and "range.bparam" in str(e.value) and "n" in str(e.value)
+
+
+def test_window_loads_and_saves_parameters_and_measured_drops(gl_ctx, renderer, tmp_path):
+    """The window's paths (the Files panel's Load / Save parameters, drops): a .bparam dropped on
+    the selected object's file material sets its values, saving writes them back, a bad file is
+    one error and keeps the material, a dropped MIT .dat table becomes the measured material."""
+    from viewer.app.session import Session
+    from viewer.brdf import mit_aniso
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    try:
+        name = s.scene.objects[s.mesh_target].material
+        m = brdf.load(FILE)
+        s.set_material(name, m.params())
+        (tmp_path / "mine.bparam").write_text(HAND)
+        n0 = len(s.messages)
+        s.open_files([str(tmp_path / "mine.bparam")])
+        msgs = s.messages[n0:]
+        assert len(msgs) == 1 and not msgs[0].error and "float gone" in msgs[0].text, msgs
+        assert s.scene.materials[name]["n"] == 120.5
+        assert s.file_action("save_bparam", str(tmp_path / "saved"))
+        q, _ = bparam.apply(m, m.params(), bparam.parse(tmp_path / "saved.bparam"))
+        assert q.to_plain() == s.scene.materials[name].to_plain()
+        (tmp_path / "bad.bparam").write_text("nope\n")
+        n0 = len(s.messages)
+        s.open_files([str(tmp_path / "bad.bparam")])
+        msgs = s.messages[n0:]
+        assert len(msgs) == 1 and msgs[0].error and "bad.bparam" in msgs[0].text
+        assert s.scene.materials[name]["n"] == 120.5
+        mit_aniso.write(tmp_path / "t.dat", np.full((2, 2, 4, 4, 3), 0.1))
+        s.open_files([str(tmp_path / "t.dat")])
+        assert s.scene.materials[name].model == "measured" and s.scene.materials[name]["file"].endswith("t.dat")
+    finally:
+        s.release()
+
+
+def test_cli_bparam(tmp_path, capsys):
+    """``plot FILE.bparam`` plots the .brdf file it names with its values (--set wins), the scene
+    commands take ``--bparam MATERIAL=FILE``; what the file's BRDF lacks is one note, a bad
+    argument or file one error line (exit status 2)."""
+    from viewer import cli
+    from viewer.scene import material_from_name
+
+    (tmp_path / "mine.bparam").write_text(HAND)
+    p = material_from_name(str(tmp_path / "mine.bparam"), ["f0=0.5"])
+    assert p["n"] == 120.5 and p["f0"] == 0.5
+    assert "float gone" in capsys.readouterr().err
+    scene = tmp_path / "s.toml"
+    from viewer.scene import SCENE_DIR
+
+    scene.write_text((SCENE_DIR / "sphere.toml").read_text().split("[materials.ball]")[0]
+                     + f'[materials.ball]\nmodel = "custom"\nfile = "{FILE}"\n')
+    lines, note = bparam.overrides(tmp_path / "mine.bparam", prefix="materials.ball.")
+    assert "materials.ball.n=120.5" in lines and not any("gone" in x for x in lines) and "float gone" in note
+    assert cli.main(["render", str(scene), "--out", str(tmp_path / "ok.png"), "--width", "16", "--height", "16",
+                     "--bparam", f"ball={tmp_path / 'mine.bparam'}", "--set", "materials.ball.f0=0.5"]) == 0
+    assert "float gone" in capsys.readouterr().err and (tmp_path / "ok.png").exists()
+    assert cli.main(["render", str(scene), "--out", str(tmp_path / "x.png"), "--bparam", "ball"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "MATERIAL=FILE.bparam" in err
+    (tmp_path / "bad.bparam").write_text("bparam x\n::begin parameters\nfloat n\n")
+    assert cli.main(["render", str(scene), "--out", str(tmp_path / "x.png"), "--bparam",
+                     f"ball={tmp_path / 'bad.bparam'}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "bad.bparam:3" in err and not (tmp_path / "x.png").exists()
