@@ -289,3 +289,24 @@ def test_raster_and_reference_agree(renderer, ward_file):
     rel = img[inner].mean() / ref[inner].mean() - 1
     print(f"Ward file sphere, {inner.sum()} inner pixels: raster / reference mean {rel:+.2e}, largest |difference| / allowed {z.max():.2f}")
     assert abs(rel) < 0.01 and z.max() < 1.0
+
+
+def test_engines_agree(gl_ctx, ward_file, tmp_path):
+    """The gpu engine binds the scene's one measured table (MEASURED_ANISO in its program) and
+    agrees with the cpu engine within noise (tests/reference_harness.py: block z-scores, means
+    within 0.5% or 4 standard errors) on the Ward file's sphere under a grey sky; two tables in
+    one scene: the gpu engine refuses in one line and auto takes the cpu engine."""
+    from reference_harness import agreement, check, under_grey_sky
+    from viewer.gpupt.select import make_renderer
+
+    s = under_grey_sky(_scene(ward_file, f'model = "measured"\nfile = "{ward_file.name}"\n'))
+    a = agreement(gl_ctx, s, spp=32, max_depth=2, size=16)
+    print(f"Ward file sphere, gpu vs cpu engine: mean {a['rel']:+.2e} (sigma {a['sigma']:.1e}), "
+          f"z^2 {a['z2']:.2f}, max |z| {a['zmax']:.2f}")
+    assert a["sigma"] < 0.01, a  # the harness's mean check is only as tight as the noise
+    check(a, "ward.dat")
+    other = tmp_path / "other.dat"
+    mit_aniso.write(other, np.full((2, 2, 4, 4, 3), 0.1))
+    s.materials["second"] = brdf.get("measured").params(file=str(other))
+    with pytest.raises(ViewerError, match="one measured table"):
+        make_renderer("gpu", s)
