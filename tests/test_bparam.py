@@ -135,6 +135,9 @@ def test_cli_bparam(tmp_path, capsys):
                      + f'[materials.ball]\nmodel = "custom"\nfile = "{FILE}"\n')
     lines, note = bparam.overrides(tmp_path / "mine.bparam", prefix="materials.ball.")
     assert "materials.ball.n=120.5" in lines and not any("gone" in x for x in lines) and "float gone" in note
+    import viewer
+
+    assert viewer.bparam_overrides("ball", tmp_path / "mine.bparam") == lines  # the Python API
     assert cli.main(["render", str(scene), "--out", str(tmp_path / "ok.png"), "--width", "16", "--height", "16",
                      "--bparam", f"ball={tmp_path / 'mine.bparam'}", "--set", "materials.ball.f0=0.5"]) == 0
     assert "float gone" in capsys.readouterr().err and (tmp_path / "ok.png").exists()
