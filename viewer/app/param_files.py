@@ -1,5 +1,5 @@
 """The window's BRDF Explorer parameter files and measured files: a ``.bparam`` loaded onto a
-material or saved from it (``viewer.brdf.bparam``), an MERL ``.binary`` or MIT ``.dat`` table put
+material or saved from it (``viewer.brdf.bparam``), a MERL ``.binary`` or MIT ``.dat`` table put
 on a material. Each reports one line through ``session.notify``; a failure keeps the material."""
 
 from __future__ import annotations
