@@ -180,7 +180,7 @@ def test_auto_follows_the_gl_for_dispersive_scenes(ctx):
 
 
 def test_gpu_still_refuses_what_it_cannot_trace():
-    """Measured tables and the microfacet random walk: the same one-line refusals, spectral or not."""
+    """The microfacet random walk: the same one-line refusal, spectral or not."""
     from viewer import ViewerError
     from viewer.gpupt.select import make_renderer
 

@@ -249,17 +249,18 @@ def test_raster_measured_lambert_equals_lambert(renderer, lambert_file):
     np.testing.assert_allclose(ia, ib, atol=2e-5, rtol=2e-4)
 
 
-def test_reference_and_engines(lambert_file):
+def test_reference_and_engines(lambert_file, gl_ctx, tmp_path):
     """The cpu reference renders measured materials (Lambert file vs lambert, within noise); the gpu
-    engine refuses them in one line and auto takes the cpu engine."""
+    engine binds the scene's one table and agrees with the cpu engine within noise
+    (tests/reference_harness.py); a scene whose measured materials read two files it refuses in
+    one line."""
+    from reference_harness import agreement, check, under_grey_sky
     from viewer.gpupt.select import make_renderer, uses_measured
     from viewer.pathtracer import ReferenceRenderer
 
     a = _scene(lambert_file, f'model = "measured"\nfile = "{lambert_file.name}"\n')
     b = _scene(lambert_file, f"model = \"lambert\"\nalbedo = {ALBEDO.tolist()}\n")
     assert uses_measured(a) and not uses_measured(b)
-    with pytest.raises(ViewerError, match="does not render measured"):
-        make_renderer("gpu", a)
     means = []
     for s in (a, b):
         r = ReferenceRenderer(s, width=24, height=24, max_depth=2, seed=1, workers=0)
@@ -271,6 +272,14 @@ def test_reference_and_engines(lambert_file):
     assert means[1].mean() > 0.005
     # direct light is next-event estimated identically; only the bounce's sampling differs
     assert abs(means[0].mean() - means[1].mean()) < 0.02 * means[1].mean()
+    g = agreement(gl_ctx, under_grey_sky(a), spp=16, max_depth=2, size=16)
+    assert g["sigma"] < 0.01, g
+    check(g, "lambert.binary")
+    other = tmp_path / "other.binary"
+    merl.write(other, np.broadcast_to(ALBEDO / np.pi / 2, (90, 90, 180, 3)))
+    a.materials["second"] = brdf.get("measured").params(file=str(other))
+    with pytest.raises(ViewerError, match="one measured table"):
+        make_renderer("gpu", a)
 
 
 # ---------------------------------------------------------------- bin centres, the sampler's floor

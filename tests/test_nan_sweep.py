@@ -136,8 +136,8 @@ def gpu_engine_ctx(gl_ctx):
 
 # The default run: the models whose GPU twins the sweep found defects in (float32 overflow of
 # Lafortune's huge lobes, alone and as a layered base) and the microfacet family; every other
-# model with -m slow (the CPU engine's sweep above covers them all by default). Measured: the GPU
-# engine refuses it.
+# model with -m slow (the CPU engine's sweep above covers them all by default). Measured: its
+# engines are compared in tests/test_measured.py and tests/test_measured_aniso.py.
 GPU_DEFAULT = ("lafortune", "layered", "microfacet", "mirror")
 
 

@@ -86,6 +86,14 @@ def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(
                       seed=seed, max_depth=max_depth, workers=workers)
 
 
+def bparam_overrides(material, path):
+    """The assignments that set a scene material's values from a .bparam file (see
+    viewer.api.bparam_overrides), for ``overrides``."""
+    from viewer.api import bparam_overrides as _bparam_overrides
+
+    return _bparam_overrides(material, path)
+
+
 def __getattr__(name):
     if name == "__version__":
         value = _read_version()

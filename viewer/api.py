@@ -56,6 +56,20 @@ def load(scene, overrides=(), width=None, height=None):
     return load_scene(scene, assignments)
 
 
+def bparam_overrides(material: str, path) -> list[str]:
+    """The ``KEY=VALUE`` assignments that set scene material ``material``'s values from a BRDF
+    Explorer ``.bparam`` file (``--bparam MATERIAL=FILE``), for ``overrides``; the names the file's
+    ``.brdf`` lacks are left out with one logged warning."""
+    import logging
+
+    from viewer.brdf import bparam
+
+    lines, note = bparam.overrides(path, prefix=f"materials.{material}.")
+    if note:
+        logging.getLogger("viewer").warning("%s", note)
+    return lines
+
+
 def render(scene, width=None, height=None, overrides=()) -> np.ndarray:
     """Rasterize ``scene`` offscreen with the window's renderer: the same float32 (H, W, 3)
     array as ``brdf-viewer render SCENE --linear out.npy`` (bit for bit)."""

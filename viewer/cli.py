@@ -73,6 +73,8 @@ def _parser_render() -> argparse.ArgumentParser:
     p.add_argument("--height", type=int, help="image height (overrides camera.height)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
+    p.add_argument("--bparam", dest="bparams", action="append", default=[], metavar="MATERIAL=FILE",
+                   help="set a material's values from a BRDF Explorer .bparam file (repeatable; --set wins)")
     p.add_argument("--view", default="shaded", help="shaded | F | D | G | N.L | \"f cos\" | shadow (term views) | \"ssr hit\" | \"ssr steps\" | \"ssr uv\" | \"ssr only\" (SSR debug)")
     p.add_argument("--supersample", type=int, default=1, metavar="K",
                    help="K x K shading points per pixel, averaged (an exact box filter, as the reference "
@@ -101,6 +103,8 @@ def _parser_reference() -> argparse.ArgumentParser:
                         "is dispersive)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by dotted path (repeatable)")
+    p.add_argument("--bparam", dest="bparams", action="append", default=[], metavar="MATERIAL=FILE",
+                   help="set a material's values from a BRDF Explorer .bparam file (repeatable; --set wins)")
     _add_estimator_options(p)
     add_trust_option(p)
     return p
@@ -127,10 +131,11 @@ def _parser_plot() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="brdf-viewer plot", description=(
         "The BRDF plots of the window, headless: a PNG drawn with Pillow whose text chunk "
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
-    p.add_argument("model", help="a BRDF model (brdf-viewer models) or a material preset, e.g. lecture_air_glass")
+    p.add_argument("model", help="a BRDF model (brdf-viewer models), a material preset (e.g. lecture_air_glass), a "
+                   "material .toml, a measured .binary / .dat file or a BRDF Explorer .brdf / .bparam file")
     p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling | slice")
     p.add_argument("--overlay", metavar="MODEL", help="polar, albedo, slice: a second material drawn over it (a model, "
-                   "preset, .binary file or material .toml, e.g. one written by brdf-viewer fit)")
+                   "preset, .binary / .dat measured file or material .toml, e.g. one written by brdf-viewer fit)")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="set a material parameter, e.g. alpha=0.2, eta=[0.2,0.9,1.1], coating.ior=1.3 (repeatable)")
@@ -216,11 +221,28 @@ def _parser_models() -> argparse.ArgumentParser:
     return p
 
 
+def _bparam_overrides(args) -> list[str]:
+    """``--bparam MATERIAL=FILE.bparam``: the file's values as ``materials.MATERIAL.NAME=VALUE``
+    assignments (before the ``--set`` ones, which win); names the file's BRDF lacks: one note."""
+    from viewer.brdf import bparam
+
+    out = []
+    for a in getattr(args, "bparams", None) or []:
+        mat, sep, path = a.partition("=")
+        if not sep or not mat or not path:
+            raise ViewerError(f"--bparam {a}: expected MATERIAL=FILE.bparam, e.g. --bparam ball=shiny.bparam")
+        lines, note = bparam.overrides(path, prefix=f"materials.{mat}.")
+        if note:
+            print(f"brdf-viewer: {note}", file=sys.stderr)
+        out += lines
+    return out
+
+
 def _overrides(args) -> list[str]:
     """--set assignments plus --width / --height as camera overrides."""
     from viewer.scene import check_replaced
 
-    out = list(args.overrides)
+    out = _bparam_overrides(args) + list(args.overrides)
     check_replaced(out, {f"camera.{k}": f"--{k}" for k in ("width", "height") if getattr(args, k) is not None})
     for key, val in (("width", args.width), ("height", args.height)):
         if val is not None:
@@ -418,6 +440,8 @@ def _parser_compare() -> argparse.ArgumentParser:
     p.add_argument("--width", type=int)
     p.add_argument("--height", type=int)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--bparam", dest="bparams", action="append", default=[], metavar="MATERIAL=FILE",
+                   help="set a material's values from a BRDF Explorer .bparam file (repeatable; --set wins)")
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     _add_estimator_options(p)
@@ -558,6 +582,8 @@ def _parser_bake() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--bparam", dest="bparams", action="append", default=[], metavar="MATERIAL=FILE",
+                   help="set a material's values from a BRDF Explorer .bparam file (repeatable; --set wins)")
     add_trust_option(p)
     return p
 

@@ -33,6 +33,9 @@ def cmd_fit(args) -> int:
 
     out = check_output_path(args.out, (".toml",), "--out")
     res_png = check_output_path(args.residual, (".png",), "--residual") if args.residual else None
+    if str(args.file).lower().endswith(".dat"):
+        raise ViewerError(f"{args.file}: an MIT anisotropic table; fit reads isotropic MERL .binary files "
+                          f"(the fitted models' isotropic lobes)")
     table = merl.read(args.file)
     start = material_from_name(args.model, args.overrides)
     spec = brdf.get(start.model).spec

@@ -6,9 +6,17 @@
 // The table is a 3D RGB float texture u_measured (x = phi_d 180, y = theta_d 90, z = theta_h 90),
 // bound by the renderer only in programs compiled with MEASURED_TEXTURE; without it (programs
 // built for every model) the model evaluates to 0 and never samples.
+// With MEASURED_ANISO the table is an MIT anisotropic one (viewer/brdf/mit_aniso.py): x = phi_in,
+// y = phi_diff, z = theta_in n_to + theta_out, and the sampler's data in the last layer.
 #include "common/sampling.glsl"
 
-#ifdef MEASURED_TEXTURE
+#if defined(MEASURED_TEXTURE) && defined(MEASURED_ANISO)
+uniform sampler3D u_measured;
+vec3 measured_texel(int h, int d, int p) { return vec3(0.0); }
+// the sampler's data, the last layer's row 0: the theta_h CDF at x = 0..89, the cosine weight at
+// 90, the dimensions (n_ti, n_to, n_pd, n_pi) at 91..94
+float measured_aux(int i) { return texelFetch(u_measured, ivec3(i, 0, textureSize(u_measured, 0).z - 1), 0).r; }
+#elif defined(MEASURED_TEXTURE)
 uniform sampler3D u_measured;
 vec3 measured_texel(int h, int d, int p) { return texelFetch(u_measured, ivec3(p, d, h), 0).rgb; }
 // the sampler's data, layer z = 90: the CDF of the 90 theta_h bins at x = 0..89, the cosine weight at 90
@@ -58,9 +66,61 @@ vec3 measured_lookup(vec3 a) {
     return mix(mix(v00, v01, td), mix(v10, v11, td), th);
 }
 
+#if defined(MEASURED_TEXTURE) && defined(MEASURED_ANISO)
+// azimuth of the reversed direction, [0, 2 pi) (the MIT convention; 0 on the normal)
+float measured_azimuth(vec3 w) {
+    float phi = dot(w.xy, w.xy) > 0.0 ? atan(-w.y, -w.x) : 0.0;
+    return phi < 0.0 ? phi + TWO_PI : phi;
+}
+
+// lower index, upper index and weight of one axis: clamped (theta) or periodic (phi)
+void measured_axis(float c, int n, bool periodic, out int i0, out int i1, out float t) {
+    if (periodic) {
+        c = mod(c, float(n));
+        float f = floor(c);
+        i0 = int(f) % n;
+        i1 = (i0 + 1) % n;
+        t = c - f;
+    } else {
+        c = clamp(c, 0.0, float(n - 1));
+        i0 = int(floor(c));
+        i1 = min(i0 + 1, n - 1);
+        t = c - float(i0);
+    }
+}
+
+vec3 measured_aniso_lookup(vec3 wi, vec3 wo) {
+    int nti = int(measured_aux(91) + 0.5), nto = int(measured_aux(92) + 0.5);
+    int npd = int(measured_aux(93) + 0.5), npi = int(measured_aux(94) + 0.5);
+    float ti = atan(length(wi.xy), wi.z), to = atan(length(wo.xy), wo.z);
+    float pi_ = measured_azimuth(wi);
+    float pd = measured_azimuth(wo) - pi_;
+    if (pd < 0.0) pd += TWO_PI;
+    int a0, a1, b0, b1, c0, c1, d0, d1;
+    float ta, tb, tc, td;
+    measured_axis(ti / MEASURED_HALF_PI * float(nti) - 0.5, nti, false, a0, a1, ta);
+    measured_axis(to / MEASURED_HALF_PI * float(nto) - 0.5, nto, false, b0, b1, tb);
+    measured_axis(pd / TWO_PI * float(npd) - 0.5, npd, true, c0, c1, tc);
+    measured_axis(pi_ / TWO_PI * float(npi) - 0.5, npi, true, d0, d1, td);
+    vec3 acc = vec3(0.0);
+    for (int k = 0; k < 8; ++k) {
+        int ia = (k & 4) != 0 ? a1 : a0, ib = (k & 2) != 0 ? b1 : b0, ic = (k & 1) != 0 ? c1 : c0;
+        float w = ((k & 4) != 0 ? ta : 1.0 - ta) * ((k & 2) != 0 ? tb : 1.0 - tb) * ((k & 1) != 0 ? tc : 1.0 - tc);
+        int z = ia * nto + ib;
+        vec3 v = mix(texelFetch(u_measured, ivec3(d0, ic, z), 0).rgb, texelFetch(u_measured, ivec3(d1, ic, z), 0).rgb, td);
+        acc += w * v;
+    }
+    return acc;
+}
+#endif
+
 vec3 measured_eval(measured_params p, vec3 wi, vec3 wo) {
     if (wi.z <= 0.0 || wo.z <= 0.0) return vec3(0.0);
+#if defined(MEASURED_TEXTURE) && defined(MEASURED_ANISO)
+    return p.scale * measured_aniso_lookup(wi, wo);
+#else
     return p.scale * measured_lookup(measured_half_diff(wi, wo));
+#endif
 }
 
 // ---- sampling twin: cosine + tabulated half-vector mixture; measured_aux(90) = cosine weight,

@@ -229,13 +229,20 @@ class FileActions:
             return self.load_mesh(path)
         if kind == "material" and target:
             return self.load_material(target, path)
+        if kind in ("bparam", "save_bparam", "measured") and target:
+            from viewer.app import param_files
+
+            fn = {"bparam": param_files.load_bparam, "save_bparam": param_files.save_bparam,
+                  "measured": param_files.load_measured}[kind]
+            return fn(s, target, path)
         if kind == "save_material" and target:
             return self.save_material(target, path if path.lower().endswith(".toml") else path + ".toml")
         return False
 
     def open_files(self, paths) -> None:
         """Files dropped on the window, each by its kind: .toml / .png scenes, .hdr / .exr
-        environment maps, meshes."""
+        environment maps, meshes, .brdf files; .bparam values and .binary / .dat measured tables
+        go onto the selected object's material."""
         for p in paths:
             low = p.lower()
             if os.path.isdir(p):  # a folder of .brdf files: a library for the material picker
@@ -248,9 +255,12 @@ class FileActions:
                 self.load_mesh(p)
             elif low.endswith(".brdf"):
                 self.load_brdf_file(p)
+            elif low.endswith((".bparam", ".binary", ".dat")):  # onto the selected object's material
+                self.file_action("bparam" if low.endswith(".bparam") else "measured", p)
             else:
                 self.session.notify(f"dropped {p}: unknown kind; allowed: .toml/.png scenes, .hdr/.exr maps, "
-                                    ".brdf files or a folder of them, meshes " + " ".join(MESH_SUFFIXES), error=True)
+                                    ".brdf files or a folder of them, .bparam values, .binary / .dat measured "
+                                    "tables, meshes " + " ".join(MESH_SUFFIXES), error=True)
 
     def open_brdf_library(self, folder) -> bool:
         """A folder of ``.brdf`` files: its files join the material picker beside the presets

@@ -21,7 +21,7 @@ from viewer.brdf.spec import HOOKS, ModelSpec, Param, Params, check_module, vali
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
+_HELPERS = {"spec", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
             "spectral_fresnel", "thin_film", "merl", "fit", "chi2"}
 _REGISTRY: dict[str, "Model"] | None = None
 

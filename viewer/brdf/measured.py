@@ -1,6 +1,9 @@
-"""Measured isotropic BRDFs: a MERL table (Matusik et al. 2003) looked up with trilinear
-interpolation on the index grid and importance sampled by a cosine + tabulated half-vector
-mixture; the format, the mapping and the sampler are described in ``viewer.brdf.merl``.
+"""Measured BRDFs: an isotropic MERL table (Matusik et al. 2003, ``.binary``) looked up with
+trilinear interpolation on the index grid, or an anisotropic MIT table (Ngan et al. 2005,
+``.dat``, as BRDF Explorer opens them) looked up with quadrilinear interpolation, both importance
+sampled by a cosine + tabulated half-vector mixture; the formats, the mappings and the sampler
+are described in ``viewer.brdf.merl`` and ``viewer.brdf.mit_aniso``. The file's suffix tells the
+format (``is_aniso``); the GLSL twin compiles the anisotropic lookup with ``MEASURED_ANISO``.
 
 ``file = ""`` (the default) is a built-in example table, tabulated at first use from a closed
 form (``example_brdf``: GGX alpha 0.25, Schlick F0 (0.9, 0.7, 0.45), Smith G over a Lambert base
@@ -13,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf import merl
+from viewer.brdf import merl, mit_aniso
 from viewer.brdf.sampling import cosine_hemisphere, cosine_hemisphere_pdf, normalize, sample_weight
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -47,14 +50,25 @@ def example() -> "merl.Measured":
     return _EXAMPLE[0]
 
 
-def data(p) -> "merl.Measured":
-    return merl.load(p.file) if p.file else example()
+def is_aniso(p) -> bool:
+    """Whether a measured material's file is an anisotropic MIT table (``.dat``)."""
+    return bool(p.file) and mit_aniso.is_mit_file(p.file)
+
+
+def load_file(path):
+    """The loaded table of a measured file by its format: MIT ``.dat`` or MERL (``.binary``)."""
+    return mit_aniso.load(path) if mit_aniso.is_mit_file(path) else merl.load(path)
+
+
+def data(p) -> "merl.HalfVectorSampler":
+    """The material's loaded table (``merl.Measured`` or ``mit_aniso.AnisoMeasured``)."""
+    return load_file(p.file) if p.file else example()
 
 
 def _check_file(value, where):
     if value:
         try:
-            merl.load(value)
+            load_file(value)
         except ViewerError as e:
             raise ViewerError(f"{where}: {e}") from None
 
@@ -69,20 +83,21 @@ GLSL_RTOL = 2e-3
 
 SPEC = ModelSpec(
     name="measured",
-    title="Measured (MERL)",
+    title="Measured (MERL, MIT)",
     params=(
-        Param("file", "path", "", "a MERL .binary BRDF file (\"\": the built-in example)", check=_check_file),
+        Param("file", "path", "", "a MERL .binary (isotropic) or MIT .dat (anisotropic) BRDF file "
+              "(\"\": the built-in example)", check=_check_file),
         Param("scale", "float", 1.0, "factor on the measured values (at most 1: dims a measurement)", lo=0.0, hi=1.0),
     ),
     source="Matusik, Pfister, Brand, McMillan 2003, A Data-Driven Reflectance Model (MERL BRDF database); "
-           "Rusinkiewicz 1998 half/difference coordinates",
+           "Rusinkiewicz 1998 half/difference coordinates; Ngan, Durand, Matusik 2005, Experimental "
+           "Analysis of BRDF Models (MIT anisotropic data)",
 )
 
 
 def eval(p, wi, wo):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    th, td, pd = merl.half_diff(wi, wo)
-    f = merl.lookup(data(p).table, th, td, pd) * p.scale
+    f = data(p).value(wi, wo) * p.scale
     return np.where(ok[:, None], f, 0.0)
 
 

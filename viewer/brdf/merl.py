@@ -226,19 +226,17 @@ def tabulate(fn, chunk: int = 200_000) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- loaded data + sampling tables
-class Measured:
-    """A loaded table with what its sampler needs (see the module docstring)."""
+class HalfVectorSampler:
+    """The sampler's tables (see the module docstring) and the split-sum fit of a BRDF given by
+    its profile: the mean RGB value (90, 3) at each theta_h bin centre at small theta_d."""
 
-    def __init__(self, table: np.ndarray, path: str = ""):
-        self.table = table
-        self.path = path
+    def __init__(self, profile_rgb: np.ndarray):
+        self.profile_rgb = np.maximum(np.asarray(profile_rgb, dtype=np.float64), 0.0)
         # theta_h bin edges (the sqrt mapping) and their solid angles
         u = np.arange(N_TH + 1) / N_TH
         self.edges = u * u * HALF_PI
         self.d_omega = 2.0 * np.pi * (np.cos(self.edges[:-1]) - np.cos(self.edges[1:]))
-        lum = table @ LUM  # (90, 90, 180)
-        profile = lum[:, : max(1, N_TD // 9)].mean(axis=(1, 2))  # theta_d < 10 degrees
-        profile = np.maximum(profile, 0.0)
+        profile = np.maximum(self.profile_rgb @ LUM, 0.0)
         centre = 0.5 * (self.edges[:-1] + self.edges[1:])
         dens = (profile - profile.min()) * np.cos(centre)  # the peak: the floor is the cosine part's
         floor_ = 1e-3 * dens.max() if dens.max() > 0 else 1.0
@@ -260,7 +258,7 @@ class Measured:
         (beyond, both directions graze and measurements are least reliable); given rho_d, alpha
         = 1 / sqrt(pi D(0)) of the peak normalised to integral D cos_h = 1, exact for GGX and
         Beckmann (both have D(0) = 1 / (pi alpha^2)). Two rounds from rho_d = 0."""
-        profile = np.maximum(self.table[:, : max(1, N_TD // 9)].mean(axis=(1, 2)), 0.0)  # (90, 3)
+        profile = self.profile_rgb  # (90, 3)
         centre = 0.5 * (self.edges[:-1] + self.edges[1:])
         ch = np.cos(centre)
         fit = centre < np.radians(60.0)
@@ -279,6 +277,25 @@ class Measured:
             coef = np.linalg.lstsq(basis, profile[fit] * w[:, None], rcond=None)[0]
             rho_d = np.maximum(coef[0], 0.0)
         return rho_d, alpha
+
+
+class Measured(HalfVectorSampler):
+    """A loaded MERL table with what its sampler needs (see the module docstring)."""
+
+    kind = "merl"
+
+    def __init__(self, table: np.ndarray, path: str = ""):
+        self.table = table
+        self.path = path
+        super().__init__(table[:, : max(1, N_TD // 9)].mean(axis=(1, 2)))  # theta_d < 10 degrees
+
+    def value(self, wi, wo):
+        """The table's interpolated value at direction pairs (N, 3)."""
+        return lookup(self.table, *half_diff(wi, wo))
+
+    def texture_size(self) -> tuple[int, int, int]:
+        """(width, height, depth) of ``texture_data``."""
+        return N_PD, N_TD, N_TH + 1
 
     def texture_data(self) -> np.ndarray:
         """float32 RGB data of a 3D texture 180 x 90 x 91: x = phi_d, y = theta_d, z = theta_h for

@@ -480,17 +480,28 @@ def uses_thin_film(params: Params) -> bool:
     return bool(film_kinds(params))
 
 
+def measured_aniso(params: Params) -> bool:
+    """Whether a material is (or nests) a measured material with an anisotropic (MIT) table."""
+    from viewer.brdf.measured import is_aniso
+
+    if params.model == "measured":
+        return is_aniso(params)
+    return any(isinstance(v, Params) and v.model and measured_aniso(v) for v in params.values())
+
+
 def program_defines(materials) -> dict[str, str]:
     """The ``#define``s a program needs for ``materials`` (an iterable of Params), the one place
     every program (forward pass, GPU albedo tables, GPU engine, tests) decides them:
     MEASURED_TEXTURE where one is or nests a measured table (shaders/brdf/measured.glsl reads it
-    from a 3D texture), THIN_FILM where one (or its base) has a film of its own
+    from a 3D texture; MEASURED_ANISO too where that table is an MIT anisotropic one), THIN_FILM where one (or its base) has a film of its own
     (common/fresnel.glsl compiles the film's wavelength loop only then), COAT_FILM where a
     layered coating has one (shaders/brdf/layered.glsl reads its precomputed tables: no loop)."""
     materials = list(materials)
     out = {}
     if any("measured" in models_used(p) for p in materials):
         out["MEASURED_TEXTURE"] = "1"
+        if any(measured_aniso(p) for p in materials):
+            out["MEASURED_ANISO"] = "1"
     kinds = set().union(*(film_kinds(p) for p in materials)) if materials else set()
     if "own" in kinds:
         out["THIN_FILM"] = "1"

@@ -1,8 +1,10 @@
-"""3D textures of measured (MERL) BRDF tables for the GLSL twin ``shaders/brdf/measured.glsl``.
+"""3D textures of measured BRDF tables for the GLSL twin ``shaders/brdf/measured.glsl``.
 
 A program that includes the measured model with ``MEASURED_TEXTURE`` defined reads the table of
-the material it draws from ``u_measured``; ``MeasuredTextures.bind`` uploads each file once
-(float32 RGB, 180 x 90 x 91 with the sampler's CDF, about 17 MiB) and binds the one a material names."""
+the material it draws from ``u_measured``; ``MeasuredTextures.bind`` uploads each file once and
+binds the one a material names: a MERL table as float32 RGB 180 x 90 x 91 with the sampler's CDF
+(about 17 MiB), an MIT anisotropic table (``MEASURED_ANISO``) as max(n_pi, 96) x n_pd x
+(n_ti n_to + 1) (``viewer.brdf.mit_aniso.AnisoMeasured.texture_data``)."""
 
 from __future__ import annotations
 
@@ -36,9 +38,7 @@ class MeasuredTextures:
         if tex is None:
             if len(self._tex) >= 4:
                 self._tex.pop(next(iter(self._tex))).release()
-            from viewer.brdf import merl
-
-            tex = self.ctx.texture3d((merl.N_PD, merl.N_TD, merl.N_TH + 1), 3, d.texture_data().tobytes(), dtype="f4")
+            tex = self.ctx.texture3d(d.texture_size(), 3, d.texture_data().tobytes(), dtype="f4")
             tex.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
             self._tex[key] = tex
         return tex

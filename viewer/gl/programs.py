@@ -249,5 +249,6 @@ def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
            + (":iblsampled" if ibl_sampled else "") + (":env" if env_light else "")
            + (":const" if env_constant else "") + (":rt" if traced is not None else "")
            + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else "")
-           + (":coatfilm" if "COAT_FILM" in defines else "") + (":shell" if "THIN_SHELL" in defines else ""))
+           + (":coatfilm" if "COAT_FILM" in defines else "")
+           + (":aniso" if "MEASURED_ANISO" in defines else "") + (":shell" if "THIN_SHELL" in defines else ""))
     return key, used, defines

@@ -41,7 +41,7 @@ from viewer.gl.context import release_gl
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
-from viewer.gpupt.refusals import MEASURED_REFUSAL, needs_spectral, uses_measured
+from viewer.gpupt.refusals import MEASURED_REFUSAL, measured_tables, needs_spectral, several_measured_tables
 from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
 from viewer.pathtracer.integrator import RenderSetup
 
@@ -97,6 +97,7 @@ class GpuReferenceRenderer:
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _refuse_measured(scene)
+        self._measured_params = next(iter(measured_tables(scene).values()), None)
         self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
         self.spectral = spectral    # trace wavelengths; None: where a material is dispersive
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
@@ -108,6 +109,7 @@ class GpuReferenceRenderer:
         self.ctx = ctx
         self.spp_pass = max(1, int(spp_pass))
         self._scene_tex = None
+        self._measured = None               # MeasuredTextures: the scene's one measured table
         self._textures: list = []
         self._targets: list = []
         self.rows_per_pass = None           # adapted by step_for
@@ -125,6 +127,7 @@ class GpuReferenceRenderer:
         """Start over on a changed scene, camera or size (the programs stay cached); the
         estimator's options change where given (None: as before)."""
         _refuse_measured(scene)
+        self._measured_params = next(iter(measured_tables(scene).values()), None)
         self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
         self._set_setup(self._make_setup(scene, camera, width, height))
 
@@ -255,6 +258,13 @@ class GpuReferenceRenderer:
             set_uniform(prog, name, unit)
             unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
+        if self._measured_params is not None and "u_measured" in prog:
+            if self._measured is None:
+                from viewer.gl.measured_tex import MeasuredTextures
+
+                self._measured = MeasuredTextures(self.ctx)
+            self._measured.bind(prog, self._measured_params, unit)
+            unit += 1
         if self.is_spectral:
             self._spec_tex.use(location=unit)
             set_uniform(prog, "u_spec_tab", unit)
@@ -422,6 +432,9 @@ class GpuReferenceRenderer:
         if self.ctx is None:
             return
         self._release_scene()
+        if self._measured is not None:
+            self._measured.release()
+            self._measured = None
         if self._own_ctx:
             release_programs(self.ctx)
             self.ctx.release()
@@ -435,5 +448,5 @@ class GpuReferenceRenderer:
 
 
 def _refuse_measured(scene):
-    if uses_measured(scene):
+    if several_measured_tables(scene):
         raise ViewerError(MEASURED_REFUSAL)

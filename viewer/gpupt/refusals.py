@@ -1,7 +1,7 @@
 """What only the cpu engine renders, in one place: the tests, the one-line refusal of
 ``--engine gpu`` and the reason ``auto`` prints for taking the cpu engine. ``cpu_only(scene)``
 is the first limit a scene meets (None: the gpu engine renders it); the engine selection
-(``viewer/gpupt/select.py``) and the gpu engine itself (``viewer/gpupt/engine.py``: measured
+(``viewer/gpupt/select.py``) and the gpu engine itself (``viewer/gpupt/engine.py``: several measured
 tables) read them here."""
 
 from __future__ import annotations
@@ -20,15 +20,32 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
 
 
 def uses_measured(scene) -> bool:
-    """Whether a material of ``scene`` is (or nests) a measured BRDF table, which only the cpu
-    engine renders (the gpu engine's programs bind no per-material 3D textures)."""
+    """Whether a material of ``scene`` is (or nests) a measured BRDF table (MERL or MIT)."""
     from viewer.gl.brdf_glsl import models_used
 
     return any("measured" in models_used(m) for m in scene.materials.values())
 
 
-MEASURED_REFUSAL = ("--engine gpu does not render measured (MERL) materials; use --engine cpu or auto "
-                    "(auto takes the cpu engine for them)")
+def measured_tables(scene) -> dict:
+    """{table key: the measured Params that reads it} of the materials of ``scene`` (a nested
+    base too): the gpu engine binds one table for the whole pass, so it renders scenes whose
+    measured materials share one file."""
+    from viewer.gl.measured_tex import measured_params
+
+    out = {}
+    for m in scene.materials.values():
+        p = measured_params(m)
+        if p is not None:
+            out.setdefault((p.file or "", p.file.lower().endswith(".dat") if p.file else False), p)
+    return out
+
+
+def several_measured_tables(scene) -> bool:
+    return len(measured_tables(scene)) > 1
+
+
+MEASURED_REFUSAL = ("--engine gpu binds one measured table per scene, and this scene's measured materials "
+                    "read several files; use --engine cpu or auto (auto takes the cpu engine for them)")
 
 
 def uses_random_walk(scene) -> bool:
@@ -76,8 +93,8 @@ class Limit(NamedTuple):
 
 
 LIMITS = (
-    Limit(lambda scene, spectral: uses_measured(scene), MEASURED_REFUSAL,
-          "the scene has measured (MERL) materials: only the cpu engine renders them"),
+    Limit(lambda scene, spectral: several_measured_tables(scene), MEASURED_REFUSAL,
+          "the scene's measured materials read several tables: only the cpu engine renders them"),
     Limit(lambda scene, spectral: uses_random_walk(scene), RANDOM_WALK_REFUSAL, RANDOM_WALK_REASON),
     Limit(lambda scene, spectral: uses_thin_film(scene) and needs_spectral(scene, spectral), FILM_SPECTRAL_REFUSAL,
           "a thin film traced per wavelength: only the cpu engine does it"),

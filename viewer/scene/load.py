@@ -193,7 +193,8 @@ def file_material(model, assignments=()):
 
 def material_from_name(name: str, assignments=()):
     """Validated Params of a material named on the command line (``plot MODEL``, ``fit --model``):
-    a model (its defaults), a preset, a material file (.toml) or a measured file (.binary), with
+    a model (its defaults), a preset, a material file (.toml), a measured file (.binary, .dat) or
+    a BRDF Explorer file (.brdf, or .bparam: the values of the .brdf file it names), with
     ``--set KEY=VALUE`` applied; KEY is a parameter name, dotted into tables and nested materials
     (coating.ior, base.albedo, lobes.0.n), read as the scene's ``--set`` (``apply_override``)."""
     from viewer import brdf
@@ -202,7 +203,16 @@ def material_from_name(name: str, assignments=()):
 
     if name.lower().endswith(".brdf"):  # a BRDF Explorer file: its declarations are the parameters
         return file_material(brdf.load(name), assignments)
-    if name.endswith(".binary"):  # a measured BRDF file (MERL format)
+    if name.lower().endswith(".bparam"):  # BRDF Explorer's values of a .brdf file (the one it names)
+        import sys
+
+        from viewer.brdf import bparam
+
+        lines, note = bparam.overrides(name)
+        if note:
+            print(f"brdf-viewer: {note}", file=sys.stderr)
+        return file_material(brdf.load(bparam.parse(name).brdf_path()), lines + list(assignments))
+    if name.lower().endswith((".binary", ".dat")):  # a measured BRDF file (MERL or MIT format)
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):
         raw = load_material_file(name)[1].to_plain()

@@ -13,6 +13,9 @@ FILTERS = {
     "mesh": ["Meshes", "*.obj *.ply *.stl *.off *.glb *.gltf", "All files", "*"],
     "material": ["Materials and scenes (.toml)", "*.toml", "All files", "*"],
     "save_material": ["Material (.toml)", "*.toml"],
+    "bparam": ["BRDF Explorer parameters (.bparam)", "*.bparam", "All files", "*"],
+    "save_bparam": ["BRDF Explorer parameters (.bparam)", "*.bparam"],
+    "measured": ["Measured BRDFs (.binary, .dat)", "*.binary *.dat", "All files", "*"],
 }
 
 
@@ -68,6 +71,17 @@ class FilesPanel:
             imgui.same_line()
             if imgui.button("Load material"):
                 self.open_or_browse("material", path)
+            imgui.same_line()
+            if imgui.button("Load measured"):
+                self.open_or_browse("measured", path)
+            from viewer import brdf
+
+            if brdf.is_file(s.scene.materials.get(mat)):  # BRDF Explorer's parameter files
+                if imgui.button("Load parameters (.bparam)"):
+                    self.open_or_browse("bparam", path)
+                imgui.same_line()
+                if imgui.button("Save parameters (.bparam)"):
+                    self.open_or_browse("save_bparam", path)
         if state_mod.last_scene_path().exists() and imgui.button("Reopen last session"):
             s.open_scene(state_mod.last_scene_path())
         imgui.text_disabled("empty path: a file dialog; or drop files on the window")
