@@ -19,7 +19,7 @@ import pytest
 
 from viewer import cli
 from viewer.pathtracer import ReferenceRenderer, cache
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.reference.setup import RenderSetup
 from viewer.scene import load_scene, load_scene_text, parse_scene
 
 try:  # Python >= 3.11

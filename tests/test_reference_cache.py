@@ -1,4 +1,4 @@
-"""The reference cache (viewer/pathtracer/cache.py) and ``brdf-viewer bake``."""
+"""The reference cache (viewer/reference/cache.py) and ``brdf-viewer bake``."""
 
 import subprocess
 import sys
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from viewer.pathtracer import ReferenceRenderer, cache
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.reference.setup import RenderSetup
 from viewer.scene import load_scene
 
 

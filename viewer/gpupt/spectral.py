@@ -27,7 +27,7 @@ CATEGORY_CODE = {"rgb": 0, "table": 1, "hero": 2}   # spectral.glsl u_mat_spec[m
 
 
 def category(m) -> str:
-    """The CPU spectral integrator's category of an ``integrator.MaterialInfo``: ``rgb`` (no
+    """The CPU spectral integrator's category of an ``viewer.reference.setup.MaterialInfo``: ``rgb`` (no
     spectral table: evaluated in RGB, the value upsampled), ``hero`` (dispersive, or a spectral
     material with a delta base: one wavelength per path) or ``table`` (a spectral metal: all four
     wavelengths)."""
