@@ -13,6 +13,8 @@ from viewer.brdf.albedo import TABLE_SIZE
 from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TABLE
 from viewer.brdf.spectral_fresnel import TABLE_N
 from viewer.geometry.bvh_flat import STACK_SIZE
+from viewer.geometry.soup import EPS_REL
+from viewer.reference.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 from viewer.scene.model import MAX_LIGHTS
 from viewer.term_scales import NOT_APPLICABLE, SCALES
 
@@ -62,14 +64,18 @@ _TABLES = (("LIGHT", LIGHT_TYPES), ("TONEMAP", TONEMAPS), ("IBL_MODE", IBL_MODES
            ("ENV_MODE", ENV_MODES))
 _SIZES = ("MAX_LIGHTS", "SHADOW_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
           "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE", "LAYERED_BASE_TABLE", "LAYERED_BASE_TABLES_AT",
-          "SPECTRAL_TABLE_N", "BVH_STACK", "MAT_VEC4", "MAT_FLOATS")
+          "SPECTRAL_TABLE_N", "BVH_STACK", "MAT_VEC4", "MAT_FLOATS",
+          "RR_START_DEPTH")  # Russian roulette from this scattering event on (viewer/reference/estimator.py)
 
 
 def float_values() -> dict[str, float]:
-    """{GLSL name: value} of the header's float constants: the empty depth, and the term views'
+    """{GLSL name: value} of the header's float constants: the empty depth, the reference
+    estimator's Russian roulette bounds (``RR_MIN``, ``RR_MAX``: viewer/reference/estimator.py),
+    the relative ray offset (``EPS_REL``: viewer/geometry/soup.py), and the term views'
     scales (viewer/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
     log(1 + k v_max) (k = 0: t = v / v_max), ``TERM_NOT_APPLICABLE`` the grey of "no such term"."""
-    out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE)}
+    out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE),
+           "RR_MIN": float(RR_MIN), "RR_MAX": float(RR_MAX), "EPS_REL": float(EPS_REL)}
     for view, (_, k, vmax) in SCALES.items():
         out[glsl_name("TERM", view, "K")] = float(k)
         out[glsl_name("TERM", view, "MAX")] = float(vmax)
