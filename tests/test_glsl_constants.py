@@ -80,6 +80,9 @@ def test_header_values_are_pythons():
     from viewer.pathtracer import integrator
 
     assert h["RR_START_DEPTH"] == integrator.RR_START_DEPTH == 4   # the CPU engine's, which the GPU engine's pass reads
+    from viewer.pathtracer import spectral
+
+    assert h["SPEC_STRIDE"] == spectral.STRIDE == 105
     assert h == constants.values()
 
 
@@ -97,9 +100,12 @@ def test_header_floats_are_pythons():
     from viewer.pathtracer import integrator
 
     f = _header_floats()
-    assert f == constants.float_values() and len(f) == 5 + 2 * len(term_scales.SCALES)
+    assert f == constants.float_values() and len(f) == 7 + 2 * len(term_scales.SCALES)
     assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (integrator.RR_MIN, integrator.RR_MAX, integrator.EPS_REL)
     assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (0.05, 0.95, 1e-4)
+    from viewer.pathtracer import spectral
+
+    assert (f["SPEC_N_BINS"], f["SPEC_HERO"]) == (spectral.N_BINS, spectral.HERO) == (420, 4)
     assert f["EMPTY_DEPTH"] == ssr.EMPTY_DEPTH == 1e30
     assert f["TERM_NOT_APPLICABLE"] == term_scales.NOT_APPLICABLE
     for view, (_, k, vmax) in term_scales.SCALES.items():
