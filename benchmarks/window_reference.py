@@ -112,7 +112,7 @@ def main():
     if args._child:
         child(args._child)
         return
-    from viewer.reference.cache import cache_root
+    from viewer.reference_common.cache import cache_root
 
     stored = cache_root() / "engine.toml"
     for engine in args.engines.split(","):

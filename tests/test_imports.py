@@ -23,10 +23,10 @@
     imports ``ViewerError`` from it, and its ``render`` / ``reference`` forward to ``viewer.api``
     inside the functions; it imports nothing of ours at module level;
 (g) the two reference engines (``viewer/gpupt``, ``viewer/pathtracer``) import each other nowhere:
-    what both need is in ``viewer/reference`` (``PREDICATES_PENDING`` names the scene and
+    what both need is in ``viewer/reference_common`` (``PREDICATES_PENDING`` names the scene and
     material predicates the GPU engine still takes from ``viewer.pathtracer.spectral`` until
     they move below both);
-(h) the shared package ``viewer/reference`` imports no GL at module level (the CPU engine's
+(h) the shared package ``viewer/reference_common`` imports no GL at module level (the CPU engine's
     workers import it) and an engine only inside the functions of ``select.py``, where
     ``make_renderer`` makes the one asked for (and the pending predicates as in (g)).
 
@@ -218,7 +218,7 @@ def engines_apart(root: Path, pending=PREDICATES_PENDING) -> list[str]:
 def reference_stays_neutral(root: Path, pending=PREDICATES_PENDING) -> list[str]:
     """Rule (h)."""
     bad = []
-    for f in _py(root, "viewer/reference"):
+    for f in _py(root, "viewer/reference_common"):
         rel = f.relative_to(root).as_posix()
         bad += _crossings(root, f, REFERENCE_ENGINES, pending, allow_in_functions=f.name == "select.py")
         bad += [f"{rel} imports {m} at module level" for m, names, inside in _imports_with_place(root, f)
@@ -414,7 +414,7 @@ def test_the_engines_import_each_other_nowhere():
 
 
 def test_the_shared_reference_package_stays_neutral():
-    assert len(_py(ROOT, "viewer/reference")) >= 6
+    assert len(_py(ROOT, "viewer/reference_common")) >= 6
     assert reference_stays_neutral(ROOT) == []
 
 
@@ -510,12 +510,12 @@ def test_the_engine_rules_can_fail(tmp_path):
                               "from viewer.pathtracer.spectral import uses_spectral, SpectralIntegrator\n"),
         "viewer/gpupt/b.py": ("from viewer.pathtracer import spectral as sp\n"
                               "def f(m):\n    import viewer.pathtracer.cache\n    return sp.uses_spectral(m), sp.HERO\n"),
-        "viewer/gpupt/ok.py": "from viewer.pathtracer.spectral import scene_is_dispersive\nfrom viewer.reference import setup\n",
+        "viewer/gpupt/ok.py": "from viewer.pathtracer.spectral import scene_is_dispersive\nfrom viewer.reference_common import setup\n",
         "viewer/pathtracer/c.py": "def g():\n    from ..gpupt import engine\n",
-        "viewer/reference/select.py": "import moderngl\ndef make():\n    from viewer.gpupt.engine import G\n    from viewer.gl import context\n",
-        "viewer/reference/setup.py": ("from viewer.pathtracer.integrator import Integrator\n"
+        "viewer/reference_common/select.py": "import moderngl\ndef make():\n    from viewer.gpupt.engine import G\n    from viewer.gl import context\n",
+        "viewer/reference_common/setup.py": ("from viewer.pathtracer.integrator import Integrator\n"
                                       "def f():\n    from viewer.gpupt import engine\n    from viewer.gl.brdf_glsl import m\n"),
-        "viewer/reference/refusals.py": "def f():\n    from viewer.pathtracer.spectral import scene_is_dispersive\n",
+        "viewer/reference_common/refusals.py": "def f():\n    from viewer.pathtracer.spectral import scene_is_dispersive\n",
     })
     assert engines_apart(root) == [
         "viewer/gpupt/a.py imports viewer.pathtracer.integrator.RenderSetup",
@@ -527,9 +527,9 @@ def test_the_engine_rules_can_fail(tmp_path):
         "viewer/gpupt/ok.py imports viewer.pathtracer.spectral.scene_is_dispersive",
         "viewer/pathtracer/c.py imports viewer.gpupt.engine"]
     assert reference_stays_neutral(root) == [
-        "viewer/reference/select.py imports moderngl at module level",
-        "viewer/reference/setup.py imports viewer.gpupt.engine",
-        "viewer/reference/setup.py imports viewer.pathtracer.integrator.Integrator"]
+        "viewer/reference_common/select.py imports moderngl at module level",
+        "viewer/reference_common/setup.py imports viewer.gpupt.engine",
+        "viewer/reference_common/setup.py imports viewer.pathtracer.integrator.Integrator"]
 
 
 def test_the_private_name_rule_can_fail(tmp_path):

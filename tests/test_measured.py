@@ -252,7 +252,7 @@ def test_raster_measured_lambert_equals_lambert(renderer, lambert_file):
 def test_reference_and_engines(lambert_file):
     """The cpu reference renders measured materials (Lambert file vs lambert, within noise); the gpu
     engine refuses them in one line and auto takes the cpu engine."""
-    from viewer.reference.select import make_renderer, uses_measured
+    from viewer.reference_common.select import make_renderer, uses_measured
     from viewer.pathtracer import ReferenceRenderer
 
     a = _scene(lambert_file, f'model = "measured"\nfile = "{lambert_file.name}"\n')

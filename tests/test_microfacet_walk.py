@@ -261,7 +261,7 @@ def _ms_scene(tmp_path):
 def test_engines_only_cpu_has_the_walk(tmp_path, capsys):
     """auto takes the cpu engine for a scene with the walk (also nested in a layered base) and
     prints why; --engine gpu refuses with one line."""
-    from viewer.reference.select import choose_for_scenes, make_renderer, uses_random_walk
+    from viewer.reference_common.select import choose_for_scenes, make_renderer, uses_random_walk
 
     sc = _ms_scene(tmp_path)
     assert uses_random_walk(sc)

@@ -1,5 +1,5 @@
 // The environment light of the GPU path tracer: the same strategies as the CPU engine
-// (viewer/reference/envmap.py). ENV_MODE_BLACK, ENV_MODE_CONSTANT (cosine hemisphere about the
+// (viewer/reference_common/envmap.py). ENV_MODE_BLACK, ENV_MODE_CONSTANT (cosine hemisphere about the
 // shading normal; uniform sphere on transmissive surfaces), ENV_MODE_MAP: lat-long map importance sampled by
 // luminance x sin(theta) (pbrt-v3 14.2.4): a row from the marginal CDF, a column from the row's
 // conditional CDF, then a uniform point in the texel; p(omega) = p(u, v) / (2 pi^2 sin theta).

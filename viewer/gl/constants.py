@@ -14,8 +14,8 @@ from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TAB
 from viewer.brdf.spectral_fresnel import TABLE_N
 from viewer.geometry.bvh_flat import STACK_SIZE
 from viewer.geometry.soup import EPS_REL
-from viewer.reference.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
-from viewer.reference.wavelengths import HERO, N_BINS, STRIDE
+from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
+from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE
 from viewer.scene.model import MAX_LIGHTS
 from viewer.term_scales import NOT_APPLICABLE, SCALES
 
@@ -35,8 +35,8 @@ BVH_STACK = STACK_SIZE    # the BVH traversal's stack (viewer/geometry/bvh_flat.
 MAT_VEC4 = 64             # the material block u_mat in vec4s (viewer/gl/brdf_glsl.py)
 MAT_FLOATS = 4 * MAT_VEC4  # ... in floats: material r of a texture of blocks starts at float MAT_FLOATS * r
 EMPTY_DEPTH = 1e30        # the SSR depth pyramid where there is no surface (viewer/gl/ssr.py)
-# RR_START_DEPTH: Russian roulette from this scattering event on (viewer/reference/estimator.py)
-SPEC_STRIDE = STRIDE      # bins between a spectral path's wavelengths (viewer/reference/wavelengths.py)
+# RR_START_DEPTH: Russian roulette from this scattering event on (viewer/reference_common/estimator.py)
+SPEC_STRIDE = STRIDE      # bins between a spectral path's wavelengths (viewer/reference_common/wavelengths.py)
 
 LIGHT_TYPES = {"point": 0, "directional": 1}
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
@@ -73,9 +73,9 @@ _SIZES = ("MAX_LIGHTS", "SHADOW_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_
 
 def float_values() -> dict[str, float]:
     """{GLSL name: value} of the header's float constants: the empty depth, the reference
-    estimator's Russian roulette bounds (``RR_MIN``, ``RR_MAX``: viewer/reference/estimator.py),
+    estimator's Russian roulette bounds (``RR_MIN``, ``RR_MAX``: viewer/reference_common/estimator.py),
     its wavelength bins and a hero-only path's weight (``SPEC_N_BINS``, ``SPEC_HERO``:
-    viewer/reference/wavelengths.py),
+    viewer/reference_common/wavelengths.py),
     the relative ray offset (``EPS_REL``: viewer/geometry/soup.py), and the term views'
     scales (viewer/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
     log(1 + k v_max) (k = 0: t = v / v_max), ``TERM_NOT_APPLICABLE`` the grey of "no such term"."""

@@ -22,13 +22,13 @@ import numpy as np
 
 from viewer.gl.brdf_glsl import pack_material
 from viewer.pathtracer import spectral as sp
-from viewer.reference.wavelengths import N_BINS, STRIDE, bin_wavelengths, bin_weights
+from viewer.reference_common.wavelengths import N_BINS, STRIDE, bin_wavelengths, bin_weights
 
 CATEGORY_CODE = {"rgb": 0, "table": 1, "hero": 2}   # spectral.glsl u_mat_spec[m].x
 
 
 def category(m) -> str:
-    """The CPU spectral integrator's category of an ``viewer.reference.setup.MaterialInfo``: ``rgb`` (no
+    """The CPU spectral integrator's category of an ``viewer.reference_common.setup.MaterialInfo``: ``rgb`` (no
     spectral table: evaluated in RGB, the value upsampled), ``hero`` (dispersive, or a spectral
     material with a delta base: one wavelength per path) or ``table`` (a spectral metal: all four
     wavelengths)."""

@@ -53,8 +53,8 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
-from viewer.reference.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
-from viewer.reference.setup import MaterialInfo, RenderSetup
+from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
+from viewer.reference_common.setup import MaterialInfo, RenderSetup
 
 DIMS_PER_BOUNCE = 5         # bsdf (2), environment (2), roulette (1)
 KEY_SALT = 0x9E3779B97F4A7C15

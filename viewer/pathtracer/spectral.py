@@ -36,7 +36,7 @@ from viewer import spectral
 from viewer.brdf import thin_film
 from viewer.brdf.spec import Params
 from viewer.pathtracer.integrator import Integrator, PathState
-from viewer.reference.wavelengths import HERO, N_BINS, STRIDE, bin_wavelengths, bin_weights
+from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE, bin_wavelengths, bin_weights
 
 
 def has_film(p) -> bool:

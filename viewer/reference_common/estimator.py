@@ -59,7 +59,7 @@ class EstimatorOptions:
 
 @runtime_checkable
 class ReferenceEngine(Protocol):
-    """A progressive reference renderer (``viewer.reference.select.make_renderer`` makes one of
+    """A progressive reference renderer (``viewer.reference_common.select.make_renderer`` makes one of
     either engine). ``engine``: "cpu" or "gpu"; ``options``: its ``EstimatorOptions``;
     ``spp``: whole samples per pixel so far; ``bad_values``: NaN / inf samples dropped."""
 

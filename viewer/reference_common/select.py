@@ -7,14 +7,14 @@ shares the CPU cores with the CPU engine and measured up to 10x slower than it o
 scenes, so there it is cpu. No OpenGL at all -> cpu.
 Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
 the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
-cpu engine can trace (``viewer/reference/refusals.py``: measured tables, the multiple-scattering
+cpu engine can trace (``viewer/reference_common/refusals.py``: measured tables, the multiple-scattering
 random walk, thin films per wavelength) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
 
 # needs_spectral, uses_measured, uses_random_walk: public here too (the CLI, the window, tests)
-from viewer.reference.refusals import cpu_only, needs_spectral, uses_measured, uses_random_walk
+from viewer.reference_common.refusals import cpu_only, needs_spectral, uses_measured, uses_random_walk
 
 ENGINES = ("cpu", "gpu", "auto")
 SOFTWARE_GL = ("llvmpipe", "softpipe", "swiftshader", "software", "lavapipe", "swrast")

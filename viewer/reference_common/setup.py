@@ -1,6 +1,6 @@
 """What a reference engine renders from, the same for both engines: ``RenderSetup`` (the scene's
 triangles and BVH from ``viewer.geometry``, its materials as ``MaterialInfo``, its lights, its
-environment light (``viewer.reference.envmap``), the camera and the estimator's options), which
+environment light (``viewer.reference_common.envmap``), the camera and the estimator's options), which
 the CPU engine sends to its workers (picklable) and the GPU engine packs into textures. No GL."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import twin_trust
 from viewer.geometry.soup import SceneGeometry, build_geometry
-from viewer.reference.envmap import EnvironmentLight
-from viewer.reference.estimator import check_options
+from viewer.reference_common.envmap import EnvironmentLight
+from viewer.reference_common.estimator import check_options
 
 
 @dataclass
