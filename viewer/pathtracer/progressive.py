@@ -9,7 +9,7 @@ on how many samples each ``step`` asked for), never on the workers.
 Processes: ``workers`` (default ``os.cpu_count()``) processes started with the ``spawn``
 method. ``fork`` would copy a process that may hold a GL context, a glfw window and driver
 threads (their locks included) into the children, which is unsafe; ``spawn`` starts clean
-interpreters that import only numpy, embreex and ``viewer.pathtracer`` / ``viewer.brdf``
+interpreters that import only numpy, embreex and ``viewer.pathtracer`` / ``viewer.reference_common`` / ``viewer.brdf``
 (no GL). As always with ``spawn``, the launching script must guard its entry point with
 ``if __name__ == "__main__"`` (the package's ``brdf-viewer`` script and ``python -m viewer``
 need nothing: ``multiprocessing`` does not re-run a package's ``__main__``).

@@ -7,10 +7,12 @@ and the GPU engine (``viewer.gpupt``) import this package and never each other.
 * ``setup``      ``RenderSetup``: what an engine renders from (geometry, materials, lights,
                  environment, camera, options)
 * ``envmap``     the environment light: constant or lat-long map with importance sampling
+* ``wavelengths`` the hero-wavelength estimator's 1 nm bins and their CIE weights
 * ``cache``      the reference cache: finished references on disk, for either engine
 * ``refusals``   what only the CPU engine renders
 * ``select``     the engine choice (``cpu`` / ``gpu`` / ``auto``) and ``make_renderer``, which
                  imports the engine it makes only then
 
-No GL at module level here: the CPU engine's workers import ``setup`` and ``envmap``.
+No GL at module level here: the CPU engine's workers import ``setup`` and ``envmap``. (Not
+``viewer/reference``: ``viewer.reference`` is the Python API's function.)
 """
