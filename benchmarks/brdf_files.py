@@ -107,7 +107,7 @@ def raster_frames(folder):
 
 def engine_rate(folder):
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
     lam = ROOT / "tests" / "brdfs" / "lambert_twin.brdf"
@@ -127,7 +127,7 @@ def engine_rate(folder):
 
 def variance_ratio(folder, seeds=12, spp=4):
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
     ggx = HERE / "scenes" / "ggx.brdf"

@@ -430,7 +430,7 @@ def _timed_engine(make, seconds, min_spp=0):
 def section_engines(seconds: float, skip_mitsuba: bool, var_spp: int = 8):
     from viewer.gl.context import GLUnavailable, create_offscreen_context
     from viewer.gpupt.engine import GpuReferenceRenderer, release_programs
-    from viewer.gpupt.select import gl_renderer_name, is_software
+    from viewer.reference_common.select import gl_renderer_name, is_software
     from viewer.pathtracer.progressive import ReferenceRenderer
     from viewer.scene import load_scene
 

@@ -7,22 +7,19 @@ reference's samples per pixel after 5, 20 and 60 s, its samples/s, and the frame
 runs (median and 90th percentile of the frames drawn; the window's loop, ``App.tick``, sleeps
 between them while only the reference changes), then the frame time while the camera orbits
 (a drag simulated as the window's input handling does it: 8 pixels per frame for 10 s), once per
-engine (``auto``: what the window uses, a stored
-measurement or a hardware GPU decides; ``cpu``: the CPU engine on a background thread, as before
+engine (``auto``: what the window uses, the kind of OpenGL decides; ``cpu``: the CPU engine on a background thread, as before
 the GPU engine existed). Then the variance views (standard error, relative error, samples
 needed) with the convergence plot: the time to compute and upload one error map, and the frame
 time with the view on.
 
 Each engine runs in its own child process with an empty reference cache (so no stored image
-gives it a head start); the machine's stored engine measurement is copied in, so ``auto``
-decides as it would in class. Prints numbers, asserts nothing.
+gives it a head start). Prints numbers, asserts nothing.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -112,13 +109,8 @@ def main():
     if args._child:
         child(args._child)
         return
-    from viewer.pathtracer.cache import cache_root
-
-    stored = cache_root() / "engine.toml"
     for engine in args.engines.split(","):
         with tempfile.TemporaryDirectory() as tmp:
-            if stored.exists():
-                shutil.copy(stored, Path(tmp) / "engine.toml")
             env = dict(os.environ, BRDF_VIEWER_CACHE=tmp)
             r = subprocess.run([sys.executable, __file__, "--_child", engine], env=env, capture_output=True,
                                text=True, timeout=900)

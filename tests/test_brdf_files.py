@@ -382,7 +382,7 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
     half-vector sampler within 5x of the built-in's variance (cosine sampling alone: 23x, measured
     by benchmarks/brdf_files.py; the table: 2.2x)."""
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
     ggx = Path(__file__).parent.parent / "benchmarks" / "scenes" / "ggx.brdf"
@@ -414,7 +414,7 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
 def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path, trust_twins):
     trust_twins(tmp_path)
     import viewer
-    from viewer.gpupt.select import choose_for_scenes
+    from viewer.reference_common.select import choose_for_scenes
     from viewer.scene import load_scene
 
     cpu = viewer.reference(file_scene, spp=8, engine="cpu", workers=1)
@@ -652,7 +652,7 @@ def test_the_gpu_engine_draws_with_the_files_sampler_where_no_mis_weight_needs_i
     different variance, the same mean); under MIS both are (the MIS weights need pdfs of
     directions sampleBRDF did not draw)."""
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
     (tmp_path / "own.brdf").write_text(UNIFORM_SAMPLER)

@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 from viewer import cli
-from viewer.pathtracer import ReferenceRenderer, cache
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.pathtracer import ReferenceRenderer
+from viewer.reference_common import cache
+from viewer.reference_common.setup import RenderSetup
 from viewer.scene import load_scene, load_scene_text, parse_scene
 
 try:  # Python >= 3.11

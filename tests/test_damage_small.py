@@ -122,7 +122,7 @@ def test_traced_cache_sets_aside_implausible_entries(tmp_path, damage, said):
 
 @pytest.mark.parametrize("damage, said", [("huge", "mean radiance of 3.75e+37; plausible: at most 1e+09"), ("ints", "not floats")])
 def test_reference_cache_sets_aside_implausible_entries(tmp_path, damage, said):
-    from viewer.pathtracer import cache
+    from viewer.reference_common import cache
 
     key = "r" * 64
     rng = np.random.default_rng(1)
@@ -149,7 +149,7 @@ def test_the_bound_is_far_above_a_bright_plausible_image(tmp_path):
     # a sharp highlight of 1e7 in one pixel is an image, not garbage
     from viewer.gl import trace_cache
     from viewer.io import MAX_CACHED_RADIANCE
-    from viewer.pathtracer import cache
+    from viewer.reference_common import cache
 
     assert MAX_CACHED_RADIANCE == 1e9
     img = np.zeros(SHAPE + (4,), np.float32)

@@ -189,7 +189,7 @@ def test_a_worker_takes_the_parents_decision_not_its_environment(hostile, monkey
 
 
 def test_the_setup_the_workers_receive_carries_the_trusted_twins(hostile, trust_twins):
-    from viewer.pathtracer.integrator import RenderSetup
+    from viewer.reference_common.setup import RenderSetup
     from viewer.scene import load_scene
 
     path, scene, _ = hostile

@@ -152,6 +152,73 @@ def test_orientation_of_the_contract():
     assert row == 0  # the zenith is the top row
 
 
+_LATLONG_FRAG = """#version 410 core
+#include "common/latlong.glsl"
+uniform sampler2D u_d;
+uniform sampler2D u_uv;
+layout(location = 0) out vec4 out_uv;
+layout(location = 1) out vec4 out_dir;
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    out_uv = vec4(env_dir_to_uv(texelFetch(u_d, px, 0).xyz), 0.0, 1.0);
+    out_dir = vec4(env_uv_to_dir(texelFetch(u_uv, px, 0).xy), 1.0);
+}
+"""
+
+
+def test_the_glsl_latlong_mapping_is_the_numpy_one(gl_ctx):
+    """common/latlong.glsl, the one GLSL mapping (the rasterizer's IBL and the GPU engine's
+    environment include it), against viewer/environment/latlong.py both ways: random directions
+    of any length (the mapping normalizes), the axes, the poles (where GLSL's atan(0, 0) is
+    undefined: u = 0.5 there, any u being the same point) and the u = 0 / 1 seam."""
+    from viewer.gl.shaders import build_program
+
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(250, 3)) * rng.uniform(0.01, 100.0, size=(250, 1))
+    d = np.concatenate([d, np.eye(3), -np.eye(3), [[0.0, 2.0, 0.0], [0.0, -0.5, 0.0], [1e-3, 0.0, 1.0]]])
+    uv = rng.uniform(0.0, 1.0, size=(len(d), 2))
+    n, w = len(d), 16
+    h = (n + w - 1) // w
+
+    def tex(a):
+        data = np.zeros((w * h, 4), "f4")
+        data[:n, : a.shape[1]] = a
+        t = gl_ctx.texture((w, h), 4, data.tobytes(), dtype="f4")
+        t.filter = (gl_ctx.NEAREST, gl_ctx.NEAREST)
+        return t
+
+    vert = ("#version 410 core\nvoid main() { vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);"
+            " gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0); }\n")
+    prog = build_program(gl_ctx, vertex_source=vert, fragment_source=_LATLONG_FRAG)
+    td, tuv = tex(d), tex(uv)
+    outs = [gl_ctx.texture((w, h), 4, dtype="f4") for _ in range(2)]
+    fbo = gl_ctx.framebuffer(color_attachments=outs)
+    vao = gl_ctx.vertex_array(prog, [])
+    try:
+        td.use(0)
+        tuv.use(1)
+        prog["u_d"].value, prog["u_uv"].value = 0, 1
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        vao.render(vertices=3)
+        g_uv, g_dir = (np.frombuffer(o.read(), "f4").reshape(-1, 4)[:n] for o in outs)
+    finally:
+        for x in (fbo, vao, prog, td, tuv, *outs):
+            x.release()
+    u, v = latlong.dir_to_uv(d)
+    pole = (d[:, 0] == 0.0) & (d[:, 2] == 0.0)
+    assert pole.sum() == 4
+    # GLSL's atan and acos are approximations of implementation-defined precision (Mesa llvmpipe:
+    # up to 5e-5 off in u and v, measured); 2e-4 is under half a texel of a 4096 x 2048 map, and
+    # an unnormalized y (the length ignored) or another orientation is off by far more. u is
+    # compared around the seam (u = 0 and 1 are one line).
+    du = np.abs(g_uv[:, 0] - u)
+    np.testing.assert_array_less(np.minimum(du, 1.0 - du)[~pole], 2e-4)
+    np.testing.assert_array_equal(g_uv[pole, 0], 0.5)
+    np.testing.assert_allclose(g_uv[:, 1], v, atol=2e-4)
+    np.testing.assert_allclose(g_dir[:, :3], latlong.uv_to_dir(uv[:, 0], uv[:, 1]), atol=1e-5)
+
+
 def test_rotation_is_right_handed_about_y():
     h, w = 64, 128
     uu, vv = latlong.texel_centers(h, w)

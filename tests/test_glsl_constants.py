@@ -77,6 +77,12 @@ def test_header_values_are_pythons():
     assert h["SPECTRAL_TABLE_N"] == spectral_fresnel.TABLE_N
     assert h["BVH_STACK"] == bvh_flat.STACK_SIZE
     assert h["MAT_FLOATS"] == 4 * brdf_glsl.MAT_VEC4 == len(brdf_glsl.uniform_block(brdf.get("lambert").params())[1])
+    from viewer.pathtracer import integrator
+
+    assert h["RR_START_DEPTH"] == integrator.RR_START_DEPTH == 4   # the CPU engine's, which the GPU engine's pass reads
+    from viewer.pathtracer import spectral
+
+    assert h["SPEC_STRIDE"] == spectral.STRIDE == 105
     assert h == constants.values()
 
 
@@ -87,12 +93,19 @@ def _header_floats() -> dict[str, float]:
 
 
 def test_header_floats_are_pythons():
-    """The empty depth of the SSR pyramid and the term views' scales, as their modules see them."""
+    """The empty depth of the SSR pyramid, the reference estimator's roulette bounds and ray
+    offset, and the term views' scales, as their modules see them."""
     from viewer import term_scales
     from viewer.gl import ssr
+    from viewer.pathtracer import integrator
 
     f = _header_floats()
-    assert f == constants.float_values() and len(f) == 2 + 2 * len(term_scales.SCALES)
+    assert f == constants.float_values() and len(f) == 7 + 2 * len(term_scales.SCALES)
+    assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (integrator.RR_MIN, integrator.RR_MAX, integrator.EPS_REL)
+    assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (0.05, 0.95, 1e-4)
+    from viewer.pathtracer import spectral
+
+    assert (f["SPEC_N_BINS"], f["SPEC_HERO"]) == (spectral.N_BINS, spectral.HERO) == (420, 4)
     assert f["EMPTY_DEPTH"] == ssr.EMPTY_DEPTH == 1e30
     assert f["TERM_NOT_APPLICABLE"] == term_scales.NOT_APPLICABLE
     for view, (_, k, vmax) in term_scales.SCALES.items():
@@ -116,6 +129,39 @@ def test_the_rec709_weights_are_written_once_a_side():
     hits = sorted(str(f.relative_to(root)) for f in [*root.joinpath("viewer").rglob("*.py"), *_shader_files()]
                   if "0.7152" in f.read_text())
     assert hits == ["shaders/common/math.glsl", "viewer/spectral/colorimetry.py"]
+
+
+def test_inv_pi_is_written_once_a_side():
+    """GLSL: ``INV_PI`` in common/math.glsl, which the GLSL generated in Python (viewer/gl) uses
+    too; Python: ``1 / np.pi``, never its digits."""
+    root = SHADERS.parent
+    hits = sorted(str(f.relative_to(root)) for f in [*root.joinpath("viewer").rglob("*.py"), *_shader_files()]
+                  if "0.3183098" in f.read_text())
+    assert hits == ["shaders/common/math.glsl"]
+
+
+def ray_offsets(text: str) -> list[str]:
+    """``line: code`` of every relative ray offset written as its number (``1e-4 * (1.0 + ...``)
+    instead of ``EPS_REL`` (viewer/geometry/soup.py, in the header); comments are ignored."""
+    pat = re.compile(r"(?<![\w.])(?:1(?:\.0*)?e-0*4|0?\.0001)\s*\*\s*\(\s*1(?:\.0*)?\s*\+")
+    return [f"{n}: {line.strip()}" for n, line in enumerate(text.splitlines(), start=1)
+            if pat.search(line.split("//")[0])]
+
+
+def test_ray_offsets_are_eps_rel():
+    """Both reference engines and the rasterizer's traced chains offset rays by ``EPS_REL``."""
+    root = SHADERS.parent
+    bad = [f"{f.relative_to(root)}:{hit}" for f in [*root.joinpath("viewer").rglob("*.py"), *_shader_files()]
+           for hit in ray_offsets(f.read_text())]
+    assert bad == []
+    uses = {f.relative_to(SHADERS).as_posix() for f in _shader_files() if "EPS_REL * (1.0 +" in f.read_text()}
+    assert uses == {"passes/pathtrace.frag", "pathtrace/spectral.glsl", "common/specular_chain.glsl"}
+
+
+@pytest.mark.parametrize("code", ["float eps = 1e-4 * (1.0 + max3(abs(p)));", "eps = 1e-4 * (1 + np.abs(p).max(1))",
+                                  "float e = 0.0001*(1.0+m);"])
+def test_the_ray_offset_scan_can_fail(code):
+    assert ray_offsets("x\n" + code + "\n") == [f"2: {code}"]
 
 
 def test_the_header_is_generated_wherever_shaders_are_read(tmp_path, monkeypatch):

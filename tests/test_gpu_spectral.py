@@ -148,8 +148,8 @@ def test_make_renderer_builds_the_spectral_gpu_engine(ctx):
     """``make_renderer("gpu", ...)`` traces wavelengths where the scene needs them (dispersive,
     or ``spectral=True``) instead of refusing; the setup says so, so the reference cache keys a
     GPU spectral image as the CPU engine's spectral image of the same scene, apart from RGB."""
-    from viewer.gpupt.select import make_renderer
-    from viewer.pathtracer import cache
+    from viewer.reference_common.select import make_renderer
+    from viewer.reference_common import cache
 
     disp = h.toml_scene(h.FURNACE_SCENE, "furnace")
     with make_renderer("gpu", disp, width=24, height=16, max_depth=3, ctx=ctx) as g:
@@ -172,7 +172,7 @@ def test_make_renderer_builds_the_spectral_gpu_engine(ctx):
 def test_auto_follows_the_gl_for_dispersive_scenes(ctx):
     """``auto`` no longer sends a dispersive scene to the CPU engine for being dispersive: it is
     the ordinary choice (software GL: the CPU engine; a hardware GPU: the GPU engine)."""
-    from viewer.gpupt.select import choose_for_scenes, gl_renderer_name, is_software
+    from viewer.reference_common.select import choose_for_scenes, gl_renderer_name, is_software
 
     engine, why = choose_for_scenes("auto", [tour_scene(11)], ctx=ctx)
     assert engine == ("cpu" if is_software(gl_renderer_name(ctx)) else "gpu"), why
@@ -182,7 +182,7 @@ def test_auto_follows_the_gl_for_dispersive_scenes(ctx):
 def test_gpu_still_refuses_what_it_cannot_trace():
     """The microfacet random walk: the same one-line refusal, spectral or not."""
     from viewer import ViewerError
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
 
     walk = h.toml_scene(h.FURNACE_SCENE.replace('material = "flint"', 'material = "walker"')
                         + '\n[materials.walker]\nmodel = "microfacet"\nmultiple_scattering = true\n', "walk")

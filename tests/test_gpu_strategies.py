@@ -83,8 +83,8 @@ def test_variants_are_compiled_for_the_options(ctx):
 def test_cache_key_is_the_same_in_both_engines(ctx):
     """A reference is found in the cache whichever engine made it: same scene, camera, size and
     estimator options -> same key; other options -> another key."""
-    from viewer.gpupt.select import make_renderer
-    from viewer.pathtracer.cache import setup_key
+    from viewer.reference_common.select import make_renderer
+    from viewer.reference_common.cache import setup_key
 
     sc = glossy_studio()
     keys = {}

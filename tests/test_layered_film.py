@@ -270,7 +270,7 @@ def test_gpu_spectral_pass_refuses_films():
     # the spectral reference traces a film per wavelength; the GPU engine's spectral pass would
     # evaluate it in RGB, so it refuses in one line and auto takes the cpu engine
     from viewer import ViewerError
-    from viewer.gpupt.select import choose_for_scenes, make_renderer
+    from viewer.reference_common.select import choose_for_scenes, make_renderer
     from viewer.scene import load_scene_text
 
     scene = load_scene_text(_LAYERED_BOTTOM)

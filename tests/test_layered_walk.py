@@ -91,7 +91,8 @@ def test_white_furnace_rough_coat_is_one(alpha):
 
 
 def test_reference_uses_the_walk():
-    from viewer.pathtracer.integrator import MaterialInfo, reference_model
+    from viewer.pathtracer.integrator import reference_model
+    from viewer.reference_common.setup import MaterialInfo
 
     p = _p({"ior": 1.5, "alpha": 0.1}).replace(reference="random_walk")
     m = reference_model(MaterialInfo("m", "layered", p, "smooth", False, np.zeros(3)))

@@ -255,7 +255,7 @@ def test_reference_and_engines(lambert_file, gl_ctx, tmp_path):
     (tests/reference_harness.py); a scene whose measured materials read two files it refuses in
     one line."""
     from reference_harness import agreement, check, under_grey_sky
-    from viewer.gpupt.select import make_renderer, uses_measured
+    from viewer.reference_common.select import make_renderer, uses_measured
     from viewer.pathtracer import ReferenceRenderer
 
     a = _scene(lambert_file, f'model = "measured"\nfile = "{lambert_file.name}"\n')

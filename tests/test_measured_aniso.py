@@ -297,7 +297,7 @@ def test_engines_agree(gl_ctx, ward_file, tmp_path):
     within 0.5% or 4 standard errors) on the Ward file's sphere under a grey sky; two tables in
     one scene: the gpu engine refuses in one line and auto takes the cpu engine."""
     from reference_harness import agreement, check, under_grey_sky
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
 
     s = under_grey_sky(_scene(ward_file, f'model = "measured"\nfile = "{ward_file.name}"\n'))
     a = agreement(gl_ctx, s, spp=32, max_depth=2, size=16)

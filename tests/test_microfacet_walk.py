@@ -261,11 +261,11 @@ def _ms_scene(tmp_path):
 def test_engines_only_cpu_has_the_walk(tmp_path, capsys):
     """auto takes the cpu engine for a scene with the walk (also nested in a layered base) and
     prints why; --engine gpu refuses with one line."""
-    from viewer.gpupt.select import choose_for_scenes, make_renderer, uses_random_walk
+    from viewer.reference_common.select import choose_for_scenes, make_renderer, uses_random_walk
 
     sc = _ms_scene(tmp_path)
     assert uses_random_walk(sc)
-    engine, why = choose_for_scenes("auto", [sc], spectral=None, ctx=None, workers=0)   # what the CLI prints
+    engine, why = choose_for_scenes("auto", [sc], spectral=None, ctx=None)   # what the CLI prints
     assert engine == "cpu"
     assert why.startswith("a material has a random walk (microfacet multiple_scattering"), why
     with pytest.raises(ViewerError, match="--engine gpu has no random walk") as e:

@@ -17,7 +17,8 @@ import pytest
 
 from viewer import brdf
 from viewer.pathtracer import ReferenceRenderer
-from viewer.pathtracer.integrator import Integrator, RenderSetup
+from viewer.pathtracer.integrator import Integrator
+from viewer.reference_common.setup import RenderSetup
 from viewer.pathtracer.kernel_embree import EmbreeKernel
 from viewer.scene import load_scene
 
@@ -373,7 +374,8 @@ def test_reference_cli(tmp_path):
 # ----------------------------------------------------------------------------- environment map
 
 def test_envmap_orientation_and_importance_sampling():
-    from viewer.pathtracer.envmap import EnvironmentLight, direction_to_uv, uv_to_direction
+    from viewer.environment.latlong import dir_to_uv as direction_to_uv, uv_to_dir as uv_to_direction
+    from viewer.reference_common.envmap import EnvironmentLight
 
     u, v = direction_to_uv(np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]))
     assert np.allclose(u[[0, 2]], [0.5, 0.75]) and np.allclose(v, [0.5, 0.0, 0.5])  # u is arbitrary at the pole

@@ -108,7 +108,7 @@ def test_bad_input_is_one_viewer_error(call, needle):
 def test_reference_engine_choice():
     from viewer.api import REFERENCE_ENGINES, reference_engine
 
-    from viewer.gpupt.select import choose_engine
+    from viewer.reference_common.select import choose_engine
 
     # the CLI's choice (cpu on software OpenGL, gpu on a hardware GPU)
     assert reference_engine("auto") == choose_engine("auto")[0] and reference_engine("cpu") == "cpu"

@@ -215,7 +215,7 @@ def test_metrics_belong_to_the_reference_view_they_were_taken_on(gl_ctx, rendere
 
 def test_a_file_brdf_without_a_twin_takes_the_gpu_engine_in_the_window(gl_ctx, trust_twins):
     from viewer.app.reference_view import ReferenceView
-    from viewer.gpupt.select import without_twin
+    from viewer.reference_common.select import without_twin
 
     def scene_with(path):
         return load_scene("sphere", [f"materials.{m}.file={path}" for m in load_scene("sphere").materials])

@@ -1,4 +1,4 @@
-"""The reference cache (viewer/pathtracer/cache.py) and ``brdf-viewer bake``."""
+"""The reference cache (viewer/reference_common/cache.py) and ``brdf-viewer bake``."""
 
 import subprocess
 import sys
@@ -6,8 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-from viewer.pathtracer import ReferenceRenderer, cache
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.pathtracer import ReferenceRenderer
+from viewer.reference_common import cache
+from viewer.reference_common.setup import RenderSetup
 from viewer.scene import load_scene
 
 

@@ -1,5 +1,5 @@
 """The two reference engines share one interface (``ReferenceEngine``), one options object
-(``EstimatorOptions``) and one way from sums to mean and variance (viewer/pathtracer/estimator.py)."""
+(``EstimatorOptions``) and one way from sums to mean and variance (viewer/reference_common/estimator.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from viewer import ViewerError
 from viewer.gpupt.engine import GpuReferenceRenderer
 from viewer.pathtracer import ReferenceRenderer
-from viewer.pathtracer.estimator import EstimatorOptions, ReferenceEngine, mean_of, variance_of_mean
+from viewer.reference_common.estimator import EstimatorOptions, ReferenceEngine, mean_of, variance_of_mean
 
 METHODS = ("step", "mean", "variance", "state", "resume", "reset", "warm_up", "close")
 

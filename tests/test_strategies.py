@@ -108,6 +108,16 @@ def test_reset_changes_the_strategy_and_bad_names_are_refused():
         ReferenceRenderer(scene, workers=0, mis_heuristic="max")
 
 
+def test_the_options_the_engines_take_are_the_shared_lists():
+    """``check_options`` (viewer/reference_common/estimator.py) allows what each engine implements:
+    the CPU engine's heuristics, the GPU engine's STRATEGY define ids."""
+    from viewer.gl.constants import STRATEGIES as GPU_STRATEGIES
+    from viewer.pathtracer.integrator import HEURISTICS
+    from viewer.reference_common.estimator import MIS_HEURISTICS, STRATEGIES
+
+    assert tuple(HEURISTICS) == MIS_HEURISTICS and tuple(GPU_STRATEGIES) == STRATEGIES
+
+
 def test_reference_cli_strategy(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text(GLOSSY_STUDIO)

@@ -67,3 +67,65 @@ def test_a_full_frame_s_programs_read_each_unit_once(gl_ctx):
         assert checked >= 2
     finally:
         r.release()
+
+
+_ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+_SAMPLER_DECL = __import__("re").compile(r"uniform\s+\w*sampler\w*\s+(\w+)")
+
+
+def sampler_names() -> set[str]:
+    """Every sampler uniform declared in the shaders or in GLSL written in Python."""
+    files = [p for p in (_ROOT / "shaders").rglob("*") if p.suffix in (".glsl", ".frag", ".vert", ".geom")]
+    files += list((_ROOT / "viewer").rglob("*.py"))
+    return {m for f in files for m in _SAMPLER_DECL.findall(f.read_text())}
+
+
+def literal_units(source: str, samplers: set[str]) -> list[str]:
+    """``line: what`` of every texture unit written as a number: ``tex.use(3)``,
+    ``tex.use(location=3)``, ``_set(prog, "u_tex", 3)`` / ``set_uniform(...)`` and
+    ``prog["u_tex"].value = 3`` for a sampler ``u_tex``."""
+    import ast
+
+    def is_int(n):
+        return isinstance(n, ast.Constant) and type(n.value) is int
+
+    out = []
+    for n in ast.walk(ast.parse(source)):
+        if isinstance(n, ast.Call):
+            f = n.func
+            name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+            if name == "use" and any(is_int(a) for a in [*n.args, *(k.value for k in n.keywords if k.arg == "location")]):
+                out.append(f"{n.lineno}: use")
+            elif (name in ("_set", "set_uniform") and len(n.args) >= 3 and isinstance(n.args[1], ast.Constant)
+                  and n.args[1].value in samplers and is_int(n.args[2])):
+                out.append(f"{n.lineno}: {n.args[1].value}")
+        elif isinstance(n, ast.Assign) and len(n.targets) == 1:
+            t = n.targets[0]
+            if (isinstance(t, ast.Attribute) and t.attr == "value" and isinstance(t.value, ast.Subscript)
+                    and isinstance(t.value.slice, ast.Constant) and t.value.slice.value in samplers and is_int(n.value)):
+                out.append(f"{n.lineno}: {t.value.slice.value}")
+    return sorted(out, key=lambda s: int(s.split(":")[0]))
+
+
+def test_units_are_named_only_in_the_table():
+    """No module of ours writes a texture unit as a number: each is a name in texture_units.py."""
+    samplers = sampler_names()
+    assert {"u_env_map", "u_hdr", "u_back", "u_refl", "u_src"} <= samplers
+    texts = {f: f.read_text() for f in sorted((_ROOT / "viewer").rglob("*.py")) if f.name != "texture_units.py"}
+    bad = [f"{f.relative_to(_ROOT)}:{hit}" for f, text in texts.items()
+           if ".use(" in text or "].value" in text or "_set(" in text or "set_uniform(" in text
+           for hit in literal_units(text, samplers)]
+    assert bad == []
+
+
+def test_the_literal_unit_scan_can_fail():
+    src = ("def f(prog, tex, fbo, red, k):\n"
+           "    tex.use(0)\n"
+           "    tex.use(location=12)\n"
+           "    _set(prog, 'u_back', 12)\n"
+           "    red['u_refl'].value = 1\n"
+           "    fbo.use()\n"                       # a framebuffer: no unit
+           "    tex.use(location=texture_units.SSR_BACK)\n"
+           "    _set(prog, 'u_level', 0)\n"        # not a sampler
+           "    red['u_count'].value = k\n")
+    assert literal_units(src, {"u_back", "u_refl"}) == ["2: use", "3: use", "4: u_back", "5: u_refl"]

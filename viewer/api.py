@@ -21,9 +21,9 @@ import numpy as np
 
 from viewer import ViewerError
 
-# The reference engines (viewer.gpupt.select): "cpu", "gpu" and "auto", which takes the GPU engine
+# The reference engines (viewer.reference_common.select): "cpu", "gpu" and "auto", which takes the GPU engine
 # on a hardware GPU and the CPU engine on software OpenGL or for a scene only it renders.
-from viewer.gpupt.select import ENGINES as REFERENCE_ENGINES  # noqa: E402
+from viewer.reference_common.select import ENGINES as REFERENCE_ENGINES  # noqa: E402
 
 _raster = None  # (context, renderer), made on the first render() call
 
@@ -97,14 +97,14 @@ def reference_engine(engine: str, scene=None) -> str:
     if engine not in REFERENCE_ENGINES:
         raise ViewerError(f"engine: {engine!r} is not a reference engine; allowed: "
                           + ", ".join(REFERENCE_ENGINES))
-    from viewer.gpupt.select import choose_for_scenes
+    from viewer.reference_common.select import choose_for_scenes
 
     return choose_for_scenes(engine, [] if scene is None else [scene])[0]
 
 
 def _make_reference_renderer(engine: str, scene, camera, max_depth: int, seed: int, workers):
     """Start the reference renderer of the (resolved) ``engine``."""
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
 
     return make_renderer(engine, scene, camera, max_depth=max_depth, seed=seed, workers=workers)
 

@@ -27,10 +27,9 @@ def _trust(args) -> None:
 def _engine(args, ctx=None, scenes=()):
     """The engine for --engine, printed with the reason (auto's choice). ``scenes``: those it will
     render; auto takes the cpu engine where one needs wavelengths (only it traces them)."""
-    from viewer.gpupt.select import choose_for_scenes
+    from viewer.reference_common.select import choose_for_scenes
 
-    engine, why = choose_for_scenes(args.engine, scenes, spectral=getattr(args, "spectral", None), ctx=ctx,
-                                    workers=args.workers)
+    engine, why = choose_for_scenes(args.engine, scenes, spectral=getattr(args, "spectral", None), ctx=ctx)
     print(f"engine: {engine} ({why})")
     return engine
 
@@ -391,7 +390,7 @@ def cmd_reference(args) -> int:
         raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
     scene = _load(args.scene, _overrides(args))
     camera = OrbitCamera.from_scene(scene)
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
 
     w, h = scene.camera.width, scene.camera.height
     engine = _engine(args, scenes=[scene])
@@ -459,7 +458,7 @@ def cmd_compare(args) -> int:
     from viewer.compare import heat_map, metrics
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
-    from viewer.gpupt.select import make_renderer
+    from viewer.reference_common.select import make_renderer
     from viewer.io import atomic_write_bytes, write_npy, write_png
     from viewer.scene import load_scene
 
@@ -590,9 +589,9 @@ def _parser_bake() -> argparse.ArgumentParser:
 
 def cmd_bake(args) -> int:
     from viewer.camera import OrbitCamera
-    from viewer.gpupt.select import make_renderer, needs_spectral
-    from viewer.pathtracer import cache
-    from viewer.pathtracer.integrator import RenderSetup
+    from viewer.reference_common.select import make_renderer, needs_spectral
+    from viewer.reference_common import cache
+    from viewer.reference_common.setup import RenderSetup
 
     for name in ("width", "height"):
         v = getattr(args, name)

@@ -35,7 +35,3 @@ def _resource_dir(name: str, probe: str) -> Path:
 SHADER_DIR = _resource_dir("shaders", "passes/forward.frag")
 MODEL_DIR = _resource_dir("models", "sphere.ply")
 SCENE_DIR = PACKAGE_DIR / "scenes"
-
-
-def shader_path(rel: str) -> Path:
-    return SHADER_DIR / rel

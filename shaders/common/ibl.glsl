@@ -15,6 +15,7 @@
 //   float env_fis_lod(float pdf, int n_samples)  Colbert & Krivanek 2007 source mip level
 #include "generated/constants.glsl"
 #include "common/math.glsl"
+#include "common/latlong.glsl"
 
 uniform sampler2D u_env_map;               // lat-long radiance, full mip chain
 uniform sampler2DArray u_env_prefiltered;  // layer k - 1 holds alpha = u_env_alphas[k], k >= 1
@@ -27,25 +28,7 @@ uniform vec2 u_env_size;                   // (W, H) of level 0 of u_env_map
 uniform float u_env_max_lod;               // last mip level of u_env_map
 
 // ------------------------------------------------------------------ map-frame helpers
-
-// (u, v) of a map-frame direction (need not be unit length). atan(0, 0) is undefined in GLSL,
-// so the poles get u = 0.5 (any u is the same point there).
-vec2 env_dir_to_uv(vec3 d) {
-    vec3 n = d / max(length(d), 1e-30);
-    float x = n.x;
-    float z = -n.z;
-    float u = (abs(x) + abs(z) > 0.0) ? 0.5 + atan(x, z) * (0.5 * INV_PI) : 0.5;
-    float v = acos(clamp(n.y, -1.0, 1.0)) * INV_PI;
-    return vec2(u, v);
-}
-
-// Unit map-frame direction of (u, v): phi = 2 pi (u - 0.5), theta = pi v.
-vec3 env_uv_to_dir(vec2 uv) {
-    float phi = TWO_PI * (uv.x - 0.5);
-    float theta = PI * uv.y;
-    float st = sin(theta);
-    return vec3(st * sin(phi), cos(theta), -st * cos(phi));
-}
+// env_dir_to_uv, env_uv_to_dir: common/latlong.glsl
 
 // Radiance of the map's mip chain for a map-frame direction. textureLod everywhere: implicit
 // derivatives would jump at the u = 0/1 seam and pick a wrong level along it.

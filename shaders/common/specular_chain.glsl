@@ -146,7 +146,7 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
     float c_n = dot(-d, nf);
     if (c_n < RT_MIN_COS) nf = normalize(nf + (RT_MIN_COS - c_n) * (-d));
     float cos_i = clamp(dot(-d, nf), 0.0, 1.0);
-    float eps = 1e-4 * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
+    float eps = EPS_REL * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
     a.o = p + eps * ngf;
     a.d = rt_above(reflect(d, nf), ngf);
     a.depth = depth;

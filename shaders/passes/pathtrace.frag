@@ -13,7 +13,7 @@
 // on (survival clamp(max(throughput), 0.05, 0.95)) unless NO_ROULETTE; Bouguer exp(-sigma_a t) inside dielectrics. Shading: the
 // rasterizer's interpolated normals, back faces flipped for opaque surfaces, light counted where
 // both the shading and the geometric cosine are positive (either sign on transmissive surfaces).
-// Rays start at p + 1e-4 (1 + max|p|) n_g on the side they leave.
+// Rays start at p + EPS_REL (1 + max|p|) n_g on the side they leave.
 //
 // Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, HAS_MIXED, and the
 // estimator's options: STRATEGY (STRATEGY_MIS, default; _BSDF sampling only; _LIGHT sampling only),
@@ -56,10 +56,6 @@ uniform vec3 u_light_v[N_LIGHTS];   // intensity (point) or irradiance (directio
 
 layout(location = 0) out vec4 out_sum;
 layout(location = 1) out vec4 out_sq;
-
-const int RR_START_DEPTH = 4;
-const float RR_MIN = 0.05, RR_MAX = 0.95;
-const float EPS_REL = 1e-4;
 
 float g_bad = 0.0;   // model outputs that were NaN, infinite or negative (a non-zero count is a bug)
 

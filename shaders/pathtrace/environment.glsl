@@ -1,9 +1,10 @@
 // The environment light of the GPU path tracer: the same strategies as the CPU engine
-// (viewer/pathtracer/envmap.py). ENV_MODE_BLACK, ENV_MODE_CONSTANT (cosine hemisphere about the
+// (viewer/reference_common/envmap.py). ENV_MODE_BLACK, ENV_MODE_CONSTANT (cosine hemisphere about the
 // shading normal; uniform sphere on transmissive surfaces), ENV_MODE_MAP: lat-long map importance sampled by
 // luminance x sin(theta) (pbrt-v3 14.2.4): a row from the marginal CDF, a column from the row's
 // conditional CDF, then a uniform point in the texel; p(omega) = p(u, v) / (2 pi^2 sin theta).
 #include "generated/constants.glsl"
+#include "common/latlong.glsl"
 #ifndef ENV_MODE
 #define ENV_MODE ENV_MODE_BLACK
 #endif
@@ -15,15 +16,6 @@ uniform mat3 u_env_to_map;        // world -> map rotation (mat3 columns as nump
 uniform ivec2 u_env_size;         // (W, H)
 const float INV_4PI = 0.07957747154594767;
 
-vec2 env_dir_to_uv(vec3 d) {
-    return vec2(0.5 + atan(d.x, -d.z) / TWO_PI, acos(clamp(d.y, -1.0, 1.0)) / PI);
-}
-vec3 env_uv_to_dir(vec2 uv) {
-    float theta = PI * uv.y;
-    float phi = TWO_PI * (uv.x - 0.5);
-    float st = sin(theta);
-    return vec3(st * sin(phi), cos(theta), -st * cos(phi));
-}
 ivec2 env_texel(vec2 uv) {
     int W = u_env_size.x, H = u_env_size.y;
     int col = int(floor(uv.x * float(W)));

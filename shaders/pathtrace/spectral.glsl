@@ -32,9 +32,8 @@
 
 #include "generated/constants.glsl"
 
-const int SPEC_STRIDE = 105;       // bins between a path's wavelengths (420 / 4)
-const float SPEC_N_BINS = 420.0;
-const float SPEC_HERO = 4.0;       // a hero-only estimate stands for the four wavelengths
+// SPEC_STRIDE: bins between a path's wavelengths (420 / 4), SPEC_N_BINS, SPEC_HERO: a hero-only
+// estimate stands for the four wavelengths (the header's, from viewer/reference_common/wavelengths.py)
 
 uniform sampler2D u_spec_tab;      // 420 x 2 texels: row 0 rgb = basis b_r, b_g, b_b at bin l; row 1 rgb = W(l)
 // per material: (category 0 rgb / 1 table / 2 hero, float offset of the 105 parameter sets at

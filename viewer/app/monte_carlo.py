@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from viewer.compare import auto_scale, ramp
-from viewer.pathtracer.integrator import STRATEGIES, STRATEGY_LABELS
+from viewer.reference_common.estimator import STRATEGIES, STRATEGY_LABELS
 from viewer.variance import ERROR_VIEWS, error_view
 
 VIEWS = ("off",) + ERROR_VIEWS

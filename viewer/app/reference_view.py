@@ -12,12 +12,12 @@ the renderer), and a thousand restarts leave one thread and one pool. A job that
 its renderer, so the next request starts a fresh pool rather than a broken one. ``close`` ends
 the thread, which closes the renderer and its worker processes.
 
-Engines: ``engine="auto"`` (default) asks ``viewer.gpupt.select.choose_engine`` once (a
+Engines: ``engine="auto"`` (default) asks ``viewer.reference_common.select.choose_engine`` once (a
 hardware GPU: gpu; software GL: the stored measurement, cpu when there is none). The GPU
 engine shares the window's GL context, so it runs on the GUI thread in time slices:
 ``update`` renders bands of rows for ``frame_budget_s`` per frame (``step_for``) and reads the
 image back at most every 0.25 s. Both engines start from the reference cache
-(``viewer.pathtracer.cache``) when it holds the view, and store their sums there when the view
+(``viewer.reference_common.cache``) when it holds the view, and store their sums there when the view
 changes or closes, so returning to a view, a lecture step or an earlier slider value shows the
 stored image at once and keeps refining it.
 
@@ -56,7 +56,7 @@ def scene_key(scene, camera, size) -> str:
 def _cached(renderer, report=None):
     """(cache key, spp resumed from the cache) for a renderer just (re)targeted. A damaged entry
     is set aside with one line through ``report`` and the view renders afresh."""
-    from viewer.pathtracer import cache
+    from viewer.reference_common import cache
 
     key = cache.setup_key(renderer.setup)
     e = cache.load(key, shape=(renderer.height, renderer.width, 3), report=report)
@@ -71,7 +71,7 @@ def _store(renderer, key, engine, seed=0, report=None):
     that cannot be written is said through ``report(line, error=True)``."""
     if renderer is None or key is None or renderer.spp < 1:
         return
-    from viewer.pathtracer import cache
+    from viewer.reference_common import cache
 
     state = renderer.state()
     if state is not None:
@@ -240,7 +240,7 @@ class ReferenceView:
 
     def engine_for(self, scene, key=None):
         """The engine that renders ``scene`` ("cpu", "gpu", or None: neither can), decided once per
-        key. What only the cpu engine renders (viewer/gpupt/refusals.py) takes it; under ``auto``,
+        key. What only the cpu engine renders (viewer/reference_common/refusals.py) takes it; under ``auto``,
         a ``.brdf`` file material without a numpy twin the cpu engine may run takes the gpu engine
         (``select.without_twin``), as on the command line. ``engine_note`` says why, or is empty.
         ``key``: the view's key, which the choice is kept under (None: chosen afresh)."""
@@ -250,13 +250,13 @@ class ReferenceView:
             return self._engine_key[1]
         engine, note = self.engine, ""
         if engine == "gpu":
-            from viewer.gpupt.refusals import cpu_only
+            from viewer.reference_common.refusals import cpu_only
 
             limit = cpu_only(scene)
             if limit is not None:
                 engine, note = "cpu", limit.reason
         elif self.engine_request == "auto" and self.ctx is not None:
-            from viewer.gpupt.select import without_twin
+            from viewer.reference_common.select import without_twin
 
             why = without_twin(scene)
             if why is not None and self.gpu_failed:
@@ -292,10 +292,9 @@ class ReferenceView:
             self.engine, self.engine_reason = "cpu", "no OpenGL context"
             return
         try:
-            from viewer.gpupt.select import choose_engine
+            from viewer.reference_common.select import choose_engine
 
-            self.engine, self.engine_reason = choose_engine(self.engine_request, ctx=self.ctx,
-                                                            workers=self.workers, calibrate_if_needed=False)
+            self.engine, self.engine_reason = choose_engine(self.engine_request, ctx=self.ctx)
         except Exception as e:  # noqa: BLE001 - the CPU engine always works
             self.engine, self.engine_reason = "cpu", f"gpu engine unavailable: {e}"
 

@@ -323,7 +323,7 @@ class Session:
     def cycle_strategy(self) -> str:
         """The reference's next way of reaching the light (MIS, BSDF sampling alone, light
         sampling alone; the S key): it restarts with it. Returns the strategy now used."""
-        from viewer.pathtracer.integrator import STRATEGIES, STRATEGY_LABELS
+        from viewer.reference_common.estimator import STRATEGIES, STRATEGY_LABELS
 
         rv = self.reference_view()
         now = STRATEGIES[(STRATEGIES.index(rv.options["strategy"]) + 1) % len(STRATEGIES)]

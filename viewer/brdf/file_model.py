@@ -17,7 +17,6 @@ files' model name for file BRDFs.
 
 from __future__ import annotations
 
-import os
 import types
 from pathlib import Path
 
@@ -25,8 +24,8 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.brdf import twin_trust
-from viewer.brdf.brdffile import BrdfFile, parse, sampler_takes_view
-from viewer.brdf.spec import ModelSpec, Param, Params
+from viewer.brdf.brdffile import BrdfFile, parse
+from viewer.brdf.spec import ModelSpec, Param
 
 #: the scene files' model name of a file BRDF
 CUSTOM = "custom"
@@ -252,11 +251,3 @@ def load_or_last_good(path, make):
         if hit is None:
             raise
         return hit
-
-
-def takes_view(bfile: BrdfFile) -> bool:
-    return sampler_takes_view(bfile)
-
-
-def path_of(p: Params) -> str:
-    return os.fspath(p["file"])

@@ -17,6 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: rays leaving a surface point p start at p + eps n_g on the side they leave, eps = EPS_REL (1 + max|p|),
+#: in both reference engines and the rasterizer's traced chains (``generated/constants.glsl``)
+EPS_REL = 1e-4
+
 
 @dataclass
 class SceneGeometry:

@@ -169,10 +169,10 @@ class GPUAlbedoTables:
         self._fbo1.viewport = (0, 0, self.count, self.rows)
         self._vao(prog).render(vertices=3)
         red = self._reduce
-        self._t1[0].use(0)
-        self._t1[1].use(1)
-        red["u_refl"].value = 0
-        red["u_trans"].value = 1
+        self._t1[0].use(texture_units.SOURCE)
+        self._t1[1].use(texture_units.SECOND_SOURCE)
+        red["u_refl"].value = texture_units.SOURCE
+        red["u_trans"].value = texture_units.SECOND_SOURCE
         red["u_count"].value = self.count
         self._fbo2.use()
         self._fbo2.viewport = (0, 0, 1, self.rows)

@@ -216,7 +216,7 @@ def _custom_glue(name: str) -> list[str]:
             "float custom_pdf(custom_params p, vec3 wi, vec3 wo) {",
             "    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;",
             "    float c = custom_cos_share(p);",
-            "    return c * wi.z * 0.31830988618379067 + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);",
+            "    return c * wi.z * INV_PI + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);",
             "}",
             "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
             "    if (u.z < custom_cos_share(p)) {  // cosine-weighted",

@@ -13,6 +13,9 @@ from viewer.brdf.albedo import TABLE_SIZE
 from viewer.brdf.layered import BASE_TABLE, BASE_TABLES_AT, COAT_TABLE, FILM_TABLE
 from viewer.brdf.spectral_fresnel import TABLE_N
 from viewer.geometry.bvh_flat import STACK_SIZE
+from viewer.geometry.soup import EPS_REL
+from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
+from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE
 from viewer.scene.model import MAX_LIGHTS
 from viewer.term_scales import NOT_APPLICABLE, SCALES
 
@@ -32,6 +35,8 @@ BVH_STACK = STACK_SIZE    # the BVH traversal's stack (viewer/geometry/bvh_flat.
 MAT_VEC4 = 64             # the material block u_mat in vec4s (viewer/gl/brdf_glsl.py)
 MAT_FLOATS = 4 * MAT_VEC4  # ... in floats: material r of a texture of blocks starts at float MAT_FLOATS * r
 EMPTY_DEPTH = 1e30        # the SSR depth pyramid where there is no surface (viewer/gl/ssr.py)
+# RR_START_DEPTH: Russian roulette from this scattering event on (viewer/reference_common/estimator.py)
+SPEC_STRIDE = STRIDE      # bins between a spectral path's wavelengths (viewer/reference_common/wavelengths.py)
 
 LIGHT_TYPES = {"point": 0, "directional": 1}
 TONEMAPS = {"none": 0, "reinhard": 1, "aces": 2, "filmic": 3}
@@ -62,14 +67,21 @@ _TABLES = (("LIGHT", LIGHT_TYPES), ("TONEMAP", TONEMAPS), ("IBL_MODE", IBL_MODES
            ("ENV_MODE", ENV_MODES))
 _SIZES = ("MAX_LIGHTS", "SHADOW_LIGHTS", "ALBEDO_TABLE", "IBL_MAX_LEVELS", "MAX_MATERIALS", "CHAIN_ROW_TEXELS",
           "LAYERED_COAT_TABLE", "LAYERED_FILM_TABLE", "LAYERED_BASE_TABLE", "LAYERED_BASE_TABLES_AT",
-          "SPECTRAL_TABLE_N", "BVH_STACK", "MAT_VEC4", "MAT_FLOATS")
+          "SPECTRAL_TABLE_N", "BVH_STACK", "MAT_VEC4", "MAT_FLOATS",
+          "RR_START_DEPTH", "SPEC_STRIDE")
 
 
 def float_values() -> dict[str, float]:
-    """{GLSL name: value} of the header's float constants: the empty depth, and the term views'
+    """{GLSL name: value} of the header's float constants: the empty depth, the reference
+    estimator's Russian roulette bounds (``RR_MIN``, ``RR_MAX``: viewer/reference_common/estimator.py),
+    its wavelength bins and a hero-only path's weight (``SPEC_N_BINS``, ``SPEC_HERO``:
+    viewer/reference_common/wavelengths.py),
+    the relative ray offset (``EPS_REL``: viewer/geometry/soup.py), and the term views'
     scales (viewer/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
     log(1 + k v_max) (k = 0: t = v / v_max), ``TERM_NOT_APPLICABLE`` the grey of "no such term"."""
-    out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE)}
+    out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE),
+           "RR_MIN": float(RR_MIN), "RR_MAX": float(RR_MAX), "EPS_REL": float(EPS_REL),
+           "SPEC_N_BINS": float(N_BINS), "SPEC_HERO": float(HERO)}
     for view, (_, k, vmax) in SCALES.items():
         out[glsl_name("TERM", view, "K")] = float(k)
         out[glsl_name("TERM", view, "MAX")] = float(vmax)

@@ -342,8 +342,8 @@ class IBL:
         sizes = mip_sizes(w, h)
         prog = self._program("ibl_downsample")
         tex.filter = (ctx.NEAREST_MIPMAP_NEAREST, ctx.NEAREST)  # texelFetch only while building
-        tex.use(0)
-        _set(prog, "u_src", 0)
+        tex.use(texture_units.SOURCE)
+        _set(prog, "u_src", texture_units.SOURCE)
         scratch = None
         try:
             for k in range(1, len(sizes)):
@@ -373,8 +373,8 @@ class IBL:
         ``samples``: per level, instead of ``self.samples``."""
         nl = len(self.alphas) - 1
         prog = self._program("ibl_prefilter")
-        self.map_tex.use(0)
-        _set(prog, "u_env_map", 0)
+        self.map_tex.use(texture_units.SOURCE)
+        _set(prog, "u_env_map", texture_units.SOURCE)
         self._map_uniforms(prog, 0.0)
         _set(prog, "u_layer_size", (float(lw), float(lh)))
         _set(prog, "u_fis_bias", self.fis_bias)
@@ -426,8 +426,8 @@ class IBL:
         qtex = ctx.texture((qw, rows), 3, q.tobytes(), dtype="f4")
         qtex.filter = (ctx.NEAREST, ctx.NEAREST)
         prog = self._program("ibl_dfg")
-        qtex.use(0)
-        _set(prog, "u_quad", 0)
+        qtex.use(texture_units.SOURCE)
+        _set(prog, "u_quad", texture_units.SOURCE)
         _set(prog, "u_quad_count", n)
         _set(prog, "u_quad_width", qw)
         _set(prog, "u_size", float(size))
@@ -451,8 +451,8 @@ class IBL:
         if self.cube is not None and self._cube_key == key:
             return self.cube
         prog = self._program("ibl_cubemap")
-        self.map_tex.use(0)
-        _set(prog, "u_env_map", 0)
+        self.map_tex.use(texture_units.SOURCE)
+        _set(prog, "u_env_map", texture_units.SOURCE)
         self._map_uniforms(prog, rotation_deg)
         _set(prog, "u_face_size", float(size))
         _set(prog, "u_supersample", int(supersample))

@@ -768,8 +768,8 @@ class Renderer:
         prog = self.programs["tonemap"]
         # linear filtering when a preview resolution is stretched over the viewport
         hdr.filter = (ctx.LINEAR, ctx.LINEAR)
-        hdr.use(location=0)
-        _set(prog, "u_hdr", 0)
+        hdr.use(location=texture_units.SOURCE)
+        _set(prog, "u_hdr", texture_units.SOURCE)
         _set(prog, "u_exposure", float(exposure))
         _set(prog, "u_tonemap", TONEMAPS.get(tonemap, 0))
         self._fullscreen_vao(prog).render(vertices=3)

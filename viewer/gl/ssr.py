@@ -218,13 +218,13 @@ class SSR:
         else:
             ctx.disable(ctx.DEPTH_TEST)
             prog = self.programs["hiz"]
-            _set(prog, "u_src", 0)
-            t.resolved[2].use(location=0)
+            _set(prog, "u_src", texture_units.SOURCE)
+            t.resolved[2].use(location=texture_units.SOURCE)
             _set(prog, "u_level", 0)
             t.hiz_fbo0.use()
             t.hiz_fbo0.viewport = (0, 0) + sizes[0]
             self.vaos["hiz"].render(vertices=3)
-            t.hiz.use(location=0)
+            t.hiz.use(location=texture_units.SOURCE)
             for k in range(1, len(sizes)):
                 _set(prog, "u_level", k)
                 _set(prog, "u_src_size", sizes[k - 1])
@@ -284,8 +284,8 @@ class SSR:
         _set(prog, "u_hiz_max_iter", int(s["hiz_max_iter"]))
         _set(prog, "u_back_on", int(back is not None))
         if back is not None:
-            back.use(location=12)  # above the units ibl.bind takes
-            _set(prog, "u_back", 12)
+            back.use(location=texture_units.SSR_BACK)
+            _set(prog, "u_back", texture_units.SSR_BACK)
         for i, name in enumerate(("u_color", "u_spec", "u_geom")):
             tex = t.mip if i == 0 else t.resolved[i]
             tex.use(location=texture_units.SSR_INPUTS + i)

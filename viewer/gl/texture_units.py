@@ -2,9 +2,11 @@
 program reads share a unit (``tests/test_texture_units.py``). OpenGL 4.1 guarantees 16 units a
 stage (0 .. 15). A sampler left unset reads unit 0, so every program sets all of its samplers.
 
-Passes whose programs read none of these textures (the IBL prefilter, the albedo tables'
-reduction, the Hi-Z build, the GPU reference engine) count their units from 0 and are not in
-the table.
+Passes whose programs read none of these textures count their units from 0 (``SOURCE``,
+``SECOND_SOURCE``: the IBL's downsampling, prefilter, DFG and cube map passes, the albedo
+tables' reduction, the Hi-Z build, the tone map) or from their own first unit (the GPU
+reference engine) and are not in the table. No other module writes a unit as a number
+(``tests/test_texture_units.py``).
 """
 
 from __future__ import annotations
@@ -21,13 +23,16 @@ TRACED = 8         # BVH nodes, triangles, shading, material rows: TRACED .. TRA
 TRACED_COUNT = 4
 MEASURED = 15      # a measured material's 3D table (viewer/gl/measured_tex.py)
 ALBEDO_PATTERN = 0  # the albedo tables' sample pattern (viewer/gl/albedo_gpu.py)
+SSR_BACK = 12      # the SSR pass's background (what lies behind the surfaces), above the IBL's units
+SOURCE = 0         # the one input of a pass that reads only its own textures (first of two)
+SECOND_SOURCE = 1  # ... its second input (the albedo tables' reduction: transmission)
 
 #: program -> {what it reads: (first unit, how many)}
 PROGRAMS = {
     "forward": {"shadow atlas": (SHADOW_ATLAS, 1), "thickness": (THICKNESS, 1), "environment": (IBL, IBL_COUNT),
                 "traced chains": (TRACED, TRACED_COUNT), "measured table": (MEASURED, 1)},
     "background": {"environment": (IBL, IBL_COUNT)},
-    "ssr trace": {"ssr inputs": (SSR_INPUTS, 4), "environment": (IBL, IBL_COUNT)},
+    "ssr trace": {"ssr inputs": (SSR_INPUTS, 4), "environment": (IBL, IBL_COUNT), "background": (SSR_BACK, 1)},
     "albedo tables": {"sample pattern": (ALBEDO_PATTERN, 1), "measured table": (MEASURED, 1)},
 }
 

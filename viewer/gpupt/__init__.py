@@ -1,7 +1,7 @@
 """The GPU reference engine (OpenGL 4.1 fragment passes): the CPU engine's estimator in GLSL.
 
-``GpuReferenceRenderer`` (``engine.py``) has the interface of
-``viewer.pathtracer.ReferenceRenderer``; ``choose_engine`` (``select.py``) picks cpu or gpu."""
+``GpuReferenceRenderer`` (``engine.py``) has the interface ``viewer.reference_common.estimator.ReferenceEngine``;
+``viewer.reference_common.select`` picks cpu or gpu and makes either."""
 
 from viewer.gpupt.engine import GpuReferenceRenderer
 

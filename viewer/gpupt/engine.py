@@ -1,11 +1,11 @@
 """The GPU reference engine: the CPU engine's estimator in GLSL over the scene's BVH textures.
 
-``GpuReferenceRenderer`` has the interface of ``viewer.pathtracer.ReferenceRenderer``
+``GpuReferenceRenderer`` has the interface ``viewer.reference_common.estimator.ReferenceEngine``
 (``step(spp, cancel=)``, ``mean()``, ``variance()``, ``spp``, ``bad_values``, ``reset(scene)``,
 ``close()``) plus ``step_for(seconds)``, which renders bands of rows until a time budget is
 spent (the window calls it once per frame so the raster stays interactive).
 
-How it runs (OpenGL 4.1 core): the setup is the CPU engine's (``RenderSetup.from_scene``: the
+How it runs (OpenGL 4.1 core): the setup is the one the CPU engine renders from (``viewer.reference_common.setup.RenderSetup``: the
 same triangles, vertex normals, tangents, camera, lights, environment tables). The triangles
 and BVH go to float textures once (``viewer.gl.scene_textures``); the materials are packed
 one after another into a float texture in the layout of ``viewer.gl.brdf_glsl.pack_material``
@@ -23,7 +23,7 @@ number of lights, layered materials with a delta base) and for the estimator's o
 each a compile-time variant of the pass), and cached by that recipe. ``spectral``: the CPU
 engine's hero-wavelength estimator instead of RGB, the compile-time variant ``SPECTRAL``
 (``shaders/pathtrace/spectral.glsl``, its data from ``viewer.gpupt.spectral``); None: where a
-material is dispersive, as ``ReferenceRenderer`` decides (``viewer.gpupt.select.make_renderer``
+material is dispersive, as ``ReferenceRenderer`` decides (``viewer.reference_common.select.make_renderer``
 passes its ``spectral`` so); the default False keeps RGB.
 """
 
@@ -41,9 +41,9 @@ from viewer.gl.context import release_gl
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
 from viewer.geometry.bvh_flat import TEX_WIDTH, as_texels
-from viewer.gpupt.refusals import MEASURED_REFUSAL, measured_tables, needs_spectral, several_measured_tables
-from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
-from viewer.pathtracer.integrator import RenderSetup
+from viewer.reference_common.refusals import MEASURED_REFUSAL, measured_tables, needs_spectral, several_measured_tables
+from viewer.reference_common.estimator import EstimatorOptions, mean_of, variance_of_mean
+from viewer.reference_common.setup import RenderSetup
 
 
 def dispatch_from_texture(models: tuple[str, ...]) -> str:
@@ -54,7 +54,7 @@ def dispatch_from_texture(models: tuple[str, ...]) -> str:
 
 def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     """(info (2 * MAX_MATERIALS, 4) float32 for ``u_mat_info``, floats (F,) for ``u_mat_tex``)
-    for a list of ``integrator.MaterialInfo``."""
+    for a list of ``viewer.reference_common.setup.MaterialInfo``."""
     if len(materials) > MAX_MATERIALS:
         raise ViewerError(f"the GPU engine holds {MAX_MATERIALS} materials; the scene has {len(materials)}")
     info = np.zeros((2 * MAX_MATERIALS, 4), np.float32)

@@ -22,12 +22,13 @@ import numpy as np
 
 from viewer.gl.brdf_glsl import pack_material
 from viewer.pathtracer import spectral as sp
+from viewer.reference_common.wavelengths import N_BINS, STRIDE, bin_wavelengths, bin_weights
 
 CATEGORY_CODE = {"rgb": 0, "table": 1, "hero": 2}   # spectral.glsl u_mat_spec[m].x
 
 
 def category(m) -> str:
-    """The CPU spectral integrator's category of an ``integrator.MaterialInfo``: ``rgb`` (no
+    """The CPU spectral integrator's category of an ``viewer.reference_common.setup.MaterialInfo``: ``rgb`` (no
     spectral table: evaluated in RGB, the value upsampled), ``hero`` (dispersive, or a spectral
     material with a delta base: one wavelength per path) or ``table`` (a spectral metal: all four
     wavelengths)."""
@@ -43,9 +44,9 @@ def spectral_table() -> np.ndarray:
     """(2, 420, 4) float32: row 0 rgb = basis at each bin, row 1 rgb = its CIE RGB weight."""
     from viewer.spectral import upsampling
 
-    out = np.zeros((2, sp.N_BINS, 4), np.float32)
-    out[0, :, :3] = upsampling.basis_at(sp.bin_wavelengths())
-    out[1, :, :3] = sp.bin_weights()
+    out = np.zeros((2, N_BINS, 4), np.float32)
+    out[0, :, :3] = upsampling.basis_at(bin_wavelengths())
+    out[1, :, :3] = bin_weights()
     return out
 
 
@@ -55,7 +56,7 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
     c + 210), offset of the 420 sets at (l, l, l), floats per set); RGB materials: (0, 0, 0, 0)."""
     info = np.zeros((max_materials, 4), np.float32)
     data: list[np.ndarray] = []
-    bins = sp.bin_wavelengths()
+    bins = bin_wavelengths()
     for i, m in enumerate(materials):
         if sp.has_film(m.params):  # params_at gives the film its wavelengths; the GLSL would not use them
             from viewer import ViewerError
@@ -66,9 +67,9 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
         info[i, 0] = CATEGORY_CODE[cat]
         if cat == "rgb":
             continue
-        sets = [bins[[l, l, l]] for l in range(sp.N_BINS)]
+        sets = [bins[[l, l, l]] for l in range(N_BINS)]
         if cat == "table":
-            sets = [bins[[c, c + sp.STRIDE, c + 2 * sp.STRIDE]] for c in range(sp.STRIDE)] + sets
+            sets = [bins[[c, c + STRIDE, c + 2 * STRIDE]] for c in range(STRIDE)] + sets
         size = None
         c_off = offset
         for lam3 in sets:
@@ -79,7 +80,7 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
                 raise AssertionError(f"material {m.name}: parameter sets of {size} and {arr.size} floats")
             data.append(arr)
             offset += arr.size
-        h_off = c_off + (sp.STRIDE * size if cat == "table" else 0)
+        h_off = c_off + (STRIDE * size if cat == "table" else 0)
         info[i, 1:] = (c_off, h_off, size)
     floats = np.concatenate(data).astype(np.float32) if data else np.zeros(0, np.float32)
     return info, floats

@@ -1,9 +1,9 @@
 """The CPU reference path tracer. It never imports GL. The scene's triangle soup and its BVH
-are in ``viewer.geometry`` (shared with the rasterizer and the GPU engine).
+are in ``viewer.geometry`` (shared with the rasterizer and the GPU engine); what it shares with
+the GPU engine (the interface, the setup, the environment light, the cache) in ``viewer.reference_common``.
 
 * ``kernel_embree``  ray queries with Embree (``EmbreeKernel``); ``kernel_numba`` the same
                      interface without Embree (``NumbaKernel``)
-* ``envmap``         constant / lat-long environment light with importance sampling
 * ``integrator``     wavefront path tracing in numpy (NEE, MIS, Russian roulette, Bouguer)
 * ``progressive``    ``ReferenceRenderer``: deterministic progressive accumulation on a
                      process pool, cancellable

@@ -19,8 +19,8 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   black). A path whose last bounce was a delta lobe, and a camera ray, take the full
   environment radiance under every strategy (light sampling cannot find a delta direction).
 * Delta lobes (``spec.delta`` models, i.e. mirror and smooth dielectric; a layered model with a
-  delta base is "mixed": a sample is discrete when ``sample``'s pdf differs from ``pdf`` at the
-  sampled pair) skip next-event estimation and MIS.
+  delta base is "mixed": its ``sample_lobe`` says which samples drew the delta lobe) skip
+  next-event estimation and MIS.
 * ``max_depth`` = number of scattering events: at vertex ``depth <= max_depth`` the path does
   NEE and samples a direction; the ray of the last one is traced only to see whether it
   reaches the environment. ``max_depth = 1`` is direct light only.
@@ -48,40 +48,19 @@ Every model output (f, pdf, weights) that is NaN, infinite or negative is counte
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from viewer import brdf
-from viewer.brdf import thin_film, twin_trust
-from viewer.pathtracer.envmap import EnvironmentLight
-from viewer.geometry.soup import SceneGeometry, build_geometry, hit_points, interpolate_shading, shading_frame
+from viewer.brdf import thin_film
+from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
+from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
+from viewer.reference_common.setup import MaterialInfo, RenderSetup
 
-RR_START_DEPTH = 4          # Russian roulette from the 4th scattering event on ("after 3 bounces")
-RR_MIN, RR_MAX = 0.05, 0.95
-EPS_REL = 1e-4
 DIMS_PER_BOUNCE = 5         # bsdf (2), environment (2), roulette (1)
 KEY_SALT = 0x9E3779B97F4A7C15
-STRATEGIES = ("mis", "bsdf", "light")   # how the environment is reached
-STRATEGY_LABELS = {"mis": "MIS (BSDF + light)", "bsdf": "BSDF sampling", "light": "light sampling"}
 
 
 # ----------------------------------------------------------------------------- setup
-
-@dataclass
-class MaterialInfo:
-    name: str
-    model_name: str
-    params: object
-    kind: str                 # "smooth" (no delta lobe), "delta" (only delta lobes), "mixed"
-    transmissive: bool
-    sigma_a: np.ndarray       # (3,) absorption inside (transmissive), else zeros
-
-
-def _is_pure_delta(p) -> bool:
-    return brdf.get(p.model).is_delta(p)
-
 
 def reference_model(m: "MaterialInfo"):
     """The model the reference evaluates a material with: its registry model, or for a layered
@@ -96,79 +75,6 @@ def reference_model(m: "MaterialInfo"):
 
         return WalkModel(model)
     return model
-
-
-def material_info(name: str, p) -> MaterialInfo:
-    model = brdf.get(p.model)
-    spec = model.spec
-    kind = model.flags(p)  # "delta", "mixed" (a layered coat over a delta base) or "smooth"
-    sigma = np.zeros(3)
-    if spec.transmissive and "sigma_a" in p:
-        sigma = np.asarray(p["sigma_a"], dtype=np.float64).reshape(3).copy()
-    return MaterialInfo(name, p.model, p, kind, bool(spec.transmissive), sigma)
-
-
-@dataclass
-class RenderSetup:
-    """Everything a worker needs (picklable): geometry, materials, lights, environment, camera."""
-
-    geometry: SceneGeometry
-    materials: list
-    lights: list              # [("point", position, intensity) | ("directional", direction, irradiance)]
-    env: EnvironmentLight
-    cam_pos: np.ndarray
-    cam_forward: np.ndarray
-    cam_right: np.ndarray
-    cam_up: np.ndarray
-    tan_half_y: float
-    width: int
-    height: int
-    max_depth: int = 8
-    kernel: str = "embree"
-    extra: dict = field(default_factory=dict)
-    strategy: str = "mis"          # environment: "mis" | "bsdf" | "light" (every engine reads it)
-    mis_heuristic: str = "power"   # "power" (beta = 2) | "balance"
-    russian_roulette: bool = True
-
-    @classmethod
-    def from_scene(cls, scene, camera=None, width=None, height=None, max_depth: int = 8,
-                   env_image=None, kernel: str = "embree", strategy: str = "mis",
-                   mis_heuristic: str = "power", russian_roulette: bool = True) -> "RenderSetup":
-        if camera is None:
-            from viewer.camera import OrbitCamera
-
-            camera = OrbitCamera.from_scene(scene)
-        width = int(width or scene.camera.width)
-        height = int(height or scene.camera.height)
-        pos = np.asarray(camera.position, dtype=np.float64)
-        target = np.asarray(camera.target, dtype=np.float64)
-        up = np.asarray(getattr(camera, "up", (0.0, 1.0, 0.0)), dtype=np.float64)
-        fwd = target - pos
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(fwd, up)
-        if np.linalg.norm(right) < 1e-12:  # looking along up: any perpendicular (as look_at would fail)
-            right = np.cross(fwd, [1.0, 0.0, 0.0] if abs(fwd[0]) < 0.9 else [0.0, 0.0, 1.0])
-        right /= np.linalg.norm(right)
-        cam_up = np.cross(right, fwd)
-        geom = build_geometry(scene)
-        mats = [material_info(n, scene.materials[n]) for n in geom.material_names]
-        lights = []
-        for light in scene.lights:
-            if light.type == "point":
-                lights.append(("point", np.asarray(light.position, float), np.asarray(light.intensity, float)))
-            else:
-                d = np.asarray(light.direction, float)
-                lights.append(("directional", d / np.linalg.norm(d), np.asarray(light.irradiance, float)))
-        check_options(strategy, mis_heuristic)
-        env = EnvironmentLight.from_scene(scene, env_image)
-        return cls(geom, mats, lights, env, pos, fwd, right, cam_up,
-                   math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel,
-                   extra={"object_y": np.array([o.y_range() if o.mesh_data is not None else (0.0, 0.0)
-                                                for o in scene.objects] or [(0.0, 0.0)]),
-                          # the twins this process trusts: the workers take this decision as theirs
-                          "trusted_twins": twin_trust.trusted_twins(
-                              m.params["file"] for m in mats if m.model_name == "custom")},
-                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
 
 
 def make_kernel(triangles, kind: str = "embree"):
@@ -204,16 +110,6 @@ def _balance(a, b):
 
 
 HEURISTICS = {"power": _power, "balance": _balance}
-
-
-def check_options(strategy: str, mis_heuristic: str = "power") -> None:
-    """One-line ViewerError for an unknown strategy or MIS heuristic."""
-    from viewer import ViewerError
-
-    if strategy not in STRATEGIES:
-        raise ViewerError(f"strategy: {strategy!r} is not a sampling strategy; allowed: {', '.join(STRATEGIES)}")
-    if mis_heuristic not in HEURISTICS:
-        raise ViewerError(f"MIS heuristic: {mis_heuristic!r} is not a heuristic; allowed: {', '.join(HEURISTICS)}")
 
 
 def _dot(a, b):

@@ -9,7 +9,7 @@ on how many samples each ``step`` asked for), never on the workers.
 Processes: ``workers`` (default ``os.cpu_count()``) processes started with the ``spawn``
 method. ``fork`` would copy a process that may hold a GL context, a glfw window and driver
 threads (their locks included) into the children, which is unsafe; ``spawn`` starts clean
-interpreters that import only numpy, embreex and ``viewer.pathtracer`` / ``viewer.brdf``
+interpreters that import only numpy, embreex and ``viewer.pathtracer`` / ``viewer.reference_common`` / ``viewer.brdf``
 (no GL). As always with ``spawn``, the launching script must guard its entry point with
 ``if __name__ == "__main__"`` (the package's ``brdf-viewer`` script and ``python -m viewer``
 need nothing: ``multiprocessing`` does not re-run a package's ``__main__``).
@@ -37,8 +37,9 @@ import time
 import numpy as np
 
 from viewer.brdf import twin_trust
-from viewer.pathtracer.estimator import EstimatorOptions, mean_of, variance_of_mean
-from viewer.pathtracer.integrator import Integrator, RenderSetup
+from viewer.reference_common.estimator import EstimatorOptions, mean_of, variance_of_mean
+from viewer.pathtracer.integrator import Integrator
+from viewer.reference_common.setup import RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
 
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
@@ -165,7 +166,7 @@ class ReferenceRenderer:
     with position, target, up, fov_y; default ``OrbitCamera.from_scene``). ``strategy`` says how
     the environment is reached ("mis" default, "bsdf", "light"), ``mis_heuristic`` weights MIS
     ("power" default, "balance"), ``russian_roulette`` turns roulette on (default) or off: the
-    ``options`` (``EstimatorOptions``). The interface is ``viewer.pathtracer.estimator.ReferenceEngine``."""
+    ``options`` (``EstimatorOptions``). The interface is ``viewer.reference_common.estimator.ReferenceEngine``."""
 
     engine = "cpu"
 
@@ -311,7 +312,7 @@ class ReferenceRenderer:
         return self._sum.copy(), self._sum2.copy(), self.spp
 
     def resume(self, total, total2, spp: int):
-        """Continue from stored sums of ``spp`` samples per pixel (``viewer.pathtracer.cache``):
+        """Continue from stored sums of ``spp`` samples per pixel (``viewer.reference_common.cache``):
         the next ``step`` draws sample indices from ``spp`` on."""
         total = np.asarray(total, np.float64)
         if total.shape != self._sum.shape:

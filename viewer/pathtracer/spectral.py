@@ -36,23 +36,7 @@ from viewer import spectral
 from viewer.brdf import thin_film
 from viewer.brdf.spec import Params
 from viewer.pathtracer.integrator import Integrator, PathState
-
-N_BINS = 420
-STRIDE = N_BINS // 4
-LAMBDA0 = 360.0
-HERO = 4            # the hero-only path's weight: the four wavelengths' share in one
-
-
-def bin_wavelengths() -> np.ndarray:
-    return LAMBDA0 + np.arange(N_BINS, dtype=np.float64)
-
-
-def bin_weights() -> np.ndarray:
-    """(420, 3) CIE RGB weights of the 1 nm bins; they sum to (1, 1, 1)."""
-    w = spectral.colorimetry.weights().T.copy()          # (421, 3) on 360..780
-    out = w[:N_BINS].copy()
-    out[-1] += w[N_BINS]
-    return out
+from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE, bin_wavelengths, bin_weights
 
 
 def has_film(p) -> bool:

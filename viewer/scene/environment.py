@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.scene.model import equal
+from viewer.scene.equality import equal
 from viewer.spectral.colorimetry import LUMINANCE_REC709
 
 MAP_ALLOWED = ("a built-in name (sky, studio) or a lat-long image file (Radiance .hdr, OpenEXR .exr) "

@@ -5,14 +5,14 @@ and the scene file's vocabulary: its sections, keys and allowed values."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from viewer.scene.environment import Environment
+from viewer.scene.environment import Environment
+from viewer.scene.equality import equal
 
 SCENE_VERSION = 1
 
@@ -128,6 +128,9 @@ class SceneObject:
     scale: float | np.ndarray = 1.0
     rotate_y_deg: float = 0.0
     mesh_data: Any = field(default=None, repr=False)
+    #: what ``equal`` leaves out of an object, also inside a Scene's list: a scene loaded with
+    #: meshes equals the same scene parsed with ``load_meshes=False``
+    EQ_SKIP = ("mesh_data",)
 
     def model_matrix(self) -> np.ndarray:
         """4x4 float64 object-to-world matrix for column vectors (``M @ [x, y, z, 1]``):
@@ -166,7 +169,7 @@ class SceneObject:
         return sy * float(y.min()) + ty, sy * float(y.max()) + ty
 
     def __eq__(self, other):
-        return equal(self, other, skip=("mesh_data",))
+        return equal(self, other, skip=self.EQ_SKIP)
 
 
 @dataclass(eq=False)
@@ -220,35 +223,5 @@ class Scene:
         tris = sum(len(o.mesh_data.indices) for o in self.objects if o.mesh_data is not None)
         return f"{len(self.objects):,} objects, {tris:,} triangles"
 
-    def material_of(self, obj: SceneObject):
-        return self.materials[obj.material]
-
     def __eq__(self, other):
         return equal(self, other, skip=("data", "label", "base_dir"))
-
-
-_EQ_SKIP = {SceneObject: ("mesh_data",)}
-
-
-def equal(a, b, skip=()) -> bool:
-    """Structural equality that understands numpy arrays, Params and dataclasses.
-    Float arrays compare with a relative tolerance of 1e-12 (a normalized direction that is
-    normalized again may move by an ulp)."""
-    if type(a) is not type(b):
-        if not (isinstance(a, (int, float)) and isinstance(b, (int, float))
-                and not isinstance(a, bool) and not isinstance(b, bool)):
-            return False
-    if is_dataclass(a):
-        # A SceneObject inside a Scene's list skips mesh_data as it does on its own, so a scene
-        # loaded with meshes equals the same scene parsed with load_meshes=False.
-        skip = skip or _EQ_SKIP.get(type(a), ())
-        return all(equal(getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name not in skip)
-    if isinstance(a, np.ndarray):
-        return a.shape == b.shape and bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
-    if isinstance(a, dict):
-        if getattr(a, "model", None) != getattr(b, "model", None):
-            return False
-        return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(equal(x, y) for x, y in zip(a, b))
-    return a == b

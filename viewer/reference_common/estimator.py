@@ -1,8 +1,10 @@
 """What the two reference engines share: the interface (``ReferenceEngine``: the CPU engine's
 ``ReferenceRenderer`` and the GPU engine's ``GpuReferenceRenderer`` both have it), the
-estimator's options (``EstimatorOptions``) and the mean and variance of a pixel's sums
-(``mean_of``, ``variance_of_mean``), so both engines answer from their sums the same way.
-No GL here (the GPU engine imports this module, never the other way round)."""
+estimator's options (``EstimatorOptions``, checked by ``check_options``) and constants (Russian
+roulette's start and survival bounds, which ``viewer.gl.constants`` writes into the GPU engine's
+shaders), and the mean and variance of a pixel's sums (``mean_of``, ``variance_of_mean``), so
+both engines answer from their sums the same way. No GL and neither engine here: both engines
+import this module."""
 
 from __future__ import annotations
 
@@ -12,9 +14,23 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from viewer.pathtracer.integrator import check_options
-
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+RR_START_DEPTH = 4          # Russian roulette from the 4th scattering event on ("after 3 bounces")
+RR_MIN, RR_MAX = 0.05, 0.95  # the survival probability clamp(max(throughput), RR_MIN, RR_MAX)
+STRATEGIES = ("mis", "bsdf", "light")   # how the environment is reached
+STRATEGY_LABELS = {"mis": "MIS (BSDF + light)", "bsdf": "BSDF sampling", "light": "light sampling"}
+MIS_HEURISTICS = ("power", "balance")   # power: beta = 2 (Veach 1997, eq. 9.13)
+
+
+def check_options(strategy: str, mis_heuristic: str = "power") -> None:
+    """One-line ViewerError for an unknown strategy or MIS heuristic."""
+    from viewer import ViewerError
+
+    if strategy not in STRATEGIES:
+        raise ViewerError(f"strategy: {strategy!r} is not a sampling strategy; allowed: {', '.join(STRATEGIES)}")
+    if mis_heuristic not in MIS_HEURISTICS:
+        raise ViewerError(f"MIS heuristic: {mis_heuristic!r} is not a heuristic; allowed: {', '.join(MIS_HEURISTICS)}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,7 +59,7 @@ class EstimatorOptions:
 
 @runtime_checkable
 class ReferenceEngine(Protocol):
-    """A progressive reference renderer (``viewer.gpupt.select.make_renderer`` makes one of
+    """A progressive reference renderer (``viewer.reference_common.select.make_renderer`` makes one of
     either engine). ``engine``: "cpu" or "gpu"; ``options``: its ``EstimatorOptions``;
     ``spp``: whole samples per pixel so far; ``bad_values``: NaN / inf samples dropped."""
 

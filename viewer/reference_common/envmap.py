@@ -1,10 +1,10 @@
-"""Light from infinitely far away for the reference path tracer: a constant radiance or a
+"""Light from infinitely far away for the reference engines (both build their environment from it): a constant radiance or a
 lat-long radiance map, with the light-sampling strategies the integrator combines with BSDF
 sampling by multiple importance sampling (Veach 1997, ch. 9).
 
-Orientation (docs/conventions.md): a world direction d looks up the map at
-``u = 0.5 + atan2(d.x, -d.z) / (2 pi)``, ``v = acos(d.y) / pi`` (v = 0 at the zenith = row 0),
-after the scene's rotation: ``L(d) = intensity * map(R_y(-rotation_deg) d)``.
+Orientation (docs/conventions.md; the mapping is ``viewer.environment.latlong``'s): a world
+direction d looks up the map at ``u = 0.5 + atan2(d.x, -d.z) / (2 pi)``, ``v = acos(d.y) / pi``
+(v = 0 at the zenith = row 0), after the scene's rotation: ``L(d) = intensity * map(R_y(-rotation_deg) d)``.
 
 Sampling
 --------
@@ -28,29 +28,9 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.brdf.sampling import LUMINANCE_REC709, cosine_hemisphere
+from viewer.environment.latlong import dir_to_uv, rotation_y, uv_to_dir
 
 INV_4PI = 1.0 / (4.0 * math.pi)
-
-
-def _rot_y(deg: float) -> np.ndarray:
-    a = math.radians(deg)
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def direction_to_uv(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit directions (N, 3) to lat-long (u, v) in [0, 1], as docs/conventions.md maps them."""
-    u = 0.5 + np.arctan2(d[:, 0], -d[:, 2]) / (2.0 * math.pi)
-    v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / math.pi
-    return u, v
-
-
-def uv_to_direction(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Inverse of ``direction_to_uv``."""
-    theta = math.pi * v
-    phi = 2.0 * math.pi * (u - 0.5)   # = atan2(d.x, -d.z)
-    st = np.sin(theta)
-    return np.stack([st * np.sin(phi), np.cos(theta), -st * np.cos(phi)], axis=-1)
 
 
 class EnvironmentLight:
@@ -73,8 +53,8 @@ class EnvironmentLight:
         elif constant is not None:
             self.constant = np.asarray(constant, dtype=np.float64).reshape(3) * self.intensity
         self.rotation_deg = float(rotation_deg)
-        self._to_map = _rot_y(-self.rotation_deg)    # world -> map direction
-        self._to_world = _rot_y(self.rotation_deg)
+        self._to_map = rotation_y(-self.rotation_deg)    # world -> map direction
+        self._to_world = rotation_y(self.rotation_deg)
 
     @classmethod
     def from_scene(cls, scene, image=None) -> "EnvironmentLight":
@@ -139,7 +119,7 @@ class EnvironmentLight:
         if self.image is None:
             return np.broadcast_to(self.constant, d.shape).copy()
         dm = d @ self._to_map.T
-        u, v = direction_to_uv(dm)
+        u, v = dir_to_uv(dm)
         row, col = self._texel(u, v)
         return self.image[row, col]
 
@@ -175,7 +155,7 @@ class EnvironmentLight:
         fu = np.clip((u[:, 0] - clo) / np.where(chi > clo, chi - clo, 1.0), 0.0, 1.0 - 1e-12)
         uu = (col + fu) / w
         vv = (row + fv) / h
-        dm = uv_to_direction(uu, vv)
+        dm = uv_to_dir(uu, vv)
         wi = dm @ self._to_world.T
         sin_t = np.sin(math.pi * vv)
         p_uv = self._texel_p[row, col] * (w * h)
@@ -189,7 +169,7 @@ class EnvironmentLight:
             return np.where(two_sided, INV_4PI, np.maximum(cos, 0.0) / math.pi)
         h, w, _ = self.image.shape
         dm = d @ self._to_map.T
-        u, v = direction_to_uv(dm)
+        u, v = dir_to_uv(dm)
         row, col = self._texel(u, v)
         sin_t = np.sin(math.pi * np.clip(v, 0.0, 1.0))
         p_uv = self._texel_p[row, col] * (w * h)

@@ -1,7 +1,7 @@
 """What only the cpu engine renders, in one place: the tests, the one-line refusal of
 ``--engine gpu`` and the reason ``auto`` prints for taking the cpu engine. ``cpu_only(scene)``
 is the first limit a scene meets (None: the gpu engine renders it); the engine selection
-(``viewer/gpupt/select.py``) and the gpu engine itself (``viewer/gpupt/engine.py``: several measured
+(``viewer/reference_common/select.py``) and the gpu engine itself (``viewer/gpupt/engine.py``: several measured
 tables) read them here."""
 
 from __future__ import annotations

@@ -1,35 +1,23 @@
 """Which reference engine to use: ``cpu`` (numpy + Embree, the oracle), ``gpu`` (GLSL) or
-``auto``.
+``auto``, and ``make_renderer``, which makes one of the chosen engine (each engine is imported
+only there, when it is the one asked for).
 
 ``auto``: a hardware GPU -> gpu. Software OpenGL (Mesa llvmpipe / softpipe, SwiftShader, ...)
-shares the CPU cores with the CPU engine, so it is whichever measured faster on this machine:
-a stored measurement (``engine.toml`` in the cache folder, keyed by the GL renderer string and
-the number of cores) or, the first time, a short calibration (the built-in default scene at
-128 x 128, 4 spp, both engines, warm) whose result is stored. No OpenGL at all -> cpu.
+shares the CPU cores with the CPU engine and measured up to 10x slower than it on many-model
+scenes, so there it is cpu. No OpenGL at all -> cpu.
 Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
 the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
-cpu engine can trace (``viewer/gpupt/refusals.py``: measured tables, the multiple-scattering
+cpu engine can trace (``viewer/reference_common/refusals.py``: measured tables, the multiple-scattering
 random walk, thin films per wavelength) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
 
-import os
-import time
-from pathlib import Path
-
 # needs_spectral, uses_measured, uses_random_walk: public here too (the CLI, the window, tests)
-from viewer.gpupt.refusals import cpu_only, needs_spectral, uses_measured, uses_random_walk
+from viewer.reference_common.refusals import cpu_only, needs_spectral, uses_measured, uses_random_walk
 
 ENGINES = ("cpu", "gpu", "auto")
 SOFTWARE_GL = ("llvmpipe", "softpipe", "swiftshader", "software", "lavapipe", "swrast")
-CALIBRATION = dict(scene="default", size=128, spp=4)
-
-
-def cache_dir() -> Path:
-    from viewer.pathtracer.cache import cache_root
-
-    return cache_root()
 
 
 def gl_renderer_name(ctx) -> str:
@@ -44,78 +32,7 @@ def is_software(renderer_name: str) -> bool:
     return any(s in low for s in SOFTWARE_GL)
 
 
-def _measure_file() -> Path:
-    return cache_dir() / "engine.toml"
-
-
-def _machine_key(renderer_name: str) -> str:
-    return f"{renderer_name} | {os.cpu_count()} cores"
-
-
-def stored_choice(renderer_name: str) -> dict | None:
-    import tomllib
-
-    try:
-        data = tomllib.loads(_measure_file().read_text())
-    except (OSError, ValueError):
-        return None
-    entry = data.get("machine", {}).get(_machine_key(renderer_name))
-    if isinstance(entry, dict) and entry.get("faster") in ("cpu", "gpu"):
-        return entry
-    return None
-
-
-def calibrate(ctx, workers=None) -> dict:
-    """Samples/s of both engines on the calibration scene (warm: programs compiled, pool up)."""
-    from viewer.gpupt.engine import GpuReferenceRenderer
-    from viewer.pathtracer import ReferenceRenderer
-    from viewer.scene import load_scene
-
-    sc = load_scene(CALIBRATION["scene"])
-    n, spp = CALIBRATION["size"], CALIBRATION["spp"]
-    out = {}
-    with GpuReferenceRenderer(sc, width=n, height=n, max_depth=8, seed=0, ctx=ctx) as g:
-        g.step(1)
-        t = time.perf_counter()
-        g.step(spp)
-        out["gpu"] = spp * n * n / (time.perf_counter() - t)
-    with ReferenceRenderer(sc, width=n, height=n, max_depth=8, seed=0, workers=workers) as c:
-        c.warm_up()
-        c.step(1)
-        t = time.perf_counter()
-        c.step(spp)
-        out["cpu"] = spp * n * n / (time.perf_counter() - t)
-    return out
-
-
-def store_choice(renderer_name: str, rates: dict) -> dict:
-    import tomllib
-
-    from viewer.io import atomic_write_bytes
-
-    entry = {"faster": "gpu" if rates["gpu"] > rates["cpu"] else "cpu",
-             "gpu_samples_per_second": float(rates["gpu"]), "cpu_samples_per_second": float(rates["cpu"])}
-    path = _measure_file()
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, ValueError):
-        data = {}
-    machines = data.get("machine", {}) if isinstance(data.get("machine"), dict) else {}
-    machines[_machine_key(renderer_name)] = entry
-    lines = ["# brdf-viewer: measured reference-engine speeds per machine (delete to measure again)"]
-    for key, e in machines.items():
-        lines.append(f'[machine."{key}"]'.replace("\\", "\\\\"))
-        for k, v in e.items():
-            lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v!r}")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
-    except OSError:
-        pass  # a read-only cache: measure again next time
-    return entry
-
-
-def choose_engine(requested: str = "auto", ctx=None, workers=None, calibrate_if_needed: bool = True):
+def choose_engine(requested: str = "auto", ctx=None):
     """(engine "cpu" | "gpu", reason) for ``requested`` in ENGINES. ``ctx``: a GL context to
     ask (default: a headless one is made for the question)."""
     from viewer import ViewerError
@@ -140,10 +57,10 @@ def choose_engine(requested: str = "auto", ctx=None, workers=None, calibrate_if_
         name = gl_renderer_name(ctx)
         if not is_software(name):
             return "gpu", f"hardware GPU ({name})"
-        # Software GL runs the GPU engine on the same CPU cores: a short calibration on a small
-        # scene measured it 1.2x faster, but on the gallery it was 10x slower, and its program for
-        # a many-model scene compiles for up to a minute on the window's thread. So auto keeps the
-        # cpu engine there; --engine gpu still runs it.
+        # Software GL runs the GPU engine on the same CPU cores: on a small scene it measured 1.2x
+        # faster, but on the gallery 10x slower, and its program for a many-model scene compiles
+        # for up to a minute on the window's thread. So auto keeps the cpu engine there;
+        # --engine gpu still runs it.
         return "cpu", f"software OpenGL ({name}): the cpu engine (--engine gpu runs the GLSL one on the CPU)"
     finally:
         if own:
@@ -196,7 +113,7 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
                              spectral=spectral, **estimator)
 
 
-def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, ctx=None, workers=None):
+def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, ctx=None):
     """(engine, reason) for ``requested`` and the scenes it will render: ``auto`` takes the cpu
     engine for a scene only it renders (measured tables, the microfacet random walk), else
     ``choose_engine``'s choice (``gpu`` asked for such a scene fails in ``make_renderer``); a scene
@@ -209,4 +126,4 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
             limit = cpu_only(s, spectral)
             if limit is not None:
                 return "cpu", limit.reason
-    return choose_engine(requested, ctx=ctx, workers=workers)
+    return choose_engine(requested, ctx=ctx)
