@@ -8,11 +8,12 @@ from viewer import ViewerError
 
 
 def _model(params):
+    import os
+
     from viewer import brdf
-    from viewer.brdf import file_model
 
     if brdf.is_file(params):
-        return brdf.load(file_model.path_of(params))
+        return brdf.load(os.fspath(params["file"]))
     return brdf.get(params.model)
 
 
