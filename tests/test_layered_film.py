@@ -232,7 +232,7 @@ def test_layered_coat_film_over_height(height_rasters):
 ])
 def test_spectral_reference_evaluates_the_film_per_wavelength(p):
     from viewer.brdf.fresnel import fresnel_thin_film
-    from viewer.pathtracer.spectral import params_at, uses_spectral
+    from viewer.brdf import params_at, uses_spectral
 
     assert uses_spectral(p)
     lam3 = np.array([430.0, 515.0, 702.0])
@@ -252,11 +252,11 @@ def test_spectral_reference_evaluates_the_film_per_wavelength(p):
 
 def test_program_defines_see_the_coat_film():
     # a coat film inside the coating table: its own define (tables only), not the wavelength loop
-    from viewer.gl.brdf_glsl import program_defines, uses_thin_film
+    from viewer.gl.brdf_glsl import program_defines
 
     assert program_defines([_coated(300.0)]) == {"COAT_FILM": "1"}
     assert program_defines([_coated(0.0, top=80.0)]) == {"COAT_FILM": "1"}   # a film at the top only
-    assert program_defines([_coated(0.0)]) == {} and not uses_thin_film(_coated(0.0))
+    assert program_defines([_coated(0.0)]) == {} and not brdf.has_film(_coated(0.0))
     own = brdf.get("microfacet").params(fresnel="conductor", thin_film={"ior": 1.4, "thickness_nm": 200.0})
     assert program_defines([_coated(300.0), own]) == {"COAT_FILM": "1", "THIN_FILM": "1"}
     # (a nested base takes no film: the validator says so, the top thickness included)

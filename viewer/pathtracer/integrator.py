@@ -87,15 +87,9 @@ def reference_model(m: "MaterialInfo"):
     """The model the reference evaluates a material with: its registry model, or for a layered
     material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
     random walk (viewer/brdf/layered_walk.py)."""
-    if m.model_name == "custom":  # a .brdf file: its numpy twin (never its GLSL: no GL here)
-        return brdf.get("custom").of(m.params).numpy_model()
-    model = brdf.get(m.model_name)
-    p = m.params
-    if m.model_name == "layered" and p.get("reference") == "random_walk" and m.kind != "mixed":
-        from viewer.brdf.layered_walk import WalkModel
-
-        return WalkModel(model)
-    return model
+    if brdf.is_file(m.params):  # a .brdf file: its numpy twin (never its GLSL: no GL here)
+        return brdf.get(m.model_name).of(m.params).numpy_model()
+    return brdf.get(m.model_name).reference_model(m.params)
 
 
 def material_info(name: str, p) -> MaterialInfo:
@@ -167,7 +161,7 @@ class RenderSetup:
                                                 for o in scene.objects] or [(0.0, 0.0)]),
                           # the twins this process trusts: the workers take this decision as theirs
                           "trusted_twins": twin_trust.trusted_twins(
-                              m.params["file"] for m in mats if m.model_name == "custom")},
+                              m.params["file"] for m in mats if brdf.is_file(m.params))},
                    strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
 
 
