@@ -273,7 +273,8 @@ def test_gpu_spectral_pass_refuses_films():
     from viewer.gpupt.select import choose_for_scenes, make_renderer
     from viewer.scene import load_scene_text
 
-    scene = load_scene_text(_LAYERED_BOTTOM)
-    assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
-    with pytest.raises(ViewerError, match="thin films per wavelength"):
-        make_renderer("gpu", scene, spectral=True)
+    for text in (_LAYERED_BOTTOM, _MF_SCENE):   # the latter's film: 0 nm at the bottom, 50 nm at the top
+        scene = load_scene_text(text)
+        assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
+        with pytest.raises(ViewerError, match="thin films per wavelength"):
+            make_renderer("gpu", scene, spectral=True)
