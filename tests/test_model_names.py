@@ -8,8 +8,8 @@ measured, a ``.brdf`` file, ...) is a hook of the model protocol answered in ``v
 Flagged: a comparison (``==``, ``!=``, ``in``, ``not in``) one side of which names a model (an
 attribute or subscript ``model`` / ``name`` / ``model_name``, ``.get("model")``, ``getattr(x,
 "model")``, a plain name ``model`` / ``model_name``, or the list ``models_used(p)`` /
-``scene_models(scene)`` of the names a material uses) and the other a string literal, or a tuple, list or set of them, that
-is a registered model's name (``viewer.brdf.names()`` and ``custom``). A parameter's or an
+``scene_models(scene)`` of the names a material uses) and the other a string literal, or a
+tuple, list or set of them, that is a registered model's name (``viewer.brdf.names()`` and ``custom``). A parameter's or an
 object's name compared with a string that names no model (``p.name == "thin_film"``) is not a
 model name and is not flagged. Nothing is allowed: ``ALLOWED`` is empty, and a staleness test
 keeps any entry someone adds naming a current offender.
@@ -47,7 +47,8 @@ def _names_a_model(node: ast.expr) -> bool:
         fn = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", None)
         if fn in MODEL_LISTS:
             return True
-        key = node.args[1] if fn == "getattr" and len(node.args) > 1 else node.args[0] if fn == "get" and node.args else None
+        args = node.args
+        key = args[1] if fn == "getattr" and len(args) > 1 else args[0] if fn == "get" and args else None
         return isinstance(key, ast.Constant) and key.value in NAMING
     return False
 

@@ -246,9 +246,9 @@ def test_a_film_at_the_top_only_is_active_everywhere():
         assert program_defines([p]), p.model                      # the film's GLSL is compiled
         assert not thin_film.at_point(owner), p.model             # the bottom itself has none
         assert thin_film.at_point(thin_film.local(p, 1.0) if "thin_film" in p else thin_film.local(p, 1.0).coating)
-        bare = dict(_FILM_AT_TOP, thickness_top_nm=-1.0)
-        q = brdf.get(p.model).params(**({"coating": {"thin_film": bare}} if p.model == "layered"
-                                          else dict(thin_film=bare, **({"fresnel": "conductor"} if p.model == "microfacet" else {}))))
+        bare = dict(_FILM_AT_TOP, thickness_top_nm=-1.0)   # the same film, uniform: 0 nm all over
+        q = p.replace(coating=p.coating.replace(thin_film=p.coating.thin_film.replace(**bare))) \
+            if "coating" in p else p.replace(thin_film=p.thin_film.replace(**bare))
         assert not brdf.has_film(q) and not brdf.uses_spectral(q) and program_defines([q]) == {}, p.model
 
 

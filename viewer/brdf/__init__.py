@@ -432,4 +432,5 @@ def __getattr__(attr):
 
 
 __all__ = ["spec_of", "has_film", "is_dispersive", "uses_spectral", "walks", "is_measured", "params_at",
-           "is_delta", "is_file", "is_file_model", "path_params", "model_of", "CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]
+           "is_delta", "is_file", "is_file_model", "path_params", "model_of",
+           "CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]

@@ -7,7 +7,7 @@
   ``SpectralIntegrator`` builds them: ``basis_at(bin_wavelengths())``, ``bin_weights()``).
 * ``pack_spectral_materials(materials, offset)``: per material its category (as the CPU
   integrator sorts them: ``rgb``, ``table``, ``hero``) and, for spectral materials, the material
-  packed once per wavelength set the path may use, with the CPU's own ``params_at`` (``viewer.brdf.params_at``): 105 sets at
+  packed once per wavelength set the path may use, with the CPU's own ``viewer.brdf.params_at``: 105 sets at
   bins (c, c + 105, c + 210) (a table material's three channels) and 420 at (l, l, l) (a table
   material's fourth wavelength, a hero material's hero). A path then reads its parameters at a
   computed offset, so every substitution the CPU makes (n, k of the table for eta, k and a

@@ -81,7 +81,8 @@ class SpectralIntegrator(Integrator):
             p = m.params
             if not brdf.uses_spectral(p):
                 self.category.append("rgb")
-            elif brdf.is_dispersive(p) or m.kind == "mixed" or (brdf.has_film(p) and brdf.model_of(p).spec.transmissive):
+            elif (brdf.is_dispersive(p) or m.kind == "mixed"
+                  or (brdf.has_film(p) and brdf.model_of(p).spec.transmissive)):
                 # (a smooth or rough film-coated dielectric chooses reflection or refraction with
                 # its R: one wavelength per path)
                 self.category.append("hero")
