@@ -278,3 +278,23 @@ def test_gpu_spectral_pass_refuses_films():
         assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
         with pytest.raises(ViewerError, match="thin films per wavelength"):
             make_renderer("gpu", scene, spectral=True)
+
+
+def test_gpu_engine_refuses_a_film_over_height():
+    # the gpu engine shades a hit without its height, so a film over height came out at its bottom
+    # thickness: the microfacet scene's film (0 nm at the bottom, 50 nm at the top) was missing
+    # from the gpu image, while the rasterizer and the cpu engine agree on its gradient (measured
+    # at 24 x 24, 4 spp: the face's top / bottom blue 4.66 in both, 1.00 on the gpu engine). It
+    # refuses such a scene in one line and auto takes the cpu engine; a uniform film stays its own.
+    from viewer import ViewerError
+    from viewer.gpupt.refusals import FILM_HEIGHT_REFUSAL, cpu_only
+    from viewer.gpupt.select import choose_for_scenes, make_renderer
+    from viewer.scene import load_scene_text
+
+    for text in (_MF_SCENE, _LAYERED_OVER):
+        scene = load_scene_text(text)
+        assert cpu_only(scene, False).refusal == FILM_HEIGHT_REFUSAL
+        assert choose_for_scenes("auto", [scene], spectral=False)[0] == "cpu"
+        with pytest.raises(ViewerError, match="film over height"):
+            make_renderer("gpu", scene, spectral=False)
+    assert cpu_only(load_scene_text(_LAYERED_BOTTOM), False) is None

@@ -32,7 +32,8 @@ t = (y - y_min) / (y_max - y_min). The default -1 is a uniform film. The rendere
 d(y) per shading point (``local``): the rasterizer from the fragment's world position and the
 object's y range (``brdf_film_height`` in the generated GLSL), the CPU reference per hit (in
 0.25 nm steps; the colour changes by < 1e-3 over one). A material evaluated without a position
-(plots, albedo tables, the GPU reference engine) has its bottom thickness ``thickness_nm``. A
+(plots, albedo tables) has its bottom thickness ``thickness_nm``; the GPU reference engine,
+which shades a hit without its height, refuses a film over height (viewer/gpupt/refusals.py). A
 layered coating's film is an exception in the rasterizer: its reflectance is a table computed
 once per material on the CPU (viewer/brdf/layered.py ``film_table``, so that no wavelength loop
 is compiled into the layered model's many Fresnel calls), hence the bottom's thickness there.
@@ -92,8 +93,8 @@ def param():
               ">= 0); 0 = no film", unit="nm", lo=0.0, hi=MAX_THICKNESS_NM),
         Param("thickness_top_nm", "float", -1.0, "film thickness at the object's top, linear in height "
               "from thickness_nm at its bottom (a draining soap bubble); -1 = uniform thickness_nm. On a "
-              "layered coating the rasterizer and the GPU engine draw thickness_nm all over (its film is "
-              "tabulated once per material, not per point); the CPU reference follows the height",
+              "layered coating the rasterizer draws thickness_nm all over (its film is tabulated once per "
+              "material, not per point); the CPU reference follows the height; the GPU engine refuses it",
               unit="nm", lo=-1.0, hi=MAX_THICKNESS_NM),
     ))
 

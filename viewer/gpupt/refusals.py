@@ -69,6 +69,21 @@ def uses_thin_film(scene) -> bool:
     return uses(scene, brdf.has_film)
 
 
+def uses_film_over_height(scene) -> bool:
+    """Whether a material some object uses has a thin film whose thickness changes with height
+    (``thickness_top_nm``): the gpu engine evaluates materials without the hit's height (at the
+    film's bottom thickness), while the rasterizer and the cpu engine follow it per point."""
+    from viewer import brdf
+    from viewer.brdf import thin_film
+    from viewer.scene.materials import uses
+
+    return uses(scene, lambda p: brdf.has_film(p) and thin_film.varies(p))
+
+
+FILM_HEIGHT_REFUSAL = ("--engine gpu draws a thin film over height (thickness_top_nm) at its bottom thickness; "
+                       "use --engine cpu or auto (auto takes the cpu engine for it)")
+
+
 FILM_SPECTRAL_REFUSAL = ("--engine gpu does not trace thin films per wavelength (its spectral pass would "
                          "evaluate them in RGB); use --engine cpu or auto (auto takes the cpu engine for them)")
 
@@ -90,6 +105,8 @@ LIMITS = (
     Limit(lambda scene, spectral: uses_random_walk(scene), RANDOM_WALK_REFUSAL, RANDOM_WALK_REASON),
     Limit(lambda scene, spectral: uses_thin_film(scene) and needs_spectral(scene, spectral), FILM_SPECTRAL_REFUSAL,
           "a thin film traced per wavelength: only the cpu engine does it"),
+    Limit(lambda scene, spectral: uses_film_over_height(scene), FILM_HEIGHT_REFUSAL,
+          "a thin film over height (thickness_top_nm): only the cpu engine follows it per hit"),
 )
 
 

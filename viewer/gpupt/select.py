@@ -9,7 +9,7 @@ the number of cores) or, the first time, a short calibration (the built-in defau
 Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
 the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
 cpu engine can trace (``viewer/gpupt/refusals.py``: measured tables, the multiple-scattering
-random walk, thin films per wavelength) take it under ``auto``; ``gpu`` refuses them.
+random walk, thin films per wavelength or over height) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
