@@ -79,14 +79,15 @@ def comparisons(source: str, where: str, names) -> list[str]:
     return out
 
 
-def offenders(root: Path, names) -> list[str]:
+@functools.lru_cache(maxsize=None)
+def offenders(root: Path, names: frozenset) -> tuple[str, ...]:
     out = []
     for path in sorted((root / "viewer").rglob("*.py")):
         rel = path.relative_to(root).as_posix()
         if rel.startswith("viewer/brdf/"):
             continue  # the model modules and the registry: where the names belong
         out.extend(comparisons(path.read_text(encoding="utf-8"), rel, names))
-    return out
+    return tuple(out)
 
 
 def test_no_model_name_comparisons_outside_the_models():
