@@ -24,8 +24,10 @@ uniform sampler2D u_wi;
 uniform sampler2D u_wo;
 uniform int u_model;
 uniform int u_what;  // 0 eval, 1 terms, 2 pdf
+uniform float u_film_height;  // the shading point's relative height (a thin film over height)
 out vec4 color;
 void main() {
+    brdf_film_height = u_film_height;
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec3 wi = texelFetch(u_wi, px, 0).xyz;
     vec3 wo = texelFetch(u_wo, px, 0).xyz;
@@ -102,8 +104,10 @@ class GLSLEvaluator(_FilmPrograms):
         t.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
         return t
 
-    def eval(self, params, wi, wo, what=0) -> np.ndarray:
-        """(N, 3) float32 values of the GLSL function for float32-rounded (wi, wo)."""
+    def eval(self, params, wi, wo, what=0, film_height=0.0) -> np.ndarray:
+        """(N, 3) float32 values of the GLSL function for float32-rounded (wi, wo); ``film_height``
+        the relative height (0 bottom .. 1 top) a film's ``thickness_top_nm`` applies at, as the
+        forward pass sets it (``brdf_film_height``; 0 where nothing sets it)."""
         n = len(wi)
         w = self.WIDTH
         h = (n + w - 1) // w
@@ -124,6 +128,7 @@ class GLSLEvaluator(_FilmPrograms):
                     self.prog[name].value = unit
             if "u_what" in self.prog:
                 _set(self.prog, "u_what", what)
+            _set(self.prog, "u_film_height", float(film_height))
             self.measured.bind(self.prog, params)
             fbo.use()
             fbo.viewport = (0, 0, w, h)

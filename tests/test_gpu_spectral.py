@@ -249,12 +249,12 @@ def test_gpu_spectral_parameter_corners_have_no_bad_values(ctx, name):
 
     scene = nc.sweep_scene(10, 8, ibl="off")   # the NaN sweep's scene (its raster keys do not reach a reference)
     from viewer import ViewerError
-    from viewer.gl.brdf_glsl import uses_thin_film
+    from viewer.brdf import has_film
 
     traced = 0
     for k, p in enumerate(nc.corner_sets(name, 4, 20240614)):   # the NaN sweep's reference corners
         scene.materials["ball"] = p
-        if uses_thin_film(p):   # refused in one line: the spectral pass has no per-wavelength films
+        if has_film(p):   # refused in one line: the spectral pass has no per-wavelength films
             with pytest.raises(ViewerError, match="does not trace thin films"):
                 h.gpu(ctx, scene, 2, size=(10, 8), max_depth=4, seed=k, spectral=True)
             continue

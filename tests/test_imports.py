@@ -23,12 +23,11 @@
     imports ``ViewerError`` from it, and its ``render`` / ``reference`` forward to ``viewer.api``
     inside the functions; it imports nothing of ours at module level;
 (g) the two reference engines (``viewer/gpupt``, ``viewer/pathtracer``) import each other nowhere:
-    what both need is in ``viewer/reference_common`` (``PREDICATES_PENDING`` names the scene and
-    material predicates the GPU engine still takes from ``viewer.pathtracer.spectral`` until
-    they move below both);
+    what both need is in ``viewer/reference_common`` (and the material predicates in
+    ``viewer/brdf``, the scene's in ``viewer/scene``);
 (h) the shared package ``viewer/reference_common`` imports no GL at module level (the CPU engine's
     workers import it) and an engine only inside the functions of ``select.py``, where
-    ``make_renderer`` makes the one asked for (and the pending predicates as in (g)).
+    ``make_renderer`` makes the one asked for.
 
 An import counts wherever it stands (module level or inside a function), and so do the dynamic
 forms with a literal name (``importlib.import_module("x")``, ``__import__("x")``,
@@ -51,10 +50,6 @@ FACADES = frozenset({"viewer"})   # rule (f): modules whose own (lazy) imports a
 DYNAMIC_IMPORTS = {"import_module", "__import__", "require", "available"}
 
 ENGINES = {"viewer/gpupt": "viewer.pathtracer", "viewer/pathtracer": "viewer.gpupt"}   # rule (g)
-# Rules (g), (h): the predicates the GPU engine and the engine choice still import from the CPU
-# engine's spectral module, until they move to viewer/brdf and viewer/scene (then delete this).
-PREDICATES_MODULE = "viewer.pathtracer.spectral"
-PREDICATES_PENDING = frozenset({"has_film", "uses_spectral", "is_dispersive", "params_at", "scene_is_dispersive"})
 
 # Allowances (each must name a current offender, see the staleness test): none today.
 TEMPORARY_GL_ALLOWANCE: set[str] = set()
@@ -177,13 +172,11 @@ def _imports_with_place(root: Path, path: Path):
     return out
 
 
-def _crossings(root: Path, path: Path, banned, pending, allow_in_functions=False) -> list[str]:
-    """'file imports x' for every import by ``path`` of a module under ``banned`` except the
-    names ``pending`` of ``PREDICATES_MODULE`` (imported by name, or the module bound to a name
-    whose attributes used are all pending) and, with ``allow_in_functions``, imports inside a
-    function."""
+def _crossings(root: Path, path: Path, banned, allow_in_functions=False) -> list[str]:
+    """'file imports x' for every import by ``path`` of a module under ``banned`` except, with
+    ``allow_in_functions``, imports inside a function."""
     rel = path.relative_to(root).as_posix()
-    bad, aliases = [], set()
+    bad = []
     for mod, names, inside in _imports_with_place(root, path):
         if inside and allow_in_functions:
             continue
@@ -195,32 +188,22 @@ def _crossings(root: Path, path: Path, banned, pending, allow_in_functions=False
             full = f"{mod}.{n}"
             if not (_matches(mod, banned) or _matches(full, banned)):
                 continue
-            if mod == PREDICATES_MODULE and n in pending:
-                continue
-            if full == PREDICATES_MODULE:   # the module itself: its attributes are checked below
-                aliases.update(a.asname or a.name for node in ast.walk(_parse(path))
-                               if isinstance(node, ast.ImportFrom) for a in node.names if a.name == n)
-                continue
             bad.append(f"{rel} imports {full}")
-    for node in ast.walk(_parse(path)):
-        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases
-                and node.attr not in pending):
-            bad.append(f"{rel} imports {PREDICATES_MODULE}.{node.attr}")
     return sorted(set(bad))
 
 
-def engines_apart(root: Path, pending=PREDICATES_PENDING) -> list[str]:
+def engines_apart(root: Path) -> list[str]:
     """Rule (g)."""
     return [b for folder, other in ENGINES.items() for f in _py(root, folder)
-            for b in _crossings(root, f, (other,), pending)]
+            for b in _crossings(root, f, (other,))]
 
 
-def reference_stays_neutral(root: Path, pending=PREDICATES_PENDING) -> list[str]:
+def reference_stays_neutral(root: Path) -> list[str]:
     """Rule (h)."""
     bad = []
     for f in _py(root, "viewer/reference_common"):
         rel = f.relative_to(root).as_posix()
-        bad += _crossings(root, f, REFERENCE_ENGINES, pending, allow_in_functions=f.name == "select.py")
+        bad += _crossings(root, f, REFERENCE_ENGINES, allow_in_functions=f.name == "select.py")
         bad += [f"{rel} imports {m} at module level" for m, names, inside in _imports_with_place(root, f)
                 if not inside and (_matches(m, GL_MODULES) or any(_matches(f"{m}.{n}", GL_MODULES) for n in names or ()))]
     return bad
@@ -418,14 +401,6 @@ def test_the_shared_reference_package_stays_neutral():
     assert reference_stays_neutral(ROOT) == []
 
 
-def test_the_pending_predicates_are_still_there():
-    """Each name of PREDICATES_PENDING is still in viewer/pathtracer/spectral.py: once they move,
-    the exception goes (an allowance names only current offenders)."""
-    tree = _parse(ROOT / "viewer/pathtracer/spectral.py")
-    defined = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
-    assert PREDICATES_PENDING <= defined, "delete the moved names from PREDICATES_PENDING"
-
-
 def test_no_private_names_across_modules():
     assert private_offenders(ROOT, TEMPORARY_PRIVATE_ALLOWANCE) == []
 
@@ -520,10 +495,8 @@ def test_the_engine_rules_can_fail(tmp_path):
     assert engines_apart(root) == [
         "viewer/gpupt/a.py imports viewer.pathtracer.integrator.RenderSetup",
         "viewer/gpupt/a.py imports viewer.pathtracer.spectral.SpectralIntegrator",
-        "viewer/gpupt/b.py imports viewer.pathtracer.cache", "viewer/gpupt/b.py imports viewer.pathtracer.spectral.HERO",
-        "viewer/pathtracer/c.py imports viewer.gpupt.engine"]
-    assert engines_apart(root, pending=frozenset())[-3:] == [
-        "viewer/gpupt/b.py imports viewer.pathtracer.spectral.uses_spectral",
+        "viewer/gpupt/a.py imports viewer.pathtracer.spectral.uses_spectral",
+        "viewer/gpupt/b.py imports viewer.pathtracer.cache", "viewer/gpupt/b.py imports viewer.pathtracer.spectral",
         "viewer/gpupt/ok.py imports viewer.pathtracer.spectral.scene_is_dispersive",
         "viewer/pathtracer/c.py imports viewer.gpupt.engine"]
     assert reference_stays_neutral(root) == [

@@ -232,7 +232,7 @@ def test_layered_coat_film_over_height(height_rasters):
 ])
 def test_spectral_reference_evaluates_the_film_per_wavelength(p):
     from viewer.brdf.fresnel import fresnel_thin_film
-    from viewer.pathtracer.spectral import params_at, uses_spectral
+    from viewer.brdf import params_at, uses_spectral
 
     assert uses_spectral(p)
     lam3 = np.array([430.0, 515.0, 702.0])
@@ -252,11 +252,11 @@ def test_spectral_reference_evaluates_the_film_per_wavelength(p):
 
 def test_program_defines_see_the_coat_film():
     # a coat film inside the coating table: its own define (tables only), not the wavelength loop
-    from viewer.gl.brdf_glsl import program_defines, uses_thin_film
+    from viewer.gl.brdf_glsl import program_defines
 
     assert program_defines([_coated(300.0)]) == {"COAT_FILM": "1"}
     assert program_defines([_coated(0.0, top=80.0)]) == {"COAT_FILM": "1"}   # a film at the top only
-    assert program_defines([_coated(0.0)]) == {} and not uses_thin_film(_coated(0.0))
+    assert program_defines([_coated(0.0)]) == {} and not brdf.has_film(_coated(0.0))
     own = brdf.get("microfacet").params(fresnel="conductor", thin_film={"ior": 1.4, "thickness_nm": 200.0})
     assert program_defines([_coated(300.0), own]) == {"COAT_FILM": "1", "THIN_FILM": "1"}
     # (a nested base takes no film: the validator says so, the top thickness included)
@@ -273,7 +273,28 @@ def test_gpu_spectral_pass_refuses_films():
     from viewer.reference_common.select import choose_for_scenes, make_renderer
     from viewer.scene import load_scene_text
 
-    scene = load_scene_text(_LAYERED_BOTTOM)
-    assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
-    with pytest.raises(ViewerError, match="thin films per wavelength"):
-        make_renderer("gpu", scene, spectral=True)
+    for text in (_LAYERED_BOTTOM, _MF_SCENE):   # the latter's film: 0 nm at the bottom, 50 nm at the top
+        scene = load_scene_text(text)
+        assert choose_for_scenes("auto", [scene], spectral=True)[0] == "cpu"
+        with pytest.raises(ViewerError, match="thin films per wavelength"):
+            make_renderer("gpu", scene, spectral=True)
+
+
+def test_gpu_engine_refuses_a_film_over_height():
+    # the gpu engine shades a hit without its height, so a film over height came out at its bottom
+    # thickness: the microfacet scene's film (0 nm at the bottom, 50 nm at the top) was missing
+    # from the gpu image, while the rasterizer and the cpu engine agree on its gradient (measured
+    # at 24 x 24, 4 spp: the face's top / bottom blue 4.66 in both, 1.00 on the gpu engine). It
+    # refuses such a scene in one line and auto takes the cpu engine; a uniform film stays its own.
+    from viewer import ViewerError
+    from viewer.gpupt.refusals import FILM_HEIGHT_REFUSAL, cpu_only
+    from viewer.gpupt.select import choose_for_scenes, make_renderer
+    from viewer.scene import load_scene_text
+
+    for text in (_MF_SCENE, _LAYERED_OVER):
+        scene = load_scene_text(text)
+        assert cpu_only(scene, False).refusal == FILM_HEIGHT_REFUSAL
+        assert choose_for_scenes("auto", [scene], spectral=False)[0] == "cpu"
+        with pytest.raises(ViewerError, match="film over height"):
+            make_renderer("gpu", scene, spectral=False)
+    assert cpu_only(load_scene_text(_LAYERED_BOTTOM), False) is None

@@ -47,7 +47,8 @@ def test_a_correct_synthetic_module_registers_with_every_default():
 
 
 @pytest.mark.parametrize("name", ["ibl_splt", "is_delt", "sample_lobes", "Glsl_rtol", "ALBEDO_BOUNDS",
-                                  "fresnel_sauce", "evl"])
+                                  "fresnel_sauce", "evl", "has_flm", "is_dispersiv", "uses_spectrl",
+                                  "is_measurd", "params_a", "reference_mode"])
 def test_a_misspelled_hook_is_an_error_naming_the_hook(name):
     with pytest.raises(ViewerError) as e:
         brdf.Model(_module(**{name: (lambda p: None) if name[0].islower() else 1.0}))
@@ -122,3 +123,29 @@ def test_fresnel_source_is_each_models_hook():
     assert fresnel_source(brdf.get("lambert").params()) is None
     assert fresnel_source(brdf.get("dielectric").params(ior=1.7))["ior"] == 1.7
     assert spec_mod.HOOKS["fresnel_source"].kind == "function"
+
+
+def test_the_material_predicates_default_and_ask_the_nested_model():
+    # the synthetic model: every predicate at its default
+    model = brdf.Model(_module())
+    p = model.params()
+    assert not (model.has_film(p) or model.is_dispersive(p) or model.uses_spectral(p) or model.walks(p)
+                or model.is_measured(p))
+    assert model.reference_model(p) is model
+    q = model.params_at(p, [450.0, 550.0, 650.0])
+    assert q.model == "synthetic" and q.albedo.shape == (3,)
+    # a hook answers for the model's own values: a synthetic dispersive model
+    disp = brdf.Model(_module(is_dispersive=lambda p: True, walks=lambda p: True))
+    assert disp.is_dispersive(disp.params()) and disp.walks(disp.params())
+    # a layered base is asked through its own model
+    L = brdf.get("layered")
+    assert brdf.is_measured(L.params(base={"model": "measured"})) and not brdf.is_measured(L.params())
+    assert brdf.walks(L.params(base={"model": "microfacet", "multiple_scattering": True}))
+    assert brdf.walks(L.params(reference="random_walk"))
+    assert brdf.is_dispersive(L.params(base={"model": "dielectric", "spectral": "BK7"}))
+    assert brdf.is_dispersive(L.params(coating={"spectral": "BK7"}))
+    assert not brdf.is_dispersive(brdf.get("microfacet").params(spectral="Au"))   # a metal: no refraction
+    assert brdf.uses_spectral(brdf.get("microfacet").params(spectral="Au"))
+    assert brdf.uses_spectral(L.params(base={"model": "microfacet", "spectral": "Au"}))
+    assert type(L.reference_model(L.params(reference="random_walk"))).__name__ == "WalkModel"
+    assert L.reference_model(L.params(reference="random_walk", base={"model": "mirror"})) is L   # delta base

@@ -125,3 +125,51 @@ def test_glass_with_reflections_off_says_ray_tracing_shows_it(gl_ctx, renderer):
         assert traced_hint(s.scene) == ""
     finally:
         s.release()
+
+
+def _materials():
+    from viewer import brdf
+
+    return {"mirror": brdf.get("mirror").params(),
+            "glass": brdf.get("dielectric").params(),
+            "frosted": brdf.get("dielectric").params(alpha=0.2),
+            "coated_mirror": brdf.get("layered").params(coating={"alpha": 0.2},
+                                                        base={"model": "mirror", "fresnel": "conductor"}),
+            "soap": brdf.get("dielectric").params(ior=1.0, thin_film={"ior": 1.33, "thickness_nm": 300.0}),
+            "clay": brdf.get("lambert").params()}
+
+
+def test_delta_materials_are_the_ones_the_chains_trace():
+    """The reflections hint names the materials whose every lobe is delta (the model's is_delta):
+    exactly those the traced chains follow. A coat over a mirror has a delta lobe under a smooth
+    coat, which the chains shade like any rough surface, so ray tracing does not show it more:
+    it is not named, though it has a delta lobe (has_delta)."""
+    from types import SimpleNamespace
+
+    from viewer import brdf
+    from viewer.app.reflections import delta_materials
+    from viewer.gl.raytrace import KIND_SHADED, chain_kind
+
+    mats = _materials()
+    scene = SimpleNamespace(materials=mats)
+    assert delta_materials(scene) == ["mirror", "glass", "soap"]
+    assert delta_materials(scene) == [n for n, p in mats.items() if chain_kind(p) != KIND_SHADED]
+    coated = mats["coated_mirror"]
+    assert brdf.get("layered").has_delta(coated) and not brdf.is_delta(coated)
+    assert brdf.get("layered").flags(coated) == "mixed"
+
+
+def test_plots_draw_a_delta_lobe_where_the_model_says_so():
+    # the polar and 3D lobe plots draw the mirror arrow of pure delta materials (is_delta); a coat
+    # over a mirror is drawn as its smooth coat lobe (f > 0), with no arrow
+    from viewer.plots import data
+
+    mats = _materials()
+    for name, p in mats.items():
+        pol = data.polar_lobe(p, theta_i=30.0, n=91)
+        lobe = data.lobe_3d(p, theta_i=30.0, n_theta=10, n_phi=13)
+        pure = name in ("mirror", "glass", "soap")
+        assert bool(pol["delta"]) == pure and bool(lobe["delta"]) == pure, name
+        if pure:
+            assert not np.any(pol["f"] > 0), name
+    assert np.any(data.polar_lobe(mats["coated_mirror"], theta_i=30.0, n=91)["f"] > 0)

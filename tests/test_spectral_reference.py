@@ -95,7 +95,7 @@ preset = "polished_gold"
 
 
 def test_dispersive_material_switches_the_reference_to_spectral(tmp_path):
-    from viewer.pathtracer import spectral as sp
+    from viewer.scene.materials import scene_is_dispersive
 
     f = tmp_path / "glass.toml"
     f.write_text(SCENE_RGB + """
@@ -105,9 +105,9 @@ spectral = "SF11"
 """)
     over = ["objects.1.material=glass"]
     sc = load_scene(f, over)
-    assert sp.scene_is_dispersive(sc)
+    assert scene_is_dispersive(sc)
     assert sc.materials["glass"].ior == pytest.approx(1.7847, abs=1e-3)
-    assert not sp.scene_is_dispersive(load_scene(f))
+    assert not scene_is_dispersive(load_scene(f))
     img, _, on = _render(f, None, 2, max_depth=4, overrides=over)
     assert on and np.all(np.isfinite(img)) and img.max() > 0
 
@@ -126,7 +126,7 @@ def test_prism_deviation_per_wavelength(name):
     (the dielectric model sampled with the parameters at one wavelength, ``params_at``) through
     both faces deviates the ray by Snell's law with n(lambda) of the table, and blue bends more."""
     from viewer import brdf
-    from viewer.pathtracer.spectral import params_at
+    from viewer.brdf import params_at
 
     model = brdf.get("dielectric")
     base = model.params(spectral=name)

@@ -226,3 +226,56 @@ def test_gold_rgb_table_keeps_its_red():
     # and a film of 0.01 nm is no film (before: clipped red 0.997 against the table's 1.000)
     p = brdf.get("microfacet").params(fresnel="conductor", spectral="Au", thin_film={"ior": 1.5, "thickness_nm": 0.01})
     np.testing.assert_allclose(microfacet.fresnel_rgb(p, np.array([1.0]))[0], got, atol=2e-3)
+
+
+_FILM_AT_TOP = {"ior": 1.38, "thickness_nm": 0.0, "thickness_top_nm": 400.0}
+
+
+def test_a_film_at_the_top_only_is_active_everywhere():
+    # one definition (thin_film.active, the models' has_film): bottom 0 and top 400 nm is a film
+    # for every question a renderer asks of the material, while a point at the bottom is bare
+    from viewer.gl.brdf_glsl import program_defines
+
+    mats = [brdf.get("microfacet").params(fresnel="conductor", thin_film=_FILM_AT_TOP),
+            brdf.get("mirror").params(thin_film=_FILM_AT_TOP),
+            brdf.get("dielectric").params(thin_film=_FILM_AT_TOP),
+            brdf.get("layered").params(coating={"thin_film": _FILM_AT_TOP})]
+    for p in mats:
+        owner = p if "thin_film" in p else p.coating
+        assert brdf.has_film(p) and thin_film.active(p) and brdf.uses_spectral(p), p.model
+        assert program_defines([p]), p.model                      # the film's GLSL is compiled
+        assert not thin_film.at_point(owner), p.model             # the bottom itself has none
+        assert thin_film.at_point(thin_film.local(p, 1.0) if "thin_film" in p else thin_film.local(p, 1.0).coating)
+        bare = dict(_FILM_AT_TOP, thickness_top_nm=-1.0)   # the same film, uniform: 0 nm all over
+        q = p.replace(coating=p.coating.replace(thin_film=p.coating.thin_film.replace(**bare))) \
+            if "coating" in p else p.replace(thin_film=p.thin_film.replace(**bare))
+        assert not brdf.has_film(q) and not brdf.uses_spectral(q) and program_defines([q]) == {}, p.model
+
+
+@pytest.mark.parametrize("name,kw", [
+    ("microfacet", {"fresnel": "conductor", "alpha": 0.3}),
+    ("microfacet", {"fresnel": "dielectric", "alpha": 0.2, "kd": [0.2, 0.3, 0.4]}),
+    ("dielectric", {"alpha": 0.3, "ior": 1.5}),
+])
+def test_film_at_the_top_only_glsl_twin_agrees_at_every_height(name, kw, gl_ctx):
+    # the GLSL twin at relative height h (brdf_film_height, as the forward pass sets it) against
+    # numpy at the film's local thickness there (thin_film.local, as the CPU reference per hit);
+    # at the bottom (h = 0, also where no position is given) both are the model without a film
+    from glsl_eval import GLSLEvaluator
+
+    ev = GLSLEvaluator(gl_ctx)
+    m = brdf.get(name)
+    p = m.params(thin_film=_FILM_AT_TOP, **kw)
+    rng = np.random.default_rng(11)
+    wi = rng.normal(size=(1000, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    wo = rng.normal(size=(1000, 3))
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    wi, wo = wi.astype(np.float32).astype(np.float64), wo.astype(np.float32).astype(np.float64)
+    np.testing.assert_array_equal(m.eval(p, wi, wo), m.eval(m.params(**kw), wi, wo))
+    for h in (0.0, 0.35, 1.0):
+        ref = m.eval(thin_film.local(p, 400.0 * h), wi, wo)
+        got = ev.eval(p, wi, wo, film_height=h)
+        # as test_glsl_twin_with_film: 1e-4 relative plus 1e-5 absolute (the film's phase in float32)
+        np.testing.assert_allclose(got, ref, rtol=1e-4, atol=1e-5, err_msg=f"h = {h}")
+    assert not np.allclose(ev.eval(p, wi, wo, film_height=1.0), ev.eval(p, wi, wo))   # the film shows

@@ -34,8 +34,10 @@ _DFG = None
 
 
 def applies(p) -> bool:
-    """Whether the comparison exists for a material: microfacet with a Smith GGX or Beckmann lobe."""
-    return p.model == "microfacet" and p.distribution != "blinn_phong" and p.shadowing == "smith"
+    """Whether the comparison exists for a material: one whose ``multiple_scattering`` switch turns
+    on the reference's random walk (microfacet with a Smith GGX or Beckmann lobe; the model's
+    ``walks``)."""
+    return "multiple_scattering" in p and brdf.walks(p.replace(multiple_scattering=True))
 
 
 def _dfg(nov, alpha):
@@ -52,10 +54,19 @@ def white_lobe(spec_p):
     only: its directional albedo is the E_ss of the compensation. Microfacet lobes (every D and G):
     Schlick with f0 = 1 is F = 1 exactly (no film, no spectral table, no walk, no diffuse base).
     None for the other models (no Fresnel factor to set to 1); ``ess_ggx`` stands in for them."""
-    if getattr(spec_p, "model", None) != "microfacet":
+    if not _schlick_lobe(spec_p):
         return None
     kw = {"spectral": spectral_fresnel.NONE} if "spectral" in spec_p else {}
-    return spec_p.replace(kd=np.zeros(3), fresnel="schlick", f0=np.ones(3), multiple_scattering=False, **kw)
+    kw.update({k: v for k, v in (("kd", np.zeros(3)), ("multiple_scattering", False)) if k in spec_p})
+    return spec_p.replace(fresnel="schlick", f0=np.ones(3), **kw)
+
+
+def _schlick_lobe(p) -> bool:
+    """A lobe whose Fresnel may be Schlick's with ``f0`` (then f0 = 1 is F = 1): by its spec."""
+    if not hasattr(p, "model") or not p.model:
+        return False
+    spec = brdf.spec_of(p)
+    return "f0" in spec.names and "fresnel" in spec.names and "schlick" in spec.param("fresnel").choices
 
 
 def ess_ggx(cos_o, alpha) -> np.ndarray:
@@ -137,7 +148,7 @@ def albedos(p, cos_o, n_side: int = 24, known: dict | None = None, rule: str = "
     walk = known.get("walk")
     if walk is None:
         walk = directional_albedo(model, on, cos_o, n_side=n_side)
-    spec_p, alpha = model.module.ibl_split(off)
+    spec_p, alpha = model.hook("ibl_split")(off)
     nov_n = (TABLE_SIZE - 0.5) / TABLE_SIZE
     has_kd = bool(np.any(np.asarray(p.kd) > 0))
     spec_single = directional_albedo(model, spec_p, cos_o, n_side=n_side) if has_kd else single

@@ -17,9 +17,9 @@ def card(p) -> dict:
     from viewer.brdf.report_card import report
 
     model = brdf.get(p.model)
-    if p.model == "custom":
+    if brdf.is_file(p):
         model = model.of(p)
-    return report(model, p, p.model if p.model != "custom" else model.bfile.path.name)
+    return report(model, p, model.bfile.path.name if brdf.is_file(p) else p.model)
 
 
 def card_or_error(p) -> tuple:

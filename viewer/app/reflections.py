@@ -54,16 +54,14 @@ def set_reflection_mode(render, mode: str, ssr_on_glossy: bool | None = None) ->
 
 
 def delta_materials(scene) -> list[str]:
-    """The scene's materials with a delta lobe (a mirror, smooth glass, a soap film): what
-    they reflect and refract shows only in traced reflections (or SSR, for what is on screen)."""
+    """The scene's materials whose every lobe is a delta lobe (a mirror, smooth glass, a soap
+    film; the model's ``is_delta``): what they reflect and refract shows only in traced reflections
+    (or SSR, for what is on screen), since the traced chains follow exactly these
+    (``viewer.gl.raytrace.chain_kind``). A coat over a mirror is not one: its coat is a smooth lobe,
+    the chains shade it as any rough surface, and ray tracing would not change what it shows."""
     from viewer import brdf
 
-    out = []
-    for name, p in scene.materials.items():
-        spec = brdf.get(p.model).spec
-        if spec.delta and not ("alpha" in p and float(p["alpha"]) > 0.0):
-            out.append(name)
-    return out
+    return [name for name, p in scene.materials.items() if brdf.is_delta(p)]
 
 
 def traced_hint(scene) -> str:

@@ -240,11 +240,11 @@ def _material_editor(params: Params, prefix: str, nested: bool, on_error):
         except ViewerError as e:
             _report(on_error, str(e))
     names = [n for n in brdf.names() if not (nested and brdf.get(n).spec.nests_material)]
-    if params.model == "custom":  # a .brdf file (dropped or loaded): shown by its name
-        names = names + ["custom"]
+    if brdf.is_file(params):  # a .brdf file (dropped or loaded): shown by its name
+        names = names + [params.model]
     idx = names.index(params.model) if params.model in names else 0
     changed, idx = imgui.combo(f"model##{prefix}model", idx, names)
-    if changed and names[idx] != params.model and names[idx] != "custom":
+    if changed and names[idx] != params.model and not brdf.is_file_model(names[idx]):
         return True, brdf.get(names[idx]).params()
     spec = brdf.spec_of(params)
     by_name = {p.name: p for p in spec.params}

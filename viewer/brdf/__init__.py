@@ -15,14 +15,16 @@ import pkgutil
 import numpy as np
 
 from viewer import ViewerError
+from viewer.brdf import thin_film, wavelengths
 from viewer.brdf.spec import HOOKS, ModelSpec, Param, Params, check_module, validate_params
 
 # The course's order (the lecture's order of families); discovered extras follow alphabetically.
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist", "microfacet_walk", "sampling", "presets", "albedo",
-            "spectral_fresnel", "thin_film", "merl", "fit", "chi2"}
+_HELPERS = {"spec", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist",
+            "microfacet_walk", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film", "merl", "fit", "chi2",
+            "wavelengths", "layered_walk"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 
@@ -63,6 +65,59 @@ class Model:
         if self.is_delta(p):
             return "delta"
         return "mixed" if self.has_delta(p) else "smooth"
+
+    # -- the material predicates (viewer.brdf.spec.HOOKS): the hook answers for p's own values,
+    #    a nested material (a layered base) is asked through its own model
+    def _nested(self, p):
+        return [p[prm.name] for prm in self.spec.params if prm.kind == "material" and p.get(prm.name) is not None]
+
+    def _ask(self, name, p, default=False) -> bool:
+        p = self._p(p)
+        fn = self.hook(name)
+        if bool(fn(p)) if fn is not None else default:
+            return True
+        return any(getattr(get(v.model), name)(v) for v in self._nested(p))
+
+    def has_film(self, p=None) -> bool:
+        """``p`` carries an active thin film: its own or its coating's, thicker than 0 at the
+        object's bottom or top (``thin_film.active``, the one definition)."""
+        p = self._p(p)
+        fn = self.hook("has_film")
+        return bool(fn(p)) if fn is not None else thin_film.active(p)
+
+    def is_dispersive(self, p=None) -> bool:
+        """Light refracts through ``p`` by n(lambda) (a spectral dielectric or coat, or base)."""
+        return self._ask("is_dispersive", p)
+
+    def uses_spectral(self, p=None) -> bool:
+        """``p``'s values depend on the wavelength (a spectral table, a thin film), here or in a
+        nested material: the spectral reference evaluates it at each path's wavelengths."""
+        p = self._p(p)
+        fn = self.hook("uses_spectral")
+        own = bool(fn(p)) if fn is not None else wavelengths.uses_spectral_by_names(p) or self.has_film(p)
+        return own or any(get(v.model).uses_spectral(v) for v in self._nested(p))
+
+    def walks(self, p=None) -> bool:
+        """The CPU reference evaluates ``p`` (or its nested base) by a stochastic random walk."""
+        return self._ask("walks", p)
+
+    def is_measured(self, p=None) -> bool:
+        """``p`` is (or nests) a measured table."""
+        return self._ask("is_measured", p)
+
+    def reference_model(self, p=None):
+        """The model the CPU reference evaluates ``p`` with (the hook's stand-in, else self)."""
+        fn = self.hook("reference_model")
+        return fn(self, self._p(p)) if fn is not None else self
+
+    def params_at(self, p, lam3) -> Params:
+        """``p`` at three wavelengths ``lam3`` (nm) as its three channels (the hook, else by
+        parameter names: ``viewer.brdf.wavelengths.params_at``)."""
+        p = self._p(p)
+        fn = self.hook("params_at")
+        if fn is not None:
+            return fn(p, lam3)
+        return wavelengths.params_at(p, lam3, nested=lambda v, lam: get(v.model).params_at(v, lam))
 
     def sample_lobe(self, p, wo, u):
         """``sample`` plus, per sample, whether it drew a delta lobe: (wi, weight, pdf, discrete)."""
@@ -277,6 +332,63 @@ def is_file(params) -> bool:
     return params is not None and getattr(params, "model", None) == CUSTOM
 
 
+def is_file_model(name) -> bool:
+    """``name`` (a material table's ``model`` as written) is the model of ``.brdf`` files."""
+    from viewer.brdf.file_model import CUSTOM
+
+    return name == CUSTOM
+
+
+def path_params(name) -> tuple[str, ...]:
+    """The file parameters (kind ``path``) of the registry model ``name`` as written in a
+    material table, which a scene resolves against its folder; () for a ``.brdf`` file's model
+    (its ``file`` is resolved when the file is loaded) or an unknown name."""
+    if not isinstance(name, str) or is_file_model(name) or name not in _registry():
+        return ()
+    return tuple(p.name for p in _registry()[name].spec.params if p.kind == "path")
+
+
+def model_of(params) -> Model:
+    """The model of a material's parameters (``get(params.model)``)."""
+    return get(params.model)
+
+
+def is_delta(params) -> bool:
+    """Every lobe of the material is a delta lobe (what a traced chain follows)."""
+    return get(params.model).is_delta(params)
+
+
+def has_film(params) -> bool:
+    """The material carries an active thin film (its own or its coating's, at the object's
+    bottom or top): its model's ``has_film``."""
+    return get(params.model).has_film(params)
+
+
+def is_dispersive(params) -> bool:
+    """Light refracts through the material by n(lambda): its model's ``is_dispersive``."""
+    return get(params.model).is_dispersive(params)
+
+
+def uses_spectral(params) -> bool:
+    """The material's values depend on the wavelength: its model's ``uses_spectral``."""
+    return get(params.model).uses_spectral(params)
+
+
+def walks(params) -> bool:
+    """The CPU reference evaluates the material by a random walk: its model's ``walks``."""
+    return get(params.model).walks(params)
+
+
+def is_measured(params) -> bool:
+    """The material is (or nests) a measured table: its model's ``is_measured``."""
+    return get(params.model).is_measured(params)
+
+
+def params_at(params, lam3) -> Params:
+    """The material at three wavelengths ``lam3`` (nm): its model's ``params_at``."""
+    return get(params.model).params_at(params, lam3)
+
+
 def get(name: str) -> Model:
     global _CUSTOM
     if name == "custom":
@@ -319,4 +431,6 @@ def __getattr__(attr):
     raise AttributeError(attr)
 
 
-__all__ = ["spec_of", "CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]
+__all__ = ["spec_of", "has_film", "is_dispersive", "uses_spectral", "walks", "is_measured", "params_at",
+           "is_delta", "is_file", "is_file_model", "path_params", "model_of",
+           "CustomModel", "FileModel", "load", "Model", "ModelSpec", "Param", "Params", "get", "names", "lookup_spec"]

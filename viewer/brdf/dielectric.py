@@ -136,7 +136,7 @@ def _rough_eval_pdf(p, wi, wo):
     # A thin film's RGB transmittance is 1 - R (thin_film.py).
     # A film's T = 1 - R at the outside cosine, for a transmission pair also a facet cosine:
     # |i.m| when wo is inside, |o.m| when outside (the same conditioning argument).
-    if thin_film.active(p):
+    if thin_film.at_point(p):
         inside = eta < 1.0
         c_out = np.where(inside, np.minimum(np.abs(im), 1.0), np.clip(om, 0.0, 1.0))
         T_f = 1.0 - thin_film.dielectric_reflectance_rgb(p, c_out, np.where(inside, 1.0 / eta, eta))
@@ -158,7 +158,7 @@ def _rough_eval_pdf(p, wi, wo):
 def film_or_fresnel(p, cos, eta):
     """(R, T), each (N, 3), at cos on the side with relative index eta: a thin film's RGB
     reflectance and 1 - R (thin_film.py), or the plain Fresnel R and T."""
-    if thin_film.active(p):
+    if thin_film.at_point(p):
         R = thin_film.dielectric_reflectance_rgb(p, cos, eta)
         return R, 1.0 - R
     R = fresnel_dielectric(cos, eta)
@@ -232,6 +232,11 @@ def is_delta(p):
     """Smooth glass (alpha = 0) has only its two delta lobes; a rough interface none (the twin of
     GLSL dielectric_is_delta)."""
     return bool(_is_smooth(p))
+
+
+def is_dispersive(p):
+    """A spectral dielectric (``spectral = "NAME"``): light refracts by n(lambda)."""
+    return p.spectral != spectral_fresnel.NONE
 
 
 def fresnel_source(p):

@@ -150,12 +150,6 @@ def _dist(p):
     return Distribution("ggx", p.coating.alpha, p.coating.alpha)
 
 
-def has_film(p) -> bool:
-    """Whether the coating carries a thin film (``coating.thin_film``, viewer/brdf/thin_film.py)."""
-    tf = p.coating.get("thin_film")
-    return tf is not None and float(tf.thickness_nm) > 0.0
-
-
 FILM_TABLE = 32  # the coat film's RGB R at cos = (k / 31)^2, k = 0..31: linear in sqrt(cos)
 BASE_TABLE = 4  # the base's E_b and A_b where the outside cosine is (k / 3)^2: linear in its sqrt
 BASE_TABLES_AT = 24 + 3 * FILM_TABLE  # their offset in the derived block (after the film table)
@@ -202,7 +196,7 @@ def derived(p) -> np.ndarray:
     each) and rho_K (RGB)."""
     out = np.zeros(COAT_TABLE + 3 * FILM_TABLE + 2 * 3 * BASE_TABLE + 3)
     out[:COAT_TABLE] = coat_albedo_table(p.coating.ior, p.coating.alpha)
-    if has_film(p):
+    if thin_film.at_point(p.coating):
         t = film_table(p).reshape(-1)
         assert t[0] > 0.5  # R = 1 at grazing incidence: the flag
         out[COAT_TABLE:COAT_TABLE + 3 * FILM_TABLE] = t
@@ -219,7 +213,7 @@ def coat_fresnel(p, cos) -> np.ndarray:
     thin film on the coating the film's RGB reflectance over the coat's ior (``film_table_rgb``;
     in the spectral reference, whose film carries its wavelengths, the exact Airy sum there)."""
     c = np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)
-    if has_film(p):
+    if thin_film.at_point(p.coating):
         if p.coating.thin_film.get("lambda_nm") is not None:
             return thin_film.reflectance_rgb(p.coating, c, p.coating.ior)
         return film_table_rgb(p, c)
@@ -283,7 +277,7 @@ def coat_albedo_rgb(p, cos) -> np.ndarray:
     smooth coat, where E = F; for a rough one an approximation), clipped to [0, 1]."""
     c = np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)
     E = np.repeat(coat_albedo(p, c)[:, None], 3, axis=1)
-    if has_film(p):
+    if thin_film.at_point(p.coating):
         E = np.clip(E + coat_fresnel(p, c) - fresnel_dielectric(c, p.coating.ior)[:, None], 0.0, 1.0)
     return E
 
@@ -562,6 +556,27 @@ def _base_is_delta(p):
 
 def fresnel_source(p):
     return {"type": "dielectric", "ior": float(p.coating.ior), "field": "coating.ior"}
+
+
+def is_dispersive(p):
+    """A coat of a spectral dielectric (``coating.spectral``): its n(lambda_hero) refracts (the base
+    is asked through its own model)."""
+    return p.coating.get("spectral", spectral_fresnel.NONE) != spectral_fresnel.NONE
+
+
+def walks(p):
+    """The CPU reference's layered random walk (``reference = "random_walk"``)."""
+    return p.get("reference") == "random_walk"
+
+
+def reference_model(model, p):
+    """The random walk (viewer/brdf/layered_walk.py) for ``reference = "random_walk"`` over a
+    non-delta base (a delta base keeps the closed form, which is exact for it), else ``model``."""
+    if walks(p) and not _base_is_delta(p):
+        from viewer.brdf.layered_walk import WalkModel
+
+        return WalkModel(model)
+    return model
 
 
 def ibl_split(p):

@@ -72,7 +72,7 @@ def top_interface(p) -> Params:
         kw["thin_film"] = {k: v for k, v in tf.items() if k != "lambda_nm"}
     top = brdf.get("dielectric").params(**kw)
     if tf is not None and tf.get("lambda_nm") is not None:
-        # the spectral reference's film carries its wavelengths (viewer.pathtracer.spectral.params_at)
+        # the spectral reference's film carries its wavelengths (viewer.brdf.params_at)
         top = top.replace(thin_film=Params(tf.model, dict(tf)))
     return top
 

@@ -95,6 +95,11 @@ SPEC = ModelSpec(
 )
 
 
+def is_measured(p):
+    """A measured table: always."""
+    return True
+
+
 def eval(p, wi, wo):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     f = data(p).value(wi, wo) * p.scale

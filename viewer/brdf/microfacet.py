@@ -88,7 +88,7 @@ def distribution(p) -> Distribution:
 def fresnel_rgb(p, cos):
     """F(cos) as (N, 3) for the chosen Fresnel variant (a thin film on the dielectric or
     conductor first: viewer/brdf/thin_film.py; Schlick has no film)."""
-    if thin_film.active(p) and p.fresnel != "schlick":
+    if thin_film.at_point(p) and p.fresnel != "schlick":
         if p.spectral != spectral_fresnel.NONE:  # the tabulated index at the film's wavelengths
             return thin_film.reflectance_rgb(p, cos, None, spectral_name=p.spectral)
         if p.fresnel == "conductor":

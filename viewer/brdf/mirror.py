@@ -40,7 +40,7 @@ SPEC = ModelSpec(
 
 def reflectance(p, cos):
     """F(cos) as (N, 3); a thin film on the conductor or dielectric first (thin_film.py)."""
-    if thin_film.active(p) and p.fresnel != "none":
+    if thin_film.at_point(p) and p.fresnel != "none":
         if p.spectral != spectral_fresnel.NONE:  # the tabulated index at the film's wavelengths
             return thin_film.reflectance_rgb(p, cos, None, spectral_name=p.spectral)
         if p.fresnel == "conductor":

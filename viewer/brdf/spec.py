@@ -264,14 +264,21 @@ def validate_value(param: Param, value, where: str, lookup_spec=None):
         if spec.nests_material:
             raise ViewerError(f"{where}.model: {name!r} cannot be nested inside another layered material")
         out = validate_params(spec, sub, where, lookup_spec)
-        film = out.get("thin_film")
-        if film is not None and max(float(film.get("thickness_nm", 0.0)), float(film.get("thickness_top_nm", -1.0))) > 0.0:
+        if film_table_active(out.get("thin_film")):
             # the film's wavelength loop, inlined at each of the coat model's calls of its base,
             # takes software GL minutes to compile (measured: 379 s); films go on outer surfaces
             raise ViewerError(f"{where}.thin_film: a thin film on a nested base material is not supported; "
                               f"set thickness_nm = 0 (and thickness_top_nm = -1) there (films go on the outer surface)")
         return out
     raise AssertionError(k)
+
+
+def film_table_active(tf) -> bool:
+    """Whether a ``thin_film`` table (viewer/brdf/thin_film.py) is thicker than 0 at the object's
+    bottom (``thickness_nm``) or top (``thickness_top_nm``): the one test of an active film, which
+    ``thin_film.active`` (a material's own film or its coating's) applies; here, below the models,
+    since validation refuses a film on a nested material by it."""
+    return tf is not None and max(float(tf.get("thickness_nm", 0.0)), float(tf.get("thickness_top_nm", -1.0))) > 0.0
 
 
 def validate_fields(fields, raw: dict, where: str, model: str, aliases=None, lookup_spec=None) -> Params:
@@ -362,6 +369,28 @@ REQUIRED = {"eval": ("p", "wi", "wo"), "sample": ("p", "wo", "u"), "pdf": ("p", 
 HOOKS = {h.name: h for h in (
     Hook("is_delta", "function", ("p",), "SPEC.delta",
          "True when every lobe of p is a delta lobe (the numpy twin of the GLSL <name>_is_delta)"),
+    Hook("has_film", "function", ("p",), "thin_film.active: its own thin_film or its coating's, thicker than 0 "
+         "at the object's bottom or top",
+         "True when p carries an active thin film (its own or a table parameter's, e.g. a layered coating's): "
+         "the film the renderers trace somewhere on the object (at a point its local thickness applies)"),
+    Hook("is_dispersive", "function", ("p",), "False (nested materials are asked through their own model)",
+         "True when light refracts through p by n(lambda) (a spectral dielectric, a spectral coat): "
+         "a spectral reference traces one wavelength per path there"),
+    Hook("uses_spectral", "function", ("p",), "by parameter names: spectral != 'none' in p or a table of it, "
+         "or has_film(p) (nested materials through their own model)",
+         "True when p's values depend on the wavelength (a spectral table, a thin film): the spectral "
+         "reference evaluates it at each path's wavelengths"),
+    Hook("walks", "function", ("p",), "False (nested materials through their own model)",
+         "True when the CPU reference evaluates p by a stochastic random walk (microfacet multiple "
+         "scattering, the layered random walk), which only the cpu engine has"),
+    Hook("reference_model", "function", ("model", "p"), "model",
+         "the model the CPU reference evaluates p with: a stochastic stand-in (the layered random walk) "
+         "for the registry's model, else that model"),
+    Hook("is_measured", "function", ("p",), "False (nested materials through their own model)",
+         "True when p is a measured table (MERL), which only the cpu engine renders"),
+    Hook("params_at", "function", ("p", "lam3"), "by parameter names (viewer.brdf.wavelengths.params_at)",
+         "p at three wavelengths lam3 (nm) as its three channels: spectral tables give eta, k = n, k "
+         "there (ior = n(lam3[0])), a thin film evaluates there, RGB values are upsampled"),
     Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus discrete = is_delta(p)",
          "(wi, weight, pdf, discrete): sample's result and, per sample, whether it drew a delta "
          "lobe (no light sampling, no MIS for it); needed by models that mix delta and smooth lobes"),

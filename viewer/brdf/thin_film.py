@@ -32,7 +32,8 @@ t = (y - y_min) / (y_max - y_min). The default -1 is a uniform film. The rendere
 d(y) per shading point (``local``): the rasterizer from the fragment's world position and the
 object's y range (``brdf_film_height`` in the generated GLSL), the CPU reference per hit (in
 0.25 nm steps; the colour changes by < 1e-3 over one). A material evaluated without a position
-(plots, albedo tables, the GPU reference engine) has its bottom thickness ``thickness_nm``. A
+(plots, albedo tables) has its bottom thickness ``thickness_nm``; the GPU reference engine,
+which shades a hit without its height, refuses a film over height (viewer/gpupt/refusals.py). A
 layered coating's film is an exception in the rasterizer: its reflectance is a table computed
 once per material on the CPU (viewer/brdf/layered.py ``film_table``, so that no wavelength loop
 is compiled into the layered model's many Fresnel calls), hence the bottom's thickness there.
@@ -45,6 +46,7 @@ import functools
 import numpy as np
 
 from viewer.brdf.fresnel import fresnel_thin_film
+from viewer.brdf.spec import film_table_active
 
 N_WAVELENGTHS = 32
 WAVELENGTHS_NM = 380.0 + (np.arange(N_WAVELENGTHS) + 0.5) * (400.0 / N_WAVELENGTHS)
@@ -91,8 +93,8 @@ def param():
               ">= 0); 0 = no film", unit="nm", lo=0.0, hi=MAX_THICKNESS_NM),
         Param("thickness_top_nm", "float", -1.0, "film thickness at the object's top, linear in height "
               "from thickness_nm at its bottom (a draining soap bubble); -1 = uniform thickness_nm. On a "
-              "layered coating the rasterizer and the GPU engine draw thickness_nm all over (its film is "
-              "tabulated once per material, not per point); the CPU reference follows the height",
+              "layered coating the rasterizer draws thickness_nm all over (its film is tabulated once per "
+              "material, not per point); the CPU reference follows the height; the GPU engine refuses it",
               unit="nm", lo=-1.0, hi=MAX_THICKNESS_NM),
     ))
 
@@ -129,7 +131,23 @@ def local(p, d_nm: float):
 
 
 def active(p) -> bool:
-    return float(p.thin_film.thickness_nm) > 0.0
+    """Whether the material carries an active thin film: its own ``thin_film`` or its layered
+    coating's, thicker than 0 at the object's bottom (``thickness_nm``) or top
+    (``thickness_top_nm``). The one definition of a material's film (the models' ``has_film``
+    default, ``viewer.brdf.has_film``): the film the renderers compile, trace per wavelength or
+    refuse. Where a point of the material is evaluated its local thickness applies instead
+    (``at_point``)."""
+    return film_table_active(film_of(p))
+
+
+def at_point(owner) -> bool:
+    """Whether the film of ``owner`` (a material or a layered coating table with ``thin_film``)
+    reflects where ``owner`` is evaluated: its ``thickness_nm`` > 0. That is the local thickness
+    once the renderers substituted d(y) (``local``), else the bottom's (plots, albedo tables):
+    the test the Fresnel of the numpy twins makes, as their GLSL twins test
+    ``p.thin_film.thickness_nm > 0.0`` after the height substitution (``brdf_film_height``)."""
+    tf = owner.get("thin_film")
+    return tf is not None and float(tf.get("thickness_nm", 0.0)) > 0.0
 
 
 @functools.lru_cache(maxsize=None)
@@ -164,7 +182,7 @@ def reflectance_rgb(p, cos, base_eta, base_k=None, spectral_name=None) -> np.nda
     lam3 = p.thin_film.get("lambda_nm")
     if lam3 is not None:
         # the spectral reference: channel j is the film's R at wavelength lam3[j], over the base's
-        # index there (eta, k already taken at lam3 by viewer.pathtracer.spectral.params_at)
+        # index there (eta, k already taken at lam3 by viewer.brdf.params_at)
         n2 = (np.full(3, float(base_eta), dtype=np.complex128) if base_k is None
               else np.asarray(base_eta, dtype=np.float64) + 1j * np.asarray(base_k, dtype=np.float64))
         return fresnel_thin_film(c, np.asarray(lam3, dtype=np.float64)[None, :], p.thin_film.ior,

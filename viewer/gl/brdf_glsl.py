@@ -87,11 +87,6 @@ def _custom_names(name: str) -> tuple[str, str, str]:
     return ("custom" if slot == 0 else f"custom{slot}"), prefix_for(slot), include_name(path.as_posix() if clash else path.name)
 
 
-def _has_film(values) -> bool:
-    tf = values.get("thin_film")
-    return tf is not None and (float(tf.thickness_nm) > 0.0 or float(tf.get("thickness_top_nm", -1.0)) > 0.0)
-
-
 CUSTOM_PREFIX = "custom:"
 HALF_TABLE = 32      # bands of theta_h in the generic sampler's table
 COSINE_SHARE = 0.25  # the cosine-weighted share of its mixture (the whole of it for a BRDF that is 0)
@@ -284,7 +279,7 @@ def _pack_fields(params_spec, values, out: list, tail: list, base_offset_fn):
             if p.spectral_table:  # the material's RGB Fresnel table, appended after the block
                 # (with a thin film also the base's n, k at the film's wavelengths after it)
                 tab = spectral_fresnel.packed(v) if v != "none" else None
-                if tab is not None and _has_film(values):
+                if tab is not None and thin_film.active(values):
                     tab = np.concatenate([tab, thin_film.packed_base(v)])
                 out.append(float(base_offset_fn(tab)) if tab is not None else 0.0)
         elif k == "table":
@@ -310,10 +305,10 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
     Nested materials (the layered model's base) are appended after the main block; their
     offset is stored as an absolute float index into u_mat. ``limit``: the floats the block
     holds (None: no bound, for a material texture holding many materials)."""
-    if params.model == "custom":  # a file BRDF: its declarations' floats
+    if brdf.is_file(params):  # a file BRDF: its declarations' floats
         from viewer.gl.file_brdf_glsl import n_floats, param_floats
 
-        bfile = brdf.get("custom").of(params).bfile
+        bfile = brdf.model_of(params).of(params).bfile
         data = np.concatenate([param_floats(bfile, params)[: n_floats(bfile)],
                                half_vector_table(params)]).astype(np.float32)
         if limit is not None and offset + data.size > limit:
@@ -441,7 +436,7 @@ def family_source(name: str) -> str:
 def models_used(params: Params) -> tuple[str, ...]:
     """The models a material needs in its program: itself and any nested base material; a file
     BRDF is ``custom:PATH`` (its program holds that file's GLSL)."""
-    if params.model == "custom":  # validated: an absolute path (no load: the name of the program)
+    if brdf.is_file(params):  # validated: an absolute path (no load: the name of the program)
         return (CUSTOM_PREFIX + str(Path(params["file"]).expanduser().resolve()),)
     out = [params.model]
     for v in params.values():
@@ -450,43 +445,31 @@ def models_used(params: Params) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def _has_film(p) -> bool:
-    # a film somewhere on the object: at its bottom, or at its top (thickness over height)
-    film = p.get("thin_film") if hasattr(p, "get") else None
-    return film is not None and max(float(film.get("thickness_nm", 0.0)),
-                                    float(film.get("thickness_top_nm", -1.0))) > 0.0
-
-
 def film_kinds(params: Params) -> set[str]:
     """Which thin films a material needs compiled: "own" where it or a material nested in it
     carries ``thin_film`` (the wavelength loop of common/fresnel.glsl), "coat" where a table
     parameter of one does (a layered model's ``coating.thin_film``, read from tables the CPU
     computes: viewer/brdf/layered.py)."""
     out = set()
-    if _has_film(params):
+    if "thin_film" in params and thin_film.active(params):   # its own film (thin_film.active: the one test)
         out.add("own")
     for v in params.values():
         if isinstance(v, Params):
             if v.model:
                 out |= film_kinds(v)
-            elif _has_film(v):
+            elif thin_film.active(v):
                 out.add("coat")
     return out
-
-
-def uses_thin_film(params: Params) -> bool:
-    """Whether a material, a table parameter of it (a layered model's coating) or a material
-    nested in it has a thin film of positive thickness."""
-    return bool(film_kinds(params))
 
 
 def measured_aniso(params: Params) -> bool:
     """Whether a material is (or nests) a measured material with an anisotropic (MIT) table."""
     from viewer.brdf.measured import is_aniso
 
-    if params.model == "measured":
-        return is_aniso(params)
-    return any(isinstance(v, Params) and v.model and measured_aniso(v) for v in params.values())
+    if not brdf.is_measured(params):
+        return False
+    nested = [v for v in params.values() if isinstance(v, Params) and v.model and brdf.is_measured(v)]
+    return any(measured_aniso(v) for v in nested) if nested else is_aniso(params)
 
 
 def program_defines(materials) -> dict[str, str]:
@@ -498,7 +481,7 @@ def program_defines(materials) -> dict[str, str]:
     layered coating has one (shaders/brdf/layered.glsl reads its precomputed tables: no loop)."""
     materials = list(materials)
     out = {}
-    if any("measured" in models_used(p) for p in materials):
+    if any(brdf.is_measured(p) for p in materials):
         out["MEASURED_TEXTURE"] = "1"
         if any(measured_aniso(p) for p in materials):
             out["MEASURED_ANISO"] = "1"

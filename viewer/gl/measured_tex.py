@@ -8,20 +8,21 @@ binds the one a material names: a MERL table as float32 RGB 180 x 90 x 91 with t
 
 from __future__ import annotations
 
+from viewer import brdf
 from viewer.brdf.spec import Params
 from viewer.gl.texture_units import MEASURED as UNIT
 
 
 def measured_params(params: Params) -> Params | None:
     """The measured material inside ``params`` (itself or a nested base), or None."""
-    if params.model == "measured":
-        return params
+    if not brdf.is_measured(params):
+        return None
     for v in params.values():
         if isinstance(v, Params) and v.model:
             hit = measured_params(v)
             if hit is not None:
                 return hit
-    return None
+    return params   # measured, and no nested material is: itself
 
 
 class MeasuredTextures:

@@ -51,7 +51,7 @@ def chain_eta(params) -> np.ndarray:
     (``spectral = "NAME"``) gives its three channel centroids (``viewer.spectral.channel_ior``)
     and the chain traces each channel apart (dispersion); any other material its one ``ior``."""
     name = params.get("spectral", "none")
-    if params.model == "dielectric" and name not in (None, "none"):
+    if brdf.is_dispersive(params) and name not in (None, "none"):   # a spectral dielectric
         from viewer import spectral
 
         return spectral.channel_ior(name)
@@ -79,13 +79,13 @@ def material_rows(scene, albedo_tables) -> np.ndarray:
         out[r, T_INFO] = (idx, alpha, kind, float(np.any(np.asarray(trans) > 0)))
         if "sigma_a" in params and kind == KIND_GLASS:
             out[r, T_SIGMA, :3] = np.asarray(params.sigma_a, np.float32)
-        if params.model == "mirror":
-            out[r, T_ETA] = (*np.asarray(params.eta, float), choice_constants(params)["mirror"]["fresnel"])
+        if kind == KIND_MIRROR:   # a mirror's Fresnel: eta, k, its choice, its dielectric ior
+            out[r, T_ETA] = (*np.asarray(params.eta, float), choice_constants(params)[params.model]["fresnel"])
             out[r, T_K] = (*np.asarray(params.k, float), float(params.ior))
         else:
             out[r, T_ETA, :3] = chain_eta(params)
-        film = thin_film.film_of(params) if kind == KIND_GLASS else None
-        if film is not None and max(float(film.thickness_nm), float(film.get("thickness_top_nm", -1.0))) > 0.0:
+        if kind == KIND_GLASS and brdf.has_film(params):
+            film = thin_film.film_of(params)
             # a film on smooth glass (a soap bubble's shell): (film ior, thickness at the bottom, at
             # the top or -1 for a uniform film, 1); its height range: the objects' of this material
             # (exact when one object has it, as the built-in scenes' bubbles; the union otherwise)

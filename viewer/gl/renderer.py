@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
@@ -193,7 +194,7 @@ def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, 
     shell = not traced and thin_shell(params)
     # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
     # environment light is importance sampled (fis, or brute force when asked for)
-    custom_fis = params.model == "custom" and env_on and scene.render.ibl == "split_sum"
+    custom_fis = brdf.is_file(params) and env_on and scene.render.ibl == "split_sum"
     ibl_sampled = env_on and scene.render.ibl in ("fis", "brute_force")
     return {"ssr": ssr_on and not shell, "ibl_sampled": ibl_sampled or custom_fis, "env_light": env_on,
             "env_constant": env_constant, "traced": list(scene.materials.values()) if traced else None,

@@ -220,7 +220,7 @@ class GpuReferenceRenderer:
         if not s.russian_roulette:
             defines["NO_ROULETTE"] = "1"
         if (s.strategy != "mis" or self.env_mode == ENV_MODES["black"]) and any(
-                m.params.model == "custom" and brdf.get("custom").of(m.params).bfile.has_sampler for m in s.materials):
+                brdf.is_file(m.params) and brdf.model_of(m.params).of(m.params).bfile.has_sampler for m in s.materials):
             # a .brdf file's own sampler (isFunc) draws its directions where no MIS weight needs
             # the pdf of a direction it did not draw (which sampleBRDF does not give)
             defines["FILE_SAMPLERS"] = "1"

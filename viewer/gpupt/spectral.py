@@ -7,7 +7,7 @@
   ``SpectralIntegrator`` builds them: ``basis_at(bin_wavelengths())``, ``bin_weights()``).
 * ``pack_spectral_materials(materials, offset)``: per material its category (as the CPU
   integrator sorts them: ``rgb``, ``table``, ``hero``) and, for spectral materials, the material
-  packed once per wavelength set the path may use, with the CPU's own ``params_at``: 105 sets at
+  packed once per wavelength set the path may use, with the CPU's own ``viewer.brdf.params_at``: 105 sets at
   bins (c, c + 105, c + 210) (a table material's three channels) and 420 at (l, l, l) (a table
   material's fourth wavelength, a hero material's hero). A path then reads its parameters at a
   computed offset, so every substitution the CPU makes (n, k of the table for eta, k and a
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer import brdf
 from viewer.gl.brdf_glsl import pack_material
-from viewer.pathtracer import spectral as sp
 from viewer.reference_common.wavelengths import N_BINS, STRIDE, bin_wavelengths, bin_weights
 
 CATEGORY_CODE = {"rgb": 0, "table": 1, "hero": 2}   # spectral.glsl u_mat_spec[m].x
@@ -33,9 +33,9 @@ def category(m) -> str:
     material with a delta base: one wavelength per path) or ``table`` (a spectral metal: all four
     wavelengths)."""
     p = m.params
-    if not sp.uses_spectral(p):
+    if not brdf.uses_spectral(p):
         return "rgb"
-    if sp.is_dispersive(p) or m.kind == "mixed":
+    if brdf.is_dispersive(p) or m.kind == "mixed":
         return "hero"
     return "table"
 
@@ -58,7 +58,7 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
     data: list[np.ndarray] = []
     bins = bin_wavelengths()
     for i, m in enumerate(materials):
-        if sp.has_film(m.params):  # params_at gives the film its wavelengths; the GLSL would not use them
+        if brdf.has_film(m.params):  # params_at gives the film its wavelengths; the GLSL would not use them
             from viewer import ViewerError
 
             raise ViewerError(f"material {m.name}: the GPU engine's spectral pass does not trace thin films per "
@@ -73,7 +73,7 @@ def pack_spectral_materials(materials, offset: int, max_materials: int) -> tuple
         size = None
         c_off = offset
         for lam3 in sets:
-            _, arr = pack_material(sp.params_at(m.params, lam3), offset, limit=None)
+            _, arr = pack_material(brdf.params_at(m.params, lam3), offset, limit=None)
             if size is None:
                 size = arr.size
             elif arr.size != size:  # one stride per material: every set must have the same layout

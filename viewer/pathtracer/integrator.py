@@ -66,15 +66,9 @@ def reference_model(m: "MaterialInfo"):
     """The model the reference evaluates a material with: its registry model, or for a layered
     material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
     random walk (viewer/brdf/layered_walk.py)."""
-    if m.model_name == "custom":  # a .brdf file: its numpy twin (never its GLSL: no GL here)
-        return brdf.get("custom").of(m.params).numpy_model()
-    model = brdf.get(m.model_name)
-    p = m.params
-    if m.model_name == "layered" and p.get("reference") == "random_walk" and m.kind != "mixed":
-        from viewer.brdf.layered_walk import WalkModel
-
-        return WalkModel(model)
-    return model
+    if brdf.is_file(m.params):  # a .brdf file: its numpy twin (never its GLSL: no GL here)
+        return brdf.get(m.model_name).of(m.params).numpy_model()
+    return brdf.get(m.model_name).reference_model(m.params)
 
 
 def make_kernel(triangles, kind: str = "embree"):

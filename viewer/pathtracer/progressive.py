@@ -192,7 +192,7 @@ class ReferenceRenderer:
                                                 initializer=_init_worker, initargs=(self.setup, self._key, os.getpid()))
 
     def _spectral_setup(self, scene, setup: RenderSetup) -> RenderSetup:
-        from viewer.pathtracer.spectral import scene_is_dispersive
+        from viewer.scene.materials import scene_is_dispersive
 
         on = scene_is_dispersive(scene) if self.spectral is None else bool(self.spectral)
         setup.extra["spectral"] = on

@@ -32,88 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer import spectral
-from viewer.brdf import thin_film
-from viewer.brdf.spec import Params
+from viewer import brdf, spectral
 from viewer.pathtracer.integrator import Integrator, PathState
 from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE, bin_wavelengths, bin_weights
-
-
-def has_film(p) -> bool:
-    """Whether a material (or its layered coating) has an active thin film."""
-    owner = p if "thin_film" in p else p.get("coating")
-    if owner is None or "thin_film" not in owner:
-        return False
-    tf = owner.thin_film  # at the object's bottom or (thickness over height) its top
-    return max(float(tf.thickness_nm), float(tf.get("thickness_top_nm", -1.0))) > 0.0
-
-
-def uses_spectral(p) -> bool:
-    """Whether a material (Params) names a spectral table anywhere, or has a thin film (its R is
-    evaluated per wavelength)."""
-    if p.get("spectral", "none") != "none" or has_film(p):
-        return True
-    return any(isinstance(v, Params) and uses_spectral(v) for v in p.values())
-
-
-def is_dispersive(p) -> bool:
-    """A spectral dielectric or layered coating: light refracts by n(lambda)."""
-    if p.model == "dielectric" and p.get("spectral", "none") != "none":
-        return True
-    for v in p.values():
-        if isinstance(v, Params) and (v.get("spectral", "none") != "none" and v.model == ""
-                                      or v.model and is_dispersive(v)):
-            return True
-    return False
-
-
-def scene_is_dispersive(scene) -> bool:
-    """Whether a material some object uses is dispersive."""
-    used = {o.material for o in scene.objects}
-    return any(is_dispersive(p) for name, p in scene.materials.items() if name in used)
-
-
-def params_at(p, lam3) -> Params:
-    """The material's parameters at three wavelengths ``lam3`` (its three channels): spectral
-    tables give eta, k = n, k at lam3 (and ior = n(lam3[0])); every other RGB parameter becomes
-    its upsampled spectrum at lam3. Nested tables and materials likewise."""
-    lam3 = np.asarray(lam3, dtype=np.float64)
-    b = spectral.upsampling.basis_at(lam3)               # (3, 3): row = wavelength
-    out = dict(p)
-    name = p.get("spectral", "none")
-    if name != "none":
-        n = spectral.ior(name, lam3)
-        out["spectral"] = "none"
-        if "eta" in out:
-            out["eta"] = np.maximum(n.real, 1e-3)
-            out["k"] = n.imag.copy()
-            if "fresnel" in out:
-                out["fresnel"] = "conductor"
-        if "ior" in out:
-            out["ior"] = float(n[0].real)
-    film = key_film = None
-    if "thin_film" in p and float(p.thin_film.thickness_nm) > 0.0:
-        # a thin film is evaluated at the wavelengths themselves (viewer/brdf/thin_film.py);
-        # a non-spectral conductor base's eta, k at them as the RGB renderers interpolate them
-        film = dict(p.thin_film)
-        film["lambda_nm"] = lam3.copy()
-        key_film = "thin_film"
-        if name == "none" and "eta" in out and "k" in out:
-            out["eta"] = thin_film.rgb_to_spectral_at(p.eta, lam3)
-            out["k"] = thin_film.rgb_to_spectral_at(p.k, lam3)
-    for key, v in p.items():
-        if key == key_film:
-            out[key] = Params(v.model, film)
-            continue
-        if film is not None and key in ("eta", "k") and name == "none":
-            continue
-        if isinstance(v, Params):
-            out[key] = params_at(v, lam3)
-        elif isinstance(v, np.ndarray) and v.shape == (3,) and key in out and out[key] is v:
-            if name != "none" and key in ("eta", "k"):
-                continue
-            out[key] = b @ v
-    return Params(p.model, out)
 
 
 class SpectralPaths(PathState):
@@ -142,9 +63,10 @@ class SpectralIntegrator(Integrator):
         self.category = []
         for m in setup.materials:
             p = m.params
-            if not uses_spectral(p):
+            if not brdf.uses_spectral(p):
                 self.category.append("rgb")
-            elif is_dispersive(p) or m.kind == "mixed" or (has_film(p) and p.model == "dielectric"):
+            elif (brdf.is_dispersive(p) or m.kind == "mixed"
+                  or (brdf.has_film(p) and brdf.model_of(p).spec.transmissive)):
                 # (a smooth or rough film-coated dielectric chooses reflection or refraction with
                 # its R: one wavelength per path)
                 self.category.append("hero")
@@ -167,7 +89,7 @@ class SpectralIntegrator(Integrator):
         prm = self.s.materials[mi].params if prm is None else prm
         ck = (mi, key, id(prm))
         if ck not in self._cache:
-            self._cache[ck] = (prm, params_at(prm, self.bins_nm[list(lam3)]))
+            self._cache[ck] = (prm, brdf.params_at(prm, self.bins_nm[list(lam3)]))
         return self._cache[ck][1]
 
     def render_block(self, row0, row1, samples, seed, block_id):

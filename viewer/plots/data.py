@@ -86,7 +86,7 @@ def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict
     cos_o = np.maximum(np.cos(np.radians(theta_o)), 0.0)
     fcos = f * cos_o[:, None]
     delta, refracted = [], []
-    if model.spec.delta and not np.any(f > 0):
+    if model.is_delta(p):
         r = _delta_reflectance(p, math.cos(math.radians(theta_i)))
         delta.append({"theta_o": theta_i, "reflectance": r})
         src = fresnel_source(p)
@@ -121,7 +121,7 @@ def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_p
     value = reduce_channel(fcos, channel)
     x, y, z = (value * wo[..., i] for i in range(3))
     delta = []
-    if model.spec.delta and not np.any(f > 0):
+    if model.is_delta(p):
         delta.append({"wo": reflect_z(wi),
                       "reflectance": _delta_reflectance(p, float(wi[2]))})
     return {"theta": theta, "phi": phi, "wi": wi, "wo": wo, "f": f, "fcos": fcos, "value": value,
@@ -159,7 +159,7 @@ def _thin_film_curve(p, src, cos, inside):
     from viewer.brdf import thin_film
 
     owner = p if "thin_film" in p else p.get("coating")  # a layered model's film is its coating's
-    if owner is None or "thin_film" not in owner or not thin_film.active(owner) or src["type"] == "schlick":
+    if owner is None or not thin_film.at_point(owner) or src["type"] == "schlick":
         return None
     if src["type"] == "conductor":
         return thin_film.reflectance_rgb(owner, cos, src["eta"], src["k"])

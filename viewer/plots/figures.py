@@ -149,10 +149,10 @@ def _albedo_figure(r: _Request) -> Figure:
     from viewer import ms_compensation
 
     if ms_compensation.applies(p):  # single scattering, the raster's compensation, the random walk
-        from viewer.brdf.microfacet import walks
+        from viewer import brdf
 
         ms = ms_compensation.albedos(p, np.cos(np.radians(d["theta"])), known={
-            "walk" if walks(p) else "single": d["albedo"]})
+            "walk" if brdf.walks(p) else "single": d["albedo"]})
         curves = _rgb_curves(d["theta"], ms["single"], "single scattering", channel, "dotted")
         curves += _rgb_curves(d["theta"], ms["compensated"], "compensated, environment (raster)", channel, "dashed")
         curves += _rgb_curves(d["theta"], ms["kulla_conty"], "compensated, lights (raster)", channel, "dashdot")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import ViewerError
+from viewer.brdf import thin_film
 from viewer.brdf.sampling import LUMINANCE_REC709, luminance
 
 KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling", "slice")
@@ -46,7 +47,8 @@ def fresnel_source(p) -> dict | None:
 def absorption_source(p) -> dict | None:
     """The absorption coefficient of a material, or None: {"sigma_a": (3,), "unit": length unit,
     "thickness": layer thickness or None, "field": ...}."""
-    if p.model == "layered":
+    coat = p.get("coating")
+    if coat is not None and "sigma_a" in coat:   # a coating's absorption (the layered model)
         return {"sigma_a": np.asarray(p.coating.sigma_a, float), "unit": "um",
                 "thickness": float(p.coating.thickness), "field": "coating.sigma_a"}
     if "sigma_a" in p and np.shape(p["sigma_a"]) == (3,):
@@ -88,8 +90,7 @@ def film_owner(p):
     if isinstance(p, str) or not hasattr(p, "get"):
         return None
     for owner in (p, p.get("coating")):
-        if owner is not None and hasattr(owner, "get") and "thin_film" in owner \
-                and float(owner.thin_film.thickness_nm) > 0.0:
+        if owner is not None and hasattr(owner, "get") and thin_film.at_point(owner):
             if p.get("fresnel") in ("schlick", "none"):
                 return None
             return owner
@@ -148,7 +149,7 @@ def check_kind(p, kind: str) -> None:
     what = {"fresnel": "no index of refraction (no Fresnel term)",
             "bouguer": "no absorption coefficient sigma_a",
             "spectral": "no spectral table (spectral = \"NAME\")"}[kind]
-    if kind == "fresnel" and p.model == "mirror":
+    if kind == "fresnel" and p.get("fresnel") == "none":
         what = "fresnel = 'none' (R = 1 at every angle)"
     if kind == "spectral":
         raise ViewerError(f"spectral plot: model {p.model!r} has {what}; set spectral to one of "

@@ -14,16 +14,16 @@ def needs_spectral(scene, spectral: bool | None = None) -> bool:
     whether a material it uses is dispersive."""
     if spectral is not None:
         return bool(spectral)
-    from viewer.pathtracer.spectral import scene_is_dispersive
+    from viewer.scene.materials import scene_is_dispersive
 
     return scene_is_dispersive(scene)
 
 
 def uses_measured(scene) -> bool:
     """Whether a material of ``scene`` is (or nests) a measured BRDF table (MERL or MIT)."""
-    from viewer.gl.brdf_glsl import models_used
+    from viewer import brdf
 
-    return any("measured" in models_used(m) for m in scene.materials.values())
+    return any(brdf.is_measured(m) for m in scene.materials.values())
 
 
 def measured_tables(scene) -> dict:
@@ -51,18 +51,10 @@ MEASURED_REFUSAL = ("--engine gpu binds one measured table per scene, and this s
 def uses_random_walk(scene) -> bool:
     """Whether a material some object uses (or its nested base) has the microfacet model's
     multiple-scattering random walk, which only the cpu engine traces."""
-    from viewer.brdf.microfacet import walks
-    from viewer.brdf.spec import Params
+    from viewer import brdf
+    from viewer.scene.materials import uses
 
-    def has(p) -> bool:
-        if p.model == "microfacet" and walks(p):
-            return True
-        if p.model == "layered" and p.get("reference") == "random_walk":  # viewer/brdf/layered_walk.py
-            return True
-        return any(isinstance(v, Params) and v.model and has(v) for v in p.values())
-
-    used = {o.material for o in scene.objects}
-    return any(has(p) for name, p in scene.materials.items() if name in used)
+    return uses(scene, brdf.walks)
 
 
 RANDOM_WALK_REASON = ("a material has a random walk (microfacet multiple_scattering, or layered "
@@ -71,10 +63,25 @@ RANDOM_WALK_REASON = ("a material has a random walk (microfacet multiple_scatter
 
 def uses_thin_film(scene) -> bool:
     """Whether a material some object uses has a thin film (its own, or a layered coating's)."""
-    from viewer.gl.brdf_glsl import uses_thin_film as film
+    from viewer import brdf
+    from viewer.scene.materials import uses
 
-    used = {o.material for o in scene.objects}
-    return any(film(p) for name, p in scene.materials.items() if name in used)
+    return uses(scene, brdf.has_film)
+
+
+def uses_film_over_height(scene) -> bool:
+    """Whether a material some object uses has a thin film whose thickness changes with height
+    (``thickness_top_nm``): the gpu engine evaluates materials without the hit's height (at the
+    film's bottom thickness), while the rasterizer and the cpu engine follow it per point."""
+    from viewer import brdf
+    from viewer.brdf import thin_film
+    from viewer.scene.materials import uses
+
+    return uses(scene, lambda p: brdf.has_film(p) and thin_film.varies(p))
+
+
+FILM_HEIGHT_REFUSAL = ("--engine gpu draws a thin film over height (thickness_top_nm) at its bottom thickness; "
+                       "use --engine cpu or auto (auto takes the cpu engine for it)")
 
 
 FILM_SPECTRAL_REFUSAL = ("--engine gpu does not trace thin films per wavelength (its spectral pass would "
@@ -98,6 +105,8 @@ LIMITS = (
     Limit(lambda scene, spectral: uses_random_walk(scene), RANDOM_WALK_REFUSAL, RANDOM_WALK_REASON),
     Limit(lambda scene, spectral: uses_thin_film(scene) and needs_spectral(scene, spectral), FILM_SPECTRAL_REFUSAL,
           "a thin film traced per wavelength: only the cpu engine does it"),
+    Limit(lambda scene, spectral: uses_film_over_height(scene), FILM_HEIGHT_REFUSAL,
+          "a thin film over height (thickness_top_nm): only the cpu engine follows it per hit"),
 )
 
 

@@ -8,7 +8,7 @@ scenes, so there it is cpu. No OpenGL at all -> cpu.
 Both engines trace wavelengths (``needs_spectral``: a dispersive material or ``spectral=True``;
 the GPU engine's ``SPECTRAL`` variant), so such a scene takes the ordinary choice. Scenes only the
 cpu engine can trace (``viewer/reference_common/refusals.py``: measured tables, the multiple-scattering
-random walk, thin films per wavelength) take it under ``auto``; ``gpu`` refuses them.
+random walk, thin films per wavelength or over height) take it under ``auto``; ``gpu`` refuses them.
 """
 
 from __future__ import annotations
@@ -107,8 +107,8 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
     from viewer.pathtracer import ReferenceRenderer
 
     for m in scene.materials.values():
-        if m.model == "custom":  # the cpu engine evaluates numpy twins: refused in one line without one
-            brdf.get("custom").of(m).numpy_model()
+        if brdf.is_file(m):  # the cpu engine evaluates numpy twins: refused in one line without one
+            brdf.model_of(m).of(m).numpy_model()
     return ReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, workers=workers,
                              spectral=spectral, **estimator)
 
@@ -119,8 +119,10 @@ def choose_for_scenes(requested: str, scenes=(), spectral: bool | None = None, c
     ``choose_engine``'s choice (``gpu`` asked for such a scene fails in ``make_renderer``); a scene
     that needs wavelengths takes the ordinary choice (both engines trace them). ``spectral`` is
     kept for the callers' sake."""
+    from viewer import brdf
+
     if requested == "auto":
-        if any(any(m.model == "custom" for m in s.materials.values()) for s in scenes):
+        if any(any(brdf.is_file(m) for m in s.materials.values()) for s in scenes):
             return "gpu", "a .brdf file material: the gpu engine runs its GLSL (on software OpenGL too)"
         for s in scenes:
             limit = cpu_only(s, spectral)

@@ -96,5 +96,5 @@ class RenderSetup:
                                                 for o in scene.objects] or [(0.0, 0.0)]),
                           # the twins this process trusts: the workers take this decision as theirs
                           "trusted_twins": twin_trust.trusted_twins(
-                              m.params["file"] for m in mats if m.model_name == "custom")},
+                              m.params["file"] for m in mats if brdf.is_file(m.params))},
                    strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))

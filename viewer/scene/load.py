@@ -131,6 +131,8 @@ def _beside(data: dict, folder: Path) -> dict:
     """A screenshot's scene names its mesh and map files by absolute path; one that no longer
     exists there but does beside the screenshot (the PNG was copied with its files) is taken
     from there."""
+    from viewer import brdf
+
     def moved(value):
         if not isinstance(value, str) or not os.path.isabs(value) or os.path.exists(value):
             return value
@@ -145,8 +147,9 @@ def _beside(data: dict, folder: Path) -> dict:
         env["map"] = moved(env["map"])
     mats = data.get("materials")
     for m in mats.values() if isinstance(mats, dict) else []:
-        if isinstance(m, dict) and m.get("model") == "measured" and "file" in m:
-            m["file"] = moved(m["file"])
+        for key in brdf.path_params(m.get("model")) if isinstance(m, dict) else ():
+            if key in m:
+                m[key] = moved(m[key])
     return data
 
 
@@ -216,7 +219,7 @@ def material_from_name(name: str, assignments=()):
         raw = {"model": "measured", "file": name}
     elif name.endswith(".toml"):
         raw = load_material_file(name)[1].to_plain()
-        if raw.get("model") == "custom":  # a material file holding a .brdf file's material
+        if brdf.is_file_model(raw.get("model")):  # a material file holding a .brdf file's material
             import json
 
             return file_material(brdf.load(raw["file"]),

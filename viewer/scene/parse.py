@@ -345,11 +345,12 @@ def parse_materials(ck: Checker, t, base_dir: Path | None = None) -> dict:
         model = raw.pop("model")
         if not isinstance(model, str):
             ck.fail(f"{fld}.model", f"expected a string, got {describe(model)}", ", ".join(brdf.names()))
-        if model == "custom":  # a .brdf file: its declarations are the parameters
+        if brdf.is_file_model(model):  # a .brdf file: its declarations are the parameters
             out[name] = custom_material(raw, f"{ck.label}: {fld}", base_dir)
             continue
         spec = brdf.lookup_spec(model, f"{ck.label}: {fld}.model")
-        if model == "measured" and isinstance(raw.get("file"), str) and raw["file"] and base_dir is not None:
-            raw["file"] = str(Path(base_dir) / Path(raw["file"]).expanduser())  # relative to the scene file
+        for key in brdf.path_params(model) if base_dir is not None else ():
+            if isinstance(raw.get(key), str) and raw[key]:   # a file parameter: relative to the scene file
+                raw[key] = str(Path(base_dir) / Path(raw[key]).expanduser())
         out[name] = validate_params(spec, raw, f"{ck.label}: {fld}", brdf.lookup_spec)
     return out
