@@ -500,6 +500,7 @@ def test_the_engine_rules_can_fail(tmp_path):
         "viewer/gpupt/ok.py imports viewer.pathtracer.spectral.scene_is_dispersive",
         "viewer/pathtracer/c.py imports viewer.gpupt.engine"]
     assert reference_stays_neutral(root) == [
+        "viewer/reference_common/refusals.py imports viewer.pathtracer.spectral.scene_is_dispersive",
         "viewer/reference_common/select.py imports moderngl at module level",
         "viewer/reference_common/setup.py imports viewer.gpupt.engine",
         "viewer/reference_common/setup.py imports viewer.pathtracer.integrator.Integrator"]
