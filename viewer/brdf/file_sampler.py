@@ -6,7 +6,7 @@ is warped first: theta_h goes to s = t / (a^2 + t), t = tan^2 theta_h (the CDF o
 distribution D cos theta_h of width ``a``, Walter et al. 2007 eq. 35), ``a`` fitted to the
 file's lobe (the median theta_h of its reflected energy at normal view); phi_h is measured from
 the view's azimuth and folded to [0, pi] (its sign drawn with equal odds). Over that square
-(s, |phi|), for each of ``NV`` view angles theta_v (nodes ``VIEW_NODES``), a piecewise-constant
+(s, |phi|), for each of ``NV`` view angles theta_v (nodes ``view_angle``), a piecewise-constant
 2D density of the energy f cos_i |dw_i/dw_h| = f cos_i 4 (wo.h) per (s, phi) (marginal CDF over
 ``NT`` bands of s, conditional CDFs over ``NP`` bands of |phi|), inverted exactly. A view
 between two nodes takes one of them with the odds of linear interpolation, and the pdf is that
@@ -87,9 +87,15 @@ def sizes_of(table) -> tuple[int, int, int]:
     return int(table[2] + 0.5), int(table[3] + 0.5), int(table[4] + 0.5)
 
 
+#: the view's coordinate sqrt(1 - cos theta_v) = sqrt(2) sin(theta_v / 2), nearly theta_v / sqrt(2)
+#: but found without acos (whose GLSL approximations differ from numpy's), at the last node
+VIEW_X_MAX = float(np.sqrt(1.0 - np.cos(VIEW_MAX)))
+
+
 def view_angle(k: int, nv: int) -> float:
-    """theta_v of view node k of nv (equal steps from 0 to VIEW_MAX; one node: normal view)."""
-    return 0.0 if nv == 1 else float(k * VIEW_MAX / (nv - 1))
+    """theta_v of view node k of nv: equal steps in sqrt(1 - cos theta_v) from 0 to VIEW_MAX
+    (one node: normal view)."""
+    return 0.0 if nv == 1 else float(np.arccos(1.0 - (k * VIEW_X_MAX / (nv - 1)) ** 2))
 
 
 def build(f, sizes=FULL) -> np.ndarray:
@@ -152,10 +158,9 @@ def build(f, sizes=FULL) -> np.ndarray:
 def _view(table, wo):
     """(node below, the odds of the node above) of each view, and its azimuth."""
     nv = sizes_of(table)[0]
-    tv = np.arccos(np.clip(wo[:, 2], -1.0, 1.0))
     if nv == 1:
         return np.zeros(len(wo), int), np.zeros(len(wo)), np.arctan2(wo[:, 1], wo[:, 0])
-    x = np.clip(tv / VIEW_MAX * (nv - 1), 0.0, nv - 1.0)
+    x = np.clip(np.sqrt(np.maximum(1.0 - wo[:, 2], 0.0)) / VIEW_X_MAX * (nv - 1), 0.0, nv - 1.0)
     k = np.minimum(x.astype(int), nv - 2)
     return k, x - k, np.arctan2(wo[:, 1], wo[:, 0])
 

@@ -144,7 +144,7 @@ void custom_view(custom_params p, vec3 wo, out int k, out float w, out float az)
     k = 0;
     w = 0.0;
     if (nv > 1) {{
-        float x = clamp(acos(clamp(wo.z, -1.0, 1.0)) / {float(fs.VIEW_MAX)!r} * float(nv - 1), 0.0, float(nv - 1));
+        float x = clamp(sqrt(max(1.0 - wo.z, 0.0)) / {fs.VIEW_X_MAX!r} * float(nv - 1), 0.0, float(nv - 1));
         k = min(int(x), nv - 2);
         w = x - float(k);
     }}
