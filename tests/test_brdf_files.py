@@ -380,8 +380,8 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
     """A GGX written as a .brdf under a constant environment, BSDF sampling only, against the
     built-in GGX (visible-normal sampling): the same mean (both unbiased), and the tabulated
     half-vector sampler below the built-in's variance (measured by benchmarks/brdf_files.py:
-    0.16x; cosine sampling alone: 23x; the earlier one-dimensional table: 2.2x). The bound 1x
-    leaves a factor 6: the per-pixel variance over 8 seeds, averaged over ~700 pixels, moves by
+    0.18x; cosine sampling alone: 23x; the earlier one-dimensional table: 2.2x). The bound 1x
+    leaves a factor 5: the per-pixel variance over 8 seeds, averaged over ~700 pixels, moves by
     a few percent between runs."""
     from viewer.camera import OrbitCamera
     from viewer.gpupt.select import make_renderer

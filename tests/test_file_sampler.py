@@ -194,16 +194,45 @@ class _GPUDrawn:
         return file_sampler.pdf(self.sampler.table(p), wi, wo)
 
 
-CHI2_CASES = [(True, 0.1, 0.0), (True, 0.3, 45.0), (True, 0.6, 75.0), (False, 0.3, 60.0)]
+CHI2_CASES = [(True, 0.1, 0.0), (True, 0.6, 75.0), (False, 0.3, 60.0)]
+CHI2_SLOW = [(True, 0.3, 45.0), (True, 0.1, 75.0), (False, 0.6, 0.0)]
+N_CHI2 = len(CHI2_CASES) + len(CHI2_SLOW) + 2  # and the two of the Phong file
 
 
-@pytest.mark.parametrize("engine,alpha,theta_v", CHI2_CASES)
+@pytest.mark.parametrize("engine,alpha,theta_v", CHI2_CASES + [pytest.param(*c, marks=pytest.mark.slow)
+                                                                for c in CHI2_SLOW])
 def test_glsl_samples_pass_chi_square_against_the_pdf(engine_sampler, raster_sampler, engine, alpha, theta_v):
     s = engine_sampler if engine else raster_sampler
     p = brdf.load(GGX).params(alpha=alpha)
     res = chi2_test(_GPUDrawn(s, np.random.default_rng(7)), p, direction(theta_v, 0.37), 200_000,
-                    np.random.default_rng(8), sidak(0.01, len(CHI2_CASES)))
+                    np.random.default_rng(8), sidak(0.01, N_CHI2))
     print(f"generic sampler {'engine' if engine else 'raster'} alpha={alpha} theta_v={theta_v}: {res.message}")
+    assert res.ok, res.message
+
+
+# a lobe no microfacet distribution fits: a diffuse part and a Phong lobe around the mirror
+# direction, with 220 parameter floats (all but one unused), so that the raster's block leaves
+# room for the smallest table only (one view node, no azimuth bands)
+PHONG = ("analytic\n::begin parameters\nfloat n 1 100 12\n"
+         + "".join(f"float p{i} 0 1 0.5\n" for i in range(219))
+         + "::end parameters\n::begin shader\n"
+         "vec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)\n{\n"
+         "    float r = max(dot(reflect(-L, N), V), 0.0);\n"
+         "    return vec3(0.1 / 3.14159265 + 0.5 * (n + 2.0) / 6.2831853 * pow(r, n));\n"
+         "}\n::end shader\n")
+
+
+@pytest.mark.parametrize("engine", [pytest.param(True, marks=pytest.mark.slow), False])
+def test_a_phong_file_with_many_parameters_passes_chi_square(gl_ctx, tmp_path_factory, engine):
+    path = tmp_path_factory.mktemp("phong") / "phong.brdf"
+    path.write_text(PHONG)
+    p = brdf.load(path).params()
+    s = _Sampler(gl_ctx, p, engine=engine)
+    table = s.table(p)
+    assert file_sampler.sizes_of(table) == (file_sampler.FULL if engine else file_sampler.SMALL[-1])
+    res = chi2_test(_GPUDrawn(s, np.random.default_rng(9)), p, direction(50.0, 0.37), 200_000,
+                    np.random.default_rng(10), sidak(0.01, N_CHI2))
+    print(f"generic sampler, Phong file, {'engine' if engine else 'raster'}: {res.message}")
     assert res.ok, res.message
 
 
@@ -212,18 +241,20 @@ def test_the_generic_sampler_is_within_1_3x_of_the_built_in_ggx_samplers_varianc
     """Variance of the weight f cos / pdf per sample at a fixed view (theta_v 0, 45, 75 degrees),
     the file's GGX with the generic sampler (the GPU engine's table, numpy twin, f through the
     file's GLSL) against the built-in GGX with visible-normal sampling (Heitz 2018), same alpha
-    and Schlick f0 0.9. Measured ratios: 0.79 / 0.76 / 0.33 (alpha 0.1), 0.05 / 0.14 / 0.19
-    (0.3), 0.02 / 0.08 / 0.13 (0.6). With 60,000 samples each the variance estimates' relative
-    standard error is sqrt((kurtosis - 1) / n): at most about 4% here (the weights are bounded;
-    measured kurtosis < 100), so the worst ratio, 0.79, is more than 10 standard errors below 1.3:
-    the test fails only if the sampler gets worse, not by chance. Fixed seeds make it repeatable."""
+    and Schlick f0 0.9. Measured (400,000 samples, benchmarks/brdf_files.py): 0.76 / 0.87 / 0.50
+    (alpha 0.1), 0.10 / 0.15 / 0.23 (0.3), 0.02 / 0.06 / 0.15 (0.6). Not flaky: a variance
+    estimate's relative standard error is sqrt((kurtosis - 1) / n); the weights' kurtosis is at
+    most ~110 for either sampler here (measured; the largest generic weight in 2 million samples
+    is 2.8), so with 100,000 samples each the ratio's relative standard error is about 5%, and
+    the worst ratio, 0.87 (five seeds: 0.78 to 0.90), is more than 8 standard errors below 1.3:
+    the test fails if the sampler gets worse, not by chance. Fixed seeds make it repeatable."""
     m = brdf.load(GGX)
     p = m.params(alpha=alpha, f0=0.9)
     table = sampler_table(p, None)
     built = brdf.get("microfacet")
     q = built.params().replace(distribution="ggx", fresnel="schlick", f0=np.full(3, 0.9), alpha_x=alpha,
                                alpha_y=alpha, kd=np.zeros(3))
-    n = 60_000
+    n = 100_000
     ratios = {}
     for theta_v in (0.0, 45.0, 75.0):
         rng = np.random.default_rng(int(alpha * 1000 + theta_v))

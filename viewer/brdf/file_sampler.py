@@ -32,6 +32,7 @@ import numpy as np
 FULL = (10, 32, 16)
 SMALL = ((3, 16, 4), (4, 12, 3), (1, 24, 1), (1, 12, 1))
 SUB_T, SUB_P = 4, 2  # evaluations per band (midpoints of sub-bands), building the table
+DILATE = 0.25  # a cell's least share of its largest neighbour's energy (``_dilate``)
 COSINE_SHARE = 0.02  # the cosine-weighted share of the mixture (the whole of it for a BRDF that is 0)
 VIEW_MAX = np.radians(87.0)  # the last view node's theta_v (views beyond it take it)
 HEADER = 5  # a, cosine share, NV, NT, NP
@@ -92,10 +93,11 @@ def sizes_of(table) -> tuple[int, int, int]:
 VIEW_X_MAX = float(np.sqrt(1.0 - np.cos(VIEW_MAX)))
 
 
-def view_angle(k: int, nv: int) -> float:
+def view_angle(k: float, nv: int) -> float:
     """theta_v of view node k of nv: equal steps in sqrt(1 - cos theta_v) from 0 to VIEW_MAX
-    (one node: normal view)."""
-    return 0.0 if nv == 1 else float(np.arccos(1.0 - (k * VIEW_X_MAX / (nv - 1)) ** 2))
+    (one node: normal view); k between nodes is between them, clamped to [0, VIEW_MAX]."""
+    x = min(max(k, 0.0), nv - 1.0) * VIEW_X_MAX / max(nv - 1, 1)
+    return 0.0 if nv == 1 else float(np.arccos(1.0 - x * x))
 
 
 def build(f, sizes=FULL) -> np.ndarray:
@@ -123,12 +125,20 @@ def build(f, sizes=FULL) -> np.ndarray:
     out = np.zeros(size(sizes))
     out[0], out[2], out[3], out[4] = a, NV, NT, NP
     for k in range(NV):
-        # per (s, phi) cell; a single node serves every view: the mean over views up to 75 degrees
-        views = [view_angle(k, NV)] if NV > 1 else np.radians([0.0, 30.0, 60.0, 75.0])
+        # per (s, phi) cell: the energy at the node's view and halfway to its neighbours (weights
+        # 1/4, 1/2, 1/4: the node's share of linear interpolation), so that a view between two
+        # nodes finds what it reflects in both (a half vector whose wi is above the surface at
+        # the view but below it at the nearer node would else have the other node's odds alone);
+        # a single node serves every view: the mean over views up to 75 degrees
+        if NV > 1:
+            views = [(view_angle(k - 0.5, NV), 0.25), (view_angle(k, NV), 0.5), (view_angle(k + 0.5, NV), 0.25)]
+        else:
+            views = [(t, 0.25) for t in np.radians([0.0, 30.0, 60.0, 75.0])]
         e = 0.0
-        for tv in views:
+        for tv, wt in views:
             wo = np.array([np.sin(tv), 0.0, np.cos(tv)])
-            e = e + (energy(h, wo) * jac).reshape(NT, SUB_T, NP, SUB_P).mean(axis=(1, 3))
+            e = e + wt * (energy(h, wo) * jac).reshape(NT, SUB_T, NP, SUB_P).mean(axis=(1, 3))
+        e = _dilate(e)
         row = e.sum(axis=1)
         total = row.sum()
         base = HEADER + k * NODE
@@ -153,6 +163,17 @@ def build(f, sizes=FULL) -> np.ndarray:
             out[HEADER + k * NODE:HEADER + (k + 1) * NODE] = out[HEADER + src * NODE:HEADER + (src + 1) * NODE]
     out[1] = COSINE_SHARE
     return out
+
+
+def _dilate(e):
+    """Each cell at least DILATE times its largest neighbour's (the 8 around it): a cell whose
+    sample points all missed what it reflects (wi below the surface there, above it elsewhere in
+    the cell, or at a view between nodes) still has some odds, so its weights stay bounded."""
+    pad = np.pad(e, 1, mode="edge")
+    n, m = e.shape
+    near = np.max([pad[1 + di:1 + di + n, 1 + dj:1 + dj + m] for di in (-1, 0, 1) for dj in (-1, 0, 1)
+                   if di or dj], axis=0)
+    return np.maximum(e, DILATE * near)
 
 
 def _view(table, wo):
