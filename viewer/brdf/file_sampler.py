@@ -31,6 +31,8 @@ import numpy as np
 #: material block), best first: ``sizes_for(room)`` takes the first that fits
 FULL = (10, 32, 16)
 SMALL = ((3, 16, 4), (4, 12, 3), (1, 24, 1), (1, 12, 1))
+MAX_BANDS = 63  # the most bands of s or |phi| (the GLSL binary search takes a fixed count of steps)
+assert all(max(sz[1:]) <= MAX_BANDS for sz in (FULL, *SMALL))
 SUB_T, SUB_P = 4, 2  # evaluations per band (midpoints of sub-bands), building the table
 DILATE = 0.25  # a cell's least share of its largest neighbour's energy (``_dilate``)
 COSINE_SHARE = 0.02  # the cosine-weighted share of the mixture (the whole of it for a BRDF that is 0)

@@ -190,9 +190,11 @@ float custom_pdf(custom_params p, vec3 wi, vec3 wo) {{
 // position in it
 int custom_find(custom_params p, int b, int n, float u, out float t) {{
     int lo = 0, hi = n - 1;
-    while (lo < hi) {{
+    for (int it = 0; it < {fs.MAX_BANDS.bit_length()}; ++it) {{  // a fixed count: n <= MAX_BANDS
         int mid = (lo + hi) / 2;
-        if (custom_tab(p, b + mid) <= u) lo = mid + 1; else hi = mid;
+        if (lo < hi) {{
+            if (custom_tab(p, b + mid) <= u) lo = mid + 1; else hi = mid;
+        }}
     }}
     float c0 = lo > 0 ? custom_tab(p, b + lo - 1) : 0.0;
     t = clamp((u - c0) / max(custom_tab(p, b + lo) - c0, 1e-30), 0.0, 1.0);
