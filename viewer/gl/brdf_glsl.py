@@ -135,7 +135,7 @@ def _generic_sampler() -> list[str]:
     return f"""float custom_tab(custom_params p, int i) {{ return mat_f(p.o + CUSTOM_T + i); }}
 float custom_d_cos(float cz, float a) {{  // GGX D cos theta_h of width a: the warp's density
     float d = cz * cz * (a * a - 1.0) + 1.0;
-    return a * a / (3.141592653589793 * d * d) * cz;
+    return a * a / (PI * d * d) * cz;
 }}
 // the view node below wo (k) and the odds of the one above (w); az: the view's azimuth
 void custom_view(custom_params p, vec3 wo, out int k, out float w, out float az) {{
@@ -153,12 +153,12 @@ void custom_view(custom_params p, vec3 wo, out int k, out float w, out float az)
 float custom_node_pdf(custom_params p, int k, float s, float ph) {{
     int nt = int(custom_tab(p, 3) + 0.5), nph = int(custom_tab(p, 4) + 0.5);
     int i = min(int(s * float(nt)), nt - 1);
-    int j = min(int(ph / 3.141592653589793 * float(nph)), nph - 1);
+    int j = min(int(ph / PI * float(nph)), nph - 1);
     int b = {fs.HEADER} + k * (nt + nt * nph);
     float m = custom_tab(p, b + i) - (i > 0 ? custom_tab(p, b + i - 1) : 0.0);
     int cb = b + nt + i * nph;
     float c = custom_tab(p, cb + j) - (j > 0 ? custom_tab(p, cb + j - 1) : 0.0);
-    return m * c * float(nt * nph) / 3.141592653589793;
+    return m * c * float(nt * nph) / PI;
 }}
 float custom_table_pdf(custom_params p, vec3 wi, vec3 wo) {{
     vec3 h = wi + wo;
@@ -175,16 +175,16 @@ float custom_table_pdf(custom_params p, vec3 wi, vec3 wo) {{
     float w, az;
     custom_view(p, wo, k, w, az);
     float ph = abs(((h.x != 0.0 || h.y != 0.0) ? atan(h.y, h.x) : 0.0) - az);
-    if (ph > 3.141592653589793) ph = 6.283185307179586 - ph;
+    if (ph > PI) ph = TWO_PI - ph;
     float q = (1.0 - w) * custom_node_pdf(p, k, s, ph);
     if (w > 0.0) q += w * custom_node_pdf(p, k + 1, s, ph);
     // per solid angle of h: q / 2 (the folded sign) * 2 pi D cos; of wi: / 4 (wo.h)
-    return q * 3.141592653589793 * custom_d_cos(cz, a) / (4.0 * woh);
+    return q * PI * custom_d_cos(cz, a) / (4.0 * woh);
 }}
 float custom_pdf(custom_params p, vec3 wi, vec3 wo) {{
     if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
     float c = custom_tab(p, 1);
-    return c * wi.z * 0.31830988618379067 + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);
+    return c * wi.z * INV_PI + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);
 }}
 // the band of u under the n CDF values at table float b: the first whose CDF exceeds u; t: u's
 // position in it
@@ -204,7 +204,7 @@ vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf)
     float c = custom_tab(p, 1);
     if (u.z < c) {{  // cosine-weighted
         float r = sqrt(u.x);
-        float phi = 6.283185307179586 * u.y;
+        float phi = TWO_PI * u.y;
         wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));
     }} else {{  // a half vector from the table: the view node, the band of s, then of |phi|
         int nt = int(custom_tab(p, 3) + 0.5), nph = int(custom_tab(p, 4) + 0.5);
@@ -218,7 +218,7 @@ vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf)
         float sg = u.y < 0.5 ? 1.0 : -1.0;
         float uy = u.y < 0.5 ? 2.0 * u.y : 2.0 * u.y - 1.0;
         int j = custom_find(p, b + nt + i * nph, nph, uy, tp);
-        float phi = az + sg * (float(j) + tp) * (3.141592653589793 / float(nph));
+        float phi = az + sg * (float(j) + tp) * (PI / float(nph));
         float a = custom_tab(p, 0);
         float cz = 1.0 / sqrt(1.0 + a * a * s / (1.0 - s));
         float sz = sqrt(max(0.0, 1.0 - cz * cz));
