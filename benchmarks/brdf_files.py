@@ -10,6 +10,9 @@
 4. the variance of the generic sampler (cosine mixed with the tabulated half vectors) against the built-in GGX sampler (visible
    normals) on a GGX written as a .brdf (benchmarks/scenes/ggx.brdf), at equal samples, BSDF
    sampling only, under a constant environment: the ratio of the per-pixel variances over seeds;
+   and per sample at fixed views: the variance of f cos / pdf of the generic sampler (its numpy
+   twin, viewer.brdf.file_sampler, the GPU engine's table) over the built-in's, per alpha (0.1,
+   0.3, 0.6) and view (0, 45, 75 degrees);
 5. with --published: how many of a folder of .brdf files load, get a report card and render.
 """
 
@@ -149,7 +152,37 @@ def variance_ratio(folder, seeds=12, spp=4):
         res[label] = (float(a.var(axis=0, ddof=1)[mask].mean()), float(a.mean(axis=0)[mask].mean()))
     g, b = res["generic on the .brdf"], res["built-in (VNDF)"]
     print(f"variance at equal samples ({spp} spp x {seeds} seeds, bsdf sampling, constant environment): "
-          f"generic {g[0]:.3g}, built-in {b[0]:.3g}, ratio {g[0] / b[0]:.1f}x (means {g[1]:.4f} / {b[1]:.4f})")
+          f"generic {g[0]:.3g}, built-in {b[0]:.3g}, ratio {g[0] / b[0]:.2f}x (means {g[1]:.4f} / {b[1]:.4f})")
+
+
+def variance_ratio_per_view(n=400_000):
+    from viewer import brdf
+    from viewer.brdf import file_sampler
+    from viewer.gl.brdf_glsl import sampler_table
+
+    m = brdf.load(HERE / "scenes" / "ggx.brdf")
+    built = brdf.get("microfacet")
+    print(f"variance of f cos / pdf per sample, generic sampler (table {file_sampler.FULL} = "
+          f"{file_sampler.size(file_sampler.FULL)} floats) over the built-in GGX (VNDF), {n:,} samples each:")
+    for alpha in (0.1, 0.3, 0.6):
+        p = m.params(alpha=alpha, f0=0.9)
+        table = sampler_table(p, None)
+        q = built.params().replace(distribution="ggx", fresnel="schlick", f0=np.full(3, 0.9), alpha_x=alpha,
+                                   alpha_y=alpha, kd=np.zeros(3))
+        out = []
+        for tv in (0.0, 45.0, 75.0):
+            rng = np.random.default_rng(int(alpha * 1000 + tv))
+            t = np.radians(tv)
+            wo = np.broadcast_to(np.array([np.sin(t) * np.cos(0.37), np.sin(t) * np.sin(0.37), np.cos(t)]),
+                                 (n, 3)).copy()
+            wi, pdf = file_sampler.sample(table, wo, rng.random((n, 3)))
+            ok = pdf > 0
+            f = np.zeros(n)
+            f[ok] = m.eval(p, wi[ok], wo[ok])[:, 1]
+            w = np.where(ok, f * np.maximum(wi[:, 2], 0.0) / np.where(ok, pdf, 1.0), 0.0)
+            _, wb, _ = built.sample(q, wo, rng.random((n, 2)))
+            out.append(f"{tv:.0f} deg {np.var(w) / np.var(wb[:, 1]):.2f}x")
+        print(f"  alpha {alpha}: " + ", ".join(out))
 
 
 def published(folder, out):
@@ -186,6 +219,7 @@ def main():
         raster_frames(d)
         engine_rate(d)
         variance_ratio(d)
+        variance_ratio_per_view()
         if args.published:
             published(args.published, d)
 

@@ -379,8 +379,10 @@ def test_the_gpu_engine_runs_the_files_glsl_as_the_built_in_lambert(file_scene):
 def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(tmp_path):
     """A GGX written as a .brdf under a constant environment, BSDF sampling only, against the
     built-in GGX (visible-normal sampling): the same mean (both unbiased), and the tabulated
-    half-vector sampler within 5x of the built-in's variance (cosine sampling alone: 23x, measured
-    by benchmarks/brdf_files.py; the table: 2.2x)."""
+    half-vector sampler below the built-in's variance (measured by benchmarks/brdf_files.py:
+    0.18x; cosine sampling alone: 23x; the earlier one-dimensional table: 2.2x). The bound 1x
+    leaves a factor 5: the per-pixel variance over 8 seeds, averaged over ~700 pixels, moves by
+    a few percent between runs."""
     from viewer.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
@@ -408,7 +410,7 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
         mask = a.mean(axis=0).sum(axis=2) > 0
         out[label] = (a.var(axis=0, ddof=1)[mask].mean(), a.mean(axis=0)[mask].mean())
     assert abs(out["file"][1] - out["builtin"][1]) < 0.02 * out["builtin"][1]
-    assert out["file"][0] < 5.0 * out["builtin"][0], out
+    assert out["file"][0] < 1.0 * out["builtin"][0], out
 
 
 def test_the_cpu_engine_uses_the_twin_or_refuses_in_one_line(file_scene, tmp_path, trust_twins):

@@ -43,8 +43,9 @@ PREFIX_RE = r"\bbxf\d*_"
 
 
 #: the parameter floats a file may declare (a colour is three): the renderer's material block holds
-#: 256 floats (``viewer.gl.constants.MAT_FLOATS``), 32 of them the generic sampler's table
-#: (``viewer.gl.brdf_glsl.HALF_TABLE``); ``tests/test_damage_inputs.py`` checks the sum
+#: 256 floats (``viewer.gl.constants.MAT_FLOATS``), at least 32 of them the generic sampler's table
+#: (``viewer.brdf.file_sampler``: its smallest size, 29 floats, where a file fills the rest; a
+#: larger one in what a smaller file leaves); ``tests/test_damage_inputs.py`` checks the sum
 MAX_PARAM_FLOATS = 224
 
 

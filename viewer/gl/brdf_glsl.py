@@ -88,50 +88,142 @@ def _custom_names(name: str) -> tuple[str, str, str]:
 
 
 CUSTOM_PREFIX = "custom:"
-HALF_TABLE = 32      # bands of theta_h in the generic sampler's table
-COSINE_SHARE = 0.25  # the cosine-weighted share of its mixture (the whole of it for a BRDF that is 0)
 _TABLES: dict = {}
 
 
-def half_vector_table(params) -> np.ndarray:
-    """The generic sampler's table of a file material: the CDF over HALF_TABLE bands of theta_h
-    (equal in angle) of the BRDF's f cos_i 4 (wo.h), the density over half vectors that makes
-    f cos_i / pdf constant, averaged over views at 0, 30, 60 and 75 degrees and azimuths of h
-    (the file's f through its GLSL, for the current parameters). Isotropic by construction; the
-    cosine share keeps every direction reachable. Its last value is 1, or 0 when f is 0."""
+def sampler_table(params, room: int | None = None) -> np.ndarray:
+    """The generic sampler's table of a file material (``viewer.brdf.file_sampler``: per view
+    node, a 2D table over the warped half vectors of the BRDF's f cos_i 4 (wo.h)), built from
+    the file's f through its GLSL for the current parameters, at the sizes that fit ``room``
+    floats (None: unbounded, the GPU engine's material texture). Cached per file, parameters
+    and room."""
     import json
 
-    model = brdf.get("custom").of(params)
-    key = (str(model.bfile.path), json.dumps(params.to_plain(), sort_keys=True), id(model))
+    from viewer.brdf import file_sampler
+
+    model = brdf.model_of(params).of(params)
+    sizes = file_sampler.sizes_for(room)
+    if sizes is None:
+        raise ValueError(f"material {model.bfile.path.name}: {room} floats are left for the sampler's table, "
+                         f"it needs {file_sampler.size(file_sampler.SMALL[-1])}")
+    key = (str(model.bfile.path), json.dumps(params.to_plain(), sort_keys=True), id(model), sizes)
     hit = _TABLES.get(key)
     if hit is not None:
         return hit
-    n, sub = HALF_TABLE, 4
-    dth = 0.5 * np.pi / n
-    th = (np.arange(n * sub) + 0.5) * dth / sub
-    phis = np.radians([0.0, 45.0, 90.0, 135.0, 180.0])
-    vals = np.zeros(n * sub)
-    for tv in np.radians([0.0, 30.0, 60.0, 75.0]):
-        wo = np.array([np.sin(tv), 0.0, np.cos(tv)])
-        for ph in phis:
-            h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
-            woh = h @ wo
-            wi = 2.0 * woh[:, None] * h - wo
-            ok = (wi[:, 2] > 0) & (woh > 0)
-            f = np.asarray(model.eval(params, np.where(ok[:, None], wi, [0.0, 0.0, 1.0]),
-                                      np.broadcast_to(wo, wi.shape)), float)
-            lum = luminance(np.where(np.isfinite(f), np.maximum(f, 0.0), 0.0))
-            vals += np.where(ok, lum * wi[:, 2] * 4.0 * woh, 0.0)
-    band = 2 * np.pi * (np.cos(np.arange(n) * dth) - np.cos((np.arange(n) + 1) * dth))
-    mass = vals.reshape(n, sub).mean(axis=1) * band
-    total = mass.sum()
-    cdf = np.cumsum(mass) / total if total > 0 and np.isfinite(total) else np.zeros(n)
-    if total > 0:
-        cdf[-1] = 1.0
+
+    def f(wi, wo):
+        return luminance(np.asarray(model.eval(params, wi, wo), float))
+
+    table = file_sampler.build(f, sizes)
     if len(_TABLES) > 256:
         _TABLES.clear()
-    _TABLES[key] = cdf
-    return cdf
+    _TABLES[key] = table
+    return table
+
+
+def _generic_sampler() -> list[str]:
+    """GLSL of the generic sampler over the table at float p.o + CUSTOM_T (layout and formulas:
+    ``viewer.brdf.file_sampler``, whose sample / pdf it follows step for step; the sizes are
+    read from the table, so a table of another size needs no recompile)."""
+    from viewer.brdf import file_sampler as fs
+
+    return f"""float custom_tab(custom_params p, int i) {{ return mat_f(p.o + CUSTOM_T + i); }}
+float custom_d_cos(float cz, float a) {{  // GGX D cos theta_h of width a: the warp's density
+    float d = cz * cz * (a * a - 1.0) + 1.0;
+    return a * a / (PI * d * d) * cz;
+}}
+// the view node below wo (k) and the odds of the one above (w); az: the view's azimuth
+void custom_view(custom_params p, vec3 wo, out int k, out float w, out float az) {{
+    int nv = int(custom_tab(p, 2) + 0.5);
+    az = (wo.x != 0.0 || wo.y != 0.0) ? atan(wo.y, wo.x) : 0.0;
+    k = 0;
+    w = 0.0;
+    if (nv > 1) {{
+        float x = clamp(sqrt(max(1.0 - wo.z, 0.0)) / {fs.VIEW_X_MAX!r} * float(nv - 1), 0.0, float(nv - 1));
+        k = min(int(x), nv - 2);
+        w = x - float(k);
+    }}
+}}
+// the density of node k over (s, |phi|): P(i) P(j | i) / (ds dphi)
+float custom_node_pdf(custom_params p, int k, float s, float ph) {{
+    int nt = int(custom_tab(p, 3) + 0.5), nph = int(custom_tab(p, 4) + 0.5);
+    int i = min(int(s * float(nt)), nt - 1);
+    int j = min(int(ph / PI * float(nph)), nph - 1);
+    int b = {fs.HEADER} + k * (nt + nt * nph);
+    float m = custom_tab(p, b + i) - (i > 0 ? custom_tab(p, b + i - 1) : 0.0);
+    int cb = b + nt + i * nph;
+    float c = custom_tab(p, cb + j) - (j > 0 ? custom_tab(p, cb + j - 1) : 0.0);
+    return m * c * float(nt * nph) / PI;
+}}
+float custom_table_pdf(custom_params p, vec3 wi, vec3 wo) {{
+    vec3 h = wi + wo;
+    float l = length(h);
+    if (!(l > 0.0)) return 0.0;
+    h /= l;
+    float woh = dot(wo, h);
+    if (h.z <= 0.0 || woh <= 0.0) return 0.0;
+    float a = custom_tab(p, 0);
+    float cz = clamp(h.z, 1e-12, 1.0);
+    float t = max(1.0 - cz * cz, 0.0) / (cz * cz);
+    float s = t / (a * a + t);
+    int k;
+    float w, az;
+    custom_view(p, wo, k, w, az);
+    float ph = abs(((h.x != 0.0 || h.y != 0.0) ? atan(h.y, h.x) : 0.0) - az);
+    if (ph > PI) ph = TWO_PI - ph;
+    float q = (1.0 - w) * custom_node_pdf(p, k, s, ph);
+    if (w > 0.0) q += w * custom_node_pdf(p, k + 1, s, ph);
+    // per solid angle of h: q / 2 (the folded sign) * 2 pi D cos; of wi: / 4 (wo.h)
+    return q * PI * custom_d_cos(cz, a) / (4.0 * woh);
+}}
+float custom_pdf(custom_params p, vec3 wi, vec3 wo) {{
+    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;
+    float c = custom_tab(p, 1);
+    return c * wi.z * INV_PI + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);
+}}
+// the band of u under the n CDF values at table float b: the first whose CDF exceeds u; t: u's
+// position in it
+int custom_find(custom_params p, int b, int n, float u, out float t) {{
+    int lo = 0, hi = n - 1;
+    for (int it = 0; it < {fs.MAX_BANDS.bit_length()}; ++it) {{  // a fixed count: n <= MAX_BANDS
+        int mid = (lo + hi) / 2;
+        if (lo < hi) {{
+            if (custom_tab(p, b + mid) <= u) lo = mid + 1; else hi = mid;
+        }}
+    }}
+    float c0 = lo > 0 ? custom_tab(p, b + lo - 1) : 0.0;
+    t = clamp((u - c0) / max(custom_tab(p, b + lo) - c0, 1e-30), 0.0, 1.0);
+    return lo;
+}}
+vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {{
+    float c = custom_tab(p, 1);
+    if (u.z < c) {{  // cosine-weighted
+        float r = sqrt(u.x);
+        float phi = TWO_PI * u.y;
+        wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));
+    }} else {{  // a half vector from the table: the view node, the band of s, then of |phi|
+        int nt = int(custom_tab(p, 3) + 0.5), nph = int(custom_tab(p, 4) + 0.5);
+        int k;
+        float w, az, ts, tp;
+        custom_view(p, wo, k, w, az);
+        if ((u.z - c) / (1.0 - c) >= 1.0 - w) k += 1;
+        int b = {fs.HEADER} + k * (nt + nt * nph);
+        int i = custom_find(p, b, nt, u.x, ts);
+        float s = min((float(i) + ts) / float(nt), {float(np.float32(1.0 - 1e-7))!r});
+        float sg = u.y < 0.5 ? 1.0 : -1.0;
+        float uy = u.y < 0.5 ? 2.0 * u.y : 2.0 * u.y - 1.0;
+        int j = custom_find(p, b + nt + i * nph, nph, uy, tp);
+        float phi = az + sg * (float(j) + tp) * (PI / float(nph));
+        float a = custom_tab(p, 0);
+        float cz = 1.0 / sqrt(1.0 + a * a * s / (1.0 - s));
+        float sz = sqrt(max(0.0, 1.0 - cz * cz));
+        vec3 h = vec3(sz * cos(phi), sz * sin(phi), cz);
+        wi = 2.0 * dot(wo, h) * h - wo;
+    }}
+    pdf = custom_pdf(p, wi, wo);
+    if (!(pdf > 0.0)) {{ pdf = 0.0; return vec3(0.0); }}
+    return custom_eval(p, wi, wo) * wi.z / pdf;
+}}""".splitlines()
 
 
 def is_custom(name: str) -> bool:
@@ -172,9 +264,9 @@ def custom_virtual(only) -> dict[str, str]:
 def _custom_glue(name: str) -> list[str]:
     """The family functions of a file BRDF over its block: custom_params (its offset),
     custom_eval (the file's BRDF above the surface, negative values as 0), and custom_sample /
-    custom_pdf, the sampler that works for any BRDF: cosine-weighted directions (share
-    COSINE_SHARE) mixed with half vectors drawn from a table of the BRDF for the current
-    parameters (``half_vector_table``), with the exact pdf of the mixture."""
+    custom_pdf, the sampler that works for any BRDF (the twin of ``viewer.brdf.file_sampler``):
+    cosine-weighted directions mixed with half vectors drawn from a table of the BRDF for the
+    current parameters (``sampler_table``), with the exact pdf of the mixture."""
     import re
 
     from viewer.gl.file_brdf_glsl import n_floats, set_params_glsl
@@ -191,53 +283,8 @@ def _custom_glue(name: str) -> list[str]:
             "    vec3 f = vec3(bxf_BRDF(wi, wo, vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)));",
             "    return max(f, vec3(0.0));",
             "}",
-            f"#define CUSTOM_T {n_floats(bfile)}  // the half-vector table's CDF after the parameters",
-            f"#define CUSTOM_N {HALF_TABLE}",
-            "float custom_cos_share(custom_params p) { return mat_f(p.o + CUSTOM_T + CUSTOM_N - 1) > 0.5 ? "
-            f"{COSINE_SHARE} : 1.0; }}",
-            "float custom_table_pdf(custom_params p, vec3 wi, vec3 wo) {",
-            "    vec3 h = wi + wo;",
-            "    float l = length(h);",
-            "    if (!(l > 0.0)) return 0.0;",
-            "    h /= l;",
-            "    float woh = dot(wo, h);",
-            "    if (h.z <= 0.0 || woh <= 0.0) return 0.0;",
-            "    float dth = 1.5707963267948966 / float(CUSTOM_N);",
-            "    int k = min(int(acos(clamp(h.z, 0.0, 1.0)) / dth), CUSTOM_N - 1);",
-            "    float pk = mat_f(p.o + CUSTOM_T + k) - (k > 0 ? mat_f(p.o + CUSTOM_T + k - 1) : 0.0);",
-            "    float band = 6.283185307179586 * (cos(float(k) * dth) - cos(float(k + 1) * dth));",
-            "    return pk / max(band, 1e-30) / (4.0 * woh);  // per solid angle of wi: dw_i = 4 (wo.h) dw_h",
-            "}",
-            "float custom_pdf(custom_params p, vec3 wi, vec3 wo) {",
-            "    if (wi.z <= 0.0 || wo.z <= 0.0) return 0.0;",
-            "    float c = custom_cos_share(p);",
-            "    return c * wi.z * INV_PI + (c < 1.0 ? (1.0 - c) * custom_table_pdf(p, wi, wo) : 0.0);",
-            "}",
-            "vec3 custom_sample(custom_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {",
-            "    if (u.z < custom_cos_share(p)) {  // cosine-weighted",
-            "        float r = sqrt(u.x);",
-            "        float phi = 6.283185307179586 * u.y;",
-            "        wi = vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.x)));",
-            "    } else {  // a half vector from the table: its band by the CDF, uniform in cos and phi there",
-            "        int k = 0;",
-            "        float lo = 0.0;",
-            "        for (int i = 0; i < CUSTOM_N - 1; ++i) {",
-            "            float ci = mat_f(p.o + CUSTOM_T + i);",
-            "            if (u.x >= ci) { k = i + 1; lo = ci; }",
-            "        }",
-            "        float hi = mat_f(p.o + CUSTOM_T + k);",
-            "        float t = clamp((u.x - lo) / max(hi - lo, 1e-30), 0.0, 1.0);",
-            "        float dth = 1.5707963267948966 / float(CUSTOM_N);",
-            "        float cz = mix(cos(float(k) * dth), cos(float(k + 1) * dth), t);",
-            "        float sz = sqrt(max(0.0, 1.0 - cz * cz));",
-            "        float phi = 6.283185307179586 * u.y;",
-            "        vec3 h = vec3(sz * cos(phi), sz * sin(phi), cz);",
-            "        wi = 2.0 * dot(wo, h) * h - wo;",
-            "    }",
-            "    pdf = custom_pdf(p, wi, wo);",
-            "    if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }",
-            "    return custom_eval(p, wi, wo) * wi.z / pdf;",
-            "}", ""]
+            f"#define CUSTOM_T {n_floats(bfile)}  // the sampler's table after the parameters",
+            *_generic_sampler(), ""]
     if bfile.has_sampler:
         # the file's own sampler (its isFunc), where no MIS weight needs the pdf of a direction it
         # did not draw (FILE_SAMPLERS: the GPU engine with BSDF or light sampling alone, or with
@@ -309,8 +356,9 @@ def pack_material(params: Params, offset: int = 0, limit: int | None = 4 * MAT_V
         from viewer.gl.file_brdf_glsl import n_floats, param_floats
 
         bfile = brdf.model_of(params).of(params).bfile
+        room = None if limit is None else limit - offset - n_floats(bfile)
         data = np.concatenate([param_floats(bfile, params)[: n_floats(bfile)],
-                               half_vector_table(params)]).astype(np.float32)
+                               sampler_table(params, room)]).astype(np.float32)
         if limit is not None and offset + data.size > limit:
             raise ValueError(f"material {bfile.path.name} needs {data.size} floats; u_mat holds {4 * MAT_VEC4}")
         return model_index(CUSTOM_PREFIX + str(bfile.path)), data
