@@ -1,7 +1,7 @@
 """The Image slice tab: BRDF Explorer's image slice of one material, f over (theta_h, theta_d)
 at a held phi_d (default 90 degrees), theta_h across on the MERL table's square-root mapping
 (the specular peak near theta_h = 0 gets half of the width) and theta_d up, as a heat map of the
-luminance log(1 + f) / log(1 + max f) (``viewer.plots.measured.slice_data``, as
+luminance log(1 + f) / log(1 + its 99th percentile) (``viewer.plots.measured.slice_data``, as
 ``plot --kind slice``, which draws the RGB image with theta_d down)."""
 
 from __future__ import annotations
@@ -42,11 +42,15 @@ def draw(panel, names, materials):
     if panel.waiting({name: d}):
         return
     lum = np.maximum(np.asarray(d["f"]) @ LUMINANCE, 0.0)
-    vmax = max(float(lum.max()), 1e-12)
-    img = np.log1p(lum) / math.log1p(vmax)
-    img = np.ascontiguousarray(np.where(d["valid"], img, 0.0)[::-1], dtype=np.float64)  # row 0 = theta_d 90: on top
+    valid = np.asarray(d["valid"])
+    # the scale's top: the 99th percentile, so the grazing rows (f of a rough metal reaches
+    # hundreds at theta_d -> 90) do not darken the rest of the image
+    top = max(float(np.percentile(lum[valid], 99.0)) if valid.any() else 0.0, 1e-12)
+    img = np.minimum(np.log1p(lum) / math.log1p(top), 1.0)
+    img = np.ascontiguousarray(np.where(valid, img, 0.0)[::-1], dtype=np.float64)  # row 0 = theta_d 90: on top
     what = "f cos theta_i" if cos else "f"
-    imgui.text_wrapped(f"{name}: max {what} = {vmax:.4g} /sr (luminance); colour: log(1 + {what}) / log(1 + max)")
+    imgui.text_wrapped(f"{name}: max {what} = {float(lum.max()):.4g} /sr (luminance); colour: log(1 + {what}) / "
+                       f"log(1 + {top:.3g}), the 99th percentile (1 above it)")
     size = panel.plot_size()
     k = panel.font_k()
     bar = 60.0 * k

@@ -52,7 +52,9 @@ def draw(panel, names, materials):
         implot.setup_axes("theta_l (deg) of the light", "term (log10 axis)" if panel.log else "term value")
         if panel.log:
             implot.setup_axis_scale(implot.ImAxis_.y1, implot.Scale_.log10)
-            implot.setup_axes_limits(-90.0, 90.0, LOG_FLOOR, top * 2.0, implot.Cond_.always)
+            pos = [float(np.min(v[v > 0])) for _, v in series + [("", product), ("", f)] if np.any(v > 0)]
+            low = max(LOG_FLOOR, 0.5 * min(pos, default=LOG_FLOOR))  # down to the smallest term shown
+            implot.setup_axes_limits(-90.0, 90.0, low, top * 2.0, implot.Cond_.always)
         else:
             implot.setup_axes_limits(-90.0, 90.0, 0.0, plots.nice_ceil(top * 1.05), implot.Cond_.always)
 
