@@ -281,7 +281,9 @@ def _theta_figure(r: _Request) -> Figure:
     if r.overlay is not None:
         d2 = _theta_data(r, r.overlay)
         curves += _rgb_curves(d2["x"], r.shown(d2["y"]), f"{r.overlay.model} {what}", r.channel, "dashed")
-    vmax = max(float(np.max(c.y)) for c in curves)
+    from viewer.plots.theta import axis_top
+
+    top, peak = axis_top(d["x"], [c.y for c in curves])
     held, x_label, x_range = {
         "theta_h": (f"theta_d = {d.get('theta_d', 0):g} deg, phi_d = 90 deg, phi_h = 0 (h in the x-z plane)",
                     "theta_h (deg)", (-90.0, 90.0)),
@@ -293,11 +295,17 @@ def _theta_figure(r: _Request) -> Figure:
     }[r.kind]
     unit = " [1/sr]"
     notes = [held + ("; times cos theta_i of the light (N.L)" if r.cos else "")]
+    if peak is not None:
+        notes.append(f"toward grazing the curve runs off the axis, up to {peak:.4g} (the axis is set by "
+                     f"|{x_label.split()[0]}| <= 80 deg)")
+        for c in curves:  # drawn to just past the axis' top (the JSON's "f" keeps every value)
+            c.extra.setdefault("unclipped", c.y)
+            c.y = np.minimum(c.y, 2.0 * top)
     info = {"channel": r.channel, "transform": r.transform, "cos": r.cos,
             **{k: d[k] for k in ("theta_d", "theta_h", "theta_i", "phi_i", "phi_v", "phi_d") if k in d}}
     return Figure(r.kind, r.p.model, r.p, f"{r.label}: f against {x_label.split()[0]}", x_label,
                   r.y_format.format(what + unit), curves, [], x_range,
-                  (0.0, nice_ceil(vmax * 1.05) if vmax > 0 else 1.0), r.sub, notes, info)
+                  (0.0, nice_ceil(top * 1.05)), r.sub, notes, info)
 
 
 _TERM_STYLE = {"D": ((31, 119, 180), "solid"), "G": ((44, 160, 44), "dashdot"),

@@ -60,6 +60,23 @@ def _result(x, wi, wo, f, cos: bool, **info) -> dict:
     return {"x": x, "wi": wi, "wo": wo, "f": f, "y": y, "cos_i": cos_i, "cos": bool(cos), **info}
 
 
+CENTRAL = 80.0  # degrees: the part of a slice that sets its axis (see ``axis_top``)
+
+
+def axis_top(x, ys) -> tuple[float, float | None]:
+    """The top of a slice's y axis for curves ``ys`` (arrays over ``x``): the largest value
+    within |x| <= CENTRAL, plus a quarter, when f beyond it runs off (f of a rough metal grows
+    as 1 / cos toward grazing, to hundreds at theta_d = 89.5, and would flatten every other
+    curve); else the largest value. Returns (top, the largest value when it is above top, else
+    None)."""
+    x = np.abs(np.asarray(x, dtype=np.float64))
+    peak = max([float(np.max(y)) for y in ys] + [0.0])
+    inner = max([float(np.max(np.asarray(y)[x <= CENTRAL])) for y in ys] + [0.0])
+    if inner > 0 and peak > 1.25 * inner:
+        return 1.25 * inner, peak
+    return max(peak, 1e-6), None
+
+
 def half_angle_grid(n: int = 361) -> np.ndarray:
     """Signed theta_h (degrees) from -EDGE to EDGE, squared spacing (denser near theta_h = 0, where
     the specular peak is, as BRDF Explorer samples it)."""

@@ -92,7 +92,10 @@ class ThetaTab:
         if panel.waiting(data) or not data:
             return
         ys = {n: panel.y(plots.reduce_channel(d["y"], panel.channel)) for n, d in data.items()}
-        ymax = max([float(v.max()) for v in ys.values()] + [1e-6])
+        ymax, peak = theta.axis_top(next(iter(data.values()))["x"], list(ys.values()))
+        if peak is not None:
+            panel.messages.append(f"toward grazing f runs off the axis, up to {peak:.4g} (the axis is set by "
+                                  f"|angle| <= {theta.CENTRAL:g} deg)")
         x_name = {"theta_h": "theta_h", "theta_d": "theta_d", "theta_v": "theta_v"}[self.kind]
         what = "f cos theta_i" if cos else "f"
         size = panel.plot_size()
