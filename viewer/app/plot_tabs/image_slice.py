@@ -11,8 +11,7 @@ import math
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from viewer import plots
-from viewer.app.plot_tabs.theta import cos_checkbox, pick_material
+from viewer.app.plot_tabs.theta import cos_checkbox, kinds_of, pick_material
 from viewer.plots.kinds import LUMINANCE
 
 TICKS_DEG = (0.0, 2.0, 10.0, 22.5, 45.0, 90.0)  # theta_h ticks, at their sqrt-mapped places
@@ -21,7 +20,7 @@ TICKS_DEG = (0.0, 2.0, 10.0, 22.5, 45.0, 90.0)  # theta_h ticks, at their sqrt-m
 def draw(panel, names, materials):
     from viewer.plots.measured import slice_data
 
-    have = [n for n in names if "slice" in plots.applicable_kinds(materials[n])]
+    have = [n for n in names if "slice" in kinds_of(panel, n, materials[n])]
     for n in names:
         if n not in have:
             panel.messages.append(f"{n}: a delta lobe (f is 0 as a function): no image slice")

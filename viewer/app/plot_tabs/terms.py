@@ -10,7 +10,7 @@ import numpy as np
 from imgui_bundle import imgui, implot
 
 from viewer import plots
-from viewer.app.plot_tabs.theta import pick_material
+from viewer.app.plot_tabs.theta import kinds_of, pick_material
 from viewer.app.plot_tabs.common import vec4
 from viewer.plots import theta
 
@@ -21,7 +21,7 @@ COLOURS = {"D": (0.20, 0.55, 0.95), "F": (1.00, 0.55, 0.10), "G": (0.25, 0.80, 0
 
 
 def draw(panel, names, materials):
-    have = [n for n in names if "terms" in plots.applicable_kinds(materials[n])]
+    have = [n for n in names if "terms" in kinds_of(panel, n, materials[n])]
     for n in names:
         if n not in have:
             panel.messages.append(f"{n} ({materials[n].model}): no D, F, G decomposition (the microfacet model "

@@ -7,13 +7,13 @@ tabs, the Terms tab and the Image slice tab add to the panel's are ``SliceSettin
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from imgui_bundle import imgui, implot
 
 from viewer import plots
-from viewer.app.plot_tabs.common import same_data, vec4
+from viewer.app.plot_tabs.common import params_key, same_data, vec4
 from viewer.plots import theta
 
 
@@ -25,6 +25,19 @@ class SliceSettings:
     phi_d: float = 90.0      # Image slice: the held difference azimuth (BRDF Explorer's default)
     cos: bool = False        # f times cos theta_i of the light (BRDF Explorer's "N . L")
     material: str | None = None  # the Terms and Image slice tabs' material (one at a time)
+    kinds: dict = field(default_factory=dict)  # (name, parameters) -> the plot kinds that apply
+
+
+def kinds_of(panel, name: str, p) -> tuple:
+    """``plots.applicable_kinds(p)``, remembered per material and parameters (asking a file's
+    model for its terms runs its GLSL: not once a frame)."""
+    key = (name, params_key(p))
+    cache = panel.slices.kinds
+    if key not in cache:
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = plots.applicable_kinds(p)
+    return cache[key]
 
 
 def pick_material(panel, have: list[str], tag: str) -> str:
@@ -83,7 +96,7 @@ class ThetaTab:
     def draw(self, panel, names, materials):
         args = self._held(panel)
         cos = panel.slices.cos
-        smooth = [n for n in names if "theta_h" in plots.applicable_kinds(materials[n])]
+        smooth = [n for n in names if "theta_h" in kinds_of(panel, n, materials[n])]
         for n in names:
             if n not in smooth:
                 panel.messages.append(f"{n}: a delta lobe (f is 0 as a function): nothing to slice")
