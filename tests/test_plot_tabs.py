@@ -6,6 +6,7 @@ material that absorbs nothing, an n(lambda) axis about n's own span."""
 
 import math
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -103,6 +104,9 @@ from viewer.app.layout import window_layout
 from viewer.app.main import App
 from viewer.app.plots_panel import TABS
 from viewer.brdf.presets import get_preset
+from viewer.scene import material_from_name
+
+NEW = ("Theta H", "Theta D", "Theta V", "Terms", "Image slice")  # checked below, at 1.5, on their own materials
 
 app = App("sphere", size=(1600, 900), restore_state=False)
 app.session.warm = []
@@ -122,7 +126,7 @@ for scale in (1.0, 1.5, 2.0):
     # 1 and 2 (a label's room scales with the UI: the extremes clip first, whatever the material)
     for solo in ((None, "lambert", "glass", "soap", "sf11") if scale == 1.5 else (None, "soap")):
         panel.solo = solo
-        for tab in TABS:
+        for tab in [t for t in TABS if t not in NEW]:
             panel.select_tab(tab)
             app.frame(); app.frame()
             assert panel.tab == tab
@@ -138,10 +142,34 @@ for scale in (1.0, 1.5, 2.0):
             if tab == "Spectral" and solo == "sf11":
                 assert panel.nk_range[0] > 1.7, panel.nk_range
     print("SCALE", scale, "aspect", round(panel.aspects["polar"], 4))
+# BRDF Explorer's slices and the term view at the projector's 1.5, for built-in and file materials,
+# linear and log, with and without the cosine: every label whole, the legend under the plot, the
+# materials a tab cannot show named in a message
+app.set_ui_scale(1.5)
+state["rect"] = window_layout(1600, 900, 1.5, lecture=True, plots=True)["plots"]
+panel.solo = None
+materials.clear()
+materials.update({"lambert": P("lecture_lambert"), "glass": P("lecture_air_glass"),
+                  "rough_gold": plots.as_params({"model": "microfacet", "alpha": 0.3}),
+                  "ggx_terms": material_from_name(FILE)})
+for log in (False, True):
+    panel.log = panel.slices.cos = log
+    for tab in NEW:
+        panel.select_tab(tab)
+        app.frame(); app.frame()
+        assert panel.tab == tab and not panel.computing, tab
+        assert panel.clipped == [], (tab, panel.clipped)
+        box, frame = panel.legend_boxes.get(tab), panel.plot_rects[tab]
+        if box is not None:
+            assert box[1] >= frame[3], (tab, box, frame)  # under the plot, off its curves
+        msgs = " ".join(panel.messages)
+        assert ("lambert" in msgs) if tab == "Terms" else ("glass" in msgs), (tab, panel.messages)
+    words = {c.full for c in panel.legend_cells["Theta H"]}
+    assert {"lambert", "rough_gold", "ggx_terms"} <= words, words
 panel.close()
 app.close()
 print("TABS OK")
-'''
+'''.replace("FILE", repr(str(Path(__file__).parent / "brdfs" / "ggx_terms.brdf")))
 
 
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
@@ -149,7 +177,8 @@ def test_docked_tabs_fit_at_every_ui_scale(display):
     """Docked beside the lecture's view at UI 1, 1.5 and 2, for all materials and each alone (at
     1.5; at 1 and 2 all of them and the soap film alone): no label wider than its room, the polar plot at equal aspect (pixels per unit along x
     over y from implot's transform, within 1 %: a Lambert lobe is a circle), and the states of
-    the tabs named above."""
+    the tabs named above; the Theta H, Theta D, Theta V, Terms and Image slice tabs at 1.5 for a
+    microfacet metal, a .brdf file defining D, F, G, Lambert and smooth glass."""
     r = run_py(GUI, display, timeout=600)
     assert r.returncode == 0 and "TABS OK" in r.stdout, r.stdout + r.stderr[-3000:]
 

@@ -183,7 +183,9 @@ def test_bouguer_is_exp_minus_sigma_d():
 
 
 def test_kinds_that_apply():
-    assert plots.applicable_kinds(brdf.get("lambert").params()) == ("polar", "lobe", "albedo", "sampling", "slice")
+    assert plots.applicable_kinds(brdf.get("lambert").params()) == ("polar", "lobe", "albedo", "sampling", "slice",
+                                                                     "theta_h", "theta_d", "theta_v")
+    assert plots.applicable_kinds(brdf.get("microfacet").params())[-1] == "terms"
     assert "fresnel" in plots.applicable_kinds(brdf.get("layered").params())
     assert "bouguer" in plots.applicable_kinds(brdf.get("dielectric").params())
     with pytest.raises(ViewerError, match="fresnel = 'none'"):

@@ -187,9 +187,9 @@ def test_spectral_material_uses_the_table():
     np.testing.assert_allclose(p.eta, spectral.ior("Cu", [650.0, 550.0, 450.0]).real)
     wi = np.array([[0.3, 0.1, 0.9]]) / np.linalg.norm([0.3, 0.1, 0.9])
     wo = np.array([[-0.2, 0.0, 1.0]]) / np.linalg.norm([-0.2, 0.0, 1.0])
-    from viewer.brdf.microfacet import terms
+    from viewer.brdf.microfacet import fdg
 
-    F, _, _, h = terms(p, wi, wo)
+    F, _, _, h = fdg(p, wi, wo)
     np.testing.assert_allclose(F, sf.lookup("Cu", np.sum(wi * h, axis=1)))
     # a file's explicit ior / eta wins over the table's defaults
     assert brdf.get("dielectric").params(spectral="diamond").ior == pytest.approx(2.4175, abs=1e-3)
@@ -233,10 +233,10 @@ def test_glsl_spectral_fresnel_matches_numpy(gl_ctx):
         np.testing.assert_allclose(got, ref, rtol=1e-4, atol=1e-6)
     # and the table values themselves: the F term view (RGB mean of F at the half vector)
     p = m.params(spectral="Au", alpha=0.5)
-    from viewer.brdf.microfacet import terms
+    from viewer.brdf.microfacet import fdg
 
     got_terms = ev.eval(p, wi, wo, what=1)
-    F = terms(p, wi, wo)[0].mean(axis=1)
+    F = fdg(p, wi, wo)[0].mean(axis=1)
     np.testing.assert_allclose(got_terms[:, 0], F, rtol=1e-4, atol=1e-6)
 
 

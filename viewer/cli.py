@@ -132,8 +132,9 @@ def _parser_plot() -> argparse.ArgumentParser:
         "'brdf-viewer:plot' holds the plotted numbers as JSON."))
     p.add_argument("model", help="a BRDF model (brdf-viewer models), a material preset (e.g. lecture_air_glass), a "
                    "material .toml, a measured .binary / .dat file or a BRDF Explorer .brdf / .bparam file")
-    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling | slice")
-    p.add_argument("--overlay", metavar="MODEL", help="polar, albedo, slice: a second material drawn over it (a model, "
+    p.add_argument("--kind", required=True, help="polar | lobe | albedo | fresnel | bouguer | spectral | sampling | "
+                   "slice | theta_h | theta_d | theta_v | terms")
+    p.add_argument("--overlay", metavar="MODEL", help="polar, albedo, slice, theta_*: a second material drawn over it (a model, "
                    "preset, .binary / .dat measured file or material .toml, e.g. one written by brdf-viewer fit)")
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -146,7 +147,17 @@ def _parser_plot() -> argparse.ArgumentParser:
                    help="rgb (one curve per distinct channel) | lum (Rec.709 luminance) | r | g | b")
     p.add_argument("--inside", action="store_true",
                    help="fresnel: light inside the denser medium (eta = 1/ior): critical angle, total internal reflection")
-    p.add_argument("--log", action="store_true", help="polar, lobe: plot log10(1 + f cos)")
+    p.add_argument("--log", action="store_true", help="polar, lobe, theta_*: plot log10(1 + y); terms: a log10 axis")
+    p.add_argument("--theta-d", dest="theta_d", type=float, default=0.0, metavar="DEG",
+                   help="theta_h plot: the held difference angle theta_d, [0, 90) (default 0)")
+    p.add_argument("--theta-h", dest="theta_h", type=float, default=0.0, metavar="DEG",
+                   help="theta_d plot: the held half angle theta_h, [0, 90) (default 0)")
+    p.add_argument("--phi-v", dest="phi_v", type=float, default=None, metavar="DEG",
+                   help="theta_v plot: azimuth of the view's plane (default --phi, the light's)")
+    p.add_argument("--phi-d", dest="phi_d", type=float, default=90.0, metavar="DEG",
+                   help="slice: the held difference azimuth phi_d, [0, 180] (default 90)")
+    p.add_argument("--cos", action="store_true",
+                   help="theta_*, slice: f times cos theta_i of the light (BRDF Explorer's N.L)")
     p.add_argument("--samples", type=int, default=200_000,
                    help="sampling: directions drawn from the sampler for the histogram (default 200000)")
     p.add_argument("--seed", type=int, default=0, help="sampling: random seed (default 0)")
@@ -170,7 +181,8 @@ def cmd_plot(args) -> int:
     overlay = material_from_name(args.overlay, []) if args.overlay else None
     fig = plots.figure(p, args.kind, theta_i=args.theta_i, phi=args.phi, channel=args.channel,
                        inside=args.inside, log=args.log, name=args.model, samples=args.samples, seed=args.seed,
-                       overlay=overlay)
+                       overlay=overlay, theta_d=args.theta_d, theta_h=args.theta_h, phi_v=args.phi_v,
+                       phi_d=args.phi_d, cos=args.cos)
     plots.write_plot(fig, out, data, args.width, args.height)
     print(f"wrote {out} ({args.kind} plot of {args.model})" + (f" and {data}" if data else ""))
     return 0

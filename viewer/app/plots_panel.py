@@ -1,7 +1,8 @@
-"""The window's "BRDF plots" panel, seven tabs: Polar (the lobe in the plane of incidence), 3D
+"""The window's "BRDF plots" panel, its tabs: Polar (the lobe in the plane of incidence), 3D
 lobe, Albedo (directional albedo), Fresnel, Bouguer (absorption), Spectral (n, k and
-R(theta, lambda) of a spectral material, as ``plot --kind spectral``) and Sampling (histogram
-against pdf), each a module of ``viewer.app.plot_tabs``, drawing the scene's materials overlaid
+R(theta, lambda) of a spectral material, as ``plot --kind spectral``), Sampling (histogram
+against pdf), BRDF Explorer's Theta H, Theta D, Theta V and Image slice, Terms (a microfacet
+lobe's D, F, G) and Check (the report card), each a module of ``viewer.app.plot_tabs``, drawing the scene's materials overlaid
 (implot / implot3d) from the data functions of ``viewer.plots`` (the same numbers
 ``brdf-viewer plot`` draws).
 
@@ -30,17 +31,20 @@ import numpy as np
 from imgui_bundle import imgui, implot
 
 from viewer import ViewerError, plots
-from viewer.app.plot_tabs import albedo, bouguer, check, fresnel, lobe, polar, sampling, spectral
+from viewer.app.plot_tabs import (albedo, bouguer, check, fresnel, image_slice, lobe, polar, sampling, spectral,
+                                  terms, theta)
 from viewer.app.plot_tabs.albedo import albedo_note  # noqa: F401 - part of this module's interface
 from viewer.app.plot_tabs.bouguer import bouguer_marks  # noqa: F401
 from viewer.app.plot_tabs.common import (CHANNEL_LABELS, CHANNELS, LIGHT, PALETTE, R_P_COLOUR,  # noqa: F401
-                                         R_S_COLOUR, colour_slot, colour_slots, legend_layout, legend_text, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
+                                         R_S_COLOUR, colour_slot, colour_slots, legend_below, legend_layout, legend_text, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
 from viewer.app.plot_tabs.fresnel import fresnel_marks  # noqa: F401
 from viewer.app.plot_tabs.lobe import shaded_quads  # noqa: F401
 
-TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling", "Check")
+TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Sampling", "Theta H", "Theta D",
+        "Theta V", "Terms", "Image slice", "Check")
 TAB_MODULES = {"Polar": polar, "3D lobe": lobe, "Albedo": albedo, "Fresnel": fresnel, "Bouguer": bouguer,
-               "Spectral": spectral, "Sampling": sampling, "Check": check}
+               "Spectral": spectral, "Sampling": sampling, "Theta H": theta.THETA_H, "Theta D": theta.THETA_D,
+               "Theta V": theta.THETA_V, "Terms": terms, "Image slice": image_slice, "Check": check}
 _CACHE_MAX = 256
 DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
 
@@ -69,6 +73,7 @@ class PlotsPanel:
         self.messages: list[str] = []  # why a material is missing from the current tab
         self.spectral_material: str | None = None  # the Spectral tab's material (the first one with a table)
         self.sampling = sampling.SamplingTab()
+        self.slices = theta.SliceSettings()  # the Theta, Terms and Image slice tabs' angles and options
         self.areas: dict[str, tuple] = {}  # plot area (pixels) of the last frame, by tab
         self.aspects: dict[str, float] = {}  # measured x/y pixel-per-unit ratio, by tab
         self.lobe_extent = 1.0  # the 3D lobe's axis half-width of the last frame
@@ -225,38 +230,10 @@ class PlotsPanel:
         self.plot_rects[self.tab] = (pos.x, pos.y, pos.x + w, pos.y + size.y)
 
     def legend_below(self) -> None:
-        """The entries given to ``key`` as a legend under the plot, outside the axes (so it never
-        covers a curve, however many materials): a grid of equal cells, as many columns as the
-        widest entry allows, an entry wider than the window ellipsized (its whole text in a
-        tooltip)."""
+        """The entries given to ``key`` as a legend under the plot, outside the axes
+        (``plot_tabs.common.legend_below``: never over a curve, however many materials)."""
         entries, self._keys = self._keys, []
-        if not entries:
-            self.legend_boxes.pop(self.tab, None)
-            self.legend_cells.pop(self.tab, None)
-            return
-        k = self.font_k()
-        style = imgui.get_style()
-        row_h = imgui.get_text_line_height_with_spacing()
-        swatch, gap = 22 * k, style.item_inner_spacing.x + 2 * k
-        cells, (w, h) = legend_layout(entries, lambda t: imgui.calc_text_size(t).x, self.avail_x(), swatch, gap,
-                                      2 * style.item_spacing.x, row_h)
-        o = imgui.get_cursor_screen_pos()
-        dl = imgui.get_window_draw_list()
-        text_col = imgui.get_color_u32(imgui.Col_.text)
-        text_h = imgui.get_text_line_height()
-        for c in cells:
-            x, y = o.x + c.x, o.y + c.y
-            cy = y + row_h / 2
-            dl.add_line(imgui.ImVec2(x, cy), imgui.ImVec2(x + swatch, cy), imgui.get_color_u32(vec4(c.colour)),
-                        3.0 * k)
-            dl.add_text(imgui.ImVec2(x + c.text_x, y + (row_h - text_h) / 2), text_col, c.text)
-            if c.text != c.full and imgui.is_mouse_hovering_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + c.w, y + c.h)):
-                imgui.set_tooltip(c.full)
-            if c.text_w > c.text_room + 0.5:
-                self.clipped.append(c.text)
-        imgui.dummy(imgui.ImVec2(max(w, 1.0), h))
-        self.legend_boxes[self.tab] = (o.x, o.y, o.x + w, o.y + h)
-        self.legend_cells[self.tab] = cells
+        legend_below(self, entries)
 
     def legend(self):
         """Outside the plot when the window is wide, inside (top left, where the curves rarely

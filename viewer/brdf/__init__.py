@@ -140,6 +140,15 @@ class Model:
         fn = self.hook("fresnel_source")
         return fn(p) if fn is not None else fresnel_source_by_names(p)
 
+    def terms(self, p, wi, wo) -> dict | None:
+        """The factors of ``p``'s microfacet lobe at (N, 3) ``wi``, ``wo`` (the ``terms`` hook:
+        D, F, G, 1/(4 cos cos) and what f adds to their product), or None where it has none."""
+        fn = self.hook("terms")
+        if fn is None:
+            return None
+        wi, wo, _ = _dirs(wi, wo)
+        return fn(self._p(p), wi, wo)
+
     def __repr__(self):
         return f"<brdf model {self.name}>"
 
@@ -314,6 +323,9 @@ class CustomModel(Model):
 
     def sample_lobe(self, p, wo, u):
         return self.of(p).sample_lobe(p, wo, u)
+
+    def terms(self, p, wi, wo):
+        return self.of(p).terms(p, wi, wo)
 
 
 class _CustomModule:

@@ -322,6 +322,24 @@ def parse(path, text: str | None = None) -> BrdfFile:
     return f
 
 
+#: the term view's functions a file may define (D, F, G of a microfacet lobe)
+TERM_NAMES = ("D", "F", "G")
+_TERM_DEF = re.compile(r"\b(float|vec3)\s+([DFG])\s*\(([^()]*)\)\s*\{")
+
+
+def term_functions(f: BrdfFile) -> dict[str, str]:
+    """The term functions the file's shader defines: {name: return type} for each of ``D``,
+    ``F`` and ``G`` defined as ``float NAME(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)`` (or
+    returning ``vec3``), BRDF's own arguments; a function of those names with other arguments
+    is not a term function."""
+    out: dict[str, str] = {}
+    for m in _TERM_DEF.finditer(_strip_block_comments(f._code(f.shader))):
+        args = [a.split() for a in m.group(3).split(",")]
+        if len(args) == 5 and all(len(a) >= 2 and a[-2] == "vec3" for a in args):
+            out[m.group(2)] = m.group(1)
+    return out
+
+
 def sampler_takes_view(f: BrdfFile) -> bool:
     """The file's sampleBRDF takes the view direction first (this viewer's extension)."""
     m = re.search(r"\bsampleBRDF\s*\(\s*(?:in\s+)?(\w+)", f._code(f.sampler))

@@ -24,7 +24,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.brdf import twin_trust
-from viewer.brdf.brdffile import BrdfFile, parse
+from viewer.brdf.brdffile import TERM_NAMES, BrdfFile, parse, term_functions
 from viewer.brdf.spec import ModelSpec, Param
 
 #: the scene files' model name of a file BRDF
@@ -164,6 +164,18 @@ def make_module(bfile: BrdfFile, twin=None) -> FileModule:
             return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pd, 0.0)
 
     mod = FileModule(SPEC=spec, eval=glsl_eval, sample=sample, pdf=pdf)
+    if all(n in term_functions(bfile) for n in TERM_NAMES):
+        def terms(p, wi, wo):
+            # the file's own D, F, G run as GLSL (viewer.gl.file_brdf), and 1 / (4 cos cos);
+            # 'other' is what the file's BRDF adds to their product (a diffuse part, say)
+            t = glsl_evaluator().terms(bfile, p, wi, wo)
+            ok = _upper(wi, wo)
+            out = {"D": np.where(ok, t["D"], 0.0), "F": np.where(ok[:, None], t["F"], 0.0),
+                   "G": np.where(ok, t["G"], 0.0),
+                   "1/(4 cos cos)": np.where(ok, 0.25 / np.where(ok, wi[:, 2] * wo[:, 2], 1.0), 0.0)}
+            return out
+
+        mod.terms = terms
     mod.numpy_module = None
     if twin is not None:  # the CPU reference's model: numpy only
         if sampler == "numpy twin":

@@ -108,7 +108,7 @@ def _half(wi, wo):
     return normalize(wi + wo)
 
 
-def terms(p, wi, wo):
+def fdg(p, wi, wo):
     """(F (N,3), D (N,), G (N,), h) for reflection; the term views show these."""
     h = _half(wi, wo)
     dist = distribution(p)
@@ -129,9 +129,31 @@ def terms(p, wi, wo):
 def eval_specular(p, wi, wo):
     ci, co = wi[:, 2], wo[:, 2]
     ok = (ci > 0) & (co > 0)
-    F, D, G, _ = terms(p, wi, wo)
+    F, D, G, _ = fdg(p, wi, wo)
     den = 4.0 * np.where(ok, ci * co, 1.0)
     return np.where(ok[:, None], F * ratio_capped(D * G, den)[:, None], 0.0)
+
+
+def terms(p, wi, wo):
+    """The term view's factors (the ``terms`` hook): D(h), F(wi . h), G(wi, wo, h) and
+    1 / (4 cos_i cos_o), whose product is ``eval_specular`` (the same arrays, multiplied in
+    another order: the two agree to a few float64 roundings, below ``F_MAX`` where f is capped), and 'other' = the diffuse base where kd > 0 and
+    the random walk's mean where multiple scattering is on (f = product + other). 0 below the
+    horizon, as f."""
+    ci, co = wi[:, 2], wo[:, 2]
+    ok = (ci > 0) & (co > 0)
+    F, D, G, _ = fdg(p, wi, wo)
+    inv = np.where(ok, 1.0 / (4.0 * np.where(ok, ci * co, 1.0)), 0.0)
+    out = {"D": np.where(ok, D, 0.0), "F": np.where(ok[:, None], F, 0.0), "G": np.where(ok, G, 0.0),
+           "1/(4 cos cos)": inv}
+    other = np.zeros((wi.shape[0], 3))
+    if np.any(p.kd > 0):
+        other = other + eval_diffuse(p, wi, wo)
+    if walks(p):
+        other = other + microfacet_walk.eval_multiple_mean(distribution(p), _fresnel_fn(p), wi, wo, walks=48)
+    if np.any(other != 0):
+        out["other"] = other
+    return out
 
 
 def eval_diffuse(p, wi, wo):

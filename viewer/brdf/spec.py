@@ -410,6 +410,10 @@ HOOKS = {h.name: h for h in (
     Hook("GLSL_RTOL", "value", (), "1e-4", "the relative tolerance of the GLSL twin against numpy"),
     Hook("ALBEDO_BOUND", "value", (), "1.0", "the largest directional albedo the model may reach"),
     Hook("ALBEDO_BOUND_WHY", "value", (), "''", "why ALBEDO_BOUND exceeds 1 (required when it does)"),
+    Hook("terms", "function", ("p", "wi", "wo"), "None (no term decomposition)",
+         "the factors of a microfacet lobe, for the term view: {'D': (N,), 'F': (N, 3), 'G': (N,), "
+         "'1/(4 cos cos)': (N,)} whose product is the lobe (and 'other': (N, 3), what f adds to it, "
+         "e.g. a diffuse base), or None where p has no such decomposition"),
 )}
 
 

@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf.brdffile import PREFIX, PREFIX_RE, BrdfFile, sampler_takes_view
+from viewer.brdf.brdffile import PREFIX, PREFIX_RE, TERM_NAMES, BrdfFile, sampler_takes_view, term_functions
 from viewer.brdf.glsl_guard import over_budget_glsl, over_budget_message
 from viewer.gl.context import release_gl
 from viewer.gl.file_brdf_glsl import MAX_PARAMS, include_name, n_floats, param_floats, set_params_glsl, virtual_files  # noqa: F401
@@ -74,6 +74,31 @@ void main() {{
                                      wi, pdf));
     out_wi_pdf = vec4(wi, pdf);
     out_weight = vec4(w, {over_budget_glsl(PREFIX)} ? -1.0 : 1.0);
+}}
+"""
+
+
+def _terms_fragment(bfile: BrdfFile) -> str:
+    """The file's D, F and G (``brdffile.term_functions``) at each direction pair, one target
+    each (alpha -1 where that call reached the loop budget)."""
+    calls = []
+    for k, name in enumerate(TERM_NAMES):
+        calls.append(f"{PREFIX}0steps = 0; out_{name} = vec4(vec3({PREFIX}{name}(wi, wo, vec3(0.0, 0.0, 1.0), "
+                     f"vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0))), {over_budget_glsl(PREFIX)} ? -1.0 : 1.0);")
+    outs = "\n".join(f"layout(location = {k}) out vec4 out_{n};" for k, n in enumerate(TERM_NAMES))
+    body = "\n    ".join(calls)
+    return f"""#version 410 core
+#include "{include_name(bfile.path.name)}"
+uniform sampler2D u_wi;
+uniform sampler2D u_wo;
+uniform float u_p[{max(MAX_PARAMS, n_floats(bfile))}];
+{outs}
+void main() {{
+    {set_params_glsl(bfile)}
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec3 wi = texelFetch(u_wi, px, 0).xyz;
+    vec3 wo = texelFetch(u_wo, px, 0).xyz;
+    {body}
 }}
 """
 
@@ -138,7 +163,7 @@ class FileEvaluator:
         return fn(*args) if self._pool is None else self._pool.submit(fn, *args).result()
 
     def program(self, bfile: BrdfFile, kind: str = "eval"):
-        frag = _eval_fragment(bfile) if kind == "eval" else _sample_fragment(bfile)
+        frag = {"eval": _eval_fragment, "sample": _sample_fragment, "terms": _terms_fragment}[kind](bfile)
         key = (frag, bfile.glsl_block())
         hit = self._programs.get(key)
         if hit is None:
@@ -203,6 +228,29 @@ class FileEvaluator:
         out = self._on_gl(work)
         _within_budget(bfile, out[:, 3])
         return out[:, :3]
+
+    def terms(self, bfile: BrdfFile, p, wi, wo) -> dict:
+        """The file's term functions D, F, G (``brdffile.term_functions``; all three defined) at
+        (N, 3) wi, wo: {"D": (N,), "F": (N, 3), "G": (N,)}, D and G from the first channel."""
+        have = term_functions(bfile)
+        missing = [n for n in TERM_NAMES if n not in have]
+        if missing:
+            raise ViewerError(f"{bfile.path.name}: no term function {', '.join(missing)} (the term view calls "
+                              f"float D(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y), and F and G alike)")
+        wi = np.asarray(wi, np.float64)
+        wo = np.asarray(wo, np.float64)
+        n = len(wi)
+        if n == 0:
+            return {"D": np.zeros(0), "F": np.zeros((0, 3)), "G": np.zeros(0)}
+
+        def work():
+            prog, vao = self.program(bfile, "terms")
+            return self._run(prog, vao, {"u_wi": wi, "u_wo": wo}, n, len(TERM_NAMES), param_floats(bfile, p))
+
+        d, f, g = self._on_gl(work)
+        for out in (d, f, g):
+            _within_budget(bfile, out[:, 3])
+        return {"D": d[:, 0], "F": f[:, :3], "G": g[:, 0]}
 
     def sample(self, bfile: BrdfFile, p, wo, u):
         """The file's isFunc sampler: (wi, weight, pdf) for (N, 3) wo and (N, 2) u."""

@@ -4,6 +4,7 @@ PNG (``viewer.plots.png``) use."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,12 @@ class _Request:
     log: bool
     samples: int
     seed: int
+    theta_d: float = 0.0
+    theta_h: float = 0.0
+    phi_v: float | None = None
+    phi_d: float = 90.0
+    cos: bool = False
+    kind: str = ""
 
     def shown(self, y) -> np.ndarray:
         """y as plotted: log10(1 + y) with ``log``."""
@@ -88,17 +95,20 @@ class _Request:
 
 def figure(p, kind: str, *, theta_i: float = 45.0, phi: float = 0.0, channel: str = "rgb",
            inside: bool = False, log: bool = False, name: str | None = None, samples: int = 200_000,
-           seed: int = 0, overlay=None) -> Figure:
+           seed: int = 0, overlay=None, theta_d: float = 0.0, theta_h: float = 0.0, phi_v: float | None = None,
+           phi_d: float = 90.0, cos: bool = False) -> Figure:
     """The figure of one plot kind for one material (what ``brdf-viewer plot`` draws);
     ``samples`` and ``seed`` are the sampling plot's. ``overlay``: a second material drawn dashed
-    over the polar and albedo plots (e.g. an analytic model over a measured one) and, for the
-    slice, the residual image."""
+    over the polar, albedo and theta plots (e.g. an analytic model over a measured one) and, for
+    the slice, the residual image. ``theta_d`` (theta_h plot), ``theta_h`` (theta_d plot),
+    ``phi_v`` (theta_v plot, default ``phi``), ``phi_d`` (slice) hold the other angles (degrees);
+    ``cos``: f times cos theta_i of the light (theta plots, slice)."""
     p = as_params(p)
     overlay = None if overlay is None else as_params(overlay)
     check_kind(p, kind)
     check_channel(channel)
     r = _Request(p, overlay, name or p.model, f"{p.model}: {params_summary(p)}", theta_i, phi, channel,
-                 inside, log, samples, seed)
+                 inside, log, samples, seed, theta_d, theta_h, phi_v, phi_d, cos, kind)
     return _FIGURES[kind](r)
 
 
@@ -250,7 +260,96 @@ def _fresnel_figure(r: _Request) -> Figure:
 def _slice_figure(r: _Request) -> Figure:
     from viewer.plots.measured import slice_figure
 
-    return slice_figure(r.p, r.label, r.sub, r.overlay)
+    return slice_figure(r.p, r.label, r.sub, r.overlay, phi_d=r.phi_d, cos=r.cos)
+
+
+def _theta_data(r: _Request, p):
+    from viewer.plots import theta
+
+    if r.kind == "theta_h":
+        return theta.theta_h_curve(p, r.theta_d, cos=r.cos)
+    if r.kind == "theta_d":
+        return theta.theta_d_curve(p, r.theta_h, cos=r.cos)
+    return theta.theta_v_curve(p, r.theta_i, r.phi, r.phi_v, cos=r.cos)
+
+
+def _theta_figure(r: _Request) -> Figure:
+    """BRDF Explorer's theta_h, theta_d and theta_v plots (``viewer.plots.theta``)."""
+    d = _theta_data(r, r.p)
+    what = "f cos(theta_i)" if r.cos else "f"
+    curves = _rgb_curves(d["x"], r.shown(d["y"]), what, r.channel)
+    if r.overlay is not None:
+        d2 = _theta_data(r, r.overlay)
+        curves += _rgb_curves(d2["x"], r.shown(d2["y"]), f"{r.overlay.model} {what}", r.channel, "dashed")
+    from viewer.plots.theta import axis_top
+
+    top, peak = axis_top(d["x"], [c.y for c in curves])
+    held, x_label, x_range = {
+        "theta_h": (f"theta_d = {d.get('theta_d', 0):g} deg, phi_d = 90 deg, phi_h = 0 (h in the x-z plane)",
+                    "theta_h (deg)", (-90.0, 90.0)),
+        "theta_d": (f"theta_h = {d.get('theta_h', 0):g} deg, phi_d = 90 deg, phi_h = 0", "theta_d (deg)",
+                    (0.0, 90.0)),
+        "theta_v": (f"light at theta_i = {d.get('theta_i', 0):g} deg, phi_i = {d.get('phi_i', 0):g} deg; view "
+                    f"in the plane phi_v = {d.get('phi_v', 0):g} deg, theta_v > 0: mirror side",
+                    "theta_v (deg)", (-90.0, 90.0)),
+    }[r.kind]
+    unit = " [1/sr]"
+    notes = [held + ("; times cos theta_i of the light (N.L)" if r.cos else "")]
+    if peak is not None:
+        notes.append(f"toward grazing the curve runs off the axis, up to {peak:.4g} (the axis is set by "
+                     f"|{x_label.split()[0]}| <= 80 deg)")
+        for c in curves:  # drawn to just past the axis' top (the JSON's "f" keeps every value)
+            c.extra.setdefault("unclipped", c.y)
+            c.y = np.minimum(c.y, 2.0 * top)
+    info = {"channel": r.channel, "transform": r.transform, "cos": r.cos,
+            **{k: d[k] for k in ("theta_d", "theta_h", "theta_i", "phi_i", "phi_v", "phi_d") if k in d}}
+    return Figure(r.kind, r.p.model, r.p, f"{r.label}: f against {x_label.split()[0]}", x_label,
+                  r.y_format.format(what + unit), curves, [], x_range,
+                  (0.0, nice_ceil(top * 1.05)), r.sub, notes, info)
+
+
+_TERM_STYLE = {"D": ((31, 119, 180), "solid"), "G": ((44, 160, 44), "dashdot"),
+               "1/(4 cos cos)": ((148, 103, 189), "dotted"), "product": (NEUTRAL, "solid")}
+LOG_FLOOR = 1e-4  # the term view's log axis starts here (F, G and D's tails reach below it)
+
+
+def _terms_figure(r: _Request) -> Figure:
+    """The microfacet term view: D, F, G, 1 / (4 cos cos), their product and f (dashed)."""
+    from viewer.plots.theta import term_curves
+
+    d = term_curves(r.p, r.theta_i, r.phi)
+    x = d["x"]
+
+    def shown(y):
+        return np.log10(np.maximum(y, LOG_FLOOR)) if r.log else np.asarray(y)
+
+    ch = "lum" if r.channel == "rgb" else r.channel
+    curves = [Curve("D", x, shown(d["D"]), *_TERM_STYLE["D"])]
+    curves += _rgb_curves(x, shown(d["F"]), "F", ch, "dashed", color=(214, 120, 20))
+    curves.append(Curve("G", x, shown(d["G"]), *_TERM_STYLE["G"]))
+    curves.append(Curve("1/(4 cos cos)", x, shown(d["1/(4 cos cos)"]), *_TERM_STYLE["1/(4 cos cos)"]))
+    curves += _rgb_curves(x, shown(d["product"]), "D F G / (4 cos cos)", ch, color=NEUTRAL)
+    curves += _rgb_curves(x, shown(d["f"]), "f (the model)", ch, "dashed", color=(214, 39, 40))
+    if "other" in d:
+        curves += _rgb_curves(x, shown(d["other"]), "f - D F G / (4 cos cos)", ch, "dotted", color=(140, 86, 75))
+    # the 1 / (4 cos cos) factor grows without bound at grazing angles: the axis ends where the
+    # other terms do (its curve leaves the plot there)
+    ys = np.concatenate([c.y for c in curves])
+    rest = np.concatenate([c.y for c in curves if c.label != "1/(4 cos cos)"])
+    if r.log:
+        lo, hi = math.floor(float(ys.min())), math.ceil(float(rest.max()) + 1e-9)
+        y_range, y_label = (float(lo), float(max(hi, lo + 1))), "log10 of the term"
+    else:
+        y_range, y_label = (0.0, nice_ceil(max(float(rest.max()), 1.0) * 1.05)), "term value"
+    span = y_range[1] - y_range[0]
+    for c in curves:  # a curve far off the axes is drawn to just past its edge (dashes of a 1e15 line never end)
+        c.y = np.clip(c.y, y_range[0] - span, y_range[1] + span)
+    notes = [f"view wo at theta_v = {d['theta_v']:g} deg; light wi in the plane phi = {d['phi']:g} deg, "
+             f"theta_l > 0: mirror side; h = normalize(wi + wo)"]
+    return Figure("terms", r.p.model, r.p, f"{r.label}: microfacet terms D, F, G", "theta_l (deg) of the light",
+                  y_label, curves, [], (-90.0, 90.0), y_range, r.sub, notes,
+                  {"channel": ch, "theta_v": d["theta_v"], "phi": d["phi"], "log": bool(r.log),
+                   "log_floor": LOG_FLOOR if r.log else None})
 
 
 def _spectral_figure(r: _Request) -> Figure:
@@ -286,4 +385,5 @@ def _sampling_figure(r: _Request) -> Figure:
 
 _FIGURES = {"polar": _polar_figure, "lobe": _lobe_figure, "albedo": _albedo_figure, "fresnel": _fresnel_figure,
             "bouguer": _bouguer_figure, "spectral": _spectral_figure, "sampling": _sampling_figure,
-            "slice": _slice_figure}
+            "slice": _slice_figure, "theta_h": _theta_figure, "theta_d": _theta_figure, "theta_v": _theta_figure,
+            "terms": _terms_figure}

@@ -3,13 +3,16 @@ sampler has a density, and the checks of a plot kind and channel (one-line ``Vie
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from viewer import ViewerError
 from viewer.brdf import thin_film
 from viewer.brdf.sampling import LUMINANCE_REC709, luminance
 
-KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling", "slice")
+KINDS = ("polar", "lobe", "albedo", "fresnel", "bouguer", "spectral", "sampling", "slice", "theta_h", "theta_d",
+         "theta_v", "terms")
 CHANNELS = ("rgb", "lum", "r", "g", "b")
 PNG_KEY = "brdf-viewer:plot"
 LUMINANCE = LUMINANCE_REC709  # the weights of 'lum' (docs/conventions.md: linear Rec.709 RGB)
@@ -68,7 +71,17 @@ def applicable_kinds(p) -> tuple[str, ...]:
     if sampling_delta(p) is None:
         kinds.append("sampling")
         kinds.append("slice")  # the Rusinkiewicz slice (viewer/plots/measured.py)
+        kinds += ["theta_h", "theta_d", "theta_v"]  # BRDF Explorer's slices (viewer/plots/theta.py)
+    if has_terms(p):
+        kinds.append("terms")
     return tuple(kinds)
+
+
+def has_terms(p) -> bool:
+    """The material's model decomposes into D, F, G: its ``terms`` hook (a ``.brdf`` file's: the
+    file defines them) answers at one direction pair."""
+    s, c = math.sin(math.radians(30.0)), math.cos(math.radians(30.0))
+    return model_of(p).terms(p, np.array([[s, 0.0, c]]), np.array([[-s, 0.0, c]])) is not None
 
 
 def spectral_name(p) -> str | None:
@@ -143,7 +156,11 @@ def check_kind(p, kind: str) -> None:
     check_kind_name(kind)
     if kind in applicable_kinds(p):
         return
-    if kind in ("sampling", "slice"):
+    if kind == "terms":
+        raise ViewerError(f"terms plot: model {p.model!r} has no D, F, G decomposition; it applies to the "
+                          f"microfacet model and to .brdf files defining float D, F and G(vec3 L, vec3 V, vec3 N, "
+                          f"vec3 X, vec3 Y); the plots of {p.model!r}: {', '.join(applicable_kinds(p))}")
+    if kind in ("sampling", "slice", "theta_h", "theta_d", "theta_v"):
         raise ViewerError(f"{kind} plot: {sampling_delta(p)}; the plots of {p.model!r}: "
                           f"{', '.join(applicable_kinds(p))}")
     what = {"fresnel": "no index of refraction (no Fresnel term)",

@@ -16,34 +16,45 @@ from viewer.plots.kinds import LUMINANCE
 PHI_D = 0.5 * np.pi
 
 
-def slice_data(p, overlay=None, n_d: int = 90) -> dict:
-    """f (n_d, 90, 3) at (theta_h bin angles, theta_d rows, phi_d = 90 deg), the directions'
-    cos theta_i, and the overlay's residual if one is given."""
-    from viewer import brdf
+def slice_data(p, overlay=None, n_d: int = 90, phi_d: float = 90.0, cos: bool = False) -> dict:
+    """f (n_d, 90, 3) at (theta_h bin angles, theta_d rows, phi_d, default 90 deg), the
+    directions' cos theta_i, and the overlay's residual if one is given; with ``cos`` f is
+    multiplied by cos theta_i of the light (BRDF Explorer's N.L option)."""
+    import math
 
+    from viewer import ViewerError, brdf
+
+    phi_d = float(phi_d)
+    if not (math.isfinite(phi_d) and 0.0 <= phi_d <= 180.0):
+        raise ViewerError(f"--phi-d: {phi_d:g} is out of range; allowed: degrees in [0, 180]")
     th, _, _ = merl.grid_angles()
     td = (np.arange(n_d) + 0.5) / n_d * merl.HALF_PI
     TD, TH = np.meshgrid(td, th, indexing="ij")
-    wi, wo = merl.from_half_diff(TH.ravel(), TD.ravel(), np.full(TH.size, PHI_D))
+    wi, wo = merl.from_half_diff(TH.ravel(), TD.ravel(), np.full(TH.size, math.radians(phi_d)))
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     f = np.zeros((TH.size, 3))
     f[ok] = brdf.get(p.model).eval(p, wi[ok], wo[ok])
+    raw = f.reshape(n_d, merl.N_TH, 3)
+    if cos:
+        f = f * np.maximum(wi[:, 2], 0.0)[:, None]
     out = {"theta_h": np.degrees(th), "theta_d": np.degrees(td), "f": f.reshape(n_d, merl.N_TH, 3),
-           "valid": ok.reshape(n_d, merl.N_TH), "cos_i": np.maximum(wi[:, 2], 0).reshape(n_d, merl.N_TH)}
+           "valid": ok.reshape(n_d, merl.N_TH), "cos_i": np.maximum(wi[:, 2], 0).reshape(n_d, merl.N_TH),
+           "phi_d": phi_d, "cos": bool(cos)}
     if overlay is not None:
         g = np.zeros((TH.size, 3))
         g[ok] = brdf.get(overlay.model).eval(overlay, wi[ok], wo[ok])
         g = g.reshape(n_d, merl.N_TH, 3)
         out["overlay"] = g
-        out["residual"] = (g - out["f"]) * out["cos_i"][..., None]
+        out["residual"] = (g - raw) * out["cos_i"][..., None]
     return out
 
 
-def slice_figure(p, label: str, sub: str, overlay=None):
-    d = slice_data(p, overlay)
+def slice_figure(p, label: str, sub: str, overlay=None, phi_d: float = 90.0, cos: bool = False):
+    d = slice_data(p, overlay, phi_d=phi_d, cos=cos)
     lum = d["f"] @ LUMINANCE
-    notes = [f"phi_d = 90 deg; columns: the MERL theta_h bins (sqrt mapping), rows: theta_d; "
-             f"max f = {float(lum.max()):.4g} /sr (luminance); colour: RGB of log(1 + f) / log(1 + max f)"]
+    what = "f cos theta_i" if cos else "f"
+    notes = [f"phi_d = {d['phi_d']:g} deg; columns: the MERL theta_h bins (sqrt mapping), rows: theta_d; "
+             f"max {what} = {float(lum.max()):.4g} /sr (luminance); colour: RGB of log(1 + f) / log(1 + max f)"]
     info = {"theta_h": d["theta_h"], "theta_d": d["theta_d"], "f": d["f"], "valid": d["valid"]}
     if overlay is not None:
         r = d["residual"] @ LUMINANCE

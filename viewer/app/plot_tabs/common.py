@@ -189,3 +189,37 @@ def legend_layout(entries, width_of, avail: float, swatch: float, gap: float, sp
             x += w + spacing
     width = max((c.x + c.w for c in cells), default=0.0)
     return cells, (width, len(rows) * row_h)
+
+
+def legend_below(panel, entries) -> None:
+    """``entries`` [(text, colour)] as a legend under the plot of ``panel`` (a ``PlotsPanel``),
+    outside the axes: a grid of equal cells (``legend_layout``), as many columns as the widest
+    entry allows, an entry wider than the window ellipsized (its whole text in a tooltip); its
+    box and cells are recorded in ``panel.legend_boxes`` / ``legend_cells`` by tab, and an
+    entry whose text does not fit its cell in ``panel.clipped``."""
+    if not entries:
+        panel.legend_boxes.pop(panel.tab, None)
+        panel.legend_cells.pop(panel.tab, None)
+        return
+    k = panel.font_k()
+    style = imgui.get_style()
+    row_h = imgui.get_text_line_height_with_spacing()
+    swatch, gap = 22 * k, style.item_inner_spacing.x + 2 * k
+    cells, (w, h) = legend_layout(entries, lambda t: imgui.calc_text_size(t).x, panel.avail_x(), swatch, gap,
+                                  2 * style.item_spacing.x, row_h)
+    o = imgui.get_cursor_screen_pos()
+    dl = imgui.get_window_draw_list()
+    text_col = imgui.get_color_u32(imgui.Col_.text)
+    text_h = imgui.get_text_line_height()
+    for c in cells:
+        x, y = o.x + c.x, o.y + c.y
+        cy = y + row_h / 2
+        dl.add_line(imgui.ImVec2(x, cy), imgui.ImVec2(x + swatch, cy), imgui.get_color_u32(vec4(c.colour)), 3.0 * k)
+        dl.add_text(imgui.ImVec2(x + c.text_x, y + (row_h - text_h) / 2), text_col, c.text)
+        if c.text != c.full and imgui.is_mouse_hovering_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + c.w, y + c.h)):
+            imgui.set_tooltip(c.full)
+        if c.text_w > c.text_room + 0.5:
+            panel.clipped.append(c.text)
+    imgui.dummy(imgui.ImVec2(max(w, 1.0), h))
+    panel.legend_boxes[panel.tab] = (o.x, o.y, o.x + w, o.y + h)
+    panel.legend_cells[panel.tab] = cells
