@@ -360,11 +360,13 @@ class Hook:
 REQUIRED = {"eval": ("p", "wi", "wo"), "sample": ("p", "wo", "u"), "pdf": ("p", "wi", "wo")}
 
 HOOKS = {h.name: h for h in (
-    Hook("is_delta", "function", ("p",), "SPEC.delta",
-         "True when every lobe of p is a delta lobe (the numpy twin of the GLSL <name>_is_delta)"),
-    Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus discrete = is_delta(p)",
-         "(wi, weight, pdf, discrete): sample's result and, per sample, whether it drew a delta "
-         "lobe (no light sampling, no MIS for it); needed by models that mix delta and smooth lobes"),
+    Hook("lobes", "function", ("p",), "SPEC.delta (else glossy), reflection and, when SPEC.transmissive, "
+         "transmission (viewer.brdf.lobes.declared), with the kinds of a nested material",
+         "the Lobe flags of p (viewer/brdf/lobes.py): every lobe the sampler may draw, computed from p"),
+    Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus lobes.by_side: the model's "
+         "kind (delta when lobes(p) is delta, else its smooth kinds) on the side each sample went to",
+         "(wi, weight, pdf, lobe): sample's result and, per sample, the Lobe it drew (a delta one gets "
+         "no light sampling, no MIS); needed by models that mix delta and smooth lobes"),
     Hook("fresnel_source", "function", ("p",), "by parameter names: ior, or eta and k, else None",
          "how p's Fresnel reflectance is given, for the Fresnel plot: {'type': 'dielectric', 'ior', "
          "'field'} | {'type': 'conductor', 'eta', 'k', 'field'} | {'type': 'schlick', 'f0', 'field'} | None"),
