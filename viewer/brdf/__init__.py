@@ -69,8 +69,9 @@ class Model:
     def sample_lobe(self, p, wo, u):
         """``sample`` plus, per sample, the lobe it drew: (wi, weight, pdf, lobe), lobe a uint8
         array of ``Lobe`` values (a ``Lobe`` for one sample). The ``sample_lobe`` hook, else
-        ``lobes.by_side``: the model's kind (delta when it is delta, else its smooth kinds) on the
-        side each sample went to. A failed sample (pdf 0) carries the lobe it tried."""
+        the model's kind (delta when it is delta, else its smooth kinds) on the side each sample
+        went to (``lobes.by_side``; reflection for a model that does not transmit). A failed
+        sample (pdf 0) carries the lobe it tried."""
         p = self._p(p)
         fn = self.hook("sample_lobe")
         wo2, u2, single = _sample_args(wo, u)
@@ -79,7 +80,9 @@ class Model:
         else:
             wi, weight, pdf = self.module.sample(p, wo2, u2)
             own = self.lobes(p)
-            lobe = lobes.by_side(Lobe.DELTA if own.is_delta else own & lobes.SMOOTH, wi, wo2)
+            kind = Lobe.DELTA if own.is_delta else own & lobes.SMOOTH
+            lobe = (lobes.by_side(kind, wi, wo2) if own.transmits
+                    else np.full(len(pdf), kind | Lobe.REFLECTION, dtype=lobes.DTYPE))
         lobe = np.asarray(lobe, dtype=lobes.DTYPE)
         if single:
             return wi[0], weight[0], float(pdf[0]), Lobe(int(lobe[0]))

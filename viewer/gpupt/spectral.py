@@ -34,7 +34,7 @@ def category(m) -> str:
     p = m.params
     if not sp.uses_spectral(p):
         return "rgb"
-    if sp.is_dispersive(p) or m.kind == "mixed":
+    if sp.is_dispersive(p) or m.lobes.is_mixed:
         return "hero"
     return "table"
 
