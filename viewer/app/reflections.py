@@ -60,8 +60,7 @@ def delta_materials(scene) -> list[str]:
 
     out = []
     for name, p in scene.materials.items():
-        spec = brdf.get(p.model).spec
-        if spec.delta and not ("alpha" in p and float(p["alpha"]) > 0.0):
+        if brdf.get(p.model).lobes(p).is_delta:
             out.append(name)
     return out
 
