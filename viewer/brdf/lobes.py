@@ -95,6 +95,6 @@ def declared(delta: bool, transmissive: bool) -> Lobe:
 def glsl_defines() -> dict[str, str]:
     """{GLSL name: literal} of every flag (``LOBE_REFLECTION`` -> ``1u``; unsigned, as the GLSL
     lobes are ``uint``)."""
-    out = {f"LOBE_{f.name}": f"{int(f)}u" for f in Lobe}
+    out = {"LOBE_NONE": "0u"} | {f"LOBE_{f.name}": f"{int(f)}u" for f in Lobe}  # (iteration skips NONE)
     out.update(LOBE_SMOOTH=f"{int(SMOOTH)}u", LOBE_SIDES=f"{int(SIDES)}u", LOBE_KINDS=f"{int(KINDS)}u")
     return out
