@@ -558,9 +558,8 @@ class Integrator:
 
     def _sample_bsdf(self, g: "_Group", paths: PathState, rnd_g):
         """BSDF sampling at the hits of group ``g``: (world direction, weight f cos / pdf with
-        failed samples 0, pdf, discrete flag: the sample came from a delta lobe, hero-only
-        flags or None)."""
-        k = g.k
+        failed samples 0, pdf, discrete flag: the sample drew a delta lobe (``Lobe.DELTA``),
+        hero-only flags or None)."""
         wi_l, wgt, pdf_s, hero_only, lobe = self.sample_material(g, paths, rnd_g)
         pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
         bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
