@@ -99,7 +99,9 @@ class ModelSpec:
     doc: str = ""
     reciprocal: bool = True
     reciprocal_why: str = ""  # why not, when reciprocal is False
-    delta: bool = False  # has a delta lobe (perfect mirror / smooth glass)
+    # delta lobes (perfect mirror / smooth glass) and transmission, as declared: the default of
+    # the ``lobes`` hook (viewer/brdf/lobes.py), which a model computes from its parameters
+    delta: bool = False
     transmissive: bool = False
     # aliases: a key a user may write that sets several parameters, e.g. alpha -> alpha_x, alpha_y
     aliases: dict = field(default_factory=dict)
