@@ -37,7 +37,7 @@ void main() {
 }
 """
 
-# brdf_sample: wo and u in, (wi, pdf) and (weight, discrete) out through two float32 targets.
+# brdf_sample: wo and u in, (wi, pdf) and (weight, lobe) out through two float32 targets.
 _FRAG_SAMPLE = """#version 410 core
 #include "brdf/dispatch.glsl"
 uniform sampler2D u_wo;
@@ -51,9 +51,10 @@ void main() {
     vec3 u = texelFetch(u_u, px, 0).xyz;
     vec3 wi;
     float pdf;
-    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf);
+    uint lobe;
+    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf, lobe);
     out_wi_pdf = vec4(wi, pdf);
-    out_weight = vec4(w, brdf_sample_is_discrete(u_model, 0) ? 1.0 : 0.0);
+    out_weight = vec4(w, float(lobe));
 }
 """
 
@@ -144,7 +145,7 @@ class GLSLEvaluator(_FilmPrograms):
 
 class GLSLSampler(_FilmPrograms):
     """``brdf_sample`` on the GPU path: (wo, u) in as float textures, (wi, weight, pdf,
-    discrete) back from two float32 render targets, in chunks of at most CHUNK rows."""
+    lobe) back from two float32 render targets, in chunks of at most CHUNK rows."""
 
     WIDTH = 1024
     CHUNK = 1024 * 256
@@ -160,8 +161,8 @@ class GLSLSampler(_FilmPrograms):
         return t
 
     def sample(self, params, wo, u):
-        """(wi (N, 3), weight (N, 3), pdf (N,), discrete (N,) bool), float64 copies of the float32
-        results for float32-rounded wo (N, 3) and u (N, 3)."""
+        """(wi (N, 3), weight (N, 3), pdf (N,), lobe (N,) uint8: the Lobe each sample drew), float64
+        copies of the float32 results for float32-rounded wo (N, 3) and u (N, 3)."""
         wo = np.broadcast_to(np.asarray(wo, dtype=np.float64), (len(u), 3))
         out = [self._chunk(params, wo[s:s + self.CHUNK], u[s:s + self.CHUNK])
                for s in range(0, len(u), self.CHUNK)]
@@ -192,7 +193,7 @@ class GLSLSampler(_FilmPrograms):
             self.vao.render(vertices=3)
             ra = np.frombuffer(a.read(), dtype="f4").reshape(h * w, 4)[:n].astype(np.float64)
             rb = np.frombuffer(b.read(), dtype="f4").reshape(h * w, 4)[:n].astype(np.float64)
-            return ra[:, :3], rb[:, :3], ra[:, 3], rb[:, 3] > 0.5
+            return ra[:, :3], rb[:, :3], ra[:, 3], np.rint(rb[:, 3]).astype(np.uint8)
         finally:
             fbo.release()
             a.release()

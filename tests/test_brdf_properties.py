@@ -70,7 +70,7 @@ def test_weight_is_f_cos_over_pdf(name):
         if p.model == "layered" and is_delta(p.base):
             # a delta base makes the lobe mixed: its discrete samples weigh T a w_b against
             # (1 - P_coat) pdf_b while eval holds the coat alone (test_glsl_sampling checks them
-            # through brdf_sample_is_discrete), so such a set is left out here
+            # through the lobe each sample drew), so such a set is left out here
             continue
         ok = pdf > 0
         assert np.all(w[~ok] == 0), f"{name}: weight != 0 where pdf == 0 ({p.to_plain()})"

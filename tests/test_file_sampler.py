@@ -42,7 +42,8 @@ void main() {
     vec3 u = texelFetch(u_u, px, 0).xyz;
     vec3 wi;
     float pdf;
-    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf);
+    uint lobe;
+    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf, lobe);
     out_wi_pdf = vec4(wi, pdf);
     out_weight_pdf = vec4(w, brdf_pdf(u_model, 0, wi, wo));
 }

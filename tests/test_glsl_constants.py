@@ -30,6 +30,23 @@ def _shader_files() -> list[Path]:
     return files
 
 
+def test_lobe_flags_are_the_python_intflag():
+    """LOBE_<FLAG> of the header, as a program sees it, is viewer/brdf/lobes.py's Lobe bit for bit
+    (unsigned: the GLSL lobes are uint), the unions included; and the bits are pbrt-v4's
+    BxDFFlags (Reflection 1, Transmission 2, Diffuse 4, Glossy 8, Specular 16)."""
+    from viewer.brdf import lobes
+    from viewer.brdf.lobes import Lobe
+
+    text = preprocess(f"#version 410 core\n{INCLUDE}\n", "<test>").text
+    got = {m.group(1): int(m.group(2)) for m in re.finditer(r"^#define (LOBE_\w+) (\d+)u$", text, re.M)}
+    want = {f"LOBE_{f.name}": int(f) for f in Lobe} | {"LOBE_NONE": 0, "LOBE_SMOOTH": int(lobes.SMOOTH),
+                                                       "LOBE_SIDES": int(lobes.SIDES), "LOBE_KINDS": int(lobes.KINDS)}
+    assert got == want == constants.lobe_values()
+    assert (got["LOBE_REFLECTION"], got["LOBE_TRANSMISSION"], got["LOBE_DIFFUSE"], got["LOBE_GLOSSY"],
+            got["LOBE_DELTA"]) == (1, 2, 4, 8, 16)
+    assert not re.search(r"^#define LOBE_\w+ \d+$", text, re.M)  # every one unsigned
+
+
 def test_header_values_are_pythons():
     from viewer.brdf.albedo import TABLE_SIZE
     from viewer.gl import ibl, raytrace, renderer
@@ -61,13 +78,11 @@ def test_header_values_are_pythons():
     assert h["MAX_MATERIALS"] == engine.MAX_MATERIALS
     for prefix, table in (("TONEMAP", renderer.TONEMAPS), ("IBL_MODE", renderer.IBL_MODES),
                           ("VIEW_MODE", renderer.VIEW_MODES), ("STRATEGY", constants.STRATEGIES),
-                          ("PT_KIND", constants.PT_KINDS), ("ENV_MODE", constants.ENV_MODES),
+                          ("ENV_MODE", constants.ENV_MODES),
                           ("LIGHT", constants.LIGHT_TYPES), ("SSR_DEBUG", constants.SSR_DEBUG)):
         for k, v in table.items():
             assert h[constants.glsl_name(prefix, k)] == v, (prefix, k)
     assert h["VIEW_MODE_SSR_HIT"] - renderer.SSR_VIEW_BASE == h["SSR_DEBUG_HIT"]
-    assert (h["CHAIN_SHADED"], h["CHAIN_MIRROR"], h["CHAIN_GLASS"]) == (
-        raytrace.KIND_SHADED, raytrace.KIND_MIRROR, raytrace.KIND_GLASS)
     assert (h["RT_T_ALBEDO"], h["RT_T_INFO"], h["RT_T_K"], h["CHAIN_ROW_TEXELS"]) == (
         raytrace.T_ALBEDO, raytrace.T_INFO, raytrace.T_K, raytrace.ROW_TEXELS)
     from viewer.brdf import spectral_fresnel

@@ -21,6 +21,7 @@ import pytest
 
 from viewer import brdf
 from viewer.brdf.fresnel import fresnel_dielectric
+from viewer.brdf.lobes import Lobe, drew_delta
 from viewer.gl.brdf_glsl import glsl_u
 from viewer.brdf.sampling import split_uniform
 
@@ -173,8 +174,9 @@ def _check_twin(name, p, evaluator, sampler, rng, n=2000):
         # the float32-rounded split parts may differ from split_uniform's exact ones by an ulp:
         # numpy samples from the rounded parts (pick its u[:, 0] so that it splits into them)
         u2[:, 0] = (np.floor(u3[:, 2] * 65536) + u3[:, 0]) / 65536
-    wi_g, w_g, pdf_g, disc = sampler.sample(p, wo, u3)
-    wi_n, w_n, pdf_n = model.sample(p, wo, u2)
+    wi_g, w_g, pdf_g, lobe_g = sampler.sample(p, wo, u3)
+    wi_n, w_n, pdf_n, lobe_n = model.sample_lobe(p, wo, u2)
+    disc = drew_delta(lobe_g)
     where = f"{name} {p.to_plain()}"
     assert np.all(np.isfinite(wi_g)) and np.all(np.isfinite(w_g)) and np.all(np.isfinite(pdf_g)), where
     assert np.all(pdf_g >= 0) and np.all(w_g >= 0), where
@@ -193,6 +195,11 @@ def _check_twin(name, p, evaluator, sampler, rng, n=2000):
         same = both & ~wi_differs
         w_bad = same & np.any(np.abs(w_g - w_n) > 1e-3 * np.abs(w_n) + 1e-6, axis=1)
         assert w_bad.mean() <= MAX_MISMATCH, f"{where}: {w_bad.sum()} GLSL weights != numpy's for the same u"
+        # the lobe drawn (viewer/brdf/lobes.py): where the two drew the same direction, the same
+        # side and kind (a choice that flips within rounding draws another direction: not here)
+        l_bad = same & (lobe_g != lobe_n)
+        assert not l_bad.any(), (f"{where}: {l_bad.sum()} GLSL lobes != numpy's for the same u, e.g. "
+                                 f"{Lobe(int(lobe_g[l_bad][0]))!r} vs {Lobe(int(lobe_n[l_bad][0]))!r}")
     # -- weight = f |cos| / pdf with the GLSL eval and pdf; pdf = brdf_pdf(wi) unless discrete
     ok = pdf_g > 0
     wi, woo = _f32(wi_g[ok]), wo[ok]
@@ -316,7 +323,8 @@ def test_glsl_delta_lobes(sampler, name, params):
         wo[: n // 2, 2] *= -1
     wo = _f32(wo)
     u3 = np.minimum(_f32(rng.random((n, 3))), F32_ONE_MINUS)
-    wi, w, pdf, disc = sampler.sample(p, wo, u3)
+    wi, w, pdf, lobe = sampler.sample(p, wo, u3)
+    disc = drew_delta(lobe)
     if name == "mirror":
         np.testing.assert_allclose(wi, wo * [-1, -1, 1], atol=1e-7)
         assert np.all(pdf == 1.0) and np.all(disc)
@@ -336,6 +344,9 @@ def test_glsl_delta_lobes(sampler, name, params):
         t = ~refl & (pdf > 0)
         assert t.any() and np.allclose(w[t], (1.0 / eta[t] ** 2)[:, None], rtol=1e-6)
         assert np.all(disc)
+        ok = pdf > 0  # the side each drew: transmission exactly where wi went through
+        assert np.array_equal((lobe[ok] & Lobe.TRANSMISSION) != 0, ~refl[ok])
+        assert np.array_equal((lobe[ok] & Lobe.REFLECTION) != 0, refl[ok])
     else:
         coat = u3[:, 2] < fresnel_dielectric(wo[:, 2], p.coating.ior)
         ok = pdf > 0

@@ -95,10 +95,10 @@ def test_reference_uses_the_walk():
     from viewer.reference_common.setup import MaterialInfo
 
     p = _p({"ior": 1.5, "alpha": 0.1}).replace(reference="random_walk")
-    m = reference_model(MaterialInfo("m", "layered", p, "smooth", False, np.zeros(3)))
+    m = reference_model(MaterialInfo("m", "layered", p, brdf.get("layered").lobes(p), False, np.zeros(3)))
     assert isinstance(m, layered_walk.WalkModel)
     q = _p({"ior": 1.5, "alpha": 0.1})
-    assert reference_model(MaterialInfo("m", "layered", q, "smooth", False, np.zeros(3))) is LAYERED
+    assert reference_model(MaterialInfo("m", "layered", q, brdf.get("layered").lobes(q), False, np.zeros(3))) is LAYERED
     # the walk model: closed-form directions and pdf, weights from the walk's estimate
     wo = np.tile([0.6, 0.0, 0.8], (4000, 1))
     u = np.random.default_rng(1).random((4000, 2))

@@ -1,6 +1,7 @@
 """The model protocol (viewer.brdf.spec): required functions, optional hooks with defaults,
-registration checks that reject a misspelled hook, and the flags a model computes from its
-parameters (is_delta, has_delta, flags, sample_lobe) instead of callers reading its name."""
+registration checks that reject a misspelled hook, and the lobes a model computes from its
+parameters (``lobes``: viewer/brdf/lobes.py's Lobe; is_delta, has_delta; sample_lobe's lobe per
+sample) instead of callers reading its name, checked against what its sampler draws."""
 
 import types
 
@@ -9,6 +10,7 @@ import pytest
 
 from viewer import ViewerError, brdf
 from viewer.brdf import spec as spec_mod
+from viewer.brdf.lobes import SIDES, Lobe, drew_delta
 from viewer.brdf.spec import HOOKS, ModelSpec, Param, check_module
 
 
@@ -38,15 +40,15 @@ def _module(**extra):
 def test_a_correct_synthetic_module_registers_with_every_default():
     model = brdf.Model(_module())
     p = model.params()
-    assert not model.is_delta(p) and model.flags(p) == "smooth"
+    assert not model.is_delta(p) and model.lobes(p) == Lobe.REFLECTION | Lobe.GLOSSY  # the default
     assert model.hook("ibl_split") is None and model.hook("GLSL_RTOL", 1e-4) == 1e-4
     assert model.fresnel_source(p) is None
     wo = np.tile([0.0, 0.0, 1.0], (5, 1))
-    wi, w, pdf, disc = model.sample_lobe(p, wo, np.full((5, 2), 0.3))
-    assert disc.shape == (5,) and not disc.any() and np.all(pdf > 0)
+    wi, w, pdf, lobe = model.sample_lobe(p, wo, np.full((5, 2), 0.3))
+    assert lobe.shape == (5,) and np.all(lobe == Lobe.REFLECTION | Lobe.GLOSSY) and np.all(pdf > 0)
 
 
-@pytest.mark.parametrize("name", ["ibl_splt", "is_delt", "sample_lobes", "Glsl_rtol", "ALBEDO_BOUNDS",
+@pytest.mark.parametrize("name", ["ibl_splt", "lobe", "sample_lobes", "Glsl_rtol", "ALBEDO_BOUNDS",
                                   "fresnel_sauce", "evl", "has_flm", "is_dispersiv", "uses_spectrl",
                                   "is_measurd", "params_a", "reference_mode"])
 def test_a_misspelled_hook_is_an_error_naming_the_hook(name):
@@ -57,8 +59,8 @@ def test_a_misspelled_hook_is_an_error_naming_the_hook(name):
 
 
 def test_hooks_are_checked_for_their_kind_and_arguments():
-    with pytest.raises(ViewerError, match="is_delta"):
-        brdf.Model(_module(is_delta=lambda p, extra: True))
+    with pytest.raises(ViewerError, match="lobes"):
+        brdf.Model(_module(lobes=lambda p, extra: Lobe.DELTA))
     with pytest.raises(ViewerError, match="value"):
         brdf.Model(_module(GLSL_RTOL=lambda: 1e-3))
     m = _module()
@@ -82,15 +84,71 @@ def test_every_registered_module_passes_the_protocol_and_defines_only_known_hook
     assert len(HOOKS) >= 11 and all(h.doc and h.default for h in HOOKS.values())
 
 
-def test_is_delta_follows_the_parameters_as_the_glsl_twin():
+def test_lobes_follow_the_parameters():
+    R, T, D, G, X = Lobe.REFLECTION, Lobe.TRANSMISSION, Lobe.DIFFUSE, Lobe.GLOSSY, Lobe.DELTA
     d = brdf.get("dielectric")
+    assert d.lobes(d.params(alpha=0.0)) == R | T | X and d.lobes(d.params(alpha=0.2)) == R | T | G
     assert d.is_delta(d.params(alpha=0.0)) and not d.is_delta(d.params(alpha=0.2))
-    assert brdf.get("mirror").is_delta() and not brdf.get("microfacet").is_delta()
+    assert brdf.get("mirror").lobes() == R | X and brdf.get("lambert").lobes() == R | D
+    mf = brdf.get("microfacet")
+    assert mf.lobes(mf.params(kd=0.0)) == R | G and mf.lobes(mf.params(kd=0.3)) == R | G | D
     lay = brdf.get("layered")
     over_mirror = lay.params(base={"model": "mirror"})
     over_glass = lay.params(base={"model": "dielectric", "alpha": 0.3})
-    assert lay.flags(over_mirror) == "mixed" and lay.flags(over_glass) == "smooth"
-    assert d.flags(d.params()) == "delta"
+    assert lay.lobes(over_mirror) == R | G | X and lay.lobes(over_mirror).is_mixed
+    assert lay.has_delta(over_mirror) and not lay.is_delta(over_mirror)
+    assert lay.lobes(over_glass).is_smooth and not lay.lobes(over_glass).transmits  # the coat keeps it in
+    assert (R | X).is_delta and not (R | X | G).is_delta and (R | G).is_smooth and not Lobe.NONE.has_delta
+
+
+# every model at its defaults, and the sets whose lobes differ from them
+_LOBE_CASES = [(n, {}) for n in brdf.names() if n != "custom"] + [
+    ("dielectric", {"alpha": 0.3}), ("dielectric", {"alpha": 0.05, "ior": 2.4}),
+    ("microfacet", {"kd": 0.4}), ("layered", {"base": {"model": "mirror"}}),
+    ("layered", {"base": {"model": "dielectric"}}), ("layered", {"base": {"model": "dielectric", "alpha": 0.3}})]
+
+
+@pytest.mark.parametrize("name,values", _LOBE_CASES, ids=[f"{n}-{v}" for n, v in _LOBE_CASES])
+def test_each_models_sampler_draws_only_the_lobes_it_declares(name, values):
+    """What ``sample_lobe`` reports against what it drew: each sample's lobe is one side and
+    lies in ``lobes(p)``; it went below the surface (wi, wo on opposite sides) exactly when its
+    lobe says TRANSMISSION, which only a model with TRANSMISSION draws; a DELTA lobe is discrete
+    (the pdf of the pair is not the sample's: 0 for a delta model), any other has the density
+    ``pdf`` gives."""
+    model = brdf.get(name)
+    p = model.params(**values)
+    own = model.lobes(p)
+    rng = np.random.default_rng(11)
+    n = 1500
+    th = np.radians(rng.uniform(0.0, 85.0, n))
+    ph = rng.uniform(0.0, 2 * np.pi, n)
+    wo = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
+    if own.transmits:
+        wo[: n // 3, 2] *= -1  # from inside
+    wi, w, pdf, lobe = model.sample_lobe(p, wo, rng.random((n, 2)))
+    ok = pdf > 0
+    assert ok.mean() > 0.1, f"{name}: almost every sample fails"  # (a coat over glass: 12% succeed)
+    lo = lobe[ok]
+    assert np.all((lo & ~np.uint8(own)) == 0), f"{name}: a sample's lobe outside lobes(p) = {own!r}"
+    side = lo & np.uint8(SIDES)
+    assert np.all((side == Lobe.REFLECTION) | (side == Lobe.TRANSMISSION)), f"{name}: not one side"
+    below = wi[ok, 2] * wo[ok, 2] < 0
+    assert np.array_equal(below, side == Lobe.TRANSMISSION), f"{name}: the side is not where wi went"
+    if not own.transmits:
+        assert not below.any()
+    else:
+        assert below.any()  # the test reaches the transmission lobe
+    disc = drew_delta(lo)
+    cont = model.pdf(p, wi[ok], wo[ok])
+    if own.is_delta:
+        assert disc.all() and np.all(cont == 0), f"{name}: a delta model's sample with a density"
+    elif own.is_smooth:
+        assert not disc.any()
+        np.testing.assert_allclose(pdf[ok], cont, rtol=1e-6, atol=1e-12, err_msg=name)
+    else:  # mixed: both kinds drawn, the discrete ones off the density
+        assert disc.any() and (~disc).any(), f"{name}: a mixed model drew one kind only"
+        np.testing.assert_allclose(pdf[ok][~disc], cont[~disc], rtol=1e-6, atol=1e-12, err_msg=name)
+        assert np.all(np.abs(pdf[ok][disc] - cont[disc]) > 0)
 
 
 def test_sample_lobe_says_which_samples_drew_the_delta_base():
@@ -99,7 +157,8 @@ def test_sample_lobe_says_which_samples_drew_the_delta_base():
     rng = np.random.default_rng(3)
     n = 4000
     wo = np.tile([0.3, 0.0, np.sqrt(1 - 0.09)], (n, 1))
-    wi, w, pdf, disc = lay.sample_lobe(p, wo, rng.random((n, 2)))
+    wi, w, pdf, lobe = lay.sample_lobe(p, wo, rng.random((n, 2)))
+    disc = drew_delta(lobe) & (pdf > 0)
     ok = pdf > 0
     # the base's mirror direction is the discrete one (refraction in and out keeps it mirror)
     mirror = np.isclose(wi[:, 0], -wo[:, 0], atol=1e-9) & np.isclose(wi[:, 1], -wo[:, 1], atol=1e-9)
@@ -108,7 +167,9 @@ def test_sample_lobe_says_which_samples_drew_the_delta_base():
     # a discrete sample's pdf is the lobe's probability, not the continuous pdf at that pair
     cont = lay.pdf(p, wi[disc], wo[disc])
     assert np.all(np.abs(pdf[disc] - cont) > 0)
-    # the plain sample is sample_lobe without the flags
+    assert np.all(lobe[disc] == Lobe.REFLECTION | Lobe.DELTA)
+    assert np.all(lobe[ok & ~disc] == Lobe.REFLECTION | Lobe.GLOSSY)  # the coat, and the base's ...
+    # the plain sample is sample_lobe without the lobes
     wi2, w2, pdf2 = lay.sample(p, wo, np.random.default_rng(3).random((n, 2)))
     assert np.array_equal(wi2, wi) and np.array_equal(pdf2, pdf)
 

@@ -42,13 +42,13 @@ TRACED_STEPS = ("fresnel", "tir", "absorbing_glass", "complex_ior", "dispersion"
 @pytest.mark.parametrize("key", TRACED_STEPS)
 def test_glass_steps_trace_and_render_finite(renderer, key):
     from viewer.finite import nonfinite_message
-    from viewer.gl.raytrace import KIND_SHADED, chain_kind
+    from viewer.gl.raytrace import chain_traces
     from viewer.lecture import TOUR, tour_scene
 
     i = [s.key for s in TOUR].index(key)
     scene = tour_scene(i)
     assert scene.render.raytrace, key
-    assert any(chain_kind(scene.materials[o.material]) != KIND_SHADED for o in scene.objects)
+    assert any(chain_traces(scene.materials[o.material]) for o in scene.objects)
     assert "compare with the reference" not in TOUR[i].caption  # says what to see in the raster itself
     lin, _ = renderer.render_arrays(scene, width=48, height=32)
     msg = nonfinite_message(lin, f"lecture {key}")
@@ -148,15 +148,15 @@ def test_delta_materials_are_the_ones_the_chains_trace():
 
     from viewer import brdf
     from viewer.app.reflections import delta_materials
-    from viewer.gl.raytrace import KIND_SHADED, chain_kind
+    from viewer.gl.raytrace import chain_traces
 
     mats = _materials()
     scene = SimpleNamespace(materials=mats)
     assert delta_materials(scene) == ["mirror", "glass", "soap"]
-    assert delta_materials(scene) == [n for n, p in mats.items() if chain_kind(p) != KIND_SHADED]
+    assert delta_materials(scene) == [n for n, p in mats.items() if chain_traces(p)]
     coated = mats["coated_mirror"]
     assert brdf.get("layered").has_delta(coated) and not brdf.is_delta(coated)
-    assert brdf.get("layered").flags(coated) == "mixed"
+    assert brdf.get("layered").lobes(coated).is_mixed
 
 
 def test_plots_draw_a_delta_lobe_where_the_model_says_so():

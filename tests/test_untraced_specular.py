@@ -146,7 +146,7 @@ def test_no_glass_rests_flush_on_a_floor():
     A flush face (the dispersion prism stood on the floor) makes every ray that leaves the glass
     through it hit the glass's face or the floor at the same distance, so which one the tracer
     takes changes from pixel to pixel: a band of speckle along the base, in the reference too."""
-    from viewer.gl.raytrace import KIND_GLASS, chain_kind
+    from viewer.gl.raytrace import chain_glass
     from viewer.lecture import TOUR
     from viewer.scene import builtin_scene_names, load_scene
 
@@ -155,7 +155,7 @@ def test_no_glass_rests_flush_on_a_floor():
         sc = load_scene(name)
         floors = [o.world_positions()[:, 1].mean() for o in sc.objects if o.mesh == "plane"]
         for o in sc.objects:
-            if o.mesh == "plane" or chain_kind(sc.materials[o.material]) != KIND_GLASS:
+            if o.mesh == "plane" or not chain_glass(sc.materials[o.material]):
                 continue
             y = o.world_positions()[:, 1]
             for fy in floors:

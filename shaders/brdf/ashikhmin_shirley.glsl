@@ -90,7 +90,8 @@ vec3 ashikhmin_shirley_half_vector(vec2 u, float nu, float nv) {
     return vec3(sin_t * c, sin_t * s, cos_t);
 }
 
-vec3 ashikhmin_shirley_sample(ashikhmin_shirley_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 ashikhmin_shirley_sample(ashikhmin_shirley_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE | LOBE_GLOSSY;  // ashikhmin_shirley.lobes (viewer/brdf/ashikhmin_shirley.py)
     float ps = ashikhmin_shirley_specular_probability(p, wo);
     float u0 = u.x;
     int k = pick_lobe2(ps, u0);

@@ -47,7 +47,8 @@ float blinn_phong_pdf(blinn_phong_params p, vec3 wi, vec3 wo) {
     return blinn_phong_pdf_ps(p, wi, wo, blinn_phong_specular_probability(p));
 }
 
-vec3 blinn_phong_sample(blinn_phong_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 blinn_phong_sample(blinn_phong_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE | LOBE_GLOSSY;  // blinn_phong.lobes (viewer/brdf/blinn_phong.py)
     float ps = blinn_phong_specular_probability(p);
     float u0 = u.x;
     int k = pick_lobe2(ps, u0);

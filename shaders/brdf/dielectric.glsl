@@ -86,10 +86,9 @@ vec3 dielectric_eval(dielectric_params p, vec3 wi, vec3 wo) {
 // (pdf R, weight 1), else refract (pdf T = 1 - R, weight 1 / eta^2); eval and pdf are 0 as
 // functions. Rough: GGX visible normals for wo (u.x, u.y), then reflect when u.z < F(wo.m), else
 // refract (numpy draws that choice and u.x from one uniform: split_uniform(u[:, 0]) = (u.z, u.x)).
+// lobe: DELTA (smooth) or GLOSSY, on the branch's side (numpy: the side wi went to).
 // Transmitted directions have wi.z of the other sign than wo.z. All in float32.
 #include "common/sampling.glsl"
-
-bool dielectric_is_delta(dielectric_params p) { return p.alpha <= 0.0; }
 
 // A thin film's RGB reflectance averaged over the channels: the probability of the reflection
 // branch (the numpy twin chooses with the same mean; the weight carries R / mean R).
@@ -138,7 +137,7 @@ float dielectric_pdf(dielectric_params p, vec3 wi, vec3 wo) {
     return pm * abs(im) * etap * etap / hlen2 * fresnel_dielectric_transmittance(oc, eta);
 }
 
-vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
     float s = wo.z < 0.0 ? -1.0 : 1.0;
     float eta = s > 0.0 ? p.ior : 1.0 / p.ior;
     vec3 wo_u = vec3(wo.xy, s * wo.z);
@@ -154,6 +153,7 @@ vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out fl
         vec3 wt = dielectric_refract(wo_u, vec3(0.0, 0.0, 1.0), eta, ok_t);
         vec3 wi_u = choose_r ? vec3(-wo_u.x, -wo_u.y, wo_u.z) : wt;
         wi = vec3(wi_u.xy, s * wi_u.z);
+        lobe = LOBE_DELTA | (choose_r ? LOBE_REFLECTION : LOBE_TRANSMISSION);
         pdf = choose_r ? R : T;
         bool ok = co > 0.0 && (choose_r || ok_t) && pdf > 0.0;
         if (!ok) pdf = 0.0;
@@ -174,6 +174,7 @@ vec3 dielectric_sample(dielectric_params p, vec3 wo, vec3 u, out vec3 wi, out fl
     vec3 wi_u = choose_r ? reflect_about(wo_s, m) : normalize_safe(wt);
     bool ok = up && (choose_r ? wi_u.z > 0.0 : (ok_t && wi_u.z < 0.0));
     wi = vec3(wi_u.xy, s * wi_u.z);
+    lobe = LOBE_GLOSSY | (choose_r ? LOBE_REFLECTION : LOBE_TRANSMISSION);
     pdf = ok ? dielectric_pdf(p, wi, wo) : 0.0;
     return sample_weight(dielectric_eval(p, wi, wo), abs(wi.z), pdf);
 }

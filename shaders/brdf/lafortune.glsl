@@ -85,7 +85,8 @@ float lafortune_pdf(lafortune_params p, vec3 wi, vec3 wo) {
     return lafortune_pdf_probs(p, wi, wo, probs);
 }
 
-vec3 lafortune_sample(lafortune_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 lafortune_sample(lafortune_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE | LOBE_GLOSSY;  // lafortune.lobes (viewer/brdf/lafortune.py)
     float probs[5];
     lafortune_probabilities(p, wo, probs);
     // pick_lobe: the first interval whose cumulative sum exceeds u.x (the last one closes at 1)

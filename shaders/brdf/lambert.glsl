@@ -11,7 +11,8 @@ float lambert_pdf(lambert_params p, vec3 wi, vec3 wo) {
     return wo.z > 0.0 ? cosine_hemisphere_pdf(wi) : 0.0;
 }
 
-vec3 lambert_sample(lambert_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 lambert_sample(lambert_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE;  // lambert.lobes (viewer/brdf/lambert.py)
     wi = sample_cosine_hemisphere(u.xy);
     pdf = lambert_pdf(p, wi, wo);
     // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo

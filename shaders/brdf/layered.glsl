@@ -118,7 +118,8 @@ vec3 layered_eval(layered_params p, vec3 wi, vec3 wo) {
 // refracted out; pdf converted by the solid-angle Jacobian cos_i / (eta^2 cos_i'). The choice
 // is u.z (numpy: split_uniform(u[:, 0]) = (u.z, u.x)); the base gets (u.x, u.y, (u.z - P_c) /
 // (1 - P_c)). A delta base is a discrete lobe: pdf (1 - P_c) pdf_base, weight its throughput.
-// The base goes through the generated brdf_sample_base / brdf_pdf_base / brdf_is_delta_base.
+// The base goes through the generated brdf_sample_base / brdf_pdf_base; its lobe's kind is the
+// sample's (a DELTA base lobe is discrete), reflected.
 #include "common/sampling.glsl"
 
 // A direction inside the layer (z > 0) refracted out; ok = false under total internal reflection.
@@ -145,13 +146,14 @@ float layered_pdf(layered_params p, vec3 wi, vec3 wo) {
     return pc * coat + (1.0 - pc) * pb * jac;
 }
 
-vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
     bool up = wo.z > 0.0;
     vec3 wo_s = up ? wo : vec3(0.0, 0.0, 1.0);
     float eta = p.coating.ior;
     float a = p.coating.alpha;
     float pc = fresnel_dielectric(clamp(wo_s.z, 0.0, 1.0), eta);
     bool coat = u.z < pc;
+    lobe = LOBE_REFLECTION | LOBE_GLOSSY;
     if (coat) {
         wi = reflect_about(wo_s, sample_vndf_ggx(wo_s, u.xy, a, a));
         pdf = (up && wi.z > 0.0) ? layered_pdf(p, wi, wo) : 0.0;
@@ -161,12 +163,14 @@ vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pd
     float uz = clamp((u.z - pc) / max(1.0 - pc, 1.17549435e-38), 0.0, ONE_MINUS_EPS);
     vec3 wi_t;
     float pdf_b;
-    vec3 w_b = brdf_sample_base(p.base_model, p.base_offset, wo_t, vec3(u.xy, uz), wi_t, pdf_b);
+    uint lobe_b;
+    vec3 w_b = brdf_sample_base(p.base_model, p.base_offset, wo_t, vec3(u.xy, uz), wi_t, pdf_b, lobe_b);
+    lobe = (lobe_b & LOBE_KINDS) | LOBE_REFLECTION;
     bool ok_out;
     wi = layered_refract_out(wi_t, eta, ok_out);
     bool ok = up && wi.z > 0.0 && ok_out && pdf_b > 0.0 && wi_t.z > 0.0;
     if (!ok) { pdf = 0.0; return vec3(0.0); }
-    if (brdf_is_delta_base(p.base_model, p.base_offset)) {
+    if (lobe_has_delta(lobe_b)) {
         // discrete base lobe: throughput T_i T_o a w_b (the eta^2 into and out of the layer cancel)
         vec3 wi_in = layered_refract_in(wi, eta);
         vec3 Ti = vec3(fresnel_dielectric_transmittance(min(wi.z, 1.0), eta));
@@ -181,7 +185,6 @@ vec3 layered_sample(layered_params p, vec3 wo, vec3 u, out vec3 wi, out float pd
         vec3 absorb = exp(-p.coating.sigma_a * (p.coating.thickness * path));
         pdf = (1.0 - pc) * pdf_b;
         if (!(pdf > 0.0)) { pdf = 0.0; return vec3(0.0); }
-        brdf_sampled_delta = true;
         return Ti * To * absorb * w_b / max(1.0 - pc, 1.17549435e-38);
     }
     pdf = layered_pdf(p, wi, wo);

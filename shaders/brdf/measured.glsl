@@ -151,7 +151,8 @@ float measured_pdf(measured_params p, vec3 wi, vec3 wo) {
     return w * cosine_hemisphere_pdf(wi) + (1.0 - w) * ph;
 }
 
-vec3 measured_sample(measured_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 measured_sample(measured_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_GLOSSY;  // the lobes the measured model declares (viewer/brdf/measured.py)
     float w = measured_aux(90);
     bool use_cos = u.x < w;
     float uc = min(use_cos ? u.x / w : (u.x - w) / (1.0 - w), ONE_MINUS_EPS);

@@ -81,7 +81,8 @@ float microfacet_pdf(microfacet_params p, vec3 wi, vec3 wo) {
     return (1.0 - pd) * spec + pd * wi.z * INV_PI;
 }
 
-vec3 microfacet_sample(microfacet_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 microfacet_sample(microfacet_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_GLOSSY | (any(greaterThan(p.kd, vec3(0.0))) ? LOBE_DIFFUSE : LOBE_NONE);  // microfacet.lobes (viewer/brdf/microfacet.py)
     bool up = wo.z > 0.0;
     vec3 wo_s = up ? wo : vec3(0.0, 0.0, 1.0);
     float pd = microfacet_p_diffuse(p, wo_s);

@@ -26,11 +26,10 @@ vec3 mirror_eval(mirror_params p, vec3 wi, vec3 wo) {
 
 // ---- sampling twin of viewer/brdf/mirror.py: the delta lobe. eval and pdf are 0 as functions;
 // sample returns the mirror direction with pdf = 1 (the probability of the only lobe), weight F.
-bool mirror_is_delta(mirror_params p) { return true; }
-
 float mirror_pdf(mirror_params p, vec3 wi, vec3 wo) { return 0.0; }
 
-vec3 mirror_sample(mirror_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 mirror_sample(mirror_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DELTA;  // the lobes the mirror model declares (viewer/brdf/mirror.py)
     wi = vec3(-wo.x, -wo.y, wo.z);
     pdf = wo.z > 0.0 ? 1.0 : 0.0;
     return wo.z > 0.0 ? mirror_reflectance(p, wo.z) : vec3(0.0);

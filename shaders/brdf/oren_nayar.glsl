@@ -75,7 +75,8 @@ float oren_nayar_pdf(oren_nayar_params p, vec3 wi, vec3 wo) {
     return wo.z > 0.0 ? cosine_hemisphere_pdf(wi) : 0.0;
 }
 
-vec3 oren_nayar_sample(oren_nayar_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 oren_nayar_sample(oren_nayar_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE;  // oren_nayar.lobes (viewer/brdf/oren_nayar.py)
     wi = sample_cosine_hemisphere(u.xy);
     pdf = oren_nayar_pdf(p, wi, wo);
     // f cos / (cos / pi) = pi f

@@ -36,7 +36,8 @@ float phong_pdf(phong_params p, vec3 wi, vec3 wo) {
     return phong_pdf_ps(p, wi, wo, phong_specular_probability(p));
 }
 
-vec3 phong_sample(phong_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf) {
+vec3 phong_sample(phong_params p, vec3 wo, vec3 u, out vec3 wi, out float pdf, out uint lobe) {
+    lobe = LOBE_REFLECTION | LOBE_DIFFUSE | LOBE_GLOSSY;  // phong.lobes (viewer/brdf/phong.py)
     float ps = phong_specular_probability(p);
     float u0 = u.x;
     int k = pick_lobe2(ps, u0);

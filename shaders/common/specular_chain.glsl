@@ -24,7 +24,8 @@
 //
 // Material rows of u_mat_tex (viewer/gl/raytrace.py): texels 0..63 the u_mat block (at float
 // offset 256 row), 64.. the albedo table, 96.. its specular part, 128.. the transmitted part,
-// 160 = (model index, specular alpha, kind: CHAIN_SHADED / _MIRROR / _GLASS, transmits),
+// 160 = (model index, specular alpha, the material's lobes (LOBE_* flags: all delta = a mirror,
+// or smooth glass where they transmit; else shaded), transmits),
 // 161 = (sigma_a, 0), 162 = (eta per colour channel, mirror Fresnel MIRROR_FRESNEL_CONDUCTOR /
 // _DIELECTRIC / _NONE), 163 = (mirror k, mirror dielectric ior), 164 = a smooth glass's thin film
 // (film ior, thickness at the bottom, at the top or -1, 1 where there is a film), 165 = the world
@@ -35,6 +36,7 @@
 // angle) and transmits 1 - R, refracted by the glass's index (for ior 1 straight on), as the
 // dielectric's sampler and the reference do; each face of a shell does this.
 #include "generated/constants.glsl"
+#include "common/lobes.glsl"
 #include "common/albedo_table.glsl"
 #include "common/bvh.glsl"
 #include "common/fresnel.glsl"
@@ -132,7 +134,7 @@ struct RtRay { vec3 o; vec3 d; vec3 w; int depth; };
 // The delta scattering at p of a ray travelling along d (unit) into a surface with shading
 // normal n and winding (outward) normal ng_w: up to two rays leaving, weights w * (R, T).
 // channel: the colour channel whose index of refraction bends the rays (dispersion).
-int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, int depth, int channel,
+int rt_interface(int row, uint lobes, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, int depth, int channel,
                  out RtRay a, out RtRay b) {
     bool entering = dot(ng_w, d) < 0.0;
     vec3 ngf = entering ? ng_w : -ng_w;           // faces the incoming ray
@@ -155,7 +157,7 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
     b.o = p;
     b.d = d;
     vec4 eta4 = rt_texel(row, RT_T_ETA);
-    if (kind == CHAIN_MIRROR) {
+    if (!lobe_transmits(lobes)) {  // a mirror
         int fr = int(eta4.w + 0.5);
         vec4 k4 = rt_texel(row, RT_T_K);
         vec3 R = fr == MIRROR_FRESNEL_CONDUCTOR ? fresnel_conductor(cos_i, eta4.xyz, k4.xyz)
@@ -191,13 +193,16 @@ int rt_interface(int row, int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w, i
 
 float rt_max(vec3 v) { return max(v.x, max(v.y, v.z)); }
 
-// The radiance arriving along the rays the camera's hit (row, kind) scatters into.
-vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
+// Smooth glass: the chain refracts through it (delta lobes that transmit).
+bool rt_glass(uint lobes) { return lobe_is_delta(lobes) && lobe_transmits(lobes); }
+
+// The radiance arriving along the rays the camera's hit (row, lobes) scatters into.
+vec3 rt_chain(uint lobes, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
     RtRay stack[RT_STACK];
     RtRay a, b;
     int sp = 0;
     vec3 total = vec3(0.0);
-    int m = rt_interface(u_rt_row, kind, p, d, n, ng_w, vec3(1.0), 1, channel, a, b);
+    int m = rt_interface(u_rt_row, lobes, p, d, n, ng_w, vec3(1.0), 1, channel, a, b);
     // the lighter branch below the heavier, which is popped first
     bool swap = m == 2 && rt_max(b.w) < rt_max(a.w);
     if (m == 2) stack[sp++] = swap ? b : a;
@@ -224,21 +229,21 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
         hn = dot(hn, hn) > 0.0 ? normalize(hn) : ng;
         int row = bvh_material(h.tri);
         vec4 info = rt_texel(row, RT_T_INFO);
-        int hkind = int(info.z + 0.5);
+        uint hlobes = uint(info.z + 0.5);
         bool entering = dot(ng, r.d) < 0.0;
-        if (hkind == CHAIN_GLASS && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+        if (rt_glass(hlobes) && !entering) r.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
         // Out of depth at a mirror or glass: the environment along the ray stands for the light
         // a longer chain would find (black before: dotted rims where grazing chains bounced
         // inside glass, black spots in a glass shader ball's groove), where the reference's
         // max_depth adds nothing; a ray leaving glass there gets the exit's radiance factor
         // eta^2 (its Fresnel left out). A surface that is not a delta lobe is shaded as at any
         // depth below (it scatters no further ray).
-        if (r.depth + 1 > u_rt_depth && hkind != CHAIN_SHADED) {
-            float e = (hkind == CHAIN_GLASS && !entering) ? rt_texel(row, RT_T_ETA)[channel] : 1.0;
+        if (r.depth + 1 > u_rt_depth && lobe_is_delta(hlobes)) {
+            float e = (rt_glass(hlobes) && !entering) ? rt_texel(row, RT_T_ETA)[channel] : 1.0;
             total += r.w * (e * e) * rt_env(r.d);
             continue;
         }
-        if (hkind == CHAIN_SHADED) {
+        if (!lobe_is_delta(hlobes)) {
             // two-sided as in the forward pass: the side the ray arrives on
             vec3 ngs = entering ? ng : -ng;
             vec3 ns = dot(hn, ngs) < 0.0 ? -hn : hn;
@@ -247,7 +252,7 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
             total += r.w * rt_shade(row, hp, ns, ngs, tg, -r.d);
             continue;
         }
-        m = rt_interface(row, hkind, hp, r.d, hn, ng, r.w, r.depth + 1, channel, a, b);
+        m = rt_interface(row, hlobes, hp, r.d, hn, ng, r.w, r.depth + 1, channel, a, b);
         if (m == 2 && rt_max(b.w) > rt_max(a.w)) { RtRay s = a; a = b; b = s; }  // a: the heavier
         if (m == 2 && rt_max(b.w) > 0.0) {
             if (rt_max(b.w) >= RT_MIN_WEIGHT && sp < RT_STACK - 1) stack[sp++] = b;
@@ -262,8 +267,8 @@ vec3 rt_chain(int kind, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {
 // RT_DISPERSION (a glass of the scene has one index of refraction per colour channel) each
 // channel is traced on its own, from mirrors too (a dispersive glass may be seen in one).
 vec3 rt_specular(vec3 p, vec3 wo_w, vec3 n, vec3 ng_w) {
-    int kind = int(rt_texel(u_rt_row, RT_T_INFO).z + 0.5);
-    if (kind == CHAIN_SHADED) return vec3(0.0);
+    uint lobes = uint(rt_texel(u_rt_row, RT_T_INFO).z + 0.5);
+    if (!lobe_is_delta(lobes)) return vec3(0.0);
     // The chain starts where the camera's ray meets the triangles, found again in the BVH: under
     // MSAA a pixel that a triangle covers only partly is shaded at the pixel centre, with its
     // attributes extrapolated past the triangle's edge, off the surface (outside a convex mesh):
@@ -289,8 +294,8 @@ vec3 rt_specular(vec3 p, vec3 wo_w, vec3 n, vec3 ng_w) {
         }
     }
 #ifdef RT_DISPERSION
-    return vec3(rt_chain(kind, p, -wo_w, n, ng_w, 0).r, rt_chain(kind, p, -wo_w, n, ng_w, 1).g,
-                rt_chain(kind, p, -wo_w, n, ng_w, 2).b);
+    return vec3(rt_chain(lobes, p, -wo_w, n, ng_w, 0).r, rt_chain(lobes, p, -wo_w, n, ng_w, 1).g,
+                rt_chain(lobes, p, -wo_w, n, ng_w, 2).b);
 #endif
-    return rt_chain(kind, p, -wo_w, n, ng_w, 0);
+    return rt_chain(lobes, p, -wo_w, n, ng_w, 0);
 }

@@ -15,7 +15,7 @@
 // both the shading and the geometric cosine are positive (either sign on transmissive surfaces).
 // Rays start at p + EPS_REL (1 + max|p|) n_g on the side they leave.
 //
-// Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, HAS_MIXED, and the
+// Defines (compile-time variants): ENV_MODE (environment.glsl), N_LIGHTS, and the
 // estimator's options: STRATEGY (STRATEGY_MIS, default; _BSDF sampling only; _LIGHT sampling only),
 // BALANCE_HEURISTIC (MIS weights by the balance heuristic instead of the power one),
 // NO_ROULETTE (every path to max_depth). llvmpipe runs branches a uniform disables, so these
@@ -46,7 +46,7 @@ uniform vec3 u_cam_forward;
 uniform vec3 u_cam_right;
 uniform vec3 u_cam_up;
 uniform float u_tan_half_y;
-// per material: (model, float offset into the material texture, kind PT_KIND_SMOOTH / _DELTA / _MIXED,
+// per material: (model, float offset into the material texture, its lobes (LOBE_* flags, as a float),
 // transmissive), then (sigma_a, 0)
 uniform vec4 u_mat_info[2 * MAX_MATERIALS];
 #if N_LIGHTS > 0
@@ -145,7 +145,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         vec4 info = u_mat_info[2 * mi];
         int model = int(info.x + 0.5);
         int moff = int(info.y + 0.5);
-        int kind = int(info.z + 0.5);
+        uint lobes = uint(info.z + 0.5);
         bool trans = info.w > 0.5;
         if (dot(d, ng_raw) > 0.0 && !trans) n = -n;
         vec3 ng = dot(ng_raw, n) < 0.0 ? -ng_raw : ng_raw;
@@ -160,7 +160,7 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         float eps = EPS_REL * (1.0 + max3(abs(p)));
 
         // ---- next-event estimation (not for pure delta lobes)
-        if (kind != PT_KIND_DELTA) {
+        if (!lobe_is_delta(lobes)) {
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -216,13 +216,11 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
         // ---- BSDF sampling
         vec3 wi_l;
         float pdf_s;
-        vec3 wgt = clean(brdf_sample(model, moff, wo_l, r0.xyz, wi_l, pdf_s));
+        uint lobe;
+        vec3 wgt = clean(brdf_sample(model, moff, wo_l, r0.xyz, wi_l, pdf_s, lobe));
         pdf_s = clean(pdf_s);
         if (any(isnan(wi_l)) || any(isinf(wi_l))) { g_bad += 1.0; wi_l = vec3(0.0, 0.0, 1.0); wgt = vec3(0.0); }
-        bool disc = kind == PT_KIND_DELTA;
-#ifdef HAS_MIXED
-        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, moff);
-#endif
+        bool disc = lobe_has_delta(lobe);  // drawn discretely: no MIS, the full environment next
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);
         bool ok = (trans ? wi_l.z * gw > 0.0 : (wi_l.z > 0.0 && gw > 0.0)) && pdf_s > 0.0 && any_pos(wgt);

@@ -63,29 +63,32 @@ vec4 spec_eval(int cat, int model, int o_s, int o_3, vec4 hmask, vec3 wi, vec3 w
     return f4;
 }
 
-// the sampled weight at the four wavelengths (the CPU's _sample4); wi, pdf from the set o_s. A
+// the sampled weight at the four wavelengths (the CPU's _sample4); wi, pdf, lobe from the set o_s. A
 // table material weights lam_3 by its value at the same direction over the same pdf, or, a delta
 // lobe (a mirror: the same direction at every wavelength), by the set o_3 sampled with the same
 // numbers (one call site in a loop, as spec_eval).
-vec4 spec_sample(int cat, int kind, int model, int o_s, int o_3, vec4 hmask, vec3 wo, vec3 u,
-                 out vec3 wi, out float pdf) {
+vec4 spec_sample(int cat, uint lobes, int model, int o_s, int o_3, vec4 hmask, vec3 wo, vec3 u,
+                 out vec3 wi, out float pdf, out uint lobe) {
     vec4 w4 = vec4(0.0);
     wi = vec3(0.0, 0.0, 1.0);
     pdf = 0.0;
-    int n_sets = cat == 1 && kind == PT_KIND_DELTA ? 2 : 1;
+    lobe = LOBE_NONE;
+    int n_sets = cat == 1 && lobe_is_delta(lobes) ? 2 : 1;
     for (int s = 0; s < n_sets; ++s) {
         vec3 wi_s;
         float pdf_s;
-        vec3 w = clean(brdf_sample(model, s == 0 ? o_s : o_3, wo, u, wi_s, pdf_s));
+        uint lobe_s;
+        vec3 w = clean(brdf_sample(model, s == 0 ? o_s : o_3, wo, u, wi_s, pdf_s, lobe_s));
         if (s == 0) {
             wi = wi_s;
             pdf = pdf_s;
+            lobe = lobe_s;
             w4 = cat == 0 ? spec_up(w) : (cat == 2 ? w.x * hmask : vec4(w, 0.0));
         } else {
             w4.w = w.x;
         }
     }
-    if (cat == 1 && kind != PT_KIND_DELTA) {
+    if (cat == 1 && !lobe_is_delta(lobes)) {
         float f3 = clean(brdf_eval(model, o_3, wi, wo)).x;
         w4.w = pdf > 0.0 ? f3 * abs(wi.z) / pdf : 0.0;
     }
@@ -142,7 +145,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         vec4 info = u_mat_info[2 * mi];
         int model = int(info.x + 0.5);
         int moff = int(info.y + 0.5);
-        int kind = int(info.z + 0.5);
+        uint lobes = uint(info.z + 0.5);
         bool trans = info.w > 0.5;
         vec4 ms = u_mat_spec[mi];
         int cat = int(ms.x + 0.5);
@@ -164,7 +167,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         float eps = EPS_REL * (1.0 + max3(abs(p)));
 
         // ---- next-event estimation (not for pure delta lobes)
-        if (kind != PT_KIND_DELTA) {
+        if (!lobe_is_delta(lobes)) {
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -222,13 +225,11 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         // ---- BSDF sampling
         vec3 wi_l;
         float pdf_s;
-        vec4 wgt = spec_sample(cat, kind, model, o_s, o_3, hmask, wo_l, r0.xyz, wi_l, pdf_s);
+        uint lobe;
+        vec4 wgt = spec_sample(cat, lobes, model, o_s, o_3, hmask, wo_l, r0.xyz, wi_l, pdf_s, lobe);
         pdf_s = clean(pdf_s);
         if (any(isnan(wi_l)) || any(isinf(wi_l))) { g_bad += 1.0; wi_l = vec3(0.0, 0.0, 1.0); wgt = vec4(0.0); }
-        bool disc = kind == PT_KIND_DELTA;
-#ifdef HAS_MIXED
-        if (kind == PT_KIND_MIXED) disc = brdf_sample_is_discrete(model, o_s);
-#endif
+        bool disc = lobe_has_delta(lobe);  // drawn discretely (the set o_s's lobe)
         vec3 wi_w = wi_l.x * tx + wi_l.y * ty + wi_l.z * n;
         float gw = dot(ng, wi_w);
         bool ok = (trans ? wi_l.z * gw > 0.0 : (wi_l.z > 0.0 && gw > 0.0)) && pdf_s > 0.0 && any_pos4(wgt);

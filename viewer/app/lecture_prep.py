@@ -43,13 +43,13 @@ def view_size(window_size) -> tuple[int, int]:
 
 def traced_steps() -> list[int]:
     """The 0-based lecture steps whose scenes trace specular chains."""
-    from viewer.gl.raytrace import KIND_SHADED, chain_kind
+    from viewer.gl.raytrace import chain_traces
     from viewer.lecture import TOUR, tour_scene
 
     out = []
     for i in range(len(TOUR)):
         scene = tour_scene(i)
-        if scene.render.raytrace and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
+        if scene.render.raytrace and any(chain_traces(scene.materials[o.material])
                                          for o in scene.objects):
             out.append(i)
     return out

@@ -57,7 +57,7 @@ def delta_materials(scene) -> list[str]:
     """The scene's materials whose every lobe is a delta lobe (a mirror, smooth glass, a soap
     film; the model's ``is_delta``): what they reflect and refract shows only in traced reflections
     (or SSR, for what is on screen), since the traced chains follow exactly these
-    (``viewer.gl.raytrace.chain_kind``). A coat over a mirror is not one: its coat is a smooth lobe,
+    (``viewer.gl.raytrace.chain_traces``). A coat over a mirror is not one: its coat is a smooth lobe,
     the chains shade it as any rough surface, and ray tracing would not change what it shows."""
     from viewer import brdf
 

@@ -15,14 +15,15 @@ import pkgutil
 import numpy as np
 
 from viewer import ViewerError
-from viewer.brdf import thin_film, wavelengths
+from viewer.brdf import lobes, thin_film, wavelengths
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import HOOKS, ModelSpec, Param, Params, check_module, validate_params
 
 # The course's order (the lecture's order of families); discovered extras follow alphabetically.
 ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortune",
          "ashikhmin_shirley", "layered", "mirror", "dielectric")
 
-_HELPERS = {"spec", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist",
+_HELPERS = {"spec", "lobes", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist",
             "microfacet_walk", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film", "merl", "fit", "chi2",
             "wavelengths", "layered_walk"}
 _REGISTRY: dict[str, "Model"] | None = None
@@ -44,27 +45,27 @@ class Model:
             raise KeyError(f"{name!r} is not a hook of the model protocol")
         return getattr(self.module, name, default)
 
+    def lobes(self, p=None) -> Lobe:
+        """The lobes of ``p`` (``viewer.brdf.lobes.Lobe``): every lobe its sampler may draw. The
+        ``lobes`` hook, else the spec's ``delta`` / ``transmissive`` (``lobes.declared``) with the
+        kinds of any material ``p`` nests (a base under a coat, seen from above: reflection)."""
+        p = self._p(p)
+        fn = self.hook("lobes")
+        if fn is not None:
+            return Lobe(int(fn(p)))
+        out = lobes.declared(self.spec.delta, self.spec.transmissive)
+        for prm in self.spec.params:
+            if prm.kind == "material":
+                out |= (get(p[prm.name].model).lobes(p[prm.name]) & lobes.KINDS) | Lobe.REFLECTION
+        return out
+
     def is_delta(self, p=None) -> bool:
-        """Every lobe of ``p`` is a delta lobe (mirror, smooth glass): the numpy twin of the GLSL
-        ``<name>_is_delta``."""
-        fn = self.hook("is_delta")
-        return bool(fn(self._p(p))) if fn is not None else bool(self.spec.delta)
+        """Every lobe of ``p`` is a delta lobe (mirror, smooth glass): ``lobes(p).is_delta``."""
+        return self.lobes(p).is_delta
 
     def has_delta(self, p=None) -> bool:
-        """Some lobe of ``p`` is a delta lobe: ``p`` is delta, or nests a material (a layered base)
-        that has one."""
-        p = self._p(p)
-        if self.is_delta(p):
-            return True
-        return any(prm.kind == "material" and get(p[prm.name].model).has_delta(p[prm.name])
-                   for prm in self.spec.params)
-
-    def flags(self, p=None) -> str:
-        """"delta" (only delta lobes), "mixed" (delta and smooth lobes) or "smooth"."""
-        p = self._p(p)
-        if self.is_delta(p):
-            return "delta"
-        return "mixed" if self.has_delta(p) else "smooth"
+        """Some lobe of ``p`` is a delta lobe (``p`` is delta, or a coat over a delta base)."""
+        return self.lobes(p).has_delta
 
     # -- the material predicates (viewer.brdf.spec.HOOKS): the hook answers for p's own values,
     #    a nested material (a layered base) is asked through its own model
@@ -120,19 +121,26 @@ class Model:
         return wavelengths.params_at(p, lam3, nested=lambda v, lam: get(v.model).params_at(v, lam))
 
     def sample_lobe(self, p, wo, u):
-        """``sample`` plus, per sample, whether it drew a delta lobe: (wi, weight, pdf, discrete)."""
+        """``sample`` plus, per sample, the lobe it drew: (wi, weight, pdf, lobe), lobe a uint8
+        array of ``Lobe`` values (a ``Lobe`` for one sample). The ``sample_lobe`` hook, else
+        the model's kind (delta when it is delta, else its smooth kinds) on the side each sample
+        went to (``lobes.by_side``; reflection for a model that does not transmit). A failed
+        sample (pdf 0) carries the lobe it tried."""
         p = self._p(p)
         fn = self.hook("sample_lobe")
+        wo2, u2, single = _sample_args(wo, u)
         if fn is not None:
-            wo2, u2, single = _sample_args(wo, u)
-            wi, weight, pdf, disc = fn(p, wo2, u2)
-            disc = np.asarray(disc, dtype=bool)
-            if single:
-                return wi[0], weight[0], float(pdf[0]), bool(disc[0])
-            return wi, weight, pdf, disc
-        out = self.sample(p, wo, u)
-        d = self.is_delta(p)
-        return (*out, d) if np.ndim(out[2]) == 0 else (*out, np.full(np.shape(out[2]), d))
+            wi, weight, pdf, lobe = fn(p, wo2, u2)
+        else:
+            wi, weight, pdf = self.module.sample(p, wo2, u2)
+            own = self.lobes(p)
+            kind = Lobe.DELTA if own.is_delta else own & lobes.SMOOTH
+            lobe = (lobes.by_side(kind, wi, wo2) if own.transmits
+                    else np.full(len(pdf), kind | Lobe.REFLECTION, dtype=lobes.DTYPE))
+        lobe = np.asarray(lobe, dtype=lobes.DTYPE)
+        if single:
+            return wi[0], weight[0], float(pdf[0]), Lobe(int(lobe[0]))
+        return wi, weight, pdf, lobe
 
     def fresnel_source(self, p=None) -> dict | None:
         """How ``p``'s Fresnel reflectance is given (the hook, else by parameter names)."""
@@ -315,8 +323,10 @@ class CustomModel(Model):
     def params(self, **values) -> Params:
         return self.of(values).params(**values)
 
-    def is_delta(self, p=None) -> bool:
-        return False
+    def lobes(self, p=None) -> Lobe:
+        if p is None or not p.get("file"):  # no file yet: a file BRDF reflects, smoothly
+            return lobes.declared(False, False)
+        return self.of(p).lobes(p)
 
     def fresnel_source(self, p=None):
         return self.of(p).fresnel_source(p)

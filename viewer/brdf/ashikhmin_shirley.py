@@ -19,6 +19,7 @@ import numpy as np
 from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, luminance, normalize,
                                   phong_alpha, pick_lobe, pow_one_minus, ratio_capped, reflect,
                                   sample_weight)
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -143,3 +144,8 @@ def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone (rd = 0), and the GGX alpha of an
     isotropic lobe of the geometric-mean exponent sqrt(nu nv): alpha = sqrt(2 / (n + 2))."""
     return p.replace(rd=np.zeros(3)), phong_alpha(np.sqrt(p.nu * p.nv))
+
+
+def lobes(p):
+    """The coupled diffuse term and the anisotropic specular lobe."""
+    return Lobe.REFLECTION | Lobe.DIFFUSE | Lobe.GLOSSY

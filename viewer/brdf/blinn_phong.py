@@ -17,6 +17,7 @@ from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
                                   energy_conserving_kd_ks, INV_PI, normalize, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect, sample_weight,
                                   specular_probability)
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -105,3 +106,8 @@ def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone, and the GGX alpha of a lobe of similar
     width (``phong_alpha``)."""
     return p.replace(kd=np.zeros(3)), phong_alpha(p.shininess)
+
+
+def lobes(p):
+    """The diffuse kd lobe and the specular Blinn-Phong lobe."""
+    return Lobe.REFLECTION | Lobe.DIFFUSE | Lobe.GLOSSY

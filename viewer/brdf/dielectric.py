@@ -36,6 +36,7 @@ from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
 from viewer.brdf.sampling import F_MAX, normalize, ratio_capped, reflect, reflect_z, split_uniform
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -228,10 +229,11 @@ def sample(p, wo, u):
     return _sample_rough(p, wo, u)
 
 
-def is_delta(p):
-    """Smooth glass (alpha = 0) has only its two delta lobes; a rough interface none (the twin of
-    GLSL dielectric_is_delta)."""
-    return bool(_is_smooth(p))
+def lobes(p):
+    """Reflection and transmission: two delta lobes for smooth glass (alpha = 0), glossy ones for
+    a rough interface. A sample's side is where its wi went (the GLSL dielectric_sample's branch)."""
+    kind = Lobe.DELTA if _is_smooth(p) else Lobe.GLOSSY
+    return Lobe.REFLECTION | Lobe.TRANSMISSION | kind
 
 
 def is_dispersive(p):

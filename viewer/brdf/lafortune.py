@@ -19,6 +19,7 @@ import numpy as np
 
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance, \
     phong_alpha, pick_lobe, power_cosine, sample_weight, to_world
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 LOG_CLAMP = 80.0  # lobe values are clamped at exp(80) ~ 5.5e34 (float32 max ~ 3.4e38)
@@ -194,3 +195,8 @@ def ibl_split(p):
     lobe's exponent (``phong_alpha``)."""
     n = max(float(l["n"]) for l in p.lobes)
     return p.replace(kd=np.zeros(3)), phong_alpha(n)
+
+
+def lobes(p):
+    """The diffuse kd lobe and the generalized cosine lobes."""
+    return Lobe.REFLECTION | Lobe.DIFFUSE | Lobe.GLOSSY

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -34,3 +35,7 @@ def sample(p, wo, u):
     # f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo
     weight = np.where(ok[:, None], p.albedo[None, :], 0.0)
     return wi, weight, pdf_
+
+
+def lobes(p):
+    return Lobe.REFLECTION | Lobe.DIFFUSE

@@ -88,6 +88,8 @@ from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.fresnel import fresnel_dielectric
 from viewer.brdf.microfacet_dist import Distribution
 from viewer.brdf.sampling import normalize, ratio_capped, reflect, split_uniform
+from viewer.brdf import lobes as lobe_flags
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -501,9 +503,16 @@ def sample(p, wo, u):
     return sample_lobe(p, wo, u)[:3]
 
 
+def lobes(p):
+    """The coat's glossy reflection and the kinds of the base's lobes, seen from above (what
+    the base transmits stays in the layer): a delta base makes the layer delta and smooth."""
+    return Lobe.REFLECTION | Lobe.GLOSSY | (_base(p).lobes(p.base) & lobe_flags.KINDS)
+
+
 def sample_lobe(p, wo, u):
-    """``sample`` plus, per sample, whether it drew the base's delta lobe (a smooth mirror or glass
-    base under the coat: a discrete direction)."""
+    """``sample`` plus, per sample, the lobe it drew: the coat's (glossy reflection) or the
+    base's kind, reflected (a smooth mirror or glass base under the coat: a discrete
+    direction, DELTA)."""
     n = wo.shape[0]
     up = wo[:, 2] > 0
     wo_s = np.where(up[:, None], wo, np.array([0.0, 0.0, 1.0]))
@@ -512,6 +521,7 @@ def sample_lobe(p, wo, u):
     uu = np.stack([u0, u[:, 1]], axis=-1)
     coat = uc < pc
     wi = np.zeros((n, 3))
+    lobe = np.full(n, Lobe.REFLECTION | Lobe.GLOSSY, dtype=lobe_flags.DTYPE)
     if np.any(coat):
         m = _dist(p).sample_m(wo_s[coat], uu[coat])
         wi[coat] = reflect(wo_s[coat], m)
@@ -522,10 +532,11 @@ def sample_lobe(p, wo, u):
     if np.any(~coat):
         sel = ~coat
         wo_t = refract_in(wo_s[sel], eta)
-        wi_t, w_b, pdf_b = base.module.sample(p.base, wo_t, uu[sel])
+        wi_t, w_b, pdf_b, lobe_b = base.sample_lobe(p.base, wo_t, uu[sel])
         wi_out, ok_out = refract_out(wi_t, eta)
         wi[sel] = wi_out
         ok_b[sel] = ok_out & (pdf_b > 0) & (wi_t[:, 2] > 0)
+        lobe[sel] = (lobe_b & lobe_flags.DTYPE(lobe_flags.KINDS)) | lobe_flags.DTYPE(Lobe.REFLECTION)
         if _base_is_delta(p):
             # discrete base lobe: throughput T_i T_o a w_b (the eta^2 factors cancel for a delta
             # lobe: radiance times eta^2 going in, divided by eta^2 going out)
@@ -544,10 +555,7 @@ def sample_lobe(p, wo, u):
         sel, wd, pd = w_delta
         weight[sel] = wd
     weight = np.where(ok[:, None], weight, 0.0)
-    discrete = np.zeros(n, dtype=bool)
-    if w_delta is not None:
-        discrete[w_delta[0]] = True
-    return wi, weight, np.where(ok, pdf_, 0.0), discrete & ok
+    return wi, weight, np.where(ok, pdf_, 0.0), lobe
 
 
 def _base_is_delta(p):

@@ -264,6 +264,10 @@ class WalkModel:
         return wi, np.where(ok[:, None], w, 0.0), np.where(ok, pdf, 0.0)
 
     def sample_lobe(self, p, wo, u):
-        """``sample`` plus the discrete flags: the walk runs over a smooth base only (none)."""
+        """``sample`` plus the lobes drawn: the walk runs over a smooth base only, so each is the
+        layer's smooth reflection (``lobes``; never DELTA)."""
+        from viewer.brdf import lobes
+
         wi, w, pdf = self.sample(p, wo, u)
-        return wi, w, pdf, np.zeros(len(pdf), dtype=bool)
+        kind = self._m.lobes(p) & lobes.SMOOTH
+        return wi, w, pdf, np.full(len(pdf), lobes.Lobe.REFLECTION | kind, dtype=lobes.DTYPE)

@@ -38,6 +38,7 @@ from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, 
 from viewer.brdf import microfacet_walk, spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 _GOLD_ETA, _GOLD_K = METALS["gold"]
@@ -300,3 +301,9 @@ def ibl_split(p):
     geometric mean of alpha_x and alpha_y for anisotropic lobes; alpha_x for blinn_phong)."""
     a = p.alpha_x if p.distribution == "blinn_phong" else float(np.sqrt(p.alpha_x * p.alpha_y))
     return p.replace(kd=np.zeros(3)), float(a)
+
+
+def lobes(p):
+    """The specular lobe, and the diffuse base where kd > 0 (the GLSL microfacet_sample says the same)."""
+    diffuse = Lobe.DIFFUSE if np.any(np.asarray(p.kd, dtype=np.float64) > 0.0) else Lobe.NONE
+    return Lobe.REFLECTION | Lobe.GLOSSY | diffuse

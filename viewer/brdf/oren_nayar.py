@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -141,3 +142,7 @@ def sample(p, wo, u):
     # f cos / (cos / pi) = pi f
     weight = np.where(ok[:, None], np.pi * eval(p, wi, wo), 0.0)
     return wi, weight, pdf_
+
+
+def lobes(p):
+    return Lobe.REFLECTION | Lobe.DIFFUSE

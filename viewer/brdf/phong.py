@@ -16,6 +16,7 @@ from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
                                   energy_conserving_kd_ks, INV_PI, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect_z, sample_weight,
                                   specular_probability, to_world)
+from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
 SPEC = ModelSpec(
@@ -90,3 +91,8 @@ def ibl_split(p):
     """Image-based lighting proxy: the specular lobe alone, and the GGX alpha of a lobe of similar
     width (``phong_alpha``)."""
     return p.replace(kd=np.zeros(3)), phong_alpha(p.shininess)
+
+
+def lobes(p):
+    """The diffuse kd lobe and the specular Phong lobe."""
+    return Lobe.REFLECTION | Lobe.DIFFUSE | Lobe.GLOSSY

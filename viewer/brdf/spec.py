@@ -99,7 +99,9 @@ class ModelSpec:
     doc: str = ""
     reciprocal: bool = True
     reciprocal_why: str = ""  # why not, when reciprocal is False
-    delta: bool = False  # has a delta lobe (perfect mirror / smooth glass)
+    # delta lobes (perfect mirror / smooth glass) and transmission, as declared: the default of
+    # the ``lobes`` hook (viewer/brdf/lobes.py), which a model computes from its parameters
+    delta: bool = False
     transmissive: bool = False
     # aliases: a key a user may write that sets several parameters, e.g. alpha -> alpha_x, alpha_y
     aliases: dict = field(default_factory=dict)
@@ -367,8 +369,9 @@ class Hook:
 REQUIRED = {"eval": ("p", "wi", "wo"), "sample": ("p", "wo", "u"), "pdf": ("p", "wi", "wo")}
 
 HOOKS = {h.name: h for h in (
-    Hook("is_delta", "function", ("p",), "SPEC.delta",
-         "True when every lobe of p is a delta lobe (the numpy twin of the GLSL <name>_is_delta)"),
+    Hook("lobes", "function", ("p",), "SPEC.delta (else glossy), reflection and, when SPEC.transmissive, "
+         "transmission (viewer.brdf.lobes.declared), with the kinds of a nested material",
+         "the Lobe flags of p (viewer/brdf/lobes.py): every lobe the sampler may draw, computed from p"),
     Hook("has_film", "function", ("p",), "thin_film.active: its own thin_film or its coating's, thicker than 0 "
          "at the object's bottom or top",
          "True when p carries an active thin film (its own or a table parameter's, e.g. a layered coating's): "
@@ -391,9 +394,10 @@ HOOKS = {h.name: h for h in (
     Hook("params_at", "function", ("p", "lam3"), "by parameter names (viewer.brdf.wavelengths.params_at)",
          "p at three wavelengths lam3 (nm) as its three channels: spectral tables give eta, k = n, k "
          "there (ior = n(lam3[0])), a thin film evaluates there, RGB values are upsampled"),
-    Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus discrete = is_delta(p)",
-         "(wi, weight, pdf, discrete): sample's result and, per sample, whether it drew a delta "
-         "lobe (no light sampling, no MIS for it); needed by models that mix delta and smooth lobes"),
+    Hook("sample_lobe", "function", ("p", "wo", "u"), "sample(p, wo, u) plus lobes.by_side: the model's "
+         "kind (delta when lobes(p) is delta, else its smooth kinds) on the side each sample went to",
+         "(wi, weight, pdf, lobe): sample's result and, per sample, the Lobe it drew (a delta one gets "
+         "no light sampling, no MIS); needed by models that mix delta and smooth lobes"),
     Hook("fresnel_source", "function", ("p",), "by parameter names: ior, or eta and k, else None",
          "how p's Fresnel reflectance is given, for the Fresnel plot: {'type': 'dielectric', 'ior', "
          "'field'} | {'type': 'conductor', 'eta', 'k', 'field'} | {'type': 'schlick', 'f0', 'field'} | None"),

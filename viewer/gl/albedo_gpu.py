@@ -45,7 +45,8 @@ void main() {
     vec3 u = texelFetch(u_pattern, ivec2(px.x, j), 0).xyz;
     vec3 wi;
     float pdf;
-    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf);
+    uint lobe;
+    vec3 w = brdf_sample(u_model, 0, wo, u, wi, pdf, lobe);
     if (!(pdf > 0.0) || !all(lessThan(abs(w), vec3(3.0e38)))) w = vec3(0.0);
     bool below = wi.z < 0.0;
     out_refl = vec4(below ? vec3(0.0) : w, 1.0);

@@ -21,7 +21,8 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.gl.brdf_glsl import MAT_VEC4, choice_constants, models_used, pack_material
-from viewer.gl.constants import ALBEDO_TABLE, CHAIN_KINDS, CHAIN_ROW_TEXELS, CHAIN_TEXELS
+from viewer.brdf.lobes import Lobe
+from viewer.gl.constants import ALBEDO_TABLE, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 from viewer.gl.context import release_gl
 from viewer.gl import texture_units
 
@@ -29,7 +30,6 @@ ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/spe
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
                                                                                     "sigma", "eta", "k"))
 T_FILM, T_FILM_Y = CHAIN_TEXELS["film"], CHAIN_TEXELS["film_y"]
-KIND_SHADED, KIND_MIRROR, KIND_GLASS = CHAIN_KINDS["shaded"], CHAIN_KINDS["mirror"], CHAIN_KINDS["glass"]
 MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 needs about 12)
 # most pixels in one tile of the progressive trace: on llvmpipe (2 cores) a pixel of a glass
 # ball costs about 0.04 ms traced, so a tile of 16384 such pixels takes about 0.7 s; the budget
@@ -38,12 +38,23 @@ MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 need
 STRIP_PIXELS = 16384
 
 
-def chain_kind(params) -> int:
-    """How a traced chain treats a material: a mirror, smooth glass, or a surface it shades."""
-    model = brdf.get(params.model)
-    if model.is_delta(params):
-        return KIND_GLASS if model.spec.transmissive else KIND_MIRROR
-    return KIND_SHADED
+def chain_lobes(params) -> Lobe:
+    """A material's lobes (``Model.lobes``), which say how a traced chain treats it: one whose
+    lobes are all delta it traces through (reflecting off a mirror; reflecting and refracting
+    at smooth glass, the lobes with TRANSMISSION), any other it shades."""
+    return brdf.get(params.model).lobes(params)
+
+
+def chain_traces(params) -> bool:
+    """A traced chain goes on through the material (a mirror, smooth glass): all its lobes are
+    delta lobes."""
+    return chain_lobes(params).is_delta
+
+
+def chain_glass(params) -> bool:
+    """A material the chain refracts through (smooth glass): delta lobes that transmit."""
+    lobes = chain_lobes(params)
+    return lobes.is_delta and lobes.transmits
 
 
 def chain_eta(params) -> np.ndarray:
@@ -75,17 +86,18 @@ def material_rows(scene, albedo_tables) -> np.ndarray:
         out[r, T_ALBEDO:T_ALBEDO + ALBEDO_TABLE, :3] = refl
         out[r, T_SPEC:T_SPEC + ALBEDO_TABLE, :3] = spec
         out[r, T_TRANS:T_TRANS + ALBEDO_TABLE, :3] = trans
-        kind = chain_kind(params)
-        out[r, T_INFO] = (idx, alpha, kind, float(np.any(np.asarray(trans) > 0)))
-        if "sigma_a" in params and kind == KIND_GLASS:
+        lobes = chain_lobes(params)
+        glass = lobes.is_delta and lobes.transmits
+        out[r, T_INFO] = (idx, alpha, int(lobes), float(np.any(np.asarray(trans) > 0)))
+        if "sigma_a" in params and glass:
             out[r, T_SIGMA, :3] = np.asarray(params.sigma_a, np.float32)
-        if kind == KIND_MIRROR:   # a mirror's Fresnel: eta, k, its choice, its dielectric ior
+        if lobes.is_delta and not lobes.transmits:   # a mirror's Fresnel: eta, k, its choice, its dielectric ior
             out[r, T_ETA] = (*np.asarray(params.eta, float), choice_constants(params)[params.model]["fresnel"])
             out[r, T_K] = (*np.asarray(params.k, float), float(params.ior))
         else:
             out[r, T_ETA, :3] = chain_eta(params)
-        if kind == KIND_GLASS and brdf.has_film(params):
-            film = thin_film.film_of(params)
+        film = thin_film.film_of(params) if glass and brdf.has_film(params) else None
+        if film is not None:
             # a film on smooth glass (a soap bubble's shell): (film ior, thickness at the bottom, at
             # the top or -1 for a uniform film, 1); its height range: the objects' of this material
             # (exact when one object has it, as the built-in scenes' bubbles; the union otherwise)
@@ -105,7 +117,7 @@ def scene_models(scene) -> tuple[str, ...]:
 
 
 def dispersive(scene) -> bool:
-    return any(chain_kind(p) == KIND_GLASS and np.ptp(chain_eta(p)) > 0 for p in scene.materials.values())
+    return any(chain_glass(p) and np.ptp(chain_eta(p)) > 0 for p in scene.materials.values())
 
 
 class RayTrace:

@@ -27,7 +27,7 @@ from viewer.gl.material_tables import MaterialTables
 from viewer.gl.programs import FORWARD_STAGES, ProgramCache, Recipe, forward_variant
 from viewer.gl.shaders import ShaderError
 from viewer.gl.shaders import set_uniform as _set
-from viewer.gl.raytrace import KIND_SHADED, chain_kind, dispersive
+from viewer.gl.raytrace import chain_traces, dispersive
 from viewer.gl.raytrace import MAX_SEGMENTS as RT_MAX_SEGMENTS
 from viewer.gl.shadow import SHADOW_TILE, ShadowMaps, shadow_lights
 from viewer.gl.targets import HdrTarget, ThicknessPass
@@ -183,14 +183,14 @@ def frame_switches(scene, raytrace: bool | None = None) -> tuple[bool, bool, boo
     rt_on = bool(scene.render.raytrace) if raytrace is None else bool(raytrace)
     # as _raytrace_setup: the call's switch on, and the scene's (``traces``)
     traced = rt_on and bool(scene.render.raytrace) and any(
-        chain_kind(scene.materials[o.material]) != KIND_SHADED for o in scene.objects)
+        chain_traces(scene.materials[o.material]) for o in scene.objects)
     return bool(scene.render.ssr), env_on, constant, traced
 
 
 def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, traced_frame: bool) -> dict:
     """The ``Renderer.forward_program`` arguments of the program that draws ``params`` in a frame
     of ``scene`` with these switches (``traced_frame``: the frame traces specular chains)."""
-    traced = traced_frame and chain_kind(params) != KIND_SHADED
+    traced = traced_frame and chain_traces(params)
     shell = not traced and thin_shell(params)
     # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
     # environment light is importance sampled (fis, or brute force when asked for)
@@ -451,7 +451,7 @@ class Renderer:
     def traces(self, scene) -> bool:
         """Whether a render of ``scene`` traces specular chains (``raytrace`` on and a mirror or
         smooth glass in the scene)."""
-        return bool(scene.render.raytrace) and any(chain_kind(scene.materials[o.material]) != KIND_SHADED
+        return bool(scene.render.raytrace) and any(chain_traces(scene.materials[o.material])
                                                    for o in scene.objects)
 
     def traced_mask(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
@@ -482,7 +482,7 @@ class Renderer:
         ctx.disable(ctx.CULL_FACE)
         _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
         for obj in scene.objects:  # one draw each, in the forward pass's order (u_traced per object)
-            _set(prog, "u_traced", float(chain_kind(scene.materials[obj.material]) != KIND_SHADED))
+            _set(prog, "u_traced", float(chain_traces(scene.materials[obj.material])))
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([obj]))
         return np.frombuffer(tex.read(alignment=1), np.uint8).reshape(h, w) > 127
 
@@ -522,7 +522,7 @@ class Renderer:
         GPU table build binds its own targets)."""
         thickness = None
         absorbers = [o for o in scene.objects if _absorbing(scene.materials[o.material])
-                     and not (f.raytrace and chain_kind(scene.materials[o.material]) != KIND_SHADED)]
+                     and not (f.raytrace and chain_traces(scene.materials[o.material]))]
         if absorbers and f.env_on:
             thickness = self._thick.render(absorbers, f.cam, f.w, f.h, self._programs.get("thickness", _THICKNESS),
                                            self.draw_objects)
@@ -612,7 +612,7 @@ class Renderer:
         for group in group_by(list(enumerate(scene.objects)), group_key):
             obj = group[0][1]
             params = scene.materials[obj.material]
-            traced = rt is not None and chain_kind(params) != KIND_SHADED
+            traced = rt is not None and chain_traces(params)
             if not traced and thin_shell(params):
                 shells += [o for _, o in group]
                 continue

@@ -36,7 +36,7 @@ import numpy as np
 
 from viewer import ViewerError, brdf
 from viewer.gl.brdf_glsl import custom_virtual, generate_dispatch, models_used, pack_material, program_defines
-from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, PT_KINDS, STRATEGIES
+from viewer.gl.constants import ENV_MODES, MAX_MATERIALS, STRATEGIES
 from viewer.gl.context import release_gl
 from viewer.gl.scene_textures import SceneTextures, float_texture
 from viewer.gl.shaders import build_program, set_uniform
@@ -62,7 +62,7 @@ def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     offset = 0
     for i, m in enumerate(materials):
         model, arr = pack_material(m.params, offset, limit=None)
-        info[2 * i] = (model, offset, PT_KINDS[m.kind], 1.0 if m.transmissive else 0.0)
+        info[2 * i] = (model, offset, int(m.lobes), 1.0 if m.transmissive else 0.0)
         info[2 * i + 1, :3] = m.sigma_a
         data.append(arr)
         offset += arr.size
@@ -210,8 +210,6 @@ class GpuReferenceRenderer:
             models.extend(models_used(m.params))
         models = tuple(dict.fromkeys(models)) or ("lambert",)
         defines = {"ENV_MODE": str(self.env_mode), "N_LIGHTS": str(len(s.lights))}
-        if any(m.kind == "mixed" for m in s.materials):
-            defines["HAS_MIXED"] = "1"
         defines.update(program_defines([m.params for m in s.materials]))
         if s.strategy != "mis" and self.env_mode != ENV_MODES["black"]:   # strategies differ only in reaching the environment
             defines["STRATEGY"] = str(STRATEGIES[s.strategy])

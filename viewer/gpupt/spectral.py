@@ -35,7 +35,7 @@ def category(m) -> str:
     p = m.params
     if not brdf.uses_spectral(p):
         return "rgb"
-    if brdf.is_dispersive(p) or m.kind == "mixed":
+    if brdf.is_dispersive(p) or m.lobes.is_mixed:
         return "hero"
     return "table"
 

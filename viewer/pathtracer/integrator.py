@@ -18,9 +18,10 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   unbiased wherever its density covers the integrand (the map's is zero only where the map is
   black). A path whose last bounce was a delta lobe, and a camera ray, take the full
   environment radiance under every strategy (light sampling cannot find a delta direction).
-* Delta lobes (``spec.delta`` models, i.e. mirror and smooth dielectric; a layered model with a
-  delta base is "mixed": its ``sample_lobe`` says which samples drew the delta lobe) skip
-  next-event estimation and MIS.
+* Delta lobes (``Lobe.DELTA``, viewer/brdf/lobes.py: mirror and smooth dielectric; a layered
+  model with a delta base has delta and smooth lobes, and its sampler says which one each
+  sample drew, ``Model.sample_lobe``) skip next-event estimation and MIS; a material whose
+  lobes are all delta (``Lobe.is_delta``) has no next-event estimation at all.
 * ``max_depth`` = number of scattering events: at vertex ``depth <= max_depth`` the path does
   NEE and samples a direction; the ray of the last one is traced only to see whether it
   reaches the environment. ``max_depth = 1`` is direct light only.
@@ -52,6 +53,7 @@ import numpy as np
 
 from viewer import brdf
 from viewer.brdf import thin_film
+from viewer.brdf.lobes import Lobe, drew_delta
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
 from viewer.reference_common.setup import MaterialInfo, RenderSetup
@@ -358,9 +360,9 @@ class Integrator:
 
     def sample_material(self, g: "_Group", paths: PathState, rnd_g):
         """``g``'s sample: (local wi, weight in the paths' channels (cleaned), raw pdf,
-        hero-only flags or None, discrete: which samples drew a delta lobe)."""
-        wi_l, wgt, pdf_s, disc = g.model.sample_lobe(g.prm, g.wo, rnd_g)
-        return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None, disc
+        hero-only flags or None, the lobe each sample drew)."""
+        wi_l, wgt, pdf_s, lobe = g.model.sample_lobe(g.prm, g.wo, rnd_g)
+        return wi_l, self._clean(np.asarray(wgt, dtype=np.float64)), pdf_s, None, lobe
 
     def throughput(self, paths: PathState, act, T_before, new: _Bounce):
         """The paths' throughput after the bounce."""
@@ -450,22 +452,16 @@ class Integrator:
 
     def _sample_bsdf(self, g: "_Group", paths: PathState, rnd_g):
         """BSDF sampling at the hits of group ``g``: (world direction, weight f cos / pdf with
-        failed samples 0, pdf, discrete flag: the sample came from a delta lobe, hero-only
-        flags or None)."""
-        k = g.k
-        wi_l, wgt, pdf_s, hero_only, disc_s = self.sample_material(g, paths, rnd_g)
+        failed samples 0, pdf, discrete flag: the sample drew a delta lobe (``Lobe.DELTA``),
+        hero-only flags or None)."""
+        wi_l, wgt, pdf_s, hero_only, lobe = self.sample_material(g, paths, rnd_g)
         pdf_s = self._clean(np.asarray(pdf_s, dtype=np.float64))
         bad_dir = ~np.all(np.isfinite(wi_l), axis=1)
         if np.any(bad_dir):
             self.bad_values += int(np.count_nonzero(bad_dir))
             wi_l = np.where(bad_dir[:, None], np.array([0.0, 0.0, 1.0]), wi_l)
             wgt = np.where(bad_dir[:, None], 0.0, wgt)
-        if g.info.kind == "delta":
-            disc = np.ones(k, dtype=bool)
-        elif g.info.kind == "mixed":  # the model says which lobe it drew (sample_lobe)
-            disc = np.asarray(disc_s, dtype=bool)
-        else:
-            disc = np.zeros(k, dtype=bool)
+        disc = drew_delta(lobe)  # the model says which lobe it drew (sample_lobe)
         wi_w = g.world(wi_l)
         ok = g.valid(wi_l, wi_w) & (pdf_s > 0) & np.any(wgt > 0, axis=1)
         return wi_w, np.where(ok[:, None], wgt, 0.0), pdf_s, disc, hero_only
@@ -503,7 +499,7 @@ class Integrator:
                            hits.ng, mi=mi, act=act[sel])
                 if prm is not None:  # a film over height: the material at this hit's thickness
                     g.prm = prm
-                if g.info.kind != "delta" and (s.lights or env_sample is not None):
+                if not g.info.lobes.is_delta and (s.lights or env_sample is not None):
                     self._next_event(g, paths, T_before[sel], hits, lights, env_sample, shadows)
                 self._scatter(g, paths, hits, rnd[sel, 0:2], new)
         self._trace_shadows(paths.L, shadows)

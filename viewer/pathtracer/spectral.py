@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer import brdf, spectral
+from viewer.brdf import lobes
 from viewer.pathtracer.integrator import Integrator, PathState
 from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE, bin_wavelengths, bin_weights
 
@@ -65,7 +66,7 @@ class SpectralIntegrator(Integrator):
             p = m.params
             if not brdf.uses_spectral(p):
                 self.category.append("rgb")
-            elif (brdf.is_dispersive(p) or m.kind == "mixed"
+            elif (brdf.is_dispersive(p) or m.lobes.is_mixed
                   or (brdf.has_film(p) and brdf.model_of(p).spec.transmissive)):
                 # (a smooth or rough film-coated dielectric chooses reflection or refraction with
                 # its R: one wavelength per path)
@@ -175,16 +176,16 @@ class SpectralIntegrator(Integrator):
         return out
 
     def _sample4(self, mi, model, info, cat, lam, hero, wo, u, prm=None):
-        """(wi (k, 3), weight (k, 4), pdf (k,), hero_only (k,) bool, discrete (k,) bool: the
-        sample drew a delta lobe)."""
+        """(wi (k, 3), weight (k, 4), pdf (k,), hero_only (k,) bool, lobe (k,): the lobe
+        each sample drew, ``Lobe`` values)."""
         k = wo.shape[0]
         prm = info.params if prm is None else prm
         if cat == "rgb":
-            wi, wgt, pdf, disc = model.sample_lobe(prm, wo, u)
+            wi, wgt, pdf, lobe = model.sample_lobe(prm, wo, u)
             wgt = self._clean(np.asarray(wgt, dtype=np.float64))
-            return wi, self.up(wgt, lam), pdf, np.zeros(k, dtype=bool), disc
+            return wi, self.up(wgt, lam), pdf, np.zeros(k, dtype=bool), lobe
         wi = np.zeros((k, 3))
-        disc = np.zeros(k, dtype=bool)
+        lobe = np.zeros(k, dtype=lobes.DTYPE)
         wgt4 = np.zeros((k, 4))
         pdf = np.zeros(k)
         if cat == "table":
@@ -194,9 +195,9 @@ class SpectralIntegrator(Integrator):
                 l4 = lam[g[0]]
                 p012 = self._params(mi, ("c", int(cval)), l4[:3], prm)
                 p3 = self._params(mi, ("h", int(l4[3])), [l4[3]] * 3, prm)
-                w_g, wg, pg, disc[g] = model.sample_lobe(p012, wo[g], u[g])
+                w_g, wg, pg, lobe[g] = model.sample_lobe(p012, wo[g], u[g])
                 wg = self._clean(np.asarray(wg, dtype=np.float64))
-                if info.kind == "delta":   # the same direction at every wavelength (a mirror)
+                if info.lobes.is_delta:   # the same direction at every wavelength (a mirror)
                     _, w3, _ = model.sample(p3, wo[g], u[g])
                     w3 = self._clean(np.asarray(w3, dtype=np.float64))[:, 0]
                 else:
@@ -205,15 +206,15 @@ class SpectralIntegrator(Integrator):
                 wi[g], pdf[g] = w_g, pg
                 wgt4[g, :3] = wg
                 wgt4[g, 3] = w3
-            return wi, wgt4, pdf, np.zeros(k, dtype=bool), disc
+            return wi, wgt4, pdf, np.zeros(k, dtype=bool), lobe
         lh = lam[np.arange(k), hero]
         for b in np.unique(lh):
             g = np.flatnonzero(lh == b)
-            w_g, wg, pg, disc[g] = model.sample_lobe(self._params(mi, ("h", int(b)), [b] * 3, prm), wo[g], u[g])
+            w_g, wg, pg, lobe[g] = model.sample_lobe(self._params(mi, ("h", int(b)), [b] * 3, prm), wo[g], u[g])
             wg = self._clean(np.asarray(wg, dtype=np.float64))
             wi[g], pdf[g] = w_g, pg
             wgt4[g, hero[g]] = wg[:, 0]
-        return wi, wgt4, pdf, np.ones(k, dtype=bool), disc
+        return wi, wgt4, pdf, np.ones(k, dtype=bool), lobe
 
     def _pdf4(self, mi, model, cat, lam, hero, wi, wo, prm=None):
         """The pdf the group's sampling used (the same parameters as ``_sample4``)."""

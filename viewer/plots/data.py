@@ -86,11 +86,12 @@ def polar_lobe(p, theta_i: float = 45.0, phi: float = 0.0, n: int = 721) -> dict
     cos_o = np.maximum(np.cos(np.radians(theta_o)), 0.0)
     fcos = f * cos_o[:, None]
     delta, refracted = [], []
-    if model.is_delta(p):
+    lobes = model.lobes(p)
+    if lobes.is_delta and not np.any(f > 0):
         r = _delta_reflectance(p, math.cos(math.radians(theta_i)))
         delta.append({"theta_o": theta_i, "reflectance": r})
         src = fresnel_source(p)
-        if model.spec.transmissive and src is not None and src["type"] == "dielectric":
+        if lobes.transmits and src is not None and src["type"] == "dielectric":
             # Snell: sin theta_t = sin theta_i / n; the rest of the energy goes through
             s = math.sin(math.radians(theta_i)) / src["ior"]
             if s < 1.0:
@@ -121,7 +122,7 @@ def lobe_3d(p, theta_i: float = 45.0, phi_i: float = 0.0, n_theta: int = 46, n_p
     value = reduce_channel(fcos, channel)
     x, y, z = (value * wo[..., i] for i in range(3))
     delta = []
-    if model.is_delta(p):
+    if model.lobes(p).is_delta and not np.any(f > 0):
         delta.append({"wo": reflect_z(wi),
                       "reflectance": _delta_reflectance(p, float(wi[2]))})
     return {"theta": theta, "phi": phi, "wi": wi, "wo": wo, "f": f, "fcos": fcos, "value": value,

@@ -12,6 +12,7 @@ import numpy as np
 
 from viewer import brdf
 from viewer.brdf import twin_trust
+from viewer.brdf.lobes import Lobe
 from viewer.geometry.soup import SceneGeometry, build_geometry
 from viewer.reference_common.envmap import EnvironmentLight
 from viewer.reference_common.estimator import check_options
@@ -22,7 +23,7 @@ class MaterialInfo:
     name: str
     model_name: str
     params: object
-    kind: str                 # "smooth" (no delta lobe), "delta" (only delta lobes), "mixed"
+    lobes: Lobe               # every lobe the material may draw (model.lobes(params))
     transmissive: bool
     sigma_a: np.ndarray       # (3,) absorption inside (transmissive), else zeros
 
@@ -30,11 +31,11 @@ class MaterialInfo:
 def material_info(name: str, p) -> MaterialInfo:
     model = brdf.get(p.model)
     spec = model.spec
-    kind = model.flags(p)  # "delta", "mixed" (a layered coat over a delta base) or "smooth"
+    lobes = model.lobes(p)
     sigma = np.zeros(3)
     if spec.transmissive and "sigma_a" in p:
         sigma = np.asarray(p["sigma_a"], dtype=np.float64).reshape(3).copy()
-    return MaterialInfo(name, p.model, p, kind, bool(spec.transmissive), sigma)
+    return MaterialInfo(name, p.model, p, lobes, bool(spec.transmissive), sigma)
 
 
 @dataclass
