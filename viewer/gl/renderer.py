@@ -641,6 +641,8 @@ class Renderer:
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             self._material_uniforms(prog, obj, params, uniforms, thickness, env=f.env_on or f.ssr_on)
+            if args["ibl_sampled"]:
+                self._sampled_env_uniforms(prog, params, scene.render.ibl)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
         if shells:
             self._draw_shells(scene, f, uniforms, thickness, shells)
@@ -656,6 +658,20 @@ class Renderer:
         self._ms_uniforms(prog, params, bool(uniforms["u_ms_on"]))
         if env:
             self._environment_uniforms(prog, params, thickness)
+
+    def _sampled_env_uniforms(self, prog, params, ibl: str):
+        """A file material samples its environment light with its own sampler and, in split-sum
+        mode, lights its constant part with the irradiance (``viewer.gl.file_env``); the
+        built-in models sample with the proxy lobe."""
+        own = params.model == "custom"
+        _set(prog, "u_ibl_own", int(own))
+        if own and ibl == "split_sum":
+            from viewer.gl.file_env import constant_part
+
+            floor = constant_part(params)
+        else:
+            floor = np.zeros(3)
+        _set(prog, "u_env_floor", tuple(float(x) for x in floor))
 
     def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells):
         """Thin shells over the opaque frame, farthest first, each in two draws (its far faces,
