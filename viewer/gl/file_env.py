@@ -75,13 +75,9 @@ def sampled_file_env(scene) -> bool:
     """The scene has a file material whose environment light the raster samples and a still view
     averages over frames: the environment lights the scene in split-sum or fis mode (brute force
     averages frames of its own)."""
-    from viewer.gl.renderer import frame_switches
-
-    if scene.render.ibl not in ("split_sum", "fis"):
-        return False
-    if not any(p.model == "custom" for p in scene.materials.values()):
-        return False
-    return frame_switches(scene)[1]
+    if scene.render.ibl not in ("split_sum", "fis") or scene.environment.is_black:
+        return False  # (the frame's environment switch of ``renderer.frame_switches``)
+    return any(scene.materials[o.material].model == "custom" for o in scene.objects)
 
 
 def settle_frames(scene) -> int:
