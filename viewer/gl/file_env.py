@@ -46,11 +46,8 @@ def _grid():
     return np.repeat(wi[None], len(wo), 0).reshape(-1, 3), np.repeat(wo, len(wi), 0)
 
 
-def constant_part(params) -> np.ndarray:
-    """(3,) the largest constant under a file material's f: per channel its smallest finite value
-    over ``_grid`` (the raster draws negative f as 0, so never below 0). Cached by the file and
-    the parameter values. A grid misses the true minimum by a little at most; the raster's sum
-    stays the same integral for any c (it samples f - c), so that costs a little noise, no bias."""
+def _floor(params) -> tuple[np.ndarray, bool]:
+    """(c, f is c at every pair of the grid), cached by the file and the parameter values."""
     from viewer import brdf
 
     model = brdf.get("custom").of(params)
@@ -62,22 +59,42 @@ def constant_part(params) -> np.ndarray:
     f = np.asarray(model.eval(params, wi, wo), float)
     if f.ndim == 1:
         f = np.repeat(f[:, None], 3, axis=1)
-    f = np.where(np.isfinite(f), np.maximum(f, 0.0), np.inf)
+    finite = np.isfinite(f)
+    f = np.maximum(np.where(finite, f, np.inf), 0.0)
     c = f.min(axis=0)
     c = np.where(np.isfinite(c), c, 0.0)
+    flat = bool(finite.all() and np.all(f == c[None, :]))
     if len(_FLOORS) > 256:
         _FLOORS.clear()
-    _FLOORS[key] = c
-    return c
+    _FLOORS[key] = (c, flat)
+    return c, flat
+
+
+def constant_part(params) -> np.ndarray:
+    """(3,) the largest constant under a file material's f: per channel its smallest finite value
+    over ``_grid`` (the raster draws negative f as 0, so never below 0). A grid misses the true
+    minimum by a little at most; the raster's sum stays the same integral for any c (it samples
+    f - c), so that costs a little noise, no bias."""
+    return _floor(params)[0]
+
+
+def is_constant(params) -> bool:
+    """The file's f is its constant part at every pair of the grid (a Lambertian file): what is
+    left to sample is 0 there, and a view of it needs no averaging (the raster still samples
+    f - c, so a file that differs between the grid's pairs is drawn without bias, with noise)."""
+    return _floor(params)[1]
 
 
 def sampled_file_env(scene) -> bool:
     """The scene has a file material whose environment light the raster samples and a still view
     averages over frames: the environment lights the scene in split-sum or fis mode (brute force
-    averages frames of its own)."""
+    averages frames of its own), unless in split-sum mode every such file is a constant
+    (``is_constant``)."""
     if scene.render.ibl not in ("split_sum", "fis") or scene.environment.is_black:
         return False  # (the frame's environment switch of ``renderer.frame_switches``)
-    return any(scene.materials[o.material].model == "custom" for o in scene.objects)
+    files = {o.material for o in scene.objects if scene.materials[o.material].model == "custom"}
+    # split sum: a Lambertian file's whole light is its constant part, nothing is left to average
+    return any(scene.render.ibl != "split_sum" or not is_constant(scene.materials[m]) for m in files)
 
 
 def settle_frames(scene) -> int:
