@@ -91,6 +91,7 @@ const bool SSR_ON = false;
 const int IBL_SAMPLES = 16;
 uniform int u_ibl_own;
 uniform vec3 u_env_floor;
+uniform int u_fis_samples;  // the samples a pixel's estimate averages (16 x the frames averaged): the filter's N
 vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bool filtered, int frame) {
     float ls = luminance(rho_s), lt = luminance(rho);
     float p_spec = lt > 0.0 ? clamp(ls / lt, 0.1, 0.9) : 0.5;
@@ -110,7 +111,7 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
             vec3 w = brdf_sample(u_model_id, 0, wo, vec3(u0, u1, fract(float(k) * 0.7548776662466927 + cz)), wi, pdf_own);
             if (!(pdf_own > 0.0) || wi.z <= 0.0) continue;
             vec3 dir_own = from_local * wi;
-            vec3 L_own = filtered ? env_radiance_lod(dir_own, env_fis_lod(pdf_own, IBL_SAMPLES)) : env_radiance(dir_own);
+            vec3 L_own = filtered ? env_radiance_lod(dir_own, env_fis_lod(pdf_own, max(u_fis_samples, IBL_SAMPLES))) : env_radiance(dir_own);
             sum += (w - u_env_floor * (wi.z / pdf_own)) * L_own;  // (f - c) cos / pdf
             continue;
         }

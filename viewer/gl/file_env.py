@@ -29,6 +29,11 @@ import numpy as np
 #: shipped Cook-Torrance under a constant environment: 5.6% one frame, 0.7% settled)
 SETTLE_FRAMES = 64
 
+#: samples per pixel and frame (forward.frag's IBL_SAMPLES); the filtered lookups of a file
+#: material are chosen for all the samples its settled image averages, FRAME_SAMPLES x the frames
+#: (Colbert and Krivanek's N: a sample stands for 1 / (N pdf) steradians)
+FRAME_SAMPLES = 16
+
 _FLOORS: dict = {}
 
 
@@ -50,13 +55,20 @@ def _floor(params) -> tuple[np.ndarray, bool]:
     """(c, f is c at every pair of the grid), cached by the file and the parameter values."""
     from viewer import brdf
 
-    model = brdf.get("custom").of(params)
-    key = (str(model.bfile.path), json.dumps(params.to_plain(), sort_keys=True), id(model))
-    hit = _FLOORS.get(key)
-    if hit is not None:
-        return hit
-    wi, wo = _grid()
-    f = np.asarray(model.eval(params, wi, wo), float)
+    from viewer import ViewerError
+
+    try:
+        model = brdf.get("custom").of(params)
+        key = (str(model.bfile.path), json.dumps(params.to_plain(), sort_keys=True), id(model))
+        hit = _FLOORS.get(key)
+        if hit is not None:
+            return hit
+        wi, wo = _grid()
+        f = np.asarray(model.eval(params, wi, wo), float)
+    except ViewerError:  # (a ShaderError is one)
+        # a file saved with a mistake (the last good program keeps drawing, the error is shown
+        # where it compiles): no constant part taken out, averaged; not cached (it may be fixed)
+        return np.zeros(3), False
     if f.ndim == 1:
         f = np.repeat(f[:, None], 3, axis=1)
     finite = np.isfinite(f)

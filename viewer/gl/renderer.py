@@ -642,7 +642,7 @@ class Renderer:
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             self._material_uniforms(prog, obj, params, uniforms, thickness, env=f.env_on or f.ssr_on)
             if args["ibl_sampled"]:
-                self._sampled_env_uniforms(prog, params, scene.render.ibl)
+                self._sampled_env_uniforms(prog, params, scene)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
         if shells:
             self._draw_shells(scene, f, uniforms, thickness, shells)
@@ -659,19 +659,18 @@ class Renderer:
         if env:
             self._environment_uniforms(prog, params, thickness)
 
-    def _sampled_env_uniforms(self, prog, params, ibl: str):
-        """A file material samples its environment light with its own sampler and, in split-sum
-        mode, lights its constant part with the irradiance (``viewer.gl.file_env``); the
-        built-in models sample with the proxy lobe."""
+    def _sampled_env_uniforms(self, prog, params, scene):
+        """A file material samples its environment light with its own sampler, its lookups
+        filtered for all the samples of the frames a still view averages, and in split-sum mode
+        lights its constant part with the irradiance (``viewer.gl.file_env``); the built-in
+        models sample with the proxy lobe."""
+        from viewer.gl.file_env import FRAME_SAMPLES, constant_part, settle_frames
+
         own = params.model == "custom"
         _set(prog, "u_ibl_own", int(own))
-        if own and ibl == "split_sum":
-            from viewer.gl.file_env import constant_part
-
-            floor = constant_part(params)
-        else:
-            floor = np.zeros(3)
+        floor = constant_part(params) if own and scene.render.ibl == "split_sum" else np.zeros(3)
         _set(prog, "u_env_floor", tuple(float(x) for x in floor))
+        _set(prog, "u_fis_samples", FRAME_SAMPLES * (settle_frames(scene) if own else 1))
 
     def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells):
         """Thin shells over the opaque frame, farthest first, each in two draws (its far faces,
