@@ -82,13 +82,23 @@ const bool SSR_ON = false;
 // any model (the cosine part covers the hemisphere). filtered: the environment is looked up at
 // the Colbert-Krivanek 2007 mip level of each sample's pdf (FIS); otherwise at full resolution
 // (brute force, averaged over frames by the renderer).
+// A .brdf file material (u_ibl_own) draws its directions from its own sampler instead
+// (brdf_sample, with the exact pdf of what it draws), and in split-sum mode its constant part
+// u_env_floor (the largest constant under its f) is taken out of the sampled integrand and lit by
+// the irradiance, as a built-in diffuse lobe is (a control variate: c E(n) + the integral of
+// (f - c) cos L; any c keeps it unbiased, and a Lambertian file then has nothing left to sample).
+// Each frame's pixel gets new sample sets (frame); the window and render_arrays average frames.
 const int IBL_SAMPLES = 16;
+uniform int u_ibl_own;
+uniform vec3 u_env_floor;
+uniform int u_fis_samples;  // the samples a pixel's estimate averages (16 x the frames averaged): the filter's N
 vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bool filtered, int frame) {
     float ls = luminance(rho_s), lt = luminance(rho);
     float p_spec = lt > 0.0 ? clamp(ls / lt, 0.1, 0.9) : 0.5;
     float a = max(alpha, 0.02);
     float a2 = a * a;
     vec2 cp = vec2(pixel_hash(uvec2(gl_FragCoord.xy), uint(frame)), pixel_hash(uvec2(gl_FragCoord.yx) + 7u, uint(frame)));
+    float cz = pixel_hash(uvec2(gl_FragCoord.xy) + 13u, uint(frame) + 101u);
     vec3 sum = vec3(0.0);
     for (int k = 0; k < IBL_SAMPLES; ++k) {
         float u0 = (float(k) + 0.5) / float(IBL_SAMPLES);
@@ -96,6 +106,15 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
         u0 = fract(u0 + cp.x);
         u1 = fract(u1 + cp.y);
         vec3 wi;
+        if (u_ibl_own != 0) {
+            float pdf_own;
+            vec3 w = brdf_sample(u_model_id, 0, wo, vec3(u0, u1, fract(float(k) * 0.7548776662466927 + cz)), wi, pdf_own);
+            if (!(pdf_own > 0.0) || wi.z <= 0.0) continue;
+            vec3 dir_own = from_local * wi;
+            vec3 L_own = filtered ? env_radiance_lod(dir_own, env_fis_lod(pdf_own, max(u_fis_samples, IBL_SAMPLES))) : env_radiance(dir_own);
+            sum += (w - u_env_floor * (wi.z / pdf_own)) * L_own;  // (f - c) cos / pdf
+            continue;
+        }
         if (u0 < p_spec) {
             float v = u0 / p_spec;
             float phi = TWO_PI * u1;
@@ -245,7 +264,8 @@ void main() {
                 // only compiled into programs for the fis / brute_force modes: software GL pays
                 // for an untaken loop of BRDF evaluations (measured: +65% frame time)
                 radiance += ibl_sampled(wo, transpose(to_local), rho, rho_s, u_ibl_alpha,
-                                        u_ibl_mode == IBL_MODE_FIS, u_frame_index);
+                                        u_ibl_mode == IBL_MODE_FIS, u_frame_index)
+                          + u_env_floor * ENV_IRRADIANCE(n);  // a file's constant part (split sum)
 #endif
             }
         }

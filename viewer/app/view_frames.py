@@ -1,6 +1,7 @@
 """What the view draws and how: the raster frame of the still view, whole or in tiles over the
 view as it was (``tiled_frames``), the progressive trace of a scene with traced chains (strips
-over its untraced frame), brute-force IBL's running mean, and the record of what each frame was
+over its untraced frame), the running mean of frames with new sample sets (brute-force IBL, the
+sampled environment light of file materials: ``viewer.app.frame_mean``), and the record of what each frame was
 drawn from (``FrameSource``). ``ViewFrames`` is held by ``viewer.app.session.Session`` as
 ``session.frames``; it asks the session's other parts what to draw while programs compile
 (``session.compiles``) and tells the lecture when a step's first frame is drawn
@@ -16,9 +17,9 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.app.compile_control import KEEP_IMAGE, UNTRACED
+from viewer.app.frame_mean import BF_FRAMES, FrameMean, frames_wanted  # noqa: F401 (BF_FRAMES: the window's)
 from viewer.gl.context import release_gl
 
-BF_FRAMES = 256  # brute-force IBL: frames averaged before the view stops refining
 TRACE_BUDGET_S = 0.12  # traced chains: the time one refining frame's strip of rows aims at
 # tiled frames: a still view whose whole frame took longer than this is drawn in tiles of about
 # this much time per frame, over the view as it was or its half-resolution preview (the window
@@ -59,13 +60,11 @@ class ViewFrames:
         self.render_ms = 0.0
         self.frame_rest_s = 0.0    # what the window's frame costs beside render_view (the window sets it)
         self.quality = "full"      # "preview" after an interactive (half-resolution) frame
-        self.bf_count = 0          # brute-force IBL: frames in the running mean
         self.nonfinite = None      # the last check's message about NaN / Inf pixels, else None
         self.frame_source = None   # what the raster image shown was drawn from (FrameSource)
         self.drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
         self._tiles_under = None   # the scene of the image under a tiled frame's tiles
-        self._bf_sum = None
-        self._bf_tex = None
+        self._mean = FrameMean()   # brute-force IBL, file materials' environment light
         self._nonfinite_said = None
         self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
         self._tiles_on = tiled_frames
@@ -77,9 +76,7 @@ class ViewFrames:
 
     def release(self) -> None:
         """Free the textures and traces this part made."""
-        if self._bf_tex is not None:
-            self._bf_tex.release()
-            self._bf_tex = None
+        self._mean.release()
         for t in (self._trace, self._tiles):
             if t is not None:
                 t.release()
@@ -89,11 +86,27 @@ class ViewFrames:
             self._shown = None
 
     @property
+    def bf_count(self) -> int:
+        """Frames in the running mean (brute-force IBL, file materials' environment light)."""
+        return self._mean.count
+
+    @property
+    def frames_wanted(self) -> int:
+        """The frames the still view's running mean averages (``frame_mean.frames_wanted``; 1 for
+        a view traced in strips, which refines its own way)."""
+        return 1 if self._progressive() else frames_wanted(self.session.scene)
+
+    @property
+    def averaging(self) -> bool:
+        """The still view's running mean has frames to come."""
+        n = self.frames_wanted
+        return n > 1 and self._mean.count < n
+
+    @property
     def refining(self) -> bool:
-        """Frames should follow without waiting for input (brute-force IBL still averaging, or
+        """Frames should follow without waiting for input (the running mean still averaging, or
         the traced chains still refining)."""
-        return ((self.session.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES) or self.tracing
-                or self.tiling)
+        return self.averaging or self.tracing or self.tiling
 
     @property
     def tiling(self) -> bool:
@@ -121,6 +134,9 @@ class ViewFrames:
             return f"compiling {', '.join(s.pending)} in the background: {FORM_WORDS[src.form]} until ready"
         if self.tiling:
             return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest as it was)"
+        n = self.frames_wanted
+        if s.scene.render.ibl != "brute_force" and self.averaging and self._mean.count > 0:
+            return f"environment light of file materials: converging {self._mean.count}/{n} frames"
         if not self.tracing:
             s = self.session
             return s.prep.progress_text() if s.preparing else ""
@@ -151,8 +167,7 @@ class ViewFrames:
         scale = 0.5 if interacting else 1.0
         rw, rh = max(1, int(rw_full * scale)), max(1, int(rh_full * scale))
         want_full = not interacting and self.quality == "preview"
-        progressive = (self.tracing or self.tiling
-                       or (s.scene.render.ibl == "brute_force" and self.bf_count < BF_FRAMES)) and not interacting
+        progressive = (self.tracing or self.tiling or self.averaging) and not interacting
         stale = self.hdr is None or self.hdr_for != (rw_full, rh_full)
         s.compiles.poll()  # the programs the view waits for are ready: draw the material as it now is
         if s.preparing:
@@ -164,7 +179,7 @@ class ViewFrames:
         restart = s.dirty or want_full or stale
         whole_from = None
         if restart:
-            self.bf_count, self._bf_sum = 0, None
+            self._mean.reset()
         traced = self._progressive()
         quality = "preview" if interacting else "full"
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
@@ -196,8 +211,8 @@ class ViewFrames:
                     self.hdr = s.renderer.render(drawn, s.camera, rw, rh, s.view_mode,
                                                  msaa=0 if interacting else None, frame_index=self.bf_count,
                                                  raytrace=False if traced else None)
-                    if drawn.render.ibl == "brute_force" and not interacting:
-                        self.hdr = self._accumulate(self.hdr)
+                    if frames_wanted(drawn) > 1 and not interacting:
+                        self.hdr = self._mean.add(s.renderer, s.ctx, self.hdr)
                     elif not interacting:
                         whole_from = t2  # a whole still frame: its cost, once finished below
             if held is None:  # what a held frame may show of these materials while others compile
@@ -226,8 +241,8 @@ class ViewFrames:
         whole frame (or tiled one) over ``TILE_BUDGET_S`` (at another size, scaled by the pixels),
         or another scene (its cost not known yet: a lecture step's soap bubbles cost 30 times the
         step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
-        IBL, which averages whole frames)."""
-        if not self._tiles_on or scene.render.ssr or scene.render.ibl == "brute_force":
+        IBL or a file material's sampled environment light, whose means average whole frames)."""
+        if not self._tiles_on or scene.render.ssr or frames_wanted(scene) > 1:
             return False
         if self.tiling:
             return True
@@ -342,7 +357,7 @@ class ViewFrames:
         """Copy the view's image into a texture of the session's own unless it has one already
         (the trace's, the brute-force mean's, this copy)."""
         s = self.session
-        own = [x for x in (self._trace and self._trace.texture, self._bf_tex, self._shown and self._shown[0]) if x]
+        own = [x for x in (self._trace and self._trace.texture, self._mean.texture, self._shown and self._shown[0]) if x]
         if self.hdr is None or any(self.hdr is x for x in own):
             return
         size = self.hdr.size
@@ -358,18 +373,6 @@ class ViewFrames:
         finally:
             release_gl(src)
         self.hdr = self._shown[0]
-
-    def _accumulate(self, hdr):
-        """Brute-force IBL: the running mean of frames with new sample sets (as the offscreen
-        ``render_arrays(frames=K)``), shown while it converges."""
-        from viewer.app.compare_view import upload_rgb
-
-        s = self.session
-        img = s.renderer.read_linear(hdr).astype(np.float64)
-        self._bf_sum = img if self._bf_sum is None else self._bf_sum + img
-        self.bf_count += 1
-        self._bf_tex = upload_rgb(s.ctx, self._bf_tex, self._bf_sum / self.bf_count)
-        return self._bf_tex
 
     def _check_finite(self, hdr):
         """Say in one line (a notification and stderr, once per distinct message) when the view

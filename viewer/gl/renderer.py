@@ -642,6 +642,8 @@ class Renderer:
                 _set(prog, "u_rt_depth", int(scene.render.raytrace_depth))
                 _set(prog, "u_rt_max_segments", RT_MAX_SEGMENTS)
             self._material_uniforms(prog, obj, params, uniforms, thickness, env=f.env_on or f.ssr_on)
+            if args["ibl_sampled"]:
+                self._sampled_env_uniforms(prog, params, scene)
             self._gpu_mesh(obj.mesh_data).draw(prog, instance_data([o for _, o in group]))
         if shells:
             self._draw_shells(scene, f, uniforms, thickness, shells)
@@ -657,6 +659,19 @@ class Renderer:
         self._ms_uniforms(prog, params, bool(uniforms["u_ms_on"]))
         if env:
             self._environment_uniforms(prog, params, thickness)
+
+    def _sampled_env_uniforms(self, prog, params, scene):
+        """A file material samples its environment light with its own sampler, its lookups
+        filtered for all the samples of the frames a still view averages, and in split-sum mode
+        lights its constant part with the irradiance (``viewer.gl.file_env``); the built-in
+        models sample with the proxy lobe."""
+        from viewer.gl.file_env import FRAME_SAMPLES, constant_part, settle_frames
+
+        own = params.model == "custom"
+        _set(prog, "u_ibl_own", int(own))
+        floor = constant_part(params) if own and scene.render.ibl == "split_sum" else np.zeros(3)
+        _set(prog, "u_env_floor", tuple(float(x) for x in floor))
+        _set(prog, "u_fis_samples", FRAME_SAMPLES * (settle_frames(scene) if own else 1))
 
     def _draw_shells(self, scene, f: _Frame, uniforms: dict, thickness, shells):
         """Thin shells over the opaque frame, farthest first, each in two draws (its far faces,
@@ -795,33 +810,37 @@ class Renderer:
         return np.ascontiguousarray(a[::-1, :, :3])
 
     def render_arrays(self, scene, camera=None, width=None, height=None, view_mode=0, supersample: int = 1,
-                      frames: int = 1):
+                      frames: int | None = None):
         """(linear float32, sRGB uint8) images, (H, W, 3), row 0 = top.
 
         ``supersample`` k > 1 renders k x k shading points per pixel on a regular grid (no MSAA)
         and averages them: the box filter of docs/conventions.md up to 1/k^2 of the error of
-        shading at the pixel centre (what MSAA does), at k^2 times the cost."""
+        shading at the pixel centre (what MSAA does), at k^2 times the cost. ``frames``: the mean
+        of that many frames with new sample sets; None: the frames a still window view averages
+        before it rests (``viewer.gl.file_env.settle_frames``: a file material's sampled
+        environment light settles over 64, every other scene is one frame)."""
+        if frames is None:
+            from viewer.gl.file_env import settle_frames
+
+            frames = settle_frames(scene) if view_mode == 0 else 1
         if supersample <= 1 and frames <= 1:
             hdr = self.render(scene, camera, width, height, view_mode)
             return (self.read_linear(hdr),
                     self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
-        if supersample <= 1:  # progressive: the mean of ``frames`` frames with new sample sets
-            from viewer.colour import to_srgb8
-
-            acc = None
-            for f in range(frames):
-                img = self.read_linear(self.render(scene, camera, width, height, view_mode, frame_index=f))
-                acc = img.astype(np.float64) if acc is None else acc + img
-            linear = (acc / frames).astype(np.float32)
-            return linear, to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
         from viewer.colour import to_srgb8
 
-        k = int(supersample)
+        k = max(int(supersample), 1)
         w = int(width or scene.camera.width)
         h = int(height or scene.camera.height)
-        hdr = self.render(scene, camera, w * k, h * k, view_mode, msaa=0)
-        big = self.read_linear(hdr)
-        linear = big.reshape(h, k, w, k, 3).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+        acc = None
+        for f in range(max(int(frames), 1)):  # progressive: frames with new sample sets
+            if k == 1:
+                img = self.read_linear(self.render(scene, camera, width, height, view_mode, frame_index=f))
+            else:
+                big = self.read_linear(self.render(scene, camera, w * k, h * k, view_mode, msaa=0, frame_index=f))
+                img = big.reshape(h, k, w, k, 3).mean(axis=(1, 3), dtype=np.float64)
+            acc = img.astype(np.float64) if acc is None else acc + img
+        linear = (acc / max(int(frames), 1)).astype(np.float32)
         return linear, to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
 
     def release(self):
