@@ -108,7 +108,8 @@ vec3 ibl_sampled(vec3 wo, mat3 from_local, vec3 rho, vec3 rho_s, float alpha, bo
         vec3 wi;
         if (u_ibl_own != 0) {
             float pdf_own;
-            vec3 w = brdf_sample(u_model_id, 0, wo, vec3(u0, u1, fract(float(k) * 0.7548776662466927 + cz)), wi, pdf_own);
+            uint lobe_own;
+            vec3 w = brdf_sample(u_model_id, 0, wo, vec3(u0, u1, fract(float(k) * 0.7548776662466927 + cz)), wi, pdf_own, lobe_own);
             if (!(pdf_own > 0.0) || wi.z <= 0.0) continue;
             vec3 dir_own = from_local * wi;
             vec3 L_own = filtered ? env_radiance_lod(dir_own, env_fis_lod(pdf_own, max(u_fis_samples, IBL_SAMPLES))) : env_radiance(dir_own);
