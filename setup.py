@@ -1,6 +1,6 @@
 """Build hook: the top-level ``shaders/`` and ``models/`` folders are copied into the built
 package as ``viewer/shaders`` and ``viewer/models``, so a wheel (and an install from the sdist)
-carries them; in a source checkout ``viewer.resources`` reads the top-level folders directly.
+carries them; in a source checkout ``viewer.base.resources`` reads the top-level folders directly.
 Everything else is declared in pyproject.toml."""
 
 import shutil
@@ -19,7 +19,7 @@ class BuildPyWithResources(build_py):
     def run(self):
         super().run()
         if getattr(self, "editable_mode", False):
-            return  # an editable install reads the checkout's folders (viewer/resources.py)
+            return  # an editable install reads the checkout's folders (viewer/base/resources.py)
         for src_name, (dst_name, patterns) in RESOURCES.items():
             src = HERE / src_name
             dst = Path(self.build_lib) / "viewer" / dst_name

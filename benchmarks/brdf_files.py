@@ -74,7 +74,7 @@ def compile_times(folder):
 
 
 def raster_frames(folder):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.scene import load_scene
@@ -109,7 +109,7 @@ def raster_frames(folder):
 
 
 def engine_rate(folder):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
@@ -129,7 +129,7 @@ def engine_rate(folder):
 
 
 def variance_ratio(folder, seeds=12, spp=4):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 

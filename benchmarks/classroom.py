@@ -23,7 +23,7 @@ os.environ.setdefault("BRDF_VIEWER_TILED_FRAMES", "0")
 
 def main():
     from viewer.app.main import App
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     app = App("sphere", size=(1280, 720), restore_state=False)
     app.frame()

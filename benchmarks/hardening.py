@@ -13,7 +13,7 @@ Sections (``--only fuzz,cli,bigmesh,nan,files,lifecycle,deps``):
              a NaN coordinate must fail with one line.
 * nan        the NaN sweep (tests/nan_sweep_cases.py) with many parameter corners: numpy twins,
              GLSL twins, rasterized renders, reference renders.
-* files      SIGKILL a process writing through viewer.io at random moments (npy, png, json);
+* files      SIGKILL a process writing through viewer.base.io at random moments (npy, png, json);
              the destination must be absent or a complete version; a naive writer (open + write)
              under the same kills as the control.
 * lifecycle  1,000 restarts of the window's reference view (with and without worker processes),
@@ -164,7 +164,7 @@ def run_cli(quick):
 BIG_MESH_CHILD = r"""
 import json, resource, sys, time
 from viewer import ViewerError
-from viewer.mesh import load_mesh
+from viewer.scene.mesh import load_mesh
 t = time.perf_counter()
 try:
     m = load_mesh(sys.argv[1])
@@ -182,7 +182,7 @@ def run_bigmesh(quick):
 
     import numpy as np
 
-    from viewer.mesh import write_ply
+    from viewer.scene.mesh import write_ply
 
     n = 700 if quick else 1582  # an n x n grid on a sphere: 2 n^2 triangles (1582: 5,005,448)
     section(f"a {2 * n * n:,}-triangle mesh (binary PLY)")
@@ -239,7 +239,7 @@ def run_nan(quick):
     print(f"{len(wi)} direction pairs; per model {n_twin} corner sets + the harness grid for the twins, "
           f"{n_render} corners x 3 IBL modes for raster renders, {n_ref} corners for reference renders")
     from glsl_eval import GLSLEvaluator
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.pathtracer import ReferenceRenderer
@@ -389,7 +389,7 @@ def run_lifecycle(quick):
 
 def run_deps(quick):
     from viewer import ViewerError
-    from viewer.optional import PACKAGES, available, require
+    from viewer.base.optional import PACKAGES, available, require
 
     section("optional packages")
     for name in sorted(PACKAGES):

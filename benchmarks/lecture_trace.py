@@ -79,7 +79,7 @@ def main(argv=None) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.raytrace import ProgressiveTrace
     from viewer.gl.renderer import Renderer
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)

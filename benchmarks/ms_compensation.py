@@ -25,8 +25,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n-side", type=int, default=24, help="sqrt of the samples per angle and azimuth")
     args = ap.parse_args(argv)
-    from viewer import brdf, ms_compensation
-
+    from viewer import brdf
+    from viewer.brdf import ms_compensation
     mf = brdf.get("microfacet")
     theta = np.radians(np.arange(0.0, 86.0, 5.0))
     cos_o = np.cos(theta)

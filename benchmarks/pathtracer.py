@@ -255,7 +255,7 @@ def render_ours(scene, spp, seed=0, kernel="embree", step=None):
 def mitsuba_scene_dict(mi, scene, folder: Path) -> dict:
     """The bench scene for ``mi.load_dict``: our world-space meshes as PLY (positions and vertex
     normals exactly as our renderer uses them, float32 as in models/*.ply)."""
-    from viewer.mesh import write_ply
+    from viewer.scene.mesh import write_ply
 
     cam = scene.camera
     d = {"type": "scene",
@@ -381,7 +381,7 @@ def describe_difference(ours, theirs, masks, label):
 def save_diff_png(path, ours, ref):
     """Signed difference heat map (red: ours brighter, blue: ours darker), scaled to 5% of the
     reference's mean luminance at full colour."""
-    from viewer.io import write_png
+    from viewer.base.io import write_png
 
     diff = (ours - ref).mean(axis=2)
     s = 0.05 * float(ref.mean())

@@ -43,7 +43,7 @@ SIZES = (("window preview 460x360, no MSAA", 460, 360, 0), ("window view 920x720
 def _scenes():
     import tomllib
 
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
     from viewer.scene import parse_scene
 
     return {"glass ball": parse_scene(tomllib.loads(GLASS_BALL), None),
@@ -57,7 +57,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="the preview size only")
     args = ap.parse_args(argv)
 
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
 
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
 
 def window_frames(ctx, r, scenes, quick):
     from viewer.app.view_frames import TRACE_BUDGET_S
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.raytrace import ProgressiveTrace
 
     w, h, msaa = (460, 360, 0) if quick else (920, 720, None)

@@ -57,7 +57,7 @@ def start_to_first_frame(runs=3):
 
 
 def frame_times(frames=5):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.scene import load_scene
@@ -100,7 +100,7 @@ def model_switch():
     window's preview size): first switch (compiles that model's program, builds its albedo
     table) and a repeat switch (both cached)."""
     from viewer import brdf
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.scene import load_scene
@@ -136,7 +136,7 @@ def model_switch():
 def ssr_times(frames=5):
     """The reflective-floor scene at 1280x720 (MSAA 4): frame time with SSR on and off, and the
     SSR pass alone (resolve of its three attachments, the colour mip chain and the trace)."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.scene import load_scene

@@ -5,7 +5,7 @@
 The raster is what the window shows once the view is still (a traced frame where the scene
 says ``raytrace = true``, the scene's MSAA and SSR), the reference the CPU engine's at ``--spp``
 samples per pixel, max depth 8 (the window's). Per scene: the image means, ``mean rel`` and
-``block p90`` of ``viewer.compare.agreement`` and the seconds each renderer took. ``--png``
+``block p90`` of ``viewer.image.compare.agreement`` and the seconds each renderer took. ``--png``
 writes raster | reference side by side per scene (sRGB, the scene's exposure)."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ SCENES = ("default", "sphere", "cornell", "gallery", "reflective_floor", "cornel
 
 
 def main(argv=None) -> int:
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--size", default="160x96")
@@ -35,9 +35,9 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    from viewer.camera import OrbitCamera
-    from viewer.colour import to_srgb8
-    from viewer.compare import agreement
+    from viewer.scene.camera import OrbitCamera
+    from viewer.image.colour import to_srgb8
+    from viewer.image.compare import agreement
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.pathtracer import ReferenceRenderer

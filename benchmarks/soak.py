@@ -68,7 +68,7 @@ def soak(frames: int, seed: int = 0, size=(640, 400), report_at: int = 1000, log
     from viewer.app.main import App
     from viewer.brdf.spec import validate_value
     from viewer.gl.renderer import VIEW_MODES
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     rng = random.Random(seed)
     app = App("default", size=size, restore_state=False)

@@ -87,7 +87,7 @@ def main(argv):
     bound = SETTLE_S / 3 if quick else SETTLE_S
     from viewer.app.main import App
     from viewer.app.plots_panel import TABS
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
     from viewer.scene import material_from_name
 
     app = App("default", size=SIZE, restore_state=False)

@@ -35,7 +35,7 @@ MARKS = (5.0, 20.0, 60.0)
 
 def child(engine: str) -> None:
     from viewer.app.main import App
-    from viewer.variance import ERROR_VIEWS
+    from viewer.image.variance import ERROR_VIEWS
 
     app = App("gallery", size=(1280, 720), restore_state=False)
     app.frame()

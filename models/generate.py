@@ -1,10 +1,10 @@
-"""Write every built-in shape of viewer.meshgen to models/<name>.ply.
+"""Write every built-in shape of viewer.scene.meshgen to models/<name>.ply.
 
     python models/generate.py            # all shapes
     python models/generate.py teapot     # only some
 
 Binary little-endian PLY: float32 x y z nx ny nz (and s t where the shape has uvs),
-uint32 triangles. The files are what the product ships; viewer.mesh.load_mesh("teapot")
+uint32 triangles. The files are what the product ships; viewer.scene.mesh.load_mesh("teapot")
 reads them, and gives the same mesh as the in-memory generator when they are absent.
 """
 
@@ -16,8 +16,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from viewer import meshgen  # noqa: E402
-from viewer.mesh import write_ply  # noqa: E402
+from viewer.scene import meshgen  # noqa: E402
+from viewer.scene.mesh import write_ply  # noqa: E402
 
 
 def main(argv: list[str]) -> int:

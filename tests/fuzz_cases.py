@@ -1,7 +1,7 @@
 """Fuzzed inputs for the hardening tests (tests/test_fuzz.py) and benchmarks/hardening.py.
 
 Every generator is driven by a ``numpy.random.Generator`` so a seed gives the same cases. A
-case is fed to a loader (``viewer.scene.load_scene``, ``viewer.mesh.load_mesh``,
+case is fed to a loader (``viewer.scene.load_scene``, ``viewer.scene.mesh.load_mesh``,
 ``viewer.environment.io.load_environment``); the loader must either succeed with sane output
 or raise exactly one ``ViewerError`` whose message is one line. ``check_*`` return "ok" or
 "error" and raise ``FuzzFailure`` (with the case's description) for anything else: another
@@ -48,7 +48,7 @@ GARBAGE = (b"\x00", b"\xff\xfe", b"\x80\x81", b"[[", b"]]", b"[", b"=", b"\"", b
 
 
 def builtin_scene_texts() -> dict[str, str]:
-    from viewer.resources import SCENE_DIR
+    from viewer.base.resources import SCENE_DIR
 
     return {p.stem: p.read_text(encoding="utf-8") for p in sorted(SCENE_DIR.glob("*.toml"))}
 
@@ -291,7 +291,7 @@ def _write_stl(path, P, F):
 
 
 def write_mesh(path: Path, P, F, N=None):
-    from viewer.mesh import write_ply
+    from viewer.scene.mesh import write_ply
 
     ext = path.suffix
     if ext == ".ply":
@@ -349,7 +349,7 @@ def make_mesh_case(rng, folder: Path, kind: str, index: int) -> tuple[str, Path]
             path = path.with_suffix(".ply")
             desc = f"{kind} .ply"
         if path.suffix == ".ply":
-            from viewer.mesh import write_ply
+            from viewer.scene.mesh import write_ply
 
             Fu = F2.astype(np.int64) & 0xFFFFFFFF      # negative -> huge unsigned
             write_ply(path, P, N, Fu)
@@ -385,7 +385,7 @@ def make_mesh_case(rng, folder: Path, kind: str, index: int) -> tuple[str, Path]
         path = path.with_suffix(_pick(rng, (".ply", ".off")))
         desc = f"{kind} {path.suffix}"
         if path.suffix == ".ply":
-            from viewer.mesh import write_ply
+            from viewer.scene.mesh import write_ply
 
             write_ply(path, P, N, F)
             b = path.read_bytes()
@@ -407,7 +407,7 @@ def make_mesh_case(rng, folder: Path, kind: str, index: int) -> tuple[str, Path]
 
 
 def check_mesh_file(path: Path, desc: str = "") -> str:
-    from viewer.mesh import clear_cache, load_mesh
+    from viewer.scene.mesh import clear_cache, load_mesh
 
     clear_cache()
     try:

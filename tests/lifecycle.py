@@ -114,7 +114,7 @@ def restart_storm(n: int, workers: int = 2, seed: int = 0, max_pause_s: float = 
     renderer resets, while chunks run, between passes), then let one job finish a pass, then
     close the view. No GL context: the view needs one only to upload its texture."""
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     rng = random.Random(seed)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import viewer.io as vio
+import viewer.base.io as vio
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,7 +69,7 @@ def _leftovers(folder):
 
 def test_library_writers_rename_a_complete_temporary_file(tmp_path, monkeypatch):
     from viewer.environment.io import load_environment, save_environment
-    from viewer.mesh import load_mesh, write_ply
+    from viewer.scene.mesh import load_mesh, write_ply
     from viewer.scene import load_scene, scene_to_toml
 
     names = ["a.png", "a.npy", "metrics.json", "scene.toml", "m.hdr", "m.exr", "m.ply"]
@@ -93,7 +93,7 @@ def test_library_writers_rename_a_complete_temporary_file(tmp_path, monkeypatch)
 
 
 def test_reference_command_outputs_are_renamed_into_place(tmp_path, monkeypatch, capsys):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     out, lin = tmp_path / "r.png", tmp_path / "r.npy"
     spy = WriteSpy(monkeypatch, [out, lin])
@@ -105,7 +105,7 @@ def test_reference_command_outputs_are_renamed_into_place(tmp_path, monkeypatch,
 
 
 def test_compare_outputs_and_metrics_are_renamed_into_place(tmp_path, monkeypatch, capsys):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     d = tmp_path / "cmp"
     names = ["raster.npy", "reference.npy", "raster.png", "reference.png", "diff_abs.png", "diff_rel.png",
@@ -141,10 +141,10 @@ _real_atomic = vio.atomic_write_file
 
 
 def test_no_writer_in_the_package_bypasses_viewer_io():
-    """Every file the package writes goes through viewer.io (or writes its own temporary file):
+    """Every file the package writes goes through viewer.base.io (or writes its own temporary file):
     no open(..., "w"), write_text / write_bytes, np.save to a path, image.save(path) elsewhere."""
     allowed = {
-        "viewer/io.py": "the implementation",
+        "viewer/base/io.py": "the implementation",
         "viewer/pathtracer/progressive.py": "the workers' temporary setup file (mkstemp, not an output)",
         "viewer/environment/io.py": "cv2.imwrite / OpenEXR write to atomic_write_file's temporary name",
     }
@@ -166,7 +166,7 @@ def test_no_writer_in_the_package_bypasses_viewer_io():
 
 WRITER = r"""
 import json, sys, numpy as np
-from viewer.io import atomic_write_bytes, write_npy, write_png
+from viewer.base.io import atomic_write_bytes, write_npy, write_png
 kind, dst, size = sys.argv[1], sys.argv[2], int(sys.argv[3])
 print("ready", flush=True)
 i = 0
@@ -236,7 +236,7 @@ def kill_writers(folder: Path, kind: str, kills: int, size: int, seed: int, max_
 PAUSING_WRITER = r"""
 import builtins, json, os, sys, time
 import numpy as np
-from viewer.io import atomic_write_bytes, write_npy, write_png
+from viewer.base.io import atomic_write_bytes, write_npy, write_png
 kind, dst, size, phase, last = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
 armed = False
 

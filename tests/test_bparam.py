@@ -121,7 +121,7 @@ def test_cli_bparam(tmp_path, capsys):
     """``plot FILE.bparam`` plots the .brdf file it names with its values (--set wins), the scene
     commands take ``--bparam MATERIAL=FILE``; what the file's BRDF lacks is one note, a bad
     argument or file one error line (exit status 2)."""
-    from viewer import cli
+    from viewer.commands import cli
     from viewer.scene import material_from_name
 
     (tmp_path / "mine.bparam").write_text(HAND)

@@ -201,7 +201,7 @@ def test_a_broken_twin_is_one_line_naming_it(tmp_path, trust_twins):
 
 
 def _check(capsys, *argv):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     rc = main(["check", *argv, "--json"])
     out = capsys.readouterr()
@@ -381,7 +381,7 @@ def test_the_generic_sampler_is_unbiased_and_near_a_built_in_samplers_variance(t
     0.18x; cosine sampling alone: 23x; the earlier one-dimensional table: 2.2x). The bound 1x
     leaves a factor 5: the per-pixel variance over 8 seeds, averaged over ~700 pixels, moves by
     a few percent between runs."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 
@@ -438,7 +438,7 @@ def test_the_lecture_step_shows_the_shipped_cook_torrance_beside_the_built_in_mi
     the twins' tolerance), and the file passes its report card with its numpy twin."""
     import viewer
     from viewer.brdf.report_card import report
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
     from viewer.scene import load_scene
 
     n = len(TOUR)
@@ -548,7 +548,7 @@ def test_saving_the_file_hot_reloads_it_and_an_error_keeps_the_last_good_program
 
 def test_plots_of_a_file_and_overlaid_on_a_built_in_model(tmp_path):
     from viewer import plots
-    from viewer.cli import main
+    from viewer.commands.cli import main
     from viewer.scene import material_from_name as plot_material
 
     for kind in ("polar", "lobe", "albedo"):
@@ -651,7 +651,7 @@ def test_the_gpu_engine_draws_with_the_files_sampler_where_no_mis_weight_needs_i
     200 pixels, about 5%). Without its sampler the same file is drawn by the generic sampler (a
     different variance, the same mean); under MIS both are (the MIS weights need pdfs of
     directions sampleBRDF did not draw)."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer
     from viewer.scene import load_scene
 

@@ -7,7 +7,7 @@ import pytest
 from viewer.geometry.bvh_flat import STACK_SIZE, TEX_WIDTH, flatten_scene
 from viewer.geometry.soup import build_geometry
 from viewer.pathtracer.kernel_embree import EmbreeKernel
-from viewer.resources import SHADER_DIR
+from viewer.base.resources import SHADER_DIR
 from viewer.scene import load_scene
 
 

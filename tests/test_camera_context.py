@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from viewer import ViewerError
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 
 
 def test_camera_from_look_at_round_trips():

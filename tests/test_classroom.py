@@ -118,7 +118,7 @@ def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):
         import json, time, numpy as np
         from viewer.app.main import App
         from viewer.gl.renderer import VIEW_MODES
-        from viewer.colour import to_srgb8
+        from viewer.image.colour import to_srgb8
         app = App({str(scene)!r}, size=(800, 400), restore_state=False)
         app.show_ui = False
         app.session.view_mode = list(VIEW_MODES).index("N.L")
@@ -265,7 +265,7 @@ def test_lecture_tour_visits_every_step(display):
     r = run_py("""
         import json, time, numpy as np
         from viewer.app.main import App
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
         app = App("sphere", size=(800, 450), restore_state=False)
         app.frame()
         out = []
@@ -301,7 +301,7 @@ def test_lecture_tour_visits_every_step(display):
         print("RESULT " + json.dumps(dict(steps=out, again_ms=again, pw=pw, clear=float(clear))))
         """, display, timeout=300)
     res = _result(r)
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     print(res)
     assert res["pw"] == 720 and res["clear"] < 0.05, (res["pw"], res["clear"])

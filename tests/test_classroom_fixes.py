@@ -12,7 +12,7 @@ W, H = SWEEP_SIZE
 
 
 def _check_pixels(renderer, name, ssr, ibl, env):
-    from viewer.finite import nonfinite_message
+    from viewer.image.finite import nonfinite_message
 
     scene = scene_with_switches(name, ssr, ibl, env)
     lin, _ = renderer.render_arrays(scene, width=W, height=H)
@@ -66,7 +66,7 @@ def test_ssr_without_environment_writes_its_targets(renderer):
 
 
 def test_nonfinite_message_counts_and_locates():
-    from viewer.finite import nonfinite_count, nonfinite_message
+    from viewer.image.finite import nonfinite_count, nonfinite_message
 
     img = np.zeros((4, 5, 3), np.float32)
     assert nonfinite_message(img, "x") is None
@@ -79,7 +79,7 @@ def test_nonfinite_message_counts_and_locates():
 
 
 def test_culprits_names_the_object(monkeypatch):
-    from viewer.finite import culprits
+    from viewer.image.finite import culprits
     from viewer.scene import load_scene
 
     scene = load_scene("gallery", load_meshes=False)
@@ -96,7 +96,7 @@ def test_culprits_names_the_object(monkeypatch):
 
 
 def test_render_cli_fails_on_nonfinite_pixels(tmp_path, monkeypatch, capsys):
-    from viewer import cli
+    from viewer.commands import cli
     from viewer.gl import renderer as R
 
     real = R.Renderer.render_arrays
@@ -159,7 +159,7 @@ def test_set_model_errors_stay_one_line():
 # ----------------------------------------------------------------------------- lecture:N
 
 def test_lecture_names_load_every_step():
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
     from viewer.scene import lecture_scene_names, load_scene, scene_to_data
 
     names = lecture_scene_names()
@@ -175,7 +175,7 @@ def test_lecture_names_load_every_step():
 @pytest.mark.parametrize("bad", ["lecture:0", "lecture:x", "lecture:", "lecture:999"])
 def test_lecture_name_out_of_range(bad):
     from viewer import ViewerError
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
     from viewer.scene import load_scene
 
     with pytest.raises(ViewerError, match=f"lecture:1 .. lecture:{len(TOUR)}"):
@@ -183,8 +183,8 @@ def test_lecture_name_out_of_range(bad):
 
 
 def test_render_cli_takes_a_lecture_step(tmp_path):
-    from viewer import cli
-    from viewer.io import read_png_text
+    from viewer.commands import cli
+    from viewer.base.io import read_png_text
 
     out = tmp_path / "tir.png"
     assert cli.main(["render", "lecture:3", "--out", str(out), "--width", "32", "--height", "18"]) == 0
@@ -243,7 +243,7 @@ def test_progress_bar_without_a_terminal_writes_few_lines():
     import io
     import time
 
-    from viewer.cli import ProgressBar
+    from viewer.commands.cli import ProgressBar
 
     out = io.StringIO()  # not a terminal
     bar = ProgressBar("reference", time.perf_counter(), stream=out, every_s=3600.0)
@@ -256,7 +256,7 @@ def test_progress_bar_without_a_terminal_writes_few_lines():
 
 
 def test_no_display_hint_names_every_headless_command():
-    from viewer.cli import COMMANDS, HEADLESS_HINT
+    from viewer.commands.cli import COMMANDS, HEADLESS_HINT
 
     for c in COMMANDS:
         assert f"brdf-viewer {c}" in HEADLESS_HINT
@@ -273,8 +273,7 @@ def test_counts_are_singular_and_plural():
 
 @pytest.mark.parametrize("view", ["F", "D", "G", "N.L", "f cos"])
 def test_term_scale_round_trips_and_ticks_are_ordered(view):
-    from viewer import term_scales
-
+    from viewer.image import term_scales
     t = np.linspace(0.0, 1.0, 11)
     assert np.allclose(term_scales.to_t(view, term_scales.from_t(view, t)), t)
     ticks = term_scales.ticks(view)
@@ -286,7 +285,7 @@ def test_fcos_view_is_false_colour_on_its_scale(renderer):
     """The f cos view was grey radiance; now each pixel is the ramp colour of its value's scale
     position: the shaded image's f cos on a Lambert sphere (albedo / pi x cos) comes back from
     the colours through the numpy twin of the ramp."""
-    from viewer import term_scales
+    from viewer.image import term_scales
     from viewer.gl.renderer import VIEW_MODES
     from viewer.scene import load_scene
 
@@ -307,8 +306,7 @@ def test_fcos_view_is_false_colour_on_its_scale(renderer):
 def test_render_term_view_has_a_colour_bar(tmp_path):
     from PIL import Image
 
-    from viewer import cli
-
+    from viewer.commands import cli
     out = tmp_path / "f.png"
     assert cli.main(["render", "gallery", "--view", "F", "--out", str(out), "--width", "96", "--height", "54"]) == 0
     im = np.asarray(Image.open(out).convert("RGB"))
@@ -321,11 +319,10 @@ def test_render_of_a_screenshot_takes_its_size(tmp_path):
     """`render shot.png` renders at the screenshot's size unless --width / --height say otherwise."""
     from PIL import Image
 
-    from viewer import cli
-
+    from viewer.commands import cli
     import numpy as np
 
-    from viewer.io import read_png_text, write_png
+    from viewer.base.io import read_png_text, write_png
 
     first = tmp_path / "first.png"
     assert cli.main(["render", "sphere", "--out", str(first), "--width", "30", "--height", "18"]) == 0

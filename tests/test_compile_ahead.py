@@ -184,8 +184,7 @@ def test_another_scene_is_never_drawn_with_the_last_scenes_materials(gl_ctx, ren
 
 
 def test_the_viewer_command_can_turn_it_off(capsys):
-    from viewer import cli
-
+    from viewer.commands import cli
     with pytest.raises(SystemExit):
         cli.main(["--help"])
     assert "--no-compile-ahead" in capsys.readouterr().out

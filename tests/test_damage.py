@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer import cli
+from viewer.commands import cli
 from viewer.pathtracer import ReferenceRenderer
 from viewer.reference_common import cache
 from viewer.reference_common.setup import RenderSetup
@@ -124,7 +124,7 @@ def test_window_reference_repairs_a_damaged_entry(tmp_path, monkeypatch):
     """The reference view: one notification naming the entry, then it renders afresh and stores
     a good entry again."""
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
     scene = load_scene("sphere")
@@ -158,7 +158,7 @@ def test_window_reference_repairs_a_damaged_entry(tmp_path, monkeypatch):
 
 def test_window_reference_says_when_the_cache_cannot_store(tmp_path, monkeypatch):
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     blocker = tmp_path / "a_file"
     blocker.write_text("")
@@ -367,8 +367,8 @@ def test_ten_thousand_objects_render_as_the_same_triangles_in_one_mesh(renderer,
     instanced path transforms in float32 in the vertex shader, the baked meshes in float64
     before rounding, so vertex positions differ by a float32 ulp and an edge pixel may flip;
     hence 99.5% of pixels equal, not all."""
-    from viewer.camera import OrbitCamera
-    from viewer.mesh import load_mesh, write_ply
+    from viewer.scene.camera import OrbitCamera
+    from viewer.scene.mesh import load_mesh, write_ply
 
     rng = np.random.default_rng(7)
     n, k = 10_000, 100
@@ -401,7 +401,7 @@ def test_ten_thousand_objects_render_as_the_same_triangles_in_one_mesh(renderer,
     a = renderer.render_arrays(many, OrbitCamera.from_scene(many))[0]
     b = renderer.render_arrays(one, OrbitCamera.from_scene(one))[0]
     if os.environ.get("BRDF_VIEWER_TEST_IMAGES"):   # to look at them
-        from viewer.io import write_npy
+        from viewer.base.io import write_npy
 
         write_npy(Path(os.environ["BRDF_VIEWER_TEST_IMAGES"]) / "many.npy", a)
         write_npy(Path(os.environ["BRDF_VIEWER_TEST_IMAGES"]) / "baked.npy", b)

@@ -194,7 +194,7 @@ def test_a_file_whose_compile_exceeds_the_memory_limit_is_refused(tmp_path, monk
 
 def test_a_verdict_is_kept_per_content_in_the_process_and_on_disk(tmp_path):
     from viewer.gl import file_probe
-    from viewer.io import cache_root
+    from viewer.base.io import cache_root
 
     a = _file(tmp_path, "a.brdf", _brdf(f"return vec3({time.time_ns() % 1000} * 1e-4);"))
     before = file_probe.started

@@ -60,7 +60,7 @@ def run_cli(args, tmp_path, env=None):
     which the child reports on a line of its own as it ends."""
     code = PEAK + textwrap.dedent("""
         import sys
-        from viewer.cli import main
+        from viewer.commands.cli import main
         try:
             rc = main(sys.argv[1:])
         except SystemExit as e:
@@ -532,9 +532,9 @@ def test_mesh_files_asking_for_huge_memory_are_refused_before_they_are_parsed(pr
 
 
 def test_real_meshes_pass_the_bounds(tmp_path):
-    from viewer.input_bounds import mesh_problem, ply_problem
-    from viewer.mesh import load_mesh
-    from viewer.resources import MODEL_DIR
+    from viewer.base.input_bounds import mesh_problem, ply_problem
+    from viewer.scene.mesh import load_mesh
+    from viewer.base.resources import MODEL_DIR
 
     for p in sorted(Path(MODEL_DIR).glob("*.ply")):
         assert mesh_problem(p, p.stat().st_size) is None, p

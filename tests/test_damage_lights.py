@@ -10,8 +10,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from viewer import ViewerError, cli
-from viewer.camera import OrbitCamera
+from viewer import ViewerError
+
+from viewer.commands import cli
+from viewer.scene.camera import OrbitCamera
 from viewer.gl.constants import MAX_LIGHTS, SHADOW_LIGHTS
 from viewer.gl.shadow import unshadowed_note
 from viewer.scene import parse_scene
@@ -152,7 +154,7 @@ def test_the_note_names_the_unshadowed_lights():
     assert unshadowed_note(_parse(five_lights())) == "light 5 is drawn without shadows (the raster shadow-maps 4)"
     four = five_lights().replace(point_light(L5, I5), "")
     assert len(_parse(four).lights) == 4 and unshadowed_note(_parse(four)) is None
-    # the scene format's page (written from viewer/docgen.py, which imports no GL) says the same numbers
+    # the scene format's page (written from viewer/commands/docgen.py, which imports no GL) says the same numbers
     from pathlib import Path
 
     page = (Path(__file__).resolve().parent.parent / "docs" / "scene-format.md").read_text()

@@ -11,8 +11,7 @@ import os
 import numpy as np
 import pytest
 
-from viewer import cli
-
+from viewer.commands import cli
 ENOSPC = os.strerror(errno.ENOSPC)   # "No space left on device"
 
 
@@ -23,9 +22,9 @@ def run_main(args, capsys):
 
 
 def _full_disk(monkeypatch, spare=lambda path: False):
-    """Every atomic write fails as on a full disk (viewer.io's own error for ENOSPC), except
+    """Every atomic write fails as on a full disk (viewer.base.io's own error for ENOSPC), except
     those ``spare(path)`` lets through."""
-    import viewer.io as vio
+    import viewer.base.io as vio
 
     real = vio.atomic_write_bytes
 
@@ -51,7 +50,7 @@ def test_bake_lecture_into_a_full_cache_exits_1_with_the_reason(tmp_path, monkey
 def test_bake_lecture_that_cannot_store_a_step_exits_1_with_the_reason(tmp_path, monkeypatch, capsys):
     # the probe write passes, the entry's write finds the disk full
     import viewer.app.lecture_prep as prep_mod
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     step = [s.key for s in TOUR].index("tir")
     monkeypatch.setattr(prep_mod, "traced_steps", lambda: [step])
@@ -148,7 +147,7 @@ def test_reference_cache_sets_aside_implausible_entries(tmp_path, damage, said):
 def test_the_bound_is_far_above_a_bright_plausible_image(tmp_path):
     # a sharp highlight of 1e7 in one pixel is an image, not garbage
     from viewer.gl import trace_cache
-    from viewer.io import MAX_CACHED_RADIANCE
+    from viewer.base.io import MAX_CACHED_RADIANCE
     from viewer.reference_common import cache
 
     assert MAX_CACHED_RADIANCE == 1e9

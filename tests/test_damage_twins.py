@@ -75,7 +75,7 @@ def hostile(tmp_path):
 
 
 def _main(capsys, *argv):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     rc = main([str(a) for a in argv])
     out = capsys.readouterr()
@@ -118,9 +118,9 @@ def test_no_command_runs_an_untrusted_twin(hostile, tmp_path, capsys):
 
 
 def test_a_screenshot_naming_the_file_does_not_run_its_twin(hostile, tmp_path, capsys):
-    from viewer.io import write_png
+    from viewer.base.io import write_png
     from viewer.scene import load_scene
-    from viewer.screenshot import png_text
+    from viewer.scene.screenshot import png_text
 
     path, scene, marker = hostile
     shot = tmp_path / "shot.png"
@@ -415,7 +415,7 @@ def test_the_window_with_a_trusted_twin_that_exits_exits_2_with_one_line(display
     (tmp_path / "s.toml").write_text(SCENE.replace("hostile.brdf", "exit_at_import.brdf"))
     r = run_py(f"""
         import sys
-        from viewer.cli import main
+        from viewer.commands.cli import main
         sys.exit(main([{str(tmp_path / 's.toml')!r}, "--frames", "2", "--trust-twin", {str(tmp_path)!r}]))
         """, display)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
@@ -424,7 +424,7 @@ def test_the_window_with_a_trusted_twin_that_exits_exits_2_with_one_line(display
 
 @pytest.mark.parametrize("command", ["render", "reference", "compare", "bake", "plot", "models", "check", None])
 def test_every_command_that_opens_materials_takes_trust_twin(command, capsys):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     with pytest.raises(SystemExit) as e:
         main(([command] if command else []) + ["--help"])

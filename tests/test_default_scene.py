@@ -51,7 +51,7 @@ def test_gallery_fits_a_view_narrowed_by_the_panel():
     """Every sphere of the gallery lies whole inside a view of 1380 x 1080 (a 1920 x 1080 window
     less the side panel at UI scale 1.5): its centre's image plus its radius, in normalized
     device x, within [-1, 1]."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     sc = load_scene("gallery")

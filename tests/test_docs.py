@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer import docgen
-
+from viewer.commands import docgen
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 
@@ -25,7 +24,7 @@ def test_generated_docs_are_up_to_date(tmp_path):
     for name in docgen.GENERATED:
         fresh = (tmp_path / name).read_text(encoding="utf-8")
         committed = (DOCS / name).read_text(encoding="utf-8") if (DOCS / name).is_file() else ""
-        assert committed == fresh, f"docs/{name} is out of date: run python -m viewer.docgen"
+        assert committed == fresh, f"docs/{name} is out of date: run python -m viewer.commands.docgen"
 
 
 def test_every_scene_key_is_documented():

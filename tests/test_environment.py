@@ -471,7 +471,7 @@ def test_scene_bad_map_files(tmp_path):
 
 
 def test_cli_exits_2_on_a_bad_map(tmp_path, capsys):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     (tmp_path / "pic.hdr").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 32)
     p = tmp_path / "s.toml"

@@ -48,7 +48,7 @@ def _scene_file(tmp_path, name, mat: dict, light=True, env=None, size=64):
 
 
 def _render(renderer, path, frames=1, size=None):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     sc = load_scene(path)
@@ -110,7 +110,7 @@ def test_under_a_constant_environment_the_cook_torrance_file_is_the_built_in_and
       (independent frames; sigma the per-frame pixel noise), for n = 1, 2, 8, within 30%: an RMS
       over ~600 heavy-tailed pixel channels scatters by ~10% (measured: 1.09, 1.20, 1.09).
       Frames that repeated one sample set would give 2.5 x the prediction at n = 8."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     sc = load_scene(_scene_file(tmp_path, "file", {"model": "custom", "file": str(COOK_TORRANCE),
@@ -139,7 +139,7 @@ def test_under_a_constant_environment_the_cook_torrance_file_is_the_built_in_and
 
 
 def test_render_arrays_averages_the_frames_a_still_view_settles_on(renderer, tmp_path, monkeypatch, lambert_file):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl import file_env
     from viewer.scene import load_scene
 

@@ -120,7 +120,7 @@ def test_messages_stay_one_line_for_keys_with_line_breaks(tmp_path):
 
 def test_odd_paths_are_clean_errors(tmp_path):
     from viewer.environment.io import load_environment
-    from viewer.mesh import load_mesh
+    from viewer.scene.mesh import load_mesh
     from viewer.scene import load_scene
 
     odd = ["a\x00.obj", "~nobody_xyz_/a.obj", "x" * 300 + ".obj", "line\nbreak.obj", "/dev/null.obj"]

@@ -110,7 +110,7 @@ def _header_floats() -> dict[str, float]:
 def test_header_floats_are_pythons():
     """The empty depth of the SSR pyramid, the reference estimator's roulette bounds and ray
     offset, and the term views' scales, as their modules see them."""
-    from viewer import term_scales
+    from viewer.image import term_scales
     from viewer.gl import ssr
     from viewer.pathtracer import integrator
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from reference_harness import agreement, check, under_grey_sky
-from viewer.lecture import TOUR, tour_scene
+from viewer.scene.lecture import TOUR, tour_scene
 from viewer.scene import builtin_scene_names, load_scene
 
 
@@ -81,7 +81,7 @@ def test_reference_view_time_slices_the_gpu_engine_and_uses_the_cache(ctx):
     import time
 
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     sc = tour_scene(0)
     cam = OrbitCamera.from_scene(sc)

@@ -12,7 +12,7 @@ import pytest
 
 import spectral_harness as h
 from reference_harness import under_grey_sky
-from viewer.lecture import TOUR, tour_scene
+from viewer.scene.lecture import TOUR, tour_scene
 from viewer.scene import builtin_scene_names, load_scene
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from reference_harness import agreement, check, glossy_studio, under_grey_sky
-from viewer.lecture import tour_scene
+from viewer.scene.lecture import tour_scene
 
 SIZE = 24
 
@@ -103,7 +103,7 @@ def test_reference_view_keeps_the_gpu_engine_for_every_option(ctx):
     import time
 
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     sc = glossy_studio()
     cam = OrbitCamera.from_scene(sc)

@@ -30,7 +30,7 @@ def test_starts_renders_and_screenshots(display, tmp_path):
     # the scene, not a uniform image: clear structure and the terracotta ball
     assert img.std() > 20, img.std()
     assert (img[..., 0] - img[..., 2]).max() > 80  # some clearly orange pixels
-    from viewer.io import read_png_text
+    from viewer.base.io import read_png_text
     from viewer.scene import parse_scene
 
     text = read_png_text(shot)

@@ -11,11 +11,11 @@ import time
 import numpy as np
 import pytest
 
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer.gl import shaders
 from viewer.gl.hot_reload import ShaderWatcher
 from viewer.gl.shaders import SHADER_ROOT_ENV, ShaderError, set_shader_root, shader_root
-from viewer.resources import SHADER_DIR
+from viewer.base.resources import SHADER_DIR
 from viewer.scene import load_scene
 
 SCENE = """

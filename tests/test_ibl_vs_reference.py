@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from viewer import brdf
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer.scene import parse_scene
 
 from render_util import sphere_interior

@@ -3,8 +3,8 @@
 (a) the BRDF twins (``viewer/brdf``), the CPU reference (``viewer/pathtracer``) and the shared
     geometry (``viewer/geometry``) import no GL and no window, not even inside a function: the
     reference's worker processes start without a GL driver and the numpy twins work anywhere;
-(b) the scene model (``viewer/scene.py`` or the ``viewer/scene/`` package, ``mesh.py``,
-    ``meshgen.py``, ``camera.py``, ``lecture.py``) imports neither GL nor the window;
+(b) the scene model (the ``viewer/scene/`` package: the model, meshes, the built-in shapes, the
+    camera, the lecture, what a screenshot carries) imports neither GL nor the window;
 (c) the rasterizer (``viewer/gl``) imports no reference engine (``viewer.pathtracer``,
     ``viewer.gpupt``), so each checks the other; what both need is in ``viewer/geometry``;
 (d) no module under ``viewer/`` uses another module's private (``_name``) names: neither
@@ -27,11 +27,17 @@
     ``viewer/brdf``, the scene's in ``viewer/scene``);
 (h) the shared package ``viewer/reference_common`` imports no GL at module level (the CPU engine's
     workers import it) and an engine only inside the functions of ``select.py``, where
-    ``make_renderer`` makes the one asked for.
+    ``make_renderer`` makes the one asked for;
+(i) the floors stay low: ``viewer/base`` (atomic files, optional dependencies, resources, input
+    bounds) imports nothing of the program but the package root's errors and itself, and
+    ``viewer/image`` (display encoding, comparisons, error metrics) no GL, window, engine, scene or
+    command;
+(j) ``viewer/`` holds its layers as folders: beside them only ``__init__.py``, ``__main__.py`` and
+    ``api.py``.
 
 An import counts wherever it stands (module level or inside a function), and so do the dynamic
 forms with a literal name (``importlib.import_module("x")``, ``__import__("x")``,
-``viewer.optional.require("x")`` / ``available("x")``). Every rule has a test that feeds it a
+``viewer.base.optional.require("x")`` / ``available("x")``). Every rule has a test that feeds it a
 synthetic offending file.
 """
 
@@ -137,8 +143,36 @@ def no_gl_in_the_cpu_layers(root: Path) -> list[str]:
 
 
 def scene_model_files(root: Path) -> list[Path]:
-    files = [root / "viewer" / n for n in ("scene.py", "mesh.py", "meshgen.py", "camera.py", "lecture.py")]
+    files = [root / "viewer" / "scene.py"]
     return [f for f in files if f.is_file()] + _py(root, "viewer/scene")
+
+
+# rule (i): the floor every layer stands on, and images as numbers
+FLOORS = {"viewer/base": ("viewer.",), "viewer/image": GL_MODULES + REFERENCE_ENGINES + ("viewer.scene", "viewer.commands")}
+FLOOR_MAY = {"viewer/base": ("viewer.base",), "viewer/image": ()}
+LOOSE_MODULES = frozenset({"__init__.py", "__main__.py", "api.py"})
+
+
+def floors_stay_low(root: Path) -> list[str]:
+    """Rule (i): ``viewer/base`` imports nothing of the program but the package root's errors and
+    itself; ``viewer/image`` no GL, window, engine, scene or command."""
+    bad = []
+    for folder, banned in FLOORS.items():
+        for f in _py(root, folder):
+            rel = f.relative_to(root).as_posix()
+            for mod, names, _inside in _imports_with_place(root, f):
+                full = [mod] if names is None else [f"{mod}.{n}" for n in sorted(names)]
+                for m in full:
+                    if any(m.startswith(b) for b in banned) and not any(m.startswith(a) for a in FLOOR_MAY[folder]) \
+                            and not (m.startswith("viewer.") and m.count(".") == 1 and m[7:][:1].isupper()):
+                        bad.append(f"{rel} imports {m}")
+    return sorted(set(bad))
+
+
+def loose_modules(root: Path) -> list[str]:
+    """Rule (j): ``viewer/`` holds its layers as folders; the only modules beside them are the
+    package root, ``python -m viewer`` and the Python API."""
+    return sorted(p.name for p in (root / "viewer").glob("*.py") if p.name not in LOOSE_MODULES)
 
 
 def no_gl_in_the_scene_model(root: Path) -> list[str]:
@@ -381,6 +415,24 @@ def test_brdf_pathtracer_and_geometry_import_no_gl():
     assert no_gl_in_the_cpu_layers(ROOT) == []
 
 
+def test_the_floors_stay_low_and_viewer_has_no_loose_modules():
+    assert len(_py(ROOT, "viewer/base")) >= 4 and len(_py(ROOT, "viewer/image")) >= 4
+    assert floors_stay_low(ROOT) == []
+    assert loose_modules(ROOT) == []
+
+
+def test_the_floor_rules_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/base/a.py": "from viewer import ViewerError\nfrom viewer.base import io\ndef f():\n    from viewer.brdf import spec\n",
+        "viewer/image/b.py": "import numpy\nfrom viewer.brdf import spec\ndef g():\n    import moderngl\n    from viewer.scene import model\n",
+        "viewer/cli.py": "X = 1\n",
+        "viewer/api.py": "Y = 1\n",
+    })
+    assert floors_stay_low(root) == ["viewer/base/a.py imports viewer.brdf.spec",
+                                     "viewer/image/b.py imports moderngl", "viewer/image/b.py imports viewer.scene.model"]
+    assert loose_modules(root) == ["cli.py"]
+
+
 def test_scene_model_imports_no_gl_and_no_window():
     assert len(scene_model_files(ROOT)) >= 5
     assert no_gl_in_the_scene_model(ROOT) == []
@@ -460,11 +512,11 @@ def test_the_scene_model_rule_can_fail(tmp_path):
     for layout in ("viewer/scene.py", "viewer/scene/model.py"):
         root = _tree(tmp_path / layout.replace("/", "_"), {
             layout: "def f():\n    from viewer.app import main\n",
-            "viewer/camera.py": "import imgui_bundle\n",
-            "viewer/mesh.py": "import numpy\n",
+            "viewer/scene/camera.py": "import imgui_bundle\n",
+            "viewer/scene/mesh.py": "import numpy\n",
         })
         got = sorted(no_gl_in_the_scene_model(root))
-        assert got == sorted(["viewer/camera.py imports imgui_bundle", f"{layout} imports viewer.app",
+        assert got == sorted(["viewer/scene/camera.py imports imgui_bundle", f"{layout} imports viewer.app",
                               f"{layout} imports viewer.app.main"]), layout
 
 

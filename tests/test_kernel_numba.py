@@ -15,7 +15,7 @@ import pytest
 
 pytest.importorskip("numba")
 
-from viewer.mesh import load_mesh  # noqa: E402
+from viewer.scene.mesh import load_mesh  # noqa: E402
 from viewer.pathtracer.kernel_numba import NumbaKernel  # noqa: E402
 
 CORNELL = ["cornell_room", "cornell_left", "cornell_right", "cornell_short_block", "cornell_tall_block"]

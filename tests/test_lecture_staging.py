@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from render_util import camera_rays, hit_plane_y, hit_sphere
-from viewer.lecture import TOUR
+from viewer.scene.lecture import TOUR
 
 W, H = 480, 270
 LUM = np.array([0.2126, 0.7152, 0.0722])
@@ -92,7 +92,7 @@ def _prism_mask(sc, w, h):
 @pytest.mark.slow  # one traced frame of glass on software OpenGL: about 70 s at 320 x 180
 def test_dispersion_shows_rainbow_bands_through_the_prism():
     from viewer import api
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
     from viewer.scene import load_scene
 
     w, h = 320, 180
@@ -135,7 +135,7 @@ def test_importance_sampling_step_strategies_differ_in_noise():
 CAPTIONS = r'''
 from viewer.app.main import App
 from viewer.app.panels.overlays import measure, wrap_lines
-from viewer.lecture import TOUR
+from viewer.scene.lecture import TOUR
 app = App("sphere", size=(1920, 1080), restore_state=False)
 app.session.warm = []
 app.set_ui_scale(1.5)
@@ -170,7 +170,7 @@ def test_every_caption_fits_its_box_at_projector_scale(display):
 
 def _srgb8(key, w, h):
     from viewer import api
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
     from viewer.scene import load_scene
 
     ref = f"lecture:{_step(key) + 1}"
@@ -210,7 +210,7 @@ def test_glass_step_reference_follows_the_scene_exposure():
     """The exposure is the scene's, so the reference's image is exposed as the raster's: step 2
     path-traced at 48 x 27, 4 spp, written as ``brdf-viewer reference`` writes it."""
     from viewer import api
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
     from viewer.scene import load_scene
 
     ref = f"lecture:{_step('fresnel') + 1}"

@@ -201,7 +201,8 @@ def test_fit_recovers_ggx(ggx_file):
 def test_fit_cli_and_plots(tmp_path, ggx_file, capsys):
     """``brdf-viewer fit`` prints and writes a material file (loadable), the residual slice; ``plot
     FILE.binary --kind slice|polar|albedo --overlay`` draw the measured data with the fit over it."""
-    from viewer import cli, plots
+    from viewer import plots
+    from viewer.commands import cli
     from viewer.scene import load_material_file
 
     out = tmp_path / "fit.toml"

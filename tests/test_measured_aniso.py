@@ -315,7 +315,7 @@ def test_engines_agree(gl_ctx, ward_file, tmp_path):
 def test_plot_of_a_dat_file(ward_file, tmp_path):
     """``brdf-viewer plot FILE.dat`` plots the measured model on the file (the lobe's numbers in
     the PNG are the table's values)."""
-    from viewer import cli
+    from viewer.commands import cli
     from viewer.plots import read_plot_data
 
     out = tmp_path / "polar.png"

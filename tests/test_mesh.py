@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from viewer import ViewerError, meshgen
-from viewer.mesh import MeshData, build_mesh, builtin_names, clear_cache, load_mesh, write_ply
-from viewer.resources import MODEL_DIR
+from viewer import ViewerError
+
+from viewer.scene import meshgen
+from viewer.scene.mesh import MeshData, build_mesh, builtin_names, clear_cache, load_mesh, write_ply
+from viewer.base.resources import MODEL_DIR
 
 BUILTINS = builtin_names()
 CLOSED = ["sphere", "cube", "torus", "shader_ball", "cornell_short_block", "cornell_tall_block"]
@@ -231,7 +233,7 @@ def test_generated_models_match_the_generators():
 
 
 def test_builtin_without_a_file_is_generated_in_memory(tmp_path, monkeypatch):
-    import viewer.mesh as vm
+    import viewer.scene.mesh as vm
     reference = load_mesh("torus")
     monkeypatch.setattr(vm, "MODEL_DIR", tmp_path)         # no .ply there
     clear_cache()
@@ -420,7 +422,7 @@ def test_degenerate_faces_are_dropped(tmp_path):
 
 
 def test_loading_is_cached_and_sees_changes(tmp_path, monkeypatch):
-    import viewer.mesh as vm
+    import viewer.scene.mesh as vm
     reads = []
     real = vm.read_mesh_file
     monkeypatch.setattr(vm, "read_mesh_file", lambda *a, **k: reads.append(a[0]) or real(*a, **k))

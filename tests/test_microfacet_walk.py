@@ -234,7 +234,7 @@ def test_albedo_plot_shows_three_albedos():
     assert set(by) == {"single scattering", "compensated, environment", "compensated, lights", "random walk"}
     assert abs(by["single scattering"][0] - (1 - math.log(2))) < 0.01
     assert np.all(np.abs(by["random walk"] - 1.0) < 2e-3)
-    # the compensation's E_ss is the lobe's own F = 1 albedo (viewer/ms_compensation.py): with F = 1 it
+    # the compensation's E_ss is the lobe's own F = 1 albedo (viewer/brdf/ms_compensation.py): with F = 1 it
     # returns what single scattering loses, 1 within the two albedo estimates' sampling (the plot's
     # curve and ms_compensation's table use different sample sets); the lights' term (Kulla-Conty)
     # returns the same energy with F = 1

@@ -24,7 +24,7 @@ def test_error_views_convergence_and_sampling_tab(display, tmp_path):
         import time
         import numpy as np
         from viewer.app.main import App
-        from viewer.variance import standard_error, relative_error, samples_needed
+        from viewer.image.variance import standard_error, relative_error, samples_needed
         app = App({str(scene)!r}, size=(480, 300))
         app.frame()
         raster = app.capture_window()

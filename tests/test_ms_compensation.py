@@ -1,14 +1,16 @@
 """The rasterizer's multiple-scattering compensation (Fdez-Aguera 2019) against the reference's
 random walk (Heitz et al. 2016), as white-furnace albedo: E_ss is the lobe's own single-scattering
-albedo with F = 1 (viewer/ms_compensation.py, for every microfacet distribution), and the raster's
+albedo with F = 1 (viewer/brdf/ms_compensation.py, for every microfacet distribution), and the raster's
 environment-lit sphere shows what ``ms_compensation`` computes."""
 
 import numpy as np
 import pytest
 
-from viewer import brdf, ms_compensation
+from viewer import brdf
+
+from viewer.brdf import ms_compensation
 from viewer.brdf.albedo import TABLE_SIZE
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer.scene import load_scene
 
 from render_util import camera_rays, hit_sphere

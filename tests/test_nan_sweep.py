@@ -92,7 +92,7 @@ def test_glsl_twin_finite_and_nonnegative(name, pairs, evaluator):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_raster_renders_finite_and_nonnegative(name, renderer):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     sets = nc.corner_sets(name, CORNERS_RENDER, SEED + 1)
     for ibl, ssr in (("split_sum", True), ("fis", False)):

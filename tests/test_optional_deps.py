@@ -1,7 +1,7 @@
 """A missing optional package gives one line naming it (the parts without a GUI):
 the numba kernel without numba, the Embree kernel without embreex (also inside the worker
 processes), .hdr / .exr maps without OpenCV / OpenEXR, mesh files without trimesh, and the
-benchmark's Mitsuba comparison (``viewer.optional`` knows every one)."""
+benchmark's Mitsuba comparison (``viewer.base.optional`` knows every one)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from viewer import ViewerError
-from viewer.optional import PACKAGES, require
+from viewer.base.optional import PACKAGES, require
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,7 +53,7 @@ def test_numba_kernel_without_numba(monkeypatch):
 
 def test_maps_and_meshes_without_their_readers(monkeypatch, tmp_path):
     from viewer.environment.io import load_environment, save_environment
-    from viewer.mesh import clear_cache, load_mesh, write_ply
+    from viewer.scene.mesh import clear_cache, load_mesh, write_ply
 
     for suffix in (".hdr", ".exr"):
         save_environment(tmp_path / f"m{suffix}", np.ones((2, 4, 3), np.float32))

@@ -14,7 +14,7 @@ import pytest
 
 import viewer
 from viewer import ViewerError
-from viewer.cli import main
+from viewer.commands.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -364,7 +364,7 @@ class Keys(App):
 
 def test_every_lecture_step_has_a_key_and_the_docs_count_them():
     from viewer.app.panels.lecture import step_keys_text
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     app = Keys()
     for key in ("1", "9", "0", "shift+1", "shift+5", "shift+6"):

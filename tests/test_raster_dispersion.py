@@ -145,7 +145,7 @@ def test_prism_against_the_spectral_reference(renderer, gl_ctx):
     # (b) the box filters' sampling and (c) the reference's colour noise (four wavelengths per
     # path). Bounds: the mean over the prism within 3% per channel (as the glass ball's bound:
     # nothing but sampling separates them there) and the 4x4 blocks' p90 within BLOCK_P90.
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.pathtracer import ReferenceRenderer
 
     w = h = 40

@@ -14,7 +14,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer import ViewerError as SceneError
 from viewer.scene import load_scene, parse_scene
 
@@ -166,7 +166,7 @@ def test_tir_glass_cube_lecture_step(renderer, gl_ctx):
     # floor under the sky). Chains that end on the floor see it shaded the rasterizer's way
     # (split-sum sky light without occlusion, no indirect light), the reference with global
     # illumination: hence 8% (the bound) rather than the 3% of the lone ball.
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     i = [s.key for s in TOUR].index("tir")
     scene = tour_scene(i)
@@ -262,7 +262,7 @@ def test_raytrace_false_is_bit_identical(renderer, gl_ctx, step):
     # raytrace = false compiles no traced program and binds nothing new: the image equals a
     # renderer that never traced, bit for bit (also after traced frames on the same renderer).
     from viewer.gl.renderer import Renderer
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     scene = tour_scene([s.key for s in TOUR].index(step))
     assert scene.render.raytrace  # these steps trace their glass; the test turns it off first
@@ -310,7 +310,7 @@ def test_progressive_trace_equals_one_shot(renderer, gl_ctx, step, msaa):
     # the copy is of float32 texels. Before it is done every pixel shows the untraced view, its
     # half-resolution trace or its full trace: never a hole.
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     scene = tour_scene([s.key for s in TOUR].index(step))
     assert renderer.traces(scene)
@@ -360,7 +360,7 @@ def test_progressive_trace_equals_one_shot(renderer, gl_ctx, step, msaa):
 
 def test_raytrace_override_false_equals_raytrace_off(renderer):
     # render(raytrace=False), the window's preview while the view moves, is the untraced render
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     scene = tour_scene([s.key for s in TOUR].index("fresnel"))
     forced = renderer.read_linear(renderer.render(scene, None, 32, 24, msaa=0, raytrace=False)).copy()

@@ -16,7 +16,7 @@ def test_ci_runs_the_readme_test_command():
 
 
 def test_readme_documents_each_command():
-    from viewer.cli import COMMANDS
+    from viewer.commands.cli import COMMANDS
 
     readme = (ROOT / "README.md").read_text()
     for c in COMMANDS:

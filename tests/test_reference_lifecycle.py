@@ -72,7 +72,7 @@ def _wait(predicate, seconds=120.0):   # a deadline for a background job, genero
 
 def test_a_killed_worker_is_reported_and_the_next_restart_recovers(private_tmp):
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     scene = load_scene("sphere")
@@ -98,7 +98,7 @@ def test_a_killed_worker_is_reported_and_the_next_restart_recovers(private_tmp):
 
 def test_stop_then_the_same_view_resumes(private_tmp):
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     scene = load_scene("sphere")

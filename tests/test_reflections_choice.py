@@ -41,9 +41,9 @@ TRACED_STEPS = ("fresnel", "tir", "absorbing_glass", "complex_ior", "dispersion"
 
 @pytest.mark.parametrize("key", TRACED_STEPS)
 def test_glass_steps_trace_and_render_finite(renderer, key):
-    from viewer.finite import nonfinite_message
+    from viewer.image.finite import nonfinite_message
     from viewer.gl.raytrace import chain_traces
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     i = [s.key for s in TOUR].index(key)
     scene = tour_scene(i)

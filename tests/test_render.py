@@ -7,7 +7,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer.scene import load_scene
 
 from render_util import camera_rays, hit_plane_y, hit_sphere, lambert_point

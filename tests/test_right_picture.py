@@ -60,7 +60,7 @@ def _settle(s, limit=400):
 
 
 def test_every_step_forwards_and_backwards_shows_its_own_scene(gl_ctx, renderer):
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     s = _session(gl_ctx, renderer)
     try:
@@ -177,7 +177,7 @@ def test_a_traced_step_is_drawn_untraced_once_its_untraced_programs_are_ready(gl
     # the untraced programs are asked for first: once they are answered the step is drawn
     # untraced (its own materials), long before the traced ones
     from viewer.gl.renderer import Renderer
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     renderer = Renderer(gl_ctx)
     s = _session(gl_ctx, renderer)

@@ -327,7 +327,7 @@ def test_environment_map_unreadable(tmp_path):
 
 
 def test_missing_mesh_file(tmp_path):
-    pytest.importorskip("viewer.mesh")
+    pytest.importorskip("viewer.scene.mesh")
     p = write(tmp_path, '[[objects]]\nmesh = "meshes/gone.obj"\nmaterial = "m"\n[materials.m]\nmodel = "lambert"\n')
     with pytest.raises(ViewerError) as e:
         load_scene(str(p))
@@ -485,7 +485,7 @@ def test_builtin_scene_names():
 
 @pytest.mark.parametrize("name", ["default", "sphere", "cornell"])
 def test_every_builtin_scene_loads(name):
-    pytest.importorskip("viewer.mesh")
+    pytest.importorskip("viewer.scene.mesh")
     s = load_scene(name)
     assert s.path is None and name in s.label
     assert s.objects and all(o.mesh_data is not None for o in s.objects)
@@ -524,7 +524,7 @@ def test_file_named_like_builtin_with_suffix_is_a_file(tmp_path, monkeypatch):
 # ------------------------------------------------------------------ paths and transforms
 
 def test_relative_mesh_path_resolves_against_scene_folder(tmp_path, monkeypatch):
-    pytest.importorskip("viewer.mesh")
+    pytest.importorskip("viewer.scene.mesh")
     scene_dir = tmp_path / "scenes"
     (scene_dir / "meshes").mkdir(parents=True)
     (scene_dir / "meshes" / "tri.obj").write_text(
@@ -607,9 +607,9 @@ def test_dotted_key_turns_list_indices_into_path_parts():
 
 
 def test_save_scene_and_material_write_atomically_and_read_back(tmp_path, monkeypatch):
-    """save_scene and save_material go through viewer.io's atomic writer; what they write loads
+    """save_scene and save_material go through viewer.base.io's atomic writer; what they write loads
     back to the same scene and material."""
-    from viewer import io as vio
+    from viewer.base import io as vio
     from viewer.scene import load_material_file, material_to_toml, save_material, save_scene
 
     written = []

@@ -1,7 +1,7 @@
 """Every built-in scene and lecture step: the raster as the window shows it once the view is still
 (a traced frame where the scene says ``raytrace = true``, its MSAA, SSR in one frame) against the
 CPU reference (max depth 8, the window's), at 64 x 48 and 16 spp; ``-m slow`` repeats it at
-160 x 96 and 128 spp. Figures (``viewer.compare.agreement``): the image's mean relative
+160 x 96 and 128 spp. Figures (``viewer.image.compare.agreement``): the image's mean relative
 difference and the 90th percentile of the 8 x 8 blocks' relative differences.
 
 Each scene's tolerance stands beside it with its reason: what the rasterizer does not do
@@ -12,8 +12,8 @@ figures do not move between runs. ``benchmarks/scenes_vs_reference.py`` prints t
 
 import pytest
 
-from viewer.camera import OrbitCamera
-from viewer.compare import agreement
+from viewer.scene.camera import OrbitCamera
+from viewer.image.compare import agreement
 from viewer.scene import load_scene
 
 pathtracer = pytest.importorskip("viewer.pathtracer")

@@ -176,7 +176,7 @@ def test_a_dropped_folder_of_brdf_files_joins_the_picker(session, tmp_path):
 
 
 def test_lecture_steps_forward_and_back(session):
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     seen = []
     session.step_listeners.append(seen.append)
@@ -218,7 +218,7 @@ def test_compare_and_reflection_modes(session):
 def test_screenshot_is_a_png_of_the_view_size(session, tmp_path):
     from PIL import Image
 
-    from viewer.io import read_png_text
+    from viewer.base.io import read_png_text
 
     path = tmp_path / "shot.png"
     assert session.take_screenshot(path, size=(64, 40)) == path
@@ -299,7 +299,7 @@ def test_traced_chains_refine_when_still_and_not_while_interacting(session, monk
     # strips of traced rows, frame after frame (``refining``) until the image equals one traced
     # render bit for bit; a move cancels the trace and the next still view starts over.
     import viewer.app.view_frames as smod
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))  # an empty traced-frame cache
     assert session.lecture([s.key for s in TOUR].index("tir"))

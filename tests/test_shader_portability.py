@@ -4,7 +4,7 @@ file with comments removed, so prose that says "double" does not count."""
 
 import re
 
-from viewer.resources import SHADER_DIR
+from viewer.base.resources import SHADER_DIR
 
 FP64 = re.compile(r"\b(double|dvec[234]|dmat[234](x[234])?)\b|\d(\.\d*)?(e[+-]?\d+)?lf\b", re.IGNORECASE)
 

@@ -18,7 +18,7 @@
 import numpy as np
 import pytest
 
-from viewer.camera import OrbitCamera
+from viewer.scene.camera import OrbitCamera
 from viewer.gl.renderer import VIEW_MODES
 from viewer.scene import load_scene
 

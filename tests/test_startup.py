@@ -12,16 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer import meshgen
-from viewer.mesh import read_own_ply, write_ply
-from viewer.resources import MODEL_DIR
+from viewer.scene import meshgen
+from viewer.scene.mesh import read_own_ply, write_ply
+from viewer.base.resources import MODEL_DIR
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.parametrize("name", sorted(meshgen.GENERATORS))
 def test_own_ply_reader_agrees_with_trimesh(name):
-    from viewer.mesh import load_mesh  # noqa: F401  (trimesh comes through viewer.optional)
+    from viewer.scene.mesh import load_mesh  # noqa: F401  (trimesh comes through viewer.base.optional)
     import trimesh
 
     path = MODEL_DIR / f"{name}.ply"
@@ -64,7 +64,7 @@ def test_default_scene_loads_without_trimesh_or_scipy():
 def test_first_frame_of_the_default_scene_makes_no_dfg_table(gl_ctx, monkeypatch):
     """The CPU DFG table (seconds of numpy) serves only the multiple-scattering compensation of a
     specular material; the default scene (Lambert, no compensation) must not make it."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.environment import dfg
     from viewer.gl.renderer import Renderer
     from viewer.scene import load_scene
@@ -75,8 +75,7 @@ def test_first_frame_of_the_default_scene_makes_no_dfg_table(gl_ctx, monkeypatch
     monkeypatch.setattr(dfg, "dfg_table", refuse)
     monkeypatch.setattr(dfg, "stored_dfg_table", refuse)  # nor read it from the disk cache
     # the renderer keeps the table once made (an earlier test in the session may have made it)
-    from viewer import ms_compensation
-
+    from viewer.brdf import ms_compensation
     monkeypatch.setattr(ms_compensation, "_DFG", None)
     scene = load_scene("default", ["camera.width=32", "camera.height=18"])
     r = Renderer(gl_ctx)

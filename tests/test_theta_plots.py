@@ -192,7 +192,7 @@ def test_a_files_d_f_g_run_as_glsl_and_equal_the_built_in_terms():
 
 
 def test_plot_cli_writes_the_new_kinds(tmp_path, capsys):
-    from viewer.cli import main
+    from viewer.commands.cli import main
 
     runs = [("theta_h", ["--theta-d", "20", "--cos"]), ("theta_d", ["--theta-h", "5", "--log"]),
             ("theta_v", ["--theta-i", "30", "--phi-v", "10"]), ("terms", ["--log"]), ("slice", ["--phi-d", "60"])]

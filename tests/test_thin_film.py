@@ -179,7 +179,7 @@ def test_fresnel_plot_shows_the_film():
 
 
 def test_soap_bubble_scene_and_lecture_step():
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
     from viewer.scene import load_scene
 
     keys = [s.key for s in TOUR]

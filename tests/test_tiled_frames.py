@@ -214,7 +214,7 @@ def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(g
     once; the untraced frame is drawn in tiles, then traced from it, and the end is the
     trace of a whole untraced frame."""
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     scene = tour_scene([t.key for t in TOUR].index("absorbing_glass"))
     scene.render.raytrace = False

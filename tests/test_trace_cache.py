@@ -13,7 +13,7 @@ SIZE = (40, 30)  # small: the checks are about identity and bookkeeping, not abo
 
 
 def _step(key):
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     return [s.key for s in TOUR].index(key)
 
@@ -37,7 +37,7 @@ def session(gl_ctx, renderer):
 def test_cache_hit_is_the_live_trace(renderer, gl_ctx, cache_dir):
     # A trace read from the cache is the live one bit for bit (linear float32 texels), done at once
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import tour_scene
+    from viewer.scene.lecture import tour_scene
 
     scene = tour_scene(_step("tir"))
     live, again = ProgressiveTrace(gl_ctx), ProgressiveTrace(gl_ctx)
@@ -73,9 +73,9 @@ def test_cache_hit_is_the_live_trace(renderer, gl_ctx, cache_dir):
 
 
 def test_key_follows_size_scene_camera_and_view(renderer):
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.gl.trace_cache import frame_key
-    from viewer.lecture import tour_scene
+    from viewer.scene.lecture import tour_scene
 
     scene = tour_scene(_step("fresnel"))
     cam = OrbitCamera.from_scene(scene)
@@ -100,7 +100,7 @@ def test_key_follows_size_scene_camera_and_view(renderer):
 def test_damaged_entry_is_set_aside_and_traced_again(renderer, gl_ctx, cache_dir, damage):
     from viewer.gl import trace_cache
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import tour_scene
+    from viewer.scene.lecture import tour_scene
 
     scene = tour_scene(_step("tir"))
     pt = ProgressiveTrace(gl_ctx)
@@ -135,7 +135,7 @@ def test_one_entry_serves_every_narrower_view_of_its_height(renderer, gl_ctx, ca
     # float rounding in the projection
     from viewer.gl import trace_cache
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import tour_scene
+    from viewer.scene.lecture import tour_scene
 
     scene = tour_scene(_step("tir"))
     W, H = 64, 30
@@ -172,7 +172,7 @@ def test_every_layout_of_a_prepared_window_opens_traced(renderer, gl_ctx, cache_
     from viewer.app.layout import view_columns, window_layout
     from viewer.app.lecture_prep import LecturePrep, view_size
     from viewer.gl.raytrace import ProgressiveTrace
-    from viewer.lecture import tour_scene
+    from viewer.scene.lecture import tour_scene
 
     step = _step("tir")
     win = (961, 24)  # odd: the prepared view is 960 wide
@@ -323,8 +323,7 @@ def test_bake_lecture_refuses_bad_sizes_in_one_line(tmp_path):
 def test_bake_lecture_fills_the_cache(cache_dir, monkeypatch, capsys):
     # in-process, one step (the CLI's own code path; all steps: the slow test below)
     import viewer.app.lecture_prep as prep_mod
-    from viewer import cli
-
+    from viewer.commands import cli
     monkeypatch.setattr(prep_mod, "traced_steps", lambda: [_step("tir")])
     assert cli.main(["bake", "--lecture", "--width", "25", "--height", "16"]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -337,7 +336,7 @@ def test_bake_lecture_fills_the_cache(cache_dir, monkeypatch, capsys):
 
 
 def test_bake_lecture_without_a_size_prepares_the_last_sessions_window(cache_dir, monkeypatch, capsys, tmp_path):
-    from viewer import cli
+    from viewer.commands import cli
     from viewer.app.state import save_state
 
     state = tmp_path / "state.toml"

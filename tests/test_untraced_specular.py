@@ -147,7 +147,7 @@ def test_no_glass_rests_flush_on_a_floor():
     through it hit the glass's face or the floor at the same distance, so which one the tracer
     takes changes from pixel to pixel: a band of speckle along the base, in the reference too."""
     from viewer.gl.raytrace import chain_glass
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
     from viewer.scene import builtin_scene_names, load_scene
 
     names = [f"lecture:{i + 1}" for i in range(len(TOUR))] + list(builtin_scene_names())

@@ -1,4 +1,4 @@
-"""The Monte Carlo error views (``viewer.variance``) against independent truths: the standard
+"""The Monte Carlo error views (``viewer.image.variance``) against independent truths: the standard
 error the view shows from one render's running variance equals the spread of the pixel means of
 renders with independent seeds; relative error and samples needed follow from it; the estimated
 RMSE falls as spp^-1/2."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer import variance as V
+from viewer.image import variance as V
 from viewer.pathtracer import ReferenceRenderer
 
 from reference_harness import glossy_studio

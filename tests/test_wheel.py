@@ -1,7 +1,7 @@
 """The package as a new user installs it: an sdist and a wheel built from a copy of the source
 tree, the wheel installed (not editable) into a fresh virtual environment outside the checkout,
 and the console script run from another folder. It proves that the wheel carries the shaders and
-the built-in meshes (setup.py copies them into the package) and that ``viewer.resources`` finds
+the built-in meshes (setup.py copies them into the package) and that ``viewer.base.resources`` finds
 them there, with nothing read from the checkout or the working folder.
 
 Dependencies are not installed again: a ``.pth`` line lets the fresh environment see the test
@@ -124,7 +124,7 @@ def test_sdist_and_wheel_hold_the_resources(installed):
 def test_installed_wheel_runs_from_another_folder(installed):
     vpy, bindir, run_dir, wheel, _, env = installed
     t0 = time.perf_counter()
-    info = json.loads(_run([vpy, "-c", "import json, viewer, viewer.resources as r; print(json.dumps("
+    info = json.loads(_run([vpy, "-c", "import json, viewer, viewer.base.resources as r; print(json.dumps("
                             "[viewer.__file__, str(r.SHADER_DIR), str(r.MODEL_DIR), viewer.__version__]))"],
                            cwd=run_dir, env=env).stdout)
     venv = vpy.parent.parent

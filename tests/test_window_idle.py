@@ -45,7 +45,7 @@ def test_an_uncached_view_opens_on_a_coarse_preview_then_full_passes(tmp_path, m
     spp, no variance: no metrics are computed from it), then the passes at full resolution; a
     view the cache holds, and a tiny view, start with their passes."""
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
@@ -71,7 +71,7 @@ def test_an_uncached_view_opens_on_a_coarse_preview_then_full_passes(tmp_path, m
 
 def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     scene = load_scene("sphere")
@@ -104,7 +104,7 @@ def test_passes_wake_the_window_and_a_drag_pauses_the_reference():
 def test_the_reference_texture_is_uploaded_only_for_new_samples(gl_ctx, monkeypatch):
     from viewer.app import compare_view
     from viewer.app.reference_view import ReferenceView
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.scene import load_scene
 
     calls = []

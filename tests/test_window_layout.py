@@ -19,7 +19,7 @@ LONG_STATUS = ("environment: studio (intensity 0.412: mean luminance 0.437 -> mi
 
 
 def _overlays(view, scale, mode, lecture_step, toast=True):
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     font = 16.0 * scale
     x, y, w, h = view.tuple()
@@ -40,7 +40,7 @@ def _overlays(view, scale, mode, lecture_step, toast=True):
 
 @pytest.mark.parametrize("size,scale", list(itertools.product(SIZES, SCALES)))
 def test_overlays_never_overlap(size, scale):
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     longest = max(range(len(TOUR)), key=lambda i: len(TOUR[i].caption))
     for lecture, plots, mode in itertools.product((False, True), (False, True),

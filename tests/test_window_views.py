@@ -108,7 +108,7 @@ def test_lecture_layout_clicker_taps_and_split_screenshot(display, tmp_path):
         view = app.capture_view().astype(int)
         app.take_screenshot({str(shot)!r})
         png = np.asarray(Image.open({str(shot)!r}).convert("RGB")).astype(int)
-        from viewer.io import read_png_text
+        from viewer.base.io import read_png_text
         text = read_png_text({str(shot)!r})
         state = json.loads(text["brdf-viewer:state"])
         cut = int(round(png.shape[1] * app.session.compare.split))

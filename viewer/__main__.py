@@ -1,5 +1,5 @@
 import sys
 
-from viewer.cli import main
+from viewer.commands.cli import main
 
 sys.exit(main())

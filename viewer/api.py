@@ -74,7 +74,7 @@ def render(scene, width=None, height=None, overrides=()) -> np.ndarray:
     """Rasterize ``scene`` offscreen with the window's renderer: the same float32 (H, W, 3)
     array as ``brdf-viewer render SCENE --linear out.npy`` (bit for bit)."""
     global _raster
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     sc = load(scene, overrides, width, height)
     if _raster is None:
@@ -115,7 +115,7 @@ def reference(scene, spp=64, engine="auto", width=None, height=None, overrides=(
     ``brdf-viewer reference SCENE --spp N --seed S --linear out.npy`` (bit for bit for the same
     seed). ``max_depth`` scattering events per path (1 = direct light); ``workers`` processes
     (default: every core; 0 = render in this process, same image)."""
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     if engine not in REFERENCE_ENGINES:
         reference_engine(engine)  # the one-line error

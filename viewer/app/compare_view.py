@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from viewer.app.layout import fit_rect
-from viewer.compare import auto_scale, error_map, metrics, ramp
+from viewer.image.compare import auto_scale, error_map, metrics, ramp
 
 MODES = ("raster", "reference", "split", "side by side", "difference", "relative difference")
 USES_REFERENCE = frozenset(MODES[1:])
@@ -272,7 +272,7 @@ class CompareView:
 
 
 def draw_colour_bar(imgui, dl, lay: dict, j: int, label, scale: float, what: str, low: str = "0"):
-    """Colour bar ``j`` of an overlay layout (``viewer.compare.ramp``): the ramp in ``bar{j}``,
+    """Colour bar ``j`` of an overlay layout (``viewer.image.compare.ramp``): the ramp in ``bar{j}``,
     ``low`` and ``scale`` at its ends, ``what`` above it; ``label(rect, text)`` draws a text box."""
     r = lay[f"bar{j}"]
     n = 48

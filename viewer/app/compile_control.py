@@ -203,7 +203,7 @@ class CompileControl:
             s.notify(str(e), error=True)
 
     def ask_ahead(self, step: int) -> None:
-        from viewer.lecture import tour_scene
+        from viewer.scene.lecture import tour_scene
 
         ca = self.worker()
         if ca is not None:

@@ -77,7 +77,7 @@ class FileActions:
 
     def save_material(self, name: str, path) -> bool:
         """One material as a ``[materials.NAME]`` table (the scene file's format)."""
-        from viewer.io import atomic_write_bytes
+        from viewer.base.io import atomic_write_bytes
         from viewer.scene import material_to_toml
 
         s = self.session
@@ -109,7 +109,7 @@ class FileActions:
     # ------------------------------------------------------------------ scenes and meshes
     def set_scene(self, scene):
         """Show ``scene``: a new camera on it, the old scene's mesh buffers freed, drawn anew."""
-        from viewer.camera import OrbitCamera
+        from viewer.scene.camera import OrbitCamera
 
         s = self.session
         s.renderer.forget_meshes(keep=[o.mesh_data for o in scene.objects])  # the old scene's buffers
@@ -141,9 +141,9 @@ class FileActions:
 
     def save_scene(self, path) -> bool:
         """The current scene (camera as seen) as TOML in the scene-file format, written atomically."""
-        from viewer.io import atomic_write_bytes
+        from viewer.base.io import atomic_write_bytes
         from viewer.scene import scene_to_toml
-        from viewer.screenshot import scene_with_camera
+        from viewer.scene.screenshot import scene_with_camera
 
         s = self.session
         try:
@@ -179,7 +179,7 @@ class FileActions:
     def load_mesh(self, path, object_index: int | None = None) -> bool:
         """Replace one object's mesh (default: the largest object that is not a plane) with a
         mesh file, scaled to the same bounding-sphere radius and centre; errors keep the old."""
-        from viewer.mesh import load_mesh
+        from viewer.scene.mesh import load_mesh
 
         session = self.session
         objs = session.scene.objects

@@ -39,7 +39,7 @@ class LectureControl:
     def lecture(self, step: int | None):
         """Show the lecture tour's ``step`` (0-based; None ends lecture mode). The step's scene
         replaces the current one; a step that fails to load leaves the scene as it was."""
-        from viewer.lecture import TOUR, tour_scene
+        from viewer.scene.lecture import TOUR, tour_scene
 
         s = self.session
         if step is None:
@@ -62,26 +62,26 @@ class LectureControl:
         return True
 
     def lecture_next(self):
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         return self.lecture((self.lecture_step + 1) % len(TOUR))
 
     def lecture_previous(self):
         """The step before (from lecture mode off: the last one)."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         return self.lecture((max(self.lecture_step, 0) - 1) % len(TOUR))
 
     def lecture_back(self):
         """The key / strip's previous step (from the first: the last)."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         return self.lecture((self.lecture_step - 1) % len(TOUR))
 
     @property
     def lecture_title(self) -> tuple[str, str]:
         """("3/15  Total internal reflection", caption) of the step shown, ("", "") when off."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         if self.lecture_step < 0:
             return "", ""
@@ -91,7 +91,7 @@ class LectureControl:
     def step_plot(self, step: int) -> dict:
         """What the plots show beside ``step``: its tab (or None), light from inside (the
         critical angle), the materials plotted (the step's subjects, not the floor)."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         return dict(tab=STEP_TABS.get(TOUR[step].plot), inside=TOUR[step].key == "tir",
                     shown={name: name != "floor" for name in self.session.scene.materials})
@@ -99,7 +99,7 @@ class LectureControl:
     def step_shown(self):
         """The step's first frame is drawn (its preview where the view is drawn in tiles, its
         untraced view where it traces): say how long the key press took to show it."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         s = self.session
         step, t0 = self.step_timer
@@ -117,7 +117,7 @@ class LectureControl:
 
     def enter_step(self, step: int):
         """Lecture mode on at ``step`` for the scene already shown."""
-        from viewer.lecture import TOUR
+        from viewer.scene.lecture import TOUR
 
         s = self.session
         self.lecture_step = step

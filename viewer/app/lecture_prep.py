@@ -44,7 +44,7 @@ def view_size(window_size) -> tuple[int, int]:
 def traced_steps() -> list[int]:
     """The 0-based lecture steps whose scenes trace specular chains."""
     from viewer.gl.raytrace import chain_traces
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     out = []
     for i in range(len(TOUR)):
@@ -101,9 +101,9 @@ class LecturePrep:
                 f"{time.perf_counter() - self.started:.0f} s")
 
     def _begin(self):
-        from viewer.camera import OrbitCamera
+        from viewer.scene.camera import OrbitCamera
         from viewer.gl.raytrace import ProgressiveTrace
-        from viewer.lecture import tour_scene
+        from viewer.scene.lecture import tour_scene
 
         scene = tour_scene(self.current)
         self._trace = ProgressiveTrace(self.ctx)

@@ -143,7 +143,7 @@ class App:
     def _open_window(self, size, title, fit_display: bool = False):
         glfw = self.glfw
         from viewer.app import window_size
-        from viewer.commands import HEADLESS_HINT
+        from viewer.commands.names import HEADLESS_HINT
 
         if not glfw.init():
             raise GLUnavailable(f"cannot initialise glfw (no display?); {HEADLESS_HINT}")
@@ -565,7 +565,7 @@ class App:
         elif key == "l":
             s.lecture(0 if s.lecture_step < 0 else None)
         elif s.lecture_step >= 0:
-            from viewer.lecture import TOUR
+            from viewer.scene.lecture import TOUR
 
             if key in ("right", "page_down", "space"):
                 s.lecture_next()

@@ -4,7 +4,7 @@ relative error, samples needed for a target error) as heat maps with a colour ba
 convergence plot (estimated RMSE against spp, log-log, with the -1/2 slope and a stored curve of
 another strategy). The plots window's *Sampling* tab is ``viewer.app.plot_tabs.sampling``.
 
-The numbers come from ``viewer.variance``; this module only draws them. Use from the app::
+The numbers come from ``viewer.image.variance``; this module only draws them. Use from the app::
 
     mc = MonteCarloPanel(ctx)
     mc.draw_settings(reference_view, compare_uses_reference)   # in the side panel
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from viewer.compare import auto_scale, ramp
+from viewer.image.compare import auto_scale, ramp
 from viewer.reference_common.estimator import STRATEGIES, STRATEGY_LABELS
-from viewer.variance import ERROR_VIEWS, error_view
+from viewer.image.variance import ERROR_VIEWS, error_view
 
 VIEWS = ("off",) + ERROR_VIEWS
 HEURISTICS = ("power", "balance")

@@ -78,7 +78,7 @@ def leash_seconds(default: float = LEASH_S) -> float:
 def tour_maps(start: int = 0) -> list:
     """The tour's distinct environments with a map, as (step index, Environment), from step
     ``start`` on (wrapping), each map and intensity once."""
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     seen, out = set(), []
     n = len(TOUR)
@@ -245,7 +245,7 @@ class MapPrefilter:
         import numpy as np
 
         from viewer.environment import cache
-        from viewer.io import atomic_write_bytes
+        from viewer.base.io import atomic_write_bytes
 
         self.key = key
         self.error = ""

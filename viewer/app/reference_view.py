@@ -273,7 +273,7 @@ class ReferenceView:
         """Cancel the job in progress and show no image until the next restart (returns at once)."""
         if self._key is None and self._image is None:
             return
-        from viewer.variance import ConvergenceCurve
+        from viewer.image.variance import ConvergenceCurve
 
         with self._cond:
             self._request = None
@@ -314,7 +314,7 @@ class ReferenceView:
                 else:
                     self._gpu.reset(scene, camera, w, h, **self.options)
                 self._gpu_key, have = _cached(self._gpu, self.notice)
-                from viewer.variance import ConvergenceCurve
+                from viewer.image.variance import ConvergenceCurve
 
                 with self._lock:
                     self._image = self._gpu.mean() if have else None
@@ -333,7 +333,7 @@ class ReferenceView:
             elapsed = time.perf_counter() - self.started_at
             self.samples_per_second = self._gpu_samples / max(elapsed, 1e-9)
             if self._gpu.spp != self._image_spp and (now - self._gpu_read_at > 0.25 or self._image is None):
-                from viewer.variance import rmse_estimate
+                from viewer.image.variance import rmse_estimate
 
                 img, var = self._gpu.mean(), self._gpu.variance()
                 with self._lock:
@@ -364,7 +364,7 @@ class ReferenceView:
         cancelled; returns at once)."""
         snapshot = copy.deepcopy(scene)  # the GUI keeps editing its own copy
         cam = copy.deepcopy(camera)
-        from viewer.variance import ConvergenceCurve
+        from viewer.image.variance import ConvergenceCurve
 
         with self._cond:
             if self._closing:
@@ -414,7 +414,7 @@ class ReferenceView:
     def _job(self, gen, scene, camera, w, h, options):
         from viewer import ViewerError
         from viewer.pathtracer import ReferenceRenderer
-        from viewer.variance import rmse_estimate
+        from viewer.image.variance import rmse_estimate
 
         cancel = self._cancel
         try:

@@ -154,7 +154,7 @@ class Session:
                  tiled_frames: bool = False):
         from viewer.app.compare_view import MODES, CompareView
         from viewer.app.monte_carlo import MonteCarloPanel
-        from viewer.camera import OrbitCamera
+        from viewer.scene.camera import OrbitCamera
         from viewer.gl.renderer import VIEW_MODES, Renderer
         from viewer.scene import LECTURE_NAME, load_scene
 

@@ -18,7 +18,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from viewer.input_bounds import toml_problem
+from viewer.base.input_bounds import toml_problem
 
 #: the window's size when neither the command line nor the last session gives one
 DEFAULT_WINDOW = (1280, 720)
@@ -124,7 +124,7 @@ def load_state(path: Path | None = None) -> dict:
 def save_state(state: dict, path: Path | None = None) -> None:
     import tomli_w
 
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     path = state_path() if path is None else Path(path)
     clean = {k: v for k, v in state.items() if k in SCHEMA and v is not None}

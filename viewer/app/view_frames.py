@@ -379,7 +379,7 @@ class ViewFrames:
         holds NaN or Inf pixels: a renderer bug the class would see as holes. The texels are
         tested as read (no flipped copy, no mask: a frame at 1456x1080 costs a quarter of that);
         only a frame with such pixels is read again to name them."""
-        from viewer.finite import nonfinite_message, render_switches
+        from viewer.image.finite import nonfinite_message, render_switches
 
         s = self.session
         try:

@@ -103,8 +103,8 @@ class ViewState:
         function returning the view as shown ((H, W, 3) uint8), used for the compare views and
         error maps (the window's); without one they fall back to the raster."""
         from viewer.gl.renderer import VIEW_MODES
-        from viewer.io import write_png
-        from viewer.screenshot import png_text
+        from viewer.base.io import write_png
+        from viewer.scene.screenshot import png_text
 
         s = self.session
         if path is None:
@@ -149,9 +149,9 @@ class ViewState:
         the scene as last_scene.toml next to it, both written atomically. A problem is reported
         on stderr and returns False: the session is never lost to a state file."""
         from viewer.app import state as state_mod
-        from viewer.io import atomic_write_bytes
+        from viewer.base.io import atomic_write_bytes
         from viewer.scene import scene_to_toml
-        from viewer.screenshot import scene_with_camera
+        from viewer.scene.screenshot import scene_with_camera
 
         s = self.session
         st = dict(s.state)

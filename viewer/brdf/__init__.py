@@ -25,7 +25,7 @@ ORDER = ("lambert", "phong", "blinn_phong", "microfacet", "oren_nayar", "lafortu
 
 _HELPERS = {"spec", "lobes", "mit_aniso", "bparam", "brdffile", "file_model", "report_card", "fresnel", "microfacet_dist",
             "microfacet_walk", "sampling", "presets", "albedo", "spectral_fresnel", "thin_film", "merl", "fit", "chi2",
-            "wavelengths", "layered_walk"}
+            "wavelengths", "layered_walk", "file_sampler", "ms_compensation"}
 _REGISTRY: dict[str, "Model"] | None = None
 
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import atomic_write_bytes, one_line, stat_file
+from viewer.base.io import atomic_write_bytes, one_line, stat_file
 
 SUFFIX = ".bparam"
 #: the most bytes of a .bparam file (one written for a file of 100 parameters is about 4 KB)

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import atomic_write_file, one_line, stat_file
+from viewer.base.io import atomic_write_file, one_line, stat_file
 from viewer.spectral.colorimetry import LUMINANCE_REC709
 
 log = logging.getLogger(__name__)

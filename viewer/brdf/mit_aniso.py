@@ -41,7 +41,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.brdf import merl
-from viewer.io import atomic_write_file, one_line, stat_file
+from viewer.base.io import atomic_write_file, one_line, stat_file
 
 log = logging.getLogger(__name__)
 

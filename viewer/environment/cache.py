@@ -7,7 +7,7 @@
   same settings (a shader fix), so stale entries are never read.
 * Format: one uncompressed ``.npz`` per key (float data compresses poorly and ``np.load`` of an
   uncompressed archive is fast), written atomically (temporary file in the same folder, then
-  rename: ``viewer.io.atomic_write_bytes``), so a crash or a concurrent writer never leaves a
+  rename: ``viewer.base.io.atomic_write_bytes``), so a crash or a concurrent writer never leaves a
   half-written entry under the final name.
 * Failures never break rendering: a missing, truncated or corrupt file, or one whose stored key
   or arrays do not match, reads as a miss (logged) and is rebuilt and overwritten; an unwritable
@@ -92,7 +92,7 @@ def load(key: str, kind: str = "ibl", expect: dict[str, tuple] | None = None) ->
 
 def store(key: str, arrays: dict[str, np.ndarray], kind: str = "ibl") -> Path | None:
     """Write ``arrays`` (plus the key) atomically; returns the path, or None if it could not."""
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     path = path_for(key, kind)
     try:

@@ -46,8 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import atomic_write_file, one_line, path_problem
-from viewer.optional import require
+from viewer.base.io import atomic_write_file, one_line, path_problem
+from viewer.base.optional import require
 
 log = logging.getLogger("viewer.environment")
 
@@ -338,7 +338,7 @@ def _read_exr(path: Path) -> np.ndarray:
 def save_environment(path, array) -> None:
     """Write float (H, W, 3) linear radiance to ``path`` (.hdr: Radiance RGBE, run-length
     encoded; .exr: OpenEXR, 32-bit float RGB, ZIP compression). The file appears atomically
-    (written beside it under a temporary name, fsynced, then renamed: ``viewer.io.atomic_write_file``),
+    (written beside it under a temporary name, fsynced, then renamed: ``viewer.base.io.atomic_write_file``),
     so a failure or a kill leaves no partial file. RGBE cannot store negative values: they are written as 0."""
     path = Path(path)
     suffix = path.suffix.lower()

@@ -19,7 +19,7 @@ from viewer.geometry.soup import EPS_REL
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 from viewer.reference_common.wavelengths import HERO, N_BINS, STRIDE
 from viewer.scene.model import MAX_LIGHTS
-from viewer.term_scales import NOT_APPLICABLE, SCALES
+from viewer.image.term_scales import NOT_APPLICABLE, SCALES
 
 # MAX_LIGHTS (viewer/scene/model.py): the point and directional lights a scene may hold, the length
 # of the rasterizer's light arrays; the first SHADOW_LIGHTS of them have shadow maps, the rest are
@@ -75,7 +75,7 @@ def float_values() -> dict[str, float]:
     its wavelength bins and a hero-only path's weight (``SPEC_N_BINS``, ``SPEC_HERO``:
     viewer/reference_common/wavelengths.py),
     the relative ray offset (``EPS_REL``: viewer/geometry/soup.py), and the term views'
-    scales (viewer/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
+    scales (viewer/image/term_scales.py): ``TERM_<VIEW>_K`` and ``TERM_<VIEW>_MAX`` of t = log(1 + k v) /
     log(1 + k v_max) (k = 0: t = v / v_max), ``TERM_NOT_APPLICABLE`` the grey of "no such term"."""
     out = {"EMPTY_DEPTH": float(EMPTY_DEPTH), "TERM_NOT_APPLICABLE": float(NOT_APPLICABLE),
            "RR_MIN": float(RR_MIN), "RR_MAX": float(RR_MAX), "EPS_REL": float(EPS_REL),

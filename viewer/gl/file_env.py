@@ -24,6 +24,8 @@ import json
 
 import numpy as np
 
+from viewer import brdf
+
 #: frames a still view of a file material under sampled environment light averages (16 samples
 #: per pixel each): the pixel noise of one frame over sqrt(64) = an eighth (measured on the
 #: shipped Cook-Torrance under a constant environment: 5.6% one frame, 0.7% settled)
@@ -104,7 +106,7 @@ def sampled_file_env(scene) -> bool:
     (``is_constant``)."""
     if scene.render.ibl not in ("split_sum", "fis") or scene.environment.is_black:
         return False  # (the frame's environment switch of ``renderer.frame_switches``)
-    files = {o.material for o in scene.objects if scene.materials[o.material].model == "custom"}
+    files = {o.material for o in scene.objects if brdf.is_file(scene.materials[o.material])}
     # split sum: a Lambertian file's whole light is its constant part, nothing is left to average
     return any(scene.render.ibl != "split_sum" or not is_constant(scene.materials[m]) for m in files)
 

@@ -65,7 +65,7 @@ def _key(bfile, limits) -> str:
 
 
 def _cache_file(key: str):
-    from viewer.io import cache_root
+    from viewer.base.io import cache_root
 
     return cache_root() / "brdf_probe" / f"{key}.ok"
 
@@ -93,7 +93,7 @@ def probe(bfile) -> None:
 
 
 def _remember(key: str) -> None:
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     try:
         _cache_file(key).parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """The per-material data of environment lighting, cached by parameter values: directional-albedo
 tables (reflected, transmitted, and the specular part's alone, the model's ``ibl_split`` hook),
 that part's lobe width, and for the multiple-scattering compensation the lobe's single-scattering
-albedo with F = 1 (E_ss) and its normal-incidence Fresnel (the rule of ``viewer.ms_compensation``). Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
+albedo with F = 1 (E_ss) and its normal-incidence Fresnel (the rule of ``viewer.brdf.ms_compensation``). Tables come from the GLSL samplers on the GPU (``viewer/gl/albedo_gpu.py``: the
 numpy estimator's points) or from numpy (``viewer.brdf.albedo``: the oracle and the fallback)."""
 
 from __future__ import annotations
@@ -39,11 +39,10 @@ class MaterialTables:
     def ms_terms(self, params) -> tuple[np.ndarray, np.ndarray]:
         """The multiple-scattering compensation's data (computed on first use: only scenes with
         ``ms_compensation`` need it): float32 (32,) E_ss, the specular lobe's single-scattering
-        albedo with F = 1 (``viewer.ms_compensation.white_lobe``, built like the other tables; the
+        albedo with F = 1 (``viewer.brdf.ms_compensation.white_lobe``, built like the other tables; the
         GGX DFG table's A + B for lobes without one), and F0 = the specular albedo over E_ss at
-        the table's normal-incidence node (``viewer.ms_compensation.ms_f0``)."""
-        from viewer import ms_compensation
-
+        the table's normal-incidence node (``viewer.brdf.ms_compensation.ms_f0``)."""
+        from viewer.brdf import ms_compensation
         key = json.dumps(params.to_plain(), sort_keys=True)
         terms = self._ms_cache.get(key)
         if terms is None:
@@ -117,8 +116,8 @@ class MaterialTables:
             return True
         if self.gpu_builder is None:
             return False
-        from viewer import brdf, ms_compensation
-
+        from viewer import brdf
+        from viewer.brdf import ms_compensation
         sampled = [params]
         split = brdf.get(params.model).hook("ibl_split")
         if split is not None:

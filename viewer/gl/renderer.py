@@ -18,7 +18,7 @@ import numpy as np
 
 from viewer import brdf
 from viewer.brdf import thin_film
-from viewer.camera import OrbitCamera, gl_bytes
+from viewer.scene.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAT_FLOATS, MAX_LIGHTS, SSR_VIEW_BASE, TONEMAPS, VIEW_MODES
@@ -667,7 +667,7 @@ class Renderer:
         models sample with the proxy lobe."""
         from viewer.gl.file_env import FRAME_SAMPLES, constant_part, settle_frames
 
-        own = params.model == "custom"
+        own = brdf.is_file(params)
         _set(prog, "u_ibl_own", int(own))
         floor = constant_part(params) if own and scene.render.ibl == "split_sum" else np.zeros(3)
         _set(prog, "u_env_floor", tuple(float(x) for x in floor))
@@ -720,11 +720,10 @@ class Renderer:
 
     def _ms_uniforms(self, prog, params, ms_scene: bool):
         """The multiple-scattering compensation of a material (environment light: Fdez-Aguera;
-        point and directional lights: Kulla-Conty; viewer/ms_compensation.py): for the whole scene, or
+        point and directional lights: Kulla-Conty; viewer/brdf/ms_compensation.py): for the whole scene, or
         for a material whose reference has the multiple-scattering random walk (the raster's
         approximation of the same light)."""
-        from viewer import ms_compensation
-
+        from viewer.brdf import ms_compensation
         ms_on = ms_scene or bool(params.get("multiple_scattering", False))
         _set(prog, "u_ms_on", int(ms_on))
         if ms_on:  # the shader reads u_ms_f0, u_ms_ess and u_ms_eavg only then
@@ -827,7 +826,7 @@ class Renderer:
             hdr = self.render(scene, camera, width, height, view_mode)
             return (self.read_linear(hdr),
                     self.read_srgb(hdr, scene.render.exposure, scene.render.tonemap))
-        from viewer.colour import to_srgb8
+        from viewer.image.colour import to_srgb8
 
         k = max(int(supersample), 1)
         w = int(width or scene.camera.width)

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 from viewer import ViewerError
-from viewer.resources import SHADER_DIR
+from viewer.base.resources import SHADER_DIR
 
 #: environment variable naming another shader folder (default: the package's shaders/)
 SHADER_ROOT_ENV = "BRDF_VIEWER_SHADERS"

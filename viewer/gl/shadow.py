@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from viewer.camera import gl_bytes, look_at, orthographic, perspective
+from viewer.scene.camera import gl_bytes, look_at, orthographic, perspective
 from viewer.gl import texture_units
 from viewer.gl.constants import SHADOW_LIGHTS
 from viewer.gl.context import release_gl

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from viewer.camera import gl_bytes
+from viewer.scene.camera import gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.constants import EMPTY_DEPTH  # the pyramid's value where there is no surface (ssr_hiz.frag)
 from viewer.gl.context import release_gl

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from viewer.camera import gl_bytes
+from viewer.scene.camera import gl_bytes
 from viewer.gl.context import release_gl
 from viewer.gl.shaders import set_uniform as _set
 

@@ -24,8 +24,8 @@ mode and the untraced frame's MSAA, but of the view size only the height and the
 (the projection is hashed at aspect 1: the field of view and the clip planes). Files: ``<cache folder>/traced/<key>.npz`` (``image``:
 (H, W, 4) float32, 33 MB at 1920 x 1080), written atomically; an entry that cannot be read or
 does not match the view it is keyed for is moved aside to ``<key>.npz.damaged`` and traced
-again, and so is one of implausible texels (negative, or above ``viewer.io.MAX_CACHED_RADIANCE``:
-finite garbage such as 3e38 everywhere). The folder is ``viewer.io.cache_root()``, beside the reference cache; it keeps the
+again, and so is one of implausible texels (negative, or above ``viewer.base.io.MAX_CACHED_RADIANCE``:
+finite garbage such as 3e38 everywhere). The folder is ``viewer.base.io.cache_root()``, beside the reference cache; it keeps the
 newest ``MAX_ENTRIES`` entries.
 """
 
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import MAX_CACHED_RADIANCE, cache_root
+from viewer.base.io import MAX_CACHED_RADIANCE, cache_root
 
 #: bump when what the progressive trace stores (or how it composes) changes
 VERSION = "2"
@@ -93,7 +93,7 @@ def _hash_array(a) -> str:
 def frame_key(scene, camera, width: int, height: int, view_mode: int = 0, msaa=None,
               gl_renderer: str = "") -> str:
     """The content hash (hex) of one traced view: see the module's docstring."""
-    from viewer.camera import OrbitCamera, gl_bytes
+    from viewer.scene.camera import OrbitCamera, gl_bytes
     from viewer.scene import scene_to_toml
 
     camera = camera or OrbitCamera.from_scene(scene)
@@ -200,7 +200,7 @@ def store(key: str, image: np.ndarray, folder: Path | None = None) -> Path | Non
     None when the cache folder cannot be written (never an error: the view is traced live
     then). An entry of a wider view under the key is kept (it holds this view too). Keeps the
     newest ``MAX_ENTRIES``."""
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     p = path_for(key, folder)
     _last_failure.clear()
@@ -219,7 +219,7 @@ def store(key: str, image: np.ndarray, folder: Path | None = None) -> Path | Non
         for old in entries[:-MAX_ENTRIES]:
             old.unlink(missing_ok=True)
     except (OSError, ViewerError) as e:
-        # viewer.io's errors name the file and why; a plain OSError (mkdir) says why
+        # viewer.base.io's errors name the file and why; a plain OSError (mkdir) says why
         why = str(e) if isinstance(e, ViewerError) else f"{p}: cannot be written ({e.strerror or e})"
         _last_failure.append(why.splitlines()[0] if why else type(e).__name__)
         return None

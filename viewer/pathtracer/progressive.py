@@ -63,7 +63,7 @@ def _build(setup: RenderSetup) -> Integrator:
         return Integrator(setup)
     except ImportError as e:
         from viewer import ViewerError
-        from viewer.optional import explain
+        from viewer.base.optional import explain
 
         raise ViewerError(explain(e, None, f"the {setup.kernel} ray kernel of the reference path tracer")) from None
 
@@ -148,7 +148,7 @@ def _check_kernel(kernel: str) -> None:
     """A one-line ViewerError for an unknown kernel or a missing package, here in the calling
     process (in a worker it would only break the pool, with a message that names nothing)."""
     from viewer import ViewerError
-    from viewer.optional import require
+    from viewer.base.optional import require
 
     if kernel not in KERNELS:
         raise ViewerError(f"kernel: {kernel!r} is not a ray kernel; allowed: {', '.join(KERNELS)}")

@@ -156,8 +156,7 @@ def _albedo_figure(r: _Request) -> Figure:
     p, channel = r.p, r.channel
     d = albedo_curve(p)
     curves = _rgb_curves(d["theta"], d["albedo"], "albedo", channel)
-    from viewer import ms_compensation
-
+    from viewer.brdf import ms_compensation
     if ms_compensation.applies(p):  # single scattering, the raster's compensation, the random walk
         from viewer import brdf
 

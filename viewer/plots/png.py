@@ -46,7 +46,7 @@ def figure_json(fig: Figure) -> dict:
 def write_plot(fig: Figure, out, data_path=None, width: int = 900, height: int = 600):
     """Write the PNG (atomically; the plotted numbers as JSON in its ``brdf-viewer:plot`` text
     chunk) and, optionally, the same JSON to ``data_path``."""
-    from viewer.io import atomic_write_bytes, write_png
+    from viewer.base.io import atomic_write_bytes, write_png
 
     img = render_figure(fig, width, height)
     data = figure_json(fig)
@@ -58,7 +58,7 @@ def write_plot(fig: Figure, out, data_path=None, width: int = 900, height: int =
 
 def read_plot_data(png_path) -> dict:
     """The plotted numbers stored in a plot PNG (``brdf-viewer:plot``)."""
-    from viewer.io import read_png_text
+    from viewer.base.io import read_png_text
 
     text = read_png_text(png_path)
     if PNG_KEY not in text:

@@ -119,7 +119,7 @@ def spectral_figure(p, label: str, sub: str):
 
 
 def _srgb(rgb):
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
 
     return to_srgb8(np.clip(np.asarray(rgb, dtype=np.float32), 0.0, 1.0))
 

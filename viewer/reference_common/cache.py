@@ -9,7 +9,7 @@ from it and keeps refining (new samples continue at sample index ``spp``: indepe
 stored ones for the same engine and seed, and for the other engine by construction).
 
 Files: ``<cache folder>/references/<key>.npz`` (float32 sums of radiance and of its squares,
-the sample count, engine, seed), written atomically (``viewer.io``). A damaged entry (truncated,
+the sample count, engine, seed), written atomically (``viewer.base.io``). A damaged entry (truncated,
 corrupt, wrong shapes, nonsense values) is set aside as ``<key>.npz.damaged`` with one line and
 rendered afresh; a folder that cannot be written is reported (``CacheError``), never ignored.
 Opening the folder (``open_folder``) removes the ``.part`` files of writers that were killed. The folder: ``$BRDF_VIEWER_CACHE``, else
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer import OutputError, ViewerError
-from viewer.io import MAX_CACHED_RADIANCE, cache_root  # noqa: F401  (cache_root: the folder's one definition; re-exported)
+from viewer.base.io import MAX_CACHED_RADIANCE, cache_root  # noqa: F401  (cache_root: the folder's one definition; re-exported)
 from viewer.scene.validation import short
 
 #: bump when the estimator changes what it converges to (or its noise), so old entries are unused;
@@ -105,11 +105,11 @@ def path_for(key: str, folder: Path | None = None) -> Path:
 
 def open_folder(folder: Path | None = None) -> Path:
     """The cache folder; the first time a process opens it, the ``.part`` files of writers that
-    were killed mid-write (up to the size of an entry each) are removed (``viewer.io``)."""
+    were killed mid-write (up to the size of an entry each) are removed (``viewer.base.io``)."""
     folder = folder or cache_folder()
     if str(folder) not in _OPENED:
         _OPENED.add(str(folder))
-        from viewer.io import remove_orphan_parts
+        from viewer.base.io import remove_orphan_parts
 
         remove_orphan_parts(folder)
     return folder
@@ -224,7 +224,7 @@ def store(key: str, entry: Entry, folder: Path | None = None, report=None) -> bo
     """Write ``entry`` unless the stored one already has as many samples; True when written,
     False when the stored entry is kept. A folder that cannot be written (unwritable, full)
     raises ``CacheError`` (one line naming the file and why): the caller says so."""
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     old = load(key, folder, entry.sum.shape, report)
     if old is not None and old.spp >= entry.spp:
@@ -236,7 +236,7 @@ def store(key: str, entry: Entry, folder: Path | None = None, report=None) -> bo
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_bytes(p, buf.getvalue())
-    except OSError as e:   # the folder cannot be made, or the write failed (viewer.io: OutputError)
+    except OSError as e:   # the folder cannot be made, or the write failed (viewer.base.io: OutputError)
         why = str(e) if isinstance(e, ViewerError) else f"{p}: cannot be written ({e.strerror or e})"
         raise CacheError(f"reference cache: {short(why, 300)}; set BRDF_VIEWER_CACHE to a writable "
                          "folder") from None

@@ -65,7 +65,7 @@ class RenderSetup:
                    env_image=None, kernel: str = "embree", strategy: str = "mis",
                    mis_heuristic: str = "power", russian_roulette: bool = True) -> "RenderSetup":
         if camera is None:
-            from viewer.camera import OrbitCamera
+            from viewer.scene.camera import OrbitCamera
 
             camera = OrbitCamera.from_scene(scene)
         width = int(width or scene.camera.width)

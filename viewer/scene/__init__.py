@@ -26,7 +26,7 @@ Conventions (docs/conventions.md): right-handed, +y up, metres; colours linear R
 * Object transform: ``M = T(translate) * R_y(rotate_y_deg) * S(scale)`` for column vectors.
 
 Mesh references and environment-map paths are resolved against the scene file's folder
-(never the working directory); a mesh may also be a built-in name (``viewer.mesh``).
+(never the working directory); a mesh may also be a built-in name (``viewer.scene.mesh``).
 
 The package: ``model`` (the data classes and the file's keys and allowed values), ``environment``
 (the environment light and its map), ``validation`` (the message builder ``Checker``, reading
@@ -36,7 +36,7 @@ command line) and ``toml_writer`` (``scene_to_toml``, ``save_scene``; files are 
 atomically). None of them imports GL or the window.
 """
 
-from viewer.resources import SCENE_DIR
+from viewer.base.resources import SCENE_DIR
 from viewer.scene.environment import LUMINANCE, MAP_ALLOWED, MID_GREY, Environment
 from viewer.scene.load import (LECTURE_NAME, SCREENSHOT_KEY, builtin_scene_names, file_material, lecture_scene_names,
                                load_material_file, load_scene, load_scene_text, material_from_name)

@@ -9,8 +9,8 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from viewer import ViewerError
-from viewer.io import one_line_errors, path_problem
-from viewer.resources import SCENE_DIR
+from viewer.base.io import one_line_errors, path_problem
+from viewer.base.resources import SCENE_DIR
 from viewer.scene.model import Scene
 from viewer.scene.overrides import apply_override, dotted_key
 from viewer.scene.parse import parse_materials, parse_scene
@@ -30,13 +30,13 @@ LECTURE_NAME = re.compile(r"lecture:(\S*)")  # lecture:N, N = 1 .. the number of
 
 def lecture_scene_names() -> list[str]:
     """``lecture:1`` .. ``lecture:N``: the lecture tour's steps as built-in scene names."""
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     return [f"lecture:{i + 1}" for i in range(len(TOUR))]
 
 
 def _lecture_scene(m, overrides, load_meshes: bool) -> "Scene":
-    from viewer.lecture import TOUR, tour_scene
+    from viewer.scene.lecture import TOUR, tour_scene
 
     n = len(TOUR)
     text = m.group(0)
@@ -92,7 +92,7 @@ def load_scene(ref: str | Path | None = None, overrides: Sequence[str] = (), *,
     if problem is not None:  # a pipe would block the read; a name too long, a NUL character
         Checker(label).fail("file", problem, "a scene file path (.toml)")
     if path.suffix.lower() == ".png":
-        # a screenshot: its text chunk holds the whole scene (viewer.screenshot.png_text)
+        # a screenshot: its text chunk holds the whole scene (viewer.scene.screenshot.png_text)
         data = _read_screenshot(path, label)
         return parse_scene(data, path, overrides, label=label, load_meshes=load_meshes)
     data = _read_toml(path, label)
@@ -115,7 +115,7 @@ def _read_screenshot(path: Path, label: str) -> dict:
     """The scene stored in a screenshot's PNG text chunk. Mesh and map paths in it resolve
     against the screenshot's folder; built-in names work anywhere."""
     try:
-        from viewer.io import read_png_text
+        from viewer.base.io import read_png_text
 
         text = read_png_text(path)
     except Exception as e:  # noqa: BLE001 - Pillow raises many kinds for a broken PNG
@@ -154,7 +154,7 @@ def _beside(data: dict, folder: Path) -> dict:
 
 
 def _read_toml(path: Path, label: str) -> dict:
-    from viewer.input_bounds import MAX_TOML_BYTES, file_size_problem
+    from viewer.base.input_bounds import MAX_TOML_BYTES, file_size_problem
 
     try:
         problem = file_size_problem(os.stat(path).st_size, MAX_TOML_BYTES, "scene file")

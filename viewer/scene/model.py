@@ -49,7 +49,7 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 MAX_COORD = 1e6
 #: the range of an object's scale (each component): within it a unit mesh stays inside MAX_COORD
 MIN_SCALE, MAX_SCALE = 1e-6, 1e6
-MIN_VIEW_DISTANCE = 1e-6  # m, between camera.position and camera.target (viewer.camera clamps there)
+MIN_VIEW_DISTANCE = 1e-6  # m, between camera.position and camera.target (viewer.scene.camera clamps there)
 
 
 def _v3(x) -> np.ndarray:
@@ -118,7 +118,7 @@ class RenderSettings:
 @dataclass(eq=False)
 class SceneObject:
     """One mesh instance. ``mesh`` is the reference as written in the file (a built-in name or
-    a path relative to the scene file); ``mesh_data`` is the loaded ``viewer.mesh.MeshData``
+    a path relative to the scene file); ``mesh_data`` is the loaded ``viewer.scene.mesh.MeshData``
     (None when the scene was parsed with ``load_meshes=False``). ``scale`` is a float or a
     (3,) array of positive numbers."""
 

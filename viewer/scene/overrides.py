@@ -21,7 +21,7 @@ _INDEX = re.compile(r"\[(\d+)\]")
 
 def _parse_value(text: str):
     """A TOML value (number, bool, array, inline table, quoted string); else the bare text."""
-    from viewer.input_bounds import toml_problem
+    from viewer.base.input_bounds import toml_problem
 
     text = text.strip()
     problem = toml_problem(f"v = {text}")

@@ -10,7 +10,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import expand_user, one_line_errors, path_problem
+from viewer.base.io import expand_user, one_line_errors, path_problem
 from viewer.scene.environment import MAP_ALLOWED, Environment
 from viewer.scene.model import (CAMERA_KEYS, DIRECTIONAL_KEYS, ENV_KEYS, EXPOSURE_RANGE, IBL_MODES, LIGHT_TYPES,
                                 MAX_COORD, MAX_LIGHTS, MAX_OBJECTS, MAX_SCALE, MAX_SIZE, MAX_TRIANGLES, MIN_SCALE, MIN_VIEW_DISTANCE, SIZE_ALLOWED, MSAA_SAMPLES, OBJECT_KEYS, POINT_KEYS, RENDER_KEYS,
@@ -57,7 +57,7 @@ def parse_scene(data: dict, path: Path | None, overrides: Sequence[str] = (), *,
     objects = _parse_objects(ck, data.get("objects"), materials)
 
     if load_meshes:
-        from viewer.mesh import load_mesh
+        from viewer.scene.mesh import load_mesh
 
         cache: dict[str, Any] = {}
         for i, obj in enumerate(objects):
@@ -233,7 +233,7 @@ def _parse_lights(ck: Checker, lst) -> list[Light]:
 
 def _mesh_allowed() -> str:
     try:
-        from viewer.mesh import builtin_names
+        from viewer.scene.mesh import builtin_names
 
         names = ", ".join(builtin_names())
     except Exception:  # mesh module absent or broken: still give a useful hint

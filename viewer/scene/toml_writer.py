@@ -60,7 +60,7 @@ def scene_to_data(scene: Scene, absolute_paths: bool = False) -> dict:
         scale = _list(s) if np.ndim(s) else float(s)
         mesh = o.mesh
         if absolute_paths:
-            from viewer.meshgen import GENERATORS
+            from viewer.scene.meshgen import GENERATORS
 
             if mesh not in GENERATORS:
                 mesh = str(_base(scene) / Path(mesh).expanduser())   # as load_mesh resolves it
@@ -178,15 +178,15 @@ def material_to_toml(name: str, params) -> str:
 
 
 def save_scene(scene_or_data, path) -> Path:
-    """Write ``scene_to_toml(scene_or_data)`` to ``path`` atomically (``viewer.io``: a complete
+    """Write ``scene_to_toml(scene_or_data)`` to ``path`` atomically (``viewer.base.io``: a complete
     new file or the old one, never a half-written one); returns the path."""
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     return atomic_write_bytes(Path(path).expanduser(), scene_to_toml(scene_or_data).encode("utf-8"))
 
 
 def save_material(name: str, params, path) -> Path:
     """Write ``material_to_toml(name, params)`` to ``path`` atomically; returns the path."""
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     return atomic_write_bytes(Path(path).expanduser(), material_to_toml(name, params).encode("utf-8"))

@@ -11,7 +11,7 @@ from typing import Sequence
 import numpy as np
 
 from viewer import ViewerError
-from viewer.io import one_line
+from viewer.base.io import one_line
 from viewer.scene.model import FLOAT32_MAX
 
 try:  # Python >= 3.11
@@ -153,7 +153,7 @@ MAX_NESTING = 32  # tables and arrays inside each other; a scene needs 5
 
 
 def loads_toml(text: str, label: str) -> dict:
-    from viewer.input_bounds import toml_problem
+    from viewer.base.input_bounds import toml_problem
 
     syntax = "TOML syntax (key = value, [table], [[array]], strings in double quotes)"
     problem = toml_problem(text)  # before the reader spends memory on it

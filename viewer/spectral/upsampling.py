@@ -76,7 +76,7 @@ def write_basis(path: pathlib.Path) -> None:
             "# CIE 1931 2 degree observer, D65 and linear Rec.709 of viewer.spectral; computed by\n"
             "# tools/spectral_tables.py --basis\n"
             "wavelength_nm,r,g,b\n")
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     atomic_write_bytes(path, (head + "".join(f"{w:.0f},{r:.9f},{g:.9f},{bb:.9f}\n"
                                              for w, (r, g, bb) in zip(GRID, b))).encode())

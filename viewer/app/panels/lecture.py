@@ -7,7 +7,7 @@ from imgui_bundle import imgui
 
 
 def draw_section(session) -> None:
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     if not imgui.collapsing_header("Lecture (L)"):
         return

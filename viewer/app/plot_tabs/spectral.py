@@ -26,7 +26,7 @@ def nk_limits(n, k) -> tuple[float, float]:
 
 
 def draw(panel, names, materials):
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
     from viewer.plots.spectral import spectral_data
 
     have = [n for n in names if plots.spectral_source(materials[n]) is not None]

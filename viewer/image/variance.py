@@ -1,7 +1,7 @@
 """Monte Carlo error of a progressive reference image, from its running per-pixel variance
 (``ReferenceRenderer.variance()``: the sample variance of the mean, per pixel and channel).
 
-Per pixel, over the three channels as the RMSE of ``viewer.compare`` is (mean of squares):
+Per pixel, over the three channels as the RMSE of ``viewer.image.compare`` is (mean of squares):
   standard error   sigma = sqrt(mean_c Var[mean_c])
   relative error   sigma / (mean_c L_c + eps), eps = ``REL_MSE_EPS`` (as ``compare``'s relMSE, so
                    black pixels do not dominate)
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.compare import REL_MSE_EPS
+from viewer.image.compare import REL_MSE_EPS
 
 ERROR_VIEWS = ("standard error", "relative error", "samples needed")
 

@@ -1,7 +1,7 @@
 """Command line: the commands of README.md, each a parser (``_parser_<command>``) and a
 ``cmd_<command>`` that checks the arguments, calls the layers below (scene loading, the
 renderer, the reference engines, the plots), writes the files and prints what it did; ``fit``
-lives in ``viewer/measured_cli.py``, the command names in ``viewer/commands.py``."""
+lives in ``viewer/commands/measured.py``, the command names in ``viewer/commands/names.py``."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import time
 
 import viewer
 from viewer import OutputError, ViewerError
-from viewer.commands import COMMANDS, HEADLESS_HINT, add_trust_option
+from viewer.commands.names import COMMANDS, HEADLESS_HINT, add_trust_option
 
 ENGINE_HELP = ("reference engine: cpu (numpy + Embree), gpu (GLSL path tracer) or auto (default: a hardware "
                "GPU, else whichever measured faster here; the choice is printed)")
@@ -39,7 +39,7 @@ def _parser_window() -> argparse.ArgumentParser:
         "OpenGL teaching viewer for BRDFs. With no command: open the window on SCENE (a scene "
         "file or a built-in scene name; the built-in default scene when omitted). Commands: "
         + ", ".join(COMMANDS) + " (brdf-viewer COMMAND --help)."))
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     n = len(TOUR)
     p.add_argument("scene", nargs="?", help=(
@@ -170,7 +170,7 @@ def _parser_plot() -> argparse.ArgumentParser:
 
 def cmd_plot(args) -> int:
     from viewer import plots
-    from viewer.io import check_output_path
+    from viewer.base.io import check_output_path
     from viewer.scene import material_from_name
 
     out = check_output_path(args.out, (".png",), "--out")
@@ -347,8 +347,8 @@ def _screenshot_size(args) -> list[str]:
 def cmd_render(args) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import VIEW_MODES, Renderer
-    from viewer.io import check_output_path, write_npy, write_png
-    from viewer.screenshot import png_text
+    from viewer.base.io import check_output_path, write_npy, write_png
+    from viewer.scene.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
@@ -358,23 +358,22 @@ def cmd_render(args) -> int:
     _raster_note(scene)
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
 
     camera = OrbitCamera.from_scene(scene)
     if not 1 <= args.supersample <= 8:
         raise ViewerError(f"--supersample: {args.supersample} is out of range; allowed: 1 to 8")
     linear, srgb = renderer.render_arrays(scene, camera, view_mode=VIEW_MODES[args.view],
                                           supersample=args.supersample)
-    from viewer import term_scales
-
+    from viewer.image import term_scales
     if args.view in term_scales.SCALES:  # false colour: no exposure or tone mapping, a colour bar below
-        from viewer.colour import to_srgb8
+        from viewer.image.colour import to_srgb8
 
         srgb = term_scales.with_colour_bar(to_srgb8(linear, 0.0, "none"), args.view)
     _write_all([(lin_path, lambda: write_npy(lin_path, linear)),
                 (out, lambda: write_png(out, srgb, png_text(scene, camera)))])
     print(f"wrote {out} ({srgb.shape[1]}x{srgb.shape[0]})" + (f" and {lin_path}" if lin_path else ""))
-    from viewer.finite import culprits, nonfinite_count, nonfinite_message, render_switches
+    from viewer.image.finite import culprits, nonfinite_count, nonfinite_message, render_switches
 
     if nonfinite_count(linear):  # a renderer bug: say where it came from and fail
         found = culprits(scene, lambda s: renderer.render_arrays(s, camera, view_mode=VIEW_MODES[args.view],
@@ -386,10 +385,10 @@ def cmd_render(args) -> int:
 
 
 def cmd_reference(args) -> int:
-    from viewer.camera import OrbitCamera
-    from viewer.colour import to_srgb8
-    from viewer.io import check_output_path, write_npy, write_png
-    from viewer.screenshot import png_text
+    from viewer.scene.camera import OrbitCamera
+    from viewer.image.colour import to_srgb8
+    from viewer.base.io import check_output_path, write_npy, write_png
+    from viewer.scene.screenshot import png_text
 
     out = check_output_path(args.out, (".png",), "--out")
     lin_path = check_output_path(args.linear, (".npy",), "--linear") if args.linear else None
@@ -465,13 +464,13 @@ def cmd_compare(args) -> int:
     import json
     from pathlib import Path
 
-    from viewer.camera import OrbitCamera
-    from viewer.colour import to_srgb8
-    from viewer.compare import heat_map, metrics
+    from viewer.scene.camera import OrbitCamera
+    from viewer.image.colour import to_srgb8
+    from viewer.image.compare import heat_map, metrics
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.reference_common.select import make_renderer
-    from viewer.io import atomic_write_bytes, write_npy, write_png
+    from viewer.base.io import atomic_write_bytes, write_npy, write_png
     from viewer.scene import load_scene
 
     if args.spp < 1:
@@ -600,7 +599,7 @@ def _parser_bake() -> argparse.ArgumentParser:
 
 
 def cmd_bake(args) -> int:
-    from viewer.camera import OrbitCamera
+    from viewer.scene.camera import OrbitCamera
     from viewer.reference_common.select import make_renderer, needs_spectral
     from viewer.reference_common import cache
     from viewer.reference_common.setup import RenderSetup
@@ -627,7 +626,7 @@ def cmd_bake(args) -> int:
         raise ViewerError(f"--max-depth: {args.max_depth} is out of range; allowed: an integer >= 1")
     jobs = [(str(s), lambda s=s: _load(s, _overrides(args))) for s in args.scenes]
     if args.lecture:
-        from viewer.lecture import TOUR, tour_scene
+        from viewer.scene.lecture import TOUR, tour_scene
 
         jobs += [(f"lecture step {i + 1}", lambda i=i: tour_scene(i)) for i in range(len(TOUR))
                  if steps is None or i in steps]
@@ -673,7 +672,7 @@ def cmd_bake(args) -> int:
 
 def _lecture_steps(text: str) -> list[int]:
     """``--steps 2,3,10-13`` as 0-based lecture steps, in the tour's order."""
-    from viewer.lecture import TOUR
+    from viewer.scene.lecture import TOUR
 
     out: set[int] = set()
     for part in str(text).split(","):
@@ -713,7 +712,7 @@ def _bake_traced(w: int, h: int, steps=None) -> int:
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
 
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     folder = trace_cache.cache_folder()
     try:
@@ -721,7 +720,7 @@ def _bake_traced(w: int, h: int, steps=None) -> int:
         probe = atomic_write_bytes(folder / f".probe-{os.getpid()}", b"")
         probe.unlink()
     except OSError as e:   # a full disk or an unwritable folder: an output problem, exit 1
-        why = e.strerror or (os.strerror(e.errno) if e.errno else str(e))   # viewer.io keeps the errno
+        why = e.strerror or (os.strerror(e.errno) if e.errno else str(e))   # viewer.base.io keeps the errno
         raise OutputError(f"bake --lecture: the traced-frame cache {folder} cannot be written ({why})") from None
     parent = os.environ.get(PARENT_ENV, "")
     if parent.isdigit():  # run by the window's Prepare lecture: it ends when the window does
@@ -783,8 +782,8 @@ def main(argv=None) -> int:
     try:
         if argv and argv[0] in COMMANDS:
             cmd, rest = argv[0], argv[1:]
-            from viewer import check_cli, measured_cli
-
+            from viewer.commands import check as check_cli
+            from viewer.commands import measured as measured_cli
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
                       "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models,
                       "fit": measured_cli.parser, "check": check_cli.parser}[cmd]()

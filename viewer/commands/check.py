@@ -15,7 +15,7 @@ import signal
 import sys
 import threading
 
-from viewer.commands import add_trust_option
+from viewer.commands.names import add_trust_option
 
 
 def parser() -> argparse.ArgumentParser:

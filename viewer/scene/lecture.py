@@ -230,7 +230,7 @@ def tour_scene(index: int, load_meshes: bool = True, overrides=()):
     """The tour's step ``index`` (0-based) as a validated ``Scene``, ``overrides`` (``--set``)
     applied; the built-in scene name ``lecture:{index + 1}`` (``viewer.scene.load_scene``) is
     this scene."""
-    from viewer.resources import SCENE_DIR
+    from viewer.base.resources import SCENE_DIR
     from viewer.scene.parse import parse_scene
     from viewer.scene.validation import loads_toml
 

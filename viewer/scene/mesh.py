@@ -24,7 +24,7 @@ vertex normals, same tangents). What loading does, in order:
    ``nu`` / ``alpha_x`` runs (docs/conventions.md).
 
 Built-in names load ``models/<name>.ply`` when present, else the same shape generated in
-memory by :mod:`viewer.meshgen`; both go through the same steps from float32 data, so the
+memory by :mod:`viewer.scene.meshgen`; both go through the same steps from float32 data, so the
 result is identical either way. A file reference ``sphere.ply`` (no folder) that does not
 exist next to the scene falls back to the built-in of that name.
 
@@ -46,10 +46,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
-from viewer import meshgen
-from viewer.input_bounds import mesh_problem
-from viewer.io import expand_user, one_line_errors, stat_file
-from viewer.resources import MODEL_DIR
+from viewer.scene import meshgen
+from viewer.base.input_bounds import mesh_problem
+from viewer.base.io import expand_user, one_line_errors, stat_file
+from viewer.base.resources import MODEL_DIR
 
 EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
@@ -198,7 +198,7 @@ def read_mesh_file(path: Path, name: str, where: str) -> MeshData:
         positions, normals, uvs, faces = _read_trimesh(path)
     except _BadFile as e:
         raise ViewerError(f"{where}: {path}: {e}") from None
-    except ViewerError as e:  # a missing package (viewer.optional)
+    except ViewerError as e:  # a missing package (viewer.base.optional)
         raise ViewerError(f"{where}: {path}: {e}") from None
     except MemoryError:
         raise ViewerError(f"{where}: {path}: cannot read {path.suffix.lower()[1:].upper()} file (out of memory)") from None
@@ -240,7 +240,7 @@ def _read_trimesh(path: Path):
     uvs (V,2) or None, faces (F,3) int64."""
     import logging
 
-    from viewer.optional import require
+    from viewer.base.optional import require
 
     trimesh = require("trimesh")
 
@@ -349,7 +349,7 @@ def read_own_ply(path: Path | str):
 
 def write_ply(path: Path | str, positions, normals, indices, uvs=None) -> None:
     """Write a binary little-endian PLY with float32 x y z nx ny nz [s t] and uint32
-    triangle indices (the format of ``models/*.ply``), atomically (``viewer.io``)."""
+    triangle indices (the format of ``models/*.ply``), atomically (``viewer.base.io``)."""
     P = np.asarray(positions, dtype="<f4").reshape(-1, 3)
     N = np.asarray(normals, dtype="<f4").reshape(-1, 3)
     F = np.asarray(indices, dtype="<u4").reshape(-1, 3)
@@ -366,7 +366,7 @@ def write_ply(path: Path | str, positions, normals, indices, uvs=None) -> None:
     fdata = np.zeros(len(F), dtype=[("n", "u1"), ("i", "<u4", (3,))])
     fdata["n"] = 3
     fdata["i"] = F
-    from viewer.io import atomic_write_bytes
+    from viewer.base.io import atomic_write_bytes
 
     atomic_write_bytes(path, ("\n".join(header) + "\n").encode("ascii") + vdata.tobytes() + fdata.tobytes())
 

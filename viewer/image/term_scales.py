@@ -73,7 +73,7 @@ def false_colour(t):
 
 def with_colour_bar(srgb: np.ndarray, view: str) -> np.ndarray:
     """The sRGB uint8 image (H, W, 3) with the view's colour bar and its numbers below it."""
-    from viewer.colour import to_srgb8
+    from viewer.image.colour import to_srgb8
 
     h, w = srgb.shape[:2]
     bar_h = max(8, h // 16)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parent.parent  # viewer/ (this file is viewer/base/resources.py)
 ROOT = PACKAGE_DIR.parent
 
 

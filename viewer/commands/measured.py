@@ -28,7 +28,7 @@ def parser() -> argparse.ArgumentParser:
 def cmd_fit(args) -> int:
     from viewer import brdf, plots
     from viewer.brdf import fit, merl
-    from viewer.io import check_output_path
+    from viewer.base.io import check_output_path
     from viewer.scene import material_from_name, save_material
 
     out = check_output_path(args.out, (".toml",), "--out")

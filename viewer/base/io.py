@@ -277,7 +277,7 @@ def read_png_text(path) -> dict[str, str]:
     ValueError naming the bound (Pillow stops inflating there: no memory is spent on the rest)."""
     from PIL import Image, PngImagePlugin
 
-    from viewer.input_bounds import MAX_PNG_TEXT
+    from viewer.base.input_bounds import MAX_PNG_TEXT
 
     PngImagePlugin.MAX_TEXT_CHUNK = MAX_PNG_TEXT       # Pillow's own bounds, set to ours
     PngImagePlugin.MAX_TEXT_MEMORY = 2 * MAX_PNG_TEXT

@@ -1,0 +1,1 @@
+"""The commands: each parses its arguments, calls the layers below and says what it did."""
