@@ -51,9 +51,9 @@ class App:
     the window system's events (``Pacing.loop_wait`` chooses, from the state alone): while
     something on screen changes with time (a toast, the CPU reference's passes, the lecture
     maps' prefilter) it draws when the reference publishes a pass (its thread wakes the loop), at
-    once on any input, and every ``IDLE_FRAME_S`` otherwise; once nothing does, it rests: no
+    once on any input, and every ``Pacing.IDLE_FRAME_S`` otherwise; once nothing does, it rests: no
     frame at all until input or a wake-up, the hot reloader and the file dialogs polled every
-    ``POLL_S``. Idle-time warm-up (the presets sent to the compile-ahead child) runs between
+    ``Pacing.POLL_S``. Idle-time warm-up (the presets sent to the compile-ahead child) runs between
     those waits without a frame."""
 
     TOAST_S = 6.0
