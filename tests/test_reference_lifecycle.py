@@ -134,3 +134,32 @@ def test_renderer_close_ends_its_processes(private_tmp):
     assert len(set(started)) == 4
     assert _wait(lambda: lifecycle.task_count() <= before)  # (threads of earlier tests may still be ending)
     assert not list(private_tmp.glob("brdf-viewer-setup-*"))
+
+
+def test_a_failing_gpu_engine_falls_back_to_the_cpu_engine(gl_ctx, monkeypatch):
+    """The GPU engine that raises (here on being made) is dropped: its error stands in the view,
+    ``gpu_failed`` names it, and the next update renders with the cpu engine's thread."""
+    import viewer.gpupt.engine as gpu_engine
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    class Broken:
+        def __init__(self, *args, **kwargs):
+            raise RuntimeError("no program")
+
+    monkeypatch.setattr(gpu_engine, "GpuReferenceRenderer", Broken)
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=0.05, max_depth=1, workers=0, engine="gpu")
+    try:
+        v0 = rv.version
+        rv.update(scene, cam, (160, 120))
+        assert rv.error.startswith("gpu reference failed (RuntimeError: no program)"), rv.error
+        assert rv.gpu_failed == "RuntimeError: no program" and rv.engine == "cpu" and rv.version > v0
+        assert rv.key is None and rv.active_engine is None and not rv.needs_frames and not rv.has_thread
+        rv.update(scene, cam, (160, 120))   # the cpu engine from now on
+        assert rv.has_thread and _wait(lambda: rv.spp >= 1) and rv.error == ""
+    finally:
+        rv.close()
+    assert not rv.has_thread
