@@ -163,3 +163,24 @@ def test_a_failing_gpu_engine_falls_back_to_the_cpu_engine(gl_ctx, monkeypatch):
     finally:
         rv.close()
     assert not rv.has_thread
+
+
+def test_the_gpu_engine_never_keeps_the_cpu_engines_preview_mark(gl_ctx):
+    """The view's first image from the GPU engine is no coarse preview, whatever the cpu engine
+    showed before it (the mark would say "preview" over a full-resolution GPU image)."""
+    from viewer.app.reference_view import ReferenceView
+    from viewer.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=1.0, max_depth=1, engine="gpu", frame_budget_s=0.01)
+    try:
+        rv.preview = True   # as the cpu engine leaves it while its coarse first image is shown
+        t0 = time.perf_counter()
+        while rv.spp < 1 and time.perf_counter() - t0 < 300:
+            rv.update(scene, cam, (12, 8))
+        assert rv.engine == "gpu" and rv.spp >= 1 and rv.error == "", rv.error
+        assert not rv.preview
+    finally:
+        rv.close()

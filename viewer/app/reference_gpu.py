@@ -47,6 +47,7 @@ class GpuSlices:
                     v.image = self.renderer.mean() if have else None
                     v.image_variance = self.renderer.variance() if have else None
                     v.image_spp = have
+                    v.preview = False   # never the cpu engine's coarse first image
                     v.curve = ConvergenceCurve(v.options["strategy"])
                     v.version += 1
                 v.error = ""
