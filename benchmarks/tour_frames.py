@@ -11,7 +11,7 @@ plots window. Each action is followed frame by frame, drawn flat out, until the 
 waits for the reference's first pass and, for the difference, its metrics) or a bound is
 reached (``SETTLE_S`` seconds, ``--quick`` a third). Prints per action the longest frame, the
 frames over 150 ms and over 500 ms, the frames followed and the time until settled (``*``:
-the bound was reached first). Keys go through the window's key path (``App._taps``), the
+the bound was reached first). Keys go through the window's key path (``app.keys.taps``), the
 editor's actions through the session's, as the panels call them.
 """
 
@@ -105,7 +105,7 @@ def main(argv):
               f"  {len(f):4d} {r['s']:6.1f} s{'' if r['settled'] else '* ' + r['busy']}", flush=True)
 
     def key(k):
-        return lambda: app._taps.append(k)
+        return lambda: app.keys.taps.append(k)
 
     print(f"window {SIZE[0]}x{SIZE[1]}, UI scale {UI_SCALE}, settle bound {bound:.0f} s")
     print(f"  {'action':<34} {'longest':>10} >{GOAL_MS:.0f} >{LIMIT_MS:.0f} frames settled")
@@ -121,7 +121,7 @@ def main(argv):
     act("preset gold (material picker)", lambda: s.set_material(ball, material_from_name("gold")))
 
     def drag(i):
-        app._last_interaction = time.perf_counter()  # what the window sets while a slider is held
+        app.keys.last_interaction = time.perf_counter()  # what the window sets while a slider is held
         s.set_material_param(ball, "roughness", 0.2 + 0.05 * i)
     drag.frames = 12
     act("roughness slider drag", during=drag)

@@ -56,12 +56,12 @@ def child(engine: str) -> None:
     vw, vh = app.viewport()[2:]
     first = max((f for t, f in frames[:3]), default=0.0)
     ft = np.array([f for t, f in frames[3:]] or [np.nan])   # after the first frames (programs compile)
-    # orbiting: the drag as App._handle_input applies it, every frame for 10 s
+    # orbiting: the drag as InputKeys.handle applies it, every frame for 10 s
     drag, t2 = [], time.perf_counter()
     while time.perf_counter() - t2 < 10.0:
         app.session.camera.orbit(8.0, 0.0, vh)
         app.session.changed()
-        app._last_interaction = app.last_event = time.perf_counter()
+        app.keys.last_interaction = app.keys.last_event = time.perf_counter()
         if tick():
             drag.append(app.frame_ms)
     dt = np.array(drag[1:] or [np.nan])

@@ -364,15 +364,15 @@ def test_mesh_loading_from_the_gui_keeps_the_previous_state_on_errors(display, t
         from viewer.app.main import App
         app = App("sphere", size=(640, 360), restore_state=False)
         app.frame()
-        app.on_drop(None, [{str(bad)!r}])
+        app.keys.on_drop(None, [{str(bad)!r}])
         s1, m1 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
         red1 = app.overlay_plan()[1]["toast_error"]  # the toast of an error notification is red
-        app.on_drop(None, [{str(good)!r}])
+        app.keys.on_drop(None, [{str(good)!r}])
         s2, m2 = app.session.status, app.session.scene.objects[0].mesh
         app.frame()
         red2 = app.overlay_plan()[1]["toast_error"]
-        app.on_drop(None, [{str(tmp_path / "notes.txt")!r}])
+        app.keys.on_drop(None, [{str(tmp_path / "notes.txt")!r}])
         s3 = app.session.status
         red3 = app.overlay_plan()[1]["toast_error"]
         tri = len(app.session.scene.objects[0].mesh_data.indices)

@@ -160,7 +160,7 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
         env = app.session.scene.environment
         assert not app.session.set_environment({str(bad)!r})
         assert app.session.scene.environment is env and "broken.hdr" in app.session.status
-        app.on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
+        app.keys.on_drop(app.window, [{str(tmp_path / 'photo.png')!r}])
         assert "scene not opened" in app.session.status and "photo.png" in app.session.status  # a .png opens as a scene
         app.frame()
         app.glfw.set_window_should_close(app.window, True)

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from viewer.app.compile_ahead import params_key
+from viewer.app.input_keys import InputKeys
 from viewer.app.main import App
+from viewer.app.pacing import Pacing
 from viewer.app.session import Session, scene_digest
 from viewer.scene import load_scene
 
@@ -97,14 +99,26 @@ class NoReload:
     noting = False
 
 
-class Loop(App):
-    """The window's loop decision (``App.loop_wait``) over a session, without a window: the last
-    input long ago, no hot-reload note."""
+class LastInput:
+    """A window's input with the last event long ago."""
+    last_event = -1e9
+    input_events = 0
 
-    def __init__(self, session):  # noqa: super().__init__ opens a window; the decision needs none
+
+class NoWindow:
+    """What the loop's decision reads of the window, without one: the session, the last input long
+    ago, no hot-reload note, the window's toast time."""
+    TOAST_S = App.TOAST_S
+
+    def __init__(self, session):
         self.session = session
         self.hot_reload = NoReload()
-        self.last_event = -1e9
+        self.keys = LastInput()
+
+
+def Loop(session) -> Pacing:
+    """The window's loop decision (``Pacing.loop_wait``) over a session, without a window."""
+    return Pacing(NoWindow(session))
 
 
 @pytest.fixture
@@ -150,7 +164,7 @@ def test_the_warm_up_drains_and_the_loop_then_rests(quiet):
     child.answer(len(child.requests) - 1)
     # every request answered: nothing pending, the loop's wait is the resting one
     assert child.outstanding == 0 and s.pending_work() == []
-    assert loop.loop_wait() == ("rest", App.POLL_S) and loop.settled() and loop.idle()
+    assert loop.loop_wait() == ("rest", Pacing.POLL_S) and loop.settled() and loop.idle()
     s.warm_one()   # more idle turns send nothing again
     assert len(child.requests) == first + len(ahead) and s.pending_work() == []
 
@@ -165,7 +179,7 @@ def test_what_keeps_the_loop_drawing_and_what_slows_it(quiet):
     s.render_view(SIZE)
     assert loop.loop_wait()[0] == "rest"
     s.notify("saved it")   # a toast fades: a frame at least every IDLE_FRAME_S
-    assert loop.loop_wait() == ("frames", App.IDLE_FRAME_S) and loop.idle() and not loop.settled()
+    assert loop.loop_wait() == ("frames", Pacing.IDLE_FRAME_S) and loop.idle() and not loop.settled()
     s.messages.clear()
     assert loop.loop_wait()[0] == "rest"
     s.changed()   # a change: draw now
@@ -346,8 +360,8 @@ def test_ui_scale_steps_reach_1_5_and_2():
     assert step_ui_scale(3.0, up=True) == 3.0 and step_ui_scale(0.5, up=False) == 0.5
 
 
-class Keys(App):
-    """``App.key_action`` over a stand-in session that records the steps asked for."""
+class Keys(InputKeys):
+    """``InputKeys.key_action`` over a stand-in session that records the steps asked for."""
 
     class _Session:
         lecture_step = 0
@@ -358,8 +372,13 @@ class Keys(App):
         def lecture(self, step):
             self.asked.append(step)
 
-    def __init__(self):  # noqa: no window
-        self.session = self._Session()
+    class _Window:  # no window: the session alone
+        def __init__(self, session):
+            self.session = session
+
+    def __init__(self):
+        super().__init__(self._Window(self._Session()))
+        self.session = self.app.session
 
 
 def test_every_lecture_step_has_a_key_and_the_docs_count_them():

@@ -134,3 +134,53 @@ def test_renderer_close_ends_its_processes(private_tmp):
     assert len(set(started)) == 4
     assert _wait(lambda: lifecycle.task_count() <= before)  # (threads of earlier tests may still be ending)
     assert not list(private_tmp.glob("brdf-viewer-setup-*"))
+
+
+def test_a_failing_gpu_engine_falls_back_to_the_cpu_engine(gl_ctx, monkeypatch):
+    """The GPU engine that raises (here on being made) is dropped: its error stands in the view,
+    ``gpu_failed`` names it, and the next update renders with the cpu engine's thread."""
+    import viewer.gpupt.engine as gpu_engine
+    from viewer.app.reference_view import ReferenceView
+    from viewer.scene.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    class Broken:
+        def __init__(self, *args, **kwargs):
+            raise RuntimeError("no program")
+
+    monkeypatch.setattr(gpu_engine, "GpuReferenceRenderer", Broken)
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=0.05, max_depth=1, workers=0, engine="gpu")
+    try:
+        v0 = rv.version
+        rv.update(scene, cam, (160, 120))
+        assert rv.error.startswith("gpu reference failed (RuntimeError: no program)"), rv.error
+        assert rv.gpu_failed == "RuntimeError: no program" and rv.engine == "cpu" and rv.version > v0
+        assert rv.key is None and rv.active_engine is None and not rv.needs_frames and not rv.has_thread
+        rv.update(scene, cam, (160, 120))   # the cpu engine from now on
+        assert rv.has_thread and _wait(lambda: rv.spp >= 1) and rv.error == ""
+    finally:
+        rv.close()
+    assert not rv.has_thread
+
+
+def test_the_gpu_engine_never_keeps_the_cpu_engines_preview_mark(gl_ctx):
+    """The view's first image from the GPU engine is no coarse preview, whatever the cpu engine
+    showed before it (the mark would say "preview" over a full-resolution GPU image)."""
+    from viewer.app.reference_view import ReferenceView
+    from viewer.scene.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    scene = load_scene("sphere")
+    cam = OrbitCamera.from_scene(scene)
+    rv = ReferenceView(gl_ctx, scale=1.0, max_depth=1, engine="gpu", frame_budget_s=0.01)
+    try:
+        rv.preview = True   # as the cpu engine leaves it while its coarse first image is shown
+        t0 = time.perf_counter()
+        while rv.spp < 1 and time.perf_counter() - t0 < 300:
+            rv.update(scene, cam, (12, 8))
+        assert rv.engine == "gpu" and rv.spp >= 1 and rv.error == "", rv.error
+        assert not rv.preview
+    finally:
+        rv.close()

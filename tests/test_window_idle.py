@@ -150,26 +150,26 @@ def test_the_loop_sleeps_while_idle_and_wakes_on_input_and_passes(display):
         out = dict(idle=app.idle())
         # nothing changes: one frame per IDLE_FRAME_S at most; a wake-up without input draws nothing
         # (IDLE_FRAME_S long, so that a bound far below it tells "woke on the event" from "waited")
-        app.IDLE_FRAME_S = 1.0
+        app.pacing.IDLE_FRAME_S = 1.0
         app.tick()
-        app.IDLE_FRAME_S = 120.0
-        n0, k0 = app.frame_count, app.frames_skipped
+        app.pacing.IDLE_FRAME_S = 120.0
+        n0, k0 = app.frame_count, app.pacing.frames_skipped
         threading.Timer(0.4, app.glfw.post_empty_event).start()
         t = time.perf_counter(); drew = app.tick()
         out.update(spurious=dict(drew=drew, s=time.perf_counter() - t, frames=app.frame_count - n0,
-                                 skipped=app.frames_skipped - k0))
-        app.IDLE_FRAME_S = 1.0
+                                 skipped=app.pacing.frames_skipped - k0))
+        app.pacing.IDLE_FRAME_S = 1.0
         s.notify("a toast")   # something on screen changes with time: frames every IDLE_FRAME_S
         t = time.perf_counter(); drew = app.tick()   # then the timer's frame
         out.update(timer=dict(drew=drew, s=time.perf_counter() - t))
         # input (a resize: real window events through the callbacks) draws at once
-        app.IDLE_FRAME_S = 120.0
+        app.pacing.IDLE_FRAME_S = 120.0
         app.glfw.set_window_size(app.window, 500, 300)
         t = time.perf_counter(); drew = app.tick()
         out.update(input=dict(drew=drew, s=time.perf_counter() - t))
         # the split view: each reference pass wakes the loop, which draws it at once
         s.set_image_mode("split")
-        app.IDLE_FRAME_S = 600.0   # no timer frame: every frame below is a pass's
+        app.pacing.IDLE_FRAME_S = 600.0   # no timer frame: every frame below is a pass's
         t0 = time.time()
         while s.reference is None or s.reference.spp < 4:
             app.tick()

@@ -22,6 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer import ViewerError
+from viewer.app.capture import Capture
+from viewer.app.input_keys import InputKeys
+from viewer.app.pacing import Pacing
+from viewer.app.parts import Part
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
 # "0" turns the compile-ahead child off (viewer/app/compile_ahead.py): programs then compile on
@@ -33,31 +37,34 @@ TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
 # background off)
 PLOT_WORKER_ENV = "BRDF_VIEWER_PLOT_WORKER"
 
-# single-key actions, read from glfw's key callback so a tap shorter than a frame (a presentation
-# clicker) is never lost: a slow frame only delays it
-_TAP_KEYS = ("h", "f11", "c", "p", "l", "right", "page_down", "space", "left", "page_up", "escape",
-             "1", "2", "3", "4", "5", "6", "7", "8", "9", "0", "r", "f12", "s")
-
 
 class App:
-    """The window: glfw, the imgui backends, input (keys, mouse orbit, drops), the frame loop and
-    the toasts. ``session`` holds the scene and the actions; the panels draw it.
+    """The window: glfw, the imgui backends, the frame and the toasts. ``session`` holds the
+    scene and the actions; the panels draw it. Its other jobs are parts of its own that it holds
+    and passes itself to, as ``Session`` does: ``keys`` (``viewer.app.input_keys.InputKeys``:
+    glfw's callbacks, the mouse, the keys' actions), ``pacing`` (``viewer.app.pacing.Pacing``:
+    the loop's next step and one turn of it) and ``capture`` (``viewer.app.capture.Capture``:
+    the window or the view as drawn, screenshots); the parts' actions scripts and tests call are
+    the window's too (``Part``: ``app.tick`` is ``app.pacing.tick``).
 
     The loop (``run``, one ``tick`` per turn) draws while anything changes and otherwise waits on
-    the window system's events (``loop_wait`` chooses, from the state alone): while something on
-    screen changes with time (a toast, the CPU reference's passes, the lecture maps' prefilter)
-    it draws when the reference publishes a pass (its thread wakes the loop), at once on any
-    input, and every ``IDLE_FRAME_S`` otherwise; once nothing does, it rests: no frame at all
-    until input or a wake-up, the hot reloader and the file dialogs polled every ``POLL_S``.
-    Idle-time warm-up (the presets sent to the compile-ahead child) runs between those waits
-    without a frame. On software OpenGL a frame costs about a core for 100-200 ms, which the
-    reference's worker processes need (gallery, split view: 31 k samples/s drawing flat out)."""
+    the window system's events (``Pacing.loop_wait`` chooses, from the state alone): while
+    something on screen changes with time (a toast, the CPU reference's passes, the lecture
+    maps' prefilter) it draws when the reference publishes a pass (its thread wakes the loop), at
+    once on any input, and every ``Pacing.IDLE_FRAME_S`` otherwise; once nothing does, it rests: no
+    frame at all until input or a wake-up, the hot reloader and the file dialogs polled every
+    ``Pacing.POLL_S``. Idle-time warm-up (the presets sent to the compile-ahead child) runs between
+    those waits without a frame."""
 
     TOAST_S = 6.0
-    IDLE_FRAME_S = 0.5  # a frame at least this often while something on screen changes with time
-    POLL_S = 0.5        # resting: the hot reloader and the file dialogs are polled this often
-    SETTLE_S = 0.5      # frames follow without sleeping for this long after an input event
-    throttle = True     # False: ``run`` draws flat out, as ``frame`` does
+    # pacing: the loop
+    tick = Part("pacing")
+    idle = Part("pacing")
+    settled = Part("pacing")
+    # capture: the window or the view as drawn, screenshots
+    capture_window = Part("capture")
+    capture_view = Part("capture")
+    take_screenshot = Part("capture")
     panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
     ui_scale = 1.0
     show_ui = True
@@ -98,18 +105,12 @@ class App:
         imgui.create_context()
         implot.create_context()
         imgui.get_io().set_ini_filename("")  # no imgui.ini in the user's working folder
-        self._taps: list[str] = []
-        self._tap_codes = {getattr(glfw, "KEY_" + k.upper()): k for k in _TAP_KEYS}
-        self.input_events = 0           # glfw input and window events so far (``tick`` wakes on them)
-        self.last_event = time.perf_counter()  # the last input (public: tests and benchmarks set it)
-        glfw.set_key_callback(self.window, self._on_key)  # before imgui's backend, which chains to it
-        for name in ("cursor_pos", "mouse_button", "scroll", "char", "cursor_enter", "window_focus"):
-            getattr(glfw, f"set_{name}_callback")(self.window, self._on_event)  # imgui chains to these too
-        for name in ("window_size", "framebuffer_size", "window_refresh", "window_iconify"):
-            getattr(glfw, f"set_{name}_callback")(self.window, self._on_event)  # imgui installs none
+        self.keys = InputKeys(self)
+        self.pacing = Pacing(self)
+        self.capture = Capture(self)
+        self.keys.install(self.window)  # before imgui's backend, which chains to its callbacks
         imgui.backends.glfw_init_for_opengl(ctypes.cast(self.window, ctypes.c_void_p).value, True)
         imgui.backends.opengl3_init("#version 410")
-        glfw.set_drop_callback(self.window, self.on_drop)  # imgui installs no drop callback
         self._load_font()
         if compile_ahead is None:  # on unless the environment turns it off (the window tests do)
             compile_ahead = os.environ.get(COMPILE_AHEAD_ENV, "1") != "0"
@@ -129,14 +130,9 @@ class App:
         self._fullscreen_restore = None
         self.frame_count = 0
         self.frame_ms = 0.0
-        self.frames_skipped = 0         # turns of ``tick`` that slept instead of drawing
-        # (input events, time, reference version, loop_wait's kind) at the last frame
-        self._drawn = (-1, -1.0, None, None)
         self.first_frame_s = None
         self._closing = False
-        self._last_interaction = -1.0
         self._said_no_room = False
-        self._capture_next = None
         if self.session.lecture_step >= 0:  # opened as lecture:N
             self._on_step(self.session.lecture_step)
 
@@ -215,7 +211,7 @@ class App:
                     if screenshot and not self._finished_for(waited_from):
                         waited_from = waited_from or time.perf_counter()
                         continue
-                    if screenshot and self.take_screenshot(screenshot) is None:
+                    if screenshot and self.capture.take_screenshot(screenshot) is None:
                         print(f"brdf-viewer: error: {self.session.status}", file=sys.stderr)
                         return 2
                     break
@@ -312,90 +308,6 @@ class App:
         return overlays.plan(self)
 
     # ------------------------------------------------------------------ frame
-    def loop_wait(self) -> tuple[str, float]:
-        """What the loop does next, from the state alone: ("draw", 0) a frame now (the raster
-        renders or refines, a compiled program is ready, input within ``SETTLE_S``, the GPU
-        reference slicing the frames, models to compile here while idle: one after each frame);
-        ("warm", 0) no frame, one preset sent to the compile-ahead child;
-        ("frames", ``IDLE_FRAME_S``) something on screen changes with time (a toast, the CPU
-        reference's passes, a compile beside the window, the lecture maps' prefilter, the hot
-        reloader's note): a frame on input or a wake-up and at least this often; ("rest",
-        ``POLL_S``) nothing changes: no frame until input or a wake-up."""
-        s = self.session
-        if not self.throttle or s.dirty or s.quality != "full" or s.refining:
-            return "draw", 0.0
-        if s.compile_ready or (s.reference is not None and s.reference.needs_frames):
-            return "draw", 0.0
-        if s.compare.uses_reference and s.reference is None:  # a compare view's first frame starts it
-            return "draw", 0.0
-        now = time.perf_counter()
-        if now - self.last_event < self.SETTLE_S:
-            return "draw", 0.0
-        if s.warming:  # presets to send to the child take no frame; models compiled here do, as before
-            return ("warm", 0.0) if s.warms_beside else ("draw", 0.0)
-        m = s.last_message
-        if (m is not None and m.text and now - m.time <= self.TOAST_S) or self.hot_reload.noting \
-                or any(w in ("compiling", "reference", "prefetch") for w in s.pending_work()):
-            return "frames", self.IDLE_FRAME_S
-        return "rest", self.POLL_S
-
-    def idle(self) -> bool:
-        """The loop waits on events between frames (``loop_wait``: "frames" or "rest"): no raster
-        image to render or refine, no program to compile here, no input for ``SETTLE_S``, no GPU
-        reference slicing the frames, no warm-up left."""
-        return self.loop_wait()[0] in ("frames", "rest")
-
-    def settled(self) -> bool:
-        """Nothing left to do at all: the loop rests and the session reports no pending work
-        (``Session.pending_work``: the compile-ahead child has answered every request too)."""
-        return self.loop_wait()[0] == "rest" and not self.session.pending_work()
-
-    def _reference_version(self):
-        rv = self.session.reference
-        return None if rv is None else rv.version
-
-    def wants_frame(self, kind: str | None = None) -> bool:
-        """Something to draw since the last frame: input, a new reference image, ``IDLE_FRAME_S``
-        gone by while something changes with time, the first turn of a rest (the frame that
-        shows it: a toast gone), or ``idle`` no more. ``kind``: ``loop_wait``'s (asked when None)."""
-        kind = kind or self.loop_wait()[0]
-        events, at, version, drawn_kind = self._drawn
-        if kind == "draw" or self.input_events != events or self._reference_version() != version:
-            return True
-        if kind == "frames":
-            return time.perf_counter() - at >= self.IDLE_FRAME_S
-        return kind == "rest" and drawn_kind != "rest"
-
-    def tick(self) -> bool:
-        """One turn of the loop (``loop_wait``): a frame (True), or a step of the warm-up, or a
-        wait on the window system's events: until input, a wake-up (a reference pass, the
-        compile-ahead child's answer), ``IDLE_FRAME_S`` after the last frame while something
-        changes with time, or ``POLL_S`` while resting (False when no frame followed)."""
-        kind, wait = self.loop_wait()
-        if kind == "draw":
-            self.frame()
-            return True
-        if kind == "warm":
-            self.glfw.poll_events()
-            self.session.warm_one()
-        elif not self.wants_frame(kind):
-            if kind == "frames":
-                wait = self._drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
-            self.glfw.wait_events_timeout(max(wait, 0.001))
-            if kind == "rest":
-                self._poll_resting()
-        if not self.wants_frame():
-            self.frames_skipped += 1
-            return False
-        self.frame(wait=False)
-        return True
-
-    def _poll_resting(self):
-        """What a frame polls, without the frame: shaders edited (hot reload), file dialogs closed."""
-        if self.hot_reload.poll():
-            self.session.changed()
-        self.side_panel.poll()
-
     def frame(self, wait: bool = True):
         """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
         from viewer.app.panels import twin_dialog
@@ -406,7 +318,7 @@ class App:
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
-        self._drawn = (self.input_events, time.perf_counter(), self._reference_version(), self.loop_wait()[0])
+        self.pacing.frame_begins()
         fw, fh = glfw.get_framebuffer_size(self.window)
         if fw == 0 or fh == 0:  # minimized: nothing to draw into
             time.sleep(0.02)
@@ -420,7 +332,7 @@ class App:
         if s.refit_file_materials() or reloaded:
             s.changed()
         self.side_panel.poll()
-        self._handle_input()
+        self.keys.handle()
         if self.show_ui and not self.view_only:
             self._draw_panels()
         if not self.view_only:
@@ -428,7 +340,7 @@ class App:
             twin_dialog.draw(imgui, s.twins)  # a .brdf file's numpy twin waits for the user's answer
         view = self.viewport()
         _, _, rw, rh = s.compare.raster_rect(view)
-        interacting = time.perf_counter() - self._last_interaction < 0.3
+        interacting = self.keys.interacting
         drawn = s.raster_version
         s.render_view((rw, rh), interacting=interacting)
         _, _, ref_w, ref_h = s.compare.reference_rect(view)
@@ -436,9 +348,7 @@ class App:
         self._draw_view(fw, fh, view, ref_tex)
         imgui.render()
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
-        if self._capture_next is not None:
-            self._capture_next(self._read_screen(fw, fh))
-            self._capture_next = None
+        self.capture.frame_drawn(fw, fh)
         glfw.swap_buffers(self.window)
         if not s.dirty:
             s.warm_one()
@@ -482,133 +392,6 @@ class App:
             s.monte_carlo.draw_view(s.renderer, screen, s.compare.reference_rect(view), s.reference)
             overlays.draw(self)
         screen.viewport = (0, 0, fw, fh)
-
-    # ------------------------------------------------------------------ input
-    def _on_event(self, window, *args):
-        self.input_events += 1
-        self.last_event = time.perf_counter()
-
-    def _on_key(self, window, key, scancode, action, mods):
-        self._on_event(window)
-        if action == self.glfw.PRESS and key in self._tap_codes:
-            if not mods & (self.glfw.MOD_CONTROL | self.glfw.MOD_ALT | self.glfw.MOD_SUPER):
-                name = self._tap_codes[key]
-                # Shift + a digit: lecture steps 11-19 (Shift 1 .. Shift 5 on the tour of 15)
-                self._taps.append("shift+" + name if mods & self.glfw.MOD_SHIFT and name.isdigit() else name)
-
-    def on_drop(self, window, paths):
-        """glfw's drop callback: the session opens each file by its kind."""
-        self._on_event(window)
-        self.session.open_files(paths)
-
-    def _handle_input(self):
-        imgui = self.imgui
-        io = imgui.get_io()
-        s = self.session
-        if imgui.is_any_item_active():  # a slider being dragged counts as interaction
-            self._last_interaction = time.perf_counter()
-        vh = self.viewport()[3]
-        divider = not io.want_capture_mouse and s.compare.handle_mouse(imgui, self.view_logical())
-        if not io.want_capture_mouse and not divider:
-            d = io.mouse_delta
-            if imgui.is_mouse_double_clicked(imgui.MouseButton_.left):
-                s.reset_camera()
-            elif imgui.is_mouse_dragging(imgui.MouseButton_.left):
-                s.camera.orbit(d.x, d.y, vh)
-                s.changed()
-                self._last_interaction = time.perf_counter()
-            elif imgui.is_mouse_dragging(imgui.MouseButton_.right) or imgui.is_mouse_dragging(imgui.MouseButton_.middle):
-                s.camera.pan(d.x, d.y, vh)
-                s.changed()
-                self._last_interaction = time.perf_counter()
-            if io.mouse_wheel != 0.0:
-                s.camera.dolly(io.mouse_wheel)
-                s.changed()
-                self._last_interaction = time.perf_counter()
-        taps, self._taps = self._taps, []
-        if io.want_capture_keyboard:  # typing into a field: the keys are the field's
-            return
-        K = imgui.Key
-        pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
-        if io.key_ctrl:
-            from viewer.app.layout import step_ui_scale
-
-            if pressed(K.equal) or pressed(K.keypad_add):
-                self.set_ui_scale(step_ui_scale(self.ui_scale, up=True))
-            if pressed(K.minus) or pressed(K.keypad_subtract):
-                self.set_ui_scale(step_ui_scale(self.ui_scale, up=False))
-            if pressed(K._0):
-                self.set_ui_scale(1.0)
-        for key in taps:
-            self.key_action(key)
-
-    def key_action(self, key: str) -> None:
-        """One key's action (glfw key names in lower case: "l", "right", "page_down", "1"...;
-        "shift+1" for Shift and a digit)."""
-        s = self.session
-        if key == "r":
-            s.reset_camera()
-        elif key == "f12":
-            self.take_screenshot()
-        elif key == "h":
-            self.show_ui = not self.show_ui
-            s.changed()
-        elif key == "f11":
-            self.toggle_fullscreen()
-        elif key == "c":
-            s.cycle_image_mode()
-        elif key == "s":
-            s.cycle_strategy()
-        elif key == "p":
-            self.plots.visible = not self.plots.visible
-            s.changed()
-        elif key == "l":
-            s.lecture(0 if s.lecture_step < 0 else None)
-        elif s.lecture_step >= 0:
-            from viewer.scene.lecture import TOUR
-
-            if key in ("right", "page_down", "space"):
-                s.lecture_next()
-            elif key in ("left", "page_up"):
-                s.lecture_back()
-            elif key.isdigit() and (int(key) - 1) % 10 < len(TOUR):
-                s.lecture((int(key) - 1) % 10)   # 1-9, 0 = 10
-            elif key.startswith("shift+") and key[6:].isdigit() and 10 + (int(key[6:]) - 1) % 10 < len(TOUR):
-                s.lecture(10 + (int(key[6:]) - 1) % 10)   # Shift 1-9 = 11-19, Shift 0 = 20
-            elif key == "escape":
-                s.lecture(None)
-
-    # ------------------------------------------------------------------ capture and screenshots
-    def _read_screen(self, fw, fh) -> np.ndarray:
-        data = self.ctx.screen.read(viewport=(0, 0, fw, fh), components=3, alignment=1)
-        return np.frombuffer(data, np.uint8).reshape(fh, fw, 3)[::-1].copy()
-
-    def capture_view(self) -> np.ndarray:
-        """The 3D view as shown (compare view, heat maps, their labels and colour bars), without
-        the panels, the lecture caption and the status toast: (H, W, 3) uint8, row 0 = top."""
-        self.view_only = True
-        try:
-            img = self.capture_window(redraw=False)
-        finally:
-            self.view_only = False
-        vx, _, vw, vh = self.viewport()
-        return img[img.shape[0] - vh:, vx:vx + vw].copy()
-
-    def capture_window(self, redraw: bool = True) -> np.ndarray:
-        """The whole window as shown (3D view and UI), (H, W, 3) uint8, row 0 = top. ``redraw``:
-        render the raster afresh first (False: the view as it stands, e.g. a finished one, never
-        restarted into tiles)."""
-        out = []
-        self._capture_next = out.append
-        if redraw:
-            self.session.changed()
-        self.frame(wait=False)
-        return out[0] if out else None
-
-    def take_screenshot(self, path: str | os.PathLike | None = None) -> Path | None:
-        """Save the 3D view (no UI) as a PNG with the scene and parameters in its text chunks."""
-        _, _, vw, vh = self.viewport()
-        return self.session.take_screenshot(path, (vw, vh), self.capture_view)
 
     # ------------------------------------------------------------------ UI scale, fullscreen
     def _load_font(self):

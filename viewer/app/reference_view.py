@@ -25,6 +25,12 @@ The CPU engine renders passes of ``samples_per_chunk`` samples (4 at the window'
 1-spp pass costs nearly as much. ``version`` counts the images published (a pass, a restart,
 a cached image, an error) and ``wake`` (when given) is called from the thread after each, so a
 window that sleeps while nothing changes (``App.tick``) draws a new pass at once.
+
+``ReferenceView`` holds the image shown, its key, the engine choice and this interface; each
+engine is a part of its own that it holds and passes itself to: ``cpu``
+(``viewer.app.reference_cpu.CpuThread``: the background thread and its renderer) and ``gpu``
+(``viewer.app.reference_gpu.GpuSlices``: the GUI thread's time slices); both resume from and
+store into the cache through ``viewer.app.reference_cache``.
 """
 
 from __future__ import annotations
@@ -35,6 +41,9 @@ import time
 from typing import NamedTuple
 
 import numpy as np
+
+from viewer.app.reference_cpu import CpuThread
+from viewer.app.reference_gpu import GpuSlices
 
 
 class ReferenceSnapshot(NamedTuple):
@@ -53,46 +62,17 @@ def scene_key(scene, camera, size) -> str:
     return f"{scene_to_toml(scene)}|{cam}|{size}"
 
 
-def _cached(renderer, report=None):
-    """(cache key, spp resumed from the cache) for a renderer just (re)targeted. A damaged entry
-    is set aside with one line through ``report`` and the view renders afresh."""
-    from viewer.reference_common import cache
-
-    key = cache.setup_key(renderer.setup)
-    e = cache.load(key, shape=(renderer.height, renderer.width, 3), report=report)
-    if e is not None:
-        renderer.resume(e.sum, e.sum2, e.spp)
-        return key, e.spp
-    return key, 0
-
-
-def _store(renderer, key, engine, seed=0, report=None):
-    """Put a renderer's samples into the cache (when it has any and more than stored); a cache
-    that cannot be written is said through ``report(line, error=True)``."""
-    if renderer is None or key is None or renderer.spp < 1:
-        return
-    from viewer.reference_common import cache
-
-    state = renderer.state()
-    if state is not None:
-        try:
-            cache.store(key, cache.Entry(*state, engine, seed), report=report)
-        except cache.CacheError as e:
-            if report is None:
-                raise
-            report(str(e), error=True)
-
-
-PREVIEW_SPP = 4              # the coarse first image's samples per pixel, at a quarter of the resolution
-PREVIEW_MIN_PIXELS = 64 * 64  # smaller views start with full passes at once (a pass is quick there)
-
-
 class ReferenceView:
+    """The reference image of the window's view: the engine that renders it (``cpu`` or ``gpu``),
+    restarted whenever its key changes (``update``, once per frame). The engines write the image
+    (``image``, ``image_spp``, ``image_variance``, ``preview``, ``curve``) under ``lock``; the
+    GUI reads it through ``latest``, ``snapshot`` and ``texture_for_display``."""
+
     def __init__(self, ctx, scale: float = 0.5, max_depth: int = 8, workers: int | None = None,
                  engine: str = "auto", frame_budget_s: float = 0.02, wake=None):
-        self.ctx = ctx
+        self.ctx = ctx            # texture_for_display and the GPU engine use it
         self.wake = wake          # called (from any thread) when a new image is published
-        self.version = 0          # of the image shown: +1 per pass, restart, cached image, error            # texture_for_display and the GPU engine use it
+        self.version = 0          # of the image shown: +1 per pass, restart, cached image, error
         self.engine_request = engine
         self.engine = None        # "cpu" | "gpu" once chosen (first update)
         self.engine_reason = ""
@@ -100,25 +80,18 @@ class ReferenceView:
         self.gpu_failed = ""      # the gpu engine's failure, once it failed (the cpu engine from then on)
         self._engine_key = None   # (key, engine) of the last choice
         self.frame_budget_s = frame_budget_s
-        self._gpu = None          # GpuReferenceRenderer on the GUI thread (engine "gpu")
-        self._gpu_key = None      # its cache key
-        self._gpu_read_at = 0.0
-        self._gpu_samples = 0
+        self.gpu = GpuSlices(self)   # the GPU engine's renderer, on the GUI thread
+        self.cpu = CpuThread(self)   # the CPU engine's background thread and its renderer
         self.scale = scale
         self.max_depth = max_depth
         self.workers = workers
         self._key = None
-        self._thread: threading.Thread | None = None
-        self._cond = threading.Condition()
-        self._request = None      # (generation, scene, camera, w, h): the job the thread runs next
-        self._generation = 0      # of the newest request; older jobs publish nothing
-        self._cancel = threading.Event()
-        self._busy = False        # the thread is running a job
-        self._closing = False
-        self._lock = threading.Lock()
-        self._renderer = None     # owned by the background thread
-        self._image = None        # latest mean, (H, W, 3) float32
-        self._image_spp = 0
+        # the image shown, written by the engines under ``lock``: the latest mean, (H, W, 3)
+        # float32, its samples per pixel and the variance of the mean, (H, W, 3) float32
+        self.lock = threading.Lock()
+        self.image = None
+        self.image_spp = 0
+        self.image_variance = None
         self._uploaded_spp = -1
         self.texture = None
         self.error = ""
@@ -128,7 +101,6 @@ class ReferenceView:
         self.previews = 0         # coarse first images shown so far
         # the estimator (ReferenceRenderer's options); a change restarts the render
         self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
-        self._variance = None     # latest variance of the mean, (H, W, 3) float32
         self.curve = None         # ConvergenceCurve of the current render (RMSE estimate per pass)
         self._notices: list[tuple[str, bool]] = []   # (line, error): cache repairs, failures (take_notices)
         self._said: set[str] = set()
@@ -136,21 +108,21 @@ class ReferenceView:
     def notice(self, text: str, error: bool = False) -> None:
         """Queue one line for the window (any thread): a damaged cache entry set aside and
         rendered afresh, or (``error``) a cache that cannot be written; each distinct line once."""
-        with self._lock:
+        with self.lock:
             if text not in self._said:
                 self._said.add(text)
                 self._notices.append((text, bool(error)))
-        self._published()
+        self.published()
 
     def take_notices(self) -> list[tuple[str, bool]]:
         """The lines queued since the last call (the session shows each as a notification)."""
-        with self._lock:
+        with self.lock:
             out, self._notices = self._notices, []
         return out
 
     @property
     def spp(self) -> int:
-        return self._image_spp
+        return self.image_spp
 
     @property
     def key(self):
@@ -161,44 +133,43 @@ class ReferenceView:
     @property
     def busy(self) -> bool:
         """The background thread is running a CPU job."""
-        return self._busy
+        return self.cpu.busy
 
     @property
     def has_thread(self) -> bool:
         """The background thread is alive (False before the first restart and after close)."""
-        thread = self._thread
-        return thread is not None and thread.is_alive()
+        return self.cpu.alive
 
     @property
     def active_engine(self):
         """The engine holding a renderer now: "gpu", "cpu", or None."""
-        if self._gpu is not None:
+        if self.gpu.renderer is not None:
             return "gpu"
-        return "cpu" if self._renderer is not None else None
+        return "cpu" if self.cpu.renderer is not None else None
 
     @property
     def setup(self):
         """The ``RenderSetup`` of the renderer the view holds (its scene, camera, estimator
         options), or None before the first job."""
-        renderer = self._gpu if self._gpu is not None else self._renderer
+        renderer = self.gpu.renderer if self.gpu.renderer is not None else self.cpu.renderer
         return None if renderer is None else renderer.setup
 
     def samples_per_chunk(self):
         """Samples per pixel of one pass of the CPU engine (None when it holds no renderer)."""
-        renderer = self._renderer
+        renderer = self.cpu.renderer
         return None if renderer is None else renderer.samples_per_chunk()
 
     def worker_pids(self) -> list[int]:
         """Process ids of the CPU engine's worker processes (none without a pool)."""
-        renderer = self._renderer
+        renderer = self.cpu.renderer
         return [] if renderer is None else renderer.worker_pids()
 
     @property
     def needs_frames(self) -> bool:
         """The GPU engine renders in the GUI's frames: the window must not sleep."""
-        return self._gpu is not None
+        return self.gpu.renderer is not None
 
-    def _published(self):
+    def published(self):
         """A new image (or error) to show: count it and wake the window."""
         self.version += 1
         if self.wake is not None:
@@ -220,10 +191,12 @@ class ReferenceView:
             self._choose_engine()
         engine = self.engine_for(scene, key)
         if engine == "gpu":
-            self._cancel.set()   # a cpu job stops (its samples are stored)
-            self._gpu_update(key, scene, camera, w, h)
+            self.cpu.cancel.set()   # a cpu job stops (its samples are stored)
+            fresh, self._key = key != self._key, key
+            if not self.gpu.update(fresh, scene, camera, w, h):   # the gpu engine failed: the cpu one
+                self.engine, self._key, self._engine_key = "cpu", None, None
             return
-        self._drop_gpu()
+        self.gpu.drop()
         if engine is None:   # neither engine renders it: the reason stands in the view
             if key != self._key:
                 self.pause()
@@ -271,21 +244,23 @@ class ReferenceView:
 
     def pause(self):
         """Cancel the job in progress and show no image until the next restart (returns at once)."""
-        if self._key is None and self._image is None:
+        if self._key is None and self.image is None:
             return
+        with self.cpu.cond:
+            self.cpu.forget()
+            self._key = None
+            self.clear_image()
+            self.samples_per_second = 0.0
+
+    def clear_image(self):
+        """No image shown (none, 0 spp, not a preview) and a new convergence curve."""
         from viewer.image.variance import ConvergenceCurve
 
-        with self._cond:
-            self._request = None
-            self._generation += 1
-            self._cancel.set()
-            self._key = None
-            with self._lock:
-                self._image, self._image_spp, self._variance = None, 0, None
-                self.preview = False
-                self.curve = ConvergenceCurve(self.options["strategy"])
-                self.version += 1
-            self.samples_per_second = 0.0
+        with self.lock:
+            self.image, self.image_spp, self.image_variance = None, 0, None
+            self.preview = False
+            self.curve = ConvergenceCurve(self.options["strategy"])
+            self.version += 1
 
     def _choose_engine(self):
         if self.ctx is None:    # no GL context to share: the CPU engine
@@ -298,213 +273,39 @@ class ReferenceView:
         except Exception as e:  # noqa: BLE001 - the CPU engine always works
             self.engine, self.engine_reason = "cpu", f"gpu engine unavailable: {e}"
 
-    # ------------------------------------------------------------------ GPU engine (GUI thread)
-    def _gpu_update(self, key, scene, camera, w, h):
-        now = time.perf_counter()
-        try:
-            if key != self._key:
-                self._key = key
-                _store(self._gpu, self._gpu_key, "gpu", report=self.notice)
-                if self._gpu is None:
-                    from viewer.gpupt.engine import GpuReferenceRenderer
-
-                    # spectral=None: wavelengths where a material is dispersive, as the cpu engine
-                    self._gpu = GpuReferenceRenderer(scene, camera, w, h, max_depth=self.max_depth, ctx=self.ctx,
-                                                     spectral=None, **self.options)
-                else:
-                    self._gpu.reset(scene, camera, w, h, **self.options)
-                self._gpu_key, have = _cached(self._gpu, self.notice)
-                from viewer.image.variance import ConvergenceCurve
-
-                with self._lock:
-                    self._image = self._gpu.mean() if have else None
-                    self._variance = self._gpu.variance() if have else None
-                    self._image_spp = have
-                    self.curve = ConvergenceCurve(self.options["strategy"])
-                    self.version += 1
-                self.error = ""
-                self.started_at = now
-                self.samples_per_second = 0.0
-                self._gpu_samples = 0
-                self._gpu_read_at = 0.0
-            self._gpu_samples += self._gpu.step_for(self.frame_budget_s)
-            if self.ctx.screen is not None:   # leave the window's framebuffer bound, as the frame expects
-                self.ctx.screen.use()
-            elapsed = time.perf_counter() - self.started_at
-            self.samples_per_second = self._gpu_samples / max(elapsed, 1e-9)
-            if self._gpu.spp != self._image_spp and (now - self._gpu_read_at > 0.25 or self._image is None):
-                from viewer.image.variance import rmse_estimate
-
-                img, var = self._gpu.mean(), self._gpu.variance()
-                with self._lock:
-                    self._image, self._image_spp, self._variance = img, self._gpu.spp, var
-                    self.curve.add(self._gpu.spp, rmse_estimate(var))
-                    self.version += 1
-                self._gpu_read_at = now
-        except Exception as e:  # noqa: BLE001 - shown in the window; fall back to the CPU engine
-            self.error = f"gpu reference failed ({type(e).__name__}: {e}); using the cpu engine"
-            self.gpu_failed = f"{type(e).__name__}: {e}"
-            self.version += 1
-            self._drop_gpu(store=False)
-            self.engine, self._key, self._engine_key = "cpu", None, None
-
-    def _drop_gpu(self, store=True):
-        gpu, self._gpu = self._gpu, None
-        if gpu is not None:
-            if store:
-                try:
-                    _store(gpu, self._gpu_key, "gpu", report=self.notice)
-                except Exception:  # noqa: BLE001 - a cache that cannot be written
-                    pass
-            gpu.close()
-        self._gpu_key = None
-
     def restart(self, scene, camera, w, h):
         """Render ``scene`` seen by ``camera`` at w x h from now on (the current job is
         cancelled; returns at once)."""
         snapshot = copy.deepcopy(scene)  # the GUI keeps editing its own copy
         cam = copy.deepcopy(camera)
-        from viewer.image.variance import ConvergenceCurve
-
-        with self._cond:
-            if self._closing:
+        cpu = self.cpu
+        with cpu.cond:
+            if cpu.closing:
                 return
-            self._generation += 1
-            self._request = (self._generation, snapshot, cam, int(w), int(h), dict(self.options))
-            self._cancel.set()
-            with self._lock:
-                self._image, self._image_spp, self._variance = None, 0, None
-                self.preview = False
-                self.curve = ConvergenceCurve(self.options["strategy"])
-                self.version += 1
+            cpu.post(snapshot, cam, w, h, dict(self.options))
+            self.clear_image()
             self.error = ""
             self.samples_per_second = 0.0
             self.started_at = time.perf_counter()
-            self._cond.notify_all()
-            if self._thread is None or not self._thread.is_alive():
-                self._thread = threading.Thread(target=self._loop, name="reference", daemon=True)
-                self._thread.start()
-
-    # ------------------------------------------------------------------ background thread
-    def _loop(self):
-        try:
-            while True:
-                with self._cond:
-                    self._busy = False
-                    self._cond.notify_all()
-                    while self._request is None and not self._closing:
-                        self._cond.wait()
-                    if self._closing:
-                        return
-                    gen, scene, camera, w, h, options = self._request
-                    self._request = None
-                    self._cancel.clear()  # a later restart sets it again
-                    self._busy = True
-                self._job(gen, scene, camera, w, h, options)
-                del scene, camera
-        finally:
-            self._drop_renderer()
-            with self._cond:
-                self._busy = False
-                self._cond.notify_all()
-
-    def _current(self, gen) -> bool:
-        return gen == self._generation and not self._cancel.is_set()
-
-    def _job(self, gen, scene, camera, w, h, options):
-        from viewer import ViewerError
-        from viewer.pathtracer import ReferenceRenderer
-        from viewer.image.variance import rmse_estimate
-
-        cancel = self._cancel
-        try:
-            if self._renderer is not None:
-                self._renderer.reset(scene, camera=camera, width=w, height=h, **options)  # keeps its workers
-            else:
-                self._renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
-                                                   max_depth=self.max_depth, workers=self.workers, **options)
-            r = self._renderer
-            key, have = _cached(r, self.notice)
-            if have:
-                img, var = r.mean(), r.variance()
-                with self._lock:
-                    if self._current(gen):
-                        self._image, self._image_spp, self._variance = img, r.spp, var
-                        self._published()
-            elif w * h >= PREVIEW_MIN_PIXELS:
-                # nothing cached: a coarse image first (a quarter of the resolution, PREVIEW_SPP),
-                # in a twentieth of a full pass's time, so the view opens on a converging image
-                # rather than an empty one; shown as a preview (0 spp, no variance: no metrics,
-                # no error views), then the passes at full resolution start from nothing
-                r.reset(scene, camera=camera, width=max(1, w // 4), height=max(1, h // 4), **options)
-                r.step(PREVIEW_SPP, cancel)
-                img = r.mean()
-                with self._lock:
-                    if self._current(gen):
-                        self._image, self._image_spp, self._variance = img, 0, None
-                        self.preview = True
-                        self.previews += 1
-                        self._published()
-                r.reset(scene, camera=camera, width=w, height=h, **options)
-                if cancel.is_set():
-                    return
-            # passes of the samples that fill a chunk: a pass of 1 spp runs chunks of a quarter of
-            # the paths at nearly the same cost (gallery, 460 x 360: 66 k against 259 k samples/s)
-            per_pass = r.samples_per_chunk()
-            try:
-                while not cancel.is_set():
-                    if not r.step(per_pass, cancel):
-                        break
-                    img, var = r.mean(), r.variance()
-                    with self._lock:
-                        if self._current(gen):
-                            self._image, self._image_spp, self._variance = img, r.spp, var
-                            self.preview = False
-                            self.curve.add(r.spp, rmse_estimate(var))
-                            elapsed = time.perf_counter() - self.started_at
-                            self.samples_per_second = (r.spp - have) * w * h / max(elapsed, 1e-9)
-                            self._published()
-            finally:
-                if r.spp > have:
-                    _store(r, key, "cpu", report=self.notice)
-        except ViewerError as e:
-            self._fail(gen, str(e))
-        except Exception as e:  # noqa: BLE001 - shown in the window; the raster view keeps running
-            self._fail(gen, f"reference failed: {type(e).__name__}: {e}")
-
-    def _fail(self, gen, message):
-        # The renderer may be half-reset or its pool broken (a worker killed): start afresh next time.
-        self._drop_renderer()
-        if gen == self._generation:
-            self.error = message
-            self._published()
-
-    def _drop_renderer(self):
-        """Close the renderer and its worker processes (background thread only)."""
-        renderer, self._renderer = self._renderer, None
-        if renderer is not None:
-            try:
-                renderer.close()
-            except Exception:  # noqa: BLE001 - closing a broken pool
-                pass
+            cpu.start()
 
     # ------------------------------------------------------------------ GUI side
     def latest(self):
         """(image (H, W, 3) float32, spp) of the newest pass, or None before the first."""
-        with self._lock:
-            if self._image is None:
+        with self.lock:
+            if self.image is None:
                 return None
-            return self._image, self._image_spp
+            return self.image, self.image_spp
 
     def snapshot(self):
         """The newest pass as one ``ReferenceSnapshot`` (mean, variance of the mean, spp,
         version), or None before the first. Its arrays are never written again (each pass
         publishes new ones), so everything computed from one snapshot agrees with itself while
         the background job keeps adding passes: take one and hand it to every consumer."""
-        with self._lock:
-            if self._image is None or self._variance is None:
+        with self.lock:
+            if self.image is None or self.image_variance is None:
                 return None
-            return ReferenceSnapshot(self._image, self._variance, self._image_spp, self.version)
+            return ReferenceSnapshot(self.image, self.image_variance, self.image_spp, self.version)
 
     def latest_variance(self):
         """(mean, variance of the mean, spp) of the newest pass, or None before the first."""
@@ -513,8 +314,8 @@ class ReferenceView:
 
     def texture_for_display(self):
         """The latest image as a float texture (None until the first pass is done)."""
-        with self._lock:
-            img, spp = self._image, self._image_spp
+        with self.lock:
+            img, spp = self.image, self.image_spp
         if img is None:
             return None
         if spp != self._uploaded_spp or self.texture is None or self.texture.size != (img.shape[1], img.shape[0]):
@@ -528,30 +329,19 @@ class ReferenceView:
         """Cancel the job in progress and forget any pending request (the workers go idle; the
         next ``update`` with a changed key starts again). Waits up to ``timeout`` seconds for
         the thread to go idle; True when it did."""
-        with self._cond:
-            self._request = None
-            self._generation += 1
-            self._cancel.set()
+        cpu = self.cpu
+        with cpu.cond:
+            cpu.forget()
             self._key = None
-            if self._gpu is not None:
-                _store(self._gpu, self._gpu_key, "gpu", report=self.notice)
-            return self._cond.wait_for(lambda: not self._busy, timeout=timeout)
+            if self.gpu.renderer is not None:
+                self.gpu.store()
+            return cpu.cond.wait_for(lambda: not cpu.busy, timeout=timeout)
 
     def close(self, timeout: float | None = None):
         """End the background thread (it closes the renderer and its worker processes) and
         release the texture. Waits for the thread (``timeout`` None: until it has ended)."""
-        with self._cond:
-            self._closing = True
-            self._request = None
-            self._generation += 1
-            self._cancel.set()
-            self._cond.notify_all()
-            thread = self._thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout)
-            if not thread.is_alive():
-                self._thread = None
-        self._drop_gpu()
+        self.cpu.close(timeout)
+        self.gpu.drop()
         if self.engine == "gpu":
             from viewer.gpupt.engine import release_programs
 

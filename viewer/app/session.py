@@ -30,6 +30,7 @@ from viewer.app.compile_control import STAND_IN_ALBEDO, CompileControl  # noqa: 
 from viewer.app.environment_watch import EnvironmentWatch
 from viewer.app.file_actions import FileActions
 from viewer.app.lecture_control import LectureControl
+from viewer.app.parts import Part
 from viewer.app.view_frames import FrameSource, ViewFrames  # noqa: F401 - the session's names
 from viewer.app.view_state import ViewState, scene_digest
 from viewer.gl.shadow import unshadowed_note
@@ -45,25 +46,6 @@ class Message:
     text: str
     error: bool
     time: float
-
-
-class Part:
-    """A session attribute that is one of its parts' (``session.<part>.<name>``, by default
-    the same name): read, called and set through the session as on the part."""
-
-    def __init__(self, part: str, name: str | None = None):
-        self.part, self.name = part, name
-
-    def __set_name__(self, owner, name):
-        self.name = self.name or name
-
-    def __get__(self, session, owner=None):
-        if session is None:
-            return self
-        return getattr(getattr(session, self.part), self.name)
-
-    def __set__(self, session, value):
-        setattr(getattr(session, self.part), self.name, value)
 
 
 class Session:

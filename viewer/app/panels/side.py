@@ -46,7 +46,7 @@ class SidePanel:
         lights.draw(session)
         imgui.separator()
         if imgui.button("Screenshot (F12)"):
-            win.take_screenshot()
+            win.capture.take_screenshot()
         if session.status:
             imgui.text_wrapped(session.status)
         imgui.end()
