@@ -40,7 +40,7 @@ GRID_PHI = (0.0, 30.0, 90.0, 135.0, 180.0, 250.0)
 N_RANDOM = 6000
 #: reciprocity: a pair fails above RECIPROCITY_TOL relative plus ROUNDING_STEPS times the change of
 #: f when both directions are lengthened or shortened by two float32 units in the last place
-#: (``_reciprocity``). Measured on files (float32 GLSL): a Cook-Torrance that takes V.H where L.H
+#: (``reciprocity``). Measured on files (float32 GLSL): a Cook-Torrance that takes V.H where L.H
 #: is meant differs by up to 5e-4 at grazing pairs (1e-3 leaves a factor 2); a Phong lobe whose
 #: R = normalize(2 (N.V) N - V) rounds differently from its exchange differs by 2.4e-7 n (2.4e-3
 #: at n = 10^4, 2.4e-2 at 10^5) where the rounding term allows 1.5e-6 n (6 times more) at the
@@ -110,9 +110,10 @@ TABLE_RINGS, TABLE_SECTORS, ALPHA_MIN = 64, 32, 1e-4
 #: a cell of the table whose f cos (at its 4 corners and its centre) varies by more than a factor
 #: REFINE_RATIO is refined into REFINE x REFINE sub-cells, each weighted like the cells, by the
 #: largest f cos at its corners and centre (plus a tenth of the cell's share, so a sub-cell whose
-#: five points miss a peak keeps some probability); only cells holding at least REFINE_MIN_SHARE
-#: of the table's weight are refined (the others cannot matter)
-REFINE, REFINE_RATIO, REFINE_MIN_SHARE = 4, 2.0, 1e-5
+#: five points miss a peak keeps some probability); only cells where (largest - smallest) f cos
+#: times their solid angle is at least REFINE_MIN_SHARE of the table's weight are refined: in
+#: the others a better split moves too little probability to matter
+REFINE, REFINE_RATIO, REFINE_MIN_SHARE = 4, 2.0, 1e-4
 #: the energy check fails where the estimate exceeds the bound by more than ENERGY_SIGMAS standard
 #: errors (the noise above) plus ENERGY_FLOOR: the float32 GLSL (1e-7 relative per operation) and
 #: pi written with 5 or 6 decimals (1 / 3.14159 is 8.4e-7 high) move an albedo of 1 by less than
@@ -167,7 +168,7 @@ class _MirrorTable:
         fine = np.repeat(np.repeat(coarse / (k * k), k, axis=0), k, axis=1)  # (nr k, ns k)
         total = coarse.sum()
         if total > 0:
-            refine = (hi > REFINE_RATIO * lo) & (coarse >= REFINE_MIN_SHARE * total)
+            refine = (hi > REFINE_RATIO * lo) & ((hi - lo) * area >= REFINE_MIN_SHARE * total)
             ri, si = np.nonzero(refine)
             if ri.size:  # each refined cell: f cos at the corners and centres of its sub-cells
                 c = np.arange(k + 1) / k
@@ -238,7 +239,8 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
     directions, the table of f cos around the mirror direction (``_MirrorTable``) and the
     model's own sampler (``_own_sampler``); within a replica each strategy's directions are
     stratified, so they are not independent of each other, but the replicas are: the estimate is
-    the mean of the replicas' and its noise the standard error of that mean. A smooth model's
+    the mean of the replicas' and its noise the standard error of that mean. The smallest f the
+    table saw times cos is a control variate (its integral is known), so a constant f is exact. A smooth model's
     delta lobes (a layered coat on a mirror) add the mean of their sampler weights."""
     rng = np.random.default_rng(seed)
     own = _own_sampler(model, p)
@@ -247,11 +249,20 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
     for t in thetas:
         wo = _dir(float(t), 0.0)
 
+        lowest = [np.full(3, np.inf)]
+
         def fcos(wi):
             f = _finite_rgb(model.eval(p, wi, np.broadcast_to(wo, wi.shape)))
+            if np.any(wi[:, 2] > 0):
+                lowest[0] = np.minimum(lowest[0], f[wi[:, 2] > 0].min(axis=0))
             return np.max(np.abs(f), axis=1) * np.maximum(wi[:, 2], 0.0)
 
         table = _MirrorTable(fcos, wo)
+        # the control variate: beta cos, whose integral is beta pi, with beta the smallest f the
+        # table saw (fixed before any random direction is drawn, so the estimate stays unbiased):
+        # a constant f (a Lambertian) is integrated exactly, and a lobe over a diffuse floor
+        # keeps only the lobe's noise
+        beta = np.where(np.isfinite(lowest[0]), np.maximum(lowest[0], 0.0), 0.0)
         nc, nm = N_COSINE_SIDE ** 2, (N_OWN_SIDE ** 2 if own else 0)
         nt = N_TABLE if table.ok else 0
         dirs, rep_of = [], []
@@ -278,8 +289,9 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
             mix = mix + nm * np.where(up, np.asarray(model.pdf(p, wi, wob), float), 0.0)
         f = _finite_rgb(model.eval(p, wi, wob))
         with np.errstate(divide="ignore", invalid="ignore"):
-            c = np.where((up & (mix > 0))[:, None], f * wi[:, 2:3] / mix[:, None], 0.0)
+            c = np.where((up & (mix > 0))[:, None], (f - beta) * wi[:, 2:3] / mix[:, None], 0.0)
         per = np.stack([np.bincount(rep_of, weights=c[:, j], minlength=N_REPLICAS) for j in range(3)], axis=1)
+        per = per + beta * np.pi
         a, e2 = per.mean(axis=0), per.var(axis=0, ddof=1) / N_REPLICAS
         if discrete:
             da, de = _delta_part(model, p, wo, rng)
@@ -335,7 +347,7 @@ def report(model, p, name: str) -> dict:
     fmin = 0.0 if not math.isfinite(fmin) else fmin
     checks["non_negative"] = {"pass": fmin >= 0.0, "min": fmin}
 
-    checks["reciprocity"] = _reciprocity(model, p, wi, wo, f)
+    checks["reciprocity"] = reciprocity(model, p, wi, wo, f)
     if not model.spec.reciprocal:
         checks["reciprocity"]["why"] = model.spec.reciprocal_why
 
@@ -398,7 +410,7 @@ def _rounding_unit(model) -> float:
     return 2.0 ** -22 if isinstance(model, FileModel) else 2.0 ** -51
 
 
-def _reciprocity(model, p, wi, wo, f) -> dict:
+def reciprocity(model, p, wi, wo, f) -> dict:
     """The reciprocity check over ``pairs`` (f given) and ``near_mirror_pairs``: a pair fails when
     |f(L, V) - f(V, L)| exceeds RECIPROCITY_TOL of the larger (or of 1e-6 of the largest f: below
     that a difference is rounding of nearly nothing) plus ROUNDING_STEPS times how much f moves
