@@ -1,19 +1,35 @@
 """The report card of a BRDF (``brdf-viewer check``): physical plausibility checks over a dense set
 of direction pairs, the same for a ``.brdf`` file and a built-in model.
 
-* ``finite``: no NaN or Inf at any pair (``PAIRS``: a grid with normal incidence and grazing
-  angles up to 89.9 degrees, plus random pairs).
+* ``finite``: no NaN or Inf at any pair (``pairs``: a grid with normal incidence and grazing
+  angles up to 89.9 degrees, plus random pairs); the first such pair is the ``example``.
 * ``non_negative``: the smallest value of f (of the finite ones).
-* ``reciprocity``: the largest relative |f(L, V) - f(V, L)| over the pairs, relative to the
-  larger of the two. Passes below ``RECIPROCITY_TOL`` = 1e-3: a file's GLSL runs in float32, where
-  evaluating one formula with L and V exchanged rounds differently (about 1e-7 per operation), and
-  a sharp lobe (exponent n) multiplies relative errors by about n (n = 1000 gives 1e-4).
-* ``energy``: the directional albedo a(theta) = integral of f cos over the hemisphere, for the
-  view at ``THETA_DEG`` (light and view exchange for a reciprocal BRDF). Estimated by stratified
-  cosine-weighted quadrature (``N_ALBEDO`` directions); fails where it exceeds the model's bound
-  (1, or a built-in model's documented ``ALBEDO_BOUND``) by more than 4 standard errors of the
-  estimate. A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean
-  of its sampler's weights.
+* ``reciprocity``: f(L, V) against f(V, L) over ``pairs`` and ``near_mirror_pairs`` (light
+  directions 1e-4 to 0.5 rad from the mirror direction and from the view, where a sharp lobe is,
+  which uniform pairs almost never reach). A pair fails when the difference exceeds
+  ``RECIPROCITY_TOL`` = 1e-3 of the larger value plus ``ROUNDING_STEPS`` = 2 times how much f
+  moves when both directions are lengthened by two units in the last place of the arithmetic f
+  runs in (float32 for a file's GLSL): a rounding of the formula's dot products moves f by that
+  much, so a sharp lobe whose formula rounds differently with L and V exchanged passes (c ** n
+  with c near 1 moves by n units), while an asymmetry of the formula does not. The constants'
+  measurements are beside them: a 2% asymmetry (of a Lambert, or of a Phong lobe of exponent up
+  to 12,000) fails; ``tolerance`` is RECIPROCITY_TOL, ``rounding`` the largest rounding allowance
+  (relative) that any pair got, and a failing check gives an ``example`` pair with both values.
+* ``energy``: the directional albedo a(theta) = integral of f cos over the upper hemisphere, for
+  the view at ``THETA_DEG`` (light and view exchange for a reciprocal BRDF), by ``albedo_curve``:
+  multiple importance sampling (the balance heuristic) of cosine-weighted directions, a table of
+  f cos around the mirror direction (rings from 1e-4 rad to pi, refined where f cos varies) and
+  the model's own sampler where it has a pdf for every direction (built-in models, a file's
+  numpy twin), with the smallest f times cos as a control variate; ``N_REPLICAS`` independent
+  replicas, each stratified, give the estimate (their mean) and its ``noise`` (the standard
+  error of that mean; stratified points taken as independent overstate it, 8 times for BRDF
+  Explorer's published Cook-Torrance, and the overstatement hid an excess). Fails where the albedo exceeds the model's bound (1, or a built-in
+  model's documented ``ALBEDO_BOUND``) by more than the ``tolerance``, ``ENERGY_SIGMAS`` = 4
+  noises plus ``ENERGY_FLOOR`` = 1e-4 of the bound (float32 and pi written to 5 decimals move an
+  albedo of 1 by under 1e-6). ``albedo``, ``noise`` and ``tolerance`` are RGB rows, one per angle.
+  A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean of its
+  sampler's weights (independent samples: the plain standard error); a model with delta and
+  smooth lobes (a coat on a mirror) adds its delta lobes' mean weight to the smooth lobes' integral.
 * ``twin`` (a file with a numpy twin): the largest relative difference of the GLSL and numpy f
   (the twin at the float32 directions the GLSL gets), for directions up to 88 degrees from the
   normal; passes within 1e-4 relative + 1e-6 absolute (the GLSL runs in float32: the tolerance of
@@ -22,7 +38,7 @@ of direction pairs, the same for a ``.brdf`` file and a built-in model.
 * ``sampling`` (a model with a sampler of its own): the chi-square test of the sampler against
   its pdf (``viewer.brdf.chi2``, at a view 40 degrees from the normal) where a pdf exists; a
   file's ``isFunc`` sampler, which gives its pdf only where it samples, is tested instead for
-  its estimate of the albedo (the mean weight f cos / pdf against the quadrature's, a z test)
+  its estimate of the albedo (the mean weight f cos / pdf against ``albedo_curve``'s, a z test)
   and for its pdf being the density of its samples (a chi-square over equal-area bins of each
   bin's solid angle estimated as the mean of 1 / pdf there, ``_pdf_consistency``). Passes when
   the p-value is above ``P_MIN`` = 0.001.
@@ -426,7 +442,8 @@ def reciprocity(model, p, wi, wo, f) -> dict:
     moved = np.zeros_like(f)
     for s in (1.0 + eps, 1.0 - eps):
         for a, b, base in ((wi, wo, f), (wo, wi, fr)):
-            d = np.abs(np.asarray(model.eval(p, a * s, b * s), float) - base)
+            with np.errstate(invalid="ignore"):  # inf - inf: not finite, no allowance
+                d = np.abs(np.asarray(model.eval(p, a * s, b * s), float) - base)
             moved = np.maximum(moved, np.where(np.isfinite(d), d, 0.0))
     ok = np.all(np.isfinite(f) & np.isfinite(fr), axis=1)
     if not np.any(ok):
