@@ -108,9 +108,10 @@ def _cosine_dirs(u):
 # ----------------------------------------------------------------------------- the directional albedo
 
 #: independent randomized replicas of the albedo estimate: the noise is the standard error of their
-#: means (16: the estimated standard error is itself within about 20% of the true one, and a
-#: model exactly at its bound exceeds 4 of them at one of the 19 angles with probability ~1%
-#: under Student's t with 15 degrees of freedom, 1e-4 under the normal law the means follow)
+#: means (32: the estimated standard error is itself within about 13% of the true one, and a
+#: model exactly at its bound exceeds 4 of them at one of the 19 angles with probability 0.35%
+#: under Student's t with 31 degrees of freedom, 0.06% under the normal law; measured over 2,500
+#: estimates of 44 BRDFs against a fine quadrature, the errors over the noise have an rms of 1.04)
 N_REPLICAS = 32
 #: per replica and view: cosine-weighted directions (a jittered 16 x 16 grid: the mixture's
 #: component that reaches every direction of the hemisphere), directions drawn from the table of
@@ -145,9 +146,12 @@ def _frame(r):
     return t1, np.cross(r, t1)
 
 
-def _cosine_grid(side, rng):
+def _cosine_grid(side, rng, copies=1):
+    """``copies`` independently jittered side x side grids of points in the unit square, one after
+    the other."""
     i, j = np.meshgrid(np.arange(side), np.arange(side), indexing="ij")
-    return np.stack([(i.ravel() + rng.random(i.size)) / side, (j.ravel() + rng.random(i.size)) / side], axis=1)
+    i, j = np.tile(i.ravel(), copies), np.tile(j.ravel(), copies)
+    return np.stack([(i + rng.random(i.size)) / side, (j + rng.random(i.size)) / side], axis=1)
 
 
 def _finite_rgb(f):
@@ -281,20 +285,19 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
         beta = np.where(np.isfinite(lowest[0]), np.maximum(lowest[0], 0.0), 0.0)
         nc, nm = N_COSINE_SIDE ** 2, (N_OWN_SIDE ** 2 if own else 0)
         nt = N_TABLE if table.ok else 0
-        dirs, rep_of = [], []
-        for r in range(N_REPLICAS):
-            parts = [_cosine_dirs(_cosine_grid(N_COSINE_SIDE, rng))]
-            if nt:
-                u = np.column_stack([(np.arange(nt) + rng.random(nt)) / nt, rng.random((nt, 2))])
-                parts.append(table.sample(u))
-            if nm:
-                wi_m = np.asarray(model.sample(p, np.broadcast_to(wo, (nm, 3)).copy(),
-                                               _cosine_grid(N_OWN_SIDE, rng))[0], float)
-                parts.append(np.where(np.all(np.isfinite(wi_m), axis=1)[:, None], wi_m, [0.0, 0.0, -1.0]))
-            d = np.concatenate(parts)
-            dirs.append(d)
-            rep_of.append(np.full(len(d), r))
-        wi = np.concatenate(dirs)
+        k = N_REPLICAS  # every replica's directions at once, replica by replica within each strategy
+        parts = [_cosine_dirs(_cosine_grid(N_COSINE_SIDE, rng, k))]
+        rep_of = [np.repeat(np.arange(k), nc)]
+        if nt:
+            u0 = ((np.arange(nt)[None, :] + rng.random((k, nt))) / nt).ravel()
+            parts.append(table.sample(np.column_stack([u0, rng.random((k * nt, 2))])))
+            rep_of.append(np.repeat(np.arange(k), nt))
+        if nm:
+            wi_m = np.asarray(model.sample(p, np.broadcast_to(wo, (k * nm, 3)).copy(),
+                                           _cosine_grid(N_OWN_SIDE, rng, k))[0], float)
+            parts.append(np.where(np.all(np.isfinite(wi_m), axis=1)[:, None], wi_m, [0.0, 0.0, -1.0]))
+            rep_of.append(np.repeat(np.arange(k), nm))
+        wi = np.concatenate(parts)
         rep_of = np.concatenate(rep_of)
         up = wi[:, 2] > 0
         wob = np.broadcast_to(wo, wi.shape)
