@@ -22,12 +22,12 @@ of direction pairs, the same for a ``.brdf`` file and a built-in model.
   the model's own sampler where it has a pdf for every direction (built-in models, a file's
   numpy twin), with the smallest f times cos as a control variate; ``N_REPLICAS`` independent
   replicas, each stratified, give the estimate (their mean) and its ``noise`` (the standard
-  error of that mean; stratified points taken as independent overstate it, 8 times for BRDF
-  Explorer's published Cook-Torrance, and the overstatement hid an excess). Fails where the albedo exceeds the model's bound (1, or a built-in
-  model's documented ``ALBEDO_BOUND``) by more than the ``tolerance``, ``ENERGY_SIGMAS`` = 4
-  noises plus ``ENERGY_FLOOR`` = 1e-4 of the bound (float32 and pi written to 5 decimals move an
-  albedo of 1 by under 1e-6). ``albedo``, ``noise`` and ``tolerance`` are RGB rows, one per angle.
-  A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean of its
+  error of that mean: stratified points taken as independent would overstate it, 8 times for
+  BRDF Explorer's published Cook-Torrance, and a margin of 4 such errors hides an excess). Fails
+  where the albedo exceeds the model's bound (1, or a built-in model's documented
+  ``ALBEDO_BOUND``) by more than the ``tolerance``, ``ENERGY_SIGMAS`` = 4 noises plus
+  ``ENERGY_FLOOR`` = 1e-4 of the bound (float32 and pi written to 5 decimals move an albedo of 1
+  by under 1e-6). ``albedo``, ``noise`` and ``tolerance`` are RGB rows, one per angle. A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean of its
   sampler's weights (independent samples: the plain standard error); a model with delta and
   smooth lobes (a coat on a mirror) adds its delta lobes' mean weight to the smooth lobes' integral.
 * ``twin`` (a file with a numpy twin): the largest relative difference of the GLSL and numpy f
@@ -113,9 +113,10 @@ def _cosine_dirs(u):
 #: under Student's t with 31 degrees of freedom, 0.06% under the normal law; measured over 2,500
 #: estimates of 44 BRDFs against a fine quadrature, the errors over the noise have an rms of 1.04)
 N_REPLICAS = 32
-#: per replica and view: cosine-weighted directions (a jittered 16 x 16 grid: the mixture's
-#: component that reaches every direction of the hemisphere), directions drawn from the table of
-#: f cos (stratified in its CDF) and from the model's own sampler (a jittered 16 x 16 grid of u)
+#: per replica and view: cosine-weighted directions (a jittered 12 x 12 grid: the mixture's
+#: component that reaches every direction of the hemisphere), 512 directions drawn from the table
+#: of f cos (stratified in its CDF) and from the model's own sampler (a jittered 12 x 12 grid of
+#: u): 32 x 800 evaluations per view, 0.3 to 2 s for a card
 N_COSINE_SIDE, N_TABLE, N_OWN_SIDE = 12, 512, 12
 #: the table: rings around the mirror direction R, the first a cap of ALPHA_MIN radians, then
 #: geometric out to pi (ratio (pi / ALPHA_MIN) ** (1 / 63) = 1.18: each ring 18% wider than the
@@ -195,15 +196,16 @@ class _MirrorTable:
                 m = (np.arange(k) + 0.5) / k
                 s0, ds = self.s_edge[ri][:, None, None], np.diff(self.s_edge)[ri][:, None, None]
                 p0 = si[:, None, None] * dphi
-                gc = fcos(self.direction((s0 + ds * c[None, :, None] + 0 * c[None, None, :]).ravel(),
-                                         (p0 + dphi * c[None, None, :] + 0 * c[None, :, None]).ravel()))
-                gm = fcos(self.direction((s0 + ds * m[None, :, None] + 0 * m[None, None, :]).ravel(),
-                                         (p0 + dphi * m[None, None, :] + 0 * m[None, :, None]).ravel()))
-                gc = gc.reshape(ri.size, k + 1, k + 1)
-                sub_hi = np.max(np.stack([gc[:, :-1, :-1], gc[:, 1:, :-1], gc[:, :-1, 1:], gc[:, 1:, 1:],
-                                          gm.reshape(ri.size, k, k)]), axis=0)
+
+                def at(x):  # f cos at (s0 + ds x_i, p0 + dphi x_j) of every refined cell
+                    ss, pp = np.broadcast_arrays(s0 + ds * x[None, :, None], p0 + dphi * x[None, None, :])
+                    return fcos(self.direction(ss.ravel(), pp.ravel())).reshape(ri.size, x.size, x.size)
+
+                gc, gm = at(c), at(m)
+                sub_hi = np.max(np.stack([gc[:, :-1, :-1], gc[:, 1:, :-1], gc[:, :-1, 1:], gc[:, 1:, 1:], gm]), axis=0)
                 share = (area[ri, si] / (k * k))[:, None, None]
-                fine.reshape(nr, k, ns, k)[ri, :, si, :] = sub_hi * share + 0.1 * (coarse[ri, si] / (k * k))[:, None, None]
+                floor = 0.1 * (coarse[ri, si] / (k * k))[:, None, None]
+                fine.reshape(nr, k, ns, k)[ri, :, si, :] = sub_hi * share + floor
         self.ok = bool(total > 0)
         w = fine.ravel()
         self.cdf = np.cumsum(w) / max(w.sum(), 1e-300)
@@ -260,15 +262,15 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
     model's own sampler (``_own_sampler``); within a replica each strategy's directions are
     stratified, so they are not independent of each other, but the replicas are: the estimate is
     the mean of the replicas' and its noise the standard error of that mean. The smallest f the
-    table saw times cos is a control variate (its integral is known), so a constant f is exact. A smooth model's
-    delta lobes (a layered coat on a mirror) add the mean of their sampler weights."""
+    table saw times cos is a control variate (its integral is known), so a constant f is exact.
+    A smooth model's delta lobes (a layered coat on a mirror) add the mean of their sampler
+    weights."""
     rng = np.random.default_rng(seed)
     own = _own_sampler(model, p)
     discrete = model.has_delta(p) and not model.is_delta(p)
     alb, noise = [], []
     for t in thetas:
         wo = _dir(float(t), 0.0)
-
         lowest = [np.full(3, np.inf)]
 
         def fcos(wi):
@@ -305,7 +307,8 @@ def albedo_curve(model, p, thetas=THETA_DEG, seed: int = 1):
         if nt:
             mix = mix + nt * table.pdf(wi)
         if nm:
-            mix = mix + nm * np.where(up, np.asarray(model.pdf(p, wi, wob), float), 0.0)
+            pdf = np.asarray(model.pdf(p, wi, wob), float)
+            mix = mix + nm * np.where(up & np.isfinite(pdf), pdf, 0.0)
         f = _finite_rgb(model.eval(p, wi, wob))
         with np.errstate(divide="ignore", invalid="ignore"):
             c = np.where((up & (mix > 0))[:, None], (f - beta) * wi[:, 2:3] / mix[:, None], 0.0)
