@@ -27,9 +27,10 @@ of direction pairs, the same for a ``.brdf`` file and a built-in model.
   where the albedo exceeds the model's bound (1, or a built-in model's documented
   ``ALBEDO_BOUND``) by more than the ``tolerance``, ``ENERGY_SIGMAS`` = 4 noises plus
   ``ENERGY_FLOOR`` = 1e-4 of the bound (float32 and pi written to 5 decimals move an albedo of 1
-  by under 1e-6). ``albedo``, ``noise`` and ``tolerance`` are RGB rows, one per angle. A delta model (mirror, smooth glass) has no f to integrate: its albedo is the mean of its
-  sampler's weights (independent samples: the plain standard error); a model with delta and
-  smooth lobes (a coat on a mirror) adds its delta lobes' mean weight to the smooth lobes' integral.
+  by under 1e-6). ``albedo``, ``noise`` and ``tolerance`` are RGB rows, one per angle. A delta
+  model (mirror, smooth glass) has no f to integrate: its albedo is the mean of its sampler's
+  weights (independent samples: the plain standard error); a model with delta and smooth lobes
+  (a coat on a mirror) adds its delta lobes' mean weight to the smooth lobes' integral.
 * ``twin`` (a file with a numpy twin): the largest relative difference of the GLSL and numpy f
   (the twin at the float32 directions the GLSL gets), for directions up to 88 degrees from the
   normal; passes within 1e-4 relative + 1e-6 absolute (the GLSL runs in float32: the tolerance of
