@@ -96,8 +96,16 @@ vec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)
 """
 
 
+def _cli_main():
+    try:
+        from viewer.commands.cli import main
+    except ImportError:  # a checkout whose commands are still viewer/cli.py
+        from viewer.cli import main
+    return main
+
+
 def _check(capsys, *argv, json_out=True):
-    from viewer.cli import main
+    main = _cli_main()
 
     rc = main(["check", *[str(a) for a in argv], *(["--json"] if json_out else [])])
     out = capsys.readouterr().out
