@@ -1,7 +1,7 @@
 """The plots window's *Check* tab: the report card (``viewer.brdf.report_card``, the checks of
 ``brdf-viewer check``) of one shown material, built-in or a ``.brdf`` file: each check's result
 and number, and the directional albedo against the incident angle. The card is computed when the
-material (or a parameter) changes and kept until then; it takes about a second, computed in the
+material (or a parameter) changes and kept until then; it takes 0.3 to 2 s, computed in the
 plots panel's worker thread in the window (the tab says so meanwhile)."""
 
 from __future__ import annotations

@@ -51,16 +51,52 @@ def compile_check(model) -> None:
         file_brdf_evaluator().check(model.bfile)
 
 
+#: the usual cause of a NaN in a .brdf file, printed under a failing ``finite``
+NAN_HINT = ("the usual cause: pow(1 - VdotH, 5) with VdotH a hair above 1 (float32 rounding of",
+            "dot(V, normalize(L + V)) where L = V) is pow of a negative number, a NaN on most GPUs;",
+            "write pow(max(1 - VdotH, 0), 5) (and clamp what goes into sqrt, acos and pow alike)")
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
+def _rgb(v, fmt) -> str:
+    return " ".join(format(x, fmt) for x in v)
+
+
 def _format(rep: dict) -> str:
+    """The report card as text: one line per check, then the example pair of a failing finite
+    or reciprocity check and the energy check's estimate, noise and tolerance at every angle."""
     lines = [f"{rep['file']}: {'PASS' if rep['pass'] else 'FAIL'}"]
     for name, c in rep["checks"].items():
         detail = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
-                           for k, v in c.items() if k in ("min", "max_rel_error", "max_albedo", "p_value", "count"))
+                           for k, v in c.items()
+                           if k in ("min", "max_rel_error", "tolerance", "rounding", "max_albedo", "bound",
+                                    "p_value", "count") and not isinstance(v, list))
         lines.append(f"    {name:13s} {'pass' if c['pass'] else 'FAIL'}" + (f"  ({detail})" if detail else ""))
-        if name == "energy" and not c["pass"]:
-            worst = max(range(len(c["albedo"])), key=lambda i: max(c["albedo"][i]))
-            lines.append(f"        albedo {max(c['albedo'][worst]):.4g} > 1 at theta {c['theta_deg'][worst]} deg")
+        if name == "finite" and not c["pass"] and "example" in c:
+            e = c["example"]
+            lines.append(f"        f is NaN or Inf at wi {_vec(e['wi'])}, wo {_vec(e['wo'])}")
+            if str(rep["file"]).lower().endswith(".brdf"):
+                lines.extend(f"        {h}" for h in NAN_HINT)
+        if name == "reciprocity" and not c["pass"] and "example" in c:
+            e = c["example"]
+            lines.append(f"        f(wi, wo) = {_rgb(e['f'], '.5g')} but f(wo, wi) = {_rgb(e['f_exchanged'], '.5g')} "
+                         f"at wi {_vec(e['wi'])}, wo {_vec(e['wo'])}")
+        if name == "energy" and "noise" in c:
+            lines.extend(_energy_rows(c))
     return "\n".join(lines)
+
+
+def _energy_rows(c: dict) -> list[str]:
+    bound = c.get("bound", 1.0)
+    rows = [f"        {'theta':>5}  {'albedo (R G B)':26s}  {'noise, 1 s.e. (R G B)':26s}  allowed above {bound:g}"]
+    for t, a, n, tol in zip(c["theta_deg"], c["albedo"], c["noise"], c["tolerance"]):
+        over = any(x - bound > y for x, y in zip(a, tol))
+        rows.append(f"        {t:>5}  {_rgb(a, '8.5g'):26s}  {_rgb(n, '8.2g'):26s}  {_rgb(tol, '8.2g')}"
+                    + ("  over" if over else ""))
+    return rows
 
 
 def _stop_now(signum, _frame):
