@@ -97,10 +97,8 @@ vec3 BRDF(vec3 L, vec3 V, vec3 N, vec3 X, vec3 Y)
 
 
 def _cli_main():
-    try:
-        from viewer.commands.cli import main
-    except ImportError:  # a checkout whose commands are still viewer/cli.py
-        from viewer.cli import main
+    from viewer.commands.cli import main
+
     return main
 
 
