@@ -204,12 +204,17 @@ class NotebookView:
         stays); ``materials.NAME.preset`` / ``.model`` start the material afresh; anything else
         is applied as ``--set`` is."""
         from viewer.api import load
+        from viewer.brdf.spec import Params
         from viewer.scene.overrides import dotted_key
 
         if not isinstance(key, str) or not key:
             raise ViewerError(f"key: {key!r} is not a dotted path; allowed: e.g. materials.ball.alpha")
         parts = dotted_key(key).split(".")
         where = f"set {key}"
+        if parts[0] == "materials" and len(parts) == 2 and isinstance(value, Params):   # a whole material
+            if parts[1] not in self.scene.materials:
+                raise ViewerError(f"{where}: no material {parts[1]!r}; allowed: {', '.join(self.scene.materials)}")
+            return self.set_material(parts[1], value)
         if parts[0] == "materials" and len(parts) >= 3 and parts[2] not in ("model", "preset"):
             name = parts[1]
             if name not in self.scene.materials:
@@ -317,7 +322,11 @@ class NotebookView:
         return self.mode != "raster" and self.reference is not None and self.reference.needs_frames
 
     def close(self):
+        """End the reference (its thread and workers) and release the GL objects; once."""
+        if self.renderer is None:
+            return
         if self.reference is not None:
             self.reference.close(timeout=5.0)
             self.reference = None
         self.renderer.release()
+        self.renderer = None
