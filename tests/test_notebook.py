@@ -1,0 +1,193 @@
+"""The notebook widget (docs/notebook.md): ``viewer.notebook.Viewer`` without a kernel (its frames
+and events called directly) against ``viewer.render`` of the same scene, the window's editor
+rules and the orbit camera; and ``examples/explore.ipynb`` executed on a headless kernel."""
+
+from __future__ import annotations
+
+import base64
+import importlib
+import io
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import viewer
+from viewer import ViewerError
+
+ROOT = Path(__file__).resolve().parent.parent
+W, H = 160, 90
+
+pytest.importorskip("jupyter_rfb", reason="the notebook widget needs jupyter_rfb: pip install -e '.[notebook]'")
+pytest.importorskip("ipywidgets", reason="the notebook widget needs ipywidgets: pip install -e '.[notebook]'")
+
+
+def srgb(linear, scene):
+    from viewer.colour import to_srgb8
+
+    return to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
+
+
+@pytest.fixture(scope="module")
+def widget():
+    from viewer.notebook import Viewer
+
+    v = Viewer("default", W, H, workers=0)   # workers=0: the reference in this process's thread
+    yield v
+    v.close()
+
+
+def test_frame_is_viewer_render(widget):
+    """The widget's frame is the offscreen renderer's image of the same scene: the linear image
+    bit for bit; the 8-bit frame is the GPU's sRGB encoding of it, which may round differently
+    from numpy's float64 ``to_srgb8`` by one step (measured: 0 on llvmpipe)."""
+    frame = widget.frame()
+    assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
+    linear = viewer.render("default", W, H)
+    assert np.array_equal(widget.view.raster()[0], linear)
+    assert np.abs(frame.astype(int) - srgb(linear, widget.view.scene)).max() <= 1
+
+
+def test_set_renders_the_new_value(widget):
+    """``set`` is the slider's path: the alias alpha sets alpha_x and alpha_y, and the frame is
+    ``viewer.render`` with the same ``--set`` assignment (parsed by the scene loader instead)."""
+    before = widget.frame().copy()
+    widget.set("materials.ball.alpha", 0.3)
+    m = widget.view.scene.materials["ball"]
+    assert m["alpha_x"] == m["alpha_y"] == 0.3
+    after = widget.frame()
+    want = viewer.render("default", W, H, overrides=["materials.ball.alpha=0.3"])
+    assert np.array_equal(widget.view.raster()[0], want)
+    assert np.abs(after.astype(int) - before).max() > 10   # the highlight changed visibly
+    with pytest.raises(ViewerError, match="out of range"):
+        widget.set("materials.ball.alpha", 7.0)
+    assert widget.view.scene.materials["ball"]["alpha_x"] == 0.3   # the old value stays
+    with pytest.raises(ViewerError, match="no parameter|has no parameter"):
+        widget.set("materials.ball.shinyness", 1.0)
+
+
+def test_roughness_slider_sets_alpha_squared(widget):
+    """The editor's roughness slider is in r = sqrt(alpha), as the window's; moving it renders
+    alpha = r^2 on both axes."""
+    editor = widget.editors["ball"]
+    editor.controls["roughness r"].value = 0.5
+    m = widget.view.scene.materials["ball"]
+    assert m["alpha_x"] == pytest.approx(0.25) and m["alpha_y"] == pytest.approx(0.25)
+    widget.frame()
+    want = viewer.render("default", W, H, overrides=[f"materials.ball.alpha={m['alpha_x']!r}"])
+    assert np.array_equal(widget.view.raster()[0], want)
+
+
+def test_editor_hides_what_the_fresnel_variant_ignores(widget):
+    """A dielectric Fresnel shows ior, not eta / k; a conductor the reverse (the window's rule)."""
+    editor = widget.editors["ball"]
+    editor.controls["fresnel"].value = "dielectric"
+    assert "ior" in editor.controls and "eta" not in editor.controls
+    editor.controls["fresnel"].value = "conductor"
+    assert widget.view.scene.materials["ball"]["fresnel"] == "conductor"
+    assert "eta" in editor.controls and "k" in editor.controls and "ior" not in editor.controls
+    assert "f0" not in editor.controls
+    editor.controls["fresnel"].value = "dielectric"
+
+
+def test_resize_with_pixel_ratio_and_orbit(widget):
+    """A resize event renders at width x height x pixel_ratio; a left drag orbits the window's
+    camera by the same amount, a wheel notch dollies one step."""
+    from viewer.camera import OrbitCamera
+
+    widget.handle_event({"event_type": "resize", "width": 100, "height": 60, "pixel_ratio": 2.0})
+    assert widget.frame().shape == (120, 200, 3)
+    cam = widget.view.camera
+    want = OrbitCamera(cam.position, cam.target, cam.fov_y)
+    want.orbit(30.0, -12.0, 60)
+    widget.handle_event({"event_type": "pointer_down", "x": 10.0, "y": 20.0, "button": 1, "buttons": (1,)})
+    widget.handle_event({"event_type": "pointer_move", "x": 40.0, "y": 8.0, "button": 1, "buttons": (1,)})
+    widget.handle_event({"event_type": "pointer_up", "x": 40.0, "y": 8.0, "button": 1, "buttons": ()})
+    assert cam.yaw == pytest.approx(want.yaw) and cam.pitch == pytest.approx(want.pitch)
+    d = cam.distance
+    widget.handle_event({"event_type": "wheel", "dx": 0.0, "dy": -100.0, "x": 5.0, "y": 5.0})
+    assert cam.distance == pytest.approx(d * 0.9)   # one notch nearer, as glfw's wheel step
+    widget.handle_event({"event_type": "double_click", "x": 5.0, "y": 5.0, "button": 1})
+    widget.handle_event({"event_type": "resize", "width": W, "height": H, "pixel_ratio": 1.0})
+    assert widget.frame().shape == (H, W, 3)
+
+
+def test_snapshot_is_a_png_of_the_frame(widget):
+    from PIL import Image
+
+    bundle = widget.snapshot()._repr_mimebundle_()
+    img = np.asarray(Image.open(io.BytesIO(base64.b64decode(bundle["image/png"]))).convert("RGB"))
+    assert np.array_equal(img, widget.frame())
+
+
+def test_reference_converges(widget):
+    """The reference toggle shows the progressive path tracer: its spp grows and its estimated
+    RMSE falls (for an unbiased estimator about as 1/sqrt(spp))."""
+    widget.show_reference(True)
+    try:
+        seen = []
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            frame = widget.frame()
+            st = widget.reference_status()
+            if st["rmse"] is not None and (not seen or st["spp"] > seen[-1][0]):
+                seen.append((st["spp"], st["rmse"]))
+            if len(seen) >= 2 and seen[-1][0] >= 4 * seen[0][0]:
+                break
+            time.sleep(0.1)
+        assert st["engine"] == "cpu" and st["error"] == ""
+        assert len(seen) >= 2, seen
+        (s0, e0), (s1, e1) = seen[0], seen[-1]
+        assert s1 > s0 and e1 < e0, seen
+        assert frame.shape == (H, W, 3)
+    finally:
+        widget.show_reference(False)
+
+
+def test_without_jupyter_rfb_one_line(monkeypatch):
+    """Without the [notebook] extra, importing viewer.notebook says what to install."""
+    monkeypatch.setitem(sys.modules, "jupyter_rfb", None)
+    for name in [m for m in sys.modules if m.startswith("viewer.notebook")]:
+        monkeypatch.delitem(sys.modules, name)
+    with pytest.raises(ViewerError) as e:
+        importlib.import_module("viewer.notebook")
+    assert "jupyter_rfb is not installed" in str(e.value) and ".[notebook]" in str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_material_by_name():
+    """A preset by name and a .brdf file as the scene give those materials."""
+    from viewer.notebook import load_view_scene
+
+    sc = load_view_scene("default", material="gold")
+    assert sc.materials["ball"].model == "microfacet" and sc.materials["ball"]["fresnel"] == "conductor"
+    sc = load_view_scene(str(ROOT / "viewer/brdfs/cooktorrance.brdf"))
+    assert viewer.brdf.is_file(sc.materials["ball"])
+    with pytest.raises(ViewerError, match="not a material"):
+        load_view_scene("default", material="gold", target="nothing")
+
+
+def test_explore_notebook_runs(monkeypatch):
+    """examples/explore.ipynb on a headless kernel at 160x90 (its settings cell is rewritten):
+    its own cells assert that the widget's frame is viewer.render's, that a slider change
+    renders the new value and that the reference converges; its saved output holds a static
+    image (image/png)."""
+    nbformat = pytest.importorskip("nbformat", reason="nbclient's notebook format: pip install -e '.[test]'")
+    nbclient = pytest.importorskip("nbclient", reason="runs the notebook: pip install -e '.[test]'")
+    pytest.importorskip("ipykernel", reason="the notebook's kernel: pip install -e '.[test]'")
+    nb = nbformat.read(ROOT / "examples" / "explore.ipynb", as_version=4)
+    settings = [c for c in nb.cells if c.cell_type == "code" and "SIZE = " in c.source]
+    assert len(settings) == 1
+    settings[0].source = "SIZE = (160, 90)\nWORKERS = 0\n"
+    import os
+
+    env_path = os.pathsep.join([str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+    monkeypatch.setenv("PYTHONPATH", env_path)   # the kernel imports this checkout
+    client = nbclient.NotebookClient(nb, timeout=120, kernel_name="python3", resources={"metadata": {"path": str(ROOT)}})
+    client.execute()
+    nb = nbformat.reads(nbformat.writes(nb), as_version=4)   # the notebook as saved
+    images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if "image/png" in o.get("data", {}) or "image/jpeg" in o.get("data", {})]
+    assert images, "no static image in the executed notebook's outputs"
