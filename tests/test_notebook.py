@@ -92,6 +92,20 @@ def test_editor_hides_what_the_fresnel_variant_ignores(widget):
     editor.controls["fresnel"].value = "dielectric"
 
 
+def test_colour_picker_and_refused_value(widget):
+    """A colour up to 1 is a picker of the stored value (#rrggbb, no sRGB conversion, as the
+    window's colour edit); a value the spec refuses leaves the old one and says why."""
+    editor = widget.editors["floor"]
+    editor.controls["albedo"].value = "#336699"
+    assert np.allclose(widget.view.scene.materials["floor"]["albedo"], [0x33 / 255, 0x66 / 255, 0x99 / 255])
+    ball = widget.editors["ball"]
+    ior = ball.controls["ior"]
+    old = widget.view.scene.materials["ball"]["ior"]
+    ball.apply("ior", float("nan"), ior, old)
+    assert widget.view.scene.materials["ball"]["ior"] == old and ior.value == old
+    assert "ior" in ball.message.value and "out of range" in ball.message.value
+
+
 def test_resize_with_pixel_ratio_and_orbit(widget):
     """A resize event renders at width x height x pixel_ratio; a left drag orbits the window's
     camera by the same amount, a wheel notch dollies one step."""
@@ -142,6 +156,11 @@ def test_reference_converges(widget):
         (s0, e0), (s1, e1) = seen[0], seen[-1]
         assert s1 > s0 and e1 < e0, seen
         assert frame.shape == (H, W, 3)
+        widget.show_reference(True, split=True)   # raster left of the divider, reference right
+        split, raster = widget.frame(), widget.view.raster()[1]
+        cut = W // 2
+        assert np.array_equal(split[:, :cut], raster[:, :cut])
+        assert np.all(split[:, cut] == 255) and not np.array_equal(split[:, cut + 1:], raster[:, cut + 1:])
     finally:
         widget.show_reference(False)
 

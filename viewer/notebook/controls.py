@@ -49,6 +49,7 @@ class MaterialEditor:
         self.box = W.VBox([])
         self.controls: dict[str, W.Widget] = {}   # key (below the prefix) -> widget, for tests
         self.children: list[MaterialEditor] = []
+        self.reverting: set[str] = set()
         self.rebuild()
 
     # ------------------------------------------------------------------ applying a change
@@ -69,13 +70,13 @@ class MaterialEditor:
 
     def _observe(self, widget, key, convert=lambda v: v, rebuild=False):
         def handler(change):
-            if getattr(widget, "_nb_quiet", False):
+            if key in self.reverting:   # the refused value's widget going back: not a change
                 return
-            widget._nb_quiet = True
+            self.reverting.add(key)
             try:
                 self.apply(key, convert(change["new"]), widget, change["old"], rebuild)
             finally:
-                widget._nb_quiet = False
+                self.reverting.discard(key)
         widget.observe(handler, names="value")
         self.controls[key] = widget
         return widget

@@ -251,12 +251,14 @@ class NotebookView:
         ref = self._reference()
         w, h = self.pixels
         self.ctx.__enter__()
-        ref.update(self.scene, self.camera, (w, h))
+        # at the logical size: a high-density display (pixel ratio 2) would cost four times the
+        # samples for the same picture; the image is scaled up to the framebuffer (nearest pixel)
+        ref.update(self.scene, self.camera, self.size)
         got = ref.latest()
         if got is None:
             return None
         img = got[0]
-        if img.shape[:2] != (h, w):   # the coarse first image, a quarter of the size: scaled up
+        if img.shape[:2] != (h, w):   # the logical size, or the coarse first image (a quarter): scaled up
             ys = np.minimum((np.arange(h) * img.shape[0]) // h, img.shape[0] - 1)
             xs = np.minimum((np.arange(w) * img.shape[1]) // w, img.shape[1] - 1)
             img = img[ys][:, xs]
