@@ -130,7 +130,11 @@ class Viewer(RemoteFrameBuffer):
             self.request_draw()
 
     def close(self, *args, **kwargs):
-        self.view.close()
+        """End the reference (its thread and workers), release the GL objects, close the widget."""
+        try:
+            self.view.close()
+        except ImportError:   # called from __del__ while the interpreter shuts down: nothing to free
+            pass
         super().close(*args, **kwargs)
 
     # ------------------------------------------------------------------ helpers
