@@ -210,3 +210,30 @@ def test_explore_notebook_runs(monkeypatch):
     images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
               if "image/png" in o.get("data", {}) or "image/jpeg" in o.get("data", {})]
     assert images, "no static image in the executed notebook's outputs"
+
+
+def test_set_reaches_tables_nested_materials_and_lobes():
+    """``set``'s paths below a material: a table field, a table in a table, a nested material's
+    parameter and a lobe's field, each validated by the spec (no GL needed)."""
+    from viewer import brdf
+    from viewer.notebook.view import set_material_value
+
+    coat = brdf.get("layered").params()
+    out = set_material_value(coat, ["coating", "thin_film", "thickness_nm"], 250.0, "t")
+    assert out["coating"]["thin_film"]["thickness_nm"] == 250.0
+    assert coat["coating"]["thin_film"]["thickness_nm"] != 250.0   # the old Params is not edited
+    base = coat["base"].model
+    name = next(p.name for p in brdf.get(base).spec.params if p.kind == "rgb")
+    out = set_material_value(out, ["base", name], 0.25, "t")
+    assert np.array_equal(out["base"][name], [0.25] * 3)
+    with pytest.raises(ViewerError, match="out of range"):
+        set_material_value(coat, ["coating", "ior"], -1.0, "t")
+    with pytest.raises(ViewerError, match="no field"):
+        set_material_value(coat, ["coating", "nope"], 1.0, "t")
+    laf = brdf.get("lafortune").params()
+    field = laf["lobes"][0]
+    key = next(k for k in field if isinstance(field[k], float))
+    out = set_material_value(laf, ["lobes", "0", key], 2.0, "t")
+    assert out["lobes"][0][key] == 2.0
+    with pytest.raises(ViewerError, match="no item"):
+        set_material_value(laf, ["lobes", "9", key], 2.0, "t")

@@ -85,20 +85,28 @@ def set_material_value(material, parts: list[str], value, where: str):
         return material.replace(**{name: validate_value(p, value, where, brdf.lookup_spec)})
     if p.kind == "material":
         return material.replace(**{name: set_material_value(old, rest, value, where)})
-    if p.kind == "table" and len(rest) == 1:
-        new = dict(old)
-        new[rest[0]] = value
-        if rest[0] not in old:
-            raise ViewerError(f"{where}: {name} has no field {rest[0]!r}; allowed: {', '.join(old)}")
-        return material.replace(**{name: validate_value(p, new, where)})
-    if p.kind == "lobes" and len(rest) == 2 and rest[0].isdigit() and int(rest[0]) < len(old):
-        lobes = [dict(lobe) for lobe in old]
-        if rest[1] not in lobes[int(rest[0])]:
-            raise ViewerError(f"{where}: a lobe has no field {rest[1]!r}; allowed: {', '.join(lobes[0])}")
-        lobes[int(rest[0])][rest[1]] = value
-        return material.replace(**{name: validate_value(p, lobes, where)})
+    if p.kind in ("table", "lobes"):   # the table (or list) with the one value replaced, validated whole
+        return material.replace(**{name: validate_value(p, _replaced(old, rest, value, where, name), where)})
     raise ViewerError(f"{where}: {'.'.join(parts)} names no value of {material.model} "
                       f"({name} is {'a ' + p.kind if p.kind != 'lobes' else 'a list of ' + str(len(old)) + ' lobes'})")
+
+
+def _replaced(old, path, value, where, here):
+    """A plain copy of the table or list ``old`` with the value at ``path`` replaced."""
+    key, rest = path[0], path[1:]
+    if isinstance(old, (list, tuple)):
+        if not key.isdigit() or int(key) >= len(old):
+            raise ViewerError(f"{where}: no item {key!r} in {here}; allowed: an index 0..{len(old) - 1}")
+        out = [dict(x) if isinstance(x, dict) else x for x in old]
+        idx = int(key)
+    elif isinstance(old, dict):
+        if key not in old:
+            raise ViewerError(f"{where}: {here} has no field {key!r}; allowed: {', '.join(old)}")
+        out, idx = dict(old), key
+    else:
+        raise ViewerError(f"{where}: {here} is a value, not a table")
+    out[idx] = _replaced(out[idx], rest, value, where, f"{here}.{key}") if rest else value
+    return out
 
 
 class NotebookView:
