@@ -537,9 +537,11 @@ class ReferenceView:
                 _store(self._gpu, self._gpu_key, "gpu", report=self.notice)
             return self._cond.wait_for(lambda: not self._busy, timeout=timeout)
 
-    def close(self, timeout: float | None = None):
+    def close(self, timeout: float | None = None, keep_programs: bool = False):
         """End the background thread (it closes the renderer and its worker processes) and
-        release the texture. Waits for the thread (``timeout`` None: until it has ended)."""
+        release the texture. Waits for the thread (``timeout`` None: until it has ended).
+        ``keep_programs`` keeps the GPU engine's compiled programs cached on the context
+        for other views sharing it (the notebook's widgets)."""
         with self._cond:
             self._closing = True
             self._request = None
@@ -552,7 +554,7 @@ class ReferenceView:
             if not thread.is_alive():
                 self._thread = None
         self._drop_gpu()
-        if self.engine == "gpu":
+        if self.engine == "gpu" and not keep_programs:
             from viewer.gpupt.engine import release_programs
 
             release_programs(self.ctx)

@@ -16,6 +16,7 @@ import numpy as np
 from viewer import ViewerError
 
 MODES = ("raster", "reference", "split")
+_shared = None   # (context, Renderer) of this process's widgets, made by the first
 MATERIAL_FILES = (".brdf", ".bparam")   # a scene argument naming one of these is a material
 
 
@@ -128,8 +129,11 @@ class NotebookView:
         self.camera = OrbitCamera.from_scene(scene)
         self.size = (int(width), int(height))   # logical (CSS) pixels
         self.pixel_ratio = 1.0
-        self.ctx = create_offscreen_context()
-        self.renderer = Renderer(self.ctx)
+        global _shared
+        if _shared is None:   # one context and renderer for every widget: programs compile once
+            ctx = create_offscreen_context()
+            _shared = (ctx, Renderer(ctx))
+        self.ctx, self.renderer = _shared
         self.engine_request = engine
         self.workers = workers
         self.max_depth = max_depth
@@ -332,11 +336,9 @@ class NotebookView:
         return self.mode != "raster" and self.reference is not None and self.reference.needs_frames
 
     def close(self):
-        """End the reference (its thread and workers) and release the GL objects; once."""
-        if self.renderer is None:
-            return
+        """End the reference (its thread and workers) and release its GL objects; the shared
+        renderer stays for the other widgets (as ``viewer.render`` keeps its own)."""
         if self.reference is not None:
-            self.reference.close(timeout=5.0)
+            self.ctx.__enter__()
+            self.reference.close(timeout=5.0, keep_programs=True)   # other widgets share the context
             self.reference = None
-        self.renderer.release()
-        self.renderer = None
