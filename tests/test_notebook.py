@@ -237,3 +237,25 @@ def test_set_reaches_tables_nested_materials_and_lobes():
     assert out["lobes"][0][key] == 2.0
     with pytest.raises(ViewerError, match="no item"):
         set_material_value(laf, ["lobes", "9", key], 2.0, "t")
+
+
+def test_gpu_engine_runs_in_the_frames():
+    """The GPU engine renders a time slice per frame on the widgets' shared context: while it
+    runs the widget asks for the next frame itself (``needs_frames``), and its spp grows frame by
+    frame (48x27, software GL: about 3 s)."""
+    from viewer.notebook import Viewer
+
+    v = Viewer("default", 48, 27, engine="gpu", workers=0)
+    try:
+        v.show_reference(True)
+        spp = []
+        for _ in range(400):
+            v.get_frame()
+            spp.append(v.reference_status()["spp"])
+            if spp[-1] >= 8:
+                break
+        st = v.reference_status()
+        assert st["engine"] == "gpu" and st["error"] == "", st
+        assert v.view.needs_frames and spp[-1] >= 8 and spp == sorted(spp)
+    finally:
+        v.close()
