@@ -259,3 +259,22 @@ def test_gpu_engine_runs_in_the_frames():
         assert v.view.needs_frames and spp[-1] >= 8 and spp == sorted(spp)
     finally:
         v.close()
+
+
+def test_a_drag_defers_the_reference(widget):
+    """While the pointer drags the camera the reference waits and the raster view stands in (as
+    in the window); releasing it asks for a frame, which starts the reference on the still view."""
+    widget.show_reference(True)
+    try:
+        assert not widget.handle_event({"event_type": "pointer_down", "x": 5.0, "y": 5.0, "button": 1})
+        widget.view.handle_event({"event_type": "pointer_move", "x": 25.0, "y": 5.0, "button": 1})
+        frame = widget.frame()
+        assert widget.view.reference.key is None   # paused, nothing restarted
+        assert np.array_equal(frame, widget.view.raster()[1])
+        assert widget.view.handle_event({"event_type": "pointer_up", "x": 25.0, "y": 5.0, "button": 1})
+        widget.frame()
+        assert widget.view.reference.key is not None
+    finally:
+        widget.show_reference(False)
+        widget.view.camera.reset()
+        widget.view.changed()

@@ -145,7 +145,7 @@ class NotebookView:
         self.last = None            # the last frame, (H, W, 3) uint8
         self.render_ms = 0.0        # of the last raster frame
         self._raster = None         # (key, linear, srgb) of the last raster frame
-        self._drag = None           # (button, x, y) while a pointer button is held
+        self._drag = None           # (button, x, y, moved) while a pointer button is held
 
     # ------------------------------------------------------------------ size and camera
     @property
@@ -177,14 +177,15 @@ class NotebookView:
             return self.resize(event.get("width", 0), event.get("height", 0), event.get("pixel_ratio", 1.0))
         x, y = float(event.get("x", 0.0)), float(event.get("y", 0.0))
         if kind == "pointer_down":
-            self._drag = (int(event.get("button", 1)), x, y)
+            self._drag = (int(event.get("button", 1)), x, y, False)
             return False
         if kind == "pointer_up":
+            moved = self._drag is not None and self._drag[3]
             self._drag = None
-            return False
+            return moved and self.mode != "raster"   # the reference starts on the view now still
         if kind == "pointer_move" and self._drag is not None:
-            button, x0, y0 = self._drag
-            self._drag = (button, x, y)
+            button, x0, y0, _ = self._drag
+            self._drag = (button, x, y, True)
             dx, dy = x - x0, y - y0
             if dx == 0 and dy == 0:
                 return False
@@ -265,7 +266,9 @@ class NotebookView:
         self.ctx.__enter__()
         # at the logical size: a high-density display (pixel ratio 2) would cost four times the
         # samples for the same picture; the image is scaled up to the framebuffer (nearest pixel)
-        ref.update(self.scene, self.camera, self.size)
+        # while a pointer drags the camera the job waits (the raster view stands in), as in the
+        # window: a restart per dragged frame would never finish a pass
+        ref.update(self.scene, self.camera, self.size, defer=self._drag is not None)
         got = ref.latest()
         if got is None:
             return None

@@ -80,10 +80,9 @@ class Viewer(RemoteFrameBuffer):
         self.plots = {}   # material -> (kind picker, image, box)
         for name in sc.materials:
             self._plot_widgets(name)
-        tabs = W.Tab(children=[W.VBox([self.editors[n].box, self.plots[n][2]]) for n in sc.materials])
-        for i, n in enumerate(sc.materials):
-            tabs.set_title(i, f"{n} ({sc.materials[n].model})")
-        self.ui = W.VBox([self, W.HBox([self.mode, self.status]), tabs])
+        self.tabs = W.Tab(children=[W.VBox([self.editors[n].box, self.plots[n][2]]) for n in sc.materials])
+        self._titles()
+        self.ui = W.VBox([self, W.HBox([self.mode, self.status]), self.tabs])
         self._update_status()
 
     # ------------------------------------------------------------------ the binding interface
@@ -161,7 +160,11 @@ class Viewer(RemoteFrameBuffer):
                 text += f" <span style='color:#c33'>{st['error']}</span>"
         self.status.value = text
 
+    def _titles(self):
+        self.tabs.titles = tuple(f"{n} ({m.model})" for n, m in self.view.scene.materials.items())
+
     def _material_changed(self, name, redraw=True):
+        self._titles()   # a preset or model switch changes the model
         if redraw:
             self.request_draw()
         if self._loop is None:
