@@ -278,3 +278,15 @@ def test_a_drag_defers_the_reference(widget):
         widget.show_reference(False)
         widget.view.camera.reset()
         widget.view.changed()
+
+
+def test_docs_show_the_notebooks_first_cells():
+    """docs/notebook.md quotes the first four code cells of examples/explore.ipynb as they are."""
+    import json
+
+    nb = json.loads((ROOT / "examples" / "explore.ipynb").read_text(encoding="utf-8"))
+    doc = (ROOT / "docs" / "notebook.md").read_text(encoding="utf-8")
+    cells = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"][:4]
+    assert len(cells) == 4
+    for source in cells:
+        assert f"```python\n{source}\n```" in doc, source.splitlines()[0]
