@@ -337,12 +337,14 @@ class ReferenceView:
                 self.gpu.store()
             return cpu.cond.wait_for(lambda: not cpu.busy, timeout=timeout)
 
-    def close(self, timeout: float | None = None):
+    def close(self, timeout: float | None = None, keep_programs: bool = False):
         """End the background thread (it closes the renderer and its worker processes) and
-        release the texture. Waits for the thread (``timeout`` None: until it has ended)."""
+        release the texture. Waits for the thread (``timeout`` None: until it has ended).
+        ``keep_programs`` keeps the GPU engine's compiled programs cached on the context
+        for other views sharing it (the notebook's widgets)."""
         self.cpu.close(timeout)
         self.gpu.drop()
-        if self.engine == "gpu":
+        if self.engine == "gpu" and not keep_programs:
             from viewer.gpupt.engine import release_programs
 
             release_programs(self.ctx)

@@ -19,6 +19,8 @@ PACKAGES = {
     "cv2": ("reading and writing Radiance .hdr maps", "pip install opencv-python-headless"),
     "OpenEXR": ("reading and writing OpenEXR .exr maps", "pip install OpenEXR"),
     "trimesh": ("reading mesh files (OBJ, PLY, STL, OFF, glTF)", "pip install trimesh"),
+    "jupyter_rfb": ("the notebook widget viewer.notebook.Viewer", "pip install -e '.[notebook]'"),
+    "ipywidgets": ("the notebook widget viewer.notebook.Viewer", "pip install -e '.[notebook]'"),
 }
 DISTRIBUTIONS = {"cv2": "opencv-python-headless"}  # where the pip name differs from the import name
 
