@@ -8,6 +8,7 @@ or an argument, against children that never finish; no test asserts how long any
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -514,6 +515,11 @@ def test_a_child_that_works_without_answering_is_given_time_then_replaced():
 
 
 def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx):
+    """The silent child is replaced once its leash runs out, and the window compiles the change
+    itself. The leash is endless until the held frame has been seen, then 0.5 s: with a leash of
+    0.5 s from the start, a first frame (or the held one) longer than 0.5 s on a loaded machine
+    let the leash run out on the first request already, and the change's request went to the
+    second child, replaced in turn (two replacements)."""
     from viewer.app.compile_ahead import CompileAhead
     from viewer.app.session import Session
     from viewer.gl.renderer import Renderer
@@ -522,13 +528,15 @@ def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx
     renderer = Renderer(gl_ctx)  # its own: the soap bubble's program not compiled by another test
 
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
-    s.compile_ahead = CompileAhead(on_notice=s.notify, command=NEVER_ANSWERS, leash=0.5)
+    s.compile_ahead = CompileAhead(on_notice=s.notify, command=NEVER_ANSWERS, leash=math.inf)
     try:
         s.render_view((96, 64))
         s.set_material("ball", material_from_name("soap_bubble"))
         key = renderer.forward_keys(s.scene)["ball"]
         s.render_view((96, 64))
         assert s.compiling and key not in renderer.programs  # held: drawn as before
+        assert s.compile_ahead.replaced == 0 and s.compile_ahead.outstanding == 2  # the first frame's, the change's
+        s.compile_ahead.leash = 0.5  # from now on the silence counts: both requests are failed at once
 
         def drawn():
             s.render_view((96, 64))
