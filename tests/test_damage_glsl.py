@@ -8,6 +8,7 @@ or an argument, against children that never finish; no test asserts how long any
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -348,6 +349,50 @@ def test_saving_a_file_with_a_loop_that_cannot_end_into_a_window_keeps_the_last_
         s.release()
 
 
+def test_a_file_the_scene_let_go_leaves_no_error_behind(gl_ctx, renderer, tmp_path):
+    """A saved file whose loop ran past the budget, then another file opened on the material:
+    the overlay lists no error of the file no longer in the scene (its program is dropped) and
+    hot reload stops watching it; the other file draws."""
+    from viewer.app.session import Session
+    from viewer.app.shader_overlay import HotReload
+
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    try:
+        src = tmp_path / "live.brdf"
+        src.write_text("analytic\n::begin shader\n" + _brdf("    return vec3(0.2);") + "\n::end shader\n")
+        assert s.load_brdf_file(str(src))
+        hr = HotReload(s.renderer)
+
+        def image():
+            s.changed()
+            s.render_view((48, 36))
+            return s.renderer.read_linear(s.hdr).astype(np.float64)
+
+        image()
+        hr.poll(force=True)  # the first look only learns the files
+        src.write_text("analytic\n::begin shader\n" + _brdf(
+            "    float s = 0.0;\n    for (int i = 0; i < 1000000000; i++) s += 1e-9;\n    return vec3(s);")
+            + "\n::end shader\n")
+        st = src.stat()
+        os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+        hr.poll(force=True)
+        assert any("16,384 steps" in e.summary() for e in hr.errors), [e.summary() for e in hr.errors]
+        other = tmp_path / "other.brdf"
+        other.write_text("analytic\n::begin shader\n" + _brdf("    return vec3(0.3);") + "\n::end shader\n")
+        assert s.load_brdf_file(str(other))
+        img = image()
+        assert not s.renderer.shader_errors, [e.summary() for e in s.renderer.shader_errors]
+        assert img.max() > 0
+        watched = s.renderer.file_brdfs()
+        assert str(other.resolve()) in watched and str(src.resolve()) not in watched, watched
+        hr.poll(force=True)
+        assert not hr.errors, [e.summary() for e in hr.errors]
+        assert not s.load_brdf_file(str(src))  # the looping file itself is still refused
+    finally:
+        s.release()
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process tree from Linux /proc")
 def test_sigterm_to_a_window_waiting_on_a_saved_files_test_render_closes_it_and_saves_its_state(display, tmp_path):
@@ -470,6 +515,11 @@ def test_a_child_that_works_without_answering_is_given_time_then_replaced():
 
 
 def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx):
+    """The silent child is replaced once its leash runs out, and the window compiles the change
+    itself. The leash is endless until the held frame has been seen, then 0.5 s: with a leash of
+    0.5 s from the start, a first frame (or the held one) longer than 0.5 s on a loaded machine
+    let the leash run out on the first request already, and the change's request went to the
+    second child, replaced in turn (two replacements)."""
     from viewer.app.compile_ahead import CompileAhead
     from viewer.app.session import Session
     from viewer.gl.renderer import Renderer
@@ -478,13 +528,15 @@ def test_the_window_compiles_a_change_itself_when_the_child_never_answers(gl_ctx
     renderer = Renderer(gl_ctx)  # its own: the soap bubble's program not compiled by another test
 
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
-    s.compile_ahead = CompileAhead(on_notice=s.notify, command=NEVER_ANSWERS, leash=0.5)
+    s.compile_ahead = CompileAhead(on_notice=s.notify, command=NEVER_ANSWERS, leash=math.inf)
     try:
         s.render_view((96, 64))
         s.set_material("ball", material_from_name("soap_bubble"))
         key = renderer.forward_keys(s.scene)["ball"]
         s.render_view((96, 64))
         assert s.compiling and key not in renderer.programs  # held: drawn as before
+        assert s.compile_ahead.replaced == 0 and s.compile_ahead.outstanding == 2  # the first frame's, the change's
+        s.compile_ahead.leash = 0.5  # from now on the silence counts: both requests are failed at once
 
         def drawn():
             s.render_view((96, 64))

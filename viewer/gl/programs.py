@@ -205,6 +205,29 @@ class ProgramCache:
             out.update(m[len(CUSTOM_PREFIX):] for m in (r.models or ()) if is_custom(m))
         return out
 
+    def keep_files(self, materials) -> None:
+        """Drop the programs holding a ``.brdf`` file that none of ``materials`` (the scene a
+        frame draws) uses: the program, its recipe and its error. A file the scene no longer
+        holds is then neither reported (``errors``: its last compile's error would stand beside
+        the file now in use) nor watched or rebuilt by hot reload; a material that takes the
+        file again compiles it again (its verdicts and the driver's cache are per content)."""
+        held = self.file_brdfs()
+        if not held:
+            return  # the per-frame path of a scene without file materials
+        from viewer.gl.brdf_glsl import CUSTOM_PREFIX, is_custom, models_used
+
+        used = {m[len(CUSTOM_PREFIX):] for p in materials for m in models_used(p) if is_custom(m)}
+        if held <= used:
+            return
+        for key in [k for k, r in self._recipes.items()
+                    if any(is_custom(m) and m[len(CUSTOM_PREFIX):] not in used for m in (r.models or ()))]:
+            self._recipes.pop(key)
+            self._good.pop(key, None)
+            self._failed.pop(key, None)
+            prog = self.programs.pop(key, None)
+            if prog is not None:
+                self._drop_program(prog)
+
     def release(self):
         for v in self._fullscreen_vaos.values():
             v.release()

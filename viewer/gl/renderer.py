@@ -411,6 +411,7 @@ class Renderer:
         (``hot_reload``): there the error goes to ``shader_errors``, an object whose forward
         program never compiled is left out, and a pass that cannot be built gives back the
         colour target as it is (normally the previous frame)."""
+        self._programs.keep_files(scene.materials.values())  # a file the scene let go: no stale error
         if not self.hot_reload:
             return self._render(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region)
         try:
