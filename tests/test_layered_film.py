@@ -287,7 +287,7 @@ def test_gpu_engine_refuses_a_film_over_height():
     # at 24 x 24, 4 spp: the face's top / bottom blue 4.66 in both, 1.00 on the gpu engine). It
     # refuses such a scene in one line and auto takes the cpu engine; a uniform film stays its own.
     from viewer import ViewerError
-    from viewer.gpupt.refusals import FILM_HEIGHT_REFUSAL, cpu_only
+    from viewer.reference_common.refusals import FILM_HEIGHT_REFUSAL, cpu_only
     from viewer.gpupt.select import choose_for_scenes, make_renderer
     from viewer.scene import load_scene_text
 
