@@ -288,7 +288,7 @@ def test_gpu_engine_refuses_a_film_over_height():
     # refuses such a scene in one line and auto takes the cpu engine; a uniform film stays its own.
     from viewer import ViewerError
     from viewer.reference_common.refusals import FILM_HEIGHT_REFUSAL, cpu_only
-    from viewer.gpupt.select import choose_for_scenes, make_renderer
+    from viewer.reference_common.select import choose_for_scenes, make_renderer
     from viewer.scene import load_scene_text
 
     for text in (_MF_SCENE, _LAYERED_OVER):
