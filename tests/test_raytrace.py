@@ -292,9 +292,9 @@ def test_dispersion_traces_each_channel(tmp_path, renderer, monkeypatch):
         scene.materials["glass"]["ior"] = ior
         single[ior] = renderer.render_arrays(scene, width=32, height=32)[0]
     monkeypatch.setattr(rtmod, "chain_eta", lambda p: np.array([1.4, 1.5, 1.7]))
-    from viewer.gl import renderer as rmod
+    from viewer.gl import program_set
 
-    monkeypatch.setattr(rmod, "dispersive", lambda s: True)
+    monkeypatch.setattr(program_set, "dispersive", lambda s: True)  # the forward variant's dispersion switch
     renderer.raytrace_state().invalidate_materials()  # rebuild the material rows with the new indices
     disp = renderer.render_arrays(scene, width=32, height=32)[0]
     for c, ior in enumerate((1.4, 1.5, 1.7)):

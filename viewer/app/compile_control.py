@@ -81,7 +81,7 @@ class CompileControl:
         ``rt_now`` / ``rt_held``: the traced-chain switch of the frame and of a held one."""
         from viewer.app.compile_ahead import params_key
 
-        from viewer.gl.renderer import frame_switches
+        from viewer.gl.program_set import frame_switches
 
         s = self.session
         keys = s.renderer.forward_keys(s.scene, raytrace=rt_now)
@@ -90,7 +90,7 @@ class CompileControl:
         ssr_on, env_on = frame_switches(s.scene, rt_now)[:2]
         ms_scene = bool(s.scene.render.ms_compensation)
 
-        def needs_tables(p):  # as Renderer._environment builds them: for IBL, SSR and compensation
+        def needs_tables(p):  # as MaterialUniforms.prepare builds them: for IBL, SSR and compensation
             return ssr_on or env_on or ms_scene or bool(p.get("multiple_scattering", False))
 
         missing = [n for n, k in keys.items() if k not in progs

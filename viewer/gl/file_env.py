@@ -105,7 +105,7 @@ def sampled_file_env(scene) -> bool:
     averages frames of its own), unless in split-sum mode every such file is a constant
     (``is_constant``)."""
     if scene.render.ibl not in ("split_sum", "fis") or scene.environment.is_black:
-        return False  # (the frame's environment switch of ``renderer.frame_switches``)
+        return False  # (the frame's environment switch of ``program_set.frame_switches``)
     files = {o.material for o in scene.objects if brdf.is_file(scene.materials[o.material])}
     # split sum: a Lambertian file's whole light is its constant part, nothing is left to average
     return any(scene.render.ibl != "split_sum" or not is_constant(scene.materials[m]) for m in files)
