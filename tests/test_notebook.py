@@ -188,6 +188,9 @@ def test_material_by_name():
         load_view_scene("default", material="gold", target="nothing")
 
 
+# slow: a kernel start and the whole notebook (47-76 s on two loaded cores); the widget's own tests
+# above check the same frame, slider and reference rules in this process by default
+@pytest.mark.slow
 def test_explore_notebook_runs(monkeypatch):
     """examples/explore.ipynb on a headless kernel at 160x90 (its settings cell is rewritten):
     its own cells assert that the widget's frame is viewer.render's, that a slider change

@@ -172,6 +172,9 @@ print("TABS OK")
 '''.replace("FILE", repr(str(Path(__file__).parent / "brdfs" / "ggx_terms.brdf")))
 
 
+# slow: every tab at every UI scale in a real window (22 s on two loaded cores); the gallery legend
+# test and test_plots.py draw every tab in the default run
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
 def test_docked_tabs_fit_at_every_ui_scale(display):
     """Docked beside the lecture's view at UI 1, 1.5 and 2, for all materials and each alone (at
