@@ -92,19 +92,17 @@ class CheckTab:
 
         th = np.asarray(e["theta_deg"], dtype=np.float64)
         alb = np.asarray(e["albedo"], dtype=np.float64)
-        bound = float(e.get("bound", 1.0))
-        if "tolerance" in e:
-            # what the check allows above the bound at each angle (a few standard errors of the
-            # estimate's own noise): an albedo curve above this line fails the energy check
-            allowed = bound + np.asarray(e["tolerance"], dtype=np.float64).min(axis=1)
-            noise = np.asarray(e["noise"], dtype=np.float64).max(axis=1)
-            imgui.text_wrapped(f"energy: largest noise (1 s.e.) {noise.max():.2g}, allowed above {bound:g} "
-                       f"up to {allowed.max() - bound:.2g}")
+        bound = float(e["bound"])
+        # what the check allows above the bound at each angle (a few standard errors of the
+        # estimate's own noise): an albedo curve above this line fails the energy check
+        allowed = bound + np.asarray(e["tolerance"], dtype=np.float64).min(axis=1)
+        noise = float(np.max(e["noise"]))
+        imgui.text_wrapped(f"energy: largest noise (1 s.e.) {noise:.2g}, allowed above {bound:g} "
+                           f"up to {allowed.max() - bound:.2g}")
         if implot.begin_plot("directional albedo##check", imgui.ImVec2(-1, -1)):
             implot.setup_axes("theta (deg)", "albedo")
             for k, label in enumerate(("r", "g", "b")):
                 implot.plot_line(f"albedo {label}", th, np.ascontiguousarray(alb[:, k]))
             implot.plot_line(f"{bound:g} (energy bound)", np.array([0.0, 90.0]), np.array([bound, bound]))
-            if "tolerance" in e:
-                implot.plot_line("allowed (bound + tolerance)", th, np.ascontiguousarray(allowed))
+            implot.plot_line("allowed (bound + tolerance)", th, np.ascontiguousarray(allowed))
             implot.end_plot()
