@@ -32,6 +32,10 @@ def card_or_error(p) -> tuple:
         return None, str(e).splitlines()[0]
 
 
+_RGB = ((0.9, 0.3, 0.3), (0.35, 0.8, 0.35), (0.35, 0.55, 0.95))   # the albedo's channels
+_BOUND, _ALLOWED = (0.85, 0.85, 0.85), (0.95, 0.65, 0.2)
+
+
 class CheckTab:
     """``draw(names, materials)`` inside the plots window's tab."""
 
@@ -43,10 +47,13 @@ class CheckTab:
         self._want = None   # the card to show: (material, parameters, how many times checked again)
         self._round = 0
 
-    def draw(self, names, materials, cached=None) -> None:
-        """``cached(key, fn)``: the plots panel's (None while its worker computes), else the card
-        is computed here."""
+    def draw(self, names, materials, panel=None) -> None:
+        """``panel``: the plots panel, whose ``cached(key, fn)`` computes the card in its worker
+        (None while it does) and whose legend goes under the plot; without one the card is
+        computed here and the plot keeps implot's own legend."""
         from imgui_bundle import imgui, implot
+
+        cached = panel.cached if panel is not None else None
 
         if self.material not in names:
             self.material = names[0]
@@ -99,10 +106,21 @@ class CheckTab:
         noise = float(np.max(e["noise"]))
         imgui.text_wrapped(f"energy: largest noise (1 s.e.) {noise:.2g}, allowed above {bound:g} "
                            f"up to {allowed.max() - bound:.2g}")
-        if implot.begin_plot("directional albedo##check", imgui.ImVec2(-1, -1)):
+        lines = [(f"albedo {c}", th, alb[:, k], col) for k, (c, col) in enumerate(zip("rgb", _RGB))]
+        lines += [(f"{bound:g} (energy bound)", np.array([0.0, 90.0]), np.array([bound, bound]), _BOUND),
+                  ("allowed (bound + tolerance)", th, allowed, _ALLOWED)]
+        size = panel.plot_size() if panel is not None else imgui.ImVec2(-1, -1)
+        if panel is not None:
+            panel.begin_frame_rect(size)
+        flags = implot.Flags_.no_legend if panel is not None else 0
+        if implot.begin_plot("directional albedo##check", size, flags):
             implot.setup_axes("theta (deg)", "albedo")
-            for k, label in enumerate(("r", "g", "b")):
-                implot.plot_line(f"albedo {label}", th, np.ascontiguousarray(alb[:, k]))
-            implot.plot_line(f"{bound:g} (energy bound)", np.array([0.0, 90.0]), np.array([bound, bound]))
-            implot.plot_line("allowed (bound + tolerance)", th, np.ascontiguousarray(allowed))
+            # the whole of every line in view, the bound and the allowed line included
+            implot.setup_axes_limits(0.0, 90.0, 0.0, 1.05 * max(float(alb.max()), float(allowed.max())),
+                                     implot.Cond_.always)
+            for label, x, y, col in lines:
+                implot.plot_line(label, x, np.ascontiguousarray(y, dtype=np.float64),
+                                 implot.Spec(line_color=imgui.ImVec4(*col, 1.0), line_weight=2.0))
+                if panel is not None:
+                    panel.key(label, col)
             implot.end_plot()

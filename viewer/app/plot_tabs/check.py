@@ -9,4 +9,4 @@ def draw(panel, names, materials):
         from viewer.app.check_tab import CheckTab
 
         panel.check_tab = CheckTab()
-    panel.check_tab.draw(names, materials, panel.cached)
+    panel.check_tab.draw(names, materials, panel)
