@@ -507,6 +507,122 @@ def section_engines(seconds: float, skip_mitsuba: bool, var_spp: int = 8):
     return rows, mi_rows
 
 
+# ----------------------------------------------------------------------------- f. ratio to Mitsuba
+
+#: the two scenes of part f: "gold_rgb" is bench.toml with the gold's Fresnel from its RGB eta, k
+#: (``spectral = "none"``), exactly what Mitsuba is given, so the two images must agree in mean;
+#: "bench" is bench.toml as it is (our gold looks its spectral table up, Mitsuba takes the RGB
+#: eta, k: the images differ by the three-wavelength approximation, a few per cent in blue)
+RATIO_SCENES = ("gold_rgb", "bench")
+RATIO_CASES = ((256, 256, 64), (1280, 720, 4))
+
+
+def ratio_scene(name: str, width: int, height: int):
+    import tomllib
+
+    from viewer.scene import parse_scene
+
+    with open(SCENE, "rb") as f:
+        data = tomllib.load(f)
+    if name == "gold_rgb":
+        data["materials"]["gold"]["spectral"] = "none"
+    data["camera"]["width"], data["camera"]["height"] = width, height
+    return parse_scene(data, SCENE)
+
+
+def ratio_child(engine: str, name: str, w: int, h: int, spp: int, out: str) -> dict:
+    """One whole render in this (child) process: ours (``ReferenceRenderer`` on every core, its
+    worker pool started before the timed part) or Mitsuba 3 scalar_rgb. Saves the image (and our
+    variance of the mean) to ``out``; returns the render-only seconds."""
+    scene = ratio_scene(name, w, h)
+    if engine == "mitsuba":
+        import mitsuba as mi
+
+        mi.set_variant("scalar_rgb")
+        with tempfile.TemporaryDirectory() as tmp:
+            ms = mi.load_dict(mitsuba_scene_dict(mi, scene, Path(tmp)))
+        t0 = time.perf_counter()
+        img = np.array(mi.render(ms, spp=spp, seed=1), dtype=np.float64)
+        dt = time.perf_counter() - t0
+        np.savez(out, img=img)
+        return {"render_s": dt, "version": mi.__version__}
+    from viewer.pathtracer.progressive import ReferenceRenderer
+
+    r = ReferenceRenderer(scene, max_depth=8, seed=1)
+    try:
+        r.warm_up()
+        t0 = time.perf_counter()
+        r.step(spp)
+        dt = time.perf_counter() - t0
+        np.savez(out, img=r.mean().astype(np.float64), var=r.variance().astype(np.float64))
+    finally:
+        r.close()
+    return {"render_s": dt, "workers": r.workers}
+
+
+def _ratio_run(engine, name, w, h, spp, tree=None):
+    """(whole-process seconds, render-only seconds, image, variance or None) of one child."""
+    env = dict(os.environ)
+    if tree:
+        env["PYTHONPATH"] = str(tree)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = str(Path(tmp) / "img.npz")
+        t0 = time.perf_counter()
+        r = _child(["--_ratio", engine, name, f"{w}x{h}", str(spp), out], env=env, timeout=1800)
+        whole = time.perf_counter() - t0
+        if r is None:
+            return None
+        with np.load(out) as z:
+            return whole, r["render_s"], z["img"], (z["var"] if "var" in z.files else None)
+
+
+def _load() -> str:
+    return "load average " + " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def section_ratio(before: str | None):
+    """Part f: samples/s of ours and of Mitsuba 3 scalar_rgb, whole process and render only."""
+    print("\n== f. ours / Mitsuba 3 scalar_rgb (samples/s; > 1: ours faster), max depth 8, same camera, "
+          "lights, materials and spp; each render a child process; 'whole' = the child's wall time "
+          "(interpreter start, imports, scene load, worker pool start, render, image out), 'render' = "
+          "the render call only (our pool already started) ==")
+    engines = ([("before", before)] if before else []) + [("ours", None)]
+    table = []
+    for name in RATIO_SCENES:
+        for w, h, spp in RATIO_CASES:
+            n = w * h * spp
+            print(f"   {name} {w}x{h} {spp} spp ({_load()})")
+            mi_run = _ratio_run("mitsuba", name, w, h, spp)
+            if mi_run is None:
+                print("     Mitsuba: does not run here")
+                continue
+            mw, mr, mimg, _ = mi_run
+            print(f"     Mitsuba scalar_rgb: whole {mw:6.2f} s, render {mr:6.2f} s "
+                  f"({n / mr / 1e3:7.1f} k samples/s); image mean {np.array2string(mimg.mean((0, 1)), precision=5)}")
+            for label, tree in engines:
+                run = _ratio_run("ours", name, w, h, spp, tree)
+                if run is None:
+                    print(f"     {label}: failed")
+                    continue
+                ow, orr, oimg, ovar = run
+                # the image means' difference against its noise: our variance of the mean per
+                # pixel summed over pixels (independent pixels), Mitsuba's taken as equal (the
+                # same estimator up to its sampler)
+                npx = w * h
+                se = np.sqrt(2.0 * ovar.reshape(-1, 3).sum(axis=0)) / npx
+                diff = oimg.mean((0, 1)) - mimg.mean((0, 1))
+                print(f"     {label:<6}: whole {ow:6.2f} s, render {orr:6.2f} s ({n / orr / 1e3:7.1f} k samples/s); "
+                      f"ratio whole {mw / ow:.2f}x, render {mr / orr:.2f}x; image mean "
+                      f"{np.array2string(oimg.mean((0, 1)), precision=5)}, minus Mitsuba's in standard errors "
+                      f"{np.array2string(diff / se, precision=1)} (relative {np.array2string(diff / mimg.mean((0, 1)), precision=4)})")
+                table.append((label, name, f"{w}x{h}", spp, mw / ow, mr / orr))
+    if table:
+        print("   summary, ours / Mitsuba (whole process, render only):")
+        for label, name, size, spp, rw, rr in table:
+            print(f"     {label:<6} {name:<8} {size:>8} {spp:3d} spp: {rw:.2f}x  {rr:.2f}x")
+    print(f"   ({_load()} at the end)")
+
+
 # ----------------------------------------------------------------------------- main
 
 def main():
@@ -522,12 +638,21 @@ def main():
     ap.add_argument("--_kernels", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--_compile-probe", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--_mitsuba", nargs=4, help=argparse.SUPPRESS)
+    ap.add_argument("--_ratio", nargs=5, help=argparse.SUPPRESS)
+    ap.add_argument("--ratio", action="store_true", help="only part f: ours / Mitsuba, whole process and render only")
+    ap.add_argument("--before", default=None, help="part f: also time the source tree at this path (e.g. an "
+                    "older checkout exported with git archive), in the same run")
     args = ap.parse_args()
     if args._kernels:
         print(json.dumps(kernels_child(args._kernels)))
         return
     if args._compile_probe:
         print(json.dumps(compile_probe()))
+        return
+    if args._ratio:
+        engine, name, size, spp, out = args._ratio
+        w, h = (int(x) for x in size.split("x"))
+        print(json.dumps(ratio_child(engine, name, w, h, int(spp), out)))
         return
     if args._mitsuba:
         v, spps, seeds, out = args._mitsuba
@@ -544,6 +669,10 @@ def main():
     print(f"brdf-viewer path-tracer benchmark; scene {SCENE.relative_to(ROOT.parent)}; "
           f"{len(os.sched_getaffinity(0))} CPUs; python {sys.version.split()[0]}")
 
+    if args.ratio:
+        section_ratio(args.before)
+        print(f"\ntotal {time.perf_counter() - t_all:.0f} s")
+        return
     if args.engines:
         section_engines(args.seconds, args.skip_mitsuba)
         print(f"\ntotal {time.perf_counter() - t_all:.0f} s")

@@ -54,7 +54,7 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.brdf.lobes import Lobe, drew_delta
-from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
+from viewer.pathtracer.compiled import compiled_model, hit_shading
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
 from viewer.reference_common.setup import MaterialInfo, RenderSetup
 
@@ -64,13 +64,17 @@ KEY_SALT = 0x9E3779B97F4A7C15
 
 # ----------------------------------------------------------------------------- setup
 
-def reference_model(m: "MaterialInfo"):
+def reference_model(m: "MaterialInfo", compiled: bool = False):
     """The model the reference evaluates a material with: its registry model, or for a layered
     material with ``reference = "random_walk"`` (and a non-delta base) the stochastic layered
-    random walk (viewer/brdf/layered_walk.py)."""
+    random walk (viewer/brdf/layered_walk.py). ``compiled``: its compiled stand-in where there
+    is one (``viewer.pathtracer.compiled.compiled_model``: the same values and random numbers)."""
     if brdf.is_file(m.params):  # a .brdf file: its numpy twin (never its GLSL: no GL here)
         return brdf.get(m.model_name).of(m.params).numpy_model()
-    return brdf.get(m.model_name).reference_model(m.params)
+    model = brdf.get(m.model_name).reference_model(m.params)
+    if compiled:
+        return compiled_model(m.model_name, m.params, model) or model
+    return model
 
 
 def make_kernel(triangles, kind: str = "embree"):
@@ -184,21 +188,11 @@ class _Hits:
     ``wo_l``, ray offsets ``eps``, material indices ``mat`` and whether they transmit."""
 
     def __init__(self, integrator, d, prim, bu, bv):
-        geom = integrator.geom
-        self.p = hit_points(geom, prim, bu, bv)
         self.prim = prim
-        self.ng_raw = geom.geo_normals[prim]
-        n, tan = interpolate_shading(geom, prim, bu, bv)
-        self.mat = geom.material_index[prim]
-        self.trans = integrator.trans_table[self.mat]
-        flip = (_dot(d, self.ng_raw) > 0) & ~self.trans
-        n = np.where(flip[:, None], -n, n)
-        self.n = n
-        self.ng = self.ng_raw * np.where(_dot(self.ng_raw, n) < 0, -1.0, 1.0)[:, None]
-        self.tx, self.ty = shading_frame(n, tan)
-        wo = -d
-        self.wo_l = np.stack([_dot(wo, self.tx), _dot(wo, self.ty), _dot(wo, n)], axis=1)
-        self.eps = EPS_REL * (1.0 + np.abs(self.p).max(axis=1))
+        h = hit_shading(integrator.geom, integrator.trans_table, d, prim, bu, bv)  # compiled
+        self.p, self.ng_raw, self.n, self.ng = h["p"], h["ng_raw"], h["n"], h["ng"]
+        self.tx, self.ty, self.wo_l, self.eps = h["tx"], h["ty"], h["wo_l"], h["eps"]
+        self.mat, self.trans = h["mat"], h["trans"]
 
     def groups(self):
         """Index arrays of the hits per material, in material order."""
@@ -234,13 +228,14 @@ class Integrator:
     material is evaluated, sampled and its pdf taken)."""
 
     CHANNELS = 3
+    COMPILED_MODELS = True   # RGB: a material's model may be its compiled stand-in (same values)
 
     def __init__(self, setup: RenderSetup):
         check_options(setup.strategy, setup.mis_heuristic)
         self.s = setup
         self.geom = setup.geometry
         self.kernel = make_kernel(self.geom.triangles, setup.kernel)
-        self.models = [reference_model(m) for m in setup.materials]
+        self.models = [reference_model(m, self.COMPILED_MODELS) for m in setup.materials]
         self._film_cache: dict = {}
         self._object_y = {mi: np.asarray(setup.extra.get("object_y", np.zeros((1, 2))))
                           for mi, m in enumerate(setup.materials) if thin_film.varies(m.params)}

@@ -55,6 +55,7 @@ class SpectralIntegrator(Integrator):
     ``russian_roulette`` apply to it as to the RGB estimator."""
 
     CHANNELS = 4
+    COMPILED_MODELS = False   # the models are called with the parameters at each wavelength
 
     def __init__(self, setup):
         super().__init__(setup)

@@ -1,0 +1,404 @@
+"""Compiled (numba) stand-ins for the hot steps of a bounce, each checked against its numpy twin.
+
+The wavefront integrator (``integrator.py``) spends most of a bounce in numpy's per-call cost
+and temporaries on arrays of a few thousand paths. Two of its steps are compiled here into one
+loop each; everything else stays numpy:
+
+* ``hit_shading``: the surface points of a bounce's hits in the rasterizer's conventions
+  (``integrator._Hits``): hit points, interpolated shading normals and tangents
+  (``viewer.geometry.soup.hit_points`` / ``interpolate_shading``), the back-face flip, the
+  geometric normal on the shading normal's side, the tangent frame (``soup.shading_frame``),
+  ``wo`` in it and the ray offset. ``hit_shading_numpy`` is the same computed with the numpy
+  functions of ``viewer.geometry.soup``: the twin the compiled loop is tested against.
+* ``CompiledMicrofacet``: the microfacet model (``viewer.brdf.microfacet``) for what the
+  reference meets most, GGX with height-correlated Smith G and conductor Fresnel (RGB eta, k or
+  a spectral table) and no diffuse base, film or random walk: ``eval``, ``pdf`` and
+  ``sample_lobe`` with the twin's interface, arguments and random numbers, so the estimator and
+  its random streams are unchanged. ``compiled_model`` says which materials it takes (any other
+  is evaluated by its numpy twin).
+
+The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
+``microfacet_dist`` GGX ``D``, ``Lambda``, visible-normal sampling, ``fresnel.fresnel_conductor``,
+``spectral_fresnel.lookup``, ``sampling.ratio_capped``), step by step in the same order, so
+results agree with the twin to a few float64 roundings; tests/test_compiled_kernels.py checks
+that on many random inputs (below the horizon, grazing, and at the edges of the interpolation
+tables included).
+
+Compiled with ``cache=True``: the first process in a fresh environment compiles (a few seconds,
+see docs/reference.md), later ones load numba's cache.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+import numpy as np
+from numba import njit
+
+from viewer.brdf import lobes as lobes_mod
+from viewer.brdf import spectral_fresnel, thin_film
+from viewer.brdf.lobes import Lobe
+from viewer.brdf.sampling import F_MAX
+from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
+
+__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model"]
+
+_PI = np.pi
+_INV_PI = 1.0 / np.pi
+
+
+# ----------------------------------------------------------------------------- hit shading
+
+@njit(cache=True, error_model="numpy")
+def _hit_shading(tris, vnorm, vtan, gnorm, mat_index, trans_table, d, prim, bu, bv,
+                 p, ng_raw, n, ng, tx, ty, wo_l, eps, mat, trans):
+    for i in range(prim.shape[0]):
+        k = prim[i]
+        u = bu[i]
+        v = bv[i]
+        w = 1.0 - u - v
+        pmax = 0.0
+        for c in range(3):
+            p[i, c] = w * tris[k, 0, c] + u * tris[k, 1, c] + v * tris[k, 2, c]
+            a = abs(p[i, c])
+            if a > pmax:
+                pmax = a
+        eps[i] = EPS_REL * (1.0 + pmax)
+        # interpolated shading normal, normalized (the winding normal where it vanishes)
+        n0 = w * vnorm[k, 0, 0] + u * vnorm[k, 1, 0] + v * vnorm[k, 2, 0]
+        n1 = w * vnorm[k, 0, 1] + u * vnorm[k, 1, 1] + v * vnorm[k, 2, 1]
+        n2 = w * vnorm[k, 0, 2] + u * vnorm[k, 1, 2] + v * vnorm[k, 2, 2]
+        ln = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        g0 = gnorm[k, 0]
+        g1 = gnorm[k, 1]
+        g2 = gnorm[k, 2]
+        if ln > 1e-300:
+            n0 /= ln
+            n1 /= ln
+            n2 /= ln
+        else:
+            n0, n1, n2 = g0, g1, g2
+        t0 = w * vtan[k, 0, 0] + u * vtan[k, 1, 0] + v * vtan[k, 2, 0]
+        t1 = w * vtan[k, 0, 1] + u * vtan[k, 1, 1] + v * vtan[k, 2, 1]
+        t2 = w * vtan[k, 0, 2] + u * vtan[k, 1, 2] + v * vtan[k, 2, 2]
+        t3 = w * vtan[k, 0, 3] + u * vtan[k, 1, 3] + v * vtan[k, 2, 3]
+        m = mat_index[k]
+        mat[i] = m
+        tr = trans_table[m]
+        trans[i] = tr
+        ng_raw[i, 0] = g0
+        ng_raw[i, 1] = g1
+        ng_raw[i, 2] = g2
+        # a back-face hit flips the shading normal (not for transmissive materials)
+        if (d[i, 0] * g0 + d[i, 1] * g1 + d[i, 2] * g2) > 0 and not tr:
+            n0, n1, n2 = -n0, -n1, -n2
+        n[i, 0] = n0
+        n[i, 1] = n1
+        n[i, 2] = n2
+        s = -1.0 if (g0 * n0 + g1 * n1 + g2 * n2) < 0 else 1.0
+        ng[i, 0] = g0 * s
+        ng[i, 1] = g1 * s
+        ng[i, 2] = g2 * s
+        # tangent frame: t = tangent - n (n . tangent) normalized, b = cross(n, t) sign(w)
+        dt = n0 * t0 + n1 * t1 + n2 * t2
+        a0 = t0 - n0 * dt
+        a1 = t1 - n1 * dt
+        a2 = t2 - n2 * dt
+        l2 = a0 * a0 + a1 * a1 + a2 * a2
+        if not (l2 > 1e-12):
+            if abs(n0) < 0.9:      # cross(n, x)
+                a0, a1, a2 = 0.0, n2, -n1
+            else:                  # cross(n, y)
+                a0, a1, a2 = -n2, 0.0, n0
+            lf = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            a0 /= lf
+            a1 /= lf
+            a2 /= lf
+            l2 = 1.0
+        sl = math.sqrt(l2)
+        a0 /= sl
+        a1 /= sl
+        a2 /= sl
+        sg = -1.0 if t3 < 0.0 else 1.0
+        b0 = (n1 * a2 - n2 * a1) * sg
+        b1 = (n2 * a0 - n0 * a2) * sg
+        b2 = (n0 * a1 - n1 * a0) * sg
+        tx[i, 0] = a0
+        tx[i, 1] = a1
+        tx[i, 2] = a2
+        ty[i, 0] = b0
+        ty[i, 1] = b1
+        ty[i, 2] = b2
+        o0, o1, o2 = -d[i, 0], -d[i, 1], -d[i, 2]
+        wo_l[i, 0] = o0 * a0 + o1 * a1 + o2 * a2
+        wo_l[i, 1] = o0 * b0 + o1 * b1 + o2 * b2
+        wo_l[i, 2] = o0 * n0 + o1 * n1 + o2 * n2
+
+
+def hit_shading(geom, trans_table, d, prim, bu, bv) -> dict:
+    """The shading of hits (prim, bu, bv) of rays ``d`` on ``geom`` (a ``SceneGeometry``):
+    a dict of p, ng_raw, n, ng, tx, ty, wo_l (each (M, 3)), eps (M,), mat (M,) and trans (M,)
+    as ``integrator._Hits`` defines them (compiled; the twin is ``hit_shading_numpy``)."""
+    m = prim.shape[0]
+    out = {k: np.empty((m, 3)) for k in ("p", "ng_raw", "n", "ng", "tx", "ty", "wo_l")}
+    out["eps"] = np.empty(m)
+    out["mat"] = np.empty(m, dtype=geom.material_index.dtype)
+    out["trans"] = np.empty(m, dtype=bool)
+    _hit_shading(geom.triangles, geom.normals, geom.tangents, geom.geo_normals, geom.material_index,
+                 trans_table, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(prim),
+                 np.ascontiguousarray(bu, dtype=np.float64), np.ascontiguousarray(bv, dtype=np.float64),
+                 out["p"], out["ng_raw"], out["n"], out["ng"], out["tx"], out["ty"], out["wo_l"],
+                 out["eps"], out["mat"], out["trans"])
+    return out
+
+
+def hit_shading_numpy(geom, trans_table, d, prim, bu, bv) -> dict:
+    """``hit_shading`` in numpy with ``viewer.geometry.soup``'s functions (the twin)."""
+    p = hit_points(geom, prim, bu, bv)
+    ng_raw = geom.geo_normals[prim]
+    n, tan = interpolate_shading(geom, prim, bu, bv)
+    mat = geom.material_index[prim]
+    trans = trans_table[mat]
+    flip = (np.sum(d * ng_raw, axis=1) > 0) & ~trans
+    n = np.where(flip[:, None], -n, n)
+    ng = ng_raw * np.where(np.sum(ng_raw * n, axis=1) < 0, -1.0, 1.0)[:, None]
+    tx, ty = shading_frame(n, tan)
+    wo = -d
+    wo_l = np.stack([np.sum(wo * tx, axis=1), np.sum(wo * ty, axis=1), np.sum(wo * n, axis=1)], axis=1)
+    eps = EPS_REL * (1.0 + np.abs(p).max(axis=1))
+    return {"p": p, "ng_raw": ng_raw, "n": n, "ng": ng, "tx": tx, "ty": ty, "wo_l": wo_l, "eps": eps,
+            "mat": mat, "trans": trans}
+
+
+# ----------------------------------------------------------------------------- microfacet
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _fresnel(c, ch, eta, k, table):
+    """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c``: the spectral table's lookup
+    (``spectral_fresnel.lookup``) when ``table`` has rows, else ``fresnel.fresnel_conductor``."""
+    nt = table.shape[0]
+    if nt > 0:
+        cc = min(max(c, 0.0), 1.0)
+        x = math.sqrt(cc) * (nt - 1)
+        i = min(int(math.floor(x)), nt - 2)
+        f = x - i
+        return table[i, ch] * (1.0 - f) + table[i + 1, ch] * f
+    cc = min(max(c, 0.0), 1.0)
+    nc = complex(eta[ch], k[ch])
+    sin2 = complex(1.0 - cc * cc, 0.0)
+    n2 = nc * nc
+    w = cmath.sqrt(n2 - sin2)
+    a = n2 * cc
+    den_s = abs(cc + w) ** 2
+    den_p = abs(a + w) ** 2
+    rs = abs(cc - w) ** 2 / den_s if den_s > 0 else 1.0
+    rp = abs(a - w) ** 2 / den_p if den_p > 0 else 1.0
+    return 0.5 * (min(rs, 1.0) + min(rp, 1.0))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _lambda_ggx(wx, wy, wz, ax, ay):
+    """microfacet_dist.lambda_ggx of one direction."""
+    wz2 = wz * wz
+    if not (wz2 > 0):
+        return np.inf
+    s = ((ax * wx) ** 2 + (ay * wy) ** 2) / wz2
+    if s == np.inf:
+        return np.inf
+    return s / (2.0 * (1.0 + math.sqrt(1.0 + s)))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _d_ggx(mx, my, mz, ax, ay):
+    """microfacet_dist.D_ggx of one normal."""
+    t = (mx / ax) ** 2 + (my / ay) ** 2 + mz * mz
+    if mz > 0 and t > 0:
+        return 1.0 / (_PI * ax * ay * (t * t))
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _half(ix, iy, iz, ox, oy, oz):
+    hx = ix + ox
+    hy = iy + oy
+    hz = iz + oz
+    ln = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if not (ln > 0):
+        ln = 1.0
+    return hx / ln, hy / ln, hz / ln
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, out, j):
+    """microfacet.eval_specular of one pair into out[j]."""
+    ok = iz > 0 and oz > 0
+    if not ok:
+        out[j, 0] = 0.0
+        out[j, 1] = 0.0
+        out[j, 2] = 0.0
+        return
+    hx, hy, hz = _half(ix, iy, iz, ox, oy, oz)
+    D = _d_ggx(hx, hy, hz, ax, ay)
+    ih = ix * hx + iy * hy + iz * hz
+    oh = ox * hx + oy * hy + oz * hz
+    if ih * iz > 0 and oh * oz > 0:
+        G = 1.0 / (1.0 + _lambda_ggx(ix, iy, iz, ax, ay) + _lambda_ggx(ox, oy, oz, ax, ay))
+    else:
+        G = 0.0
+    a = D * G
+    b = 4.0 * (iz * oz)
+    if a > 0:
+        r = min(a / b, F_MAX) if b > 0 else F_MAX
+    else:
+        r = 0.0
+    for c in range(3):
+        out[j, c] = _fresnel(ih, c, eta, k, table) * r
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
+    """microfacet.pdf of one pair (no diffuse base, no walk): the visible-normal density."""
+    if not (iz > 0 and oz > 0):
+        return 0.0
+    hx, hy, hz = _half(ix, iy, iz, ox, oy, oz)
+    oh = ox * hx + oy * hy + oz * hz
+    if not (oh > 0):
+        return 0.0
+    g1 = 1.0 / (1.0 + _lambda_ggx(ox, oy, oz, ax, ay)) if oh * oz > 0 else 0.0
+    pm = g1 * max(0.0, oh) * _d_ggx(hx, hy, hz, ax, ay) / oz
+    return pm / (4.0 * oh)
+
+
+@njit(cache=True, error_model="numpy")
+def _mf_eval(wi, wo, ax, ay, eta, k, table, out):
+    r = wo.shape[0]
+    for j in range(wi.shape[0]):
+        i = j % r
+        _eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1], wo[i, 2], ax, ay, eta, k, table, out, j)
+
+
+@njit(cache=True, error_model="numpy")
+def _mf_pdf(wi, wo, ax, ay, out):
+    for j in range(wi.shape[0]):
+        out[j] = _pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay)
+
+
+@njit(cache=True, error_model="numpy")
+def _mf_sample(wo, u, ax, ay, eta, k, table, wi, weight, pdf):
+    """microfacet.sample without a diffuse base: visible-normal sampling (Heitz 2018, listing 1)
+    of wo (the pole for wo below the horizon), mirrored; weight f cos / pdf."""
+    for j in range(wo.shape[0]):
+        ox, oy, oz = wo[j, 0], wo[j, 1], wo[j, 2]
+        up = oz > 0
+        sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
+        u0 = min(max(u[j, 0], 0.0), 1.0 - 1e-16)
+        u1 = u[j, 1]
+        # stretch, orthonormal basis about vh, a point on the warped disk, unstretch
+        vx, vy, vz = ax * sx, ay * sy, sz
+        lv = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if lv > 0:
+            vx, vy, vz = vx / lv, vy / lv, vz / lv
+        lensq = vx * vx + vy * vy
+        if lensq > 0:
+            inv = 1.0 / math.sqrt(lensq)
+            t1x, t1y, t1z = -vy * inv, vx * inv, 0.0 * inv
+        else:
+            t1x, t1y, t1z = 1.0, 0.0, 0.0
+        t2x = vy * t1z - vz * t1y
+        t2y = vz * t1x - vx * t1z
+        t2z = vx * t1y - vy * t1x
+        rr = math.sqrt(u0)
+        phi = 2.0 * _PI * u1
+        p1 = rr * math.cos(phi)
+        p2 = rr * math.sin(phi)
+        s = 0.5 * (1.0 + vz)
+        p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
+        q = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))
+        nx = p1 * t1x + p2 * t2x + q * vx
+        ny = p1 * t1y + p2 * t2y + q * vy
+        nz = p1 * t1z + p2 * t2z + q * vz
+        mx, my, mz = ax * nx, ay * ny, max(1e-12, nz)
+        lm = math.sqrt(mx * mx + my * my + mz * mz)
+        if lm > 0:
+            mx, my, mz = mx / lm, my / lm, mz / lm
+        dm = sx * mx + sy * my + sz * mz
+        ix = 2.0 * dm * mx - sx
+        iy = 2.0 * dm * my - sy
+        iz = 2.0 * dm * mz - sz
+        wi[j, 0] = ix
+        wi[j, 1] = iy
+        wi[j, 2] = iz
+        pd = _pdf1(ix, iy, iz, ox, oy, oz, ax, ay)
+        ok = up and iz > 0 and pd > 0
+        _eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, weight, j)
+        if ok:
+            sc = iz / pd
+            for c in range(3):
+                weight[j, c] *= sc
+            pdf[j] = pd
+        else:
+            for c in range(3):
+                weight[j, c] = 0.0
+            pdf[j] = 0.0
+
+
+class CompiledMicrofacet:
+    """The microfacet model of one material (see ``compiled_model``) with the interface the
+    integrator uses of a ``viewer.brdf.Model``: ``eval``, ``pdf``, ``sample_lobe`` on (N, 3)
+    local directions; ``p`` is accepted and must be the material's parameters (they are baked
+    in). ``eval`` takes ``wi`` as r stacked sets of the N ``wo`` (``wo`` given once or tiled)."""
+
+    def __init__(self, p, twin):
+        self.twin = twin
+        self.ax = float(p.alpha_x)
+        self.ay = float(p.alpha_y)
+        self.eta = np.ascontiguousarray(np.asarray(p.eta, dtype=np.float64).reshape(3))
+        self.k = np.ascontiguousarray(np.asarray(p.k, dtype=np.float64).reshape(3))
+        if p.spectral != spectral_fresnel.NONE:
+            self.table = np.array(spectral_fresnel.table(p.spectral), dtype=np.float64, order="C")  # writable: one compiled signature
+        else:
+            self.table = np.zeros((0, 3))
+        own = twin.lobes(p)
+        self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
+
+    def lobes(self, p=None):
+        return self.twin.lobes(p)
+
+    def eval(self, p, wi, wo):
+        wi = np.ascontiguousarray(wi, dtype=np.float64)
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        out = np.empty((wi.shape[0], 3))
+        _mf_eval(wi, wo, self.ax, self.ay, self.eta, self.k, self.table, out)
+        return out
+
+    def pdf(self, p, wi, wo):
+        wi = np.ascontiguousarray(wi, dtype=np.float64)
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        out = np.empty(wi.shape[0])
+        _mf_pdf(wi, wo, self.ax, self.ay, out)
+        return out
+
+    def sample_lobe(self, p, wo, u):
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        n = wo.shape[0]
+        wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+        _mf_sample(wo, u, self.ax, self.ay, self.eta, self.k, self.table, wi, weight, pdf)
+        return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
+
+
+def compiled_model(model_name: str, p, twin):
+    """A compiled stand-in for ``twin`` (the registry model of material parameters ``p``), or
+    None where none applies: the microfacet model with GGX, Smith G, conductor Fresnel (RGB or
+    a spectral table), no diffuse base, no thin film, no multiple scattering."""
+    if model_name != "microfacet" or getattr(twin, "module", None) is None \
+            or twin.module.__name__ != "viewer.brdf.microfacet":
+        return None
+    if twin.hook("sample_lobe") is not None or twin.hook("reference_model") is not None:
+        return None
+    ok = (p.distribution == "ggx" and p.shadowing == "smith" and p.fresnel == "conductor"
+          and not np.any(np.asarray(p.kd, dtype=np.float64) > 0)
+          and not bool(p.get("multiple_scattering", False))
+          and not twin.has_film(p) and not thin_film.at_point(p) and not thin_film.varies(p))
+    return CompiledMicrofacet(p, twin) if ok else None
