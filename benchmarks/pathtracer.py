@@ -530,10 +530,25 @@ def ratio_scene(name: str, width: int, height: int):
     return parse_scene(data, SCENE)
 
 
+def _cpu_s(pids) -> float:
+    """User + system CPU seconds of processes ``pids`` so far (Linux /proc; every thread)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / tick
+        except (OSError, IndexError, ValueError):
+            pass
+    return total
+
+
 def ratio_child(engine: str, name: str, w: int, h: int, spp: int, out: str) -> dict:
     """One whole render in this (child) process: ours (``ReferenceRenderer`` on every core, its
     worker pool started before the timed part) or Mitsuba 3 scalar_rgb. Saves the image (and our
-    variance of the mean) to ``out``; returns the render-only seconds."""
+    variance of the mean) to ``out``; returns the render call's wall and CPU seconds (CPU: this
+    process's threads and our worker processes)."""
     scene = ratio_scene(name, w, h)
     if engine == "mitsuba":
         import mitsuba as mi
@@ -541,39 +556,48 @@ def ratio_child(engine: str, name: str, w: int, h: int, spp: int, out: str) -> d
         mi.set_variant("scalar_rgb")
         with tempfile.TemporaryDirectory() as tmp:
             ms = mi.load_dict(mitsuba_scene_dict(mi, scene, Path(tmp)))
-        t0 = time.perf_counter()
+        c0, t0 = _cpu_s([os.getpid()]), time.perf_counter()
         img = np.array(mi.render(ms, spp=spp, seed=1), dtype=np.float64)
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, _cpu_s([os.getpid()]) - c0
         np.savez(out, img=img)
-        return {"render_s": dt, "version": mi.__version__}
+        return {"render_s": dt, "render_cpu_s": cpu, "version": mi.__version__}
     from viewer.pathtracer.progressive import ReferenceRenderer
 
     r = ReferenceRenderer(scene, max_depth=8, seed=1)
     try:
         r.warm_up()
-        t0 = time.perf_counter()
+        pids = [os.getpid()] + r.worker_pids()
+        c0, t0 = _cpu_s(pids), time.perf_counter()
         r.step(spp)
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, _cpu_s(pids) - c0
         np.savez(out, img=r.mean().astype(np.float64), var=r.variance().astype(np.float64))
     finally:
         r.close()
-    return {"render_s": dt, "workers": r.workers}
+    return {"render_s": dt, "render_cpu_s": cpu, "workers": r.workers}
 
 
 def _ratio_run(engine, name, w, h, spp, tree=None):
-    """(whole-process seconds, render-only seconds, image, variance or None) of one child."""
+    """(whole-process seconds, its CPU seconds, render-only seconds, its CPU seconds, image,
+    variance or None) of one child (whole-process CPU: the child and its worker processes,
+    from the rusage of waited-for descendants)."""
+    import resource
+
     env = dict(os.environ)
     if tree:
         env["PYTHONPATH"] = str(tree)
     with tempfile.TemporaryDirectory() as tmp:
         out = str(Path(tmp) / "img.npz")
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         r = _child(["--_ratio", engine, name, f"{w}x{h}", str(spp), out], env=env, timeout=1800)
         whole = time.perf_counter() - t0
+        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         if r is None:
             return None
+        whole_cpu = (ru1.ru_utime + ru1.ru_stime) - (ru0.ru_utime + ru0.ru_stime)
         with np.load(out) as z:
-            return whole, r["render_s"], z["img"], (z["var"] if "var" in z.files else None)
+            return (whole, whole_cpu, r["render_s"], r["render_cpu_s"], z["img"],
+                    (z["var"] if "var" in z.files else None))
 
 
 def _load() -> str:
@@ -585,7 +609,8 @@ def section_ratio(before: str | None):
     print("\n== f. ours / Mitsuba 3 scalar_rgb (samples/s; > 1: ours faster), max depth 8, same camera, "
           "lights, materials and spp; each render a child process; 'whole' = the child's wall time "
           "(interpreter start, imports, scene load, worker pool start, render, image out), 'render' = "
-          "the render call only (our pool already started) ==")
+          "the render call only (our pool already started); 'cpu' = the same per CPU second (user + "
+          "system of every thread and worker process), which a loaded machine disturbs less ==")
     engines = ([("before", before)] if before else []) + [("ours", None)]
     table = []
     for name in RATIO_SCENES:
@@ -596,32 +621,34 @@ def section_ratio(before: str | None):
             if mi_run is None:
                 print("     Mitsuba: does not run here")
                 continue
-            mw, mr, mimg, _ = mi_run
-            print(f"     Mitsuba scalar_rgb: whole {mw:6.2f} s, render {mr:6.2f} s "
-                  f"({n / mr / 1e3:7.1f} k samples/s); image mean {np.array2string(mimg.mean((0, 1)), precision=5)}")
+            mw, mwc, mr, mrc, mimg, _ = mi_run
+            print(f"     Mitsuba scalar_rgb: whole {mw:6.2f} s (cpu {mwc:6.2f} s), render {mr:6.2f} s "
+                  f"(cpu {mrc:6.2f} s; {n / mr / 1e3:7.1f} k samples/s); image mean "
+                  f"{np.array2string(mimg.mean((0, 1)), precision=5)}")
             for label, tree in engines:
                 run = _ratio_run("ours", name, w, h, spp, tree)
                 if run is None:
                     print(f"     {label}: failed")
                     continue
-                ow, orr, oimg, ovar = run
+                ow, owc, orr, orc, oimg, ovar = run
                 # the image means' difference against its noise: our variance of the mean per
                 # pixel summed over pixels (independent pixels), Mitsuba's taken as equal (the
                 # same estimator up to its sampler)
-                npx = w * h
-                se = np.sqrt(2.0 * ovar.reshape(-1, 3).sum(axis=0)) / npx
+                se = np.sqrt(2.0 * ovar.reshape(-1, 3).sum(axis=0)) / (w * h)
                 diff = oimg.mean((0, 1)) - mimg.mean((0, 1))
-                print(f"     {label:<6}: whole {ow:6.2f} s, render {orr:6.2f} s ({n / orr / 1e3:7.1f} k samples/s); "
-                      f"ratio whole {mw / ow:.2f}x, render {mr / orr:.2f}x; image mean "
-                      f"{np.array2string(oimg.mean((0, 1)), precision=5)}, minus Mitsuba's in standard errors "
-                      f"{np.array2string(diff / se, precision=1)} (relative {np.array2string(diff / mimg.mean((0, 1)), precision=4)})")
-                table.append((label, name, f"{w}x{h}", spp, mw / ow, mr / orr))
+                ratios = (mw / ow, mr / orr, mwc / owc, mrc / orc)
+                print(f"     {label:<6}: whole {ow:6.2f} s (cpu {owc:6.2f} s), render {orr:6.2f} s (cpu {orc:6.2f} s; "
+                      f"{n / orr / 1e3:7.1f} k samples/s); ratio whole {ratios[0]:.2f}x, render {ratios[1]:.2f}x, "
+                      f"per cpu s whole {ratios[2]:.2f}x, render {ratios[3]:.2f}x")
+                print(f"             image mean {np.array2string(oimg.mean((0, 1)), precision=5)}: minus Mitsuba's "
+                      f"{np.array2string(diff / mimg.mean((0, 1)) * 100, precision=2)} % = "
+                      f"{np.array2string(diff / se, precision=1)} standard errors")
+                table.append((label, name, f"{w}x{h}", spp) + ratios)
     if table:
-        print("   summary, ours / Mitsuba (whole process, render only):")
-        for label, name, size, spp, rw, rr in table:
-            print(f"     {label:<6} {name:<8} {size:>8} {spp:3d} spp: {rw:.2f}x  {rr:.2f}x")
+        print("   summary, ours / Mitsuba: whole process, render only (wall clock); the same per cpu second:")
+        for label, name, size, spp, rw, rr, cw, cr in table:
+            print(f"     {label:<6} {name:<8} {size:>8} {spp:3d} spp: {rw:.2f}x  {rr:.2f}x   cpu {cw:.2f}x  {cr:.2f}x")
     print(f"   ({_load()} at the end)")
-
 
 # ----------------------------------------------------------------------------- main
 

@@ -160,3 +160,21 @@ def test_image_with_the_compiled_model_equals_the_twins(tmp_path):
     assert sa.mean() > 0.01
     assert np.abs(sa - sb).max() <= 1e-9 * max(1.0, np.abs(sb).max())
     assert a.bad_values == b.bad_values == 0
+
+
+def test_constant_environment_sampling_matches_the_twin():
+    from viewer.reference_common.envmap import EnvironmentLight
+
+    rng = np.random.default_rng(3)
+    env = EnvironmentLight(constant=[0.2, 0.3, 0.4], intensity=1.5)
+    n = 20000
+    u = rng.random((n, 2))
+    u[:20] = 0.5                      # the disk's centre (a = b = 0)
+    u[20:40, 0] = 0.5                 # a = 0
+    nrm = _unit(rng, n)
+    nrm[:100] = [0.0, 0.0, -1.0]      # the frame's pole on the other side
+    two = rng.random(n) < 0.3
+    got = compiled.constant_env_sample(env, u, nrm, two)
+    want = env.sample(u, nrm, two)
+    for g, w in zip(got, want):
+        _close(g, w)

@@ -16,6 +16,9 @@ loop each; everything else stays numpy:
   ``sample_lobe`` with the twin's interface, arguments and random numbers, so the estimator and
   its random streams are unchanged. ``compiled_model`` says which materials it takes (any other
   is evaluated by its numpy twin).
+* ``constant_env_sample``: light sampling of a constant environment
+  (``viewer.reference_common.envmap.EnvironmentLight.sample``: cosine-weighted about the shading
+  normal, the uniform sphere for transmissive surfaces).
 
 The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
 ``microfacet_dist`` GGX ``D``, ``Lambda``, visible-normal sampling, ``fresnel.fresnel_conductor``,
@@ -42,7 +45,7 @@ from viewer.brdf.lobes import Lobe
 from viewer.brdf.sampling import F_MAX
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
-__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model"]
+__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -402,3 +405,58 @@ def compiled_model(model_name: str, p, twin):
           and not bool(p.get("multiple_scattering", False))
           and not twin.has_film(p) and not thin_film.at_point(p) and not thin_film.varies(p))
     return CompiledMicrofacet(p, twin) if ok else None
+
+
+# ----------------------------------------------------------------------------- constant environment
+
+@njit(cache=True, error_model="numpy")
+def _constant_env_sample(u, nrm, two_sided, wi, pdf):
+    """EnvironmentLight.sample of a constant environment: Malley's method (the concentric disk,
+    ``sampling.cosine_hemisphere``) in the frame of ``sampling.frame_from_z`` about the shading
+    normal, pdf cos / pi; a uniform sphere, pdf 1 / (4 pi), where ``two_sided``."""
+    for i in range(u.shape[0]):
+        if two_sided[i]:
+            z = 1.0 - 2.0 * u[i, 0]
+            r = math.sqrt(max(0.0, 1.0 - z * z))
+            phi = 2.0 * math.pi * u[i, 1]
+            wi[i, 0] = r * math.cos(phi)
+            wi[i, 1] = r * math.sin(phi)
+            wi[i, 2] = z
+            pdf[i] = _INV_4PI
+            continue
+        a = 2.0 * u[i, 0] - 1.0
+        b = 2.0 * u[i, 1] - 1.0
+        if abs(a) > abs(b):
+            rr = a
+            phi = (_PI / 4) * (b / (1.0 if a == 0 else a))
+        else:
+            rr = b
+            phi = (_PI / 2) - (_PI / 4) * (a / (1.0 if b == 0 else b))
+        if a == 0 and b == 0:
+            rr = 0.0
+        lx = rr * math.cos(phi)
+        ly = rr * math.sin(phi)
+        lz = math.sqrt(max(0.0, 1.0 - lx * lx - ly * ly))
+        n0, n1, n2 = nrm[i, 0], nrm[i, 1], nrm[i, 2]
+        sign = 1.0 if n2 >= 0.0 else -1.0
+        aa = -1.0 / (sign + n2)
+        bb = n0 * n1 * aa
+        x0, x1, x2 = 1.0 + sign * n0 ** 2 * aa, sign * bb, -sign * n0
+        y0, y1, y2 = bb, sign + n1 ** 2 * aa, -n1
+        wi[i, 0] = lx * x0 + ly * y0 + lz * n0
+        wi[i, 1] = lx * x1 + ly * y1 + lz * n1
+        wi[i, 2] = lx * x2 + ly * y2 + lz * n2
+        pdf[i] = lz / math.pi
+
+
+_INV_4PI = 1.0 / (4.0 * math.pi)
+
+
+def constant_env_sample(env, u, normals, two_sided):
+    """``env.sample(u, normals, two_sided)`` of a constant ``EnvironmentLight`` (compiled; the
+    twin is ``viewer.reference_common.envmap.EnvironmentLight.sample``)."""
+    n = u.shape[0]
+    wi, pdf = np.empty((n, 3)), np.empty(n)
+    _constant_env_sample(np.ascontiguousarray(u, dtype=np.float64), np.ascontiguousarray(normals, dtype=np.float64),
+                         np.ascontiguousarray(two_sided, dtype=np.bool_), wi, pdf)
+    return wi, np.broadcast_to(env.constant, (n, 3)).copy(), pdf

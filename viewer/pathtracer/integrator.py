@@ -54,7 +54,6 @@ import numpy as np
 from viewer import brdf
 from viewer.brdf import thin_film
 from viewer.brdf.lobes import Lobe, drew_delta
-from viewer.pathtracer.compiled import compiled_model, hit_shading
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH, check_options
 from viewer.reference_common.setup import MaterialInfo, RenderSetup
 
@@ -73,6 +72,8 @@ def reference_model(m: "MaterialInfo", compiled: bool = False):
         return brdf.get(m.model_name).of(m.params).numpy_model()
     model = brdf.get(m.model_name).reference_model(m.params)
     if compiled:
+        from viewer.pathtracer.compiled import compiled_model  # numba: only where paths are traced
+
         return compiled_model(m.model_name, m.params, model) or model
     return model
 
@@ -188,6 +189,8 @@ class _Hits:
     ``wo_l``, ray offsets ``eps``, material indices ``mat`` and whether they transmit."""
 
     def __init__(self, integrator, d, prim, bu, bv):
+        from viewer.pathtracer.compiled import hit_shading  # numba: only where paths are traced
+
         self.prim = prim
         h = hit_shading(integrator.geom, integrator.trans_table, d, prim, bu, bv)  # compiled
         self.p, self.ng_raw, self.n, self.ng = h["p"], h["ng_raw"], h["n"], h["ng"]
@@ -313,18 +316,34 @@ class Integrator:
 
     @staticmethod
     def _bounce_draws(gens, npix):
-        """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order."""
-        return lambda: np.concatenate([g.random((npix, DIMS_PER_BOUNCE)) for g in gens])
+        """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order
+        (``npix``: the paths of every stream, or one count per stream)."""
+        counts = [npix] * len(gens) if np.ndim(npix) == 0 else list(npix)
+        return lambda: np.concatenate([g.random((n, DIMS_PER_BOUNCE)) for g, n in zip(gens, counts)])
 
     def render_block(self, row0: int, row1: int, samples, seed: int, block_id: int):
         """Render rows [row0, row1) with the given sample indices. Returns (sum, sum of squares)
         of the per-sample radiance, each (row1 - row0, width, 3) float64."""
+        return self.render_blocks([(row0, row1, block_id)], samples, seed)[0]
+
+    def render_blocks(self, blocks, samples, seed: int):
+        """``render_block`` of several blocks ``(row0, row1, block_id)`` in one wavefront (wider
+        batches: less of numpy's cost per call per path). Every path draws from its own block's
+        and sample's stream as ``render_block`` does, so each block's sums are the same."""
         samples = list(samples)
-        gens, npix, rows, cols, jit = self._block_streams(row0, row1, samples, seed, block_id)
+        streams = [self._block_streams(r0, r1, samples, seed, b) for r0, r1, b in blocks]
+        gens = [g for st in streams for g in st[0]]
+        counts = [st[1] for st in streams for _ in samples]
+        rows, cols, jit = (np.concatenate([st[k] for st in streams]) for k in (2, 3, 4))
         o, d = self.camera_rays(rows, cols, jit)
-        L = self.trace(o, d, self._bounce_draws(gens, npix))
-        L = L.reshape(len(samples), row1 - row0, self.s.width, 3)
-        return L.sum(axis=0), (L * L).sum(axis=0)
+        L = self.trace(o, d, self._bounce_draws(gens, counts))
+        out, off = [], 0
+        for (r0, r1, _), st in zip(blocks, streams):
+            n = len(samples) * st[1]
+            Lb = L[off:off + n].reshape(len(samples), r1 - r0, self.s.width, 3)
+            off += n
+            out.append((Lb.sum(axis=0), (Lb * Lb).sum(axis=0)))
+        return out
 
     def trace(self, o, d, draw):
         """Radiance (N, 3) along the rays (o, d); ``draw()`` returns the random numbers
@@ -410,7 +429,12 @@ class Integrator:
 
     def _light_sample_environment(self, rnd, n, trans):
         """Light sampling's directions toward the environment: (wi, radiance, pdf) per hit."""
-        e_dir, e_val, e_pdf = self.s.env.sample(rnd[:, 2:4], n, trans)
+        if self.s.env.is_map:
+            e_dir, e_val, e_pdf = self.s.env.sample(rnd[:, 2:4], n, trans)
+        else:
+            from viewer.pathtracer.compiled import constant_env_sample  # numba: where paths are traced
+
+            e_dir, e_val, e_pdf = constant_env_sample(self.s.env, rnd[:, 2:4], n, trans)
         return e_dir, e_val, self._clean(e_pdf)
 
     def _next_event(self, g: "_Group", paths: PathState, Tg, hits: _Hits, lights, env_sample,

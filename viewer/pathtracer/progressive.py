@@ -1,6 +1,6 @@
 """Progressive accumulation over a persistent pool of worker processes.
 
-Work is split into chunks (a block of rows x a few sample indices) whose layout depends only
+Work is split into chunks (blocks of rows x a few sample indices) whose layout depends only
 on the image size and the samples asked for, never on the number of workers. The random
 numbers of a chunk come from the counter-based streams ``philox(seed, block, sample)``, and
 the main process adds the chunks' sums in chunk order, so an image depends on the seed (and
@@ -19,7 +19,7 @@ with SIGKILL or SIGTERM, so that it never shut the pool down) notices within
 waits for every holder of its pipe, ends with the last of them.
 
 Cancellation: ``step(cancel=event)`` checks the event every few milliseconds while it waits
-for chunks (each chunk takes well under 100 ms), cancels the chunks not started, and returns
+for chunks (each chunk takes about 0.1 s), cancels the chunks not started, and returns
 False at once; the partial pass is discarded, so the accumulated image stays what the
 completed steps made it.
 """
@@ -43,7 +43,8 @@ from viewer.reference_common.setup import RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
 
 TARGET_BLOCK_PIXELS = 2048     # pixels per block of rows (fixed: defines the random streams)
-TARGET_CHUNK_PATHS = 8192      # camera samples per chunk (about 60 ms on one core)
+TARGET_CHUNK_PATHS = 8192      # camera samples per block and chunk: the samples per chunk
+WIDE_CHUNK_PATHS = 32768       # a chunk holds several blocks up to this many paths (about 0.1 s on one core)
 POLL_S = 0.005
 
 _WORKER: Integrator | None = None
@@ -97,9 +98,19 @@ def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None):
         watch_parent(parent_pid)
     _INITIAL = (setup, key)
     try:
-        _worker_for(key, None)  # build now, so warm_up() starts ready workers
+        it = _worker_for(key, None)  # build now, so warm_up() starts ready workers
+        warm_kernels(it)
     except Exception:  # noqa: BLE001 - reported by the first chunk, which builds again
         pass
+
+
+def warm_kernels(it: Integrator):
+    """Load (or, the first time in an environment, compile) the integrator's compiled kernels
+    now, by tracing one pixel row once (thrown away), so the first chunk does not wait for
+    them."""
+    before = it.bad_values
+    it.render_block(0, 1, [0], 0, 0)
+    it.bad_values = before
 
 
 def _worker_for(key: str, path: str | None) -> Integrator:
@@ -121,11 +132,11 @@ def _worker_for(key: str, path: str | None) -> Integrator:
     return _WORKER
 
 
-def _run_chunk(key, path, row0, row1, samples, seed, block_id):
+def _run_chunk(key, path, blocks, samples, seed):
     it = _worker_for(key, path)
     before = it.bad_values
-    s, s2 = it.render_block(row0, row1, samples, seed, block_id)
-    return s, s2, it.bad_values - before
+    sums = it.render_blocks(blocks, samples, seed)
+    return sums, it.bad_values - before
 
 
 def _warm(seconds, key=None, path=None):
@@ -247,13 +258,19 @@ class ReferenceRenderer:
         return max(1, TARGET_CHUNK_PATHS // max(block_px, 1))
 
     def _chunks(self, s0: int, spp: int):
+        """(key, setup file, blocks, samples, seed) per chunk: the samples in groups of
+        ``samples_per_chunk`` (as many as fill ``TARGET_CHUNK_PATHS`` per block), and per group
+        consecutive blocks ``(row0, row1, block_id)`` up to ``WIDE_CHUNK_PATHS`` paths. Each
+        pixel's sums are added in the order of its sample groups, as with one block a chunk."""
         block_px = max(b1 - b0 for b0, b1 in self.blocks) * self.width
         per = max(1, min(spp, TARGET_CHUNK_PATHS // max(block_px, 1)))
+        nb = max(1, WIDE_CHUNK_PATHS // max(per * block_px, 1))
+        blocks = [(r0, r1, bid) for bid, (r0, r1) in enumerate(self.blocks)]
         out = []
         for g0 in range(s0, s0 + spp, per):
             samples = tuple(range(g0, min(g0 + per, s0 + spp)))
-            for bid, (r0, r1) in enumerate(self.blocks):
-                out.append((self._key, self._setup_file, r0, r1, samples, self.seed, bid))
+            for i in range(0, len(blocks), nb):
+                out.append((self._key, self._setup_file, tuple(blocks[i:i + nb]), samples, self.seed))
         return out
 
     def step(self, spp: int = 1, cancel: threading.Event | None = None, progress=None) -> bool:
@@ -269,8 +286,8 @@ class ReferenceRenderer:
                 if cancel is not None and cancel.is_set():
                     return False
                 before = self._local.bad_values
-                s, s2 = self._local.render_block(*c[2:])
-                results[i] = (s, s2, self._local.bad_values - before)
+                sums = self._local.render_blocks(*c[2:])
+                results[i] = (sums, self._local.bad_values - before)
                 if progress:
                     progress((i + 1) / len(chunks))
         else:
@@ -293,13 +310,14 @@ class ReferenceRenderer:
         new_sum = self._sum.copy()
         new_sum2 = self._sum2.copy()
         bad = 0
-        for (_, _, r0, r1, _, _, _), (s, s2, nb) in zip(chunks, results):
-            broken = ~np.isfinite(s)
-            if broken.any():  # a path whose float64 throughput overflowed would poison the pixel for good
-                bad += int(np.count_nonzero(broken))
-                s, s2 = np.where(broken, 0.0, s), np.where(broken, 0.0, s2)
-            new_sum[r0:r1] += s
-            new_sum2[r0:r1] += s2
+        for (_, _, blocks, _, _), (sums, nb) in zip(chunks, results):
+            for (r0, r1, _), (s, s2) in zip(blocks, sums):
+                broken = ~np.isfinite(s)
+                if broken.any():  # a path whose float64 throughput overflowed would poison the pixel for good
+                    bad += int(np.count_nonzero(broken))
+                    s, s2 = np.where(broken, 0.0, s), np.where(broken, 0.0, s2)
+                new_sum[r0:r1] += s
+                new_sum2[r0:r1] += s2
             bad += nb
         self._sum, self._sum2 = new_sum, new_sum2
         self.bad_values += bad

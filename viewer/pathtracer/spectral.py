@@ -94,6 +94,10 @@ class SpectralIntegrator(Integrator):
             self._cache[ck] = (prm, brdf.params_at(prm, self.bins_nm[list(lam3)]))
         return self._cache[ck][1]
 
+    def render_blocks(self, blocks, samples, seed):
+        """One block at a time (each draws its wavelengths before its bounces)."""
+        return [self.render_block(r0, r1, samples, seed, b) for r0, r1, b in blocks]
+
     def render_block(self, row0, row1, samples, seed, block_id):
         samples = list(samples)
         gens, npix, rows, cols, jit = self._block_streams(row0, row1, samples, seed, block_id)
