@@ -178,3 +178,30 @@ def test_constant_environment_sampling_matches_the_twin():
     want = env.sample(u, nrm, two)
     for g, w in zip(got, want):
         _close(g, w)
+
+
+def test_embree_rays_match_the_twin():
+    rng = np.random.default_rng(4)
+    n = 5000
+    o, d = rng.normal(size=(n, 3)) * 10, _unit(rng, n)
+    tmax = np.where(rng.random(n) < 0.3, np.inf, rng.random(n) * 5)
+    tmax[:10] = 0.0                   # empty intervals
+    for tmin in (0.0, 0.25):
+        got = compiled.embree_rays(o, d, np.array([1.0, -2.0, 0.5]), tmin, tmax, 1e30)
+        want = compiled.embree_rays_numpy(o, d, np.array([1.0, -2.0, 0.5]), tmin, tmax, 1e30)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and np.array_equal(g, w)
+
+
+def test_without_numba_the_twins_run(monkeypatch):
+    """numba missing: the Embree engine still renders (each step by its numpy twin)."""
+    rng = np.random.default_rng(5)
+    monkeypatch.setattr(compiled, "HAVE_NUMBA", False)
+    geom = _geometry(rng, 50)
+    d, prim = _unit(rng, 100), rng.integers(0, 50, 100)
+    u, v = rng.random(100) * 0.5, rng.random(100) * 0.5
+    got = compiled.hit_shading(geom, np.array([False, True, False]), d, prim, u, v)
+    want = compiled.hit_shading_numpy(geom, np.array([False, True, False]), d, prim, u, v)
+    assert all(np.array_equal(got[k], want[k]) for k in want)
+    model, p = _gold()
+    assert compiled.compiled_model("microfacet", p, model) is None

@@ -19,6 +19,7 @@ loop each; everything else stays numpy:
 * ``constant_env_sample``: light sampling of a constant environment
   (``viewer.reference_common.envmap.EnvironmentLight.sample``: cosine-weighted about the shading
   normal, the uniform sphere for transmissive surfaces).
+* ``embree_rays``: the float32 rays ``kernel_embree.EmbreeKernel`` hands Embree.
 
 The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
 ``microfacet_dist`` GGX ``D``, ``Lambda``, visible-normal sampling, ``fresnel.fresnel_conductor``,
@@ -27,7 +28,7 @@ results agree with the twin to a few float64 roundings; tests/test_compiled_kern
 that on many random inputs (below the horizon, grazing, and at the edges of the interpolation
 tables included).
 
-Compiled with ``cache=True``: the first process in a fresh environment compiles (a few seconds,
+Without numba every step runs its numpy twin. Compiled with ``cache=True``: the first process in a fresh environment compiles (a few seconds,
 see docs/reference.md), later ones load numba's cache.
 """
 
@@ -37,7 +38,15 @@ import cmath
 import math
 
 import numpy as np
-from numba import njit
+
+try:
+    from numba import njit
+    HAVE_NUMBA = True
+except ImportError:  # numba missing: every step runs its numpy twin (slower, the same values)
+    HAVE_NUMBA = False
+
+    def njit(*args, **kwargs):
+        return lambda f: f
 
 from viewer.brdf import lobes as lobes_mod
 from viewer.brdf import spectral_fresnel, thin_film
@@ -45,7 +54,8 @@ from viewer.brdf.lobes import Lobe
 from viewer.brdf.sampling import F_MAX
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
-__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample"]
+__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
+           "embree_rays", "embree_rays_numpy"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -143,6 +153,8 @@ def hit_shading(geom, trans_table, d, prim, bu, bv) -> dict:
     """The shading of hits (prim, bu, bv) of rays ``d`` on ``geom`` (a ``SceneGeometry``):
     a dict of p, ng_raw, n, ng, tx, ty, wo_l (each (M, 3)), eps (M,), mat (M,) and trans (M,)
     as ``integrator._Hits`` defines them (compiled; the twin is ``hit_shading_numpy``)."""
+    if not HAVE_NUMBA:
+        return hit_shading_numpy(geom, trans_table, d, prim, bu, bv)
     m = prim.shape[0]
     out = {k: np.empty((m, 3)) for k in ("p", "ng_raw", "n", "ng", "tx", "ty", "wo_l")}
     out["eps"] = np.empty(m)
@@ -395,6 +407,8 @@ def compiled_model(model_name: str, p, twin):
     """A compiled stand-in for ``twin`` (the registry model of material parameters ``p``), or
     None where none applies: the microfacet model with GGX, Smith G, conductor Fresnel (RGB or
     a spectral table), no diffuse base, no thin film, no multiple scattering."""
+    if not HAVE_NUMBA:
+        return None
     if model_name != "microfacet" or getattr(twin, "module", None) is None \
             or twin.module.__name__ != "viewer.brdf.microfacet":
         return None
@@ -455,8 +469,48 @@ _INV_4PI = 1.0 / (4.0 * math.pi)
 def constant_env_sample(env, u, normals, two_sided):
     """``env.sample(u, normals, two_sided)`` of a constant ``EnvironmentLight`` (compiled; the
     twin is ``viewer.reference_common.envmap.EnvironmentLight.sample``)."""
+    if not HAVE_NUMBA:
+        return env.sample(u, normals, two_sided)
     n = u.shape[0]
     wi, pdf = np.empty((n, 3)), np.empty(n)
     _constant_env_sample(np.ascontiguousarray(u, dtype=np.float64), np.ascontiguousarray(normals, dtype=np.float64),
                          np.ascontiguousarray(two_sided, dtype=np.bool_), wi, pdf)
     return wi, np.broadcast_to(env.constant, (n, 3)).copy(), pdf
+
+
+# ----------------------------------------------------------------------------- Embree rays
+
+@njit(cache=True, error_model="numpy")
+def _embree_rays(o, d, centre, tmin, tmax, big, o32, d32, far32, live):
+    for i in range(o.shape[0]):
+        for c in range(3):
+            o32[i, c] = np.float32((o[i, c] - centre[c]) + tmin * d[i, c])
+            d32[i, c] = np.float32(d[i, c])
+        far = min(tmax[i] - tmin, big)
+        live[i] = far > 0
+        far32[i] = np.float32(far if far > 0 else 0.0)
+
+
+def embree_rays(o, d, centre, tmin, tmax, big):
+    """The float32 rays ``kernel_embree.EmbreeKernel`` hands Embree: origins shifted by
+    ``-centre`` and moved to ``tmin`` along ``d``, directions, far distances ``min(tmax - tmin,
+    big)`` (0 where not positive), and whether that is positive (compiled; the twin is
+    ``embree_rays_numpy``)."""
+    if not HAVE_NUMBA:
+        return embree_rays_numpy(o, d, centre, tmin, tmax, big)
+    n = o.shape[0]
+    o32, d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    far32, live = np.empty(n, np.float32), np.empty(n, np.bool_)
+    _embree_rays(np.ascontiguousarray(o, dtype=np.float64), np.ascontiguousarray(d, dtype=np.float64),
+                 np.ascontiguousarray(centre, dtype=np.float64), float(tmin),
+                 np.ascontiguousarray(tmax, dtype=np.float64), float(big), o32, d32, far32, live)
+    return o32, d32, far32, live
+
+
+def embree_rays_numpy(o, d, centre, tmin, tmax, big):
+    """``embree_rays`` in numpy."""
+    o32 = np.ascontiguousarray((o - centre + tmin * d).astype(np.float32))
+    d32 = np.ascontiguousarray(d.astype(np.float32))
+    far = np.minimum(tmax - tmin, big)
+    far32 = np.ascontiguousarray(np.where(far > 0, far, 0.0).astype(np.float32))
+    return o32, d32, far32, far > 0

@@ -55,11 +55,10 @@ class EmbreeKernel:
         n = o.shape[0]
         tmin = float(tmin)
         tmax = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (n,))
-        o32 = np.ascontiguousarray((o - self.centre + tmin * d).astype(np.float32))
-        d32 = np.ascontiguousarray(d.astype(np.float32))
-        far = np.minimum(tmax - tmin, _F32_MAX_T)
-        far32 = np.ascontiguousarray(np.where(far > 0, far, 0.0).astype(np.float32))
-        return o32, d32, far32, tmin, n, far > 0
+        from viewer.pathtracer.compiled import embree_rays  # numba: only where rays are traced
+
+        o32, d32, far32, live = embree_rays(o, d, self.centre, tmin, tmax, _F32_MAX_T)
+        return o32, d32, far32, tmin, n, live
 
     def intersect(self, origins, dirs, tmin: float = 0.0, tmax=np.inf):
         o32, d32, far32, tmin, n, live = self._prep(origins, dirs, tmin, tmax)
