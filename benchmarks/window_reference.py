@@ -1,8 +1,8 @@
 """The window's live reference, measured in a real window:
 
-    xvfb-run -a -s "-screen 0 1600x1000x24" python benchmarks/window_reference.py [--engines auto,cpu]
+    xvfb-run -a -s "-screen 0 1600x1000x24" python benchmarks/window_reference.py [--engines auto,cpu] [--scene default]
 
-The built-in gallery in the split view (raster | reference) of a 1280x720 window: the
+The built-in gallery (or the scene ``--scene`` names) in the split view (raster | reference) of a 1280x720 window: the
 reference's samples per pixel after 5, 20 and 60 s, its samples/s, and the frame time while it
 runs (median and 90th percentile of the frames drawn; the window's loop, ``App.tick``, sleeps
 between them while only the reference changes), then the frame time while the camera orbits
@@ -33,11 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 MARKS = (5.0, 20.0, 60.0)
 
 
-def child(engine: str) -> None:
+def child(engine: str, scene: str = "gallery") -> None:
     from viewer.app.main import App
     from viewer.image.variance import ERROR_VIEWS
 
-    app = App("gallery", size=(1280, 720), restore_state=False)
+    app = App(scene, size=(1280, 720), restore_state=False)
     app.frame()
     rv = app.session.reference_view()
     rv.engine_request = engine
@@ -72,7 +72,7 @@ def child(engine: str) -> None:
         app.frame()
     t_var = time.perf_counter() - t0
     print(f"engine {engine!r} -> {rv.engine} ({rv.engine_reason})")
-    print(f"   gallery, split view, window 1280x720 (view {vw}x{vh}, reference {rv.scale:g} x the view's resolution)")
+    print(f"   {scene}, split view, window 1280x720 (view {vw}x{vh}, reference {rv.scale:g} x the view's resolution)")
     print("   reference spp after " + ", ".join(f"{m:.0f} s: {spp_at[m]}" for m in MARKS)
           + f"; {rv.samples_per_second / 1e3:.0f} k samples/s")
     print(f"   frame time while the reference runs: median {np.median(ft):.0f} ms, 90th percentile "
@@ -104,15 +104,16 @@ def child(engine: str) -> None:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--engines", default="auto,cpu", help="comma-separated: auto, cpu, gpu (default auto,cpu)")
+    ap.add_argument("--scene", default="gallery", help="the scene (default: the built-in gallery)")
     ap.add_argument("--_child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._child:
-        child(args._child)
+        child(args._child, args.scene)
         return
     for engine in args.engines.split(","):
         with tempfile.TemporaryDirectory() as tmp:
             env = dict(os.environ, BRDF_VIEWER_CACHE=tmp)
-            r = subprocess.run([sys.executable, __file__, "--_child", engine], env=env, capture_output=True,
+            r = subprocess.run([sys.executable, __file__, "--_child", engine, "--scene", args.scene], env=env, capture_output=True,
                                text=True, timeout=900)
             print(r.stdout, end="")
             if r.returncode != 0:

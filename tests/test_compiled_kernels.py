@@ -99,7 +99,7 @@ CASES = [("none", 0.3, None), ("Au", 0.3, None), ("none", 0.05, 0.4), ("Au", 1.0
 def test_compiled_microfacet_matches_the_twin(spectral, ax, ay):
     rng = np.random.default_rng(2)
     model, p = _gold(spectral, ax, ay)
-    cm = compiled.compiled_model("microfacet", p, model)
+    cm = compiled.compiled_model(p, model)
     assert isinstance(cm, compiled.CompiledMicrofacet)
     n = 20000
     wi, wo = _unit(rng, n), _unit(rng, n)
@@ -123,14 +123,14 @@ def test_compiled_microfacet_matches_the_twin(spectral, ax, ay):
 
 def test_compiled_model_only_where_it_applies():
     model, p = _gold()
-    assert compiled.compiled_model("microfacet", p, model) is not None
+    assert compiled.compiled_model(p, model) is not None
     gold = model.params(**{k: v for k, v in PRESETS["gold"].items() if k != "model"})
-    assert compiled.compiled_model("microfacet", gold, model) is not None
+    assert compiled.compiled_model(gold, model) is not None
     for change in ({"kd": [0.2, 0.2, 0.2]}, {"distribution": "beckmann"}, {"fresnel": "schlick"},
                    {"fresnel": "dielectric"}, {"multiple_scattering": True}, {"shadowing": "v_cavity"}):
-        assert compiled.compiled_model("microfacet", _gold(**change)[1], model) is None, change
+        assert compiled.compiled_model(_gold(**change)[1], model) is None, change
     lam = brdf.get("lambert")
-    assert compiled.compiled_model("lambert", lam.params(), lam) is None
+    assert compiled.compiled_model(lam.params(), lam) is None
 
 
 def _scene(tmp_path):
@@ -204,4 +204,4 @@ def test_without_numba_the_twins_run(monkeypatch):
     want = compiled.hit_shading_numpy(geom, np.array([False, True, False]), d, prim, u, v)
     assert all(np.array_equal(got[k], want[k]) for k in want)
     model, p = _gold()
-    assert compiled.compiled_model("microfacet", p, model) is None
+    assert compiled.compiled_model(p, model) is None

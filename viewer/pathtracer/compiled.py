@@ -49,7 +49,7 @@ except ImportError:  # numba missing: every step runs its numpy twin (slower, th
         return lambda f: f
 
 from viewer.brdf import lobes as lobes_mod
-from viewer.brdf import spectral_fresnel, thin_film
+from viewer.brdf import microfacet, spectral_fresnel, thin_film
 from viewer.brdf.lobes import Lobe
 from viewer.brdf.sampling import F_MAX
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
@@ -403,14 +403,12 @@ class CompiledMicrofacet:
         return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
-def compiled_model(model_name: str, p, twin):
+def compiled_model(p, twin):
     """A compiled stand-in for ``twin`` (the registry model of material parameters ``p``), or
-    None where none applies: the microfacet model with GGX, Smith G, conductor Fresnel (RGB or
-    a spectral table), no diffuse base, no thin film, no multiple scattering."""
-    if not HAVE_NUMBA:
-        return None
-    if model_name != "microfacet" or getattr(twin, "module", None) is None \
-            or twin.module.__name__ != "viewer.brdf.microfacet":
+    None where none applies: ``twin`` runs ``viewer.brdf.microfacet`` (the module these kernels
+    repeat) with GGX, Smith G, conductor Fresnel (RGB or a spectral table), no diffuse base, no
+    thin film, no multiple scattering."""
+    if not HAVE_NUMBA or getattr(twin, "module", None) is not microfacet:
         return None
     if twin.hook("sample_lobe") is not None or twin.hook("reference_model") is not None:
         return None

@@ -74,7 +74,7 @@ def reference_model(m: "MaterialInfo", compiled: bool = False):
     if compiled:
         from viewer.pathtracer.compiled import compiled_model  # numba: only where paths are traced
 
-        return compiled_model(m.model_name, m.params, model) or model
+        return compiled_model(m.params, model) or model
     return model
 
 
