@@ -205,3 +205,22 @@ def test_without_numba_the_twins_run(monkeypatch):
     assert all(np.array_equal(got[k], want[k]) for k in want)
     model, p = _gold()
     assert compiled.compiled_model(p, model) is None
+
+
+@pytest.mark.parametrize("transmissive, channels, with_share", [(False, 3, False), (True, 3, False), (False, 4, True)])
+def test_next_event_candidates_match_the_twin(transmissive, channels, with_share):
+    rng = np.random.default_rng(6)
+    k, m = 3000, 5000
+    wl, ww, ng = _unit(rng, k), _unit(rng, k), _unit(rng, k)
+    sel = rng.choice(m, k, replace=False)
+    p, eps = rng.normal(size=(m, 3)), rng.random(m) * 1e-3
+    T, f = rng.random((k, channels)), rng.random((k, channels))
+    f[:300] = 0.0                                    # no positive channel: not a candidate
+    fac = rng.random((k, channels)) * 10
+    share = rng.random(k) * 4 if with_share else None
+    for extra in (None, rng.random(k) < 0.8):
+        got = compiled.nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra, transmissive)
+        want = compiled.nee_candidates_numpy(wl, ww, ng, sel, p, eps, T, f, fac, share, extra, transmissive)
+        assert np.array_equal(got[0], want[0]) and 0 < got[0].sum() < k
+        _close(got[1], want[1])
+        _close(got[2], want[2])

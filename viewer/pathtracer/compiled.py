@@ -19,6 +19,8 @@ loop each; everything else stays numpy:
 * ``constant_env_sample``: light sampling of a constant environment
   (``viewer.reference_common.envmap.EnvironmentLight.sample``: cosine-weighted about the shading
   normal, the uniform sphere for transmissive surfaces).
+* ``nee_candidates``: one next-event direction at a material group's hits (the light test, the
+  contribution, the shadow ray's origin).
 * ``embree_rays``: the float32 rays ``kernel_embree.EmbreeKernel`` hands Embree.
 
 The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
@@ -55,7 +57,7 @@ from viewer.brdf.sampling import F_MAX
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
 __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
-           "embree_rays", "embree_rays_numpy"]
+           "embree_rays", "embree_rays_numpy", "nee_candidates", "nee_candidates_numpy"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -512,3 +514,63 @@ def embree_rays_numpy(o, d, centre, tmin, tmax, big):
     far = np.minimum(tmax - tmin, big)
     far32 = np.ascontiguousarray(np.where(far > 0, far, 0.0).astype(np.float32))
     return o32, d32, far32, far > 0
+
+
+# ----------------------------------------------------------------------------- next-event candidates
+
+@njit(cache=True, error_model="numpy")
+def _nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive, ok, c, o):
+    ch = T.shape[1]
+    for i in range(wl.shape[0]):
+        gcos = ng[i, 0] * ww[i, 0] + ng[i, 1] * ww[i, 1] + ng[i, 2] * ww[i, 2]
+        z = wl[i, 2]
+        good = z * gcos > 0 if transmissive else (z > 0 and gcos > 0)
+        if extra_ok.shape[0] > 0:
+            good = good and extra_ok[i]
+        cs = abs(z) if share.shape[0] == 0 else abs(z) * share[i]
+        pos = False
+        for k in range(ch):
+            v = T[i, k] * f[i, k] * cs * fac[i, k]
+            c[i, k] = v
+            pos = pos or v > 0
+        ok[i] = good and pos
+        side = -1.0 if gcos < 0 else 1.0
+        j = sel[i]
+        e = eps[j] * side
+        for k in range(3):
+            o[i, k] = p[j, k] + e * ng[i, k]
+
+
+def nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive):
+    """One next-event direction at a material group's hits: (ok, contribution, shadow-ray
+    origin) as ``integrator._next_event`` defines them: the rasterizer's light test (shading
+    cosine ``wl.z`` and geometric ``ng . ww`` on the same side, both positive unless
+    ``transmissive``) and ``extra_ok`` (None: all), contribution ``T f |cos| share fac`` (``share``
+    None: 1) with a positive channel, origin ``p + eps n_g`` on the side ``ww`` leaves (``p``,
+    ``eps`` indexed by ``sel``). Compiled; the twin is ``nee_candidates_numpy``."""
+    if not HAVE_NUMBA:
+        return nee_candidates_numpy(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive)
+    k, ch = T.shape
+    ok, c, o = np.empty(k, np.bool_), np.empty((k, ch)), np.empty((k, 3))
+    f64 = np.float64
+    _nee_candidates(np.ascontiguousarray(wl, dtype=f64), np.ascontiguousarray(ww, dtype=f64),
+                    np.ascontiguousarray(ng, dtype=f64), np.ascontiguousarray(sel, dtype=np.int64), p, eps,
+                    np.ascontiguousarray(T, dtype=f64), np.ascontiguousarray(f, dtype=f64),
+                    np.ascontiguousarray(fac, dtype=f64),
+                    np.zeros(0) if share is None else np.ascontiguousarray(share, dtype=f64),
+                    np.zeros(0, np.bool_) if extra_ok is None else np.ascontiguousarray(extra_ok, dtype=np.bool_),
+                    bool(transmissive), ok, c, o)
+    return ok, c, o
+
+
+def nee_candidates_numpy(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive):
+    """``nee_candidates`` in numpy (the integrator's steps before it was compiled)."""
+    g = np.sum(ng * ww, axis=1)
+    ok = wl[:, 2] * g > 0 if transmissive else (wl[:, 2] > 0) & (g > 0)
+    if extra_ok is not None:
+        ok &= extra_ok
+    cos = np.abs(wl[:, 2]) if share is None else np.abs(wl[:, 2]) * share
+    c = T * f * cos[:, None] * fac
+    ok &= np.any(c > 0, axis=1)
+    side = np.where(g < 0, -1.0, 1.0)
+    return ok, c, p[sel] + (eps[sel] * side)[:, None] * ng

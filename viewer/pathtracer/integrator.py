@@ -448,26 +448,27 @@ class Integrator:
         if env_sample is not None:
             dirs_w.append(env_sample[0][sel])
         share = self.emission_share(g, paths)
+        from viewer.pathtracer.compiled import nee_candidates  # numba: only where paths are traced
+
         for j, (ww, (wl, fj)) in enumerate(zip(dirs_w, self.eval_directions(g, paths, dirs_w))):
-            ok = g.valid(wl, ww)
-            cos = np.abs(wl[:, 2]) if share is None else np.abs(wl[:, 2]) * share
-            c = Tg * fj * cos[:, None]
             if j < len(light_dirs):
-                c = c * light_vals[j][sel]
+                fac, extra_ok = light_vals[j][sel], None
                 tmax = light_tmax[j][sel]
             else:
                 pe = env_sample[2][sel]
-                ok &= pe > 0
+                extra_ok = pe > 0
                 if self.strategy == "mis":
                     pb = self.material_pdf(g, paths, wl)
                     wmis = self.heuristic(pe, pb) / np.where(pe > 0, pe, 1.0)
                 else:
                     wmis = 1.0 / np.where(pe > 0, pe, 1.0)
-                c = c * self.spectrum(env_sample[1][sel], paths, g.act) * wmis[:, None]
+                fac = self.spectrum(env_sample[1][sel], paths, g.act) * wmis[:, None]
                 tmax = np.full(k, np.inf)
-            ok &= np.any(c > 0, axis=1)
+            # the light test, the contribution T f |cos| (share) fac, the shadow ray's origin
+            ok, c, o = nee_candidates(wl, ww, g.ng, sel, hits.p, hits.eps, Tg, fj, fac, share, extra_ok,
+                                      g.transmissive)
             if np.any(ok):
-                shadows.add(g.act[ok], hits.offset(sel[ok], ww[ok]), ww[ok], tmax[ok], c[ok])
+                shadows.add(g.act[ok], o[ok], ww[ok], tmax[ok], c[ok])
 
     def _sample_bsdf(self, g: "_Group", paths: PathState, rnd_g):
         """BSDF sampling at the hits of group ``g``: (world direction, weight f cos / pdf with
