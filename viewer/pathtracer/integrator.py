@@ -345,6 +345,27 @@ class Integrator:
             out.append((Lb.sum(axis=0), (Lb * Lb).sum(axis=0)))
         return out
 
+    def warm(self):
+        """Trace one ray onto each material's first triangle, the result thrown away: the
+        compiled kernels (``viewer.pathtracer.compiled``) a render of this scene calls are
+        loaded from numba's cache (or compiled, the first time) now rather than in the first
+        chunk."""
+        geom = self.geom
+        mats = geom.material_index
+        idx = np.array([np.flatnonzero(mats == m)[0] for m in np.unique(mats)], dtype=np.int64)
+        if idx.size == 0:
+            return
+        c = geom.triangles[idx].mean(axis=1)
+        n = geom.geo_normals[idx]
+        o = c + n * (1e-2 * (1.0 + np.abs(c).max(axis=1)))[:, None]
+        rng = np.random.default_rng(0)
+        draw = lambda: rng.random((idx.size, DIMS_PER_BOUNCE))  # noqa: E731
+        if self.CHANNELS == 3:
+            self.trace(o, -n, draw)
+        else:  # (the spectral integrator's paths carry wavelengths: a row of its own image)
+            mid = self.s.height // 2
+            self.render_block(mid, mid + 1, [0], 0, 0)
+
     def trace(self, o, d, draw):
         """Radiance (N, 3) along the rays (o, d); ``draw()`` returns the random numbers
         (N, DIMS_PER_BOUNCE) of the next bounce for all N paths."""

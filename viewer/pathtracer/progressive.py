@@ -106,10 +106,9 @@ def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None):
 
 def warm_kernels(it: Integrator):
     """Load (or, the first time in an environment, compile) the integrator's compiled kernels
-    now, by tracing one pixel row once (thrown away), so the first chunk does not wait for
-    them."""
+    now (``Integrator.warm``), so the first chunk does not wait for them."""
     before = it.bad_values
-    it.render_block(0, 1, [0], 0, 0)
+    it.warm()
     it.bad_values = before
 
 
