@@ -31,12 +31,25 @@ e. The two reference engines side by side (``--engines`` runs only this part, a 
    (0.01 mean)^2, at the measured samples/s; Mitsuba's variance from two seeds' difference).
    Part d measures the cpu engine's time against a long reference instead.
 
+f. Ours / Mitsuba 3 scalar_rgb (``--ratio`` runs only this part): two scenes, ``gold_rgb``
+   (bench.toml with the gold's Fresnel from its RGB eta, k, exactly what Mitsuba is given) and
+   ``bench`` (bench.toml as it is: our gold reads its spectral table), each at 256x256 with 64
+   spp and 1280x720 with 4 spp, max depth 8, seed 1; every render is a child process. Printed
+   per cell: the whole process (the child's wall time: interpreter start, imports, scene load,
+   our worker pool, the render, the image written) and the render call only (our pool already
+   started), both also per CPU second (user + system time of every thread and worker process,
+   which a machine shared with other jobs disturbs less than wall time), the ratios ours /
+   Mitsuba, and the two images' mean per channel with their difference in per cent and in
+   standard errors (ours measured, Mitsuba's taken as equal). ``--before PATH`` times another
+   source tree of ours (e.g. ``git archive <commit> | tar -x -C PATH``) in the same run.
+
 Relative RMSE = sqrt(mean over pixels and channels of (ours - ref)^2) / mean(ref). The
 reference is rendered as two independent halves A, B; mean((A - B)^2) / 4 estimates its own
 noise variance, which part d subtracts ("corrected" RMSE: an estimate of the RMSE against the
 converged image; the 1% criterion), since the raw RMSE cannot fall below the reference's noise.
 Flags: --quick (1024-spp reference, 90 s budget for d), --skip-kernels, --skip-mitsuba,
---ref-spp N, --budget S, --engines (part e only), --seconds S (length of each timed run in e).
+--ref-spp N, --budget S, --engines (part e only), --seconds S (length of each timed run in e),
+--ratio (part f only), --before PATH (part f: also this source tree).
 """
 
 from __future__ import annotations

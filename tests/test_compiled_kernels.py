@@ -224,3 +224,15 @@ def test_next_event_candidates_match_the_twin(transmissive, channels, with_share
         assert np.array_equal(got[0], want[0]) and 0 < got[0].sum() < k
         _close(got[1], want[1])
         _close(got[2], want[2])
+
+
+def test_embree_hits_match_the_twin():
+    rng = np.random.default_rng(7)
+    n = 5000
+    res = {"primID": np.where(rng.random(n) < 0.3, -1, rng.integers(0, 100, n)).astype(np.int32),
+           "tfar": (rng.random(n) * 10).astype(np.float32), "u": rng.random(n).astype(np.float32),
+           "v": rng.random(n).astype(np.float32)}
+    live = rng.random(n) < 0.9
+    got, want = compiled.embree_hits(res, live, 0.25), compiled.embree_hits_numpy(res, live, 0.25)
+    for g, w in zip(got, want):
+        assert g.dtype == w.dtype and np.array_equal(g, w)

@@ -21,7 +21,8 @@ loop each; everything else stays numpy:
   normal, the uniform sphere for transmissive surfaces).
 * ``nee_candidates``: one next-event direction at a material group's hits (the light test, the
   contribution, the shadow ray's origin).
-* ``embree_rays``: the float32 rays ``kernel_embree.EmbreeKernel`` hands Embree.
+* ``embree_rays``, ``embree_hits``: the float32 rays ``kernel_embree.EmbreeKernel`` hands
+  Embree, and its hits in float64.
 
 The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
 ``microfacet_dist`` GGX ``D``, ``Lambda``, visible-normal sampling, ``fresnel.fresnel_conductor``,
@@ -57,7 +58,7 @@ from viewer.brdf.sampling import F_MAX
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
 __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
-           "embree_rays", "embree_rays_numpy", "nee_candidates", "nee_candidates_numpy"]
+           "embree_rays", "embree_rays_numpy", "embree_hits", "embree_hits_numpy", "nee_candidates", "nee_candidates_numpy"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -505,6 +506,48 @@ def embree_rays(o, d, centre, tmin, tmax, big):
                  np.ascontiguousarray(centre, dtype=np.float64), float(tmin),
                  np.ascontiguousarray(tmax, dtype=np.float64), float(big), o32, d32, far32, live)
     return o32, d32, far32, live
+
+
+@njit(cache=True, error_model="numpy")
+def _embree_hits(prim_id, tfar, u32, v32, live, tmin, t, prim, u, v):
+    for i in range(prim_id.shape[0]):
+        k = prim_id[i]
+        if k >= 0 and live[i]:
+            prim[i] = k
+            t[i] = np.float64(tfar[i]) + tmin
+            u[i] = u32[i]
+            v[i] = v32[i]
+        else:
+            prim[i] = -1
+            t[i] = np.inf
+            u[i] = 0.0
+            v[i] = 0.0
+
+
+def embree_hits(res, live, tmin):
+    """(t, prim, u, v) in float64 / int64 from Embree's closest-hit results ``res`` (a miss, or
+    a ray whose interval was empty: prim -1, t inf, u = v = 0; t shifted back by ``tmin``).
+    Compiled; the twin is ``embree_hits_numpy``."""
+    if not HAVE_NUMBA:
+        return embree_hits_numpy(res, live, tmin)
+    n = live.shape[0]
+    t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+    _embree_hits(np.ascontiguousarray(res["primID"]), np.ascontiguousarray(res["tfar"]),
+                 np.ascontiguousarray(res["u"]), np.ascontiguousarray(res["v"]), live, float(tmin), t, prim, u, v)
+    return t, prim, u, v
+
+
+def embree_hits_numpy(res, live, tmin):
+    """``embree_hits`` in numpy."""
+    n = live.shape[0]
+    t, prim, u, v = np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.zeros(n), np.zeros(n)
+    p = res["primID"].astype(np.int64)
+    hit = (p >= 0) & live
+    prim[hit] = p[hit]
+    t[hit] = res["tfar"][hit].astype(np.float64) + tmin
+    u[hit] = res["u"][hit]
+    v[hit] = res["v"][hit]
+    return t, prim, u, v
 
 
 def embree_rays_numpy(o, d, centre, tmin, tmax, big):

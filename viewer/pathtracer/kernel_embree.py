@@ -62,20 +62,11 @@ class EmbreeKernel:
 
     def intersect(self, origins, dirs, tmin: float = 0.0, tmax=np.inf):
         o32, d32, far32, tmin, n, live = self._prep(origins, dirs, tmin, tmax)
-        t = np.full(n, np.inf)
-        prim = np.full(n, -1, dtype=np.int64)
-        u = np.zeros(n)
-        v = np.zeros(n)
         if self._scene is None or n == 0:
-            return t, prim, u, v
-        res = self._scene.run(o32, d32, dists=far32, output=1)
-        p = res["primID"].astype(np.int64)
-        hit = (p >= 0) & live
-        prim[hit] = p[hit]
-        t[hit] = res["tfar"][hit].astype(np.float64) + tmin
-        u[hit] = res["u"][hit]
-        v[hit] = res["v"][hit]
-        return t, prim, u, v
+            return np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.zeros(n), np.zeros(n)
+        from viewer.pathtracer.compiled import embree_hits  # numba: only where rays are traced
+
+        return embree_hits(self._scene.run(o32, d32, dists=far32, output=1), live, tmin)
 
     def occluded(self, origins, dirs, tmin: float = 0.0, tmax=np.inf) -> np.ndarray:
         o32, d32, far32, tmin, n, live = self._prep(origins, dirs, tmin, tmax)
