@@ -236,3 +236,18 @@ def test_embree_hits_match_the_twin():
     got, want = compiled.embree_hits(res, live, 0.25), compiled.embree_hits_numpy(res, live, 0.25)
     for g, w in zip(got, want):
         assert g.dtype == w.dtype and np.array_equal(g, w)
+
+
+def test_blocks_traced_together_give_each_blocks_own_sums(tmp_path):
+    """A chunk of several blocks (``render_blocks``, one wavefront) gives every block exactly the
+    sums it gets alone: each path keeps its block's and sample's stream."""
+    setup = RenderSetup.from_scene(_scene(tmp_path), max_depth=6)
+    it = Integrator(setup)
+    blocks = [(0, 5, 0), (5, 10, 1), (10, 16, 2)]
+    together = it.render_blocks(blocks, [3, 4], 11)
+    assert it.sample_of_path.tolist() == sum(([s] * (r1 - r0) * setup.width for r0, r1, _ in blocks
+                                             for s in (3, 4)), [])
+    for (r0, r1, b), (s, s2) in zip(blocks, together):
+        a, a2 = it.render_block(r0, r1, [3, 4], 11, b)
+        assert np.array_equal(s, a) and np.array_equal(s2, a2)
+        assert s.shape == (r1 - r0, setup.width, 3) and s.sum() > 0

@@ -231,7 +231,8 @@ class Integrator:
     material is evaluated, sampled and its pdf taken)."""
 
     CHANNELS = 3
-    COMPILED_MODELS = True   # RGB: a material's model may be its compiled stand-in (same values)
+    COMPILED_MODELS = True
+    sample_of_path = None    # the sample index of each path of the wavefront being traced (_block_streams)   # RGB: a material's model may be its compiled stand-in (same values)
 
     def __init__(self, setup: RenderSetup):
         check_options(setup.strategy, setup.mis_heuristic)
@@ -302,17 +303,26 @@ class Integrator:
         return o, d
 
     # -- one block of pixels, several samples
-    def _block_streams(self, row0: int, row1: int, samples, seed: int, block_id: int):
-        """The random streams of the block's samples, its pixel count and the camera jitter
-        (the first two numbers of every stream), with the pixels' rows and columns per sample."""
+    def _block_streams(self, blocks, samples, seed: int):
+        """The random streams of the samples of blocks ``(row0, row1, block_id)`` (block by
+        block, sample by sample), the paths of each stream (the block's pixels) and the camera
+        jitter (the first two numbers of every stream), with the pixels' rows and columns, in
+        that order. Sets ``sample_of_path``: the sample index of each of these paths."""
         W = self.s.width
-        npix = (row1 - row0) * W
-        gens = [philox(seed, block_id, si) for si in samples]
-        pix = np.arange(npix)
-        rows = np.tile(row0 + pix // W, len(gens))
-        cols = np.tile(pix % W, len(gens))
-        jit = np.concatenate([g.random((npix, 2)) for g in gens])
-        return gens, npix, rows, cols, jit
+        gens, counts, rows, cols, jit, sample_of = [], [], [], [], [], []
+        for row0, row1, block_id in blocks:
+            npix = (row1 - row0) * W
+            pix = np.arange(npix)
+            for si in samples:
+                g = philox(seed, block_id, si)
+                gens.append(g)
+                counts.append(npix)
+                rows.append(row0 + pix // W)
+                cols.append(pix % W)
+                jit.append(g.random((npix, 2)))
+                sample_of.append(np.full(npix, si, dtype=np.int64))
+        self.sample_of_path = np.concatenate(sample_of)
+        return gens, counts, np.concatenate(rows), np.concatenate(cols), np.concatenate(jit)
 
     @staticmethod
     def _bounce_draws(gens, npix):
@@ -331,15 +341,12 @@ class Integrator:
         batches: less of numpy's cost per call per path). Every path draws from its own block's
         and sample's stream as ``render_block`` does, so each block's sums are the same."""
         samples = list(samples)
-        streams = [self._block_streams(r0, r1, samples, seed, b) for r0, r1, b in blocks]
-        gens = [g for st in streams for g in st[0]]
-        counts = [st[1] for st in streams for _ in samples]
-        rows, cols, jit = (np.concatenate([st[k] for st in streams]) for k in (2, 3, 4))
+        gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
         o, d = self.camera_rays(rows, cols, jit)
         L = self.trace(o, d, self._bounce_draws(gens, counts))
         out, off = [], 0
-        for (r0, r1, _), st in zip(blocks, streams):
-            n = len(samples) * st[1]
+        for r0, r1, _ in blocks:
+            n = len(samples) * (r1 - r0) * self.s.width
             Lb = L[off:off + n].reshape(len(samples), r1 - r0, self.s.width, 3)
             off += n
             out.append((Lb.sum(axis=0), (Lb * Lb).sum(axis=0)))

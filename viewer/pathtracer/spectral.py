@@ -100,7 +100,8 @@ class SpectralIntegrator(Integrator):
 
     def render_block(self, row0, row1, samples, seed, block_id):
         samples = list(samples)
-        gens, npix, rows, cols, jit = self._block_streams(row0, row1, samples, seed, block_id)
+        gens, counts, rows, cols, jit = self._block_streams([(row0, row1, block_id)], samples, seed)
+        npix = counts[0]
         lam_u = np.concatenate([g.random((npix, 2)) for g in gens])
         c = np.minimum((lam_u[:, 0] * STRIDE).astype(np.int64), STRIDE - 1)
         hero = np.minimum((lam_u[:, 1] * 4).astype(np.int64), 3)
