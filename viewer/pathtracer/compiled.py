@@ -1,8 +1,8 @@
 """Compiled (numba) stand-ins for the hot steps of a bounce, each checked against its numpy twin.
 
 The wavefront integrator (``integrator.py``) spends most of a bounce in numpy's per-call cost
-and temporaries on arrays of a few thousand paths. Two of its steps are compiled here into one
-loop each; everything else stays numpy:
+and temporaries on arrays of a few thousand paths. These steps are compiled here into one loop
+each; everything else stays numpy:
 
 * ``hit_shading``: the surface points of a bounce's hits in the rasterizer's conventions
   (``integrator._Hits``): hit points, interpolated shading normals and tangents
@@ -31,8 +31,9 @@ results agree with the twin to a few float64 roundings; tests/test_compiled_kern
 that on many random inputs (below the horizon, grazing, and at the edges of the interpolation
 tables included).
 
-Without numba every step runs its numpy twin. Compiled with ``cache=True``: the first process in a fresh environment compiles (a few seconds,
-see docs/reference.md), later ones load numba's cache.
+Without numba every step runs its numpy twin. Compiled with ``cache=True``: the first process
+in a fresh environment compiles them (about 5 CPU seconds), later ones load numba's cache (about
+0.4 CPU seconds); a worker does either at its start (``Integrator.warm``).
 """
 
 from __future__ import annotations
