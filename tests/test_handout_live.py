@@ -129,6 +129,17 @@ def test_conversion_names_what_es_lacks():
     assert "fma" not in out
 
 
+def test_brdf_file_integer_literals_become_floats():
+    """BRDF Explorer's files lean on desktop GLSL's int-to-float conversion; the conversion
+    writes their integer literals as floats, except where an int is meant."""
+    from viewer.handout.glsl_es import float_literals
+
+    got = float_literals(["float t = (1 - c2) / c2 + 2e-5;", "if (x <= 0) return vec3(0);",
+                          "for (int i = 0; i < 4; ++i) s += w[2] * 3;", "#define N 3", "float y = a[1] * 2;"])
+    assert got == ["float t = (1.0 - c2) / c2 + 2e-5;", "if (x <= 0.0) return vec3(0.0);",
+                   "for (int i = 0; i < 4; ++i) s += w[2] * 3;", "#define N 3", "float y = a[1] * 2.0;"]
+
+
 def test_geometry_stage_folds_into_a_host_attribute():
     from viewer.gl.programs import FORWARD_STAGES, Recipe
     from viewer.handout.glsl_es import ConversionError, convert_program, fold_geometry
@@ -156,9 +167,15 @@ def test_every_model_compiles_and_links_as_glsl_es(browser):
         for env, const in ((False, False), (True, False), (True, True)):
             key, src = forward_program(p, env, const)
             progs[key] = src
+    # a .brdf file: BRDF Explorer's dialect, whose integer literals the conversion makes floats
+    from pathlib import Path
+
+    cook = brdf.load(Path(brdf.__file__).resolve().parent.parent / "brdfs" / "cooktorrance.brdf").params()
+    key, src = forward_program(cook, False, False)
+    progs["file:" + key] = src
     progs["tonemap"] = pass_program("tonemap")
     progs["background"] = pass_program("background")
-    assert len(progs) == 3 * len(brdf.names()) + 2
+    assert len(progs) == 3 * len(brdf.names()) + 3
     page, messages = open_page(browser, html="<canvas id=c></canvas>")
     result = page.evaluate("""(progs) => {
         const gl = document.getElementById('c').getContext('webgl2');
