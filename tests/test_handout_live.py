@@ -18,9 +18,11 @@ from scene_text import camera, scene, table
 SIZE = 96   # the comparison images: a sphere ~70 pixels across, ~3000 pixels inside its rim
 
 #: the second parameter set of each model: a preset of the model where the registry has one
-#: (lecture values, a brushed conductor, rough glass, a clear coat), else explicit values
+#: (lecture values, a brushed conductor, rough glass, a clear coat), else explicit values. A mirror
+#: reflects nothing of a point light (a delta lobe): its canvas and raster are both black, which
+#: still checks that nothing else is drawn; the smooth glass of the first set likewise.
 SECOND = {
-    "lambert": {"preset": "lecture_lambert"},
+    "lambert": {"albedo": [0.8, 0.5, 0.2]},
     "phong": {"kd": [0.2, 0.3, 0.5], "ks": [0.5, 0.45, 0.4], "shininess": 40.0},
     "blinn_phong": {"kd": [0.5, 0.2, 0.1], "ks": [0.3, 0.3, 0.3], "shininess": 300.0},
     "microfacet": {"preset": "brushed_aluminium"},
@@ -34,14 +36,14 @@ SECOND = {
 }
 
 # Tolerance of canvas against desktop, in 8-bit sRGB levels over the pixels inside the sphere's
-# rim (MSAA sample patterns of the two rasterizers differ only on edge pixels, left out). Both
-# run the same GLSL in float32 and the same tone-map pass into an 8-bit target; what differs is
-# the last bits: SwiftShader's and llvmpipe's transcendental functions (pow, exp2, inversesqrt),
-# the half-float (RGBA16F) target where the browser offers no 4x RGBA32F, and rounding at the
-# 8-bit step. One level covers a rounding flip; steep lobes (Phong n = 300, brushed aluminium)
-# turn a 1e-6 relative difference of a cosine into a few levels on a handful of highlight pixels.
-MEAN_LEVELS = 0.5   # mean absolute difference over the sphere, every channel
-P99_LEVELS = 3.0    # 99th percentile of the absolute difference
+# rim (the MSAA sample patterns of the two rasterizers differ only on silhouette pixels, left
+# out). Both run the same GLSL in float32 and the same tone-map pass into an 8-bit target; what
+# differs is the last bits of SwiftShader's and llvmpipe's arithmetic (pow, exp2, inversesqrt,
+# fused multiply-adds), which flips the rounding at an 8-bit step on some pixels: one level. So
+# 99 % of the values may differ by one level at most and the mean by a tenth of one (measured on
+# every model at both parameter sets, -m slow: mean 0.06 at worst, p99 1, a few pixels at 2-4).
+MEAN_LEVELS = 0.1   # mean absolute difference over the sphere, every channel
+P99_LEVELS = 1.0    # 99th percentile of the absolute difference: one rounding flip
 
 
 def sphere_scene(model: str, values: dict) -> str:
