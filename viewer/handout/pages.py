@@ -121,8 +121,11 @@ def _tour_len() -> int:
     return len(TOUR)
 
 
-def _img(src: str, alt: str, w: int, h: int) -> str:
-    return f'<img src="{_esc(src)}" alt="{_esc(alt)}" width="{w}" height="{h}">'
+def _img(src: str, alt: str, w: int, h: int, link: bool = True) -> str:
+    """An image at its size (the page keeps its room while it loads); ``link``: a tap or click
+    opens it alone, at full size (a plot's small print on a phone)."""
+    img = f'<img src="{_esc(src)}" alt="{_esc(alt)}" width="{w}" height="{h}">'
+    return f'<a href="{_esc(src)}">{img}</a>' if link else img
 
 
 def _reference_text(a: StepAssets) -> str:
@@ -157,8 +160,8 @@ def step_page(steps: list[StepAssets], i: int, live) -> str:
     if a.plots or a.plot_notes:
         out.append(f"<h2>Plot: {_esc(a.plot_kind)}</h2>\n<div class=\"plots\">\n")
         for p in a.plots:
-            out.append(f"<figure>{_img(p.png, p.title, *PLOT_SIZE)}<figcaption>{_esc(p.title)}. "
-                       f'The plotted numbers: <a href="{_esc(p.json)}">{_esc(Path(p.json).name)}</a>.'
+            out.append(f"<figure>{_img(p.png, p.title, *PLOT_SIZE)}<figcaption>{_esc(p.material)}: "
+                       f'the plotted numbers as JSON, <a href="{_esc(p.json)}">{_esc(Path(p.json).name)}</a>.'
                        "</figcaption></figure>\n")
         out.append("</div>\n")
         out += [f'<p class="note">{_esc(n)}</p>\n' for n in a.plot_notes]
@@ -179,7 +182,7 @@ def index_page(steps: list[StepAssets], command: str) -> str:
            "reference and their difference, and the plot that goes with it.</p>\n<ol class=\"cards\">\n"]
     for a in steps:
         out.append(f'<li><a href="{step_folder(a.number)}.html">'
-                   f"{_img(a.thumbnail, f'step {a.number}: {a.title}', *_thumb_size(a))}"
+                   f"{_img(a.thumbnail, f'step {a.number}: {a.title}', *_thumb_size(a), link=False)}"
                    f"<h2>{a.number}. {_esc(a.title)}</h2><p>{_esc(a.caption)}</p></a></li>\n")
     out.append("</ol>\n</main>\n")
     out.append(f"<footer>Made with brdf-viewer {_esc(viewer.__version__)}: <code>{_esc(command)}</code>. "
