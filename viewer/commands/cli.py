@@ -715,7 +715,9 @@ def cmd_handout(args) -> int:
     from viewer.scene.lecture import TOUR
 
     steps = _lecture_steps(args.steps) if args.steps is not None else list(range(len(TOUR)))
-    command = f"brdf-viewer handout {args.out}" + (f" --steps {args.steps}" if args.steps else "") + f" --width {w} --height {h}"
+    from pathlib import Path
+
+    command = f"brdf-viewer handout {Path(args.out).name or 'OUT'}" + (f" --steps {args.steps}" if args.steps else "") + f" --width {w} --height {h}"
     r = build_handout(args.out, steps, w, h, ReferenceSettings(args.spp, args.engine, workers=args.workers),
                       report=lambda line: print(line, flush=True),
                       progress=lambda label: ProgressBar(label, time.perf_counter()), command=command)
