@@ -144,10 +144,7 @@ def step_page(steps: list[StepAssets], i: int, live) -> str:
     out = [_head(f"{a.number}. {a.title} - BRDF lecture handout", list(live.styles)), "<body>\n",
            _nav(steps, i, "top"), "<main>\n",
            f'<h1>{a.number}. {_esc(a.title)}</h1>\n<p class="caption">{_esc(a.caption)}</p>\n',
-           '<section class="live" aria-label="live view">\n<h2>Live view</h2>\n', live.html, "\n",
-           '<p class="note">Drag to orbit, pinch or wheel to zoom, and move the sliders: your browser draws '
-           "the step with WebGL2 from the viewer's own shaders. It leaves out shadows, screen-space "
-           "reflections and traced mirror and glass chains; the pictures below have them.</p>\n</section>\n",
+           '<section class="live" aria-label="live view">\n<h2>Live view</h2>\n', live.html, "\n</section>\n",
            "<h2>Raster, reference and their difference</h2>\n<div class=\"figures\">\n",
            f"<figure>{_img(a.raster, f'raster image of step {a.number}', w, h)}<figcaption>Raster: the viewer's "
            f"rasterizer (<code>viewer.render</code>), {w}&times;{h}.</figcaption></figure>\n",
