@@ -118,8 +118,11 @@ def test_each_step_has_the_live_canvas_and_a_slider_per_parameter(handout):
         scene = tour_scene(n - 1, load_meshes=False)
         for name, p in scene.materials.items():
             for spec in brdf.get(p.model).spec.params:
+                key = f"materials.{name}.{spec.name}"
                 if spec.kind == "float":
-                    assert f"materials.{name}.{spec.name}" in sliders, (n, name, spec.name)
+                    assert key in sliders, (n, name, spec.name)
+                elif spec.kind == "rgb":   # a colour picker or three range inputs
+                    assert f'data-param="{key}"' in page, (n, name, spec.name)
 
 
 def test_no_file_names_a_url_outside_the_folder(handout):
@@ -163,6 +166,25 @@ def test_a_file_or_an_unwritable_place_as_out_is_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "cannot be written" in err
     assert main(["handout", str(tmp_path / "x"), "--steps", "16"]) == 2
     assert "out of range" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+def test_the_reference_is_bakes_cache_entry_used_or_refined(tmp_path, monkeypatch, capsys):
+    """A reference bake stored is found at the same size (the same key); one with fewer samples
+    than asked for is resumed to the count and stored; one with more is used as it is."""
+    from viewer.commands.cli import main
+    from viewer.handout.assets import ReferenceSettings, reference_image
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path / "cache"))
+    assert main(["bake", "lecture:1", "--spp", "2", "--width", "16", "--height", "9",
+                 "--engine", "cpu", "--workers", "0"]) == 0
+    capsys.readouterr()
+    scene = tour_scene(0, overrides=["camera.width=16", "camera.height=9"])
+    img, spp, engine, cached, _ = reference_image(scene, 16, 9, ReferenceSettings(1, "cpu", workers=0))
+    assert (spp, engine, cached, img.shape) == (2, "cpu", True, (9, 16, 3))
+    _, spp, _, cached, _ = reference_image(scene, 16, 9, ReferenceSettings(3, "cpu", workers=0))
+    assert (spp, cached) == (3, False)
+    again, spp, _, cached, _ = reference_image(scene, 16, 9, ReferenceSettings(3, "cpu", workers=0))
+    assert (spp, cached) == (3, True) and float(again.mean()) > 0
 
 
 # ----------------------------------------------------------------------------- in a browser
