@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from browser_harness import browser, errors  # noqa: F401  (browser: the session's headless Chromium)
 
 from viewer.scene.lecture import TOUR, tour_scene
 
@@ -189,26 +190,14 @@ def test_the_reference_is_bakes_cache_entry_used_or_refined(tmp_path, monkeypatc
 
 # ----------------------------------------------------------------------------- in a browser
 
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api")
-    if not Path("/usr/bin/chromium").is_file():
-        pytest.skip("needs Chromium at /usr/bin/chromium")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path="/usr/bin/chromium",
-                              args=["--enable-unsafe-swiftshader", "--use-angle=swiftshader"])
-        yield b
-        b.close()
-
-
 def test_pages_open_from_disk_without_errors_and_fit_a_phone(handout, browser):
     out, _ = handout
     page = browser.new_page(viewport={"width": 390, "height": 844}, device_scale_factor=1, is_mobile=True,
                             has_touch=True)
-    errors = []
-    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.on("requestfailed", lambda r: errors.append(f"failed: {r.url}"))
+    messages, failed = [], []
+    page.on("console", lambda m: messages.append((m.type, m.text)))
+    page.on("pageerror", lambda e: messages.append(("pageerror", str(e))))
+    page.on("requestfailed", lambda r: failed.append(r.url))
     try:
         for name in ["index.html"] + [f"step-{n:02d}.html" for n in STEPS]:
             page.goto((out / name).as_uri(), wait_until="load")
@@ -219,6 +208,6 @@ def test_pages_open_from_disk_without_errors_and_fit_a_phone(handout, browser):
                                    ".map(i => i.getAttribute('src'))")
             assert broken == [], (name, broken)
             assert page.evaluate("document.images.length") >= (len(STEPS) if name == "index.html" else 4)
-            assert errors == [], (name, errors)
+            assert errors(messages) == [] and failed == [], (name, errors(messages), failed)
     finally:
         page.close()

@@ -22,8 +22,13 @@ The conversion, line by line:
   triangle corner (``geometry_attributes``); the host's formula is the stage's (the live view's
   runtime computes the same cross product of the triangle's world positions).
 
-What this does not check: implicit int-to-float conversions, which GLSL 4.10 allows and GLSL
-ES forbids, need types; the ES compiler reports them (the browser test compiles every program).
+- a ``.brdf`` file's own shader lines (BRDF Explorer's dialect, which leans on desktop GLSL's
+  implicit int-to-float conversions) get their integer literals written as float literals where
+  no integer variable is in the statement (``float_literals``).
+
+What this does not check: other implicit int-to-float conversions (an int variable where a float
+is needed), which need types; the ES compiler reports them (the browser test compiles every
+program). The viewer's own shaders use none.
 """
 
 from __future__ import annotations
@@ -113,6 +118,66 @@ def strip_comments(lines: list[str]) -> list[str]:
             res.append(line[i])
             i += 1
         out.append("".join(res))
+    return out
+
+
+def line_files(lines: list[str]) -> list[int]:
+    """Per line of a preprocessed source, the index of the file it came from (its ``#line``
+    directives; a directive line counts as the file it names)."""
+    out, idx = [], 0
+    for line in lines:
+        m = _LINE.match(line)
+        if m:
+            n = int(m.group(1))
+            idx = int(m.group(2)) if m.group(2) is not None else idx
+            if n >= LINE_BASE:
+                idx = n // LINE_BASE
+        out.append(idx)
+    return out
+
+
+# ------------------------------------------------------------------ .brdf files' literals
+#: an integer literal (not part of a float, hex or unsigned literal, nor of a name)
+_INT_LITERAL = re.compile(r"(?<![\w.])(?<![eE][+-])(\d+)(?![\w.])")
+_INT_DECL = re.compile(r"\b(?:int|uint|ivec[234]|uvec[234])\s+(\w+)")
+
+
+def float_literals(code: list[str]) -> list[str]:
+    """Lines of a ``.brdf`` file's shader (BRDF Explorer's dialect: desktop GLSL, which turns an
+    int into a float where a float is needed; GLSL ES does not) with each integer literal written
+    as a float literal (``1 - c`` -> ``1.0 - c``, ``min(1, x)`` -> ``min(1.0, x)``), except inside
+    ``[...]``, in preprocessor lines, in ``case`` labels and in any statement that names an integer
+    variable of the file or declares one (there the literal may be an int; what is left the ES
+    compiler reports)."""
+    ints = set()
+    for line in code:
+        ints.update(_INT_DECL.findall(line))
+    int_word = re.compile(r"\b(" + "|".join(map(re.escape, sorted(ints))) + r")\b") if ints else None
+    out = []
+    for line in code:
+        if line.lstrip().startswith("#") or re.match(r"\s*case\b", line):
+            out.append(line)
+            continue
+        pieces, depth = [], 0
+        # statements: split at ; { } so one with an int variable keeps its literals
+        for part in re.split(r"([;{}])", line):
+            if part in (";", "{", "}") or (int_word is not None and int_word.search(part)) or _INT_DECL.search(part) \
+                    or re.search(r"\bfor\s*\(\s*(int|uint)\b", part):
+                pieces.append(part)
+                depth += part.count("[") - part.count("]")
+                continue
+            res, i = [], 0
+            for m in _INT_LITERAL.finditer(part):
+                seg = part[i:m.start()]
+                depth += seg.count("[") - seg.count("]")
+                res.append(seg)
+                res.append(m.group(1) if depth > 0 else m.group(1) + ".0")
+                i = m.end()
+            tail = part[i:]
+            depth += tail.count("[") - tail.count("]")
+            res.append(tail)
+            pieces.append("".join(res))
+        out.append("".join(pieces))
     return out
 
 
@@ -289,6 +354,14 @@ def convert_stage(text: str, files: list[str] | None = None, stage: str = "fragm
                               "takes desktop GLSL up to 4.10")
     active = active_lines(lines, where)
     code = strip_comments(lines)
+    if files and any(f.endswith(".brdf") for f in files):
+        # a .brdf file's own lines: its integer literals as floats (see float_literals)
+        owner = line_files(lines)
+        mine = [i for i in range(len(lines)) if files[owner[i]].endswith(".brdf") and not _LINE.match(lines[i])]
+        fixed = float_literals([code[i] for i in mine])
+        for i, text in zip(mine, fixed):
+            if text != code[i]:
+                lines[i] = code[i] = text   # (its comments go: they were only comments)
     out = [ES_VERSION, *PRECISION, *(extra_decls or [])]
     rename = re.compile(r"\b(" + "|".join(map(re.escape, renames)) + r")\b") if renames else None
     for i in range(1, len(lines)):

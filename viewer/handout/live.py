@@ -8,8 +8,8 @@ from the same spec and editor rules as the window's.
   URL outside the folder: the page works from ``file://``), written once;
 - ``live-step-NN.js``: the step's data (converted programs, objects, lights, camera, the
   materials' uniform blocks and controls) as a script that adds it to ``window.BRDF_LIVE``;
-- ``live-mesh-HASH.js`` and ``live-env-HASH.js``: meshes and environment data, by content, so
-  steps that share them share the file.
+- ``live-mesh-HASH.js``, ``live-env-HASH.js`` and ``live-table-HASH.js``: meshes, environment
+  data and measured tables, by content, so steps that share them share the file.
 
 What a frame is, and how it matches the desktop raster: the same forward program (per material
 its variant, ``viewer.gl.programs.forward_variant``), fed with the uniforms the desktop sets:
@@ -146,7 +146,7 @@ def _digest(*parts) -> str:
 
 
 def _script(var: str, key: str, data: dict) -> str:
-    return ("window.BRDF_LIVE = window.BRDF_LIVE || {steps: {}, meshes: {}, envs: {}};\n"
+    return ("window.BRDF_LIVE = window.BRDF_LIVE || {steps: {}, meshes: {}, envs: {}, tables: {}};\n"
             f"window.BRDF_LIVE.{var}[{json.dumps(key)}] = {json.dumps(data, separators=(',', ':'))};\n")
 
 
@@ -576,6 +576,25 @@ def _env_asset(out_dir: Path, renderer, env_map, env_rad) -> tuple[str, str]:
     return key, rel
 
 
+def _measured_asset(out_dir: Path, params) -> tuple[str, str] | None:
+    """The 3D texture of a measured material's table (float32 RGB, exact: the desktop's
+    ``viewer.gl.measured_tex``), or None when the material holds none."""
+    from viewer.brdf import measured
+    from viewer.gl.measured_tex import measured_params
+
+    m = measured_params(params)
+    if m is None:
+        return None
+    d = measured.data(m)
+    data = np.asarray(d.texture_data(), np.float32)
+    key = _digest(str(d.texture_size()), data.tobytes())
+    rel = f"{ASSETS}/live-table-{key}.js"
+    path = out_dir / rel
+    if not path.is_file():
+        _write(path, _script("tables", key, {"size": [int(x) for x in d.texture_size()], "data": _b64(data)}))
+    return key, rel
+
+
 def write_runtime(out_dir: Path) -> tuple[str, str]:
     """Write the shared runtime (``assets/live.js``, ``assets/live.css``); their relative paths."""
     here = Path(__file__).resolve().parent
@@ -646,8 +665,12 @@ def step_data(scene, out_dir: Path, step: int) -> tuple[dict, list[str], list[di
             dict.pop(rec, "u_measured", None)
             if not lit:
                 rec["u_env_on"] = 0  # a .brdf file material draws without its (sampled) environment light
-            materials[obj.material] = {"program": key, "uniforms": rec.recorded(), "model": params.model,
-                                       "block_slot": "u_mat"}
+            materials[obj.material] = {"program": key, "uniforms": rec.recorded(), "model": params.model}
+            table = _measured_asset(out_dir, params)
+            if table is not None:
+                materials[obj.material]["textures"] = {"u_measured": table[0]}
+                if table[1] not in assets:
+                    assets.append(table[1])
             ctl = material_controls(obj.material, params, (lit, env_constant))
             materials[obj.material]["controls"] = [
                 {k: v for k, v in c.items() if k not in ("doc",)} for c in ctl]

@@ -8,7 +8,8 @@
  * The camera follows the viewer's OrbitCamera (viewer/scene/camera.py) formula for formula. */
 (function () {
   'use strict';
-  var L = window.BRDF_LIVE = window.BRDF_LIVE || {steps: {}, meshes: {}, envs: {}};
+  var L = window.BRDF_LIVE = window.BRDF_LIVE || {steps: {}, meshes: {}, envs: {}, tables: {}};
+  L.tables = L.tables || {};
   L.views = L.views || {};
 
   // ---------------------------------------------------------------- data
@@ -200,6 +201,8 @@
     this.gl = gl;
     try { this.setup(); } catch (e) { this.say('The live view could not start: ' + e.message); console.error(e.message); this.gl = null; return; }
     this.wire();
+    this.ready = true;
+    if (L.manual) return;   // a script (a test) draws with readPixels and nothing else
     this.resize();
     this.request();
   }
@@ -243,7 +246,13 @@
     Object.keys(d.materials).forEach(function (name) {
       var m = d.materials[name];
       var block = m.uniforms.u_mat && m.uniforms.u_mat.b64 ? f32(m.uniforms.u_mat.b64) : new Float32Array(256);
-      self.materials[name] = {d: m, block: block, stepBlock: block.slice(), base: block.slice(), moved: {}};
+      var own = {};
+      Object.keys(m.textures || {}).forEach(function (u) {   // a measured table: float32 RGB, read with texelFetch
+        var t = L.tables[m.textures[u]];
+        if (!t) throw new Error('its measured table did not load');
+        own[u] = texture(gl, gl.TEXTURE_3D, gl.RGB32F, gl.RGB, gl.FLOAT, t.size[0], t.size[1], t.size[2], f32(t.data), false, false);
+      });
+      self.materials[name] = {d: m, block: block, stepBlock: block.slice(), base: block.slice(), textures: own};
     });
   };
 
@@ -326,12 +335,13 @@
     return tg;
   };
 
-  View.prototype.bindSamplers = function (info) {
+  View.prototype.bindSamplers = function (info, own) {
     var gl = this.gl, self = this;
     info.samplers.forEach(function (s) {
       gl.activeTexture(gl.TEXTURE0 + s.unit);
       var t = self.textures[s.name];
-      if (t) gl.bindTexture(self.texTarget[s.name], t);
+      if (own && own[s.name]) gl.bindTexture(gl.TEXTURE_3D, own[s.name]);
+      else if (t) gl.bindTexture(self.texTarget[s.name], t);
       else gl.bindTexture(self.emptyTarget[s.type] || gl.TEXTURE_2D, self.empty[s.type] || self.empty[gl.SAMPLER_2D]);
     });
   };
@@ -372,7 +382,7 @@
       setUniform(gl, info, 'u_mat', m.block);
       setUniform(gl, info, 'u_view_proj', vp);
       setUniform(gl, info, 'u_camera_pos', eye);
-      self.bindSamplers(info);
+      self.bindSamplers(info, m.textures);
       var M = o.d.model, Nm = o.d.normal;
       for (var c = 0; c < 4; c++) gl.vertexAttrib4f(ATTRIBS.in_model + c, M[4 * c], M[4 * c + 1], M[4 * c + 2], M[4 * c + 3]);
       for (c = 0; c < 3; c++) gl.vertexAttrib3f(ATTRIBS.in_normal_matrix + c, Nm[3 * c], Nm[3 * c + 1], Nm[3 * c + 2]);
