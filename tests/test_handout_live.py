@@ -312,3 +312,41 @@ def test_camera_is_the_orbit_camera(live_page):
     np.testing.assert_allclose(js_matrix(), py_matrix(), rtol=1e-6, atol=1e-9)
     page.evaluate("() => BRDF_LIVE.views['01'].camera.reset()")
     assert not errors(messages), errors(messages)
+
+
+def test_choice_shows_its_parameters_and_a_stop_slider_snaps(live_page):
+    """A choice shows and hides rows as the window's editor does (fresnel: eta and k for a
+    conductor, ior for a dielectric); a control whose change moves the layered model's derived
+    tables snaps to a value Python computed the block for, and the frame is the desktop's there."""
+    from viewer import api
+
+    page, messages, scenes = live_page
+
+    def shown(step, param):
+        return page.eval_on_selector(f"[data-step='{step}'][data-param='materials.ball.{param}']",
+                                     "e => getComputedStyle(e.closest('label')).display") != "none"
+
+    assert shown("01", "eta") and not shown("01", "ior")
+    page.select_option("select[data-step='01'][data-param='materials.ball.fresnel']", "dielectric")
+    assert shown("01", "ior") and not shown("01", "eta") and not shown("01", "k")
+    page.select_option("select[data-step='01'][data-param='materials.ball.fresnel']", "conductor")
+    assert shown("01", "eta")
+
+    sel = "input[data-step='02'][data-param='materials.ball.coating.ior']"
+    stops = page.evaluate("() => BRDF_LIVE.views['02'].materials.ball.controls"
+                          ".filter(c => c.sub === 'coating.ior')[0].stops.map(s => s.value)")
+    before = canvas_pixels(page, 2)
+    page.eval_on_selector(sel, "(e) => { e.value = '2.37'; e.dispatchEvent(new Event('input')); }")
+    value = page.evaluate("() => BRDF_LIVE.views['02'].materials.ball.controls"
+                          ".filter(c => c.sub === 'coating.ior')[0].value")
+    assert value in stops and abs(value - 2.37) <= (max(stops) - min(stops)) / (len(stops) - 2) / 2 + 1e-9
+    assert float(page.eval_on_selector(sel, "e => e.value")) == pytest.approx(value, abs=2e-3)  # the thumb moved there
+    readout = page.text_content(".brdf-live[data-step='02'] output[data-value-for='materials.ball.coating.ior']")
+    assert float(readout) == pytest.approx(value, rel=1e-3), readout
+    after = canvas_pixels(page, 2)
+    mask = inner_mask(scenes[2])
+    assert difference(after, before, mask)[0] > 0.5
+    desk = desktop_pixels(api.load(scenes[2], [f"materials.ball.coating.ior={value!r}"]))
+    mean, p99, _ = difference(after, desk, mask)
+    assert mean <= MEAN_LEVELS and p99 <= P99_LEVELS, (mean, p99)
+    assert not errors(messages), errors(messages)

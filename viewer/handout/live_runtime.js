@@ -567,19 +567,22 @@
     m.block = b;
   };
 
-  // editor_rules.shown_params: each choice says which parameters of its level it shows
+  // editor_rules.shown_params, tabulated in Python for every combination of a level's choices:
+  // a parameter of that level is shown iff the current combination lists it
   View.prototype.visibility = function (m) {
     var level = function (sub) { var i = sub.lastIndexOf('.'); return i < 0 ? '' : sub.slice(0, i + 1); };
+    var bySub = {};
+    m.controls.forEach(function (c) { bySub[c.sub] = c; });
+    var shown = m.d.shown || {};
     m.controls.forEach(function (c) {
       if (!c.row) return;
-      var show = !c.hidden;
-      m.controls.forEach(function (ch) {
-        if (ch.kind !== 'select' || level(ch.sub) !== level(c.sub) || c === ch) return;
-        var opt = ch.options.filter(function (o) { return o.value === ch.value; })[0];
-        if (opt && opt.shows) show = show && opt.shows.indexOf(c.sub) >= 0;
-      });
-      if (show !== !c.hiddenNow) { c.row.classList.toggle('brdf-live-hidden', !show); }
-      c.hiddenNow = !show;
+      var show = !c.hidden, t = shown[level(c.sub)];
+      if (t && t.choices.indexOf(c.sub) < 0) {
+        var key = t.choices.map(function (s) { return bySub[s] ? bySub[s].value : ''; }).join('|');
+        var list = t.table[key];
+        if (list) show = list.indexOf(c.sub) >= 0;
+      }
+      c.row.classList.toggle('brdf-live-hidden', !show);
     });
   };
 
