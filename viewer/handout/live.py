@@ -105,9 +105,6 @@ class UniformRecorder(dict):
     def __getitem__(self, name):
         return _Uniform(self, name)
 
-    def values(self):
-        return dict.values(self)
-
     def recorded(self) -> dict:
         """name -> JSON-ready value: numbers as lists, bytes as base64 (the runtime reads them
         as the uniform's own type: int32 for int uniforms, float32 otherwise)."""
