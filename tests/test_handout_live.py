@@ -26,7 +26,7 @@ SECOND = {
     "phong": {"kd": [0.2, 0.3, 0.5], "ks": [0.5, 0.45, 0.4], "shininess": 40.0},
     "blinn_phong": {"kd": [0.5, 0.2, 0.1], "ks": [0.3, 0.3, 0.3], "shininess": 300.0},
     "microfacet": {"preset": "brushed_aluminium"},
-    "oren_nayar": {"preset": "lecture_oren_nayar"},
+    "oren_nayar": {"albedo": [0.3, 0.6, 0.2], "sigma": 60.0, "variant": "qualitative"},
     "lafortune": {"preset": "lecture_lafortune"},
     "ashikhmin_shirley": {"preset": "lecture_ashikhmin_shirley"},
     "layered": {"preset": "car_paint"},
