@@ -126,13 +126,13 @@ def _b64(a: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode()
 
 
-def _half(a: np.ndarray) -> str:
-    """float16 bytes as base64 (the runtime uploads RGB16F: filterable in every WebGL2)."""
+def _floats(a: np.ndarray) -> dict:
+    """Texture data for the runtime: float16 where every value fits (RGB16F is filterable in
+    every WebGL2), else float32 (a bright sun: the runtime then needs OES_texture_float_linear)."""
     a = np.asarray(a, np.float32)
-    if np.any(a > 65504.0):
-        raise ViewerError(f"environment: radiance up to {float(a.max()):g} exceeds half precision (65504); "
-                          "the live view cannot hold it")
-    return _b64(a.astype(np.float16))
+    if np.all(np.abs(a) <= 65504.0):
+        return {"f16": _b64(a.astype(np.float16))}
+    return {"f32": _b64(a)}
 
 
 def _digest(*parts) -> str:
@@ -595,11 +595,11 @@ def _env_asset(out_dir: Path, renderer, env_map, env_rad) -> tuple[str, str]:
     rel = f"{ASSETS}/live-env-{key}.js"
     path = out_dir / rel
     if not path.is_file():
-        data = {"layers": [int(pre.shape[2]), int(pre.shape[1]), int(pre.shape[0])], "prefiltered": _half(pre),
-                "dfg": [int(ibl.dfg.shape[1]), int(ibl.dfg.shape[0])], "dfg_data": _half(ibl.dfg)}
+        data = {"layers": [int(pre.shape[2]), int(pre.shape[1]), int(pre.shape[0])], "prefiltered": _floats(pre),
+                "dfg": [int(ibl.dfg.shape[1]), int(ibl.dfg.shape[0])], "dfg_data": _floats(ibl.dfg)}
         if img is not None:
             data["map"] = [int(img.shape[1]), int(img.shape[0])]
-            data["map_data"] = _half(img)
+            data["map_data"] = _floats(img)
         _write(path, _script("envs", key, data))
     return key, rel
 
