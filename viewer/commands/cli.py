@@ -670,6 +670,65 @@ def cmd_bake(args) -> int:
     return _bake_traced(*_lecture_window(args), steps) if args.lecture else 0
 
 
+def _parser_handout() -> argparse.ArgumentParser:
+    from viewer.handout.pages import DEFAULT_SIZE
+
+    p = argparse.ArgumentParser(prog="brdf-viewer handout",
+                                description="Write the lecture as a static web handout: OUT/index.html and one page "
+                                            "per step, OUT/step-NN.html (title, caption, the live WebGL2 view with "
+                                            "its sliders, raster, reference, difference map, the step's plots with "
+                                            "their numbers as JSON). Every file lies inside OUT: copy the folder to "
+                                            "any static host, or open index.html from disk.")
+    p.add_argument("out", metavar="OUT", help="the handout's folder (created when missing)")
+    p.add_argument("--steps", default=None, metavar="LIST",
+                   help="only these lecture steps (1-based, e.g. 1-15 or 2,3,10-13; default every step)")
+    p.add_argument("--width", type=int, default=None,
+                   help="raster, reference and difference images' width (default %d, with --height %d: the "
+                        "window's reference size, which bake fills the reference cache at)" % DEFAULT_SIZE)
+    p.add_argument("--height", type=int, default=None, help="their height (default %d)" % DEFAULT_SIZE[1])
+    p.add_argument("--spp", type=int, default=64,
+                   help="samples per pixel of a reference the cache lacks (rendered and stored as bake does; "
+                        "a cached one with more samples is used as it is); default 64")
+    p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    p.add_argument("--workers", type=int, default=None, help="worker processes of the cpu engine (default: every core)")
+    add_trust_option(p)
+    return p
+
+
+def cmd_handout(args) -> int:
+    from viewer.handout.assets import ReferenceSettings
+    from viewer.handout.pages import DEFAULT_SIZE, build_handout
+
+    w = args.width if args.width is not None else DEFAULT_SIZE[0]
+    h = args.height if args.height is not None else DEFAULT_SIZE[1]
+    for name, v in (("width", w), ("height", h)):
+        if not 16 <= v <= 4096:
+            raise ViewerError(f"--{name}: {v} is out of range; allowed: an integer from 16 to 4096")
+    if args.spp < 1:
+        raise ViewerError(f"--spp: {args.spp} is out of range; allowed: an integer >= 1")
+    if args.workers is not None and args.workers < 0:
+        raise ViewerError(f"--workers: {args.workers} is out of range; allowed: an integer >= 0 (0 = no pool)")
+    from viewer.reference_common.select import ENGINES
+
+    if args.engine not in ENGINES:
+        raise ViewerError(f"--engine: {args.engine!r} is not a reference engine; allowed: {', '.join(ENGINES)}")
+    from viewer.scene.lecture import TOUR
+
+    steps = _lecture_steps(args.steps) if args.steps is not None else list(range(len(TOUR)))
+    from pathlib import Path
+
+    command = f"brdf-viewer handout {Path(args.out).name or 'OUT'}" + (f" --steps {args.steps}" if args.steps else "") + f" --width {w} --height {h}"
+    r = build_handout(args.out, steps, w, h, ReferenceSettings(args.spp, args.engine, workers=args.workers),
+                      report=lambda line: print(line, flush=True),
+                      progress=lambda label: ProgressBar(label, time.perf_counter()), command=command)
+    names = r.pages[1:]
+    refs = ", ".join(f"{a.number}: {a.spp} spp {a.engine}{' (cached)' if a.cached else ''}" for a in r.steps)
+    print(f"wrote {r.out}/: index.html and {len(r.steps)} step page{'s' if len(r.steps) != 1 else ''} "
+          f"({', '.join(names) if len(names) <= 3 else names[0] + ' .. ' + names[-1]}), {r.size_bytes / 1e6:.1f} MB "
+          f"in {r.seconds:.0f} s; references per step: {refs}")
+    return 0
+
+
 def _lecture_steps(text: str) -> list[int]:
     """``--steps 2,3,10-13`` as 0-based lecture steps, in the tour's order."""
     from viewer.scene.lecture import TOUR
@@ -786,12 +845,12 @@ def main(argv=None) -> int:
             from viewer.commands import measured as measured_cli
             parser = {"render": _parser_render, "reference": _parser_reference, "compare": _parser_compare,
                       "bake": _parser_bake, "plot": _parser_plot, "models": _parser_models,
-                      "fit": measured_cli.parser, "check": check_cli.parser}[cmd]()
+                      "fit": measured_cli.parser, "check": check_cli.parser, "handout": _parser_handout}[cmd]()
             args = parser.parse_args(rest)
             _trust(args)
             return {"render": cmd_render, "reference": cmd_reference, "compare": cmd_compare,
                     "bake": cmd_bake, "plot": cmd_plot, "models": cmd_models, "fit": measured_cli.cmd_fit,
-                    "check": check_cli.cmd_check}[cmd](args)
+                    "check": check_cli.cmd_check, "handout": cmd_handout}[cmd](args)
         args = _parser_window().parse_args(argv)
         _trust(args)
         return cmd_window(args)

@@ -4,12 +4,12 @@
 
 import argparse
 
-COMMANDS = ("render", "reference", "compare", "bake", "plot", "models", "fit", "check")
+COMMANDS = ("render", "reference", "compare", "bake", "plot", "models", "fit", "check", "handout")
 HEADLESS_HINT = ("headless commands (no display needed): brdf-viewer render SCENE --out img.png | "
                  "brdf-viewer reference SCENE --spp 64 --out ref.png | brdf-viewer compare SCENE --spp 64 "
                  "--out folder | brdf-viewer bake SCENE --spp 256 | brdf-viewer plot MODEL --kind polar "
                  "--out plot.png | brdf-viewer fit FILE.binary --model MODEL | brdf-viewer models | "
-                 "brdf-viewer check FILE.brdf (SCENE: a "
+                 "brdf-viewer check FILE.brdf | brdf-viewer handout FOLDER (SCENE: a "
                  ".toml file, a built-in name or lecture:N; see README)")
 
 
