@@ -129,10 +129,9 @@ def _img(src: str, alt: str, w: int, h: int, link: bool = True) -> str:
 
 
 def _reference_text(a: StepAssets) -> str:
-    how = ("from the reference cache" if a.cached
-           else f"rendered for this handout in {a.reference_seconds:.0f} s and kept in the reference cache")
-    return (f"Reference: the path tracer, {a.spp} samples per pixel, {a.engine} engine ({how}); "
-            "the same meshes, camera, lights and exposure as the raster.")
+    # whether it came from the cache is the build's business (the command's output, step.json)
+    return (f"Reference: the path tracer, {a.spp} samples per pixel, {a.engine} engine; the same meshes, "
+            "camera, lights and exposure as the raster.")
 
 
 def step_page(steps: list[StepAssets], i: int, live) -> str:
