@@ -226,8 +226,8 @@ class ShadowMaps:
             self._glass = {"tex": tex, "fbo": fbo, "rows": rows}
         fbo = self._glass["fbo"]
         fbo.use()
+        fbo.depth_mask = False   # before the clear too: the depth is the opaque casters', kept
         fbo.clear(0.0, 0.0, 0.0, 0.0)
-        fbo.depth_mask = False
         ctx.enable(ctx.DEPTH_TEST | ctx.BLEND)
         ctx.disable(ctx.CULL_FACE)   # both faces: where the light enters and where it leaves
         ctx.blend_func = (ctx.ONE, ctx.ONE)
@@ -281,6 +281,11 @@ class ShadowMaps:
                 mats[i * 6] = orthographic(radius, radius, radius * 0.9, radius * 3.1) @ look_at(eye, center, up)
                 self._texel[i] = 2.0 * radius / S
         return mats
+
+    @property
+    def glass_atlas(self):
+        """The glass casters' atlas (a texture), or None while the scene has no glass caster."""
+        return None if self._glass is None else self._glass["tex"]
 
     def bind(self, unit: int = texture_units.SHADOW_ATLAS) -> dict:
         """Bind the atlas to texture ``unit``; the uniforms the forward pass reads it with."""
