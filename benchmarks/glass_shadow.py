@@ -2,9 +2,11 @@
 [--frames 3] [--width 1280 --height 720]` (prints numbers, asserts nothing).
 
 Glass shadows (viewer/gl/shadow.py): a scene of a glass ball, an absorbing glass slab and an
-opaque ball on a floor under a point light, against its peer with the glass made opaque (Lambert):
-the frame when nothing moves (the atlases are kept: the cost is the GLASS_SHADOW variant's extra
-taps) and the frame after the light moved (both atlases drawn again: six cube faces).
+opaque ball on a floor under a point light, against the same scene with glass shadows switched
+off for the run (``glass_shadows`` of ``program_set`` and ``frame_passes``: the glass is then
+drawn into the depth atlas and casts an opaque shadow, as before there were glass shadows): the
+frame when nothing moves (the atlases are kept: the cost is the GLASS_SHADOW variant's extra taps)
+and the frame after the light moved (both atlases drawn again: six cube faces).
 
 Environment occlusion (the ENV_OCCLUSION variant of traced frames): the traced frame of the
 Lambert sphere over a mirror floor and of lecture step 10 (absorbing glass balls on a floor under
@@ -66,7 +68,7 @@ def main(argv=None) -> int:
 
     import tomllib
 
-    from viewer.gl import program_set
+    from viewer.gl import frame_passes, program_set, shadow
     from viewer.gl.context import create_offscreen_context
     from viewer.gl.renderer import Renderer
     from viewer.scene import parse_scene
@@ -80,20 +82,26 @@ def main(argv=None) -> int:
     r = Renderer(ctx)
     w, h = args.width, args.height
     try:
-        print("glass shadows (a glass ball and an absorbing slab; peer: the same objects opaque)")
+        print("glass shadows (a glass ball and an absorbing slab; peer: the same scene with glass casting "
+              "opaque shadows, as before glass shadows)")
+        sc = parse_scene(tomllib.loads(glass_scene(True)), None)
+        cam = OrbitCamera.from_scene(sc)
+        light = sc.lights[0]
+
+        def nudge():
+            light.position = [light.position[0], light.position[1], light.position[2] + 1e-3]
+
         for moving in (False, True):
             t = {}
             for glass in (False, True):
-                sc = parse_scene(tomllib.loads(glass_scene(glass)), None)
-                cam = OrbitCamera.from_scene(sc)
-                light = sc.lights[0]
-
-                def nudge(light=light):
-                    light.position = [light.position[0], light.position[1], light.position[2] + 1e-3]
-
-                t[glass] = _time(r, sc, cam, w, h, args.frames, nudge if moving else None)
+                switch = (lambda s: False) if not glass else shadow.glass_shadows
+                program_set.glass_shadows = frame_passes.glass_shadows = switch
+                try:
+                    t[glass] = _time(r, sc, cam, w, h, args.frames, nudge if moving else None)
+                finally:
+                    program_set.glass_shadows = frame_passes.glass_shadows = shadow.glass_shadows
             what = "light moving (atlases redrawn)" if moving else "still (atlases kept)"
-            print(f"  {what:32s} opaque {1e3 * t[False]:8.1f} ms   glass {1e3 * t[True]:8.1f} ms   "
+            print(f"  {what:32s} opaque glass {1e3 * t[False]:8.1f} ms   glass shadows {1e3 * t[True]:8.1f} ms   "
                   f"ratio {t[True] / t[False]:.2f}")
         print("environment occlusion in traced frames (peer: traced without occlusion)")
         keep = program_set.env_occluded

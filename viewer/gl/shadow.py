@@ -47,7 +47,7 @@ def transmissive(params) -> bool:
 
 def glass_casters(scene) -> list:
     """The objects that cast a translucent shadow: those of a transmissive material."""
-    return [o for o in scene.objects if o.mesh_data is not None and transmissive(scene.materials[o.material])]
+    return [o for o in scene.objects if transmissive(scene.materials[o.material])]
 
 
 def glass_shadows(scene) -> bool:
