@@ -87,7 +87,9 @@ vec3 rt_prefiltered(vec3 r, float a) { return vec3(0.0); }
 #endif
 
 #ifdef ENV_OCCLUSION
-vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng);  // below
+vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng, int rays);  // below
+const int AO_RAYS = 16;       // rays per point the camera sees (a new rotation of the set per pixel and frame)
+const int AO_RAYS_CHAIN = 4;  // per point a traced chain meets
 #endif
 
 // A surface that is not a delta lobe, shaded as the forward pass shades it: the lights through
@@ -131,7 +133,7 @@ vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
         vec3 rho = rt_table(row, RT_T_ALBEDO, wo.z);
         vec3 rho_s = min(rt_table(row, RT_T_SPEC, wo.z), rho);
 #ifdef ENV_OCCLUSION
-        radiance += (rho - rho_s) * rt_occluded_irradiance(p, n, ng) * INV_PI
+        radiance += (rho - rho_s) * rt_occluded_irradiance(p, n, ng, AO_RAYS_CHAIN) * INV_PI
                   + rho_s * rt_prefiltered(reflect(-wo_w, n), info.y);
 #else
         radiance += (rho - rho_s) * rt_irradiance(n) * INV_PI + rho_s * rt_prefiltered(reflect(-wo_w, n), info.y);
@@ -223,8 +225,9 @@ bool rt_glass(uint lobes) { return lobe_is_delta(lobes) && lobe_transmits(lobes)
 // as the hemisphere's average (no noise from looking the map up per ray). A ray that meets a
 // diffuse (not delta) surface takes that surface's radiance as the raster has it without
 // occlusion (rt_occluder: its lights with shadow maps, its whole albedo under the unoccluded
-// irradiance): one bounce of interreflection, where the reference has them all.
-const int AO_RAYS = 16;      // rays per shaded point (a new rotation of the set per pixel and frame)
+// irradiance): one bounce of interreflection, where the reference has them all. A surface
+// seen through a chain gets AO_RAYS_CHAIN rays (a glass ball's pixel meets the floor along
+// several branches, each with its own set).
 const int AO_SEGMENTS = 4;   // delta bounces followed along a ray before it counts as leaving
 
 vec3 rt_occluder(int row, vec3 p, vec3 n, vec3 ng, vec3 wo_w) {
@@ -250,7 +253,7 @@ vec3 rt_occluder(int row, vec3 p, vec3 n, vec3 ng, vec3 wo_w) {
     return radiance + rt_table(row, RT_T_ALBEDO, wo.z) * rt_irradiance(n) * INV_PI;
 }
 
-vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng) {
+vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng, int rays) {
     vec3 e_open = rt_irradiance(n);
     if (!any(greaterThan(e_open, vec3(0.0)))) return e_open;
     vec3 t = normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
@@ -260,8 +263,8 @@ vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng) {
     float eps = EPS_REL * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
     vec3 sky = vec3(0.0);    // the weights of the rays that leave the scene
     vec3 occ = vec3(0.0);    // the radiance of the diffuse surfaces the others meet
-    for (int k = 0; k < AO_RAYS; ++k) {
-        float u0 = fract((float(k) + 0.5) / float(AO_RAYS) + cx);
+    for (int k = 0; k < rays; ++k) {
+        float u0 = fract((float(k) + 0.5) / float(rays) + cx);
         float u1 = fract(float(k) * 0.6180339887498949 + cy);
         float r = sqrt(u0), phi = TWO_PI * u1;
         RtRay ray;
@@ -302,7 +305,7 @@ vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng) {
             ray = ra;
         }
     }
-    return sky * (e_open / float(AO_RAYS)) + occ * (PI / float(AO_RAYS));
+    return sky * (e_open / float(rays)) + occ * (PI / float(rays));
 }
 #endif
 

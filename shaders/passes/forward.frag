@@ -261,7 +261,7 @@ void main() {
 #ifdef ENV_OCCLUSION
                 // traced mode: the diffuse part's irradiance with the scene's occlusion traced in
                 // the BVH (common/specular_chain.glsl rt_occluded_irradiance)
-                radiance += rho_d * rt_occluded_irradiance(v_position, n, ng) * INV_PI
+                radiance += rho_d * rt_occluded_irradiance(v_position, n, ng, AO_RAYS) * INV_PI
                           + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
 #else
                 radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
