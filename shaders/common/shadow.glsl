@@ -18,7 +18,19 @@ int cube_face(vec3 d) {
     return d.z > 0.0 ? 4 : 5;
 }
 
+#ifdef GLASS_SHADOW
+// Glass casters (compiled in only for a scene with transmissive objects and shadows): a second
+// atlas, the same tiles, holds the optical depth tau (RGB) that the glass in front of the nearest
+// opaque caster adds along the light's ray (passes/shadow_glass.frag); the light is multiplied
+// by exp(-tau), looked up with one bilinear tap.
+uniform sampler2D u_shadow_glass;
+vec3 shadow_glass_tau;  // set by shadow_lookup: the filtered optical depth of its last lookup
+#endif
+
 float shadow_lookup(int light, int face, vec3 p) {
+#ifdef GLASS_SHADOW
+    shadow_glass_tau = vec3(0.0);
+#endif
     vec4 c = u_shadow_mat[light * 6 + face] * vec4(p, 1.0);
     vec3 ndc = c.xyz / c.w;
     if (c.w <= 0.0 || ndc.z > 1.0) return 1.0;
@@ -36,6 +48,12 @@ float shadow_lookup(int light, int face, vec3 p) {
         vec2 a = (vec2(float(face), float(light)) + t) / u_shadow_atlas_tiles;
         sum += textureLod(u_shadow_atlas, vec3(a, depth), 0.0);  // explicit LOD: no derivatives needed
     }
+#ifdef GLASS_SHADOW
+    // one bilinear tap at the centre: the optical depth varies smoothly over a glass caster
+    // (four taps, as for the depth, cost llvmpipe 30% of a frame for no visible change)
+    vec2 tc = clamp(uv, vec2(texel), vec2(1.0 - texel));
+    shadow_glass_tau = textureLod(u_shadow_glass, (vec2(float(face), float(light)) + tc) / u_shadow_atlas_tiles, 0.0).rgb;
+#endif
     return 0.25 * sum;
 }
 
@@ -63,3 +81,13 @@ float shadow_visibility(int light, bool point_light, vec3 light_pos, vec3 p, vec
     vec3 q = p + ng * u_shadow_texel_world[light] * slope;
     return shadow_lookup(light, 0, q);
 }
+
+#ifdef GLASS_SHADOW
+// The light let through: the opaque casters' visibility times the glass's transmittance exp(-tau).
+vec3 shadow_transmittance(int light, bool point_light, vec3 light_pos, vec3 p, vec3 ng, float ndotl) {
+    if (u_shadows_on == 0 || light >= SHADOW_LIGHTS) return vec3(1.0);
+    shadow_glass_tau = vec3(0.0);  // a face with no caster returns before any lookup
+    float v = shadow_visibility(light, point_light, light_pos, p, ng, ndotl);
+    return v * exp(-shadow_glass_tau);
+}
+#endif

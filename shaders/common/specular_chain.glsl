@@ -86,8 +86,15 @@ vec3 rt_irradiance(vec3 n) { return vec3(0.0); }
 vec3 rt_prefiltered(vec3 r, float a) { return vec3(0.0); }
 #endif
 
+#ifdef ENV_OCCLUSION
+vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng, int rays);  // below
+const int AO_RAYS = 16;       // rays per point the camera sees (a new rotation of the set per pixel and frame)
+const int AO_RAYS_CHAIN = 4;  // per point a traced chain meets
+#endif
+
 // A surface that is not a delta lobe, shaded as the forward pass shades it: the lights through
-// brdf_eval with shadow maps, the environment by the split sum of its albedo tables.
+// brdf_eval with shadow maps, the environment by the split sum of its albedo tables (with
+// ENV_OCCLUSION its diffuse part's irradiance traced for occlusion).
 vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
     vec3 t = tangent.xyz - n * dot(n, tangent.xyz);
     t = dot(t, t) > 1e-12 ? normalize(t) : normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
@@ -114,13 +121,23 @@ vec3 rt_shade(int row, vec3 p, vec3 n, vec3 ng, vec4 tangent, vec3 wo_w) {
         }
         vec3 wi = to_local * wi_w;
         if (wi.z <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
+#ifdef GLASS_SHADOW
+        vec3 vis = info.w > 0.5 ? vec3(shadow_visibility(i, is_point, u_light_pos[i], p, ng, dot(ng, wi_w)))
+                                : shadow_transmittance(i, is_point, u_light_pos[i], p, ng, dot(ng, wi_w));
+#else
         float vis = shadow_visibility(i, is_point, u_light_pos[i], p, ng, dot(ng, wi_w));
+#endif
         radiance += brdf_eval(model, o, wi, wo) * e * wi.z * vis;
     }
     if (wo.z > 0.0) {
         vec3 rho = rt_table(row, RT_T_ALBEDO, wo.z);
         vec3 rho_s = min(rt_table(row, RT_T_SPEC, wo.z), rho);
+#ifdef ENV_OCCLUSION
+        radiance += (rho - rho_s) * rt_occluded_irradiance(p, n, ng, AO_RAYS_CHAIN) * INV_PI
+                  + rho_s * rt_prefiltered(reflect(-wo_w, n), info.y);
+#else
         radiance += (rho - rho_s) * rt_irradiance(n) * INV_PI + rho_s * rt_prefiltered(reflect(-wo_w, n), info.y);
+#endif
         if (info.w > 0.5) {  // rough glass: the environment straight through (no chain behind it)
             float ior = rt_texel(row, RT_T_ETA).x;
             radiance += rt_table(row, RT_T_TRANS, wo.z) * ior * ior * rt_prefiltered(-wo_w, info.y);
@@ -193,8 +210,104 @@ int rt_interface(int row, uint lobes, vec3 p, vec3 d, vec3 n, vec3 ng_w, vec3 w,
 
 float rt_max(vec3 v) { return max(v.x, max(v.y, v.z)); }
 
+
 // Smooth glass: the chain refracts through it (delta lobes that transmit).
 bool rt_glass(uint lobes) { return lobe_is_delta(lobes) && lobe_transmits(lobes); }
+
+#ifdef ENV_OCCLUSION
+// Environment occlusion (traced frames, the ENV_OCCLUSION variant): the irradiance of a diffuse
+// part is pi/N times the radiance along N cosine-distributed rays about n, traced in the BVH.
+// A ray that leaves the scene, directly or after mirror and smooth-glass bounces (the heavier
+// branch followed with its Fresnel weight and Bouguer absorption, the lighter one taken as
+// leaving), counts as seeing the sky, and all such rays together take their share of the
+// unoccluded irradiance E(n) (spherical harmonics or pi L): E(n) times the visible fraction,
+// exact for a constant environment; with a map the hidden directions are taken to be as bright
+// as the hemisphere's average (no noise from looking the map up per ray). A ray that meets a
+// diffuse (not delta) surface takes that surface's radiance as the raster has it without
+// occlusion (rt_occluder: its lights with shadow maps, its whole albedo under the unoccluded
+// irradiance): one bounce of interreflection, where the reference has them all. A surface
+// seen through a chain gets AO_RAYS_CHAIN rays (a glass ball's pixel meets the floor along
+// several branches, each with its own set).
+const int AO_SEGMENTS = 4;   // delta bounces followed along a ray before it counts as leaving
+
+vec3 rt_occluder(int row, vec3 p, vec3 n, vec3 ng, vec3 wo_w) {
+    vec3 t = normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
+    mat3 to_local = transpose(mat3(t, cross(n, t), n));
+    vec3 wo = to_local * wo_w;
+    if (wo.z <= 0.0) return vec3(0.0);
+    int model = int(rt_texel(row, RT_T_INFO).x + 0.5);
+    int o = row * MAT_FLOATS;
+    vec3 radiance = vec3(0.0);
+    for (int i = 0; i < MAX_LIGHTS; ++i) {
+        if (i >= u_num_lights) break;
+        bool is_point = u_light_type[i] == LIGHT_POINT;
+        vec3 d = is_point ? u_light_pos[i] - p : -u_light_pos[i];
+        float r2 = max(dot(d, d), 1e-12);
+        vec3 wi_w = is_point ? d * inversesqrt(r2) : normalize(d);
+        vec3 e = is_point ? u_light_value[i] / r2 : u_light_value[i];
+        vec3 wi = to_local * wi_w;
+        if (wi.z <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
+        float vis = shadow_visibility(i, is_point, u_light_pos[i], p, ng, dot(ng, wi_w));
+        radiance += brdf_eval(model, o, wi, wo) * e * wi.z * vis;
+    }
+    return radiance + rt_table(row, RT_T_ALBEDO, wo.z) * rt_irradiance(n) * INV_PI;
+}
+
+vec3 rt_occluded_irradiance(vec3 p, vec3 n, vec3 ng, int rays) {
+    vec3 e_open = rt_irradiance(n);
+    if (!any(greaterThan(e_open, vec3(0.0)))) return e_open;
+    vec3 t = normalize(abs(n.x) < 0.9 ? cross(n, vec3(1, 0, 0)) : cross(n, vec3(0, 1, 0)));
+    vec3 b = cross(n, t);
+    float cx = pixel_hash(uvec2(gl_FragCoord.xy) + 977u, uint(u_frame_index) + 5u);
+    float cy = pixel_hash(uvec2(gl_FragCoord.yx) + 311u, uint(u_frame_index) + 17u);
+    float eps = EPS_REL * (1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z)));
+    vec3 sky = vec3(0.0);    // the weights of the rays that leave the scene
+    vec3 occ = vec3(0.0);    // the radiance of the diffuse surfaces the others meet
+    for (int k = 0; k < rays; ++k) {
+        float u0 = fract((float(k) + 0.5) / float(rays) + cx);
+        float u1 = fract(float(k) * 0.6180339887498949 + cy);
+        float r = sqrt(u0), phi = TWO_PI * u1;
+        RtRay ray;
+        ray.o = p + eps * ng;
+        ray.d = rt_above(normalize(t * (r * cos(phi)) + b * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - u0))), ng);
+        ray.w = vec3(1.0);
+        ray.depth = 0;
+        for (int s = 0; s < AO_SEGMENTS; ++s) {
+            BvhHit h;
+            if (!bvh_closest(ray.o, ray.d, 0.0, BVH_INF, h)) {
+                sky += ray.w;
+                break;
+            }
+            vec3 v0 = bvh_vertex(h.tri, 0), v1 = bvh_vertex(h.tri, 1), v2 = bvh_vertex(h.tri, 2);
+            float bu = h.uv.x, bv = h.uv.y, bw = 1.0 - bu - bv;
+            vec3 hp = bw * v0 + bu * v1 + bv * v2;
+            vec3 hg = cross(v1 - v0, v2 - v0);
+            hg = dot(hg, hg) > 0.0 ? normalize(hg) : -ray.d;
+            vec3 hn = bw * bvh_vertex_normal(h.tri, 0) + bu * bvh_vertex_normal(h.tri, 1) + bv * bvh_vertex_normal(h.tri, 2);
+            hn = dot(hn, hn) > 0.0 ? normalize(hn) : hg;
+            int row = bvh_material(h.tri);
+            uint hlobes = uint(rt_texel(row, RT_T_INFO).z + 0.5);
+            bool entering = dot(hg, ray.d) < 0.0;
+            if (rt_glass(hlobes) && !entering) ray.w *= exp(-rt_texel(row, RT_T_SIGMA).xyz * h.t);  // Bouguer
+            if (!lobe_is_delta(hlobes)) {
+                vec3 ngs = entering ? hg : -hg;
+                occ += ray.w * rt_occluder(row, hp, dot(hn, ngs) < 0.0 ? -hn : hn, ngs, -ray.d);
+                break;
+            }
+            if (s == AO_SEGMENTS - 1) {   // out of bounces: taken as leaving
+                sky += ray.w;
+                break;
+            }
+            RtRay ra, rb;
+            int m = rt_interface(row, hlobes, hp, ray.d, hn, hg, ray.w, 0, 0, ra, rb);
+            if (m == 2 && rt_max(rb.w) > rt_max(ra.w)) { RtRay q = ra; ra = rb; rb = q; }
+            if (m == 2) sky += rb.w;      // the lighter branch: taken as leaving
+            ray = ra;
+        }
+    }
+    return sky * (e_open / float(rays)) + occ * (PI / float(rays));
+}
+#endif
 
 // The radiance arriving along the rays the camera's hit (row, lobes) scatters into.
 vec3 rt_chain(uint lobes, vec3 p, vec3 d, vec3 n, vec3 ng_w, int channel) {

@@ -40,8 +40,9 @@ uniform int u_transmit_on;
 uniform vec3 u_sigma_a;                  // absorption inside a transmissive material [1/m]
 uniform float u_ior;
 uniform sampler2D u_thickness;           // distance to the nearest back face (0 = none)
-#ifdef RAYTRACE
-// mirrors and smooth glass trace their specular chains (common/specular_chain.glsl): every
+#if defined(RAYTRACE) || defined(ENV_OCCLUSION)
+// mirrors and smooth glass trace their specular chains (common/specular_chain.glsl), and with
+// ENV_OCCLUSION every surface its environment's occlusion: every
 // material comes from u_mat_tex (MAT_TEXTURE), this object's at float offset u_mat_base
 uniform int u_mat_base;
 #define MAT_BASE u_mat_base
@@ -71,7 +72,7 @@ out vec4 frag_color;
 const bool SSR_ON = false;
 #endif
 
-#ifdef RAYTRACE
+#if defined(RAYTRACE) || defined(ENV_OCCLUSION)
 #include "common/specular_chain.glsl"
 #endif
 
@@ -211,8 +212,17 @@ void main() {
             first_fcos = f * max(cos_i, 0.0);
         }
         if (cos_i <= 0.0 || dot(ng, wi_w) <= 0.0) continue;
+#ifdef GLASS_SHADOW
+        // glass casters let their transmittance through (common/shadow.glsl); a transmissive
+        // surface (rough glass) takes the opaque casters' shadow alone: the glass atlas holds its
+        // own optical depth, which would darken the light it reflects
+        vec3 vis = u_transmit_on != 0 ? vec3(shadow_visibility(i, is_point, u_light_pos[i], v_position, ng, dot(ng, wi_w)))
+                                      : shadow_transmittance(i, is_point, u_light_pos[i], v_position, ng, dot(ng, wi_w));
+        if (i == 0) first_visibility = luminance(vis);
+#else
         float vis = shadow_visibility(i, is_point, u_light_pos[i], v_position, ng, dot(ng, wi_w));
         if (i == 0) first_visibility = vis;
+#endif
         vec3 f_ms = u_ms_on != 0 ? ms_kulla_conty(cos_i, wo.z) : vec3(0.0);
         radiance += (f + f_ms) * e * cos_i * vis;
     }
@@ -248,7 +258,14 @@ void main() {
                 // part sees the irradiance (order-2 spherical harmonics). Exact for a constant
                 // environment; no occlusion.
                 // (with SSR the pass replaces the specular term where its ray hits the scene)
+#ifdef ENV_OCCLUSION
+                // traced mode: the diffuse part's irradiance with the scene's occlusion traced in
+                // the BVH (common/specular_chain.glsl rt_occluded_irradiance)
+                radiance += rho_d * rt_occluded_irradiance(v_position, n, ng, AO_RAYS) * INV_PI
+                          + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
+#else
                 radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
+#endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
                     // energy; bounces return the geometric series F_ms = FssEss F_avg /

@@ -15,10 +15,10 @@ import numpy as np
 from viewer.scene.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE
-from viewer.gl.program_set import BACKGROUND, THICKNESS, absorbing, frame_switches, scene_traces
+from viewer.gl.program_set import BACKGROUND, SHADOW_GLASS, THICKNESS, absorbing, frame_switches, scene_traces
 from viewer.gl.raytrace import chain_traces, dispersive
 from viewer.gl.shaders import set_uniform as _set
-from viewer.gl.shadow import ShadowMaps, shadow_lights
+from viewer.gl.shadow import ShadowMaps, glass_shadows, shadow_lights
 from viewer.gl.targets import ThicknessPass
 
 
@@ -94,7 +94,8 @@ class FramePasses:
         """Render a frame into the linear HDR target; returns the resolved float texture."""
         f = self.begin(scene, camera, width, height, view_mode, msaa, raytrace, region)
         if f.shadows:
-            self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects)
+            glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
+            self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects, glass)
         thickness = self.environment(scene, f)
         if f.region is not None:  # applied by every use() of the frame's colour target
             f.targets.draw_fbo.scissor = f.region

@@ -1,7 +1,7 @@
 """The forward pass's draws of a frame's objects: one instanced draw per mesh and material with the
 forward-program variant of its material, then the untraced thin shells over the opaque frame,
 back to front with dual-source blending; and the traced mask, the pixels whose front-most surface
-is drawn with a traced chain (the window's progressive trace)."""
+is drawn with a traced chain or a traced environment occlusion (the window's progressive trace)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from viewer.gl import texture_units
 from viewer.gl.constants import IBL_MODES, MAT_FLOATS
 from viewer.gl.context import release_gl
 from viewer.gl.meshes import group_by, instance_data
-from viewer.gl.program_set import TRACED_MASK, forward_args, scene_traces, thin_shell
+from viewer.gl.program_set import TRACED_MASK, env_occluded, forward_args, frame_switches, scene_traces, thin_shell
 from viewer.gl.raytrace import MAX_SEGMENTS as RT_MAX_SEGMENTS
 from viewer.gl.raytrace import chain_traces
 from viewer.gl.shaders import ShaderError
@@ -73,7 +73,7 @@ class ObjectDraws:
                 if custom_fis:
                     _set(prog, "u_ibl_mode", IBL_MODES["fis"])
                 ready.add(id(prog))
-            if traced:  # every frame: the shadow atlas and IBL share no units with these
+            if traced or args["env_occlusion"]:  # every frame: the shadow atlas and IBL share no units with these
                 rt[0].bind(prog, first_unit=texture_units.TRACED)
                 row = rt[0].rows[obj.material]
                 _set(prog, "u_rt_row", row)
@@ -156,8 +156,11 @@ class ObjectDraws:
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
         _set(prog, "u_view_proj", gl_bytes(cam.projection(w / h) @ cam.view()))
+        env_on = frame_switches(scene, raytrace)[1]
         for obj in scene.objects:  # one draw each, in the forward pass's order (u_traced per object)
-            _set(prog, "u_traced", float(chain_traces(scene.materials[obj.material])))
+            params = scene.materials[obj.material]
+            # a chain, or the environment's occlusion traced in the BVH (program_set.env_occluded)
+            _set(prog, "u_traced", float(chain_traces(params) or env_occluded(params, env_on, True)))
             self.meshes.get(obj.mesh_data).draw(prog, instance_data([obj]))
         return np.frombuffer(tex.read(alignment=1), np.uint8).reshape(h, w) > 127
 

@@ -14,6 +14,7 @@ from viewer import brdf
 from viewer.gl.programs import FORWARD_STAGES, ProgramCache, Recipe, forward_variant
 from viewer.gl.raytrace import chain_traces, dispersive
 from viewer.gl.shaders import ShaderError
+from viewer.gl.shadow import glass_shadows
 
 FIXED = {
     "forward:lambert": Recipe(*FORWARD_STAGES),
@@ -24,6 +25,7 @@ FIXED = {
 BACKGROUND = Recipe("passes/fullscreen.vert", "passes/background.frag")
 THICKNESS = Recipe("passes/forward.vert", "passes/thickness.frag")
 TRACED_MASK = Recipe("passes/forward.vert", "passes/traced_mask.frag")
+SHADOW_GLASS = Recipe("passes/shadow_glass.vert", "passes/shadow_glass.frag")
 
 
 def brdf_spec(params):
@@ -67,13 +69,22 @@ def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, 
     of ``scene`` with these switches (``traced_frame``: the frame traces specular chains)."""
     traced = traced_frame and chain_traces(params)
     shell = not traced and thin_shell(params)
+    occlusion = env_occluded(params, env_on, traced_frame)
     # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
     # environment light is importance sampled (fis, or brute force when asked for)
     custom_fis = brdf.is_file(params) and env_on and scene.render.ibl == "split_sum"
     ibl_sampled = env_on and scene.render.ibl in ("fis", "brute_force")
     return {"ssr": ssr_on and not shell, "ibl_sampled": ibl_sampled or custom_fis, "env_light": env_on,
-            "env_constant": env_constant, "traced": list(scene.materials.values()) if traced else None,
-            "dispersion": traced and dispersive(scene), "shell": shell}
+            "env_constant": env_constant, "traced": list(scene.materials.values()) if traced or occlusion else None,
+            "dispersion": traced and dispersive(scene), "shell": shell, "glass_shadow": glass_shadows(scene),
+            "env_occlusion": occlusion}
+
+
+def env_occluded(params, env_on: bool, traced_frame: bool) -> bool:
+    """Whether a traced frame traces the environment's occlusion in the scene's BVH for
+    ``params`` (its diffuse environment term, and that of the surfaces its chains meet): every
+    material the environment lights in a traced frame but an untraced thin shell."""
+    return traced_frame and env_on and (chain_traces(params) or not thin_shell(params))
 
 
 class ProgramSet:
@@ -135,11 +146,13 @@ class ProgramSet:
 
     def forward_program(self, params, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
-                        traced=None, dispersion: bool = False, shell: bool = False):
+                        traced=None, dispersion: bool = False, shell: bool = False, glass_shadow: bool = False,
+                        env_occlusion: bool = False):
         """The forward program of a material and variant (``Renderer.forward_program``)."""
         key, models, defines = forward_variant(params, ssr=ssr, ibl_sampled=ibl_sampled,
                                                env_light=env_light, env_constant=env_constant, traced=traced,
-                                               dispersion=dispersion, shell=shell)
+                                               dispersion=dispersion, shell=shell, glass_shadow=glass_shadow,
+                                               env_occlusion=env_occlusion)
         prog = self.programs.get(key)  # the per-frame path: no recipe built when cached
         if prog is not None:
             return prog

@@ -242,7 +242,8 @@ FORWARD_STAGES = ("passes/forward.vert", "passes/forward.frag", "passes/forward.
 
 def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
                     env_light: bool = True, env_constant: bool = False, traced=None,
-                    dispersion: bool = False, shell: bool = False) -> tuple[str, tuple[str, ...], dict[str, str]]:
+                    dispersion: bool = False, shell: bool = False, glass_shadow: bool = False,
+                    env_occlusion: bool = False) -> tuple[str, tuple[str, ...], dict[str, str]]:
     """(cache key, BRDF models, ``#define``s) of the forward program that draws a material.
 
     Its models are the material's (and a nested base's); ``traced``: the scene's materials
@@ -251,8 +252,13 @@ def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
     in the per-pixel environment sampling of the fis and brute_force modes (software GL pays
     for untaken loops). ``shell``: a thin shell (a dielectric of ior 1), drawn after the opaque
     objects with dual-source blending (its transmittance multiplies what lies behind it; never
-    with SSR's extra outputs). The materials' own variants come from ``program_defines``."""
+    with SSR's extra outputs). ``glass_shadow``: the lights pass through the glass casters' atlas
+    (viewer/gl/shadow.py; a scene with glass and shadows). ``env_occlusion``: the diffuse
+    environment term is traced for occlusion in the scene's BVH (a traced frame; it makes the
+    program read the scene's textures as ``traced`` does). The materials' own variants come from
+    ``program_defines``."""
     from viewer.gl.brdf_glsl import models_used, program_defines
+    from viewer.gl.raytrace import chain_traces
 
     if shell and ssr:
         raise ValueError("a thin shell's program has no SSR outputs (it blends into the radiance alone)")
@@ -260,12 +266,17 @@ def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
     materials = [params]
     if traced is not None:
         traced = list(traced)
+    elif env_occlusion:
+        raise ValueError("environment occlusion traces the scene: pass its materials as traced")
+    if traced is not None:
         scene_models = sorted(dict.fromkeys(m for p in traced for m in models_used(p)))
         used = tuple(dict.fromkeys(used + tuple(scene_models)))
         materials += traced
     flags = {"SSR": ssr, "IBL_SAMPLED": ibl_sampled, "ENV_LIGHT": env_light,
-             "ENV_CONSTANT": env_constant, "RAYTRACE": traced is not None, "MAT_TEXTURE": traced is not None,
-             "RT_DISPERSION": traced is not None and dispersion, "THIN_SHELL": shell}
+             "ENV_CONSTANT": env_constant, "RAYTRACE": traced is not None and chain_traces(params),
+             "MAT_TEXTURE": traced is not None,
+             "RT_DISPERSION": traced is not None and dispersion, "THIN_SHELL": shell,
+             "GLASS_SHADOW": glass_shadow, "ENV_OCCLUSION": env_occlusion}
     defines = {k: "1" for k, on in flags.items() if on}
     defines.update(program_defines(materials))
     key = ("forward:" + "+".join(used) + (":ssr" if ssr else "")
@@ -273,5 +284,6 @@ def forward_variant(params, *, ssr: bool = False, ibl_sampled: bool = False,
            + (":const" if env_constant else "") + (":rt" if traced is not None else "")
            + (":disp" if traced is not None and dispersion else "") + (":film" if "THIN_FILM" in defines else "")
            + (":coatfilm" if "COAT_FILM" in defines else "")
-           + (":aniso" if "MEASURED_ANISO" in defines else "") + (":shell" if "THIN_SHELL" in defines else ""))
+           + (":aniso" if "MEASURED_ANISO" in defines else "") + (":shell" if "THIN_SHELL" in defines else "")
+           + (":gshadow" if glass_shadow else "") + (":envocc" if env_occlusion else ""))
     return key, used, defines

@@ -110,13 +110,14 @@ class Renderer:
 
     def forward_program(self, params, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
-                        traced=None, dispersion: bool = False, shell: bool = False):
+                        traced=None, dispersion: bool = False, shell: bool = False, glass_shadow: bool = False,
+                        env_occlusion: bool = False):
         """The forward program for a material (its model, and a nested base model if any); the
         variants are ``programs.forward_variant``'s (``traced``: the scene's materials, for a
         mirror or smooth glass whose specular chain is traced; ``shell``: a thin shell's)."""
         return self.program_set.forward_program(params, ssr=ssr, ibl_sampled=ibl_sampled, env_light=env_light,
                                                 env_constant=env_constant, traced=traced, dispersion=dispersion,
-                                                shell=shell)
+                                                shell=shell, glass_shadow=glass_shadow, env_occlusion=env_occlusion)
 
     def forward_keys(self, scene, raytrace: bool | None = None) -> dict[str, str]:
         """material name -> the key of the forward program a frame of ``scene`` draws its

@@ -3,7 +3,16 @@ the rasterizer draws the scene's other lights, up to MAX_LIGHTS, without shadows
 Light i owns row i of the atlas: a point light six perspective tiles (one per cube face, a little
 wider than 90 degrees, each cropped to the part of its face the casters cover), a directional
 light one orthographic tile over the scene's bounds. The
-atlas is rendered again only when a light or an object moves."""
+atlas is rendered again only when a light or an object moves (or a glass caster's material
+changes).
+
+Glass (``glass_casters``: the objects of a transmissive material) is left out of the depth
+atlas and casts a translucent shadow instead: a second atlas of the same tiles (RGBA16F) holds
+the optical depth tau that the glass in front of the nearest opaque caster adds along each
+light ray (its faces depth-tested against the opaque depth, added up; shaders/passes/
+shadow_glass.frag says what each face adds), and the forward pass multiplies the light by
+exp(-tau). A scene without glass renders exactly as before: no second atlas, no shader variant
+(``glass_shadows``)."""
 
 from __future__ import annotations
 
@@ -11,6 +20,8 @@ import math
 
 import numpy as np
 
+from viewer import brdf
+from viewer.brdf import thin_film
 from viewer.scene.camera import gl_bytes, look_at, orthographic, perspective
 from viewer.gl import texture_units
 from viewer.gl.constants import SHADOW_LIGHTS
@@ -27,6 +38,61 @@ _FACES = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 1)
 def shadow_lights(scene):
     """The lights the rasterizer casts shadows of: the first SHADOW_LIGHTS (it draws them all)."""
     return scene.lights[:SHADOW_LIGHTS]
+
+
+def transmissive(params) -> bool:
+    """A material that lets light through (glass, rough glass, a thin shell)."""
+    return bool(brdf.get(params.model).spec.transmissive)
+
+
+def glass_casters(scene) -> list:
+    """The objects that cast a translucent shadow: those of a transmissive material."""
+    return [o for o in scene.objects if transmissive(scene.materials[o.material])]
+
+
+def glass_shadows(scene) -> bool:
+    """Whether a frame of ``scene`` draws translucent shadows (the GLASS_SHADOW variant of the
+    forward program and the glass atlas): shadows on, a shadowed light, and a glass caster."""
+    return bool(scene.render.shadows) and len(shadow_lights(scene)) > 0 and bool(glass_casters(scene))
+
+
+# how the glass pass finds a caster's path length (shaders/passes/shadow_glass.frag SHAPE_*)
+SHAPE_CLOSED, SHAPE_SPHERE, SHAPE_BOX, SHAPE_OPEN = 0, 1, 2, 3
+
+
+def glass_shape(obj) -> int:
+    """The built-in sphere with one scale is a sphere and the built-in cube a box (their exact
+    refracted path lengths), the plane is open (no inside), any other mesh a closed one (the
+    straight chord along the light's ray)."""
+    scale = np.broadcast_to(np.asarray(obj.scale, float), (3,))
+    if obj.mesh == "sphere" and np.ptp(scale) == 0.0:
+        return SHAPE_SPHERE
+    if obj.mesh == "cube":
+        return SHAPE_BOX
+    if obj.mesh == "plane":
+        return SHAPE_OPEN
+    return SHAPE_CLOSED
+
+
+def _glass_uniforms(scene, obj) -> dict:
+    """The glass pass's uniforms of one caster (its material and shape)."""
+    params = scene.materials[obj.material]
+    sigma = np.asarray(params.get("sigma_a", [0.0, 0.0, 0.0]), float) * np.ones(3)
+    ior = float(params.get("ior", 1.5))
+    name = params.get("spectral", "none")
+    if brdf.is_dispersive(params) and name not in (None, "none"):
+        from viewer import spectral
+
+        ior = float(np.mean(spectral.channel_ior(name)))  # one index: the caustic is left out anyway
+    film = thin_film.film_of(params) if brdf.has_film(params) else None
+    film_v = (0.0, 0.0, -1.0, 0.0) if film is None else (
+        float(film.ior), float(film.thickness_nm), float(film.get("thickness_top_nm", -1.0)), 1.0)
+    y0, y1 = obj.y_range()
+    scale = np.broadcast_to(np.asarray(obj.scale, float), (3,))
+    return {"u_ior": ior, "u_sigma_a": tuple(float(x) for x in sigma), "u_shape": glass_shape(obj),
+            "u_center": tuple(float(x) for x in obj.translate), "u_radius": float(scale[0]),
+            "u_world_to_local": gl_bytes(np.linalg.inv(obj.model_matrix())),
+            "u_film": film_v, "u_film_y": (float(y0), float(y1))}
 
 
 def unshadowed_note(scene) -> str | None:
@@ -91,18 +157,24 @@ class ShadowMaps:
     def __init__(self, ctx):
         self.ctx = ctx
         self._atlas = None  # {"tex", "fbo", "rows"}
+        self._glass = None  # the glass atlas: {"tex", "fbo", "rows"}, while the scene has glass
         self._key = None
         self._mats = np.zeros((SHADOW_LIGHTS * 6, 4, 4))
         self._texel = np.zeros(SHADOW_LIGHTS)
         self._face_tan = np.zeros(SHADOW_LIGHTS * 6)
 
-    def update(self, scene, prog, draw):
+    def update(self, scene, prog, draw, glass_prog=None):
         """Render the atlas with the shadow program ``prog`` unless the lights and objects are
-        where they were; ``draw(objects, prog)`` draws the objects (instanced by mesh)."""
+        where they were; ``draw(objects, prog)`` draws the objects (instanced by mesh).
+        ``glass_prog``: the glass pass's program (``shadow_glass``), needed when the scene has
+        glass casters (``glass_shadows``), which it draws into the glass atlas."""
         lights = shadow_lights(scene)
+        glass = glass_casters(scene) if glass_prog is not None else []
+        glass_ids = {id(o) for o in glass}
         key = (tuple((l.type, tuple(np.round(l.position, 9)), tuple(np.round(l.direction, 9))) for l in lights),
                tuple((id(o.mesh_data), np.asarray(o.translate, float).tobytes(), np.asarray(o.scale, float).tobytes(),
-                      float(o.rotate_y_deg)) for o in scene.objects))   # what the model matrices are made of
+                      float(o.rotate_y_deg)) for o in scene.objects),   # what the model matrices are made of
+               tuple(repr(sorted(_glass_uniforms(scene, o).items())) for o in glass))
         if key == self._key and self._atlas is not None:
             return
         rows = max(1, len(lights))
@@ -117,6 +189,7 @@ class ShadowMaps:
             tex.repeat_y = False
             self._atlas = {"tex": tex, "fbo": ctx.framebuffer(depth_attachment=tex), "rows": rows}
         mats = self._matrices(scene, lights)
+        opaque = [o for o in scene.objects if id(o) not in glass_ids] if glass else scene.objects
         fbo = self._atlas["fbo"]
         fbo.use()
         fbo.clear(depth=1.0)
@@ -128,10 +201,53 @@ class ShadowMaps:
             for f in faces:
                 fbo.viewport = (f * S, i * S, S, S)
                 _set(prog, "u_mvp", gl_bytes(mats[i * 6 + f]))
-                draw(scene.objects, prog)
+                draw(opaque, prog)
         ctx.polygon_offset = (0.0, 0.0)
+        if glass:
+            self._draw_glass(scene, lights, mats, glass, glass_prog, draw)
+        elif self._glass is not None:
+            self._release_glass()
         self._mats = mats
         self._key = key
+
+    def _draw_glass(self, scene, lights, mats, glass, prog, draw):
+        """The glass atlas: every glass caster's faces in front of the opaque depth add their
+        optical depth (additive blending, no depth writes)."""
+        S = SHADOW_TILE
+        ctx = self.ctx
+        rows = self._atlas["rows"]
+        if self._glass is None or self._glass["rows"] != rows:
+            self._release_glass()
+            tex = ctx.texture((6 * S, rows * S), 4, dtype="f2")
+            tex.filter = (ctx.LINEAR, ctx.LINEAR)
+            tex.repeat_x = False
+            tex.repeat_y = False
+            fbo = ctx.framebuffer(color_attachments=[tex], depth_attachment=self._atlas["tex"])
+            self._glass = {"tex": tex, "fbo": fbo, "rows": rows}
+        fbo = self._glass["fbo"]
+        fbo.use()
+        fbo.depth_mask = False   # before the clear too: the depth is the opaque casters', kept
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.enable(ctx.DEPTH_TEST | ctx.BLEND)
+        ctx.disable(ctx.CULL_FACE)   # both faces: where the light enters and where it leaves
+        ctx.blend_func = (ctx.ONE, ctx.ONE)
+        per_object = [_glass_uniforms(scene, o) for o in glass]
+        try:
+            for i, light in enumerate(lights):
+                point = light.type == "point"
+                _set(prog, "u_point", int(point))
+                _set(prog, "u_light", tuple(float(x) for x in (light.position if point else light.direction)))
+                for f in (range(6) if point else range(1)):
+                    fbo.viewport = (f * S, i * S, S, S)
+                    _set(prog, "u_mvp", gl_bytes(mats[i * 6 + f]))
+                    for obj, uniforms in zip(glass, per_object):
+                        for k, v in uniforms.items():
+                            _set(prog, k, v)
+                        draw([obj], prog)
+        finally:
+            fbo.depth_mask = True
+            ctx.disable(ctx.BLEND)
+            ctx.blend_func = ctx.DEFAULT_BLENDING
 
     def _matrices(self, scene, lights) -> np.ndarray:
         """The light-space view-projection of every tile (and the world size of a directional
@@ -166,10 +282,19 @@ class ShadowMaps:
                 self._texel[i] = 2.0 * radius / S
         return mats
 
+    @property
+    def glass_atlas(self):
+        """The glass casters' atlas (a texture), or None while the scene has no glass caster."""
+        return None if self._glass is None else self._glass["tex"]
+
     def bind(self, unit: int = texture_units.SHADOW_ATLAS) -> dict:
         """Bind the atlas to texture ``unit``; the uniforms the forward pass reads it with."""
         self._atlas["tex"].use(location=unit)
-        return {
+        out = {}
+        if self._glass is not None:
+            self._glass["tex"].use(location=texture_units.GLASS_SHADOW)
+            out["u_shadow_glass"] = texture_units.GLASS_SHADOW
+        return out | {
             "u_shadow_atlas": unit,
             "u_shadow_mat": b"".join(gl_bytes(m) for m in self._mats),
             "u_shadow_atlas_tiles": (6.0, float(self._atlas["rows"])),
@@ -178,7 +303,13 @@ class ShadowMaps:
             "u_shadow_face_tan": self._face_tan.astype("f4").tobytes(),
         }
 
+    def _release_glass(self):
+        if self._glass is not None:
+            release_gl(self._glass["fbo"], self._glass["tex"])
+            self._glass = None
+
     def release(self):
+        self._release_glass()
         if self._atlas is not None:
             release_gl(self._atlas["fbo"], self._atlas["tex"])
             self._atlas = None

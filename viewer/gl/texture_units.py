@@ -15,6 +15,7 @@ MAX_UNITS = 16   # GL_MAX_TEXTURE_IMAGE_UNITS is at least 16 in OpenGL 4.1
 
 SHADOW_ATLAS = 0   # the shadow maps' atlas (viewer/gl/shadow.py)
 THICKNESS = 1      # the thickness of absorbing objects (viewer/gl/targets.py)
+GLASS_SHADOW = 2   # the glass casters' optical depth, beside the shadow atlas (viewer/gl/shadow.py)
 SSR_INPUTS = 0     # the SSR pass: colour mips, specular, geometry (0 .. 2) and the Hi-Z pyramid (3)
 SSR_HIZ = SSR_INPUTS + 3
 IBL = 4            # map, prefiltered, DFG table, cube map: IBL .. IBL + 3 (viewer/gl/ibl.py)
@@ -29,7 +30,7 @@ SECOND_SOURCE = 1  # ... its second input (the albedo tables' reduction: transmi
 
 #: program -> {what it reads: (first unit, how many)}
 PROGRAMS = {
-    "forward": {"shadow atlas": (SHADOW_ATLAS, 1), "thickness": (THICKNESS, 1), "environment": (IBL, IBL_COUNT),
+    "forward": {"shadow atlas": (SHADOW_ATLAS, 1), "thickness": (THICKNESS, 1), "glass shadow": (GLASS_SHADOW, 1), "environment": (IBL, IBL_COUNT),
                 "traced chains": (TRACED, TRACED_COUNT), "measured table": (MEASURED, 1)},
     "background": {"environment": (IBL, IBL_COUNT)},
     "ssr trace": {"ssr inputs": (SSR_INPUTS, 4), "environment": (IBL, IBL_COUNT), "background": (SSR_BACK, 1)},

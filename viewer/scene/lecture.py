@@ -87,6 +87,11 @@ _SKY = _env('map = "sky"\nintensity = 0.006')
 _SKY_EV = 3.0
 
 
+# what the raster leaves out where smooth surfaces bend or mirror light onto others (steps 2, 3, 10,
+# 11, 13): its shadows let light through glass (Fresnel and Bouguer) but do not focus it
+_NO_CAUSTICS = " Raster: no caustics (light focused by smooth surfaces; reference only)."
+
+
 def _one_ball(preset: str) -> str:
     """One sphere of ``preset`` on the floor under the key light and dim surroundings (a constant
     0.08 that lights the raster too, as it lights the reference): the setting of the single-lobe
@@ -100,17 +105,18 @@ TOUR: tuple[Step, ...] = (
          "Perfectly diffuse: the same radiance toward every viewer; shading follows cos(theta_i) alone.",
          _one_ball("lecture_lambert"), "polar"),
     Step("fresnel", "Mirror and glass with Fresnel",
-         "Air-glass n = 1.5: 4% reflected head-on, rising to 100% at grazing angles (the black glass's "
-         "rims). The clear ball refracts what lies behind it: "
-         "floor and sky upside down.",
+         "Air-glass n = 1.5: 4% reflected head-on, 100% at grazing angles (the black glass's rims). "
+         "The clear ball refracts what lies behind it: floor and sky upside down."
+         + _NO_CAUSTICS,
          _scene(_camera(), _SKY, _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
                 _sphere("black_glass", -0.75),
                 _sphere("glass", 0.75), _FLOOR_MAT,
                 '[materials.black_glass]\nmodel = "mirror"\nfresnel = "dielectric"\nior = 1.5\n',
                 _mat("glass", "lecture_air_glass")), "fresnel"),
     Step("tir", "Total internal reflection",
-         "Inside glass beyond the critical angle asin(1/1.5) = 41.8 deg all light reflects: the bottom "
-         "turns into a mirror, so the near faces' lower half shows the sky, not the floor.",
+         "Inside glass past the critical angle asin(1/1.5) = 41.8 deg all light reflects: the bottom "
+         "turns into a mirror, the near faces' lower half showing the sky."
+         + _NO_CAUSTICS,
          _scene(_camera((0.0, 1.9, 3.2), (0.0, 0.45, 0.0)), _SKY,
                 _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
                 '[[objects]]\nmesh = "cube"\nmaterial = "glass"\nscale = 0.55\n'
@@ -154,16 +160,16 @@ TOUR: tuple[Step, ...] = (
          _scene(_camera(), _STUDIO, _render("split_sum"), _KEY_LIGHT, _FLOOR, _sphere("ball"), _GREY_FLOOR_MAT,
                 _mat("ball", "lecture_layered")), "albedo"),
     Step("absorbing_glass", "Absorbing glass (Bouguer / Beer-Lambert)",
-         "Transmittance exp(-sigma_a d) over each traced path: the floor and sky seen through the big "
-         "sphere come out a deeper green than through the small one, darkest where the path is longest.",
+         "Transmittance exp(-sigma_a d) over each traced path: the floor and sky through the big sphere "
+         "come out a deeper green than through the small one."
+         + _NO_CAUSTICS,
          _scene(_camera(), _SKY, _render("split_sum", raytrace=True, exposure=_SKY_EV), _FLOOR,
                 _sphere("glass_big", -0.6, 0.7),
                 _sphere("glass_small", 0.9, 0.3), _FLOOR_MAT, _mat("glass_big", "lecture_absorbing_glass"),
                 _mat("glass_small", "lecture_absorbing_glass")), "bouguer"),
     Step("complex_ior", "Complex IOR: gold, silver, copper",
-         "n + i k measured per wavelength (Johnson & Christy 1972): gold and copper absorb the blue end "
-         "(n rises, k falls below 500-600 nm), silver reflects all; their colours show in the white floor "
-         "each one mirrors (traced reflections).",
+         "n + i k per wavelength (Johnson & Christy 1972): gold and copper absorb the blue end, silver "
+         "reflects all; their colours show in the white floor each one mirrors." + _NO_CAUSTICS,
          _scene(_camera(fov=40.0), _SKY, _render("split_sum", raytrace=True), _KEY_LIGHT, _FLOOR,
                 _sphere("gold", -1.3, 0.55), _sphere("silver", 0.0, 0.55), _sphere("copper", 1.3, 0.55),
                 '[materials.floor]\nmodel = "lambert"\nalbedo = [0.8, 0.8, 0.8]\n',
@@ -187,8 +193,9 @@ TOUR: tuple[Step, ...] = (
                 '[materials.flint]\nmodel = "dielectric"\nspectral = "SF11"\n',
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
     Step("soap_bubble", "Soap bubbles: thin-film interference",
-         "Water films in air: light reflected at a film's two faces interferes; the colour shifts with "
-         "angle. The shells are clear (ior 1, no refraction): the floor shows through, both faces reflect.",
+         "Water films in air: light reflected at a film's two faces interferes, the colour shifting with "
+         "angle. Clear shells (ior 1, no refraction): the floor shows through."
+         + _NO_CAUSTICS,
          _scene(_camera(), _STUDIO, _render("split_sum", raytrace=True), _FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
                 _sphere("thin", 0.75, 0.6, 0.8), _FLOOR_MAT, _mat("bubble", "lecture_soap_bubble"),
                 _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel"),
