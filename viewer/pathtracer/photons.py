@@ -115,7 +115,8 @@ class CausticMap:
         self.it = it
         s = it.s
         _centre, self.scene_radius = caustics.scene_bounds(s)
-        self.n_photons = caustics.photons_per_pass(s.width, s.height)
+        # ``extra["photons_per_pass"]``: a fixed count (tests, benchmarks); else by the image size
+        self.n_photons = int(s.extra.get("photons_per_pass") or caustics.photons_per_pass(s.width, s.height))
         self.r1 = caustics.initial_radius(self.scene_radius, self.n_photons)
         self._grids: OrderedDict = OrderedDict()
 

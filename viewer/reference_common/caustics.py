@@ -52,6 +52,7 @@ NORMAL_COS = 0.9             # a photon counts where |n_p . n_g(x)| >= this (sam
 MAX_PHOTON_BOUNCES = 16      # delta vertices a photon may pass before it is dropped
 PHOTON_RR_START = 4          # Russian roulette on photons from their 4th delta vertex on
 MIN_PHOTONS, MAX_PHOTONS = 1 << 14, 1 << 18
+ENV_BATCH = 4096             # environment directions drawn at once
 #: the random stream of pass i's photons: philox(seed, PHOTON_STREAM, i) (a block id no image uses)
 PHOTON_STREAM = 0x7F0000000000
 
@@ -115,17 +116,23 @@ def _luminance(rgb) -> float:
     return float(np.abs(np.asarray(rgb, dtype=np.float64)) @ LUMINANCE_REC709)
 
 
+def texel_solid_angles(h: int, w: int) -> np.ndarray:
+    """(h,) the exact solid angle of a texel of each row of an (h, w) lat-long map:
+    (2 pi / w) (cos theta_top - cos theta_bottom)."""
+    edges = np.cos(math.pi * np.arange(h + 1) / h)
+    return (2.0 * math.pi / w) * (edges[:-1] - edges[1:])
+
+
 def environment_power(env) -> np.ndarray:
-    """Radiant intensity integral of the environment, int L(w) dw (RGB): 4 pi L for a constant,
-    the texels' radiance times their solid angles for a map."""
+    """The integral of the environment's radiance over the sphere, int L(w) dw (RGB): 4 pi L for a
+    constant, each texel's radiance times its solid angle for a map (the map is piecewise
+    constant, so this is exact, and it is what its importance sampling estimates)."""
     if env.is_black:
         return np.zeros(3)
     if not env.is_map:
         return 4.0 * math.pi * np.asarray(env.constant, dtype=np.float64)
     h, w, _ = env.image.shape
-    sin_t = np.sin(math.pi * (np.arange(h) + 0.5) / h)
-    d_omega = (2.0 * math.pi / w) * (math.pi / h) * sin_t
-    return np.einsum("hwc,h->c", env.image, d_omega)
+    return np.einsum("hwc,h->c", env.image, texel_solid_angles(h, w))
 
 
 def light_powers(setup, radius: float) -> list[tuple[str, int, np.ndarray]]:
@@ -202,7 +209,10 @@ def emit_photons(setup, n: int, rng_or_seed):
         else:
             env = setup.env
             u = rng.random((nk, 4))
-            w, L, pdf = env.sample(u[:, :2], np.broadcast_to([0.0, 0.0, 1.0], (nk, 3)), np.ones(nk, dtype=bool))
+            # in batches: a map's sampling holds a (batch, map width) table of its rows' CDFs
+            parts = [env.sample(u[b:b + ENV_BATCH, :2], np.broadcast_to([0.0, 0.0, 1.0], (min(ENV_BATCH, nk - b), 3)),
+                                np.ones(min(ENV_BATCH, nk - b), dtype=bool)) for b in range(0, nk, ENV_BATCH)]
+            w, L, pdf = (np.concatenate([p[j] for p in parts]) for j in range(3))
             ok = pdf > 0
             w, L, pdf, u = w[ok], L[ok], pdf[ok], u[ok]
             o = _disk_points(u[:, 2:4], centre + R * w, w, R)
@@ -245,7 +255,7 @@ class PhotonGrid:
         self.order = np.argsort(bucket, kind="stable")
         self.positions = pos[self.order]
         self.directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)[self.order]
-        self.powers = np.asarray(powers, dtype=np.float64).reshape(n, -1)[self.order]
+        self.powers = np.asarray(powers, dtype=np.float64).reshape(n, -1)[self.order] if n else np.zeros((0, 3))
         self.normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)[self.order]
         counts = np.bincount(bucket, minlength=self.table_size).astype(np.int32)
         self.count = counts
@@ -302,8 +312,7 @@ def environment_is_peaked(env) -> bool:
     h, w, _ = env.image.shape
     from viewer.brdf.sampling import LUMINANCE_REC709
 
-    sin_t = np.sin(math.pi * (np.arange(h) + 0.5) / h)
-    d_omega = np.broadcast_to(((2.0 * math.pi / w) * (math.pi / h) * sin_t)[:, None], (h, w)).ravel()
+    d_omega = np.broadcast_to(texel_solid_angles(h, w)[:, None], (h, w)).ravel()
     power = (np.abs(env.image @ LUMINANCE_REC709)).ravel() * d_omega
     radiance = power / np.maximum(d_omega, 1e-300)
     order = np.argsort(-radiance, kind="stable")
