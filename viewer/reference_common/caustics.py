@@ -44,7 +44,8 @@ import math
 
 import numpy as np
 
-INTEGRATORS = ("path", "photon")
+from viewer.reference_common.estimator import INTEGRATORS  # ("path", "photon"): the estimator's options check them
+
 INTEGRATOR_LABELS = {"path": "path tracing", "photon": "path tracing + caustic photon map"}
 ALPHA = 2.0 / 3.0            # Knaus & Zwicker's alpha: the share of photons a pass's radius keeps
 NEIGHBOURS = 25              # photons a pass's first gather disk holds if spread evenly (r_1)
@@ -322,31 +323,26 @@ def environment_is_peaked(env) -> bool:
     return k > 0 and float(share[k - 1]) >= PEAK_POWER_SHARE
 
 
-def _delta_names(materials) -> list[str]:
-    return [m.name for m in materials if m.lobes.has_delta]
-
-
 def choose_integrator(setup_or_scene) -> tuple[str, str]:
     """(name, reason): ``photon`` for a scene with smooth (delta) surfaces lit by a point or
     directional light or a peaked environment (a sky's sun), else ``path``; ``reason`` is one
     short clause for the line that says which was picked."""
-    from viewer.reference_common.setup import RenderSetup
-
-    if isinstance(setup_or_scene, RenderSetup):
-        mats, lights, env = setup_or_scene.materials, setup_or_scene.lights, setup_or_scene.env
-        kinds = [k for k, _a, _v in lights]
+    if hasattr(setup_or_scene, "geometry"):       # a RenderSetup (a scene has no triangle soup)
+        lobes = [(m.name, m.lobes) for m in setup_or_scene.materials]
+        kinds = [k for k, _a, _v in setup_or_scene.lights]
+        env = setup_or_scene.env
     else:
+        from viewer import brdf
         from viewer.reference_common.envmap import EnvironmentLight
-        from viewer.reference_common.setup import material_info
 
         sc = setup_or_scene
         used = {o.material for o in sc.objects}
-        mats = [material_info(n, sc.materials[n]) for n in sc.materials if n in used]
+        lobes = [(n, brdf.get(p.model).lobes(p)) for n, p in sc.materials.items() if n in used]
         kinds = [lt.type for lt in sc.lights]
         e = sc.environment
         img = e.radiance_map(256, 128) if e.map is not None else None
         env = EnvironmentLight(image=img, intensity=1.0) if img is not None else EnvironmentLight.from_scene(sc)
-    delta = _delta_names(mats)
+    delta = [name for name, lobe in lobes if lobe.has_delta]
     if not delta:
         return "path", "no smooth (delta) surface, so no caustic"
     what = ", ".join(repr(d) for d in delta[:3]) + (" ..." if len(delta) > 3 else "")
