@@ -160,6 +160,11 @@ def test_environment_photons_carry_its_power():
     setup = RenderSetup.from_scene(load_scene_text(sky))
     _c, R = caustics.scene_bounds(setup)
     want = math.pi * R * R * caustics.environment_power(setup.env)
+    # the photons' directions have the map's own density and radiance (rotated as the map is)
+    setup.env = type(setup.env)(image=setup.env.image, rotation_deg=30.0)
+    w, L, pdf = caustics.sample_environment(setup.env, np.random.default_rng(2).random((4000, 2)))
+    n4 = np.broadcast_to([0.0, 0.0, 1.0], (4000, 3))
+    assert np.allclose(L, setup.env.eval(w)) and np.allclose(pdf, setup.env.pdf(w, n4, np.ones(4000, bool)))
     f = np.concatenate([caustics.emit_photons(setup, 20_000, s)[2] for s in range(4)])
     # the photons are independent: the sum of each pass estimates the power, their mean has the
     # standard error of the photons' spread (unbiased: importance sampled, the map piecewise constant)
