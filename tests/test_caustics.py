@@ -498,3 +498,34 @@ def test_reference_command_says_which_integrator_and_why(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["reference", str(scene_file), "--integrator", "bdpt", "--out", str(out)])
     assert e.value.code == 2 and "argument --integrator: invalid choice: 'bdpt'" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- the window
+
+def test_window_reference_chooses_and_names_its_estimator(tmp_path, monkeypatch):
+    import time
+
+    from viewer.app.compare_view import CompareView
+    from viewer.app.reference_view import ReferenceView
+    from viewer.scene.camera import OrbitCamera
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    scene = load_scene_text(mirror_wall(dict(model="mirror", fresnel="none")))
+    # 80 x 60 pixels: a pass of the view is 4 samples per pixel, each its own photon map
+    rv = ReferenceView(None, scale=1.0, max_depth=2, workers=0, engine="cpu")
+    try:
+        assert rv.estimator_label == ""
+        rv.update(scene, OrbitCamera.from_scene(scene), (80, 60))
+        deadline = time.monotonic() + 120
+        while rv.spp < 1 and time.monotonic() < deadline and not rv.error:
+            time.sleep(0.02)
+        assert rv.spp >= 1 and not rv.error
+        assert rv.setup.integrator == "photon"     # as the command line's default chooses
+        label = rv.estimator_label
+    finally:
+        rv.close()
+    assert label == "path tracing + caustic photon map"
+    cv = CompareView(None)
+    cv.mode = "side by side"
+    assert [t for _, t in cv.overlay_labels((0, 0, 400, 300), 4, estimator=label)] == [
+        "raster", "reference (4 spp, path tracing + caustic photon map)"]
