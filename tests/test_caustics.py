@@ -65,8 +65,8 @@ def passes(it, o, d, n_pass, seed=1, spp=1):
     big_o, big_d = np.tile(o, (spp, 1)), np.tile(d, (spp, 1))
     out = []
     for i in range(n_pass):
-        it.pass_of_path = np.full(big_o.shape[0], i)
-        it.block_seed = seed
+        it.sample_of_path = np.full(big_o.shape[0], i)
+        it.s.extra["seed"] = seed
         L = it.trace(big_o, big_d, lambda: rng.random((big_o.shape[0], DIMS_PER_BOUNCE)))
         out.append(L.reshape(spp, o.shape[0], 3).mean(axis=0))
     return np.array(out)
@@ -404,7 +404,7 @@ def sphere_floor_power(rho, n_pass, photons, h=0.015, seed=1):
         inside = X ** 2 + Z ** 2 < rho * rho
         o = np.stack([X[inside], np.full(inside.sum(), 0.01), Z[inside]], axis=1)
         d = np.broadcast_to([0.0, -1.0, 0.0], o.shape).copy()
-        it.pass_of_path, it.block_seed = np.full(o.shape[0], i), seed
+        it.sample_of_path, it.s.extra["seed"] = np.full(o.shape[0], i), seed
         L = it.trace(o, d, lambda: rng.random((o.shape[0], DIMS_PER_BOUNCE)))[:, 0]
         out.append((L * math.pi / 0.5).sum() * h * h)      # irradiance = pi L / rho_floor, times h^2
     radii = [caustics.pass_radius(it.caustics.r1, i) for i in range(1, n_pass + 1)]
@@ -444,6 +444,7 @@ def block_means(name, seeds, w=24, h=18, spp=2):
     it = Integrator(setup)
     out = []
     for s in seeds:
+        it.s.extra["seed"] = s        # the photon maps' seed (the renderer's, in its setup)
         total, _sq = it.render_block(0, h, range(spp), s, 0)
         img = total[:, :, 1] / spp
         out.append(img.reshape(3, h // 3, 4, w // 4).mean(axis=(1, 3)).ravel())
@@ -529,3 +530,20 @@ def test_window_reference_chooses_and_names_its_estimator(tmp_path, monkeypatch)
     cv.mode = "side by side"
     assert [t for _, t in cv.overlay_labels((0, 0, 400, 300), 4, estimator=label)] == [
         "raster", "reference (4 spp, path tracing + caustic photon map)"]
+
+
+def test_photon_reference_depends_on_its_seed_alone():
+    from viewer.pathtracer import ReferenceRenderer
+
+    scene = load_scene_text(mirror_wall(dict(model="mirror", fresnel="none")))
+
+    def image(seed, steps):
+        with ReferenceRenderer(scene, width=16, height=12, max_depth=2, workers=0, seed=seed,
+                               integrator="photon") as r:
+            for n in steps:
+                r.step(n)
+            return r.mean()
+
+    a = image(1, [2])
+    assert np.array_equal(a, image(1, [1, 1]))        # the same passes, however the steps split them
+    assert not np.array_equal(a, image(2, [2]))       # another seed: other photons and eye samples

@@ -254,8 +254,6 @@ class Integrator:
         self.bad_values = 0
         self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
         # the ``photon`` integrator: caustic paths come from the photon map (viewer/pathtracer/photons.py)
-        self.pass_of_path = None   # the pass (sample index) of each path of the block being traced
-        self.block_seed = 0
         self.caustics = None
         if getattr(setup, "integrator", "path") == "photon":
             from viewer.pathtracer.photons import CausticMap
@@ -323,7 +321,7 @@ class Integrator:
         W = self.s.width
         npix = (row1 - row0) * W
         gens = [philox(seed, block_id, si) for si in samples]
-        self.pass_of_path, self.block_seed = np.repeat(np.asarray(samples, dtype=np.int64), npix), int(seed)
+        self.sample_of_path = np.repeat(np.asarray(samples, dtype=np.int64), npix)
         pix = np.arange(npix)
         rows = np.tile(row0 + pix // W, len(gens))
         cols = np.tile(pix % W, len(gens))

@@ -2,8 +2,9 @@
 schedule and the emission are ``viewer.reference_common.caustics``'s, shared with the GPU engine).
 
 Photon tracing: a pass's photons (``emit_photons``, from the counter-based stream
-``philox(seed, PHOTON_STREAM, pass)``, so a pass's photons depend on the seed and the pass only,
-never on the block or the worker) are traced with the engine's ray kernel. At a material with a
+``philox(seed, PHOTON_STREAM, pass)`` with the renderer's seed, which ``ReferenceRenderer`` puts
+in ``setup.extra["seed"]``; pass = sample index + 1, so a pass's photons depend on the seed and
+the pass only, never on the block or the worker) are traced with the engine's ray kernel. At a material with a
 delta lobe the material's own sampler (``sample_lobe``) draws the next direction; the photon goes
 on only where it drew a delta lobe, its flux times the sample's weight f cos / pdf. At a material
 with a smooth lobe a photon that has passed a delta vertex is stored (position, direction toward
@@ -141,13 +142,15 @@ class CausticMap:
         """Add the photon estimate at the hits of material group ``g`` (paths ``g.act`` with
         throughput ``Tg``) to the paths' radiance."""
         it = self.it
-        pass_of = it.pass_of_path
-        if pass_of is None or pass_of.size != paths.L.shape[0]:   # ``trace`` called outside a block: pass 1
+        # the sample index of each path (pass = sample + 1), as the integrator's block set it
+        sample_of = getattr(it, "sample_of_path", None)
+        if sample_of is None or sample_of.size != paths.L.shape[0]:   # ``trace`` called outside a block: pass 1
             passes = np.zeros(g.k, dtype=np.int64)
         else:
-            passes = pass_of[g.act]
+            passes = sample_of[g.act]
+        seed = int(it.s.extra.get("seed", 0))   # the renderer's seed (ReferenceRenderer puts it there)
         for s_idx in np.unique(passes):
-            grid = self.grid(it.block_seed, int(s_idx) + 1)
+            grid = self.grid(seed, int(s_idx) + 1)
             if len(grid) == 0:
                 continue
             norm = 1.0 / (math.pi * grid.radius * grid.radius)

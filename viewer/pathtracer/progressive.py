@@ -217,8 +217,10 @@ class ReferenceRenderer:
             self._local = _build(setup)
 
     def _make_setup(self, scene, camera, width, height) -> RenderSetup:
-        return self._spectral_setup(scene, RenderSetup.from_scene(
+        setup = self._spectral_setup(scene, RenderSetup.from_scene(
             scene, camera, width, height, self.max_depth, self.env_image, self.kernel, **self.options.as_kwargs()))
+        setup.extra["seed"] = self.seed   # the photon integrator's passes draw their photons from it
+        return setup
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
               russian_roulette=None, integrator=None):
