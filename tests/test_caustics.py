@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from viewer import ViewerError
-from viewer.pathtracer.integrator import DIMS_PER_BOUNCE, Integrator
-from viewer.pathtracer.photons import trace_photons
+from viewer.pathtracer.integrator import DIMS_PER_BOUNCE
+from viewer.pathtracer.photons import integrator_for, trace_photons
 from viewer.reference_common import caustics
 from viewer.reference_common.estimator import EstimatorOptions
 from viewer.reference_common.setup import RenderSetup
@@ -55,7 +55,7 @@ def integrator(text, max_depth=8, photons=None, name="photon"):
                                    integrator=name)
     if photons:
         setup.extra["photons_per_pass"] = photons
-    return Integrator(setup)
+    return integrator_for(setup)
 
 
 def passes(it, o, d, n_pass, seed=1, spp=1):
@@ -441,7 +441,7 @@ def block_means(name, seeds, w=24, h=18, spp=2):
     setup = RenderSetup.from_scene(load_scene_text(broad_light_scene()), width=w, height=h, max_depth=4,
                                    integrator=name)
     setup.extra["photons_per_pass"] = 1 << 14
-    it = Integrator(setup)
+    it = integrator_for(setup)
     out = []
     for s in seeds:
         it.s.extra["seed"] = s        # the photon maps' seed (the renderer's, in its setup)

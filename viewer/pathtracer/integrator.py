@@ -32,10 +32,9 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   leaves on: against the triangle's winding normal (entering or reflecting inside) =
   the material's ``sigma_a``, else none; each segment travelled inside is attenuated by
   ``exp(-sigma_a * distance)`` (Bouguer). Objects are assumed closed and not nested.
-* ``setup.integrator == "photon"``: caustic paths (a smooth vertex, then one or more delta vertices
-  to the light) belong to the caustic photon map (``viewer/pathtracer/photons.py``), which every
-  vertex with a smooth lobe gathers from; the environment reached by a delta lobe after a smooth
-  vertex adds nothing here (``PathState.seen_smooth``), so nothing is counted twice.
+* ``setup.integrator == "photon"``: ``viewer/pathtracer/photons.py``'s subclasses of these
+  integrators leave caustic paths (a smooth vertex, then one or more delta vertices to the light)
+  to a caustic photon map, gathered at every vertex with a smooth lobe.
 
 Shading conventions are the rasterizer's (``shaders/passes/forward.frag``): shading normal =
 normalized interpolation of the world vertex normals; a ray hitting the back face
@@ -179,7 +178,6 @@ class PathState:
         self.prev_pdf = np.zeros(n)
         self.prev_lpdf = np.zeros(n)
         self.prev_delta = np.ones(n, dtype=bool)   # camera rays count as "delta": full environment
-        self.seen_smooth = np.zeros(n, dtype=bool)  # a vertex scattered by a smooth lobe (caustic paths)
 
 
 class _Hits:
@@ -253,12 +251,6 @@ class Integrator:
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
         self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
-        # the ``photon`` integrator: caustic paths come from the photon map (viewer/pathtracer/photons.py)
-        self.caustics = None
-        if getattr(setup, "integrator", "path") == "photon":
-            from viewer.pathtracer.photons import CausticMap
-
-            self.caustics = CausticMap(self, philox)
 
     def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
         self.strategy = strategy
@@ -394,8 +386,6 @@ class Integrator:
             w = np.ones(idx.size)
         else:
             w = np.where(prev_delta[idx], 1.0, 0.0)
-        if self.caustics is not None:  # a caustic path (smooth vertex, then delta ones): the photon map's
-            w = np.where(prev_delta[idx] & paths.seen_smooth[idx], 0.0, w)
         paths.L[idx] += paths.T[idx] * Le * w[:, None]
 
     def _absorb(self, paths: PathState, act, t):
@@ -515,8 +505,6 @@ class Integrator:
                     g.prm = prm
                 if not g.info.lobes.is_delta and (s.lights or env_sample is not None):
                     self._next_event(g, paths, T_before[sel], hits, lights, env_sample, shadows)
-                if self.caustics is not None and g.info.lobes.has_smooth:
-                    self.caustics.gather(g, paths, T_before[sel], hits)
                 self._scatter(g, paths, hits, rnd[sel, 0:2], new)
         self._trace_shadows(paths.L, shadows)
         return new
@@ -551,26 +539,9 @@ class Integrator:
         paths.prev_pdf[act] = new.pdf
         paths.prev_lpdf[act] = new.lpdf
         paths.prev_delta[act] = new.delta
-        paths.seen_smooth[act] |= ~new.delta
         side = np.where(_dot(hits.ng, new.dir) < 0, -1.0, 1.0)
         o = (hits.p + (hits.eps * side)[:, None] * hits.ng)[alive]
         return o, new.dir[alive], act[alive]
-
-    # -- what the photon tracer (viewer/pathtracer/photons.py) shares with the eye paths
-    def surface_hits(self, d, prim, bu, bv) -> "_Hits":
-        """The surface points of rays ``d`` that hit ``prim`` at (bu, bv), in the shading conventions."""
-        return _Hits(self, d, prim, bu, bv)
-
-    def material_groups(self, hits: "_Hits", act):
-        """The hits of paths ``act`` per material (and film thickness), as ``_bounce`` groups them."""
-        for sel in hits.groups():
-            mi = int(hits.mat[sel[0]])
-            for sub, prm in self._film_groups(mi, sel, hits.p, hits.prim):
-                g = _Group(sub, self.s.materials[mi], self.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
-                           hits.ng, mi=mi, act=act[sub])
-                if prm is not None:
-                    g.prm = prm
-                yield g
 
     def _final(self, L):
         """Count and zero NaN / Inf / negative radiance (never expected; see bad_values)."""
@@ -606,3 +577,22 @@ class Integrator:
             new = self._bounce(paths, act, hits, rnd)
             o, d, act = self._continue(paths, act, hits, new, rnd[:, 4], depth)
         return self._final(paths.L)
+
+
+# ----------------------------------------------------------------------------- for the photon tracer
+
+def surface_hits(it: Integrator, d, prim, bu, bv) -> _Hits:
+    """The surface points of rays ``d`` that hit ``prim`` at (bu, bv), in ``it``'s shading conventions."""
+    return _Hits(it, d, prim, bu, bv)
+
+
+def material_groups(it: Integrator, hits: _Hits, act):
+    """The hits of paths ``act`` per material (and film thickness), as ``Integrator._bounce`` groups them."""
+    for sel in hits.groups():
+        mi = int(hits.mat[sel[0]])
+        for sub, prm in it._film_groups(mi, sel, hits.p, hits.prim):
+            g = _Group(sub, it.s.materials[mi], it.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
+                       hits.ng, mi=mi, act=act[sub])
+            if prm is not None:
+                g.prm = prm
+            yield g

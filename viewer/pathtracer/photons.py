@@ -1,6 +1,12 @@
 """The CPU engine's caustic photon map (the ``photon`` integrator; the estimator, its radius
 schedule and the emission are ``viewer.reference_common.caustics``'s, shared with the GPU engine).
 
+``PhotonIntegrator`` and ``SpectralPhotonIntegrator`` are the RGB and spectral integrators with
+three steps extended (``CausticPaths``): every vertex with a smooth lobe gathers from the pass's
+photon map before its bounce; a path remembers whether a vertex scattered by a smooth lobe
+(``seen_smooth``), and the environment reached through a delta lobe after one adds nothing (a
+caustic path: the photon map's), so nothing is counted twice.
+
 Photon tracing: a pass's photons (``emit_photons``, from the counter-based stream
 ``philox(seed, PHOTON_STREAM, pass)`` with the renderer's seed, which ``ReferenceRenderer`` puts
 in ``setup.extra["seed"]``; pass = sample index + 1, so a pass's photons depend on the seed and
@@ -33,6 +39,8 @@ from collections import OrderedDict
 import numpy as np
 
 from viewer.brdf.lobes import drew_delta
+from viewer.pathtracer.integrator import Integrator, material_groups, philox, surface_hits
+from viewer.pathtracer.spectral import SpectralIntegrator
 from viewer.reference_common import caustics
 from viewer.reference_common.estimator import RR_MAX, RR_MIN
 
@@ -62,7 +70,7 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
         inside = np.any(sigma > 0, axis=1)
         if np.any(inside):
             flux[inside] *= np.exp(-sigma[inside] * t[inside, None])
-        hits = it.surface_hits(d, prim, bu, bv)
+        hits = surface_hits(it, d, prim, bu, bv)
         store = has_smooth[hits.mat] & passed
         if np.any(store):
             ng = hits.ng_raw[store]
@@ -79,7 +87,7 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
         w = np.zeros_like(flux)
         keep = np.zeros(prim.size, dtype=bool)
         act = np.arange(prim.size)
-        for g in it.material_groups(hits, act):
+        for g in material_groups(it, hits, act):
             if not g.info.lobes.has_delta:
                 continue
             wi_l, wgt, pdf, lobe = g.model.sample_lobe(g.prm, g.wo, u[g.sel, :2])
@@ -177,3 +185,49 @@ class CausticMap:
                     c = c * share[:, None]
                 c = np.where(valid[:, None], c, 0.0)
                 np.add.at(paths.L, pg.act, c)
+
+
+class CausticPaths:
+    """The ``photon`` integrator's steps over an integrator's (the mixin of ``PhotonIntegrator``
+    and ``SpectralPhotonIntegrator``): the gather, and the path tracer's share of the split."""
+
+    def __init__(self, setup):
+        super().__init__(setup)
+        self.caustics = CausticMap(self, philox)
+
+    def trace_paths(self, paths, o, d, draw):
+        paths.seen_smooth = np.zeros(o.shape[0], dtype=bool)   # a vertex scattered by a smooth lobe
+        return super().trace_paths(paths, o, d, draw)
+
+    def _bsdf_hits_environment(self, paths, idx, d):
+        # a caustic path (a smooth vertex, then delta ones, to the environment): the photon map's
+        keep = ~(paths.prev_delta[idx] & paths.seen_smooth[idx])
+        super()._bsdf_hits_environment(paths, idx[keep], d[keep])
+
+    def _bounce(self, paths, act, hits, rnd):
+        T_before = paths.T[act]
+        for g in material_groups(self, hits, act):
+            if g.info.lobes.has_smooth:
+                self.caustics.gather(g, paths, T_before[g.sel], hits)
+        return super()._bounce(paths, act, hits, rnd)
+
+    def _continue(self, paths, act, hits, new, u_rr, depth):
+        paths.seen_smooth[act] |= ~new.delta
+        return super()._continue(paths, act, hits, new, u_rr, depth)
+
+
+class PhotonIntegrator(CausticPaths, Integrator):
+    """Path tracing plus a progressive caustic photon map, RGB."""
+
+
+class SpectralPhotonIntegrator(CausticPaths, SpectralIntegrator):
+    """Path tracing plus a progressive caustic photon map, hero wavelengths (photons carry RGB)."""
+
+
+def integrator_for(setup):
+    """The CPU integrator of ``setup``: RGB or spectral (``extra["spectral"]``), with the photon
+    map where ``setup.integrator`` is "photon"."""
+    spectral = bool(setup.extra.get("spectral"))
+    if setup.integrator == "photon":
+        return (SpectralPhotonIntegrator if spectral else PhotonIntegrator)(setup)
+    return (SpectralIntegrator if spectral else Integrator)(setup)

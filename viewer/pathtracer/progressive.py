@@ -56,10 +56,10 @@ def _build(setup: RenderSetup) -> Integrator:
     from a worker to the caller of ``step`` intact; a bare ImportError in the pool's
     initializer would only break the pool, with a traceback per worker and no name)."""
     try:
-        if setup.extra.get("spectral"):
-            from viewer.pathtracer.spectral import SpectralIntegrator
+        if setup.extra.get("spectral") or setup.integrator == "photon":
+            from viewer.pathtracer.photons import integrator_for
 
-            return SpectralIntegrator(setup)
+            return integrator_for(setup)
         return Integrator(setup)
     except ImportError as e:
         from viewer import ViewerError
