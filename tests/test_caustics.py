@@ -547,3 +547,29 @@ def test_photon_reference_depends_on_its_seed_alone():
     a = image(1, [2])
     assert np.array_equal(a, image(1, [1, 1]))        # the same passes, however the steps split them
     assert not np.array_equal(a, image(2, [2]))       # another seed: other photons and eye samples
+
+
+def test_spectral_photon_map_lights_the_wall_as_the_rgb_one():
+    """Hero wavelengths: photons carry RGB power, upsampled at the eye path's wavelengths (white
+    light on a grey wall round-trips exactly), so the spectral estimate meets the same closed form."""
+    q = wall_points()
+    o, d = eye_rays_to(q, np.array([0.5, 1.2, 0.0]))
+    setup = RenderSetup.from_scene(load_scene_text(mirror_wall(dict(model="mirror", fresnel="none"))),
+                                   width=64, height=48, integrator="photon")
+    setup.extra.update(spectral=True, photons_per_pass=1 << 15)
+    it = integrator_for(setup)
+    assert type(it).__name__ == "SpectralPhotonIntegrator"
+    rng = np.random.default_rng(4)
+    n, spp, per_pass = q.shape[0], 4, []
+    for i in range(8):
+        it.sample_of_path = np.full(n * spp, i)
+        lam = rng.integers(0, 105, size=n * spp)[:, None] + 105 * np.arange(4)[None, :]
+        Ls = it.trace_spectral(np.tile(o, (spp, 1)), np.tile(d, (spp, 1)), lam, rng.integers(0, 4, n * spp),
+                               lambda: rng.random((n * spp, DIMS_PER_BOUNCE)))
+        rgb = 105.0 * np.einsum("nj,njc->nc", Ls, it.w_bins[lam])
+        per_pass.append(rgb.mean(axis=0).mean())
+    got, se = mean_and_error(per_pass)
+    want = wall_radiance(q).mean()
+    # 4 standard errors of the passes (the wavelengths' colour noise included) plus 1% for the
+    # kernel's blur and the upsampling of the grey albedo (both well below that here)
+    assert abs(got - want) < 4 * se + 0.01 * want, (got / want - 1, se / want)
