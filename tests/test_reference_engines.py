@@ -38,7 +38,8 @@ def test_a_cpu_engine_is_a_reference_engine():
 
 def test_options_are_checked_and_updated():
     o = EstimatorOptions()
-    assert o.as_kwargs() == {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
+    assert o.as_kwargs() == {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True,
+                             "integrator": "path"}
     assert o.updated() == o and o.updated(strategy="light").strategy == "light"
     assert o.updated(russian_roulette=False).russian_roulette is False
     with pytest.raises(ViewerError, match="not a sampling strategy"):

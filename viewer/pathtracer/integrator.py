@@ -32,6 +32,9 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   leaves on: against the triangle's winding normal (entering or reflecting inside) =
   the material's ``sigma_a``, else none; each segment travelled inside is attenuated by
   ``exp(-sigma_a * distance)`` (Bouguer). Objects are assumed closed and not nested.
+* ``setup.integrator == "photon"``: ``viewer/pathtracer/photons.py``'s subclasses of these
+  integrators leave caustic paths (a smooth vertex, then one or more delta vertices to the light)
+  to a caustic photon map, gathered at every vertex with a smooth lobe.
 
 Shading conventions are the rasterizer's (``shaders/passes/forward.frag``): shading normal =
 normalized interpolation of the world vertex normals; a ray hitting the back face
@@ -231,8 +234,8 @@ class Integrator:
     material is evaluated, sampled and its pdf taken)."""
 
     CHANNELS = 3
-    COMPILED_MODELS = True
-    sample_of_path = None    # the sample index of each path of the wavefront being traced (_block_streams)   # RGB: a material's model may be its compiled stand-in (same values)
+    COMPILED_MODELS = True   # RGB: a material's model may be its compiled stand-in (same values)
+    sample_of_path = None    # the sample index of each path of the wavefront being traced (_block_streams)
 
     def __init__(self, setup: RenderSetup):
         check_options(setup.strategy, setup.mis_heuristic)
@@ -621,3 +624,22 @@ class Integrator:
             new = self._bounce(paths, act, hits, rnd)
             o, d, act = self._continue(paths, act, hits, new, rnd[:, 4], depth)
         return self._final(paths.L)
+
+
+# ----------------------------------------------------------------------------- for the photon tracer
+
+def surface_hits(it: Integrator, d, prim, bu, bv) -> _Hits:
+    """The surface points of rays ``d`` that hit ``prim`` at (bu, bv), in ``it``'s shading conventions."""
+    return _Hits(it, d, prim, bu, bv)
+
+
+def material_groups(it: Integrator, hits: _Hits, act):
+    """The hits of paths ``act`` per material (and film thickness), as ``Integrator._bounce`` groups them."""
+    for sel in hits.groups():
+        mi = int(hits.mat[sel[0]])
+        for sub, prm in it._film_groups(mi, sel, hits.p, hits.prim):
+            g = _Group(sub, it.s.materials[mi], it.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
+                       hits.ng, mi=mi, act=act[sub])
+            if prm is not None:
+                g.prm = prm
+            yield g

@@ -57,10 +57,10 @@ def _build(setup: RenderSetup) -> Integrator:
     from a worker to the caller of ``step`` intact; a bare ImportError in the pool's
     initializer would only break the pool, with a traceback per worker and no name)."""
     try:
-        if setup.extra.get("spectral"):
-            from viewer.pathtracer.spectral import SpectralIntegrator
+        if setup.extra.get("spectral") or setup.integrator == "photon":
+            from viewer.pathtracer.photons import integrator_for
 
-            return SpectralIntegrator(setup)
+            return integrator_for(setup)
         return Integrator(setup)
     except ImportError as e:
         from viewer import ViewerError
@@ -182,11 +182,12 @@ class ReferenceRenderer:
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None,
-                 strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True):
+                 strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True,
+                 integrator: str = "path"):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _check_kernel(kernel)
-        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
+        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette, integrator)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
         self.seed = int(seed)
         self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
@@ -211,6 +212,8 @@ class ReferenceRenderer:
 
     def _set_setup(self, setup: RenderSetup):
         self.setup = setup
+        # "path" or "photon" (an "auto" option resolved for this scene) and why
+        self.integrator, self.integrator_reason = setup.integrator, setup.integrator_reason
         self.width, self.height = setup.width, setup.height
         self.blocks = block_layout(self.width, self.height)
         self.spp = 0
@@ -224,14 +227,16 @@ class ReferenceRenderer:
             self._local = _build(setup)
 
     def _make_setup(self, scene, camera, width, height) -> RenderSetup:
-        return self._spectral_setup(scene, RenderSetup.from_scene(
+        setup = self._spectral_setup(scene, RenderSetup.from_scene(
             scene, camera, width, height, self.max_depth, self.env_image, self.kernel, **self.options.as_kwargs()))
+        setup.extra["seed"] = self.seed   # the photon integrator's passes draw their photons from it
+        return setup
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
-              russian_roulette=None):
+              russian_roulette=None, integrator=None):
         """Start over on a changed scene, camera or size, keeping the worker processes; the
         estimator's options change where given (None: as before)."""
-        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
+        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette, integrator)
         self._set_setup(self._make_setup(scene, camera, width, height))
         if self._pool is not None:
             fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")
