@@ -105,12 +105,24 @@ vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
 #include "pathtrace/spectral.glsl"
 #endif
 
+// PHOTONS (a define): the `photon` integrator, path tracing plus a progressive caustic photon
+// map. A caustic path (its light end reached from its last non-delta vertex through one or more
+// delta vertices) is the photon map's alone: every vertex that is not a pure delta surface adds
+// the photons' density estimate (pathtrace/photons.glsl), and the path tracer drops light
+// reached by a delta sample after a vertex that sampled a non-delta lobe.
+#ifdef PHOTONS
+#include "pathtrace/photons.glsl"
+#endif
+
 vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
     vec3 L = vec3(0.0);
     vec3 T = vec3(1.0);
     vec3 sigma = vec3(0.0);
     float prev_pdf = 0.0, prev_lpdf = 0.0;
     bool prev_delta = true;    // camera rays count as delta: the full environment
+#ifdef PHOTONS
+    bool seen_nd = false;      // some vertex so far sampled a non-delta lobe
+#endif
     for (int depth = 1; depth <= u_max_depth + 1; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
@@ -121,6 +133,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
             float w = 1.0;
 #else
             float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
+#endif
+#ifdef PHOTONS
+            if (prev_delta && seen_nd) w = 0.0;   // a caustic path: the photon map's
 #endif
             L = add_sat(L, mul_sat(T, env_eval(d) * w));
 #endif
@@ -161,6 +176,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
+#ifdef PHOTONS
+            L = add_sat(L, mul_sat(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l)));
+#endif
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -230,6 +248,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 #endif
         prev_pdf = pdf_s;
         prev_delta = disc;
+#ifdef PHOTONS
+        seen_nd = seen_nd || !disc;
+#endif
         if (trans) sigma = dot(ng_raw, wi_w) < 0.0 ? u_mat_info[2 * mi + 1].xyz : vec3(0.0);
         bool alive = any_pos(Tn);
 #ifndef NO_ROULETTE
