@@ -8,10 +8,9 @@
 // its power multiplied by the sample's weight; inside an absorbing dielectric each segment is
 // attenuated by exp(-sigma_a t) (Bouguer). At the first hit on any other surface the photon is
 // stored when it passed at least one delta vertex (else it is dropped): out_pos = (position,
-// 1), out_dir = its direction of travel, out_power = its power, out_normal = the shading
-// normal there, turned toward the side the photon arrives from on opaque surfaces (the path
-// tracer's convention for a ray). A photon that escapes, dies, or scatters u_max_depth times
-// without meeting such a surface is not stored (out_pos.w = 0).
+// 1), out_dir = its direction of travel, out_power = its power, out_normal = the geometric
+// normal there (the gather's normal test takes |dot|). A photon that escapes, dies, or passes
+// PHOTON_MAX_BOUNCES delta vertices without meeting such a surface is not stored (out_pos.w = 0).
 //
 // Radiance and flux: a delta sampler's weight is the radiance-mode one (refraction scales by
 // 1 / eta^2 of the side the radiance arrives on); a photon that enters and leaves a closed
@@ -32,7 +31,6 @@ uniform int u_ph_count;
 uniform int u_ph_width;
 uniform uint u_seed;
 uniform uint u_pass;
-uniform int u_max_depth;
 
 layout(location = 0) out vec4 out_pos;
 layout(location = 1) out vec4 out_dir;
@@ -58,7 +56,7 @@ void main() {
     Rng rng = rng_init(px, u_pass, u_seed ^ 0x5bd1e995u);
     vec3 sigma = vec3(0.0);
     int n_delta = 0;
-    for (int depth = 0; depth <= u_max_depth; ++depth) {
+    for (int depth = 0; depth <= PHOTON_MAX_BOUNCES; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) return;
         if (sigma.x > 0.0 || sigma.y > 0.0 || sigma.z > 0.0) P *= exp(-sigma * h.t);
@@ -68,11 +66,11 @@ void main() {
                 out_pos = vec4(s.p, 1.0);
                 out_dir = vec4(d, 0.0);
                 out_power = vec4(P, 0.0);
-                out_normal = vec4(s.n, 0.0);
+                out_normal = vec4(s.ng, 0.0);
             }
             return;
         }
-        if (depth == u_max_depth) return;   // out of scattering events
+        if (depth == PHOTON_MAX_BOUNCES) return;   // out of delta vertices
         vec4 r = rng_next4(rng);
         vec3 wo_l = surface_local(s, -d);
         vec3 wi_l;

@@ -42,14 +42,19 @@ class EstimatorOptions:
     strategy: str = "mis"
     mis_heuristic: str = "power"
     russian_roulette: bool = True
+    integrator: str = "path"      # "path" or "photon" (viewer/reference_common/caustics.py)
 
     def __post_init__(self):
         check_options(self.strategy, self.mis_heuristic)
+        from viewer.reference_common.caustics import check_integrator
+
+        check_integrator(self.integrator)
         object.__setattr__(self, "russian_roulette", bool(self.russian_roulette))
 
-    def updated(self, strategy=None, mis_heuristic=None, russian_roulette=None) -> "EstimatorOptions":
+    def updated(self, strategy=None, mis_heuristic=None, russian_roulette=None, integrator=None) -> "EstimatorOptions":
         """These options with the ones given changed (None: as before)."""
-        given = dict(strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=russian_roulette)
+        given = dict(strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=russian_roulette,
+                     integrator=integrator)
         return dataclasses.replace(self, **{k: v for k, v in given.items() if v is not None})
 
     def as_kwargs(self) -> dict:

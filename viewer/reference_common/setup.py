@@ -59,11 +59,13 @@ class RenderSetup:
     strategy: str = "mis"          # environment: "mis" | "bsdf" | "light" (every engine reads it)
     mis_heuristic: str = "power"   # "power" (beta = 2) | "balance"
     russian_roulette: bool = True
+    integrator: str = "path"       # "path" | "photon" (path tracing plus a caustic photon map)
 
     @classmethod
     def from_scene(cls, scene, camera=None, width=None, height=None, max_depth: int = 8,
                    env_image=None, kernel: str = "embree", strategy: str = "mis",
-                   mis_heuristic: str = "power", russian_roulette: bool = True) -> "RenderSetup":
+                   mis_heuristic: str = "power", russian_roulette: bool = True,
+                   integrator: str = "path") -> "RenderSetup":
         if camera is None:
             from viewer.scene.camera import OrbitCamera
 
@@ -98,4 +100,5 @@ class RenderSetup:
                           # the twins this process trusts: the workers take this decision as theirs
                           "trusted_twins": twin_trust.trusted_twins(
                               m.params["file"] for m in mats if brdf.is_file(m.params))},
-                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
+                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette),
+                   integrator=integrator)

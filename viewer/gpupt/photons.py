@@ -1,0 +1,147 @@
+"""The GPU engine's caustic photon map (the ``photon`` integrator; the estimator is described in
+``viewer.reference_common.caustics``): per pass, photons emitted on the CPU
+(``caustics.emit_photons``) are traced over the scene's BVH by ``shaders/passes/photon_trace.frag``
+(one photon per fragment of a target ``TEX_WIDTH`` texels wide, the photons' origins, directions
+and powers read from float textures), which writes each stored photon (position and a valid
+flag, direction of travel, power, normal) into four RGBA32F targets; those are read back, put
+into ``caustics``' hash grid for the pass's radius, and the grid (its bucket table and the
+photons sorted by bucket) goes up as float textures that the path-tracing pass's PHOTONS
+variant gathers from (``shaders/pathtrace/photons.glsl``).
+
+Pass i (1-based; the image's i-th sample per pixel) uses the photons of the random stream
+(seed, ``caustics.PHOTON_STREAM``, i) and gathers with ``caustics.pass_radius(r_1, i)``, so an
+image depends on the seed and the number of samples only, as without photons.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.gl.context import release_gl
+from viewer.gl.scene_textures import float_texture
+from viewer.gl.shaders import build_program, set_uniform
+from viewer.geometry.bvh_flat import TEX_WIDTH
+from viewer.reference_common import caustics
+
+# the photon pass's own random numbers: a key word apart from the camera samples' (photon_trace.frag)
+_PROGRAMS: dict = {}   # (id(ctx), recipe) -> (program, vertex array)
+SAMPLERS = ("u_grid_table", "u_gph_pos", "u_gph_dir", "u_gph_pow", "u_gph_nrm")
+
+
+def release_programs(ctx) -> None:
+    """Release the cached photon-pass programs made on ``ctx``."""
+    for key in [k for k in _PROGRAMS if k[0] == id(ctx)]:
+        prog, vao = _PROGRAMS.pop(key)
+        vao.release()
+        prog.release()
+
+
+def texels(a: np.ndarray) -> np.ndarray:
+    """(rows, TEX_WIDTH, 4) float32 texels of ``a`` (N, k <= 4), row i at texel (i % TEX_WIDTH,
+    i // TEX_WIDTH) (at least one row; the rest zeros)."""
+    a = np.asarray(a, np.float32).reshape(a.shape[0], -1)
+    rows = max(1, -(-a.shape[0] // TEX_WIDTH))
+    out = np.zeros((rows * TEX_WIDTH, 4), np.float32)
+    out[: a.shape[0], : a.shape[1]] = a
+    return out.reshape(rows, TEX_WIDTH, 4)
+
+
+def photon_stream(seed: int, i: int) -> np.random.Generator:
+    """The emission numbers of pass ``i``: Philox4x64 keyed by the seed, its counter at
+    (0, 0, PHOTON_STREAM, i) (a block id no image row uses)."""
+    key = np.array([int(seed) & 0xFFFFFFFFFFFFFFFF, 0x9E3779B97F4A7C15], dtype=np.uint64)
+    ctr = np.array([0, 0, caustics.PHOTON_STREAM, int(i)], dtype=np.uint64)
+    return np.random.Generator(np.random.Philox(key=key, counter=ctr))
+
+
+class CausticPhotons:
+    """The photon map of one setup on ``ctx``. ``recipe``: (models, defines) of the path-tracing
+    program (the photon pass is compiled for the same models and material defines);
+    ``dispatch``: the virtual files of the BRDF dispatch reading materials from ``u_mat_tex``."""
+
+    def __init__(self, ctx, setup, seed: int, recipe, virtual: dict):
+        self.ctx, self.setup, self.seed = ctx, setup, int(seed)
+        self.n = caustics.photons_per_pass(setup.width, setup.height)
+        _centre, radius = caustics.scene_bounds(setup)
+        self.r1 = caustics.initial_radius(radius, self.n)
+        self.pass_index = 0          # the pass whose grid is up (0: none)
+        self.stored = 0              # photons stored by that pass
+        self.emitted = 0
+        self.radius = self.r1
+        self.table_size = 1
+        self._grid_tex: list = []
+        self._dummy = [float_texture(ctx, np.zeros((1, 1, 4), np.float32)) for _ in SAMPLERS]
+        key = (id(ctx), recipe)
+        entry = _PROGRAMS.get(key)
+        if entry is None:
+            _models, defines = recipe
+            prog = build_program(ctx, "passes/fullscreen.vert", "passes/photon_trace.frag", virtual=virtual,
+                                 defines={k: v for k, v in defines if k != "PHOTONS"})
+            entry = _PROGRAMS[key] = (prog, ctx.vertex_array(prog, []))
+        self._prog, self._vao = entry
+
+    # ------------------------------------------------------------------ one pass's photons
+    def trace(self, i: int, bind_scene) -> tuple[np.ndarray, ...]:
+        """Emit and trace pass ``i``'s photons; (positions, directions, powers, normals) of the
+        stored ones (float64). ``bind_scene(prog)`` binds the BVH and material textures and the
+        material uniforms, returning the next free texture unit."""
+        ctx = self.ctx
+        o, d, p = caustics.emit_photons(self.setup, self.n, photon_stream(self.seed, i))
+        self.emitted = m = o.shape[0]
+        if m == 0:
+            empty = np.zeros((0, 3))
+            return empty, empty, empty, empty
+        src = [float_texture(ctx, texels(a)) for a in (o, d, p)]
+        rows = src[0].size[1]
+        dst = [ctx.texture((TEX_WIDTH, rows), 4, dtype="f4") for _ in range(4)]
+        fbo = ctx.framebuffer(color_attachments=dst)
+        try:
+            prog = self._prog
+            unit = bind_scene(prog)
+            for name, tex in zip(("u_ph_origin", "u_ph_dir", "u_ph_power"), src):
+                tex.use(location=unit)
+                set_uniform(prog, name, unit)
+                unit += 1
+            set_uniform(prog, "u_ph_count", int(m))
+            set_uniform(prog, "u_ph_width", TEX_WIDTH)
+            set_uniform(prog, "u_seed", self.seed & 0xFFFFFFFF)
+            set_uniform(prog, "u_pass", int(i) & 0xFFFFFFFF)
+            fbo.use()
+            fbo.viewport = (0, 0, TEX_WIDTH, rows)
+            self._vao.render(vertices=3)
+            out = [np.frombuffer(t.read(), np.float32).reshape(-1, 4)[:m] for t in dst]
+        finally:
+            release_gl(fbo, *dst, *src)
+        keep = out[0][:, 3] > 0.5
+        return tuple(a[keep, :3].astype(np.float64) for a in out)
+
+    def build(self, i: int, bind_scene) -> None:
+        """Trace pass ``i``'s photons and upload their grid for radius r_i."""
+        pos, dirs, powers, normals = self.trace(i, bind_scene)
+        self.radius = caustics.pass_radius(self.r1, i)
+        grid = caustics.build_grid(pos, dirs, powers, normals, self.radius)
+        release_gl(*self._grid_tex)
+        table = np.stack([grid.start, grid.count], axis=1).astype(np.float32)   # exact below 2^24
+        self._grid_tex = [float_texture(self.ctx, texels(a)) for a in
+                          (table, grid.positions, grid.directions, grid.powers, grid.normals)]
+        self.table_size = grid.table_size
+        self.cell = grid.cell
+        self.stored = len(grid)
+        self.pass_index = int(i)
+
+    def bind(self, prog, unit: int) -> int:
+        """Point the path-tracing program's photon samplers and uniforms at the current grid
+        (none yet: empty textures, nothing gathered); returns the next free texture unit."""
+        for name, tex in zip(SAMPLERS, self._grid_tex or self._dummy):
+            tex.use(location=unit)
+            set_uniform(prog, name, unit)
+            unit += 1
+        set_uniform(prog, "u_grid_cell", float(self.radius))
+        set_uniform(prog, "u_grid_slots", int(self.table_size))
+        set_uniform(prog, "u_ph_r2", float(self.radius) ** 2)
+        set_uniform(prog, "u_ph_stored", int(self.stored) if self._grid_tex else 0)
+        return unit
+
+    def release(self):
+        release_gl(*self._grid_tex, *self._dummy)
+        self._grid_tex, self._dummy = [], []
