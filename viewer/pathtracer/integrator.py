@@ -175,6 +175,7 @@ class PathState:
         self.prev_pdf = np.zeros(n)
         self.prev_lpdf = np.zeros(n)
         self.prev_delta = np.ones(n, dtype=bool)   # camera rays count as "delta": full environment
+        self.seen_smooth = np.zeros(n, dtype=bool)  # a vertex scattered by a smooth lobe (caustic paths)
 
 
 class _Hits:
@@ -248,6 +249,14 @@ class Integrator:
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
         self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
+        # the ``photon`` integrator: caustic paths come from the photon map (viewer/pathtracer/photons.py)
+        self.pass_of_path = None   # the pass (sample index) of each path of the block being traced
+        self.block_seed = 0
+        self.caustics = None
+        if getattr(setup, "integrator", "path") == "photon":
+            from viewer.pathtracer.photons import CausticMap
+
+            self.caustics = CausticMap(self)
 
     def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
         self.strategy = strategy
@@ -310,6 +319,7 @@ class Integrator:
         W = self.s.width
         npix = (row1 - row0) * W
         gens = [philox(seed, block_id, si) for si in samples]
+        self.pass_of_path, self.block_seed = np.repeat(np.asarray(samples, dtype=np.int64), npix), int(seed)
         pix = np.arange(npix)
         rows = np.tile(row0 + pix // W, len(gens))
         cols = np.tile(pix % W, len(gens))
@@ -382,6 +392,8 @@ class Integrator:
             w = np.ones(idx.size)
         else:
             w = np.where(prev_delta[idx], 1.0, 0.0)
+        if self.caustics is not None:  # a caustic path (smooth vertex, then delta ones): the photon map's
+            w = np.where(prev_delta[idx] & paths.seen_smooth[idx], 0.0, w)
         paths.L[idx] += paths.T[idx] * Le * w[:, None]
 
     def _absorb(self, paths: PathState, act, t):
@@ -501,6 +513,8 @@ class Integrator:
                     g.prm = prm
                 if not g.info.lobes.is_delta and (s.lights or env_sample is not None):
                     self._next_event(g, paths, T_before[sel], hits, lights, env_sample, shadows)
+                if self.caustics is not None and g.info.lobes.has_smooth:
+                    self.caustics.gather(g, paths, T_before[sel], hits)
                 self._scatter(g, paths, hits, rnd[sel, 0:2], new)
         self._trace_shadows(paths.L, shadows)
         return new
@@ -535,9 +549,26 @@ class Integrator:
         paths.prev_pdf[act] = new.pdf
         paths.prev_lpdf[act] = new.lpdf
         paths.prev_delta[act] = new.delta
+        paths.seen_smooth[act] |= ~new.delta
         side = np.where(_dot(hits.ng, new.dir) < 0, -1.0, 1.0)
         o = (hits.p + (hits.eps * side)[:, None] * hits.ng)[alive]
         return o, new.dir[alive], act[alive]
+
+    # -- what the photon tracer (viewer/pathtracer/photons.py) shares with the eye paths
+    def surface_hits(self, d, prim, bu, bv) -> "_Hits":
+        """The surface points of rays ``d`` that hit ``prim`` at (bu, bv), in the shading conventions."""
+        return _Hits(self, d, prim, bu, bv)
+
+    def material_groups(self, hits: "_Hits", act):
+        """The hits of paths ``act`` per material (and film thickness), as ``_bounce`` groups them."""
+        for sel in hits.groups():
+            mi = int(hits.mat[sel[0]])
+            for sub, prm in self._film_groups(mi, sel, hits.p, hits.prim):
+                g = _Group(sub, self.s.materials[mi], self.models[mi], hits.wo_l, hits.n, hits.tx, hits.ty,
+                           hits.ng, mi=mi, act=act[sub])
+                if prm is not None:
+                    g.prm = prm
+                yield g
 
     def _final(self, L):
         """Count and zero NaN / Inf / negative radiance (never expected; see bad_values)."""

@@ -172,11 +172,12 @@ class ReferenceRenderer:
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None,
-                 strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True):
+                 strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True,
+                 integrator: str = "path"):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _check_kernel(kernel)
-        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
+        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette, integrator)
         self.max_depth, self.env_image, self.kernel = int(max_depth), env_image, kernel
         self.seed = int(seed)
         self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
@@ -201,6 +202,8 @@ class ReferenceRenderer:
 
     def _set_setup(self, setup: RenderSetup):
         self.setup = setup
+        # "path" or "photon" (an "auto" option resolved for this scene) and why
+        self.integrator, self.integrator_reason = setup.integrator, setup.integrator_reason
         self.width, self.height = setup.width, setup.height
         self.blocks = block_layout(self.width, self.height)
         self.spp = 0
@@ -218,10 +221,10 @@ class ReferenceRenderer:
             scene, camera, width, height, self.max_depth, self.env_image, self.kernel, **self.options.as_kwargs()))
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
-              russian_roulette=None):
+              russian_roulette=None, integrator=None):
         """Start over on a changed scene, camera or size, keeping the worker processes; the
         estimator's options change where given (None: as before)."""
-        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
+        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette, integrator)
         self._set_setup(self._make_setup(scene, camera, width, height))
         if self._pool is not None:
             fd, path = tempfile.mkstemp(prefix="brdf-viewer-setup-", suffix=".pickle")

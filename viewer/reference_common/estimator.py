@@ -23,42 +23,48 @@ STRATEGY_LABELS = {"mis": "MIS (BSDF + light)", "bsdf": "BSDF sampling", "light"
 MIS_HEURISTICS = ("power", "balance")   # power: beta = 2 (Veach 1997, eq. 9.13)
 
 
-def check_options(strategy: str, mis_heuristic: str = "power") -> None:
-    """One-line ViewerError for an unknown strategy or MIS heuristic."""
+AUTO_INTEGRATOR = "auto"   # the integrator chosen per scene (caustics.choose_integrator)
+
+
+def check_options(strategy: str, mis_heuristic: str = "power", integrator: str = AUTO_INTEGRATOR) -> None:
+    """One-line ViewerError for an unknown strategy, MIS heuristic or integrator."""
     from viewer import ViewerError
+    from viewer.reference_common.caustics import INTEGRATORS
 
     if strategy not in STRATEGIES:
         raise ViewerError(f"strategy: {strategy!r} is not a sampling strategy; allowed: {', '.join(STRATEGIES)}")
     if mis_heuristic not in MIS_HEURISTICS:
         raise ViewerError(f"MIS heuristic: {mis_heuristic!r} is not a heuristic; allowed: {', '.join(MIS_HEURISTICS)}")
+    if integrator != AUTO_INTEGRATOR and integrator not in INTEGRATORS:
+        raise ViewerError(f"integrator: {integrator!r} is not an integrator; allowed: {', '.join(INTEGRATORS)}")
 
 
 @dataclasses.dataclass(frozen=True)
 class EstimatorOptions:
     """How the environment is reached (``strategy``: "mis", "bsdf" or "light"), how MIS
-    weights (``mis_heuristic``: "power" or "balance") and whether Russian roulette ends paths;
-    checked on creation (a one-line ViewerError)."""
+    weights (``mis_heuristic``: "power" or "balance"), whether Russian roulette ends paths and the ``integrator``
+    ("path", "photon": path tracing plus a caustic photon map, or "auto": chosen per scene by
+    ``viewer.reference_common.caustics.choose_integrator``); checked on creation (a one-line
+    ViewerError)."""
 
     strategy: str = "mis"
     mis_heuristic: str = "power"
     russian_roulette: bool = True
-    integrator: str = "path"      # "path" or "photon" (viewer/reference_common/caustics.py)
+    integrator: str = "path"
 
     def __post_init__(self):
-        check_options(self.strategy, self.mis_heuristic)
-        from viewer.reference_common.caustics import check_integrator
-
-        check_integrator(self.integrator)
+        check_options(self.strategy, self.mis_heuristic, self.integrator)
         object.__setattr__(self, "russian_roulette", bool(self.russian_roulette))
 
-    def updated(self, strategy=None, mis_heuristic=None, russian_roulette=None, integrator=None) -> "EstimatorOptions":
+    def updated(self, strategy=None, mis_heuristic=None, russian_roulette=None,
+                integrator=None) -> "EstimatorOptions":
         """These options with the ones given changed (None: as before)."""
         given = dict(strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=russian_roulette,
                      integrator=integrator)
         return dataclasses.replace(self, **{k: v for k, v in given.items() if v is not None})
 
     def as_kwargs(self) -> dict:
-        """``strategy=, mis_heuristic=, russian_roulette=`` for ``RenderSetup.from_scene``."""
+        """``strategy=, mis_heuristic=, russian_roulette=, integrator=`` for ``RenderSetup.from_scene``."""
         return dataclasses.asdict(self)
 
 

@@ -59,7 +59,8 @@ class RenderSetup:
     strategy: str = "mis"          # environment: "mis" | "bsdf" | "light" (every engine reads it)
     mis_heuristic: str = "power"   # "power" (beta = 2) | "balance"
     russian_roulette: bool = True
-    integrator: str = "path"       # "path" | "photon" (path tracing plus a caustic photon map)
+    integrator: str = "path"       # "path" | "photon" (viewer.reference_common.caustics), never "auto"
+    integrator_reason: str = "asked for"
 
     @classmethod
     def from_scene(cls, scene, camera=None, width=None, height=None, max_depth: int = 8,
@@ -91,14 +92,20 @@ class RenderSetup:
             else:
                 d = np.asarray(light.direction, float)
                 lights.append(("directional", d / np.linalg.norm(d), np.asarray(light.irradiance, float)))
-        check_options(strategy, mis_heuristic)
+        check_options(strategy, mis_heuristic, integrator)
         env = EnvironmentLight.from_scene(scene, env_image)
-        return cls(geom, mats, lights, env, pos, fwd, right, cam_up,
+        setup = cls(geom, mats, lights, env, pos, fwd, right, cam_up,
                    math.tan(math.radians(float(camera.fov_y)) / 2.0), width, height, int(max_depth), kernel,
                    extra={"object_y": np.array([o.y_range() if o.mesh_data is not None else (0.0, 0.0)
                                                 for o in scene.objects] or [(0.0, 0.0)]),
                           # the twins this process trusts: the workers take this decision as theirs
                           "trusted_twins": twin_trust.trusted_twins(
                               m.params["file"] for m in mats if brdf.is_file(m.params))},
-                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette),
-                   integrator=integrator)
+                   strategy=strategy, mis_heuristic=mis_heuristic, russian_roulette=bool(russian_roulette))
+        if integrator == "auto":   # the scene decides (one line says why)
+            from viewer.reference_common.caustics import choose_integrator
+
+            setup.integrator, setup.integrator_reason = choose_integrator(setup)
+        else:
+            setup.integrator = integrator
+        return setup
