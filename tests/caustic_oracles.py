@@ -37,7 +37,7 @@ DISK_RINGS = 6    # the gather disk's quadrature: rings x spokes midpoint rule (
 DISK_SPOKES = 12
 
 MIRROR_WALL = dict(I=6.0, h=0.5, rho=0.8, wall_z=-1.0)
-GLASS_SLAB = dict(E=2.0, ior=1.5, t=0.2, y0=0.9, half=1.0, sigma_a=(0.2, 1.0, 3.0), rho=0.6)
+GLASS_SLAB = dict(E=2.0, ior=1.5, t=0.2, y0=0.9, half=1.0, sigma_a=(0.2, 1.0, 3.0), rho=0.6, floor=2.0)
 
 
 def mirror_wall_scene(size: int):
@@ -98,7 +98,7 @@ irradiance = [{c['E']}, {c['E']}, {c['E']}]
 [[objects]]
 mesh = "plane"
 material = "floor"
-scale = 3.0
+scale = {c['floor']}
 
 [[objects]]
 mesh = "cube"
@@ -187,7 +187,7 @@ def expected(name: str, size: int, radii=()):
     o, d = _camera_rays(sc, size)
     t = -o[1] / d[..., 1]
     p = o + t[..., None] * d
-    hit = (t > 0) & (np.abs(p[..., 0]) <= 3.0) & (np.abs(p[..., 2]) <= 3.0)
+    hit = (t > 0) & (np.abs(p[..., 0]) <= c["floor"]) & (np.abs(p[..., 2]) <= c["floor"])
     T = slab_transmittance()
 
     def irr(px, pz):

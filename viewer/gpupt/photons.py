@@ -82,25 +82,45 @@ class CausticPhotons:
 
     # ------------------------------------------------------------------ one pass's photons
     def trace(self, i: int, bind_scene) -> tuple[np.ndarray, ...]:
-        """Emit and trace pass ``i``'s photons; (positions, directions, powers, normals) of the
-        stored ones (float64). ``bind_scene(prog)`` binds the BVH and material textures and the
-        material uniforms, returning the next free texture unit."""
-        ctx = self.ctx
+        """Emit and trace pass ``i``'s photons; (positions, directions of travel, powers,
+        normals) of the stored ones (float64). ``bind_scene(prog)`` binds the BVH and material
+        textures and the material uniforms, returning the next free texture unit. A photon
+        stored at a material that also has a delta lobe goes on in the next round (one stored
+        photon per fragment and round), until none goes on."""
         o, d, p = caustics.emit_photons(self.setup, self.n, photon_stream(self.seed, i))
         self.emitted = m = o.shape[0]
-        if m == 0:
+        zero = np.zeros((m, 1))
+        state = [np.hstack([o, np.arange(m)[:, None]]), np.hstack([d, zero]), np.hstack([p, zero]),
+                 np.zeros((m, 4))]
+        found = []
+        while state[0].shape[0]:
+            out = self._round(i, state, bind_scene)
+            keep = out[0][:, 3] > 0.5
+            found.append([a[keep, :3] for a in out[:4]])
+            on = out[4][:, 3] > 0.5
+            state = [a[on] for a in out[4:]]
+            # the index travels in the state's w; the first texture carries it again
+            state[0] = np.hstack([state[0][:, :3], state[3][:, 3:4]])
+        if not found:
             empty = np.zeros((0, 3))
             return empty, empty, empty, empty
-        src = [float_texture(ctx, texels(a)) for a in (o, d, p)]
+        return tuple(np.concatenate([f[k] for f in found]).astype(np.float64) for k in range(4))
+
+    def _round(self, i: int, state, bind_scene) -> list[np.ndarray]:
+        """One draw of the photon pass over the photons of ``state`` (four (M, 4) arrays);
+        the eight outputs (M, 4) float32."""
+        ctx = self.ctx
+        m = state[0].shape[0]
+        src = [float_texture(ctx, texels(a)) for a in state]
         rows = src[0].size[1]
-        dst = [ctx.texture((TEX_WIDTH, rows), 4, dtype="f4") for _ in range(4)]
+        dst = [ctx.texture((TEX_WIDTH, rows), 4, dtype="f4") for _ in range(8)]
         fbo = ctx.framebuffer(color_attachments=dst)
         try:
             prog = self._prog
             unit = bind_scene(prog)
-            for name, tex in zip(("u_ph_origin", "u_ph_dir", "u_ph_power"), src):
+            for k, tex in enumerate(src):
                 tex.use(location=unit)
-                set_uniform(prog, name, unit)
+                set_uniform(prog, f"u_ph_state{k}", unit)
                 unit += 1
             set_uniform(prog, "u_ph_count", int(m))
             set_uniform(prog, "u_ph_width", TEX_WIDTH)
@@ -109,11 +129,9 @@ class CausticPhotons:
             fbo.use()
             fbo.viewport = (0, 0, TEX_WIDTH, rows)
             self._vao.render(vertices=3)
-            out = [np.frombuffer(t.read(), np.float32).reshape(-1, 4)[:m] for t in dst]
+            return [np.frombuffer(t.read(), np.float32).reshape(-1, 4)[:m].copy() for t in dst]
         finally:
             release_gl(fbo, *dst, *src)
-        keep = out[0][:, 3] > 0.5
-        return tuple(a[keep, :3].astype(np.float64) for a in out)
 
     def build(self, i: int, bind_scene) -> None:
         """Trace pass ``i``'s photons and upload their grid for radius r_i."""
