@@ -218,3 +218,15 @@ def expected(name: str, size: int, radii=()):
     edge = np.abs(m - c["half"]) > rmax + 1e-3
     mask = (edge & hit).all(axis=(2, 3))
     return to_l * exact_e.mean(axis=(2, 3)), to_l * expect_e.mean(axis=(2, 3)), mask
+
+
+def slab_under_sky(size: int):
+    """The glass slab scene lit by a constant sky alone: the floor under the slab sees the sky
+    through the glass (caustic paths under ``photon``: the photon map's), around it directly;
+    a broad light that path tracing also finds, so both integrators converge to one image."""
+    sc = glass_slab_scene(size)
+    sc.lights = []
+    sc.environment.map = None
+    sc.environment.constant = np.array([0.6, 0.65, 0.7])
+    sc.environment.intensity = 1.0
+    return sc

@@ -99,11 +99,6 @@ bool any_pos(vec3 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0; }
 vec3 mul_sat(vec3 a, vec3 b) { return min(min(a, vec3(F_MAX)) * min(b, vec3(F_MAX)), vec3(F_MAX)); }
 vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
 
-// SPECTRAL (a define): the hero-wavelength estimator of pathtrace/spectral.glsl replaces trace_path
-// in main (the RGB program is unchanged without it)
-#ifdef SPECTRAL
-#include "pathtrace/spectral.glsl"
-#endif
 
 // PHOTONS (a define): the `photon` integrator, path tracing plus a progressive caustic photon
 // map. A caustic path (its light end reached from its last non-delta vertex through one or more
@@ -112,6 +107,12 @@ vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
 // reached by a delta sample after a vertex that sampled a non-delta lobe.
 #ifdef PHOTONS
 #include "pathtrace/photons.glsl"
+#endif
+
+// SPECTRAL (a define): the hero-wavelength estimator of pathtrace/spectral.glsl replaces trace_path
+// in main (the RGB program is unchanged without it)
+#ifdef SPECTRAL
+#include "pathtrace/spectral.glsl"
 #endif
 
 vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
