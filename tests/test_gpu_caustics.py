@@ -57,7 +57,7 @@ def gpu_passes(ctx, name, integrator="photon"):
                                   integrator=integrator) as g:
             imgs = pass_images(g, PASSES)
             assert g.bad_values == 0
-            r1 = g._photons.r1 if g._photons is not None else None
+            r1 = g.photons.r1 if g.photons is not None else None
         _CACHE[key] = (imgs, r1)
     return _CACHE[key]
 
@@ -144,7 +144,7 @@ def test_gpu_photon_and_path_agree_where_both_converge(ctx):
             t = pass_images(g, PASSES).sum(axis=(1, 2, 3))
             assert g.bad_values == 0
             if integrator == "photon":
-                assert g._photons.stored > 0
+                assert g.photons.stored > 0
         totals[integrator] = (t.mean(), t.std(ddof=1) / np.sqrt(PASSES))
     (mp, sp), (mq, sq) = totals["photon"], totals["path"]
     rel, se = mp / mq - 1.0, np.hypot(sp, sq) / mq
@@ -163,7 +163,7 @@ def test_photon_passes_are_the_same_whatever_the_bands(ctx):
     with GpuReferenceRenderer(sc, width=12, height=12, max_depth=2, seed=4, ctx=ctx, integrator="photon") as a:
         a.step(2)
         ref = a.mean()
-        assert a._photons.pass_index == 2 and a._photons.stored > 0
+        assert a.photons.pass_index == 2 and a.photons.stored > 0
     with GpuReferenceRenderer(sc, width=12, height=12, max_depth=2, seed=4, ctx=ctx, integrator="photon") as b:
         b.rows_per_pass = 5
         while b.spp < 2:

@@ -9,6 +9,7 @@
 // u_grid_table holds (first photon, photon count) of the photons sorted by bucket in u_gph_pos
 // (position), u_gph_dir (direction of travel), u_gph_pow (power) and u_gph_nrm (normal); a
 // lookup visits the 27 cells around p's (the cell is r wide), each bucket once.
+#include "generated/constants.glsl"
 uniform sampler2D u_grid_table;
 uniform sampler2D u_gph_pos;
 uniform sampler2D u_gph_dir;

@@ -4,6 +4,7 @@
 // normal on the shading normal's side, the tangent frame of forward.frag, the material and the
 // ray offset eps. Included after brdf/dispatch.glsl and common/bvh.glsl by passes that read
 // u_mat_info (the photon pass).
+#include "generated/constants.glsl"
 struct Surface {
     vec3 p;
     vec3 n;        // shading normal (flipped toward the ray on opaque surfaces)

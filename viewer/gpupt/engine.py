@@ -116,7 +116,7 @@ class GpuReferenceRenderer:
         self._measured = None               # MeasuredTextures: the scene's one measured table
         self._textures: list = []
         self._targets: list = []
-        self._photons = None                # CausticPhotons under the photon integrator
+        self.photons = None                 # the photon map (viewer.gpupt.photons.CausticPhotons) under photon
         self.rows_per_pass = None           # adapted by step_for
         self._set_setup(self._make_setup(scene, camera, width, height))
 
@@ -139,9 +139,9 @@ class GpuReferenceRenderer:
     def _release_scene(self):
         release_gl(*self._textures, *self._targets)
         self._textures, self._targets = [], []
-        if self._photons is not None:
-            self._photons.release()
-            self._photons = None
+        if self.photons is not None:
+            self.photons.release()
+            self.photons = None
         if self._scene_tex is not None:
             self._scene_tex.release()
             self._scene_tex = None
@@ -149,6 +149,8 @@ class GpuReferenceRenderer:
     def _set_setup(self, setup: RenderSetup):
         self._release_scene()
         self.setup = setup
+        # "path" or "photon" (an "auto" option resolved for this scene) and why
+        self.integrator, self.integrator_reason = setup.integrator, setup.integrator_reason
         self.width, self.height = setup.width, setup.height
         self.spp = 0
         self.bad_values = 0
@@ -212,7 +214,7 @@ class GpuReferenceRenderer:
             from viewer.gpupt.photons import CausticPhotons
 
             models, defines = self.recipe()
-            self._photons = CausticPhotons(ctx, setup, self.seed, (models, defines), self._virtual(models))
+            self.photons = CausticPhotons(ctx, setup, self.seed, (models, defines), self._virtual(models))
 
     def recipe(self):
         """What the pass's program is compiled for: (the models used, sorted (define, value)
@@ -294,8 +296,8 @@ class GpuReferenceRenderer:
             tex.use(location=unit)
             set_uniform(prog, name, unit)
             unit += 1
-        if self._photons is not None:
-            unit = self._photons.bind(prog, unit)
+        if self.photons is not None:
+            unit = self.photons.bind(prog, unit)
         if self.is_spectral:
             self._spec_tex.use(location=unit)
             set_uniform(prog, "u_spec_tab", unit)
@@ -327,11 +329,11 @@ class GpuReferenceRenderer:
     def _pass(self, row0: int, row1: int, spp: int):
         """One draw: rows [row0, row1) gain ``spp`` samples each (under photons one: each sample
         of a pixel is a photon pass, its map built when the image's next sample starts)."""
-        if self._photons is not None and spp > 0:
+        if self.photons is not None and spp > 0:
             if spp != 1:
                 raise ValueError("the photon integrator renders one sample per pass")
-            if self._photons.pass_index != self.spp + 1:
-                self._photons.build(self.spp + 1, self._bind_materials)
+            if self.photons.pass_index != self.spp + 1:
+                self.photons.build(self.spp + 1, self._bind_materials)
         self._bind()
         set_uniform(self._prog, "u_row0", int(row0))
         set_uniform(self._prog, "u_row1", int(row1))
@@ -362,7 +364,7 @@ class GpuReferenceRenderer:
         while done < spp:
             if cancel is not None and cancel.is_set():
                 return False
-            k = min(1 if self._photons is not None else self.spp_pass, spp - done)
+            k = min(1 if self.photons is not None else self.spp_pass, spp - done)
             self._pass(0, self.height, k)
             self.ctx.finish()
             done += k
