@@ -15,6 +15,8 @@ image depends on the seed and the number of samples only, as without photons.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from viewer.gl.context import release_gl
@@ -67,6 +69,7 @@ class CausticPhotons:
         self.pass_index = 0          # the pass whose grid is up (0: none)
         self.stored = 0              # photons stored by that pass
         self.emitted = 0
+        self.build_seconds = 0.0      # the last build's time
         self.radius = self.r1
         self.table_size = 1
         self._grid_tex: list = []
@@ -134,7 +137,9 @@ class CausticPhotons:
             release_gl(fbo, *dst, *src)
 
     def build(self, i: int, bind_scene) -> None:
-        """Trace pass ``i``'s photons and upload their grid for radius r_i."""
+        """Trace pass ``i``'s photons and upload their grid for radius r_i (``build_seconds``:
+        the time it took, emission included)."""
+        t0 = time.perf_counter()
         pos, dirs, powers, normals = self.trace(i, bind_scene)
         self.radius = caustics.pass_radius(self.r1, i)
         grid = caustics.build_grid(pos, dirs, powers, normals, self.radius)
@@ -146,6 +151,7 @@ class CausticPhotons:
         self.cell = grid.cell
         self.stored = len(grid)
         self.pass_index = int(i)
+        self.build_seconds = time.perf_counter() - t0
 
     def bind(self, prog, unit: int) -> int:
         """Point the path-tracing program's photon samplers and uniforms at the current grid
