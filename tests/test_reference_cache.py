@@ -88,10 +88,15 @@ def test_bake_keys_a_dispersive_scene_as_the_renderers_do(tmp_path):
     r = run_cli("bake", "sphere", "--spp", "1", "--width", "12", "--height", "8", "--engine", "cpu",
                 "--workers", "0", "--max-depth", "3", "--set", glass, env=env)
     assert r.returncode == 0, r.stderr
-    with ReferenceRenderer(load_scene("sphere", [glass]), width=12, height=8, max_depth=3, workers=0) as rr:
-        assert rr.setup.extra["spectral"]
+    # integrator "auto", as the window's (smooth glass under the point light: the photon map)
+    with ReferenceRenderer(load_scene("sphere", [glass]), width=12, height=8, max_depth=3, workers=0,
+                           integrator="auto") as rr:
+        assert rr.setup.extra["spectral"] and rr.setup.integrator == "photon"
         want = cache.path_for(cache.setup_key(rr.setup), tmp_path)
     assert [f.name for f in (tmp_path / "references").glob("*.npz")] == [want.name]
+    with ReferenceRenderer(load_scene("sphere", [glass]), width=12, height=8, max_depth=3, workers=0,
+                           integrator="path") as rr:   # another estimator: another entry
+        assert cache.path_for(cache.setup_key(rr.setup), tmp_path) != want
 
 
 def test_the_key_does_not_follow_numpys_print_options():

@@ -226,12 +226,15 @@ class CompareView:
             return ""
         return f"RMSE {m['rmse']:.4g}   relMSE {m['relative_mse']:.4g}   ({self.metrics_spp} spp)"
 
-    def overlay_labels(self, view_logical, ref_spp: int, preview: bool = False, error: str = "") -> list:
+    def overlay_labels(self, view_logical, ref_spp: int, preview: bool = False, error: str = "",
+                       estimator: str = "") -> list:
         """[(anchor x, text)] for the label row at the top of the view (``layout.overlay_layout``);
         ``preview``: the reference shows its coarse first image; ``error``: why there is no
-        reference image (its one line stands where the label would)."""
+        reference image (its one line stands where the label would); ``estimator``: the
+        reference's integrator in words (``caustics.INTEGRATOR_LABELS``), after its spp."""
         x, y, w, h = view_logical
-        ref_label = f"reference ({ref_spp} spp)" if ref_spp else (PREVIEW if preview else PENDING)
+        more = f", {estimator}" if estimator else ""
+        ref_label = f"reference ({ref_spp} spp{more})" if ref_spp else (PREVIEW if preview else PENDING)
         if error and not ref_spp and not preview:
             ref_label = f"reference: {error}"
         if self.mode in ("difference", "relative difference") and self._pair is None:

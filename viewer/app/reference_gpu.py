@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import time
 
+from viewer.reference_common.select import engine_options
+
 READ_S = 0.25   # the GPU engine's image is read back at most this often
 
 
@@ -37,9 +39,9 @@ class GpuSlices:
 
                     # spectral=None: wavelengths where a material is dispersive, as the cpu engine
                     self.renderer = GpuReferenceRenderer(scene, camera, w, h, max_depth=v.max_depth, ctx=v.ctx,
-                                                         spectral=None, **v.options)
+                                                         spectral=None, **engine_options(GpuReferenceRenderer, v.options))
                 else:
-                    self.renderer.reset(scene, camera, w, h, **v.options)
+                    self.renderer.reset(scene, camera, w, h, **engine_options(self.renderer.reset, v.options))
                 from viewer.app.reference_cache import resume_cached
 
                 self.cache_key, have = resume_cached(self.renderer, v.notice)

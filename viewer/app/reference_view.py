@@ -100,7 +100,9 @@ class ReferenceView:
         self.preview = False      # the image shown is the coarse first one (quarter resolution)
         self.previews = 0         # coarse first images shown so far
         # the estimator (ReferenceRenderer's options); a change restarts the render
-        self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True}
+        # integrator "auto": path tracing, or with a caustic photon map where the scene has smooth
+        # surfaces under small lights (caustics.choose_integrator), as on the command line
+        self.options = {"strategy": "mis", "mis_heuristic": "power", "russian_roulette": True, "integrator": "auto"}
         self.curve = None         # ConvergenceCurve of the current render (RMSE estimate per pass)
         self._notices: list[tuple[str, bool]] = []   # (line, error): cache repairs, failures (take_notices)
         self._said: set[str] = set()
@@ -153,6 +155,15 @@ class ReferenceView:
         options), or None before the first job."""
         renderer = self.gpu.renderer if self.gpu.renderer is not None else self.cpu.renderer
         return None if renderer is None else renderer.setup
+
+    @property
+    def estimator_label(self) -> str:
+        """The integrator of the reference shown, in words ("path tracing", "path tracing + caustic
+        photon map"; empty before the first job)."""
+        from viewer.reference_common.caustics import INTEGRATOR_LABELS
+
+        setup = self.setup
+        return "" if setup is None else INTEGRATOR_LABELS.get(setup.integrator, setup.integrator)
 
     def samples_per_chunk(self):
         """Samples per pixel of one pass of the CPU engine (None when it holds no renderer)."""

@@ -119,11 +119,29 @@ def _add_estimator_options(p: argparse.ArgumentParser) -> None:
                    help="MIS weights: power (beta = 2, default) or balance heuristic")
     p.add_argument("--no-roulette", dest="russian_roulette", action="store_false",
                    help="trace every path to --max-depth (no Russian roulette)")
+    _add_integrator_option(p)
+
+
+def _add_integrator_option(p: argparse.ArgumentParser) -> None:
+    from viewer.reference_common.caustics import INTEGRATORS
+
+    p.add_argument("--integrator", default=None, choices=INTEGRATORS,
+                   help="path: path tracing; photon: path tracing plus a progressive caustic photon map, "
+                        "for light reaching diffuse surfaces through mirrors and glass (default: photon where "
+                        "the scene has smooth surfaces lit by point, directional or small lights, else path; "
+                        "one line says which)")
 
 
 def _estimator(args) -> dict:
     return {"strategy": args.strategy, "mis_heuristic": args.mis_heuristic,
-            "russian_roulette": args.russian_roulette}
+            "russian_roulette": args.russian_roulette, "integrator": getattr(args, "integrator", None) or "auto"}
+
+
+def _say_integrator(renderer) -> str:
+    """Print which integrator the renderer runs and why (one line); returns its name."""
+    setup = renderer.setup
+    print(f"integrator: {setup.integrator} ({setup.integrator_reason})")
+    return setup.integrator
 
 
 def _parser_plot() -> argparse.ArgumentParser:
@@ -408,6 +426,7 @@ def cmd_reference(args) -> int:
     t0 = time.perf_counter()
     renderer = make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
                              spectral=args.spectral, **_estimator(args))
+    integrator = _say_integrator(renderer)
     try:
         renderer.warm_up()
         start = time.perf_counter()
@@ -425,7 +444,7 @@ def cmd_reference(args) -> int:
         renderer.close()
     srgb = to_srgb8(linear, scene.render.exposure, scene.render.tonemap)
     text = png_text(scene, camera, {"reference": {"spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
-                                                  "engine": engine, **_estimator(args)}})
+                                                  "engine": engine, **_estimator(args), "integrator": integrator}})
     _write_all([(lin_path, lambda: write_npy(lin_path, linear)), (out, lambda: write_png(out, srgb, text))])
     samples = w * h * args.spp
     print(f"wrote {out} ({w}x{h}, {args.spp} spp" + (", spectral" if renderer.is_spectral else "") + ")"
@@ -491,12 +510,13 @@ def cmd_compare(args) -> int:
     t0 = time.perf_counter()
     with make_renderer(engine, scene, camera, max_depth=args.max_depth, seed=args.seed, workers=args.workers,
                        ctx=ctx, **_estimator(args)) as ref:
+        integrator = _say_integrator(ref)
         ref.step(args.spp)
         reference, variance = ref.mean(), ref.variance()
     wall = time.perf_counter() - t0
     m = metrics(raster, reference)
     m.update({"scene": str(args.scene), "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
-              **_estimator(args),
+              **_estimator(args), "integrator": integrator,
               "raster_supersample": args.supersample, "reference_seconds": wall, "engine": engine,
               "reference_mean_variance_of_mean": float(variance.mean())})
     abs_png, abs_scale = heat_map(raster, reference)
@@ -591,6 +611,7 @@ def _parser_bake() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=None)
     p.add_argument("--engine", default="auto", help=ENGINE_HELP)
+    _add_integrator_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--bparam", dest="bparams", action="append", default=[], metavar="MATERIAL=FILE",
                    help="set a material's values from a BRDF Explorer .bparam file (repeatable; --set wins)")
@@ -639,7 +660,8 @@ def cmd_bake(args) -> int:
         camera = OrbitCamera.from_scene(scene)
         w = args.width or max(1, scene.camera.width // 2)
         h = args.height or max(1, scene.camera.height // 2)
-        setup = RenderSetup.from_scene(scene, camera, w, h, args.max_depth)
+        setup = RenderSetup.from_scene(scene, camera, w, h, args.max_depth, integrator=args.integrator or "auto")
+        print(f"{label}: integrator: {setup.integrator} ({setup.integrator_reason})")
         setup.extra["spectral"] = needs_spectral(scene)   # as both engines key it (dispersive: wavelengths)
         key = cache.setup_key(setup)
         old = cache.load(key, shape=(h, w, 3))   # a damaged entry: set aside with one line, rendered afresh
@@ -649,7 +671,7 @@ def cmd_bake(args) -> int:
             continue
         start = time.perf_counter()
         with make_renderer(engine, scene, camera, w, h, max_depth=args.max_depth, seed=args.seed,
-                           workers=args.workers) as r:
+                           workers=args.workers, integrator=setup.integrator) as r:
             if old is not None:
                 r.resume(old.sum, old.sum2, old.spp)
 

@@ -256,7 +256,7 @@ class Integrator:
         if getattr(setup, "integrator", "path") == "photon":
             from viewer.pathtracer.photons import CausticMap
 
-            self.caustics = CausticMap(self)
+            self.caustics = CausticMap(self, philox)
 
     def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
         self.strategy = strategy

@@ -34,7 +34,6 @@ import numpy as np
 from viewer.brdf.lobes import drew_delta
 from viewer.reference_common import caustics
 from viewer.reference_common.estimator import RR_MAX, RR_MIN
-from viewer.pathtracer.integrator import philox
 
 QUERY_BATCH = 4096       # gather queries per grid lookup (bounds the candidate pairs held at once)
 
@@ -111,17 +110,19 @@ class CausticMap:
 
     KEEP = 8   # photon grids a worker keeps (the passes of the chunks it renders next)
 
-    def __init__(self, it):
+    def __init__(self, it, stream):
         self.it = it
+        self.stream = stream   # stream(seed, block, sample): the integrator's counter-based generator
         s = it.s
         _centre, self.scene_radius = caustics.scene_bounds(s)
-        self.n_photons = caustics.photons_per_pass(s.width, s.height)
+        # ``extra["photons_per_pass"]``: a fixed count (tests, benchmarks); else by the image size
+        self.n_photons = int(s.extra.get("photons_per_pass") or caustics.photons_per_pass(s.width, s.height))
         self.r1 = caustics.initial_radius(self.scene_radius, self.n_photons)
         self._grids: OrderedDict = OrderedDict()
 
     def photons(self, seed: int, pass_index: int):
         """(positions, directions, flux, normals) of the stored photons of pass ``pass_index`` (1-based)."""
-        gen = philox(seed, caustics.PHOTON_STREAM, pass_index)
+        gen = self.stream(seed, caustics.PHOTON_STREAM, pass_index)
         o, d, f = caustics.emit_photons(self.it.s, self.n_photons, gen)
         return trace_photons(self.it, o, d, f, gen)
 

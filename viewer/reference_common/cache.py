@@ -81,6 +81,10 @@ def setup_key(setup) -> str:
     # the estimator: its mean is the same for every option, its variance (sum2) is not
     add("estimator", (setup.strategy, setup.mis_heuristic, bool(setup.russian_roulette),
                       bool(setup.extra.get("spectral", False))))
+    # the integrator: "photon" estimates caustic paths another way (its passes' photon maps); "path"
+    # adds nothing, so the entries stored before there was a choice stay valid
+    if getattr(setup, "integrator", "path") != "path":
+        add("integrator", setup.integrator)
     return h.hexdigest()
 
 

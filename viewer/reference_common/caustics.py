@@ -44,7 +44,8 @@ import math
 
 import numpy as np
 
-INTEGRATORS = ("path", "photon")
+from viewer.reference_common.estimator import INTEGRATORS  # ("path", "photon"): the estimator's options check them
+
 INTEGRATOR_LABELS = {"path": "path tracing", "photon": "path tracing + caustic photon map"}
 ALPHA = 2.0 / 3.0            # Knaus & Zwicker's alpha: the share of photons a pass's radius keeps
 NEIGHBOURS = 25              # photons a pass's first gather disk holds if spread evenly (r_1)
@@ -52,6 +53,7 @@ NORMAL_COS = 0.9             # a photon counts where |n_p . n_g(x)| >= this (sam
 MAX_PHOTON_BOUNCES = 16      # delta vertices a photon may pass before it is dropped
 PHOTON_RR_START = 4          # Russian roulette on photons from their 4th delta vertex on
 MIN_PHOTONS, MAX_PHOTONS = 1 << 14, 1 << 18
+ENV_BATCH = 4096             # environment directions drawn at once
 #: the random stream of pass i's photons: philox(seed, PHOTON_STREAM, i) (a block id no image uses)
 PHOTON_STREAM = 0x7F0000000000
 
@@ -115,17 +117,23 @@ def _luminance(rgb) -> float:
     return float(np.abs(np.asarray(rgb, dtype=np.float64)) @ LUMINANCE_REC709)
 
 
+def texel_solid_angles(h: int, w: int) -> np.ndarray:
+    """(h,) the exact solid angle of a texel of each row of an (h, w) lat-long map:
+    (2 pi / w) (cos theta_top - cos theta_bottom)."""
+    edges = np.cos(math.pi * np.arange(h + 1) / h)
+    return (2.0 * math.pi / w) * (edges[:-1] - edges[1:])
+
+
 def environment_power(env) -> np.ndarray:
-    """Radiant intensity integral of the environment, int L(w) dw (RGB): 4 pi L for a constant,
-    the texels' radiance times their solid angles for a map."""
+    """The integral of the environment's radiance over the sphere, int L(w) dw (RGB): 4 pi L for a
+    constant, each texel's radiance times its solid angle for a map (the map is piecewise
+    constant, so this is exact, and it is what its importance sampling estimates)."""
     if env.is_black:
         return np.zeros(3)
     if not env.is_map:
         return 4.0 * math.pi * np.asarray(env.constant, dtype=np.float64)
     h, w, _ = env.image.shape
-    sin_t = np.sin(math.pi * (np.arange(h) + 0.5) / h)
-    d_omega = (2.0 * math.pi / w) * (math.pi / h) * sin_t
-    return np.einsum("hwc,h->c", env.image, d_omega)
+    return np.einsum("hwc,h->c", env.image, texel_solid_angles(h, w))
 
 
 def light_powers(setup, radius: float) -> list[tuple[str, int, np.ndarray]]:
@@ -202,7 +210,10 @@ def emit_photons(setup, n: int, rng_or_seed):
         else:
             env = setup.env
             u = rng.random((nk, 4))
-            w, L, pdf = env.sample(u[:, :2], np.broadcast_to([0.0, 0.0, 1.0], (nk, 3)), np.ones(nk, dtype=bool))
+            # in batches: a map's sampling holds a (batch, map width) table of its rows' CDFs
+            parts = [env.sample(u[b:b + ENV_BATCH, :2], np.broadcast_to([0.0, 0.0, 1.0], (min(ENV_BATCH, nk - b), 3)),
+                                np.ones(min(ENV_BATCH, nk - b), dtype=bool)) for b in range(0, nk, ENV_BATCH)]
+            w, L, pdf = (np.concatenate([p[j] for p in parts]) for j in range(3))
             ok = pdf > 0
             w, L, pdf, u = w[ok], L[ok], pdf[ok], u[ok]
             o = _disk_points(u[:, 2:4], centre + R * w, w, R)
@@ -245,7 +256,7 @@ class PhotonGrid:
         self.order = np.argsort(bucket, kind="stable")
         self.positions = pos[self.order]
         self.directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)[self.order]
-        self.powers = np.asarray(powers, dtype=np.float64).reshape(n, -1)[self.order]
+        self.powers = np.asarray(powers, dtype=np.float64).reshape(n, -1)[self.order] if n else np.zeros((0, 3))
         self.normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)[self.order]
         counts = np.bincount(bucket, minlength=self.table_size).astype(np.int32)
         self.count = counts
@@ -302,8 +313,7 @@ def environment_is_peaked(env) -> bool:
     h, w, _ = env.image.shape
     from viewer.brdf.sampling import LUMINANCE_REC709
 
-    sin_t = np.sin(math.pi * (np.arange(h) + 0.5) / h)
-    d_omega = np.broadcast_to(((2.0 * math.pi / w) * (math.pi / h) * sin_t)[:, None], (h, w)).ravel()
+    d_omega = np.broadcast_to(texel_solid_angles(h, w)[:, None], (h, w)).ravel()
     power = (np.abs(env.image @ LUMINANCE_REC709)).ravel() * d_omega
     radiance = power / np.maximum(d_omega, 1e-300)
     order = np.argsort(-radiance, kind="stable")
@@ -313,31 +323,26 @@ def environment_is_peaked(env) -> bool:
     return k > 0 and float(share[k - 1]) >= PEAK_POWER_SHARE
 
 
-def _delta_names(materials) -> list[str]:
-    return [m.name for m in materials if m.lobes.has_delta]
-
-
 def choose_integrator(setup_or_scene) -> tuple[str, str]:
     """(name, reason): ``photon`` for a scene with smooth (delta) surfaces lit by a point or
     directional light or a peaked environment (a sky's sun), else ``path``; ``reason`` is one
     short clause for the line that says which was picked."""
-    from viewer.reference_common.setup import RenderSetup
-
-    if isinstance(setup_or_scene, RenderSetup):
-        mats, lights, env = setup_or_scene.materials, setup_or_scene.lights, setup_or_scene.env
-        kinds = [k for k, _a, _v in lights]
+    if hasattr(setup_or_scene, "geometry"):       # a RenderSetup (a scene has no triangle soup)
+        lobes = [(m.name, m.lobes) for m in setup_or_scene.materials]
+        kinds = [k for k, _a, _v in setup_or_scene.lights]
+        env = setup_or_scene.env
     else:
+        from viewer import brdf
         from viewer.reference_common.envmap import EnvironmentLight
-        from viewer.reference_common.setup import material_info
 
         sc = setup_or_scene
         used = {o.material for o in sc.objects}
-        mats = [material_info(n, sc.materials[n]) for n in sc.materials if n in used]
+        lobes = [(n, brdf.get(p.model).lobes(p)) for n, p in sc.materials.items() if n in used]
         kinds = [lt.type for lt in sc.lights]
         e = sc.environment
         img = e.radiance_map(256, 128) if e.map is not None else None
         env = EnvironmentLight(image=img, intensity=1.0) if img is not None else EnvironmentLight.from_scene(sc)
-    delta = _delta_names(mats)
+    delta = [name for name, lobe in lobes if lobe.has_delta]
     if not delta:
         return "path", "no smooth (delta) surface, so no caustic"
     what = ", ".join(repr(d) for d in delta[:3]) + (" ..." if len(delta) > 3 else "")

@@ -23,13 +23,14 @@ STRATEGY_LABELS = {"mis": "MIS (BSDF + light)", "bsdf": "BSDF sampling", "light"
 MIS_HEURISTICS = ("power", "balance")   # power: beta = 2 (Veach 1997, eq. 9.13)
 
 
+#: path tracing, and path tracing plus a progressive caustic photon map (viewer/reference_common/caustics.py)
+INTEGRATORS = ("path", "photon")
 AUTO_INTEGRATOR = "auto"   # the integrator chosen per scene (caustics.choose_integrator)
 
 
 def check_options(strategy: str, mis_heuristic: str = "power", integrator: str = AUTO_INTEGRATOR) -> None:
     """One-line ViewerError for an unknown strategy, MIS heuristic or integrator."""
     from viewer import ViewerError
-    from viewer.reference_common.caustics import INTEGRATORS
 
     if strategy not in STRATEGIES:
         raise ViewerError(f"strategy: {strategy!r} is not a sampling strategy; allowed: {', '.join(STRATEGIES)}")

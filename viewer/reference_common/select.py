@@ -87,12 +87,24 @@ def without_twin(scene) -> str | None:
     return None
 
 
+def engine_options(takes, options: dict) -> dict:
+    """The estimator ``options`` that the callable ``takes`` (an engine's constructor or its
+    ``reset``) has parameters for: an engine without the photon map has no ``integrator`` and
+    renders ``path``; its setup says which it rendered."""
+    import inspect
+
+    params = inspect.signature(takes).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return dict(options)
+    return {k: v for k, v in options.items() if k in params}
+
+
 def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                   workers=None, ctx=None, spectral: bool | None = None, **estimator):
     """A progressive reference renderer of the chosen engine ("cpu" or "gpu"). ``spectral``:
     trace wavelengths (None: where a material is dispersive); both engines do.
-    ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette), which
-    both engines take."""
+    ``estimator``: the estimator's options (strategy, mis_heuristic, russian_roulette, integrator:
+    "path", "photon" or "auto", chosen per scene by ``caustics.choose_integrator``)."""
     if engine == "gpu":
         limit = cpu_only(scene, spectral)
         if limit is not None:
@@ -102,7 +114,7 @@ def make_renderer(engine: str, scene, camera=None, width=None, height=None, max_
         from viewer.gpupt.engine import GpuReferenceRenderer
 
         return GpuReferenceRenderer(scene, camera, width, height, max_depth=max_depth, seed=seed, ctx=ctx,
-                                    spectral=spectral, **estimator)
+                                    spectral=spectral, **engine_options(GpuReferenceRenderer, estimator))
     from viewer import brdf
     from viewer.pathtracer import ReferenceRenderer
 

@@ -45,7 +45,8 @@ def plan(win):
     m = None if win.view_only else toast(session, win.TOAST_S)
     rv = session.reference
     labels = cmp.overlay_labels(view, rv.spp if rv is not None else 0, preview=rv is not None and rv.preview,
-                                error=rv.error if rv is not None else "")
+                                error=rv.error if rv is not None else "",
+                                estimator=rv.estimator_label if rv is not None else "")
     bars = cmp.overlay_bars(view) + session.monte_carlo.overlay_bars(cmp.reference_rect(view))
     title, caption = ("", "") if win.view_only else session.lecture_title
     # the progressive trace's progress stands where a toast would (a toast comes first)
