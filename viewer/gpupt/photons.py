@@ -63,7 +63,8 @@ class CausticPhotons:
 
     def __init__(self, ctx, setup, seed: int, recipe, virtual: dict):
         self.ctx, self.setup, self.seed = ctx, setup, int(seed)
-        self.n = caustics.photons_per_pass(setup.width, setup.height)
+        # ``extra["photons_per_pass"]``: a fixed count (tests, benchmarks); else by the image size
+        self.n = int(setup.extra.get("photons_per_pass") or caustics.photons_per_pass(setup.width, setup.height))
         _centre, radius = caustics.scene_bounds(setup)
         self.r1 = caustics.initial_radius(radius, self.n)
         self.pass_index = 0          # the pass whose grid is up (0: none)
