@@ -24,7 +24,11 @@ each a compile-time variant of the pass), and cached by that recipe. ``spectral`
 engine's hero-wavelength estimator instead of RGB, the compile-time variant ``SPECTRAL``
 (``shaders/pathtrace/spectral.glsl``, its data from ``viewer.gpupt.spectral``); None: where a
 material is dispersive, as ``ReferenceRenderer`` decides (``viewer.reference_common.select.make_renderer``
-passes its ``spectral`` so); the default False keeps RGB.
+passes its ``spectral`` so); the default False keeps RGB. ``integrator``: "path" (the default),
+"photon" (path tracing plus a progressive caustic photon map, ``viewer.reference_common.caustics``:
+the compile-time variant PHOTONS, its photon map ``viewer.gpupt.photons``; pass i of the map is
+sample i of every pixel, so the photon integrator renders one sample per pass) or "auto" (chosen
+per scene; ``integrator`` and ``integrator_reason`` say which and why).
 """
 
 from __future__ import annotations
@@ -86,8 +90,8 @@ def release_programs(ctx) -> None:
 class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
-    ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
-    ``ReferenceRenderer`` (spectral or not).
+    ``strategy``, ``mis_heuristic``, ``russian_roulette``, ``integrator``: the estimator's options,
+    as for ``ReferenceRenderer`` (spectral or not).
     ``spectral``: trace wavelengths (True), RGB (False, the default) or, None, wavelengths where
     a material is dispersive (``ReferenceRenderer``'s default)."""
 
