@@ -177,8 +177,8 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
-#ifdef PHOTONS
-            L = add_sat(L, mul_sat(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l)));
+#if defined(PHOTONS) && !defined(SPECTRAL)
+            L = add_sat(L, mul_sat(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l, ivec3(0), vec4(0.0))));
 #endif
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {

@@ -175,14 +175,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
 #ifdef PHOTONS
-            {   // the caustic photons (RGB power upsampled, the hero-only share as next-event's)
-                PhotonIter it = photon_iter(p);
-                vec3 wl, power;
-                vec4 sum = vec4(0.0);
-                while (photon_next(it, p, n, ng, tx, ty, trans, wl, power))
-                    sum += spec_eval(cat, model, o_s, o_3, hmask, wl, wo_l) * spec_up(power);
-                L = add_sat4(L, mul_sat4(T, sum * (share / (PI * u_ph_r2))));
-            }
+            // the caustic photons (RGB power upsampled, the hero-only share as next-event's)
+            L = add_sat4(L, mul_sat4(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l,
+                                                      ivec3(cat, o_s, o_3), hmask) * share));
 #endif
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
