@@ -230,3 +230,22 @@ def slab_under_sky(size: int):
     sc.environment.constant = np.array([0.6, 0.65, 0.7])
     sc.environment.intensity = 1.0
     return sc
+
+
+def coated_mirrors(size: int):
+    """The mirror-wall scene with the floor and the wall both a glossy coat over a mirror (a
+    material with a smooth and a delta lobe): photons are stored on the coat and go on through
+    the mirror under it, so the photon pass's later rounds matter. No closed form: the engines
+    are compared."""
+    sc = mirror_wall_scene(size)
+    coat = {"model": "layered", "coating": {"ior": 1.5, "alpha": 0.2, "thickness": 0.0, "sigma_a": [0.0, 0.0, 0.0]},
+            "base": {"model": "mirror", "fresnel": "none"}}
+    text = {"camera": {"position": list(sc.camera.position), "target": list(sc.camera.target),
+                       "up": [0.0, 1.0, 0.0], "fov_y": float(sc.camera.fov_y), "width": size, "height": size},
+            "lights": [{"type": "point", "position": [0.0, MIRROR_WALL["h"], 0.0],
+                        "intensity": [MIRROR_WALL["I"]] * 3}],
+            "objects": [{"mesh": "plane", "material": "floor", "scale": 3.0},
+                        {"mesh": "cube", "material": "wall", "scale": [3.0, 3.0, 0.05],
+                         "translate": [0.0, 3.0, MIRROR_WALL["wall_z"] - 0.05]}],
+            "materials": {"floor": coat, "wall": dict(coat)}}
+    return parse_scene(text, None, label="<coated mirrors>", base_dir=SCENE_DIR)

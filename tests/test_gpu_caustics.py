@@ -17,7 +17,7 @@ Per-pixel z-scores use each pixel's own spread over passes (passes are independe
 import numpy as np
 import pytest
 
-from caustic_oracles import expected, glass_slab_scene, mirror_wall_scene, slab_under_sky
+from caustic_oracles import coated_mirrors, expected, glass_slab_scene, mirror_wall_scene, slab_under_sky
 from viewer.reference_common import caustics
 
 SIZE = 16
@@ -101,31 +101,75 @@ def test_gpu_path_misses_the_caustic(ctx, name):
     assert np.all(m / exact[mask].mean(axis=0) - 1.0 < -0.2), name
 
 
-@pytest.mark.parametrize("name", list(ORACLES))
-def test_gpu_photon_agrees_with_cpu_photon(ctx, name):
-    """Both engines' photon estimators have the same expectation at every pass count (same
-    photons per pass, radii, kernel and partition): per 4 x 4 block the difference of the means
-    over its standard error (spread over passes) is a standard normal."""
-    from viewer.pathtracer import ReferenceRenderer
-
-    g, _ = gpu_passes(ctx, name)
-    make, depth = ORACLES[name]
-    with ReferenceRenderer(make(SIZE), width=SIZE, height=SIZE, max_depth=depth, seed=5, workers=0,
-                           integrator="photon") as c:
-        cimgs = pass_images(c, PASSES)
-        assert c.bad_values == 0
-    nb = SIZE // 4
+def agreement(g, cimgs, name):
+    """Per 4 x 4 block the difference of the two engines' means over its standard error (the
+    spread over passes) is a standard normal; the image sums agree within 4 standard errors."""
+    n = g.shape[0]
+    nb = g.shape[1] // 4
 
     def blocks(imgs):
-        return imgs.reshape(PASSES, nb, 4, nb, 4, 3).mean(axis=(2, 4))
+        return imgs.reshape(n, nb, 4, nb, 4, 3).mean(axis=(2, 4))
 
     bg, bc = blocks(g), blocks(cimgs)
-    var = bg.var(axis=0, ddof=1) / PASSES + bc.var(axis=0, ddof=1) / PASSES
+    var = bg.var(axis=0, ddof=1) / n + bc.var(axis=0, ddof=1) / n
     z = (bg.mean(axis=0) - bc.mean(axis=0)) / np.sqrt(var + (1e-4 * bc.mean(axis=0)) ** 2 + 1e-30)
     assert np.mean(z * z) < 1.6 and np.abs(z).max() < 5.0, (name, np.mean(z * z), np.abs(z).max())
     mg, mc = g.mean(axis=0).sum(), cimgs.mean(axis=0).sum()
-    se = np.sqrt(g.sum(axis=(1, 2, 3)).var(ddof=1) / PASSES + cimgs.sum(axis=(1, 2, 3)).var(ddof=1) / PASSES)
+    se = np.sqrt(g.sum(axis=(1, 2, 3)).var(ddof=1) / n + cimgs.sum(axis=(1, 2, 3)).var(ddof=1) / n)
     assert abs(mg - mc) < 4.0 * se, (name, mg, mc, se)
+    assert se < 0.02 * mc, (name, se / mc)      # the power to see an 8% difference
+
+
+def cpu_passes(scene, depth, n, **options):
+    from viewer.pathtracer import ReferenceRenderer
+
+    with ReferenceRenderer(scene, width=SIZE, height=SIZE, max_depth=depth, seed=5, workers=0, integrator="photon",
+                           **options) as c:
+        imgs = pass_images(c, n)
+        assert c.bad_values == 0
+    return imgs
+
+
+@pytest.mark.parametrize("name", list(ORACLES))
+def test_gpu_photon_agrees_with_cpu_photon(ctx, name):
+    """Both engines' photon estimators have the same expectation at every pass count (same
+    photons per pass, radii, kernel and partition)."""
+    g, _ = gpu_passes(ctx, name)
+    make, depth = ORACLES[name]
+    agreement(g, cpu_passes(make(SIZE), depth, PASSES), name)
+
+
+def _gpu_photon_passes(ctx, scene, depth, n, **options):
+    from viewer.gpupt import GpuReferenceRenderer
+
+    with GpuReferenceRenderer(scene, width=SIZE, height=SIZE, max_depth=depth, seed=3, ctx=ctx, integrator="photon",
+                              **options) as g:
+        imgs = pass_images(g, n)
+        assert g.bad_values == 0
+    return imgs
+
+
+@pytest.mark.slow   # the spectral variants compile for about 10 s on software GL, the CPU's spectral pass is slow
+def test_gpu_spectral_photon_agrees_with_cpu():
+    """The hero-wavelength estimator gathers the same photons (their RGB power upsampled, f at
+    the path's wavelengths) and drops the same caustic paths as the CPU engine's."""
+    from viewer.gl.context import create_offscreen_context
+
+    ctx = create_offscreen_context()
+    try:
+        for name, (make, depth) in ORACLES.items():
+            agreement(_gpu_photon_passes(ctx, make(SIZE), depth, PASSES, spectral=True),
+                      cpu_passes(make(SIZE), depth, PASSES, spectral=True), name + " (spectral)")
+    finally:
+        ctx.release()
+
+
+@pytest.mark.slow   # the layered program compiles for about 10 s on software GL
+def test_gpu_photon_agrees_with_cpu_on_coated_mirrors(ctx):
+    """A glossy coat over a mirror stores photons and sends them on through its delta lobe (the
+    photon pass's later rounds); the CPU engine does the same in one loop."""
+    sc = coated_mirrors(SIZE)
+    agreement(_gpu_photon_passes(ctx, sc, 8, PASSES), cpu_passes(coated_mirrors(SIZE), 8, PASSES), "coated mirrors")
 
 
 def test_gpu_photon_and_path_agree_where_both_converge(ctx):
