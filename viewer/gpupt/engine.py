@@ -217,7 +217,14 @@ class GpuReferenceRenderer:
         if self.uses_photons:
             from viewer.gpupt.photons import CausticPhotons
 
-            models, defines = self.recipe()
+            # the photon pass samples only materials with a delta lobe: its dispatch holds their
+            # models alone (every model of the dispatch is inlined at each call: compile time)
+            models = []
+            for m in setup.materials:
+                if m.lobes.has_delta:
+                    models.extend(models_used(m.params))
+            models = tuple(dict.fromkeys(models))
+            defines = tuple((k, v) for k, v in self.recipe()[1] if k not in ("PHOTONS", "SPECTRAL"))
             self.photons = CausticPhotons(ctx, setup, self.seed, (models, defines), self._virtual(models))
 
     def recipe(self):

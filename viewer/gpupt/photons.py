@@ -57,9 +57,9 @@ def photon_stream(seed: int, i: int) -> np.random.Generator:
 
 
 class CausticPhotons:
-    """The photon map of one setup on ``ctx``. ``recipe``: (models, defines) of the path-tracing
-    program (the photon pass is compiled for the same models and material defines);
-    ``dispatch``: the virtual files of the BRDF dispatch reading materials from ``u_mat_tex``."""
+    """The photon map of one setup on ``ctx``. ``recipe``: (models, defines) the photon pass is
+    compiled for (the models of the materials with a delta lobe, the material defines);
+    ``virtual``: the virtual files of their BRDF dispatch reading materials from ``u_mat_tex``."""
 
     def __init__(self, ctx, setup, seed: int, recipe, virtual: dict):
         self.ctx, self.setup, self.seed = ctx, setup, int(seed)
@@ -80,7 +80,7 @@ class CausticPhotons:
         if entry is None:
             _models, defines = recipe
             prog = build_program(ctx, "passes/fullscreen.vert", "passes/photon_trace.frag", virtual=virtual,
-                                 defines={k: v for k, v in defines if k != "PHOTONS"})
+                                 defines=dict(defines))
             entry = _PROGRAMS[key] = (prog, ctx.vertex_array(prog, []))
         self._prog, self._vao = entry
 
