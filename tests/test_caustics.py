@@ -160,6 +160,11 @@ def test_environment_photons_carry_its_power():
     setup = RenderSetup.from_scene(load_scene_text(sky))
     _c, R = caustics.scene_bounds(setup)
     want = math.pi * R * R * caustics.environment_power(setup.env)
+    # the photons' directions have the map's own density and radiance (rotated as the map is)
+    setup.env = type(setup.env)(image=setup.env.image, rotation_deg=30.0)
+    w, L, pdf = caustics.sample_environment(setup.env, np.random.default_rng(2).random((4000, 2)))
+    n4 = np.broadcast_to([0.0, 0.0, 1.0], (4000, 3))
+    assert np.allclose(L, setup.env.eval(w)) and np.allclose(pdf, setup.env.pdf(w, n4, np.ones(4000, bool)))
     f = np.concatenate([caustics.emit_photons(setup, 20_000, s)[2] for s in range(4)])
     # the photons are independent: the sum of each pass estimates the power, their mean has the
     # standard error of the photons' spread (unbiased: importance sampled, the map piecewise constant)
@@ -439,3 +444,24 @@ def test_glass_sphere_caustic_power_converges():
     want = sphere_caustic_power(0.45)
     got, se = mean_and_error(sphere_floor_power(0.45, 60, 1 << 16, seed=3))
     assert abs(got - want) < 4 * se + 0.015 * want, (got / want - 1, se / want)
+
+
+# ----------------------------------------------------------------------------- the command line
+
+def test_reference_command_says_which_integrator_and_why(tmp_path, capsys):
+    from viewer.commands.cli import main
+
+    scene_file = tmp_path / "mirror.toml"
+    scene_file.write_text(mirror_wall(dict(model="mirror", fresnel="none")).replace(
+        "fov_y = 40.0", "fov_y = 40.0\nwidth = 16\nheight = 12"))
+    out = tmp_path / "r.png"
+    assert main(["reference", str(scene_file), "--spp", "1", "--workers", "0", "--engine", "cpu",
+                 "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "integrator: photon (smooth (delta) surfaces ('mirror') lit by a point light: caustics)" in said
+    assert main(["reference", str(scene_file), "--spp", "1", "--workers", "0", "--engine", "cpu",
+                 "--integrator", "path", "--out", str(out)]) == 0
+    assert "integrator: path (asked for)" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as e:
+        main(["reference", str(scene_file), "--integrator", "bdpt", "--out", str(out)])
+    assert e.value.code == 2 and "argument --integrator: invalid choice: 'bdpt'" in capsys.readouterr().err

@@ -53,7 +53,6 @@ NORMAL_COS = 0.9             # a photon counts where |n_p . n_g(x)| >= this (sam
 MAX_PHOTON_BOUNCES = 16      # delta vertices a photon may pass before it is dropped
 PHOTON_RR_START = 4          # Russian roulette on photons from their 4th delta vertex on
 MIN_PHOTONS, MAX_PHOTONS = 1 << 14, 1 << 18
-ENV_BATCH = 4096             # environment directions drawn at once
 #: the random stream of pass i's photons: philox(seed, PHOTON_STREAM, i) (a block id no image uses)
 PHOTON_STREAM = 0x7F0000000000
 
@@ -156,6 +155,37 @@ def _generator(rng_or_seed) -> np.random.Generator:
     return np.random.Generator(np.random.Philox(key=int(rng_or_seed) & 0xFFFFFFFFFFFFFFFF))
 
 
+def sample_environment(env, u):
+    """Directions toward the environment for photons: (w (N, 3), radiance (N, 3), pdf (N,) per solid
+    angle) from uniforms u (N, 2). A map: a texel with its probability (the map's importance
+    sampling tables, ``EnvironmentLight.distribution``), drawn from the CDF of all texels at
+    once, then a uniform point inside it (u, v), the density the map's own ``sample`` has,
+    p = p_texel W H / (2 pi^2 sin theta); a constant: uniform on the sphere."""
+    n = u.shape[0]
+    dist = env.distribution()
+    if dist is None:
+        return env.sample(u, np.broadcast_to([0.0, 0.0, 1.0], (n, 3)), np.ones(n, dtype=bool))
+    from viewer.environment.latlong import uv_to_dir
+
+    texel_p, _row_cdf, _col_cdf, to_map = dist
+    h, w = texel_p.shape
+    cdf = np.cumsum(texel_p.ravel())
+    k = np.minimum(np.searchsorted(cdf, u[:, 0] * cdf[-1], side="right"), h * w - 1)
+    while np.any(texel_p.ravel()[k] <= 0):          # (only where u hit a zero-width step exactly)
+        bad = texel_p.ravel()[k] <= 0
+        k[bad] = np.minimum(k[bad] + 1, h * w - 1)
+    row, col = k // w, k % w
+    # the second uniform, and the first's place within its texel's step, place the point
+    lo = cdf[k] - texel_p.ravel()[k]
+    fu = np.clip((u[:, 0] * cdf[-1] - lo) / texel_p.ravel()[k], 0.0, 1.0 - 1e-12)
+    vv = (row + np.clip(u[:, 1], 0.0, 1.0 - 1e-12)) / h
+    uu = (col + fu) / w
+    d = uv_to_dir(uu, vv) @ to_map                   # map -> world (to_map is a rotation)
+    sin_t = np.sin(math.pi * vv)
+    pdf = np.where(sin_t > 0, texel_p[row, col] * (w * h) / (2.0 * math.pi * math.pi * np.maximum(sin_t, 1e-300)), 0.0)
+    return d, env.image[row, col], pdf
+
+
 def _disk_points(u, centre, axis, radius):
     """Uniform points on the disk of ``radius`` about ``centre`` perpendicular to unit ``axis``
     (N, 3) or (3,), from uniforms u (N, 2)."""
@@ -208,12 +238,8 @@ def emit_photons(setup, n: int, rng_or_seed):
             d = np.broadcast_to(a, (nk, 3)).copy()
             f = np.broadcast_to(power / nk, (nk, 3)).copy()
         else:
-            env = setup.env
             u = rng.random((nk, 4))
-            # in batches: a map's sampling holds a (batch, map width) table of its rows' CDFs
-            parts = [env.sample(u[b:b + ENV_BATCH, :2], np.broadcast_to([0.0, 0.0, 1.0], (min(ENV_BATCH, nk - b), 3)),
-                                np.ones(min(ENV_BATCH, nk - b), dtype=bool)) for b in range(0, nk, ENV_BATCH)]
-            w, L, pdf = (np.concatenate([p[j] for p in parts]) for j in range(3))
+            w, L, pdf = sample_environment(setup.env, u[:, :2])
             ok = pdf > 0
             w, L, pdf, u = w[ok], L[ok], pdf[ok], u[ok]
             o = _disk_points(u[:, 2:4], centre + R * w, w, R)
