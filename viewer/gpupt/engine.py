@@ -337,14 +337,19 @@ class GpuReferenceRenderer:
             set_uniform(prog, "u_light_a", a.tobytes())
             set_uniform(prog, "u_light_v", v.tobytes())
 
+    def _build_photons(self):
+        """Under the photon integrator: the photon map of the next sample (pass spp + 1), built
+        once, whatever the bands its pixels are rendered in."""
+        if self.photons is not None and self.photons.pass_index != self.spp + 1:
+            self.photons.build(self.spp + 1, self._bind_materials)
+
     def _pass(self, row0: int, row1: int, spp: int):
         """One draw: rows [row0, row1) gain ``spp`` samples each (under photons one: each sample
         of a pixel is a photon pass, its map built when the image's next sample starts)."""
         if self.photons is not None and spp > 0:
             if spp != 1:
                 raise ValueError("the photon integrator renders one sample per pass")
-            if self.photons.pass_index != self.spp + 1:
-                self.photons.build(self.spp + 1, self._bind_materials)
+            self._build_photons()
         self._bind()
         set_uniform(self._prog, "u_row0", int(row0))
         set_uniform(self._prog, "u_row1", int(row1))
@@ -398,6 +403,7 @@ class GpuReferenceRenderer:
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)
+            self._build_photons()   # a new pass's photon map: apart from the draw's time
             t_pass = time.perf_counter()
             self._pass(r0, r1, 1)
             self.ctx.finish()
