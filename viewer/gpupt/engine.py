@@ -56,6 +56,12 @@ def dispatch_from_texture(models: tuple[str, ...]) -> str:
     return generate_dispatch(models, texture_width=TEX_WIDTH)
 
 
+def virtual_files(models) -> dict:
+    """The virtual files of a program for ``models``: the dispatch from ``u_mat_tex`` and the
+    models' own GLSL (.brdf files)."""
+    return {"brdf/dispatch.glsl": dispatch_from_texture(models), **custom_virtual(models)}
+
+
 def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     """(info (2 * MAX_MATERIALS, 4) float32 for ``u_mat_info``, floats (F,) for ``u_mat_tex``)
     for a list of ``viewer.reference_common.setup.MaterialInfo``."""
@@ -217,15 +223,7 @@ class GpuReferenceRenderer:
         if self.uses_photons:
             from viewer.gpupt.photons import CausticPhotons
 
-            # the photon pass samples only materials with a delta lobe: its dispatch holds their
-            # models alone (every model of the dispatch is inlined at each call: compile time)
-            models = []
-            for m in setup.materials:
-                if m.lobes.has_delta:
-                    models.extend(models_used(m.params))
-            models = tuple(dict.fromkeys(models))
-            defines = tuple((k, v) for k, v in self.recipe()[1] if k not in ("PHOTONS", "SPECTRAL"))
-            self.photons = CausticPhotons(ctx, setup, self.seed, (models, defines), self._virtual(models))
+            self.photons = CausticPhotons.for_setup(ctx, setup, self.seed, self.recipe()[1], virtual_files)
 
     def recipe(self):
         """What the pass's program is compiled for: (the models used, sorted (define, value)
@@ -260,10 +258,6 @@ class GpuReferenceRenderer:
         path and the photon integrator is the path tracer: the plain program renders it)."""
         return self.setup.integrator == "photon" and any(m.lobes.has_delta for m in self.setup.materials)
 
-    @staticmethod
-    def _virtual(models) -> dict:
-        return {"brdf/dispatch.glsl": dispatch_from_texture(models), **custom_virtual(models)}
-
     def _program(self):
         """The pass's program for this scene's recipe, shared by every renderer on the same
         context (compiling takes 0.2-6 s on llvmpipe; a material change of the same models
@@ -273,14 +267,13 @@ class GpuReferenceRenderer:
         if entry is None:
             models, defines = key[1]
             prog = build_program(self.ctx, "passes/fullscreen.vert", "passes/pathtrace.frag",
-                                 virtual=self._virtual(models), defines=dict(defines))
+                                 virtual=virtual_files(models), defines=dict(defines))
             entry = _PROGRAMS[key] = (prog, self.ctx.vertex_array(prog, []))
         self._vao = entry[1]
         return entry[0]
 
     def _bind_materials(self, prog) -> int:
-        """The BVH and material textures and the material uniforms (the path-tracing and the
-        photon pass); returns the next free texture unit."""
+        """Bind the BVH, material textures and uniforms (both passes); the next free unit."""
         unit = self._scene_tex.bind(prog, 0)
         self._mat_tex.use(location=unit)
         set_uniform(prog, "u_mat_tex", unit)
@@ -338,14 +331,12 @@ class GpuReferenceRenderer:
             set_uniform(prog, "u_light_v", v.tobytes())
 
     def _build_photons(self):
-        """Under the photon integrator: the photon map of the next sample (pass spp + 1), built
-        once, whatever the bands its pixels are rendered in."""
+        """The photon map of the next sample (pass spp + 1), once whatever the bands."""
         if self.photons is not None and self.photons.pass_index != self.spp + 1:
             self.photons.build(self.spp + 1, self._bind_materials)
 
     def _pass(self, row0: int, row1: int, spp: int):
-        """One draw: rows [row0, row1) gain ``spp`` samples each (under photons one: each sample
-        of a pixel is a photon pass, its map built when the image's next sample starts)."""
+        """One draw: rows [row0, row1) gain ``spp`` samples each (one under photons: a pass)."""
         if self.photons is not None and spp > 0:
             if spp != 1:
                 raise ValueError("the photon integrator renders one sample per pass")

@@ -84,6 +84,22 @@ class CausticPhotons:
             entry = _PROGRAMS[key] = (prog, ctx.vertex_array(prog, []))
         self._prog, self._vao = entry
 
+    @classmethod
+    def for_setup(cls, ctx, setup, seed: int, defines, virtual_files) -> "CausticPhotons":
+        """The photon map of ``setup``; ``defines``: the path-tracing program's (the material
+        ones are kept), ``virtual_files(models)``: a program's virtual files. The photon pass
+        samples only materials with a delta lobe, so its dispatch holds their models alone
+        (every model of a dispatch is inlined at each call: compile time on software GL)."""
+        from viewer.gl.brdf_glsl import models_used
+
+        models = []
+        for m in setup.materials:
+            if m.lobes.has_delta:
+                models.extend(models_used(m.params))
+        models = tuple(dict.fromkeys(models))
+        defines = tuple((k, v) for k, v in defines if k not in ("PHOTONS", "SPECTRAL"))
+        return cls(ctx, setup, seed, (models, defines), virtual_files(models))
+
     # ------------------------------------------------------------------ one pass's photons
     def trace(self, i: int, bind_scene) -> tuple[np.ndarray, ...]:
         """Emit and trace pass ``i``'s photons; (positions, directions of travel, powers,
