@@ -98,7 +98,7 @@ class ReferenceEngine(Protocol):
         """Continue from stored sums of ``spp`` samples per pixel."""
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
-              russian_roulette=None) -> None:
+              russian_roulette=None, integrator=None) -> None:
         """Start over on a changed scene, camera or size; the options given change."""
 
     def warm_up(self) -> None:
