@@ -151,18 +151,24 @@ def _gpu_photon_passes(ctx, scene, depth, n, **options):
 
 
 @pytest.mark.slow   # the spectral variants compile for about 10 s on software GL, the CPU's spectral pass is slow
-def test_gpu_spectral_photon_agrees_with_cpu():
+def test_gpu_spectral_photon_agrees_with_cpu(ctx):
     """The hero-wavelength estimator gathers the same photons (their RGB power upsampled, f at
     the path's wavelengths) and drops the same caustic paths as the CPU engine's."""
-    from viewer.gl.context import create_offscreen_context
+    for name, (make, depth) in ORACLES.items():
+        agreement(_gpu_photon_passes(ctx, make(SIZE), depth, PASSES, spectral=True),
+                  cpu_passes(make(SIZE), depth, PASSES, spectral=True), name + " (spectral)")
 
-    ctx = create_offscreen_context()
-    try:
-        for name, (make, depth) in ORACLES.items():
-            agreement(_gpu_photon_passes(ctx, make(SIZE), depth, PASSES, spectral=True),
-                      cpu_passes(make(SIZE), depth, PASSES, spectral=True), name + " (spectral)")
-    finally:
-        ctx.release()
+
+@pytest.mark.slow   # each step compiles its own programs (10-20 s on software GL)
+@pytest.mark.parametrize("step", [1, 2, 9])
+def test_gpu_photon_agrees_with_cpu_on_the_lecture_caustics(ctx, step):
+    """The lecture's glass steps under the sky with its sun (photons from the environment map:
+    emission by its importance sampling, the sun's caustics): mirror and glass spheres, the glass
+    cube (total internal reflection), absorbing glass."""
+    from viewer.scene.lecture import tour_scene
+
+    agreement(_gpu_photon_passes(ctx, tour_scene(step), 6, PASSES), cpu_passes(tour_scene(step), 6, PASSES),
+              f"lecture step {step}")
 
 
 @pytest.mark.slow   # the layered program compiles for about 10 s on software GL
