@@ -32,6 +32,10 @@ Estimator (Veach 1997, ch. 9; pbrt-v4 ``PathIntegrator``):
   leaves on: against the triangle's winding normal (entering or reflecting inside) =
   the material's ``sigma_a``, else none; each segment travelled inside is attenuated by
   ``exp(-sigma_a * distance)`` (Bouguer). Objects are assumed closed and not nested.
+* ``setup.integrator == "photon"``: caustic paths (a smooth vertex, then one or more delta vertices
+  to the light) belong to the caustic photon map (``viewer/pathtracer/photons.py``), which every
+  vertex with a smooth lobe gathers from; the environment reached by a delta lobe after a smooth
+  vertex adds nothing here (``PathState.seen_smooth``), so nothing is counted twice.
 
 Shading conventions are the rasterizer's (``shaders/passes/forward.frag``): shading normal =
 normalized interpolation of the world vertex normals; a ray hitting the back face
