@@ -115,7 +115,7 @@ def test_header_floats_are_pythons():
     from viewer.pathtracer import integrator
 
     f = _header_floats()
-    assert f == constants.float_values() and len(f) == 7 + 2 * len(term_scales.SCALES)
+    assert f == constants.float_values() and len(f) == 8 + 2 * len(term_scales.SCALES)
     assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (integrator.RR_MIN, integrator.RR_MAX, integrator.EPS_REL)
     assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (0.05, 0.95, 1e-4)
     from viewer.pathtracer import spectral
@@ -123,6 +123,9 @@ def test_header_floats_are_pythons():
     assert (f["SPEC_N_BINS"], f["SPEC_HERO"]) == (spectral.N_BINS, spectral.HERO) == (420, 4)
     assert f["EMPTY_DEPTH"] == ssr.EMPTY_DEPTH == 1e30
     assert f["TERM_NOT_APPLICABLE"] == term_scales.NOT_APPLICABLE
+    from viewer.reference_common import caustics
+
+    assert f["PHOTON_NORMAL_COS"] == caustics.NORMAL_COS
     for view, (_, k, vmax) in term_scales.SCALES.items():
         assert (f[constants.glsl_name("TERM", view, "K")], f[constants.glsl_name("TERM", view, "MAX")]) == (k, vmax)
 
@@ -170,7 +173,8 @@ def test_ray_offsets_are_eps_rel():
            for hit in ray_offsets(f.read_text())]
     assert bad == []
     uses = {f.relative_to(SHADERS).as_posix() for f in _shader_files() if "EPS_REL * (1.0 +" in f.read_text()}
-    assert uses == {"passes/pathtrace.frag", "pathtrace/spectral.glsl", "common/specular_chain.glsl"}
+    assert uses == {"passes/pathtrace.frag", "pathtrace/spectral.glsl", "pathtrace/surface.glsl",
+                    "common/specular_chain.glsl"}
 
 
 @pytest.mark.parametrize("code", ["float eps = 1e-4 * (1.0 + max3(abs(p)));", "eps = 1e-4 * (1 + np.abs(p).max(1))",

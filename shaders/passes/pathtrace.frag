@@ -99,6 +99,16 @@ bool any_pos(vec3 v) { return v.x > 0.0 || v.y > 0.0 || v.z > 0.0; }
 vec3 mul_sat(vec3 a, vec3 b) { return min(min(a, vec3(F_MAX)) * min(b, vec3(F_MAX)), vec3(F_MAX)); }
 vec3 add_sat(vec3 a, vec3 b) { return min(a + b, vec3(F_MAX)); }
 
+
+// PHOTONS (a define): the `photon` integrator, path tracing plus a progressive caustic photon
+// map. A caustic path (its light end reached from its last non-delta vertex through one or more
+// delta vertices) is the photon map's alone: every vertex that is not a pure delta surface adds
+// the photons' density estimate (pathtrace/photons.glsl), and the path tracer drops light
+// reached by a delta sample after a vertex that sampled a non-delta lobe.
+#ifdef PHOTONS
+#include "pathtrace/photons.glsl"
+#endif
+
 // SPECTRAL (a define): the hero-wavelength estimator of pathtrace/spectral.glsl replaces trace_path
 // in main (the RGB program is unchanged without it)
 #ifdef SPECTRAL
@@ -111,6 +121,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
     vec3 sigma = vec3(0.0);
     float prev_pdf = 0.0, prev_lpdf = 0.0;
     bool prev_delta = true;    // camera rays count as delta: the full environment
+#ifdef PHOTONS
+    bool seen_nd = false;      // some vertex so far sampled a non-delta lobe
+#endif
     for (int depth = 1; depth <= u_max_depth + 1; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
@@ -121,6 +134,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
             float w = 1.0;
 #else
             float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
+#endif
+#ifdef PHOTONS
+            if (prev_delta && seen_nd) w = 0.0;   // a caustic path: the photon map's
 #endif
             L = add_sat(L, mul_sat(T, env_eval(d) * w));
 #endif
@@ -161,6 +177,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
+#if defined(PHOTONS) && !defined(SPECTRAL)
+            L = add_sat(L, mul_sat(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l, ivec3(0), vec4(0.0))));
+#endif
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -230,6 +249,9 @@ vec3 trace_path(vec3 o, vec3 d, inout Rng rng) {
 #endif
         prev_pdf = pdf_s;
         prev_delta = disc;
+#ifdef PHOTONS
+        seen_nd = seen_nd || !disc;
+#endif
         if (trans) sigma = dot(ng_raw, wi_w) < 0.0 ? u_mat_info[2 * mi + 1].xyz : vec3(0.0);
         bool alive = any_pos(Tn);
 #ifndef NO_ROULETTE

@@ -111,6 +111,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
     vec3 sigma = vec3(0.0);
     float prev_pdf = 0.0, prev_lpdf = 0.0;
     bool prev_delta = true;     // camera rays count as delta: the full environment
+#ifdef PHOTONS
+    bool seen_nd = false;       // some vertex so far sampled a non-delta lobe
+#endif
     for (int depth = 1; depth <= u_max_depth + 1; ++depth) {
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) {
@@ -121,6 +124,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
             float w = 1.0;
 #else
             float w = prev_delta ? 1.0 : 0.0;   // light sampling only: NEE reached it
+#endif
+#ifdef PHOTONS
+            if (prev_delta && seen_nd) w = 0.0;   // a caustic path: the photon map's
 #endif
             L = add_sat4(L, mul_sat4(T, spec_up(env_eval(d)) * w));
 #endif
@@ -168,6 +174,11 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
 
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
+#ifdef PHOTONS
+            // the caustic photons (RGB power upsampled, the hero-only share as next-event's)
+            L = add_sat4(L, mul_sat4(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l,
+                                                      ivec3(cat, o_s, o_3), hmask) * share));
+#endif
 #if N_LIGHTS > 0
             for (int j = 0; j < N_LIGHTS; ++j) {
                 vec3 wi, val;
@@ -243,6 +254,9 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
 #endif
         prev_pdf = pdf_s;
         prev_delta = disc;
+#ifdef PHOTONS
+        seen_nd = seen_nd || !disc;
+#endif
         if (trans) sigma = dot(ng_raw, wi_w) < 0.0 ? u_mat_info[2 * mi + 1].xyz : vec3(0.0);
         bool alive = any_pos4(Tn);
 #ifndef NO_ROULETTE

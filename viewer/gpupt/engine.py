@@ -24,7 +24,11 @@ each a compile-time variant of the pass), and cached by that recipe. ``spectral`
 engine's hero-wavelength estimator instead of RGB, the compile-time variant ``SPECTRAL``
 (``shaders/pathtrace/spectral.glsl``, its data from ``viewer.gpupt.spectral``); None: where a
 material is dispersive, as ``ReferenceRenderer`` decides (``viewer.reference_common.select.make_renderer``
-passes its ``spectral`` so); the default False keeps RGB.
+passes its ``spectral`` so); the default False keeps RGB. ``integrator``: "path" (the default),
+"photon" (path tracing plus a progressive caustic photon map, ``viewer.reference_common.caustics``:
+the compile-time variant PHOTONS, its photon map ``viewer.gpupt.photons``; pass i of the map is
+sample i of every pixel, so the photon integrator renders one sample per pass) or "auto" (chosen
+per scene; ``integrator`` and ``integrator_reason`` say which and why).
 """
 
 from __future__ import annotations
@@ -52,6 +56,12 @@ def dispatch_from_texture(models: tuple[str, ...]) -> str:
     return generate_dispatch(models, texture_width=TEX_WIDTH)
 
 
+def virtual_files(models) -> dict:
+    """The virtual files of a program for ``models``: the dispatch from ``u_mat_tex`` and the
+    models' own GLSL (.brdf files)."""
+    return {"brdf/dispatch.glsl": dispatch_from_texture(models), **custom_virtual(models)}
+
+
 def pack_materials(materials) -> tuple[np.ndarray, np.ndarray]:
     """(info (2 * MAX_MATERIALS, 4) float32 for ``u_mat_info``, floats (F,) for ``u_mat_tex``)
     for a list of ``viewer.reference_common.setup.MaterialInfo``."""
@@ -73,18 +83,21 @@ _PROGRAMS: dict = {}   # (id(ctx), recipe) -> (program, vertex array)
 
 
 def release_programs(ctx) -> None:
-    """Release the cached path-tracing programs made on ``ctx`` (before releasing it)."""
+    """Release the cached path-tracing and photon programs made on ``ctx`` (before releasing it)."""
+    from viewer.gpupt import photons
+
     for key in [k for k in _PROGRAMS if k[0] == id(ctx)]:
         prog, vao = _PROGRAMS.pop(key)
         vao.release()
         prog.release()
+    photons.release_programs(ctx)
 
 
 class GpuReferenceRenderer:
     """Progressive GPU reference of ``scene`` (``camera`` as for ``ReferenceRenderer``).
     ``ctx``: a moderngl context (default: a new headless EGL one, owned and released here).
-    ``strategy``, ``mis_heuristic``, ``russian_roulette``: the estimator's options, as for
-    ``ReferenceRenderer`` (spectral or not).
+    ``strategy``, ``mis_heuristic``, ``russian_roulette``, ``integrator``: the estimator's options,
+    as for ``ReferenceRenderer`` (spectral or not).
     ``spectral``: trace wavelengths (True), RGB (False, the default) or, None, wavelengths where
     a material is dispersive (``ReferenceRenderer``'s default)."""
 
@@ -93,12 +106,13 @@ class GpuReferenceRenderer:
 
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  env_image=None, ctx=None, spp_pass: int = 1, strategy: str = "mis",
-                 mis_heuristic: str = "power", russian_roulette: bool = True, spectral: bool | None = False):
+                 mis_heuristic: str = "power", russian_roulette: bool = True, spectral: bool | None = False,
+                 integrator: str = "path"):
         if int(max_depth) < 1:
             raise ValueError("max_depth must be >= 1")
         _refuse_measured(scene)
         self._measured_params = next(iter(measured_tables(scene).values()), None)
-        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette)
+        self.options = EstimatorOptions(strategy, mis_heuristic, russian_roulette, integrator)
         self.spectral = spectral    # trace wavelengths; None: where a material is dispersive
         self.max_depth, self.env_image, self.seed = int(max_depth), env_image, int(seed)
         self._own_ctx = ctx is None
@@ -112,6 +126,7 @@ class GpuReferenceRenderer:
         self._measured = None               # MeasuredTextures: the scene's one measured table
         self._textures: list = []
         self._targets: list = []
+        self.photons = None                 # the photon map (viewer.gpupt.photons.CausticPhotons) under photon
         self.rows_per_pass = None           # adapted by step_for
         self._set_setup(self._make_setup(scene, camera, width, height))
 
@@ -123,17 +138,20 @@ class GpuReferenceRenderer:
         return setup
 
     def reset(self, scene, camera=None, width=None, height=None, *, strategy=None, mis_heuristic=None,
-              russian_roulette=None):
+              russian_roulette=None, integrator=None):
         """Start over on a changed scene, camera or size (the programs stay cached); the
         estimator's options change where given (None: as before)."""
         _refuse_measured(scene)
         self._measured_params = next(iter(measured_tables(scene).values()), None)
-        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette)
+        self.options = self.options.updated(strategy, mis_heuristic, russian_roulette, integrator)
         self._set_setup(self._make_setup(scene, camera, width, height))
 
     def _release_scene(self):
         release_gl(*self._textures, *self._targets)
         self._textures, self._targets = [], []
+        if self.photons is not None:
+            self.photons.release()
+            self.photons = None
         if self._scene_tex is not None:
             self._scene_tex.release()
             self._scene_tex = None
@@ -141,6 +159,8 @@ class GpuReferenceRenderer:
     def _set_setup(self, setup: RenderSetup):
         self._release_scene()
         self.setup = setup
+        # "path" or "photon" (an "auto" option resolved for this scene) and why
+        self.integrator, self.integrator_reason = setup.integrator, setup.integrator_reason
         self.width, self.height = setup.width, setup.height
         self.spp = 0
         self.bad_values = 0
@@ -200,6 +220,10 @@ class GpuReferenceRenderer:
         self._snap_spp = 0
         self._cur = 0                       # side holding the current sums
         self._prog = self._program()
+        if self.uses_photons:
+            from viewer.gpupt.photons import CausticPhotons
+
+            self.photons = CausticPhotons.for_setup(ctx, setup, self.seed, self.recipe()[1], virtual_files)
 
     def recipe(self):
         """What the pass's program is compiled for: (the models used, sorted (define, value)
@@ -224,7 +248,15 @@ class GpuReferenceRenderer:
             defines["FILE_SAMPLERS"] = "1"
         if self.is_spectral:
             defines["SPECTRAL"] = "1"
+        if self.uses_photons:
+            defines["PHOTONS"] = "1"
         return models, tuple(sorted(defines.items()))
+
+    @property
+    def uses_photons(self) -> bool:
+        """The photon integrator on a scene with a delta lobe (without one no path is a caustic
+        path and the photon integrator is the path tracer: the plain program renders it)."""
+        return self.setup.integrator == "photon" and any(m.lobes.has_delta for m in self.setup.materials)
 
     def _program(self):
         """The pass's program for this scene's recipe, shared by every renderer on the same
@@ -235,26 +267,17 @@ class GpuReferenceRenderer:
         if entry is None:
             models, defines = key[1]
             prog = build_program(self.ctx, "passes/fullscreen.vert", "passes/pathtrace.frag",
-                                 virtual={"brdf/dispatch.glsl": dispatch_from_texture(models),
-                                          **custom_virtual(models)},
-                                 defines=dict(defines))
+                                 virtual=virtual_files(models), defines=dict(defines))
             entry = _PROGRAMS[key] = (prog, self.ctx.vertex_array(prog, []))
         self._vao = entry[1]
         return entry[0]
 
-    def _bind(self):
-        prog, s = self._prog, self.setup
+    def _bind_materials(self, prog) -> int:
+        """Bind the BVH, material textures and uniforms (both passes); the next free unit."""
         unit = self._scene_tex.bind(prog, 0)
-        for name, tex in (("u_mat_tex", self._mat_tex),
-                          *zip(("u_env_map", "u_env_row_cdf", "u_env_col_cdf"), self._env_tex)):
-            tex.use(location=unit)
-            set_uniform(prog, name, unit)
-            unit += 1
-        src = self._targets[2 * self._cur: 2 * self._cur + 2]
-        for name, tex in zip(("u_prev_sum", "u_prev_sq"), src):
-            tex.use(location=unit)
-            set_uniform(prog, name, unit)
-            unit += 1
+        self._mat_tex.use(location=unit)
+        set_uniform(prog, "u_mat_tex", unit)
+        unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
         if self._measured_params is not None and "u_measured" in prog:
             if self._measured is None:
@@ -263,6 +286,22 @@ class GpuReferenceRenderer:
                 self._measured = MeasuredTextures(self.ctx)
             self._measured.bind(prog, self._measured_params, unit)
             unit += 1
+        return unit
+
+    def _bind(self):
+        prog, s = self._prog, self.setup
+        unit = self._bind_materials(prog)
+        for name, tex in zip(("u_env_map", "u_env_row_cdf", "u_env_col_cdf"), self._env_tex):
+            tex.use(location=unit)
+            set_uniform(prog, name, unit)
+            unit += 1
+        src = self._targets[2 * self._cur: 2 * self._cur + 2]
+        for name, tex in zip(("u_prev_sum", "u_prev_sq"), src):
+            tex.use(location=unit)
+            set_uniform(prog, name, unit)
+            unit += 1
+        if self.photons is not None:
+            unit = self.photons.bind(prog, unit)
         if self.is_spectral:
             self._spec_tex.use(location=unit)
             set_uniform(prog, "u_spec_tab", unit)
@@ -291,8 +330,17 @@ class GpuReferenceRenderer:
             set_uniform(prog, "u_light_a", a.tobytes())
             set_uniform(prog, "u_light_v", v.tobytes())
 
+    def _build_photons(self):
+        """The photon map of the next sample (pass spp + 1), once whatever the bands."""
+        if self.photons is not None and self.photons.pass_index != self.spp + 1:
+            self.photons.build(self.spp + 1, self._bind_materials)
+
     def _pass(self, row0: int, row1: int, spp: int):
-        """One draw: rows [row0, row1) gain ``spp`` samples each."""
+        """One draw: rows [row0, row1) gain ``spp`` samples each (one under photons: a pass)."""
+        if self.photons is not None and spp > 0:
+            if spp != 1:
+                raise ValueError("the photon integrator renders one sample per pass")
+            self._build_photons()
         self._bind()
         set_uniform(self._prog, "u_row0", int(row0))
         set_uniform(self._prog, "u_row1", int(row1))
@@ -323,7 +371,7 @@ class GpuReferenceRenderer:
         while done < spp:
             if cancel is not None and cancel.is_set():
                 return False
-            k = min(self.spp_pass, spp - done)
+            k = min(1 if self.photons is not None else self.spp_pass, spp - done)
             self._pass(0, self.height, k)
             self.ctx.finish()
             done += k
@@ -346,6 +394,7 @@ class GpuReferenceRenderer:
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)
+            self._build_photons()   # a new pass's photon map: apart from the draw's time
             t_pass = time.perf_counter()
             self._pass(r0, r1, 1)
             self.ctx.finish()

@@ -1,0 +1,80 @@
+// The caustic photon map's density estimate (the PHOTONS variant of passes/pathtrace.frag,
+// included there after the BRDF dispatch and the BVH): at a vertex that is not a pure delta
+// surface the reflected radiance of the caustic photons within radius r,
+//   L = sum_p f(x, wo, wi_p) Phi_p / (pi r^2),   wi_p = -(the photon's direction of travel),
+// over photons whose normal is compatible with the vertex's geometric one (|dot| >= PHOTON_NORMAL_COS) and whose
+// direction passes the rasterizer's light test there (as next-event estimation's). The photons
+// of this pass lie in the uniform hash grid of viewer.reference_common.caustics (PhotonGrid):
+// cell c = floor(x / u_grid_cell) lives in bucket hash(c) & (u_grid_slots - 1), whose texel of
+// u_grid_table holds (first photon, photon count) of the photons sorted by bucket in u_gph_pos
+// (position), u_gph_dir (direction of travel), u_gph_pow (power) and u_gph_nrm (normal); a
+// lookup visits the 27 cells around p's (the cell is r wide), each bucket once.
+// Included by passes/pathtrace.frag before pathtrace/spectral.glsl.
+#include "generated/constants.glsl"
+uniform sampler2D u_grid_table;
+uniform sampler2D u_gph_pos;
+uniform sampler2D u_gph_dir;
+uniform sampler2D u_gph_pow;
+uniform sampler2D u_gph_nrm;
+uniform float u_grid_cell;    // the cell size: this pass's radius
+uniform int u_grid_slots;     // buckets (a power of two)
+uniform float u_ph_r2;        // this pass's radius squared
+uniform int u_ph_stored;      // photons stored this pass (0: nothing to gather)
+
+ivec2 ph_texel(int i) { return ivec2(i & 4095, i >> 12); }
+
+// the bucket of cell c: caustics.hash_cells (Teschner et al. 2003) in uint arithmetic (int to uint
+// keeps the bits, as numpy's int64 to uint32 wraps)
+int grid_slot(ivec3 c) {
+    uint h = (uint(c.x) * PHOTON_HASH_P1) ^ (uint(c.y) * PHOTON_HASH_P2) ^ (uint(c.z) * PHOTON_HASH_P3);
+    return int(h & uint(u_grid_slots - 1));
+}
+
+#ifdef SPECTRAL
+// the spectral estimator's evaluation (pathtrace/spectral.glsl, included after this file)
+vec4 spec_eval(int cat, int model, int o_s, int o_3, vec4 hmask, vec3 wi, vec3 wo);
+vec4 spec_up(vec3 rgb);
+#define PhotonSum vec4
+#else
+#define PhotonSum vec3
+#endif
+
+// The photons' estimate at p: sum_p f(wo, wi_p) Phi_p / (pi r^2) over the 27 cells around p's
+// cell (each bucket once: two cells that share a bucket count once, found by hashing the
+// earlier cells again, which costs less on software GL than an array of the buckets seen) and
+// the photons of each bucket within r whose normal passes the test against ng (the geometric
+// normal at p) and whose direction passes the rasterizer's light test there (as next-event
+// estimation's). RGB: f from brdf_eval; SPECTRAL: f at the path's four wavelengths
+// (spec_eval with spec = (category, parameter set, set at lambda_3) and hmask) times the
+// upsampled RGB power.
+PhotonSum photon_gather(vec3 p, vec3 n, vec3 ng, vec3 tx, vec3 ty, bool trans, int model, int moff, vec3 wo_l,
+                        ivec3 spec, vec4 hmask) {
+    PhotonSum sum = PhotonSum(0.0);
+    if (u_ph_stored <= 0) return sum;
+    ivec3 base = ivec3(floor(p / u_grid_cell)) - 1;
+    for (int cell = 0; cell < 27; ++cell) {
+        int slot = grid_slot(base + ivec3(cell % 3, (cell / 3) % 3, cell / 9));
+        bool dup = false;
+        for (int k = 0; k < cell; ++k) dup = dup || grid_slot(base + ivec3(k % 3, (k / 3) % 3, k / 9)) == slot;
+        if (dup) continue;
+        vec2 sc = texelFetch(u_grid_table, ph_texel(slot), 0).xy;
+        int first = int(sc.x + 0.5), end = first + int(sc.y + 0.5);
+        for (int j = first; j < end; ++j) {
+            ivec2 t = ph_texel(j);
+            vec3 q = texelFetch(u_gph_pos, t, 0).xyz - p;
+            if (dot(q, q) >= u_ph_r2) continue;
+            if (abs(dot(texelFetch(u_gph_nrm, t, 0).xyz, ng)) < PHOTON_NORMAL_COS) continue;
+            vec3 wi = -texelFetch(u_gph_dir, t, 0).xyz;
+            vec3 wl = vec3(dot(wi, tx), dot(wi, ty), dot(wi, n));
+            float g = dot(ng, wi);
+            if (!(trans ? wl.z * g > 0.0 : (wl.z > 0.0 && g > 0.0))) continue;
+            vec3 power = texelFetch(u_gph_pow, t, 0).rgb;
+#ifdef SPECTRAL
+            sum += spec_eval(spec.x, model, spec.y, spec.z, hmask, wl, wo_l) * spec_up(power);
+#else
+            sum += clean(brdf_eval(model, moff, wl, wo_l)) * power;
+#endif
+        }
+    }
+    return sum * (1.0 / (PI * u_ph_r2));
+}
