@@ -112,11 +112,11 @@ def test_header_floats_are_pythons():
     offset, and the term views' scales, as their modules see them."""
     from viewer.image import term_scales
     from viewer.gl import ssr
-    from viewer.pathtracer import integrator
+    from viewer.pathtracer import compiled, integrator
 
     f = _header_floats()
     assert f == constants.float_values() and len(f) == 8 + 2 * len(term_scales.SCALES)
-    assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (integrator.RR_MIN, integrator.RR_MAX, integrator.EPS_REL)
+    assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (integrator.RR_MIN, integrator.RR_MAX, compiled.EPS_REL)
     assert (f["RR_MIN"], f["RR_MAX"], f["EPS_REL"]) == (0.05, 0.95, 1e-4)
     from viewer.pathtracer import spectral
 
