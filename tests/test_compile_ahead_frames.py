@@ -1,0 +1,98 @@
+"""The compile-ahead child draws every kind of frame the window's view draws (viewer/app/compile_ahead.py,
+``window_frames``): llvmpipe makes a program's machine code at its first draw for the state in use
+(sample count, a scissor, traced chains) and keys Mesa's disk cache by it, so a kind of frame the
+child never drew is compiled on the window's thread. The window's kinds are recorded from a real
+session driven through a scene change, its tiles, a drag and a traced view; no timing is asserted."""
+
+import inspect
+
+from viewer.app.compile_ahead import prepare, window_frames
+from viewer.scene import load_scene
+from viewer.scene.lecture import tour_scene
+
+
+def _recorder(renderer, kinds: set):
+    """Wrap ``renderer``'s draws so that each adds its kind to ``kinds``: ("frame", samples, traced,
+    scissored) or ("mask",)."""
+    render, mask = renderer.render, renderer.traced_mask
+    sig = inspect.signature(render)
+
+    def recorded(*args, **kwargs):
+        a = sig.bind(*args, **kwargs).arguments
+        scene = a["scene"]
+        samples = scene.render.msaa if a.get("msaa") is None else a["msaa"]
+        rt = a.get("raytrace")
+        traced = renderer.traces(scene) and (bool(scene.render.raytrace) if rt is None else bool(rt))
+        region = a.get("region")
+        w, h = a.get("width") or scene.camera.width, a.get("height") or scene.camera.height
+        scissored = region is not None and tuple(region[2:]) != (w, h)
+        kinds.add(("frame", int(samples), traced, scissored))
+        return render(*args, **kwargs)
+
+    def masked(*args, **kwargs):
+        kinds.add(("mask",))
+        return mask(*args, **kwargs)
+
+    renderer.render, renderer.traced_mask = recorded, masked
+
+
+def _settle(s, size, limit=400):
+    for _ in range(limit):
+        s.render_view(size)
+        if not (s.dirty or s.refining):
+            return
+    raise AssertionError("the view did not settle")
+
+
+def test_the_child_draws_the_kinds_of_frame_the_window_draws(gl_ctx):
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+
+    window, child = Renderer(gl_ctx), Renderer(gl_ctx)
+    s = Session(gl_ctx, "default", renderer=window, prefetch=False, compile_ahead=False, tiled_frames=True)
+    try:
+        size = (96, 64)
+        _settle(s, size)  # a whole frame: the next scene's cost is not known, so it is tiled
+        drawn: set = set()
+        _recorder(window, drawn)
+        for scene in (load_scene("sphere"), tour_scene(2)):  # a raster scene, then one traced in strips
+            s.scene = scene
+            s.changed()
+            _settle(s, size)
+            s.render_view(size, interacting=True)  # dragged
+            _settle(s, size)
+        assert any(k[0] == "frame" and k[2] for k in drawn) and ("mask",) in drawn  # it traced
+        assert any(k[0] == "frame" and k[3] for k in drawn)  # and drew tiles
+        ahead: set = set()
+        _recorder(child, ahead)
+        for scene in (load_scene("sphere"), tour_scene(2)):
+            window_frames(child, scene)
+        assert drawn <= ahead, f"drawn by the window only: {sorted(drawn - ahead, key=str)}"
+    finally:
+        s.release()
+        window.release()
+        child.release()
+
+
+def test_the_echo_draws_the_same_frames_with_the_tables_adopted(gl_ctx):
+    """``prepare``'s second renderer (its programs link from Mesa's cache, as the window's do)
+    draws what the first drew, with the tables the first exported, as the window adopts them."""
+    from viewer.gl.renderer import Renderer
+
+    first, echo = Renderer(gl_ctx), Renderer(gl_ctx)
+    try:
+        scene = load_scene("default", overrides=["materials.ball.preset=gold"])
+        kinds_first: set = set()
+        kinds_echo: set = set()
+        _recorder(first, kinds_first)
+        _recorder(echo, kinds_echo)
+        made = []
+        out = prepare(first, scene, echo=lambda: made.append(1) or echo)
+        assert made == [1]  # made once the first renderer has drawn
+        assert kinds_echo == kinds_first and kinds_first
+        for name in ("ball", "floor"):
+            assert echo.tables.ready(scene.materials[name])
+        assert set(out["keys"]) <= set(echo.programs)  # the echo drew with the same programs
+    finally:
+        first.release()
+        echo.release()
