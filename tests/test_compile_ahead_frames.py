@@ -96,3 +96,48 @@ def test_the_echo_draws_the_same_frames_with_the_tables_adopted(gl_ctx):
     finally:
         first.release()
         echo.release()
+
+
+def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
+    """The status line shows the step's timing over the compile's own message: while the step's
+    programs compile beside, that message says how its first frame is drawn."""
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+
+    class Child:  # a compile-ahead child that has not answered yet
+        alive = True
+
+        def __init__(self):
+            self.compiled, self.tables, self.done, self.released = set(), {}, {}, False
+
+        def request(self, scene, urgent=True):
+            return id(scene)
+
+        def answered(self, rid):
+            return self.released
+
+        def stop(self):
+            pass
+
+    renderer = Renderer(gl_ctx)  # its own: step 2's programs not compiled by another test
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    child = s.compiles.child = Child()
+    try:
+        child.released = True
+        s.render_view((96, 64))
+        child.released = False
+        s.tour.lecture(1)  # mirror and glass: programs not built here
+        s.render_view((96, 64))
+        assert s.frame_source.form in ("stand-in", "untraced") and s.pending
+        words = "grey stand-ins" if s.frame_source.form == "stand-in" else "untraced"
+        msg = s.status
+        assert msg.startswith("lecture 2/15") and words in msg and "compiled in the background" in msg, msg
+        child.released = True  # ready: the next step's first frame is its own, said plainly
+        s.tour.lecture(0)
+        s.render_view((96, 64))
+        msg = s.status
+        assert msg.startswith("lecture 1/15") and "background" not in msg, msg
+    finally:
+        s.compiles.child = None
+        s.release()
+        renderer.release()
