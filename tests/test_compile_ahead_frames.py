@@ -5,6 +5,7 @@ child never drew is compiled on the window's thread. The window's kinds are reco
 session driven through a scene change, its tiles, a drag and a traced view; no timing is asserted."""
 
 import inspect
+import sys
 
 from viewer.app.compile_ahead import prepare, window_frames
 from viewer.scene import load_scene
@@ -141,3 +142,35 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
         s.compiles.child = None
         s.release()
         renderer.release()
+
+
+# a child that says it is working every 0.1 s for 3 s (sleeping: no CPU time), then answers
+WORKS_THEN_ANSWERS = [sys.executable, "-c", (
+    "import json, sys, time\n"
+    "print(json.dumps({'ready': True}), flush=True)\n"
+    "req = json.loads(sys.stdin.readline())\n"
+    "for _ in range(30):\n"
+    "    time.sleep(0.1)\n"
+    "    print(json.dumps({'working': req['id']}), flush=True)\n"
+    "print(json.dumps({'id': req['id'], 'ok': True, 'keys': [], 'tables': {}}), flush=True)\n"
+    "sys.stdin.readline()\n")]
+
+
+def test_a_child_that_says_it_is_working_is_not_replaced():
+    """The child's line after each kind of frame is heard: a long request (a traced scene on a
+    loaded machine) is not taken for silence, though the child sleeps past the leash between
+    its lines in total; the answer is the request's."""
+    import time
+
+    from viewer.app.compile_ahead import CompileAhead
+
+    ca = CompileAhead(command=WORKS_THEN_ANSWERS, leash=1.0)
+    try:
+        rid = ca.request(load_scene("sphere"))
+        t0 = time.monotonic()
+        while not ca.answered(rid):
+            assert time.monotonic() - t0 < 120, "no answer"
+            time.sleep(0.05)
+        assert ca.replaced == 0 and ca.done[rid]["ok"]
+    finally:
+        ca.stop()

@@ -27,8 +27,9 @@ the child's tables, and the frames of that compile are as long as before. Any fa
 (no EGL, a crash) turns it off with ``error`` set: the window then compiles as it always did.
 
 Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "urgent"}``.
-Out: ``{"id", "ok": true, "keys": [program keys compiled], "tables": {params JSON: exported
-tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
+Out: ``{"working": id}`` after each kind of frame drawn for a request, then ``{"id", "ok": true,
+"keys": [program keys compiled], "tables": {params JSON: exported tables}, "seconds"}`` or
+``{"id", "ok": false, "error"}``.
 """
 
 from __future__ import annotations
@@ -55,14 +56,15 @@ def params_key(params) -> str:
     return json.dumps(params.to_plain(), sort_keys=True)
 
 
-def window_frames(renderer, scene, size=SIZE) -> list[tuple]:
+def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
     """Draw ``scene`` on ``renderer`` in every kind of frame the window's view draws it
     (``viewer.app.view_frames``): while dragged (half the size, no MSAA, a traced scene
     untraced), whole, in tiles over its quarter- and half-resolution previews (the first tile
     a part of the frame, under a scissor), and for a scene traced in strips its untraced frame,
     traced mask and traced tiles (half then full resolution, no MSAA). The window's own
     ``ProgressiveTrace`` draws the tiles, so their state is the window's. Returns the kinds drawn
-    [(kind, sample count asked (None: the scene's), traced chains (None: the scene's))]."""
+    [(kind, sample count asked (None: the scene's), traced chains (None: the scene's))];
+    ``progress()`` is called after each (the child says it is working)."""
     from viewer.app.frame_mean import frames_wanted
     from viewer.gl.raytrace import ProgressiveTrace
 
@@ -71,10 +73,16 @@ def window_frames(renderer, scene, size=SIZE) -> list[tuple]:
     progressive = renderer.traces(scene) and not r.ssr and r.ibl != "brute_force"
     untraced = False if progressive else None
     done = []
+
+    def did(kind):
+        done.append(kind)
+        if progress is not None:
+            progress()
+
     renderer.render(scene, width=(w + 1) // 2, height=(h + 1) // 2, msaa=0, raytrace=untraced)
-    done.append(("drag", 0, untraced))
+    did(("drag", 0, untraced))
     renderer.render(scene, width=w, height=h, raytrace=untraced)
-    done.append(("whole", None, untraced))
+    did(("whole", None, untraced))
     if not r.ssr and frames_wanted(scene) == 1:  # the frames the window may draw in tiles
         for scale in (4, 2):
             pt = ProgressiveTrace(renderer.ctx)
@@ -85,7 +93,7 @@ def window_frames(renderer, scene, size=SIZE) -> list[tuple]:
                 pt.finish()
             finally:
                 pt.release()
-            done.append((f"tiles over a 1/{scale} preview", None, False))
+            did((f"tiles over a 1/{scale} preview", None, False))
     if progressive:
         pt = ProgressiveTrace(renderer.ctx)
         try:
@@ -94,17 +102,17 @@ def window_frames(renderer, scene, size=SIZE) -> list[tuple]:
             pt.finish()
         finally:
             pt.release()
-        done.append(("traced tiles", 0, None))
+        did(("traced tiles", 0, None))
     return done
 
 
-def prepare(renderer, scene, echo=None) -> dict:
+def prepare(renderer, scene, echo=None, progress=None) -> dict:
     """Draw ``scene`` as the window does (``window_frames``) on ``renderer`` and export the
     albedo tables of its materials: the child's work for one request. ``echo``: a second
     renderer (or a function that makes it once ``renderer`` has drawn), whose programs link from
     Mesa's cache as the window's do, draws the same frames with the tables adopted as the window
-    adopts them (see the module's text)."""
-    window_frames(renderer, scene)
+    adopts them (see the module's text). ``progress``: see ``window_frames``."""
+    window_frames(renderer, scene, progress=progress)
     keys = set(renderer.forward_keys(scene).values())
     keys |= set(renderer.forward_keys(scene, raytrace=False).values())
     renderer.ctx.finish()
@@ -114,7 +122,7 @@ def prepare(renderer, scene, echo=None) -> dict:
         echo = echo() if callable(echo) else echo
         for n in used:
             echo.tables.adopt(scene.materials[n], tables[params_key(scene.materials[n])])
-        window_frames(echo, scene)
+        window_frames(echo, scene, progress=progress)
         echo.ctx.finish()
     return {"keys": sorted(keys), "tables": tables}
 
@@ -165,7 +173,11 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
         t0 = time.perf_counter()
         try:
             scene = load_scene_text(req["scene"], base_dir=req.get("base_dir"), label="<compile ahead>")
-            answer = {"id": req["id"], "ok": True, **prepare(renderer, scene, echo_renderer)}
+            # a line after each kind of frame: a child at work on a long request (a traced
+            # scene on a loaded machine) is not taken for a silent one and replaced
+            working = json.dumps({"working": req["id"]})
+            answer = {"id": req["id"], "ok": True,
+                      **prepare(renderer, scene, echo_renderer, lambda: print(working, file=out, flush=True))}
         except Exception as e:  # noqa: BLE001 - the window compiles it itself and reports the error
             answer = {"id": req["id"], "ok": False, "error": f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"}
         answer["seconds"] = round(time.perf_counter() - t0, 3)
@@ -304,6 +316,8 @@ class CompileAhead:
             self._silence.heard(proc.pid)
             if msg.get("ready"):
                 self.ready = True
+                continue
+            if "working" in msg:  # between the kinds of frame of a request: heard, nothing done yet
                 continue
             with self._lock:
                 if msg.get("ok"):
