@@ -7,6 +7,8 @@ session driven through a scene change, its tiles, a drag and a traced view; no t
 import inspect
 import sys
 
+import pytest
+
 from viewer.app.compile_ahead import prepare, window_frames
 from viewer.scene import load_scene
 from viewer.scene.lecture import tour_scene
@@ -45,6 +47,7 @@ def _settle(s, size, limit=400):
     raise AssertionError("the view did not settle")
 
 
+@pytest.mark.slow  # a session through a raster and a traced scene's tiles and strips, twice: a minute on 2 loaded cores
 def test_the_child_draws_the_kinds_of_frame_the_window_draws(gl_ctx):
     from viewer.app.session import Session
     from viewer.gl.renderer import Renderer
@@ -75,6 +78,7 @@ def test_the_child_draws_the_kinds_of_frame_the_window_draws(gl_ctx):
         child.release()
 
 
+@pytest.mark.slow  # every kind of frame drawn twice, with the albedo tables built: 20-40 s on 2 loaded cores
 def test_the_echo_draws_the_same_frames_with_the_tables_adopted(gl_ctx):
     """``prepare``'s second renderer (its programs link from Mesa's cache, as the window's do)
     draws what the first drew, with the tables the first exported, as the window adopts them."""
@@ -99,6 +103,7 @@ def test_the_echo_draws_the_same_frames_with_the_tables_adopted(gl_ctx):
         echo.release()
 
 
+@pytest.mark.slow  # two lecture steps' first frames, their maps and tables made here: about a minute on 2 loaded cores
 def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
     """The status line shows the step's timing over the compile's own message: while the step's
     programs compile beside, that message says how its first frame is drawn."""
@@ -121,7 +126,8 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
             pass
 
     renderer = Renderer(gl_ctx)  # its own: step 2's programs not compiled by another test
-    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    # lecture step 1 (Lambert: the fixed stand-in program's model) is the scene compiled here
+    s = Session(gl_ctx, "lecture:1", renderer=renderer, prefetch=False, compile_ahead=True)
     child = s.compiles.child = Child()
     try:
         child.released = True
