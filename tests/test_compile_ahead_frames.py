@@ -138,8 +138,12 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
         assert s.frame_source.form in ("stand-in", "untraced") and s.pending
         words = "grey stand-ins" if s.frame_source.form == "stand-in" else "untraced"
         msg = s.status
-        assert msg.startswith("lecture 2/15") and words in msg and "compiled in the background" in msg, msg
-        child.released = True  # ready: the next step's first frame is its own, said plainly
+        assert msg.startswith("lecture 2/15") and words in msg and "compile in the background" in msg, msg
+        assert s.last_message.text == msg  # on the toast while compiling ...
+        child.released = True
+        s.render_view((96, 64))
+        assert not s.compiling and s.last_message is None  # ... and gone once it is over
+        # ready: the next step's first frame is its own, said plainly
         s.tour.lecture(0)
         s.render_view((96, 64))
         msg = s.status

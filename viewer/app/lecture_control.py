@@ -117,9 +117,13 @@ class LectureControl:
         elif st.get("prefilter_passes"):
             why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
         src = s.frame_source  # drawn while its programs compile beside: the message says so
-        if s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS:
-            why += f"; {FORM_WORDS[src.form]} until {', '.join(s.pending)} compiled in the background"
+        held = s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS
+        if held:
+            why += (f"; its first frame {FORM_WORDS[src.form].removeprefix('drawn ')} while "
+                    f"{', '.join(s.pending)} compile in the background")
         s.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
+        if held:  # like the compile's own note, it goes from the toast once the compile is over
+            s.compiles.note = s.messages[-1]
 
     def enter_step(self, step: int):
         """Lecture mode on at ``step`` for the scene already shown."""
