@@ -3,10 +3,17 @@ stops the window's frames while the shader compiler works (on a software rasteri
 takes 0.1-6 s: the GLSL link and llvmpipe's code generation at the first draw).
 
 A child process (``python -m viewer.app.compile_ahead``), at a lower priority and on its own
-headless OpenGL context (EGL), renders a tiny frame of each scene the window sends it, with the
-window's renderer and switches, once as the window draws a still view and once as it draws while
-the user drags (no MSAA, no traced chains). That fills the driver's on-disk shader cache (Mesa's),
-so the window's own compile of the same program afterwards is a cache hit; and it builds the
+headless OpenGL context (EGL), draws each scene the window sends it at a tiny size in every kind
+of frame the window draws (``window_frames``: the view while dragged, the raster frame whole and
+in tiles over its quarter-resolution preview, a traced scene's mask and traced tiles, with the
+window's own ``ProgressiveTrace``), because llvmpipe makes a program's machine code at its first
+draw for the state in use (sample count, a scissor, which frame-sized texture is bound) and
+keys its on-disk cache (Mesa's) by that state. It draws them twice: with a renderer whose
+programs it compiles, then with a second renderer (``prepare``'s ``echo``) whose programs link
+from Mesa's cache, as the window's then do: llvmpipe keys some of a program's machine code apart
+for a program linked from that cache and one compiled afresh, and the window's first draw finds
+its code in the cache only when the child drew a program linked as the window's is. The
+window's own compile and first draw of the same program afterwards are then cache hits; and it builds the
 materials' albedo tables and multiple-scattering terms, which it sends back for the window to
 adopt (``MaterialTables.adopt``) instead of building them itself. A process, not a thread: a GL
 call holds the interpreter lock for its whole duration.
@@ -20,8 +27,9 @@ the child's tables, and the frames of that compile are as long as before. Any fa
 (no EGL, a crash) turns it off with ``error`` set: the window then compiles as it always did.
 
 Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "urgent"}``.
-Out: ``{"id", "ok": true, "keys": [program keys compiled], "tables": {params JSON: exported
-tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
+Out: ``{"working": id}`` after each kind of frame drawn for a request, then ``{"id", "ok": true,
+"keys": [program keys compiled], "tables": {params JSON: exported tables}, "seconds"}`` or
+``{"id", "ok": false, "error"}``.
 """
 
 from __future__ import annotations
@@ -36,7 +44,11 @@ import time
 
 from viewer.app.prefetch import Silence, leash_seconds
 
-SIZE = (32, 24)  # the child's frames: the programs and their code do not depend on the size
+#: the child's frames: small, and no side (nor its half or quarter, the drag's and the preview's)
+#: a power of two, as a window's view's rarely is: llvmpipe's code for a program that samples a
+#: frame-sized texture (absorbers' thickness, SSR) depends on whether its sides are
+SIZE = (72, 52)
+TILE_ROWS = 4  # the first raster tile's rows: a part of the frame, drawn under a scissor as the window's
 
 
 def params_key(params) -> str:
@@ -44,16 +56,74 @@ def params_key(params) -> str:
     return json.dumps(params.to_plain(), sort_keys=True)
 
 
-def prepare(renderer, scene) -> dict:
-    """Render ``scene`` as the window does (still, then as while dragging) on ``renderer`` and
-    export the albedo tables of its materials: the child's work for one request."""
-    renderer.render(scene, width=SIZE[0], height=SIZE[1])
+def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
+    """Draw ``scene`` on ``renderer`` in every kind of frame the window's view draws it
+    (``viewer.app.view_frames``): while dragged (half the size, no MSAA, a traced scene
+    untraced), whole, in tiles over its quarter- and half-resolution previews (the first tile
+    a part of the frame, under a scissor), and for a scene traced in strips its untraced frame,
+    traced mask and traced tiles (half then full resolution, no MSAA). The window's own
+    ``ProgressiveTrace`` draws the tiles, so their state is the window's. Returns the kinds drawn
+    [(kind, sample count asked (None: the scene's), traced chains (None: the scene's))];
+    ``progress()`` is called after each (the child says it is working)."""
+    from viewer.app.frame_mean import frames_wanted
+    from viewer.gl.raytrace import ProgressiveTrace
+
+    w, h = size
+    r = scene.render
+    progressive = renderer.traces(scene) and not r.ssr and r.ibl != "brute_force"
+    untraced = False if progressive else None
+    done = []
+
+    def did(kind):
+        done.append(kind)
+        if progress is not None:
+            progress()
+
+    renderer.render(scene, width=(w + 1) // 2, height=(h + 1) // 2, msaa=0, raytrace=untraced)
+    did(("drag", 0, untraced))
+    renderer.render(scene, width=w, height=h, raytrace=untraced)
+    did(("whole", None, untraced))
+    if not r.ssr and frames_wanted(scene) == 1:  # the frames the window may draw in tiles
+        for scale in (4, 2):
+            pt = ProgressiveTrace(renderer.ctx)
+            try:
+                pt.start(renderer, scene, None, w, h, traced=False, rows=TILE_ROWS, max_pixels=w * h,
+                         preview_scale=scale)
+                pt.step(0.0)  # one tile: the top rows
+                pt.finish()
+            finally:
+                pt.release()
+            did((f"tiles over a 1/{scale} preview", None, False))
+    if progressive:
+        pt = ProgressiveTrace(renderer.ctx)
+        try:
+            pt.start(renderer, scene, None, w, h, rows=TILE_ROWS)
+            pt.step(0.0)
+            pt.finish()
+        finally:
+            pt.release()
+        did(("traced tiles", 0, None))
+    return done
+
+
+def prepare(renderer, scene, echo=None, progress=None) -> dict:
+    """Draw ``scene`` as the window does (``window_frames``) on ``renderer`` and export the
+    albedo tables of its materials: the child's work for one request. ``echo``: a second
+    renderer (or a function that makes it once ``renderer`` has drawn), whose programs link from
+    Mesa's cache as the window's do, draws the same frames with the tables adopted as the window
+    adopts them (see the module's text). ``progress``: see ``window_frames``."""
+    window_frames(renderer, scene, progress=progress)
     keys = set(renderer.forward_keys(scene).values())
-    renderer.render(scene, width=SIZE[0], height=SIZE[1], msaa=0, raytrace=False)
     keys |= set(renderer.forward_keys(scene, raytrace=False).values())
     renderer.ctx.finish()
     used = dict.fromkeys(o.material for o in scene.objects)
     tables = {params_key(scene.materials[n]): renderer.tables.export(scene.materials[n]) for n in used}
+    if echo is not None:
+        echo = echo() if callable(echo) else echo
+        for n in used:
+            echo.tables.adopt(scene.materials[n], tables[params_key(scene.materials[n])])
+        window_frames(echo, scene, progress=progress)
+        echo.ctx.finish()
     return {"keys": sorted(keys), "tables": tables}
 
 
@@ -86,6 +156,12 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
     threading.Thread(target=read, name="compile-ahead-reader", daemon=True).start()
     ctx = create_offscreen_context()
     renderer = Renderer(ctx)
+    echo = []  # the second renderer, made after the first request's programs are in Mesa's cache
+
+    def echo_renderer():
+        if not echo:
+            echo.append(Renderer(ctx))
+        return echo[0]
     print(json.dumps({"ready": True}), file=out, flush=True)
     while True:
         with cond:
@@ -97,11 +173,17 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
         t0 = time.perf_counter()
         try:
             scene = load_scene_text(req["scene"], base_dir=req.get("base_dir"), label="<compile ahead>")
-            answer = {"id": req["id"], "ok": True, **prepare(renderer, scene)}
+            # a line after each kind of frame: a child at work on a long request (a traced
+            # scene on a loaded machine) is not taken for a silent one and replaced
+            working = json.dumps({"working": req["id"]})
+            answer = {"id": req["id"], "ok": True,
+                      **prepare(renderer, scene, echo_renderer, lambda: print(working, file=out, flush=True))}
         except Exception as e:  # noqa: BLE001 - the window compiles it itself and reports the error
             answer = {"id": req["id"], "ok": False, "error": f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"}
         answer["seconds"] = round(time.perf_counter() - t0, 3)
         print(json.dumps(answer), file=out, flush=True)
+    for e in echo:
+        e.release()
     renderer.release()
     ctx.release()
     return 0
@@ -234,6 +316,8 @@ class CompileAhead:
             self._silence.heard(proc.pid)
             if msg.get("ready"):
                 self.ready = True
+                continue
+            if "working" in msg:  # between the kinds of frame of a request: heard, nothing done yet
                 continue
             with self._lock:
                 if msg.get("ok"):

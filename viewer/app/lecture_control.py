@@ -98,7 +98,10 @@ class LectureControl:
 
     def step_shown(self):
         """The step's first frame is drawn (its preview where the view is drawn in tiles, its
-        untraced view where it traces): say how long the key press took to show it."""
+        untraced view where it traces): say how long the key press took to show it, and how it
+        is drawn while its programs compile beside (grey stand-ins, untraced): the status line
+        shows this message over the compile's own."""
+        from viewer.app.view_frames import FORM_WORDS
         from viewer.scene.lecture import TOUR
 
         s = self.session
@@ -113,7 +116,14 @@ class LectureControl:
             why = "; the environment light is a quick prefilter until the full one is ready (in the background)"
         elif st.get("prefilter_passes"):
             why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
+        src = s.frame_source  # drawn while its programs compile beside: the message says so
+        held = s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS
+        if held:
+            why += (f"; its first frame {FORM_WORDS[src.form].removeprefix('drawn ')} while "
+                    f"{', '.join(s.pending)} compile in the background")
         s.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
+        if held:  # like the compile's own note, it goes from the toast once the compile is over
+            s.compiles.note = s.messages[-1]
 
     def enter_step(self, step: int):
         """Lecture mode on at ``step`` for the scene already shown."""

@@ -8,12 +8,10 @@ lobe's D, F, G) and Check (the report card), each a module of ``viewer.app.plot_
 
 Each material keeps one colour in every tab (BRDF Explorer's convention) and from run to run
 (chosen from its name, ``colour_slots``); a checkbox shows or
-hides it and 'solo' shows it alone. Data are cached per (kind, material parameters, angles) and
-recomputed only when those change; the albedo curve (tens of ms per material) waits while a
-slider is held and is recomputed when it is released. In the window (``background``) data not
-cached yet are computed in one worker thread beside the frames (numpy releases the interpreter
-for most of the work): the tab says "computing ..." until they arrive, so switching tabs or
-opening a step whose plot needs seconds of numpy never freezes a frame. The tab names flow onto
+hides it and 'solo' shows it alone. The tabs' data are the panel's part ``store``
+(``viewer.app.plot_data.PlotData``): cached per (kind, material parameters, angles), and in the
+window (``background``) computed in a worker thread beside the frames, the tab saying
+"computing ..." until they arrive. The tab names flow onto
 a second row when the panel is narrow (never shortened to "Sa...").
 
 Use from the app (one instance for the window's lifetime)::
@@ -30,7 +28,9 @@ from __future__ import annotations
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from viewer import ViewerError, plots
+from viewer import ViewerError
+from viewer.app.parts import Part
+from viewer.app.plot_data import PlotData
 from viewer.app.plot_tabs import (albedo, bouguer, check, fresnel, image_slice, lobe, polar, sampling, spectral,
                                   terms, theta)
 from viewer.app.plot_tabs.albedo import albedo_note  # noqa: F401 - part of this module's interface
@@ -45,7 +45,6 @@ TABS = ("Polar", "3D lobe", "Albedo", "Fresnel", "Bouguer", "Spectral", "Samplin
 TAB_MODULES = {"Polar": polar, "3D lobe": lobe, "Albedo": albedo, "Fresnel": fresnel, "Bouguer": bouguer,
                "Spectral": spectral, "Sampling": sampling, "Theta H": theta.THETA_H, "Theta D": theta.THETA_D,
                "Theta V": theta.THETA_V, "Terms": terms, "Image slice": image_slice, "Check": check}
-_CACHE_MAX = 256
 DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
 
 
@@ -55,7 +54,19 @@ class PlotsPanel:
     ``draw(materials)`` takes the scene's ``{name: Params}``; ``visible`` opens and closes the
     window (its close button sets it False). After a frame, ``aspects["polar"]`` is the polar
     plot's pixels per unit along x over those along y (1: equal aspect) and ``clipped`` lists the
-    labels drawn this frame that did not fit their room (empty when all text fits)."""
+    labels drawn this frame that did not fit their room (empty when all text fits).
+    The tabs' data are the part ``store`` (``viewer.app.plot_data.PlotData``: cached, computed
+    in a worker thread with ``background``), read through the panel (``data``, ``cached``,
+    ``albedo``, ``computing``, ...)."""
+
+    background = Part("store")
+    wake = Part("store")
+    updating = Part("store")
+    albedo_stale = Part("store")
+    computing = Part("store")
+    cached = Part("store")
+    data = Part("store")
+    albedo = Part("store")
 
     def __init__(self):
         self.visible = True
@@ -85,19 +96,11 @@ class PlotsPanel:
         self.legend_cells: dict[str, list] = {}
         self.plot_rects: dict[str, tuple] = {}
         self._keys: list[tuple[str, tuple]] = []
-        self.albedo_stale: set[str] = set()
         self._select: str | None = None
         self._colours: dict[str, int] = {}  # palette entry by material, for the scene's names
         self._colour_names: frozenset = frozenset()
-        self._cache: dict = {}
-        self._albedo_shown: dict[str, tuple] = {}
         self._own_implot3d = False
-        self.background = False  # True (the window): data computed in a worker thread
-        self.wake = None         # called from the worker when a result is ready (the window's loop)
-        self._jobs: dict = {}    # key -> Future of data being computed
-        self._pool = None
-        self._last: dict = {}    # (kind, material) -> the data drawn last
-        self.updating: set[str] = set()  # materials drawn with their last data this frame
+        self.store = PlotData()  # the tabs' data: cached, computed in the worker thread
 
     # ------------------------------------------------------------------ public
     def select_tab(self, tab: str) -> None:
@@ -125,17 +128,10 @@ class PlotsPanel:
             return [self.solo]
         return [n for n in materials if self.shown.setdefault(n, True)]
 
-    @property
-    def computing(self) -> bool:
-        """Data for a tab drawn are being computed in the worker thread."""
-        return any(not f.done() for f in self._jobs.values())
-
     def close(self) -> None:
         """Destroy the implot3d context if this panel created it (call before imgui's); the
         worker thread stops after the job it runs."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = None
+        self.store.shutdown()
         if self._own_implot3d:
             from imgui_bundle import implot3d
 
@@ -266,38 +262,6 @@ class PlotsPanel:
         v = np.asarray(v, dtype=np.float64)
         return np.log10(1.0 + v) if self.log else v
 
-    # ------------------------------------------------------------------ data (cached)
-    def cached(self, key, fn):
-        """``fn()`` once per ``key``; with ``background``, None until the worker thread has it."""
-        if key in self._cache:
-            return self._cache[key]
-        if self.background:
-            job = self._jobs.get(key)
-            if job is None:
-                self._submit(key, fn)
-                return None
-            if not job.done():
-                return None
-            del self._jobs[key]
-            value = job.result()  # an exception raised there is raised here, as computed here
-        else:
-            value = fn()
-        if len(self._cache) > _CACHE_MAX:
-            self._cache.clear()
-        self._cache[key] = value
-        return value
-
-    def _submit(self, key, fn):
-        from concurrent.futures import ThreadPoolExecutor
-
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plots")
-        for k in [k for k, f in self._jobs.items() if not f.running() and f.cancel()]:
-            del self._jobs[k]  # queued for a tab or angle no longer drawn: the newest asks first
-        job = self._pool.submit(fn)
-        job.add_done_callback(lambda _: self.wake and self.wake())
-        self._jobs[key] = job
-
     def waiting(self, data: dict) -> bool:
         """Some of ``data`` (name -> data or None) is still being computed: the tab says so, in
         place of its plot (True), and draws nothing else this frame."""
@@ -305,31 +269,6 @@ class PlotsPanel:
         if names:
             imgui.text_wrapped(f"computing the {self.tab} plot for {', '.join(names)} ...")
         return bool(names)
-
-    def data(self, kind, name, p, *args, fn):
-        """``fn()`` cached per (kind, material, its parameters, ``args``). While the worker
-        computes it, the last data of this kind and material are returned (a slider dragged,
-        another angle; the tab says they are being updated), or None when there are none."""
-        d = self.cached((kind, name, params_key(p)) + args, fn)
-        if d is not None:
-            self._last[(kind, name)] = d
-            return d
-        last = self._last.get((kind, name))
-        if last is not None:
-            self.updating.add(name)
-        return last
-
-    def albedo(self, name, p):
-        """The albedo curve of ``p``; while a slider is held, the last one shown (marked stale)."""
-        key = ("albedo", name, params_key(p))
-        if key not in self._cache and imgui.is_any_item_active() and name in self._albedo_shown:
-            self.albedo_stale.add(name)  # a slider is held: keep the old curve until it is released
-            return self._albedo_shown[name]
-        self.albedo_stale.discard(name)
-        d = self.cached(key, lambda: plots.albedo_curve(p))
-        if d is not None:
-            self._albedo_shown[name] = d
-        return d
 
     # ------------------------------------------------------------------ controls
     def _controls(self, materials):

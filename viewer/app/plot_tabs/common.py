@@ -47,8 +47,9 @@ def colour_slots(names) -> dict[str, int]:
     return out
 
 
-# the incident direction: a colour of its own, far from every material's (a test checks it)
-LIGHT = (1.00, 0.92, 0.20)
+# the incident direction: a colour of its own, far from every material's (a test checks it): white,
+# as no material's is (a yellow read as the olive material's on a projector)
+LIGHT = (1.00, 1.00, 1.00)
 # Fresnel components: hues of their own (R keeps the material's colour), as the CLI plot's
 R_S_COLOUR, R_P_COLOUR = (0.30, 0.80, 1.00), (1.00, 0.30, 0.65)
 # wavelength ticks of the spectral tab's half-width plots (implot's defaults collide there)
