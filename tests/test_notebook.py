@@ -188,6 +188,60 @@ def test_material_by_name():
         load_view_scene("default", material="gold", target="nothing")
 
 
+class PathObject:
+    """An os.PathLike that is not a pathlib.Path (as a library's own path type would be)."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __fspath__(self):
+        return self.path
+
+
+def test_scene_as_a_path_object(tmp_path):
+    """A pathlib.Path or any os.PathLike is a file: a scene .toml is read from the file (not as
+    TOML text), a .brdf / .bparam path means the default scene with that material, as the same
+    path given as a string does; a missing file is one line naming it."""
+    from viewer.notebook import load_view_scene
+    from viewer.scene import load_scene
+
+    text = (ROOT / "viewer" / "scenes" / "default.toml").read_text(encoding="utf-8")
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text.replace("fov_y    = 35.0", "fov_y    = 33.0", 1), encoding="utf-8")
+    want = load_scene(str(scene))
+    assert want.camera.fov_y == 33.0   # the file's own value, so reading it is checked
+    for arg in (scene, PathObject(scene)):
+        sc = load_view_scene(arg)
+        assert sc.camera.fov_y == 33.0 and list(sc.materials) == list(want.materials)
+    ct = ROOT / "viewer" / "brdfs" / "cooktorrance.brdf"
+    for arg in (ct, PathObject(ct)):
+        sc = load_view_scene(arg)
+        assert viewer.brdf.is_file(sc.materials["ball"]) and sc.materials["ball"]["m"] == 0.3
+    values = tmp_path / "rough.bparam"
+    values.write_text(f"bparam {ct}\n\n::begin parameters\nfloat m 0.01 1 0.55\n::end parameters\n")
+    assert load_view_scene(values).materials["ball"]["m"] == 0.55
+    assert load_view_scene("default", material=values).materials["ball"]["m"] == 0.55
+    with pytest.raises(ViewerError, match="a material file and material="):
+        load_view_scene(ct, material="gold")
+    with pytest.raises(ViewerError, match="not found") as e:
+        load_view_scene(tmp_path / "nothing.toml")
+    assert "\n" not in str(e.value) and "nothing.toml" in str(e.value)
+
+
+def test_viewer_takes_a_path_object(widget):
+    """``Viewer(pathlib.Path(...))`` opens the file (the shared renderer of the module's widget)."""
+    from viewer.notebook import Viewer
+
+    v = Viewer(ROOT / "viewer" / "scenes" / "default.toml", 48, 27, workers=0)
+    try:
+        assert v.view.scene.materials["ball"].model == "microfacet"
+        want = viewer.render(ROOT / "viewer" / "scenes" / "default.toml", 48, 27)
+        v.frame()
+        assert np.array_equal(v.view.raster()[0], want)
+    finally:
+        v.close()
+
+
 # slow: a kernel start and the whole notebook (47-76 s on two loaded cores); the widget's own tests
 # above check the same frame, slider and reference rules in this process by default
 @pytest.mark.slow

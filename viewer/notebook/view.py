@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -22,12 +24,18 @@ MATERIAL_FILES = (".brdf", ".bparam")   # a scene argument naming one of these i
 
 def load_view_scene(scene="default", material=None, target=None, overrides=(), width=None, height=None):
     """The Scene a notebook view starts from: ``scene`` as ``viewer.render`` takes it (a name, a
-    path, TOML text or a Scene); a ``.brdf`` / ``.bparam`` path there means the ``default`` scene
-    with that material. ``material`` (a preset such as ``"gold"``, a model name, a ``.brdf``,
+    path as a string or any ``os.PathLike``, TOML text or a Scene); a ``.brdf`` / ``.bparam`` path
+    there (string or path object) means the ``default`` scene with that material. ``material`` (a preset such as ``"gold"``, a model name, a ``.brdf``,
     ``.bparam`` or material ``.toml`` file) replaces the material ``target`` (default: the scene's
     first)."""
     from viewer.api import load
 
+    if isinstance(scene, os.PathLike):   # pathlib.Path or any path object: a file, never TOML text
+        scene = Path(os.fsdecode(scene))
+    if isinstance(material, os.PathLike):
+        material = os.fsdecode(material)
+    if isinstance(scene, Path) and scene.suffix.lower() in MATERIAL_FILES:
+        scene = str(scene)
     if isinstance(scene, str) and "\n" not in scene and scene.lower().endswith(MATERIAL_FILES):
         if material is not None:
             raise ViewerError(f"scene: {scene!r} is a material file and material={material!r} is given too; "

@@ -51,8 +51,8 @@ class Viewer(RemoteFrameBuffer):
     """The viewer as a notebook widget.
 
     ``scene``: what ``viewer.render`` takes (a built-in name such as ``"default"``, a ``.toml``
-    path, TOML text, a Scene), or a ``.brdf`` / ``.bparam`` file (the default scene with that
-    material). ``material``: a preset (``"gold"``), a model name or a material file for the
+    path as a string or any ``os.PathLike`` such as ``pathlib.Path``, TOML text, a Scene), or a
+    ``.brdf`` / ``.bparam`` file, string or path object (the default scene with that material). ``material``: a preset (``"gold"``), a model name or a material file for the
     material ``target`` (default: the scene's first). ``overrides``: ``--set`` assignments.
     ``width`` x ``height``: the widget's size in CSS pixels (the framebuffer follows the
     browser's size and pixel ratio). ``engine`` / ``workers``: the reference's (``viewer.reference``)."""
