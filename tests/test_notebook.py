@@ -188,6 +188,38 @@ def test_material_by_name():
         load_view_scene("default", material="gold", target="nothing")
 
 
+def test_frames_from_another_thread(widget):
+    """JupyterLab 4.4+ with ipykernel 7 sends the widget's messages on a subshell thread while the
+    cells run on the main one: a frame drawn on another thread, after frames drawn on this one,
+    is the renderer's image, and so is the next frame drawn here (an EGL context left current on
+    one thread draws nothing on another: those frames were noise)."""
+    import threading
+
+    from viewer.notebook import Viewer
+
+    v = Viewer("default", 48, 27, workers=0)
+    try:
+        v.frame()   # drawn on this thread
+        v.set("materials.ball.alpha", 0.21)
+        got = {}
+
+        def draw():
+            got["frame"] = v.get_frame().copy()
+            got["linear"] = v.view.raster()[0].copy()
+
+        t = threading.Thread(target=draw)
+        t.start()
+        t.join(120)
+        want = viewer.render("default", 48, 27, overrides=["materials.ball.alpha=0.21"])
+        assert np.array_equal(got["linear"], want)
+        assert np.abs(got["frame"].astype(int) - srgb(want, v.view.scene)).max() <= 1
+        v.set("materials.ball.alpha", 0.3)   # and back on this thread
+        v.frame()
+        assert np.array_equal(v.view.raster()[0], viewer.render("default", 48, 27, overrides=["materials.ball.alpha=0.3"]))
+    finally:
+        v.close()
+
+
 class PathObject:
     """An os.PathLike that is not a pathlib.Path (as a library's own path type would be)."""
 
