@@ -167,13 +167,17 @@ class Viewer(RemoteFrameBuffer):
         self._titles()   # a preset or model switch changes the model
         if redraw:
             self.request_draw()
-        if self._loop is None:
+        try:   # this thread's loop: JupyterLab's slider changes come on a subshell thread, with a loop of its own
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            loop = None
+        if loop is None:
             self._replot(name)
             return
         old = self._plot_timers.pop(name, None)
         if old is not None:
             old.cancel()
-        self._plot_timers[name] = self._loop.call_later(PLOT_DELAY_S, self._replot, name)
+        self._plot_timers[name] = loop.call_later(PLOT_DELAY_S, self._replot, name)
 
     def _plot_widgets(self, name):
         from viewer.plots import applicable_kinds
