@@ -58,9 +58,9 @@ class SharedContext:
 def load_view_scene(scene="default", material=None, target=None, overrides=(), width=None, height=None):
     """The Scene a notebook view starts from: ``scene`` as ``viewer.render`` takes it (a name, a
     path as a string or any ``os.PathLike``, TOML text or a Scene); a ``.brdf`` / ``.bparam`` path
-    there (string or path object) means the ``default`` scene with that material. ``material`` (a preset such as ``"gold"``, a model name, a ``.brdf``,
-    ``.bparam`` or material ``.toml`` file) replaces the material ``target`` (default: the scene's
-    first)."""
+    there (string or path object) means the ``default`` scene with that material. ``material`` (a
+    preset such as ``"gold"``, a model name, a ``.brdf``, ``.bparam`` or material ``.toml`` file,
+    string or path object) replaces the material ``target`` (default: the scene's first)."""
     from viewer.api import load
 
     if isinstance(scene, os.PathLike):   # pathlib.Path or any path object: a file, never TOML text
