@@ -9,25 +9,66 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
 from viewer import ViewerError
 
 MODES = ("raster", "reference", "split")
-_shared = None   # (context, Renderer) of this process's widgets, made by the first
+_shared = None   # (SharedContext, Renderer) of this process's widgets, made by the first
+_shared_lock = threading.Lock()
 MATERIAL_FILES = (".brdf", ".bparam")   # a scene argument naming one of these is a material
+
+
+class SharedContext:
+    """The widgets' one GL context, current on one thread at a time: ``with gl:`` makes it
+    current on the calling thread for the block (waiting while another thread has it) and
+    releases it after the outermost block.
+
+    Jupyter calls a widget from more than one thread: JupyterLab 4.4 and later with ipykernel 7
+    handle widget messages (a drag, a slider, the browser's frame requests) on a subshell thread
+    while cells run on the main one. An EGL context still current on the thread that used it
+    last draws nothing on another (Mesa reads back uninitialised memory and reports no error:
+    the frames of a drag in JupyterLab were noise), so no thread keeps it between uses."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.lock = threading.RLock()
+        self.depth = 0   # nested blocks of the thread holding the lock
+
+    def __enter__(self):
+        self.lock.acquire()
+        self.depth += 1
+        self.ctx.__enter__()   # again in a nested block too: an engine choice inside may release it
+        return self.ctx
+
+    def __exit__(self, *exc):
+        self.depth -= 1
+        try:
+            if self.depth == 0:
+                self.ctx.__exit__(None, None, None)   # EGL: no context current on this thread now
+        finally:
+            self.lock.release()
 
 
 def load_view_scene(scene="default", material=None, target=None, overrides=(), width=None, height=None):
     """The Scene a notebook view starts from: ``scene`` as ``viewer.render`` takes it (a name, a
-    path, TOML text or a Scene); a ``.brdf`` / ``.bparam`` path there means the ``default`` scene
-    with that material. ``material`` (a preset such as ``"gold"``, a model name, a ``.brdf``,
-    ``.bparam`` or material ``.toml`` file) replaces the material ``target`` (default: the scene's
-    first)."""
+    path as a string or any ``os.PathLike``, TOML text or a Scene); a ``.brdf`` / ``.bparam`` path
+    there (string or path object) means the ``default`` scene with that material. ``material`` (a
+    preset such as ``"gold"``, a model name, a ``.brdf``, ``.bparam`` or material ``.toml`` file,
+    string or path object) replaces the material ``target`` (default: the scene's first)."""
     from viewer.api import load
 
+    if isinstance(scene, os.PathLike):   # pathlib.Path or any path object: a file, never TOML text
+        scene = Path(os.fsdecode(scene))
+    if isinstance(material, os.PathLike):
+        material = os.fsdecode(material)
+    if isinstance(scene, Path) and scene.suffix.lower() in MATERIAL_FILES:
+        scene = str(scene)
     if isinstance(scene, str) and "\n" not in scene and scene.lower().endswith(MATERIAL_FILES):
         if material is not None:
             raise ViewerError(f"scene: {scene!r} is a material file and material={material!r} is given too; "
@@ -130,10 +171,13 @@ class NotebookView:
         self.size = (int(width), int(height))   # logical (CSS) pixels
         self.pixel_ratio = 1.0
         global _shared
-        if _shared is None:   # one context and renderer for every widget: programs compile once
-            ctx = create_offscreen_context()
-            _shared = (ctx, Renderer(ctx))
-        self.ctx, self.renderer = _shared
+        with _shared_lock:
+            if _shared is None:   # one context and renderer for every widget: programs compile once
+                gl = SharedContext(create_offscreen_context())
+                with gl:
+                    _shared = (gl, Renderer(gl.ctx))
+        self.gl, self.renderer = _shared
+        self.ctx = self.gl.ctx
         self.engine_request = engine
         self.workers = workers
         self.max_depth = max_depth
@@ -249,10 +293,10 @@ class NotebookView:
         key = (self.version, self.pixels)
         if self._raster is None or self._raster[0] != key:
             w, h = self.pixels
-            self.ctx.__enter__()   # current on this thread (a reference engine choice may release it)
-            t = time.perf_counter()
-            linear, srgb = self.renderer.render_arrays(self.scene, self.camera, w, h)
-            self.render_ms = 1000.0 * (time.perf_counter() - t)
+            with self.gl:   # current on this thread for the draw and its read-back
+                t = time.perf_counter()
+                linear, srgb = self.renderer.render_arrays(self.scene, self.camera, w, h)
+                self.render_ms = 1000.0 * (time.perf_counter() - t)
             self._raster = (key, linear, srgb)
         return self._raster[1], self._raster[2]
 
@@ -261,15 +305,16 @@ class NotebookView:
         first pass); advances the GPU engine by one time slice."""
         from viewer.image.colour import to_srgb8
 
-        ref = self._reference()
         w, h = self.pixels
-        self.ctx.__enter__()
-        # at the logical size: a high-density display (pixel ratio 2) would cost four times the
-        # samples for the same picture; the image is scaled up to the framebuffer (nearest pixel)
-        # while a pointer drags the camera the job waits (the raster view stands in), as in the
-        # window: a restart per dragged frame would never finish a pass
-        ref.update(self.scene, self.camera, self.size, defer=self._drag is not None)
-        got = ref.latest()
+        with self.gl:   # the engine choice and the GPU engine's time slice draw on it
+            ref = self._reference()
+            self.ctx.__enter__()   # again: a reference engine choice may have released it
+            # at the logical size: a high-density display (pixel ratio 2) would cost four times the
+            # samples for the same picture; the image is scaled up to the framebuffer (nearest pixel)
+            # while a pointer drags the camera the job waits (the raster view stands in), as in the
+            # window: a restart per dragged frame would never finish a pass
+            ref.update(self.scene, self.camera, self.size, defer=self._drag is not None)
+            got = ref.latest()
         if got is None:
             return None
         img = got[0]
@@ -280,7 +325,12 @@ class NotebookView:
         return to_srgb8(img, self.scene.render.exposure, self.scene.render.tonemap)
 
     def frame(self) -> np.ndarray:
-        """Draw the current mode and return it as (H, W, 3) uint8."""
+        """Draw the current mode and return it as (H, W, 3) uint8 (from any thread: one at a
+        time, ``SharedContext``)."""
+        with self.gl:
+            return self._frame()
+
+    def _frame(self) -> np.ndarray:
         _, srgb = self.raster() if self.mode != "reference" else (None, None)
         out = srgb
         if self.mode != "raster":
@@ -303,7 +353,8 @@ class NotebookView:
         divider at ``self.split``); False: the raster view (the reference's job stops)."""
         self.mode = ("split" if split else "reference") if on else "raster"
         if not on and self.reference is not None:
-            self.reference.stop(timeout=0.0)
+            with self.gl:   # the GPU engine keeps its samples (a read-back) when it stops
+                self.reference.stop(timeout=0.0)
         self.changed()
 
     def _reference(self):
@@ -342,6 +393,6 @@ class NotebookView:
         """End the reference (its thread and workers) and release its GL objects; the shared
         renderer stays for the other widgets (as ``viewer.render`` keeps its own)."""
         if self.reference is not None:
-            self.ctx.__enter__()
-            self.reference.close(timeout=5.0, keep_programs=True)   # other widgets share the context
+            with self.gl:
+                self.reference.close(timeout=5.0, keep_programs=True)   # other widgets share the context
             self.reference = None

@@ -51,8 +51,8 @@ class Viewer(RemoteFrameBuffer):
     """The viewer as a notebook widget.
 
     ``scene``: what ``viewer.render`` takes (a built-in name such as ``"default"``, a ``.toml``
-    path, TOML text, a Scene), or a ``.brdf`` / ``.bparam`` file (the default scene with that
-    material). ``material``: a preset (``"gold"``), a model name or a material file for the
+    path as a string or any ``os.PathLike`` such as ``pathlib.Path``, TOML text, a Scene), or a
+    ``.brdf`` / ``.bparam`` file, string or path object (the default scene with that material). ``material``: a preset (``"gold"``), a model name or a material file for the
     material ``target`` (default: the scene's first). ``overrides``: ``--set`` assignments.
     ``width`` x ``height``: the widget's size in CSS pixels (the framebuffer follows the
     browser's size and pixel ratio). ``engine`` / ``workers``: the reference's (``viewer.reference``)."""
@@ -167,13 +167,17 @@ class Viewer(RemoteFrameBuffer):
         self._titles()   # a preset or model switch changes the model
         if redraw:
             self.request_draw()
-        if self._loop is None:
+        try:   # this thread's loop: JupyterLab's slider changes come on a subshell thread, with a loop of its own
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            loop = None
+        if loop is None:
             self._replot(name)
             return
         old = self._plot_timers.pop(name, None)
         if old is not None:
             old.cancel()
-        self._plot_timers[name] = self._loop.call_later(PLOT_DELAY_S, self._replot, name)
+        self._plot_timers[name] = loop.call_later(PLOT_DELAY_S, self._replot, name)
 
     def _plot_widgets(self, name):
         from viewer.plots import applicable_kinds
