@@ -142,6 +142,8 @@ def step_plots(scene, step, out_dir: Path, folder: str) -> tuple[list[PlotFile],
         fig = plots.figure(p, step.plot, name=name, inside=step.key == "tir")
         stem = f"{folder}/plot-{file_stem(name)}"
         data = figure_json(fig)   # the numbers beside the PNG, not also in it (plot --data's JSON)
+        if isinstance(data.get("params"), dict) and isinstance(data["params"].get("file"), str):
+            data["params"]["file"] = Path(data["params"]["file"]).name   # not the build machine's path
         write_png(out_dir / f"{stem}.png", plots.render_figure(fig, *PLOT_SIZE))
         atomic_write_bytes(out_dir / f"{stem}.json", (json.dumps(data, separators=(",", ":")) + "\n").encode())
         out.append(PlotFile(name, step.plot, data["title"], f"{stem}.png", f"{stem}.json"))
