@@ -39,23 +39,48 @@ def missing() -> str | None:
     return None
 
 
-@pytest.fixture(scope="session")
-def browser():
-    """One headless Chromium with WebGL2 for the session."""
-    why = missing()
-    if why:
-        pytest.skip(why)
+_STARTED: list = []  # [(playwright, browser)]: one Chromium per process, whichever module asks first
+
+
+def _shared_browser():
+    """The process's Chromium, started on first use and closed when the process exits: test
+    modules that import ``browser`` get fixture instances of their own, and Playwright's sync
+    API allows one instance per thread."""
+    if _STARTED and _STARTED[0][1].is_connected():
+        return _STARTED[0][1]
+    import atexit
+
     from playwright.sync_api import sync_playwright
 
+    if _STARTED:
+        _close()
     pw = sync_playwright().start()
     try:
         b = pw.chromium.launch(executable_path=chromium_path(), args=ARGS, headless=True)
     except Exception as e:  # noqa: BLE001 - a browser that does not start: the tests cannot run
         pw.stop()
         pytest.skip(f"Chromium at {chromium_path()} does not start: {str(e).splitlines()[0]}")
-    yield b
-    b.close()
-    pw.stop()
+    _STARTED.append((pw, b))
+    atexit.register(_close)
+    return b
+
+
+def _close():
+    while _STARTED:
+        pw, b = _STARTED.pop()
+        try:
+            b.close()
+        finally:
+            pw.stop()
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """One headless Chromium with WebGL2 for the session (shared by every module that uses it)."""
+    why = missing()
+    if why:
+        pytest.skip(why)
+    yield _shared_browser()
 
 
 def open_page(browser, url: str | None = None, html: str | None = None, viewport=(1280, 800)):

@@ -142,6 +142,13 @@ def no_gl_in_the_cpu_layers(root: Path) -> list[str]:
     return banned_imports(root, files, GL_MODULES, TEMPORARY_GL_ALLOWANCE)
 
 
+def handout_stays_on_top(root: Path) -> list[str]:
+    """The web handout (viewer/handout) is a top layer: only the commands import it."""
+    files = [f for f in _py(root, "viewer") if not f.relative_to(root).as_posix().startswith(
+        ("viewer/commands/", "viewer/handout/"))]
+    return banned_imports(root, files, ("viewer.handout",))
+
+
 def scene_model_files(root: Path) -> list[Path]:
     files = [root / "viewer" / "scene.py"]
     return [f for f in files if f.is_file()] + _py(root, "viewer/scene")
@@ -518,6 +525,21 @@ def test_the_scene_model_rule_can_fail(tmp_path):
         got = sorted(no_gl_in_the_scene_model(root))
         assert got == sorted(["viewer/scene/camera.py imports imgui_bundle", f"{layout} imports viewer.app",
                               f"{layout} imports viewer.app.main"]), layout
+
+
+def test_only_the_commands_import_the_handout():
+    assert len(_py(ROOT, "viewer/handout")) >= 3
+    assert handout_stays_on_top(ROOT) == []
+
+
+def test_the_handout_rule_can_fail(tmp_path):
+    root = _tree(tmp_path, {
+        "viewer/gl/a.py": "def f():\n    from viewer.handout.glsl_es import convert_program\n",
+        "viewer/commands/cli.py": "from viewer.handout import pages\n",
+        "viewer/handout/pages.py": "from viewer.handout.live import write_live\n",
+    })
+    assert handout_stays_on_top(root) == ["viewer/gl/a.py imports viewer.handout.glsl_es",
+                                          "viewer/gl/a.py imports viewer.handout.glsl_es.convert_program"]
 
 
 def test_the_rasterizer_rule_can_fail(tmp_path):

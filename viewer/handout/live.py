@@ -105,9 +105,6 @@ class UniformRecorder(dict):
     def __getitem__(self, name):
         return _Uniform(self, name)
 
-    def values(self):
-        return dict.values(self)
-
     def recorded(self) -> dict:
         """name -> JSON-ready value: numbers as lists, bytes as base64 (the runtime reads them
         as the uniform's own type: int32 for int uniforms, float32 otherwise)."""
@@ -129,13 +126,13 @@ def _b64(a: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode()
 
 
-def _half(a: np.ndarray) -> str:
-    """float16 bytes as base64 (the runtime uploads RGB16F: filterable in every WebGL2)."""
+def _floats(a: np.ndarray) -> dict:
+    """Texture data for the runtime: float16 where every value fits (RGB16F is filterable in
+    every WebGL2), else float32 (a bright sun: the runtime then needs OES_texture_float_linear)."""
     a = np.asarray(a, np.float32)
-    if np.any(a > 65504.0):
-        raise ViewerError(f"environment: radiance up to {float(a.max()):g} exceeds half precision (65504); "
-                          "the live view cannot hold it")
-    return _b64(a.astype(np.float16))
+    if np.all(np.abs(a) <= 65504.0):
+        return {"f16": _b64(a.astype(np.float16))}
+    return {"f32": _b64(a)}
 
 
 def _digest(*parts) -> str:
@@ -301,9 +298,9 @@ def _classify(params, subs, kind, lo, hi, log, env, key0, block0):
     raise AssertionError(kind)
 
 
-def _choice(params, sub, choices, env, key0, block0, shown_of):
-    """A choice control: per choice its block (None where it needs another program) and the
-    parameters shown under it (``editor_rules.shown_params``)."""
+def _choice(params, sub, choices, env, key0, block0):
+    """A choice control: per choice its block (absent, with the reason, where it needs another
+    program or is refused)."""
     options = []
     for c in choices:
         entry = {"value": c}
@@ -318,9 +315,44 @@ def _choice(params, sub, choices, env, key0, block0, shown_of):
             entry["disabled"] = "needs another program: pick it in the desktop viewer"
         else:
             entry["block"] = _b64(blk.astype(np.float32))
-        entry["shows"] = shown_of(p)
         options.append(entry)
     return options
+
+
+#: at most this many combinations of a level's choices are tabulated for ``shown_table``
+MAX_COMBINATIONS = 4096
+
+
+def shown_table(params) -> dict[str, dict]:
+    """What the editor shows (``editor_rules.shown_params``) for every combination of the
+    choices of each level of a material (its own parameters, a nested material's): per level
+    prefix (``""``, ``"base."``), the choices' names and, per combination of their values joined
+    by ``|``, the names shown. The page shows a parameter of a tabulated level iff the current
+    combination lists it."""
+    import itertools
+
+    from viewer import brdf
+    from viewer.app.editor_rules import shown_params
+    from viewer.brdf.spec import Params
+
+    out: dict[str, dict] = {}
+
+    def level(p, prefix: str):
+        spec = brdf.spec_of(p)
+        choices = [q for q in spec.params if q.kind == "choice"]
+        if choices and math.prod(len(q.choices) for q in choices) <= MAX_COMBINATIONS:
+            table = {}
+            for combo in itertools.product(*(q.choices for q in choices)):
+                shown = shown_params(p.replace(**{q.name: c for q, c in zip(choices, combo)}))
+                table["|".join(combo)] = [prefix + n for n in shown]
+            out[prefix] = {"choices": [prefix + q.name for q in choices], "table": table}
+        for q in spec.params:
+            v = p[q.name]
+            if q.kind == "material" and isinstance(v, Params):
+                level(v, f"{prefix}{q.name}.")
+
+    level(params, "")
+    return out
 
 
 def _fmt(v: float) -> str:
@@ -348,10 +380,6 @@ def material_controls(name: str, params, env: tuple[bool, bool]) -> list[dict]:
         by_name = {p.name: p for p in spec.params}
         pair = "alpha_x" in by_name and "alpha_y" in by_name
         iso = pair and math.isclose(float(sub_params["alpha_x"]), float(sub_params["alpha_y"]), rel_tol=1e-9)
-
-        def shown_of_nested(p_top):
-            q = _leaf(p_top, prefix[:-1]) if prefix else p_top
-            return [prefix + n for n in shown_params(q)]
 
         for p in spec.params:
             sub = prefix + p.name
@@ -392,7 +420,7 @@ def material_controls(name: str, params, env: tuple[bool, bool]) -> list[dict]:
                 _attach(c, mode, how)
                 out.append(c)
             elif p.kind == "choice":
-                opts = _choice(params, sub, p.choices, env, key0, block0, shown_of_nested)
+                opts = _choice(params, sub, p.choices, env, key0, block0)
                 out.append(dict(base, kind="select", subs=[sub], value=str(sub_params[p.name]), options=opts,
                                 mode="choice"))
             elif p.kind == "table":
@@ -567,11 +595,11 @@ def _env_asset(out_dir: Path, renderer, env_map, env_rad) -> tuple[str, str]:
     rel = f"{ASSETS}/live-env-{key}.js"
     path = out_dir / rel
     if not path.is_file():
-        data = {"layers": [int(pre.shape[2]), int(pre.shape[1]), int(pre.shape[0])], "prefiltered": _half(pre),
-                "dfg": [int(ibl.dfg.shape[1]), int(ibl.dfg.shape[0])], "dfg_data": _half(ibl.dfg)}
+        data = {"layers": [int(pre.shape[2]), int(pre.shape[1]), int(pre.shape[0])], "prefiltered": _floats(pre),
+                "dfg": [int(ibl.dfg.shape[1]), int(ibl.dfg.shape[0])], "dfg_data": _floats(ibl.dfg)}
         if img is not None:
             data["map"] = [int(img.shape[1]), int(img.shape[0])]
-            data["map_data"] = _half(img)
+            data["map_data"] = _floats(img)
         _write(path, _script("envs", key, data))
     return key, rel
 
@@ -674,6 +702,7 @@ def step_data(scene, out_dir: Path, step: int) -> tuple[dict, list[str], list[di
             ctl = material_controls(obj.material, params, (lit, env_constant))
             materials[obj.material]["controls"] = [
                 {k: v for k, v in c.items() if k not in ("doc",)} for c in ctl]
+            materials[obj.material]["shown"] = shown_table(params)
             controls.append({"name": obj.material, "model": params.model,
                              "title": brdf.spec_of(params).title, "controls": ctl})
         mkey = id(obj.mesh_data)

@@ -218,14 +218,21 @@
     this.textures = {};
     var env = d.env ? L.envs[d.env] : null;
     if (d.env && !env) throw new Error('its environment data did not load');
+    // half floats, or float32 where a value does not fit (then linear filtering needs an extension)
+    var floats = function (target, channels, w, h, dd, data, repeat) {
+      var rgb = channels === 3;
+      if (data.f16 !== undefined) {
+        return texture(gl, target, rgb ? gl.RGB16F : gl.RG16F, rgb ? gl.RGB : gl.RG, gl.HALF_FLOAT, w, h, dd,
+                       new Uint16Array(buffer(data.f16)), true, repeat);
+      }
+      if (!gl.getExtension('OES_texture_float_linear')) throw new Error('this browser cannot filter float textures (OES_texture_float_linear), which this environment needs');
+      return texture(gl, target, rgb ? gl.RGB32F : gl.RG32F, rgb ? gl.RGB : gl.RG, gl.FLOAT, w, h, dd, f32(data.f32), true, repeat);
+    };
     if (env) {
-      if (env.map) this.textures.u_env_map = texture(gl, gl.TEXTURE_2D, gl.RGB16F, gl.RGB, gl.HALF_FLOAT, env.map[0], env.map[1], 1,
-                                                     new Uint16Array(buffer(env.map_data)), true, true);
+      if (env.map) this.textures.u_env_map = floats(gl.TEXTURE_2D, 3, env.map[0], env.map[1], 1, env.map_data, true);
       var ly = env.layers;
-      this.textures.u_env_prefiltered = texture(gl, gl.TEXTURE_2D_ARRAY, gl.RGB16F, gl.RGB, gl.HALF_FLOAT, ly[0], ly[1], ly[2],
-                                                new Uint16Array(buffer(env.prefiltered)), true, true);
-      this.textures.u_env_dfg = texture(gl, gl.TEXTURE_2D, gl.RG16F, gl.RG, gl.HALF_FLOAT, env.dfg[0], env.dfg[1], 1,
-                                        new Uint16Array(buffer(env.dfg_data)), true, false);
+      this.textures.u_env_prefiltered = floats(gl.TEXTURE_2D_ARRAY, 3, ly[0], ly[1], ly[2], env.prefiltered, true);
+      this.textures.u_env_dfg = floats(gl.TEXTURE_2D, 2, env.dfg[0], env.dfg[1], 1, env.dfg_data, false);
     }
     var zero = new Uint8Array(4);
     this.empty = {};
@@ -567,19 +574,22 @@
     m.block = b;
   };
 
-  // editor_rules.shown_params: each choice says which parameters of its level it shows
+  // editor_rules.shown_params, tabulated in Python for every combination of a level's choices:
+  // a parameter of that level is shown iff the current combination lists it
   View.prototype.visibility = function (m) {
     var level = function (sub) { var i = sub.lastIndexOf('.'); return i < 0 ? '' : sub.slice(0, i + 1); };
+    var bySub = {};
+    m.controls.forEach(function (c) { bySub[c.sub] = c; });
+    var shown = m.d.shown || {};
     m.controls.forEach(function (c) {
       if (!c.row) return;
-      var show = !c.hidden;
-      m.controls.forEach(function (ch) {
-        if (ch.kind !== 'select' || level(ch.sub) !== level(c.sub) || c === ch) return;
-        var opt = ch.options.filter(function (o) { return o.value === ch.value; })[0];
-        if (opt && opt.shows) show = show && opt.shows.indexOf(c.sub) >= 0;
-      });
-      if (show !== !c.hiddenNow) { c.row.classList.toggle('brdf-live-hidden', !show); }
-      c.hiddenNow = !show;
+      var show = !c.hidden, t = shown[level(c.sub)];
+      if (t && t.choices.indexOf(c.sub) < 0) {
+        var key = t.choices.map(function (s) { return bySub[s] ? bySub[s].value : ''; }).join('|');
+        var list = t.table[key];
+        if (list) show = list.indexOf(c.sub) >= 0;
+      }
+      c.row.classList.toggle('brdf-live-hidden', !show);
     });
   };
 
