@@ -31,7 +31,7 @@ R_BALL, H_BALL, RHO = 0.5, 1.0, 0.5
 def _scene(tmp_path, raytrace=True):
     text = scene(camera([0.0, 1.0, 3.0], [0.0, 0.0, 0.0], 40.0, W, H, up=[0.0, 1.0, 0.0]),
                  environment(constant=[1.0, 1.0, 1.0]),
-                 render(ibl="split_sum", shadows=True, msaa=0, raytrace=raytrace),
+                 render(ibl="split_sum", shadows=True, msaa=0, raytrace=raytrace, raytrace_occlusion=True),
                  obj("plane", "floor", scale=6.0),
                  obj("sphere", "black", scale=R_BALL, translate=[0.0, H_BALL, 0.0]),
                  # a traced frame needs a mirror or smooth glass: a 1 cm mirror bead behind the

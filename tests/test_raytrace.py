@@ -215,9 +215,17 @@ def test_sphere_over_mirror_floor(tmp_path, renderer):
         img = _raster(renderer, scene, rt)
         out[name] = float(np.sqrt(np.mean((img[region] - ref[region]) ** 2)))
     scene.render.ssr = False
+    # the sphere's underside: with raytrace_occlusion its diffuse environment term traces the
+    # floor (a mirror: the sky it reflects, less the sphere's own image), which closes most of
+    # what is left
+    scene.render.raytrace_occlusion = True
+    img = _raster(renderer, scene, True)
+    out["occlusion"] = float(np.sqrt(np.mean((img[region] - ref[region]) ** 2)))
+    scene.render.raytrace_occlusion = False
     print(f"mirror floor reflected region ({region.sum()} px) RMSE: no reflection {out['none']:.4f}, "
-          f"SSR {out['ssr']:.4f}, ray traced {out['raytrace']:.4f}")
+          f"SSR {out['ssr']:.4f}, ray traced {out['raytrace']:.4f}, with occlusion {out['occlusion']:.4f}")
     assert out["raytrace"] < 0.15 * out["none"]
+    assert out["occlusion"] < out["raytrace"]
 
 
 def absorbing_ball(radius, constant=(1.0, 1.0, 1.0)):

@@ -160,7 +160,7 @@ class ObjectDraws:
         for obj in scene.objects:  # one draw each, in the forward pass's order (u_traced per object)
             params = scene.materials[obj.material]
             # a chain, or the environment's occlusion traced in the BVH (program_set.env_occluded)
-            _set(prog, "u_traced", float(chain_traces(params) or env_occluded(params, env_on, True)))
+            _set(prog, "u_traced", float(chain_traces(params) or env_occluded(scene, params, env_on, True)))
             self.meshes.get(obj.mesh_data).draw(prog, instance_data([obj]))
         return np.frombuffer(tex.read(alignment=1), np.uint8).reshape(h, w) > 127
 

@@ -69,7 +69,7 @@ def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, 
     of ``scene`` with these switches (``traced_frame``: the frame traces specular chains)."""
     traced = traced_frame and chain_traces(params)
     shell = not traced and thin_shell(params)
-    occlusion = env_occluded(params, env_on, traced_frame)
+    occlusion = env_occluded(scene, params, env_on, traced_frame)
     # a file BRDF's lobe is unknown: no split sum can be pre-integrated for it, so its
     # environment light is importance sampled (fis, or brute force when asked for)
     custom_fis = brdf.is_file(params) and env_on and scene.render.ibl == "split_sum"
@@ -80,11 +80,13 @@ def forward_args(scene, params, ssr_on: bool, env_on: bool, env_constant: bool, 
             "env_occlusion": occlusion}
 
 
-def env_occluded(params, env_on: bool, traced_frame: bool) -> bool:
+def env_occluded(scene, params, env_on: bool, traced_frame: bool) -> bool:
     """Whether a traced frame traces the environment's occlusion in the scene's BVH for
-    ``params`` (its diffuse environment term, and that of the surfaces its chains meet): every
-    material the environment lights in a traced frame but an untraced thin shell."""
-    return traced_frame and env_on and (chain_traces(params) or not thin_shell(params))
+    ``params`` (its diffuse environment term, and that of the surfaces its chains meet): with the
+    scene's ``raytrace_occlusion`` on, every material the environment lights in a traced frame but
+    an untraced thin shell."""
+    return (bool(scene.render.raytrace_occlusion) and traced_frame and env_on
+            and (chain_traces(params) or not thin_shell(params)))
 
 
 class ProgramSet:

@@ -19,7 +19,8 @@ SCENE_VERSION = 1
 TOP_KEYS = ("version", "camera", "environment", "render", "lights", "objects", "materials")
 CAMERA_KEYS = ("position", "target", "up", "fov_y", "width", "height")
 ENV_KEYS = ("constant", "map", "intensity", "rotation_deg")
-RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation", "raytrace", "raytrace_depth")
+RENDER_KEYS = ("ibl", "ssr", "shadows", "msaa", "exposure", "tonemap", "ms_compensation", "raytrace", "raytrace_depth",
+               "raytrace_occlusion")
 LIGHT_TYPES = ("point", "directional")
 POINT_KEYS = ("type", "position", "intensity")
 DIRECTIONAL_KEYS = ("type", "direction", "irradiance")
@@ -110,6 +111,10 @@ class RenderSettings:
     # scattering events along a chain, the camera's hit included (the reference's max_depth)
     raytrace: bool = False
     raytrace_depth: int = 8
+    # with raytrace: the diffuse environment term traces its occlusion in the same triangles
+    # (16 cosine rays a pixel, 4 at a chain's hits); off by default, since it multiplies a traced
+    # frame's cost 3-30x on a software rasterizer and shows grain in one frame
+    raytrace_occlusion: bool = False
 
     def __eq__(self, other):
         return equal(self, other)
