@@ -24,17 +24,24 @@ def _wait(predicate, seconds=120.0):   # a deadline for a background job, genero
 
 def test_samples_per_chunk_fills_a_chunk():
     from viewer.pathtracer import ReferenceRenderer
-    from viewer.pathtracer.progressive import TARGET_CHUNK_PATHS
+    from viewer.pathtracer.progressive import TARGET_CHUNK_PATHS, WIDE_CHUNK_PATHS
     from viewer.scene import load_scene
 
     r = ReferenceRenderer(load_scene("sphere"), width=460, height=360, max_depth=1, workers=0)
     # 460 px wide: blocks of 2048 // 460 = 4 rows, 1840 px; 8192 // 1840 = 4 samples per chunk
     assert r.samples_per_chunk() == 4
-    # a pass of samples_per_chunk samples is one chunk per block (progress is called per chunk)
+    # a pass of samples_per_chunk samples fills each block's share of a chunk; a chunk then takes
+    # consecutive blocks up to WIDE_CHUNK_PATHS paths (progress is called per chunk): here both
+    # 4 x 1840-path blocks in one chunk
     short = ReferenceRenderer(load_scene("sphere"), width=460, height=8, max_depth=1, workers=0)
     done = []
     assert short.samples_per_chunk() == 4 and short.step(4, progress=done.append)
-    assert len(done) == len(short.blocks) == 2 and short.spp == 4
+    per_chunk = WIDE_CHUNK_PATHS // (4 * 1840)
+    assert len(short.blocks) == 2 and per_chunk >= 2
+    assert len(done) == 1 and short.spp == 4
+    wide = ReferenceRenderer(load_scene("sphere"), width=460, height=4 * (per_chunk + 1), max_depth=1, workers=0)
+    done = []
+    assert wide.step(4, progress=done.append) and len(wide.blocks) == per_chunk + 1 and len(done) == 2
     assert 4 * 1840 <= TARGET_CHUNK_PATHS < 5 * 1840
     r = ReferenceRenderer(load_scene("sphere"), width=4000, height=8, max_depth=1, workers=0)
     assert r.samples_per_chunk() == 2   # one row of 4000 px per block
