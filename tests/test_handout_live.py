@@ -397,3 +397,20 @@ def test_environment_light_matches_the_desktop_raster(browser, tmp_path):
     assert off.sum() <= 0.02 * far.sum(), (off.sum(), far.sum())
     assert not errors(messages), errors(messages)
     page.close()
+
+
+def test_a_file_brdfs_program_is_named_without_the_build_machines_path():
+    """The raster's variant key of a .brdf material holds the file's absolute path; the page's
+    program name is a digest of it, so no asset names a folder of the machine that built it."""
+    from pathlib import Path
+
+    from viewer import brdf
+    from viewer.gl.programs import forward_variant
+    from viewer.handout.live import forward_program, forward_program_key
+
+    path = Path(brdf.__file__).resolve().parent.parent / "brdfs" / "cooktorrance.brdf"
+    cook = brdf.load(path).params()
+    assert str(path) in forward_variant(cook, env_light=False, env_constant=False)[0]  # what is hidden
+    key, src = forward_program(cook, False, False)
+    assert key == forward_program_key(cook, False, False)
+    assert str(path.parent) not in key and str(path.parent) not in repr(src)

@@ -169,7 +169,13 @@ def forward_program(params, env_light: bool, env_constant: bool) -> tuple[str, d
 
     key, models, defines = forward_variant(params, env_light=env_light, env_constant=env_constant)
     recipe = Recipe(*FORWARD_STAGES, models=models, defines=tuple(defines.items()))
-    return key, _es(recipe.sources())
+    return page_key(key), _es(recipe.sources())
+
+
+def page_key(variant_key: str) -> str:
+    """The name a page gives a forward program: a digest of the raster's variant key, which
+    holds a .brdf file's absolute path (a page names nothing of the machine that built it)."""
+    return "forward:" + _digest(variant_key)
 
 
 def pass_program(name: str) -> dict:
@@ -197,7 +203,7 @@ def _pack(params, env: tuple[bool, bool]):
 def forward_program_key(params, env_light: bool, env_constant: bool) -> str:
     from viewer.gl.programs import forward_variant
 
-    return forward_variant(params, env_light=env_light, env_constant=env_constant)[0]
+    return page_key(forward_variant(params, env_light=env_light, env_constant=env_constant)[0])
 
 
 def _leaf(params, sub: str):
