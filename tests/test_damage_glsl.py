@@ -241,6 +241,8 @@ def test_cancel_all_ends_a_running_test_render_without_a_verdict(tmp_path, monke
     monkeypatch.setenv("BRDF_VIEWER_PROBE_TIMEOUT", "600")
     bfile = parse(_file(tmp_path, "waited.brdf", _bomb(8)))
     out = []
+    # a probe child of an earlier test may still be ending: wait for this probe's own
+    before = {pid for pid, c in children(zombies=False).items() if "file_probe" in c}
 
     def run():
         try:
@@ -251,8 +253,9 @@ def test_cancel_all_ends_a_running_test_render_without_a_verdict(tmp_path, monke
 
     t = threading.Thread(target=run)
     t.start()
-    _wait(lambda: any("file_probe" in c for c in children(zombies=False).values()) or out, "the probe's child")
-    file_probe.cancel_all()
+    _wait(lambda: any("file_probe" in c and pid not in before for pid, c in children(zombies=False).items()) or out,
+          "the probe's child")
+    file_probe.cancel_all()  # also when the child is not yet registered (the probe sees the cancel)
     t.join(120)  # a hang detector
     assert out == ["waited.brdf: the test render of its GLSL was stopped"]
     assert not [c for c in children(zombies=False).values() if "file_probe" in c]

@@ -42,6 +42,7 @@ started = 0                                # the probes' children started in thi
 _VERDICTS: dict[str, str] = {}             # content key -> "" (passed) or the refusal's line
 _RUNNING: set = set()                      # the probes' children now running
 _LOCK = threading.Lock()
+_cancels = 0                                 # cancel_all calls so far (a probe started before one is cancelled)
 
 
 def timeout() -> float:
@@ -103,8 +104,11 @@ def _remember(key: str) -> None:
 
 
 def cancel_all() -> None:
-    """Kill the probes' children now running (a window closing on SIGTERM)."""
+    """Kill the probes' children now running (a window closing on SIGTERM), and those of probes
+    already under way whose child is not yet registered (they see the cancel when they register)."""
+    global _cancels
     with _LOCK:
+        _cancels += 1
         procs = list(_RUNNING)
     for p in procs:
         try:
@@ -117,6 +121,8 @@ def _run_child(bfile, t: float, mb: int):
     """The verdict: "" passed, a refusal's line; None: no verdict (the child could not run)."""
     global started
     name = bfile.path.name
+    with _LOCK:
+        cancels = _cancels
     env = dict(os.environ, **{OFF_ENV: "0", MEMORY_ENV: str(mb)})
     try:
         proc = subprocess.Popen([sys.executable, "-m", "viewer.gl.file_probe"], stdin=subprocess.PIPE,
@@ -126,6 +132,8 @@ def _run_child(bfile, t: float, mb: int):
     started += 1
     with _LOCK:
         _RUNNING.add(proc)
+        if _cancels != cancels:  # cancelled between this probe's start and now: no verdict either
+            proc.kill()
     try:
         out, err = proc.communicate(json.dumps({"path": str(bfile.path), "text": "\n".join(bfile.lines)}),
                                     timeout=t)
