@@ -41,7 +41,7 @@ SECOND = {
 # differs is the last bits of SwiftShader's and llvmpipe's arithmetic (pow, exp2, inversesqrt,
 # fused multiply-adds), which flips the rounding at an 8-bit step on some pixels: one level. So
 # 99 % of the values may differ by one level at most and the mean by a tenth of one (measured on
-# every model at both parameter sets, -m slow: mean 0.06 at worst, p99 1, a few pixels at 2-4).
+# every model at both parameter sets: mean 0.06 at worst, p99 1, a few pixels at 2-4).
 MEAN_LEVELS = 0.1   # mean absolute difference over the sphere, every channel
 P99_LEVELS = 1.0    # 99th percentile of the absolute difference: one rounding flip
 
@@ -220,7 +220,7 @@ def _check(diffs):
 
 #: the default suite's page: two models whose programs differ most (a conductor microfacet lobe,
 #: whose roughness slider the slider test moves; a layered coat over a nested Lambert base);
-#: every model at both parameter sets runs with -m slow. SwiftShader compiles each program's
+#: every model at both parameter sets has a page of its own below. SwiftShader compiles each program's
 #: pipeline on its first draw, the bulk of these tests' time.
 DEFAULT_VIEWS = {1: ("microfacet", {"distribution": "ggx", "fresnel": "conductor", "alpha": 0.3}),
                  2: ("layered", SECOND["layered"])}
@@ -246,7 +246,8 @@ def test_canvas_matches_the_desktop_raster(live_page):
     assert not errors(messages), errors(messages)
 
 
-@pytest.mark.slow  # one page per set, a pipeline compile per model (~2 min under load here)
+# one page per set, a pipeline compile per model: about 20 s a set on a quiet 2-core machine; in
+# the default suite, since this is the browser's agreement with the desktop for every model
 @pytest.mark.parametrize("which", ["first", "second"])
 def test_every_model_matches_the_desktop_raster(browser, tmp_path, which):
     """Every registered model at its defaults ("first") and a second parameter set (SECOND);
@@ -311,6 +312,47 @@ def test_camera_is_the_orbit_camera(live_page):
     cam.orbit(40, 10, box["height"])
     np.testing.assert_allclose(js_matrix(), py_matrix(), rtol=1e-6, atol=1e-9)
     page.evaluate("() => BRDF_LIVE.views['01'].camera.reset()")
+    assert not errors(messages), errors(messages)
+
+
+def test_touch_drags_orbit_and_a_pinch_dollies(live_page):
+    """Real touch input (the DevTools protocol's touch events, which the browser turns into
+    pointer events as on a phone): one finger orbits as the window's mouse drag does, two fingers
+    spreading apart move the camera closer."""
+    from viewer.scene.camera import OrbitCamera
+
+    page, messages, scenes = live_page
+    cam = OrbitCamera.from_scene(scenes[1])
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 5})
+    box = page.locator("canvas[data-step='01']").bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+
+    def touch(kind, *points):
+        cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": [
+            {"x": px, "y": py, "id": i} for i, (px, py) in enumerate(points)]})
+
+    def js_matrix():
+        return np.array(page.evaluate("() => BRDF_LIVE.views['01'].viewProj(1.0)"), float)
+
+    try:
+        touch("touchStart", (x, y))
+        for k in range(1, 5):
+            touch("touchMove", (x + 10 * k, y + 2.5 * k))
+        touch("touchEnd")
+        cam.orbit(40, 10, box["height"])
+        np.testing.assert_allclose(js_matrix(), (cam.projection(1.0) @ cam.view()).T.reshape(-1),
+                                   rtol=1e-6, atol=1e-9)
+        far = page.evaluate("() => BRDF_LIVE.views['01'].camera.distance")
+        touch("touchStart", (x - 20, y), (x + 20, y))
+        for k in range(1, 5):
+            touch("touchMove", (x - 20 - 10 * k, y), (x + 20 + 10 * k, y))
+        touch("touchEnd")
+        assert page.evaluate("() => BRDF_LIVE.views['01'].camera.distance") < far
+    finally:
+        page.evaluate("() => BRDF_LIVE.views['01'].camera.reset()")
+        cdp.send("Emulation.setTouchEmulationEnabled", {"enabled": False})
+        cdp.detach()
     assert not errors(messages), errors(messages)
 
 
