@@ -193,6 +193,13 @@ def _set(params, sub: str, value):
     return set_material_value(params, sub.split("."), value, f"live view {sub}")
 
 
+def _set_all(params, subs, value):
+    """``params`` with every one of the control's sub-parameters ``subs`` set to ``value``."""
+    for sub in subs:
+        params = _set(params, sub, value)
+    return params
+
+
 def _pack(params, env: tuple[bool, bool]):
     from viewer.gl.brdf_glsl import uniform_block
 
@@ -244,10 +251,7 @@ def _classify(params, subs, kind, lo, hi, log, env, key0, block0):
         ok = True
         for v in (a, b):
             try:
-                p = params
-                for s in subs:
-                    p = _set(p, s, v)
-                k, blk = _pack(p, env)
+                k, blk = _pack(_set_all(params, subs, v), env)
             except (ViewerError, ValueError):
                 ok = False
                 break
@@ -264,10 +268,7 @@ def _classify(params, subs, kind, lo, hi, log, env, key0, block0):
         cur = float(_leaf(params, subs[0]))
         for v in sorted(set(_probe_values(lo, hi, log, STOPS)) | {cur}):
             try:
-                p = params
-                for s in subs:
-                    p = _set(p, s, v)
-                k, blk = _pack(p, env)
+                k, blk = _pack(_set_all(params, subs, v), env)
             except (ViewerError, ValueError):
                 continue
             if k == key0:
