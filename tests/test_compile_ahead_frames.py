@@ -143,6 +143,8 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
         child.released = True
         s.render_view((96, 64))
         assert not s.compiling and s.last_message is None  # ... and gone once it is over
+        assert s.frame_source.form == "own" and words not in s.status and "background" not in s.status
+        assert s.status.startswith("lecture 2/15"), s.status  # the step's timing stands, said plainly
         # ready: the next step's first frame is its own, said plainly
         s.tour.lecture(0)
         s.render_view((96, 64))

@@ -222,6 +222,7 @@ def test_legend_layout_of_the_gallery_fits_every_name_in_its_cell():
 
 
 GALLERY_GUI = r'''
+import numpy as np
 from viewer import plots
 from viewer.app.layout import window_layout
 from viewer.app.main import App
@@ -235,7 +236,7 @@ materials = app.session.scene.materials
 rect = window_layout(1920, 1080, 1.5, lecture=True, plots=True)["plots"]
 draw = app.side_panel.draw
 app.side_panel.draw = lambda *a: (draw(*a), panel.draw(materials, rect))
-for tab in ("Polar", "3D lobe", "Fresnel", "Albedo"):
+for tab in ("Polar", "3D lobe", "Fresnel", "Albedo", "Bouguer", "Spectral"):
     panel.select_tab(tab)
     app.frame(); app.frame()
     box, frame, cells = panel.legend_boxes[tab], panel.plot_rects[tab], panel.legend_cells[tab]
@@ -248,7 +249,14 @@ for tab in ("Polar", "3D lobe", "Fresnel", "Albedo"):
         assert c.text_w <= c.text_room + 0.5, (tab, c)
         assert box[0] + c.x + c.w <= box[2] + 0.5 and box[1] + c.y + c.h <= box[3] + 0.5, (tab, c)
     words = {w for c in cells for w in c.full.replace("=", " ").split()}
+    if tab == "Spectral":  # gold's errors against the spectral integral, Schlick's and three wavelengths'
+        assert [(c.full, c.style) for c in cells] == [("Schlick", "line"), ("3 wavelengths", "dots")], cells
+        continue
     want = {n for n, p in materials.items() if tab != "Fresnel" or "fresnel" in plots.applicable_kinds(p)}
+    if tab == "Bouguer":  # the materials that absorb: the glass alone (the layered coat's sigma_a is 0)
+        want = {n for n, p in materials.items() if "bouguer" in plots.applicable_kinds(p)
+                and np.any(np.asarray(plots.bouguer_curve(p)["sigma_a"]) > 0)}
+        assert want == {"glass"}, want
     assert want <= words, (tab, want - words)  # every material named (those with one curve together)
     assert panel.clipped == [], (tab, panel.clipped)
 panel.close()
@@ -260,7 +268,8 @@ print("GALLERY OK")
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
 def test_gallery_legends_lie_under_the_plots_and_fit(display):
     """The gallery's 11 materials in the plots docked beside the lecture's view at 1920 x 1080,
-    UI 1.5: in the Polar, 3D lobe, Fresnel and Albedo tabs the legend's box lies under the
+    UI 1.5: in the Polar, 3D lobe, Fresnel, Albedo, Bouguer and Spectral tabs (the last two
+    had their legend inside the plot, over the curves' start) the legend's box lies under the
     plot's frame (no overlap with the axes, so no curve is covered) and inside the window, and
     every entry's text fits its cell (ellipsized where it would not)."""
     r = run_py(GALLERY_GUI, display, timeout=600)
@@ -302,3 +311,27 @@ def test_a_material_keeps_its_colour_from_run_to_run():
     for run in runs:
         assert run["a"] == first and run["b"] == first
     assert len({tuple(c) for c in first.values()}) == len(first)
+
+
+def test_a_brdf_file_and_its_built_in_twin_are_one_curve_said_so():
+    """Lecture step 15: the .brdf file's lobe (its GLSL, evaluated) and the built-in microfacet
+    with the same choices agree to about 2e-6 of the peak, so the file's curve lay hidden under
+    the built-in one with nothing said. They are drawn once, labelled "file = builtin", and a
+    message says by how little they differ; a material a few percent rougher stays a curve of
+    its own."""
+    from viewer.app.plots_panel import CURVE_TOL, PlotsPanel, curve_gap, same_data
+    from viewer.scene import load_scene
+
+    mats = load_scene("lecture:15", load_meshes=False).materials
+    rough = plots.as_params(dict(mats["builtin"].to_plain(), alpha_x=0.33, alpha_y=0.33))
+    data = {n: plots.polar_lobe(p, 45.0, 0.0) for n, p in (("file", mats["file"]), ("builtin", mats["builtin"]),
+                                                             ("rough", rough))}
+    gap = curve_gap(data["file"], data["builtin"])
+    assert 0.0 < gap <= CURVE_TOL  # not the same numbers (GLSL against numpy), the same curve
+    assert curve_gap(data["builtin"], data["rough"]) > 30 * CURVE_TOL
+    panel = PlotsPanel()
+    assert panel.groups(list(data), data, same_data) == [("file = builtin", ["file", "builtin"]),
+                                                         ("rough", ["rough"])]
+    assert len(panel.messages) == 1 and panel.messages[0].startswith("builtin: the same curve as file, at most ")
+    assert curve_gap({"a": np.ones(3)}, {"b": np.ones(3)}) is None  # different curves: never merged
+    assert curve_gap({"a": "x"}, {"a": "y"}) is None and curve_gap([1.0, 2.0], [1.0, 2.0]) == 0.0

@@ -417,10 +417,43 @@ def test_the_compiling_note_goes_with_the_compile(quiet, renderer):
         pytest.skip("every model's program is compiled already in this test session")
     s.render_view(SIZE)
     assert s.compiling and "compiling ball" in s.last_message.text
+    assert "compiling ball" in s.status and s.frame_source.form in ("stand-in", "held")
     child.answer(len(child.requests) - 1)
     assert s.last_message is None   # the compile is over: its note is no longer shown
     s.render_view(SIZE)
     assert not s.compiling and s.pending_work() == []
+    assert s.frame_source.form == "own" and "compiling" not in s.status, s.status  # nor in the status line
+
+
+def test_the_status_line_says_what_the_frame_shown_was_drawn_from():
+    """On state: a note about a frame drawn while programs compile (its scene and form, as
+    ``FrameSource`` records them) is the status while that frame is shown and the compile runs;
+    once the frame is drawn another way its plain text stands (the step's timing without "grey
+    stand-ins"), or, with none, the message before it; never the stand-ins' wording over a
+    frame drawn with the real programs."""
+    import types
+
+    from viewer.app.session import FrameSource, Message
+
+    scene, other = object(), object()
+    ns = types.SimpleNamespace(compiling=True, frame_source=FrameSource(scene, {}, "stand-in"), messages=[
+        Message("opened lecture:11", False, 0.0),
+        Message("compiling gold in the background: drawn with grey stand-ins until ready", False, 1.0,
+                (scene, "stand-in")),
+        Message("lecture 11/15: Complex IOR (0.30 s; its first frame with grey stand-ins while gold compile in the "
+                "background)", False, 2.0, (scene, "stand-in"), "lecture 11/15: Complex IOR (0.30 s)")])
+    ns.message_true = lambda m: Session.message_true(ns, m)
+    status = lambda: Session.status.fget(ns)  # noqa: E731
+    toast = lambda: Session.last_message.fget(ns)  # noqa: E731
+    assert "grey stand-ins" in status() and toast() is ns.messages[-1]
+    for src, compiling in ((FrameSource(scene, {}, "untraced"), True), (FrameSource(scene, {}, "own"), False),
+                           (FrameSource(other, {}, "stand-in"), True), (FrameSource(scene, {}, "stand-in"), False)):
+        ns.frame_source, ns.compiling = src, compiling
+        assert status() == "lecture 11/15: Complex IOR (0.30 s)" and toast() is None, (src.form, compiling)
+    ns.messages.pop()  # a compile note has no plain text: the message before it stands
+    assert status() == "opened lecture:11" and toast() is None
+    ns.frame_source, ns.compiling = FrameSource(scene, {}, "stand-in"), True
+    assert status().startswith("compiling gold") and toast() is ns.messages[-1]
 
 
 def test_without_the_child_the_models_warm_up_after_frames_then_the_loop_rests(gl_ctx, renderer):

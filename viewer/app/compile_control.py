@@ -30,7 +30,7 @@ class CompileControl:
         self.child = None          # the CompileAhead child, started on first need
         self.pending: list[str] = []  # materials drawn as they were while their programs compile
         self.awaiting = None       # the compile-ahead request the view waits for
-        self.note = None           # the message saying so (a toast only while it is true)
+        self.noted = None          # (request, form of the frame drawn) the last note said
         self._flat = None          # (scene, its untraced copy) asked for first (untraced_copy)
         self.awaiting_flat = None  # that request, while the view shows stand-ins
         self.presets_ahead = True  # with the child: the picker's presets compile ahead while idle
@@ -141,9 +141,16 @@ class CompileControl:
         if out is None:  # another scene: its own objects, the materials not ready as stand-ins
             out, how = self.stand_in(missing), "drawn with grey stand-ins until ready"
             self.awaiting_flat = rid_flat
-        if self.awaiting != rid:
-            s.notify(f"compiling {', '.join(missing)} in the background: {how}")
-            self.note = s.messages[-1]
+        # the frame the note is about (Session.message_true): the form drawn, or the one kept
+        if out is UNTRACED:
+            form = "untraced"
+        elif out is KEEP_IMAGE:
+            form = getattr(s.frame_source, "form", "own")
+        else:
+            form = "stand-in" if getattr(out, "stand_in", False) else "held"
+        if self.awaiting != rid or self.noted != (rid, form):  # a new request, or drawn another way now
+            s.notify(f"compiling {', '.join(missing)} in the background: {how}", frame=(s.scene, form))
+            self.noted = (rid, form)
         self.awaiting = rid
         self.pending = missing
         return out

@@ -118,12 +118,14 @@ class LectureControl:
             why = f"; the environment map was prefiltered in {st.get('prefilter_s', 0.0):.1f} s, cached from now on"
         src = s.frame_source  # drawn while its programs compile beside: the message says so
         held = s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS
-        if held:
+        plain = f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})"
+        if held:  # true of that frame alone (Session.message_true): the plain line once another is shown
             why += (f"; its first frame {FORM_WORDS[src.form].removeprefix('drawn ')} while "
                     f"{', '.join(s.pending)} compile in the background")
-        s.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})")
-        if held:  # like the compile's own note, it goes from the toast once the compile is over
-            s.compiles.note = s.messages[-1]
+            s.notify(f"lecture {step + 1}/{len(TOUR)}: {TOUR[step].title} ({dt:.2f} s{why})",
+                     frame=(src.scene, src.form), plain=plain)
+        else:
+            s.notify(plain)
 
     def enter_step(self, step: int):
         """Lecture mode on at ``step`` for the scene already shown."""

@@ -36,7 +36,7 @@ from viewer.app.plot_tabs import (albedo, bouguer, check, fresnel, image_slice, 
 from viewer.app.plot_tabs.albedo import albedo_note  # noqa: F401 - part of this module's interface
 from viewer.app.plot_tabs.bouguer import bouguer_marks  # noqa: F401
 from viewer.app.plot_tabs.common import (CHANNEL_LABELS, CHANNELS, LIGHT, PALETTE, R_P_COLOUR,  # noqa: F401
-                                         R_S_COLOUR, colour_slot, colour_slots, legend_below, legend_layout, legend_text, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
+                                         CURVE_TOL, R_S_COLOUR, colour_slot, colour_slots, curve_gap, legend_below, legend_layout, legend_text, WAVELENGTH_TICKS, flow_rows, params_key, same_data, vec4)
 from viewer.app.plot_tabs.fresnel import fresnel_marks  # noqa: F401
 from viewer.app.plot_tabs.lobe import shaded_quads  # noqa: F401
 
@@ -95,7 +95,7 @@ class PlotsPanel:
         self.legend_boxes: dict[str, tuple] = {}
         self.legend_cells: dict[str, list] = {}
         self.plot_rects: dict[str, tuple] = {}
-        self._keys: list[tuple[str, tuple]] = []
+        self._keys: list[tuple] = []  # (text, colour, style) given to key this frame
         self._select: str | None = None
         self._colours: dict[str, int] = {}  # palette entry by material, for the scene's names
         self._colour_names: frozenset = frozenset()
@@ -201,21 +201,22 @@ class PlotsPanel:
         if imgui.calc_text_size(text).x > room + 0.5:
             self.clipped.append(text)
 
-    def plot_size(self):
+    def plot_size(self, least: float = 150.0):
         """The rest of the window, less room for the legend (its height in the last frame) and
-        the messages under the plot."""
+        the messages under the plot; at least ``least`` tall (the window scrolls then)."""
         avail = imgui.get_content_region_avail()
         lines = sum(1 + len(m) * imgui.calc_text_size("x").x // max(avail.x, 1.0) for m in self.messages)
         box = self.legend_boxes.get(self.tab)
         below = box[3] - box[1] + imgui.get_style().item_spacing.y if box else 0.0
-        return imgui.ImVec2(-1, max(150.0, avail.y - below - lines * imgui.get_text_line_height_with_spacing()))
+        return imgui.ImVec2(-1, max(least, avail.y - below - lines * imgui.get_text_line_height_with_spacing()))
 
-    def key(self, label: str, colour) -> None:
+    def key(self, label: str, colour, style: str = "line") -> None:
         """A legend entry for the plot item ``label`` (its text before ``##``; none for a hidden
-        one) in ``colour``, once per text and colour: the tabs that draw their legend under the
-        plot (``legend_below``) call it beside each item they plot."""
-        entry = (legend_text(label), tuple(float(c) for c in colour[:3]))
-        if entry[0] and entry not in self._keys:
+        one) in ``colour`` (``style`` "line", or "dots" for a curve drawn with markers), once per
+        text and colour: the tabs that draw their legend under the plot (``legend_below``) call it
+        beside each item they plot."""
+        entry = (legend_text(label), tuple(float(c) for c in colour[:3]), style)
+        if entry[0] and all(e[:2] != entry[:2] for e in self._keys):
             self._keys.append(entry)
 
     def begin_frame_rect(self, size) -> None:
@@ -231,31 +232,28 @@ class PlotsPanel:
         entries, self._keys = self._keys, []
         legend_below(self, entries)
 
-    def legend(self):
-        """Outside the plot when the window is wide, inside (top left, where the curves rarely
-        are) when it is docked narrow."""
-        if imgui.get_content_region_avail().x > 560 * self.font_k():
-            implot.setup_legend(implot.Location_.north_east, implot.LegendFlags_.outside)
-        else:
-            implot.setup_legend(implot.Location_.north_west)
-
     def groups(self, names, data, same) -> list[tuple[str, list[str]]]:
-        """Materials whose curves are identical drawn once: [(label "a = b", [a, b])], so one
-        does not hide under the other; a message says which were merged."""
-        out: list[tuple[str, list[str]]] = []
+        """Materials whose curves are identical (``same``), or differ by no more than
+        ``CURVE_TOL`` of their largest value (``curve_gap``: one would hide under the other),
+        drawn once: [(label "a = b", [a, b])]; a message says which were merged, and by how
+        little they differ where they are not identical."""
+        out: list[tuple[str, list[str], list[str]]] = []  # label's members, and the notes of merged ones
         for n in names:
-            for _, members in out:
+            for members, notes in out:
                 if same(data[members[0]], data[n]):
                     members.append(n)
+                    notes.append(f"{n}: the same curve as {members[0]} (drawn once)")
+                    break
+                gap = curve_gap(data[members[0]], data[n])
+                if gap is not None and gap <= CURVE_TOL:
+                    members.append(n)
+                    notes.append(f"{n}: the same curve as {members[0]}, at most {gap:.1g} of its peak apart "
+                                 f"(drawn once)")
                     break
             else:
-                out.append((n, [n]))
-        res = []
-        for _, members in out:
-            res.append((" = ".join(members), members))
-            if len(members) > 1:
-                self.messages.append(f"{', '.join(members[1:])}: the same curve as {members[0]} (drawn once)")
-        return res
+                out.append(([n], []))
+        self.messages.extend(m for _, notes in out for m in notes)
+        return [(" = ".join(members), members) for members, _ in out]
 
     def y(self, v):
         """The plotted value of f cos: linear, or log10(1 + v) with the log switch."""

@@ -42,10 +42,15 @@ DEFER_ENV = "BRDF_VIEWER_DEFER_PREFILTER"
 
 @dataclasses.dataclass(frozen=True)
 class Message:
-    """One notification: its text, whether it reports a problem, when (perf_counter seconds)."""
+    """One notification: its text, whether it reports a problem, when (perf_counter seconds).
+    ``frame``: (scene, form) of the frame it describes (``FrameSource``: one drawn while its
+    programs compile beside), it is true while that frame is shown and they compile; after it
+    says ``plain`` (None: nothing)."""
     text: str
     error: bool
     time: float
+    frame: tuple | None = None
+    plain: str | None = None
 
 
 class Session:
@@ -164,7 +169,6 @@ class Session:
         if 0 <= self.state.get("view_mode", 0) < len(VIEW_MODES) and self.same_scene:
             self.view_mode = self.state.get("view_mode", 0)
         self.messages: list[Message] = []
-        self.status = ""           # the latest message's text
         self.dirty = True          # the raster image must be rendered again
         self.reference = None      # the ReferenceView, made on first use
         self.wake = None           # called from any thread when the reference has a new image
@@ -188,21 +192,40 @@ class Session:
         self.twins = TwinQuestion(self)  # a .brdf file's numpy twin runs only when the user says so
 
     # ------------------------------------------------------------------ notifications
-    def notify(self, text: str, error: bool = False) -> None:
+    def notify(self, text: str, error: bool = False, frame: tuple | None = None, plain: str | None = None) -> None:
         """The one way anything reports to the user: the window shows the latest as a toast
-        (red for an error) and in the panel."""
-        self.status = str(text)
-        self.messages.append(Message(self.status, bool(error), time.perf_counter()))
+        (red for an error) and in the panel. ``frame``, ``plain``: a message about the frame
+        drawn while programs compile beside (``Message``)."""
+        self.messages.append(Message(str(text), bool(error), time.perf_counter(), frame, plain))
         del self.messages[:-50]
+
+    def message_true(self, m: Message) -> bool:
+        """``m`` is true of the view now: it is about no frame, or about the frame shown (the
+        frame's provenance, ``frame_source``: the same scene, drawn the same way) while the
+        programs it waits for compile."""
+        if m.frame is None:
+            return True
+        src = self.frame_source
+        return self.compiling and src is not None and src.scene is m.frame[0] and src.form == m.frame[1]
+
+    @property
+    def status(self) -> str:
+        """The latest message's text as it holds now: a message about a frame drawn while
+        programs compiled beside says its ``plain`` text once another frame is shown, or, with
+        none, gives way to the message before it."""
+        for m in reversed(self.messages):
+            if self.message_true(m):
+                return m.text
+            if m.plain:
+                return m.plain
+        return ""
 
     @property
     def last_message(self) -> Message | None:
-        """The latest message, as the window shows it (its toast); the note that a material
-        compiles beside the window goes once the compile is over (it is not true any more)."""
+        """The latest message, as the window shows it (its toast); one about the frame drawn
+        while programs compile goes once that frame is not shown any more (it is not true)."""
         m = self.messages[-1] if self.messages else None
-        if m is not None and m is self.compiles.note and not self.compiling:
-            return None
-        return m
+        return m if m is None or self.message_true(m) else None
 
     def release(self) -> None:
         """Stop the reference and the prefetch, free the GL objects this session made."""

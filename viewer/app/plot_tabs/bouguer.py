@@ -60,9 +60,10 @@ def draw(panel, names, materials):
     for _, _, text in marks:
         panel.messages.append(text)
     size = panel.plot_size()
-    if implot.begin_plot("##bouguer", size):
+    panel.begin_frame_rect(size)
+    # the legend under the plot (panel.legend_below): a box inside covered the curve's start at T = 1
+    if implot.begin_plot("##bouguer", size, implot.Flags_.no_legend):
         implot.setup_axes(f"distance d ({' | '.join(units)})", "transmittance T = exp(-sigma_a d)")
-        panel.legend()
         xmax = max([float(d["d"][-1]) for d in data.values()] + [m[0] for m in marks])
         implot.setup_axes_limits(0.0, xmax * 1.02, 0.0, 1.05, implot.Cond_.always)
         for lab, members in groups:
@@ -70,6 +71,7 @@ def draw(panel, names, materials):
             col = panel.colour(n)
             implot.plot_line(f"{lab} ({d['unit']})", d["d"], plots.reduce_channel(d["T"], panel.channel),
                              implot.Spec(line_color=vec4(col), line_weight=2.0))
+            panel.key(f"{lab} ({d['unit']})", col)
             if d["thickness"]:
                 implot.tag_x(float(d["thickness"]), vec4(col), "layer")
         for k, (dia, who, text) in enumerate(marks):
@@ -77,5 +79,5 @@ def draw(panel, names, materials):
             implot.drag_line_x(2000 + k, dia, vec4(col, 0.8), 1.5, implot.DragToolFlags_.no_inputs)
             label(f"d{k + 1}", dia, 1.0 - 0.06 * (k % 2), left=dia > 0.5 * xmax)
             if len(marks) <= 4:
-                label(text.split(":")[0], dia, 0.08 + 0.07 * k, left=dia > 0.5 * xmax)  # under the legend
+                label(text.split(":")[0], dia, 0.08 + 0.07 * k, left=dia > 0.5 * xmax)
         implot.end_plot()

@@ -83,6 +83,42 @@ def same_data(a, b) -> bool:
     return a == b
 
 
+# two curves that differ by at most this fraction of their largest value are drawn once: at a
+# thousandth they lie under half a pixel apart on a plot 500 pixels tall, one hidden under the other
+CURVE_TOL = 1e-3
+
+
+def curve_gap(a, b) -> float | None:
+    """How far apart two plot data (as ``same_data`` takes them) are: the largest difference of
+    their float arrays, each relative to the largest magnitude in that pair of arrays; None
+    when they differ in anything else (keys, lengths, shapes, other values)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        if a.keys() != b.keys():
+            return None
+        gaps = [curve_gap(a[k], b[k]) for k in a]
+    elif isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        if len(a) != len(b):
+            return None
+        gaps = [curve_gap(x, y) for x, y in zip(a, b)]
+    elif isinstance(a, np.ndarray) or isinstance(b, np.ndarray) or isinstance(a, float) or isinstance(b, float):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return None
+        if a.dtype.kind not in "fiu" or b.dtype.kind not in "fiu":
+            return 0.0 if np.array_equal(a, b) else None
+        a, b = a.astype(np.float64), b.astype(np.float64)
+        if not np.array_equal(np.isnan(a), np.isnan(b)):
+            return None
+        ok = ~np.isnan(a)
+        if not ok.any():
+            return 0.0
+        scale = max(float(np.abs(a[ok]).max()), float(np.abs(b[ok]).max()))
+        return float(np.abs(a[ok] - b[ok]).max()) / scale if scale > 0 else 0.0
+    else:
+        return 0.0 if a == b else None
+    return None if any(g is None for g in gaps) else max(gaps, default=0.0)
+
+
 def params_key(p) -> str:
     return json.dumps(p.to_plain(), sort_keys=True, default=str)
 
@@ -153,7 +189,8 @@ def ellipsize(text: str, room: float, width_of) -> str:
 class LegendCell:
     """One legend entry laid out: its text (ellipsized to its room), the text's width, the
     colour, the whole text, and its cell (x, y from the legend's top left corner, w, h); the swatch is the
-    cell's first ``swatch`` points, the text starts ``text_x`` from the cell's left."""
+    cell's first ``swatch`` points (``style``: "line", a thick line; "dots", a thin line with
+    dots on it, as a curve drawn with markers), the text starts ``text_x`` from the cell's left."""
     text: str
     text_w: float
     colour: tuple
@@ -163,6 +200,7 @@ class LegendCell:
     w: float
     h: float
     text_x: float
+    style: str = "line"
 
     @property
     def text_room(self) -> float:
@@ -171,13 +209,14 @@ class LegendCell:
 
 def legend_layout(entries, width_of, avail: float, swatch: float, gap: float, spacing: float,
                   row_h: float) -> tuple[list[LegendCell], tuple[float, float]]:
-    """A legend of ``entries`` [(text, colour)] in rows under the plot, ``avail`` wide: each
+    """A legend of ``entries`` [(text, colour) or (text, colour, style)] in rows under the plot,
+    ``avail`` wide: each
     entry a swatch, a gap and its text, placed left to right with ``spacing`` between them and
     a new row where the next would pass ``avail`` (``flow_rows``); an entry wider than ``avail``
     alone is ellipsized to it. Returns the cells and the legend's (width, height)."""
     text_x = swatch + gap
     room = max(avail - text_x, 1.0)
-    shown = [ellipsize(t, room, width_of) for t, _ in entries]
+    shown = [ellipsize(e[0], room, width_of) for e in entries]
     text_w = [width_of(t) for t in shown]
     rows = flow_rows([text_x + w for w in text_w], avail, spacing)
     cells = []
@@ -185,15 +224,16 @@ def legend_layout(entries, width_of, avail: float, swatch: float, gap: float, sp
         x = 0.0
         for i in row:
             w = text_x + text_w[i]
+            style = entries[i][2] if len(entries[i]) > 2 else "line"
             cells.append(LegendCell(shown[i], text_w[i], tuple(entries[i][1]), entries[i][0], x, r * row_h, w,
-                                    row_h, text_x))
+                                    row_h, text_x, style))
             x += w + spacing
     width = max((c.x + c.w for c in cells), default=0.0)
     return cells, (width, len(rows) * row_h)
 
 
 def legend_below(panel, entries) -> None:
-    """``entries`` [(text, colour)] as a legend under the plot of ``panel`` (a ``PlotsPanel``),
+    """``entries`` [(text, colour) or (text, colour, style)] as a legend under the plot of ``panel`` (a ``PlotsPanel``),
     outside the axes: a grid of equal cells (``legend_layout``), as many columns as the widest
     entry allows, an entry wider than the window ellipsized (its whole text in a tooltip); its
     box and cells are recorded in ``panel.legend_boxes`` / ``legend_cells`` by tab, and an
@@ -215,7 +255,11 @@ def legend_below(panel, entries) -> None:
     for c in cells:
         x, y = o.x + c.x, o.y + c.y
         cy = y + row_h / 2
-        dl.add_line(imgui.ImVec2(x, cy), imgui.ImVec2(x + swatch, cy), imgui.get_color_u32(vec4(c.colour)), 3.0 * k)
+        col = imgui.get_color_u32(vec4(c.colour))
+        dl.add_line(imgui.ImVec2(x, cy), imgui.ImVec2(x + swatch, cy), col, (1.0 if c.style == "dots" else 3.0) * k)
+        if c.style == "dots":
+            for f in (0.2, 0.5, 0.8):
+                dl.add_circle_filled(imgui.ImVec2(x + f * swatch, cy), 2.5 * k, col)
         dl.add_text(imgui.ImVec2(x + c.text_x, y + (row_h - text_h) / 2), text_col, c.text)
         if c.text != c.full and imgui.is_mouse_hovering_rect(imgui.ImVec2(x, y), imgui.ImVec2(x + c.w, y + c.h)):
             imgui.set_tooltip(c.full)

@@ -6,6 +6,8 @@ spectral integral, per channel. The data are ``viewer.plots.spectral.spectral_da
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from imgui_bundle import imgui, implot
 
@@ -51,25 +53,30 @@ def draw(panel, names, materials):
     d = panel.data("spectral", name, p, fn=lambda p=p: spectral_data(p))
     if panel.waiting({name: d}):
         return
-    imgui.text_wrapped(f"{name}: {d['name']} ({d['description']}); max |error| Schlick {d['max_err_schlick']:.3f}, "
-                       f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}")
+    # three short lines (the docked panel's room goes to the plots); the table's description and
+    # source in the first line's tooltip
+    imgui.text_wrapped(f"{name}: {d['name']}, normal incidence RGB {np.round(d['rgb'][0], 2).tolist()}")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip(f"{d['description']}\n{d['source']}")
+    imgui.text_wrapped(f"max |error| Schlick {d['max_err_schlick']:.3f}, 3 wavelengths (650/550/450 nm) "
+                       f"{d['max_err_three']:.3f}")
     imgui.push_style_color(imgui.Col_.text, imgui.get_style_color_vec4(imgui.Col_.text_disabled))
-    imgui.text_wrapped(f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}; {d['source'][:90]}")
+    imgui.text_wrapped("R(theta, lambda); its right-hand column: the RGB colour per angle")
     imgui.pop_style_color()
-    imgui.text_wrapped("R(theta, lambda) beside n and k; its right-hand column is the RGB colour per angle")
-    size = panel.plot_size()
+    size = panel.plot_size(least=0.0)
     k = panel.font_k()
     full = size.x if size.x > 0 else imgui.get_content_region_avail().x
     bar = 70.0 * k  # the R(theta, lambda) colour scale's width (its ticks and label)
     sp = imgui.get_style().item_spacing.x
     half_w = max(150.0, (full - bar - 2 * sp) / 2)
-    half_h = max(140.0, size.y * 0.5 - 4)
+    # the two rows of plots share the room left (a row no lower than 100 points: its axes' text)
+    half_h = max(100.0 * k, (size.y - imgui.get_style().item_spacing.y) * 0.5)
     lam = np.ascontiguousarray(d["wavelength_nm"], dtype=np.float64)
     col = panel.colour(name)
-    if implot.begin_plot("##spectral_nk", imgui.ImVec2(half_w, half_h)):
+    # no legend box: the axis names the two curves (a box over half a docked panel covered them)
+    if implot.begin_plot("##spectral_nk", imgui.ImVec2(half_w, half_h), implot.Flags_.no_legend):
         implot.setup_axes("lambda (nm)", "n (solid), k (dots)")  # short: half a docked panel
         implot.setup_axis_ticks(implot.ImAxis_.x1, list(WAVELENGTH_TICKS))  # readable in half a panel
-        panel.legend()
         lo, hi = nk_limits(d["n"], d["k"])
         panel.nk_range = (lo, hi)
         implot.setup_axes_limits(float(lam[0]), float(lam[-1]), lo, hi, implot.Cond_.always)
@@ -102,14 +109,18 @@ def draw(panel, names, materials):
         for t, c in zip(theta, rgb):
             a = implot.plot_to_pixels(x_sw0, float(min(t + step, 90.0)))
             b = implot.plot_to_pixels(x_sw1, float(max(t - step, 0.0)))
-            dl.add_rect_filled(a, b, imgui.get_color_u32(imgui.ImVec4(*(c / 255.0), 1.0)))
+            # whole pixels, each band reaching the next: fractional edges left dark seams between them
+            dl.add_rect_filled(imgui.ImVec2(round(a.x), math.floor(a.y)), imgui.ImVec2(round(b.x), math.ceil(b.y)),
+                               imgui.get_color_u32(imgui.ImVec4(*(c / 255.0), 1.0)))
         implot.end_plot()
     imgui.same_line()
     implot.colormap_scale("R##scale", 0.0, rmax, imgui.ImVec2(bar, half_h), "%.2f")
     implot.pop_colormap()
-    if implot.begin_plot("##spectral_err", imgui.ImVec2(-1, max(140.0, size.y * 0.5 - 4))):
+    err_size = imgui.ImVec2(-1, half_h)
+    panel.begin_frame_rect(err_size)
+    # the legend under the plot (panel.legend_below), never over the curves
+    if implot.begin_plot("##spectral_err", err_size, implot.Flags_.no_legend):
         implot.setup_axes("angle of incidence (deg)", "RGB - spectral")  # short: the axis is half a panel tall
-        panel.legend()
         emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3) * 1.1
         implot.setup_axes_limits(0.0, 90.0, -emax, emax, implot.Cond_.always)
         th = np.ascontiguousarray(d["theta"], dtype=np.float64)
@@ -119,4 +130,7 @@ def draw(panel, names, materials):
             implot.plot_line(f"3 wavelengths ({'rgb'[c]})", th, np.ascontiguousarray(d["err_three"][:, c]),
                              implot.Spec(line_color=vec4(cc, 0.8), line_weight=1.0,
                                          marker=implot.Marker_.diamond, marker_size=2.0))
+        # two entries, not six: the line's colour is its channel (the axis says RGB)
+        panel.key("Schlick", (0.85, 0.85, 0.85))
+        panel.key("3 wavelengths", (0.85, 0.85, 0.85), "dots")
         implot.end_plot()
