@@ -259,6 +259,7 @@ for tab in ("Polar", "3D lobe", "Fresnel", "Albedo", "Bouguer", "Spectral"):
         assert want == {"glass"}, want
     assert want <= words, (tab, want - words)  # every material named (those with one curve together)
     assert panel.clipped == [], (tab, panel.clipped)
+    assert panel.listed is None  # the list of 11 folded: its rows would have pushed the plot down
 panel.close()
 app.close()
 print("GALLERY OK")

@@ -46,6 +46,9 @@ TAB_MODULES = {"Polar": polar, "3D lobe": lobe, "Albedo": albedo, "Fresnel": fre
                "Spectral": spectral, "Sampling": sampling, "Theta H": theta.THETA_H, "Theta D": theta.THETA_D,
                "Theta V": theta.THETA_V, "Terms": terms, "Image slice": image_slice, "Check": check}
 DOCK_POINTS = 380.0  # a docked plots window is laid out as if at least this many points wide
+# the material list takes at most this many rows open; longer (the gallery's 11 in one column) it
+# starts folded under a header, so the plot keeps its room (its legend names every curve)
+LIST_ROWS = 4
 
 
 class PlotsPanel:
@@ -90,6 +93,7 @@ class PlotsPanel:
         self.lobe_extent = 1.0  # the 3D lobe's axis half-width of the last frame
         self.nk_range = (0.0, 1.0)  # the Spectral tab's n, k axis of the last frame
         self.clipped: list[str] = []  # labels that did not fit this frame (should stay empty)
+        self.listed = False  # the material list this frame: True shown, None folded under its header
         # the legend under the plot, by tab, from the last frame (window pixels): its box, its
         # cells (plot_tabs.common.LegendCell, from the box's corner) and the plot's frame above it
         self.legend_boxes: dict[str, tuple] = {}
@@ -237,12 +241,12 @@ class PlotsPanel:
         ``CURVE_TOL`` of their largest value (``curve_gap``: one would hide under the other),
         drawn once: [(label "a = b", [a, b])]; a message says which were merged, and by how
         little they differ where they are not identical."""
-        out: list[tuple[str, list[str], list[str]]] = []  # label's members, and the notes of merged ones
+        out: list[tuple[list[str], list[str], list[str]]] = []  # members, the identical ones, notes of near ones
         for n in names:
-            for members, notes in out:
+            for members, same_as, notes in out:
                 if same(data[members[0]], data[n]):
                     members.append(n)
-                    notes.append(f"{n}: the same curve as {members[0]} (drawn once)")
+                    same_as.append(n)
                     break
                 gap = curve_gap(data[members[0]], data[n])
                 if gap is not None and gap <= CURVE_TOL:
@@ -251,9 +255,12 @@ class PlotsPanel:
                                  f"(drawn once)")
                     break
             else:
-                out.append(([n], []))
-        self.messages.extend(m for _, notes in out for m in notes)
-        return [(" = ".join(members), members) for members, _ in out]
+                out.append(([n], [], []))
+        for members, same_as, notes in out:  # one line for the identical ones of a curve
+            if same_as:
+                self.messages.append(f"{', '.join(same_as)}: the same curve as {members[0]} (drawn once)")
+            self.messages.extend(notes)
+        return [(" = ".join(members), members) for members, _, _ in out]
 
     def y(self, v):
         """The plotted value of f cos: linear, or log10(1 + v) with the log switch."""
@@ -280,7 +287,12 @@ class PlotsPanel:
                  + imgui.get_frame_height() + style.item_inner_spacing.x)
         longest = max((imgui.calc_text_size(n).x for n in materials), default=0.0)
         cols = max(1, min(len(materials), 3, int((avail + sp_x) // (fixed + longest + 2 * sp_x))))
-        if materials and imgui.begin_table("##plot_materials", cols, imgui.TableFlags_.sizing_stretch_same):
+        listed = self.listed = bool(materials)
+        if -(-len(materials) // cols) > LIST_ROWS:  # many materials: the list folded, the room the plot's
+            shown = sum(1 for n in materials if self.shown.get(n, True)) if self.solo not in materials else 1
+            listed = imgui.collapsing_header(f"materials: {shown} of {len(materials)} drawn##plot_materials")
+            self.listed = None if not listed else True
+        if listed and imgui.begin_table("##plot_materials", cols, imgui.TableFlags_.sizing_stretch_same):
             for name in materials:
                 imgui.table_next_column()
                 imgui.push_id(f"plotmat_{name}")

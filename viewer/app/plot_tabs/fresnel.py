@@ -86,6 +86,12 @@ def draw(panel, names, materials):
     marks = fresnel_marks(curves, c)
     panel.messages.extend(fresnel_notes(curves, c))
     size = panel.plot_size()
+    # the marks' words inside the plot, a row of 0.07 of its height each, where at most four rows
+    # fit (a plot shortened by many materials' lines gets them under it instead)
+    words_inside = len(marks) <= 4 and 0.07 * (size.y - 3 * imgui.get_text_line_height()) \
+        >= 1.2 * imgui.get_text_line_height()
+    if not words_inside:
+        size = imgui.ImVec2(size.x, size.y - imgui.get_text_line_height_with_spacing())
     panel.begin_frame_rect(size)
     if implot.begin_plot("##fresnel", size, implot.Flags_.no_legend):
         implot.setup_axes("angle of incidence (deg)", "reflectance")
@@ -117,7 +123,7 @@ def draw(panel, names, materials):
                 implot.plot_line(f"{lab} Schlick", d["theta"], np.ascontiguousarray(d["schlick"][:, c]),
                                  implot.Spec(line_color=vec4(col, 0.8), line_weight=1.0,
                                              marker=implot.Marker_.diamond, marker_size=2.0))
-                panel.key(f"{lab} Schlick", col)
+                panel.key(f"{lab} Schlick", col, "dots")
         for k, (angle, tag, text, who) in enumerate(marks):
             col = (0.85, 0.15, 0.15) if tag == "C" else panel.colour(who)
             implot.drag_line_x(1000 + k, angle, vec4(col, 0.8), 1.5 if tag == "C" else 1.0,
@@ -126,6 +132,8 @@ def draw(panel, names, materials):
             implot.push_style_color(implot.Col_.inlay_text, vec4(col))
             label(tag, angle, 1.0 - 0.06 * (k % 2), left=angle > 45.0)
             implot.pop_style_color()
-            if len(marks) <= 4:  # more would overlap: the letters remain
-                label(text, angle, 0.55 - 0.07 * k, left=angle > 45.0)  # clear of the curves
+            if words_inside:
+                label(text, angle, 0.55 - 0.07 * k, left=angle > 45.0)
         implot.end_plot()
+    if marks and not words_inside:  # under the plot, where they cannot overlap
+        panel.messages.append("marks: " + ", ".join(f"{tag} {text}" for _, tag, text, _ in marks))

@@ -51,7 +51,10 @@ def draw(panel, names, materials):
             col = panel.colour(n)
             quads = shaded_quads(v[..., None] * d["wo"])
             top = len(quads) - 1  # the legend's swatch: the brightest level, the material's colour
-            panel.key(label, col)
+            if d["delta"] and not np.any(v > 0):
+                quads = []  # a mirror or smooth glass: no lobe, its delta line alone (and one entry)
+            else:
+                panel.key(label, col)
             for k, (level, (xs, ys, zs)) in enumerate(quads):
                 implot3d.plot_quad(label if k == top else f"##{label}{k}", xs, ys, zs,
                                    implot3d.Spec(fill_color=vec4(np.asarray(col) * level, 0.95),

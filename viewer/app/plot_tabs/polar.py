@@ -73,8 +73,9 @@ def draw(panel, names, materials):
             d, r = data[n], curves[n]
             t = np.radians(d["theta_o"])
             col = vec4(panel.colour(n))
-            implot.plot_line(label, r * np.sin(t), r * np.cos(t), implot.Spec(line_color=col, line_weight=2.0))
-            panel.key(label, panel.colour(n))
+            if not (d["delta"] and not np.any(r > 0)):  # a mirror or smooth glass: its delta line alone
+                implot.plot_line(label, r * np.sin(t), r * np.cos(t), implot.Spec(line_color=col, line_weight=2.0))
+                panel.key(label, panel.colour(n))
             for x in d["delta"]:
                 rr = float(panel.y(plots.reduce_channel(x["reflectance"], panel.channel)))
                 implot.plot_line(delta_label(label, rr, materials[n]), np.array([0.0, rr * math.sin(ti)]),
