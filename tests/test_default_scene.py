@@ -161,3 +161,17 @@ def test_a_point_lights_shadow_edge_is_straight_at_close_range(renderer):
     rms = float(np.sqrt(np.mean(res ** 2)))
     print(f"shadow edge: rms {rms:.3f} px from a straight line over {len(pts)} rows")
     assert rms < 0.5, rms
+
+
+def test_the_gallery_opens_traced():
+    """The gallery's mirror and absorbing glass are traced from the first frame (untraced they
+    drew as flat discs until ray tracing was switched on): the scene traces, and they are the
+    objects whose chains are traced."""
+    from viewer.gl.program_set import scene_traces
+    from viewer.gl.raytrace import chain_traces
+    from viewer.scene import load_scene
+
+    sc = load_scene("gallery", load_meshes=False)
+    assert sc.render.raytrace and scene_traces(sc)
+    traced = {o.material for o in sc.objects if chain_traces(sc.materials[o.material])}
+    assert traced == {"mirror", "glass"}, traced

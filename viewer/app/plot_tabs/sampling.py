@@ -102,9 +102,10 @@ class SamplingTab:
                 implot.end_plot()
             implot.pop_colormap()
         pts = np.asarray(d["points"], np.float64)
-        imgui.text_wrapped("sampled directions, seen from above (red: below the surface)")
+        # the colours said in words, not in a legend box over the points
+        imgui.text_wrapped("sampled directions seen from above: blue above the surface, red below; orange: wo")
         size = min(avail.x, max(120.0, imgui.get_content_region_avail().y))
-        if implot.begin_plot("##cloud", imgui.ImVec2(size, size), implot.Flags_.equal):
+        if implot.begin_plot("##cloud", imgui.ImVec2(size, size), implot.Flags_.equal | implot.Flags_.no_legend):
             implot.setup_axes("x (tangent)", "y")
             implot.setup_axes_limits(-1.05, 1.05, -1.05, 1.05, implot.Cond_.always)
             t = np.linspace(0.0, 2 * np.pi, 121)
