@@ -28,6 +28,9 @@ def _camera(pos=(0.0, 0.9, 4.2), target=(0.0, 0.6, 0.0), fov=36.0) -> str:
 
 
 _FLOOR = '[[objects]]\nmesh = "plane"\nmaterial = "floor"\nscale = 6.0\n'
+# 80 m across: what a clear shell shows through and mirrors below the horizon is this floor, not the
+# studio map's dark floor beyond the edge of a 12 m one (a dark band across each bubble's middle)
+_WIDE_FLOOR = '[[objects]]\nmesh = "plane"\nmaterial = "floor"\nscale = 40.0\n'
 _FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n'
 # under the studio map and the key light together a 0.5 floor reads 0.86-0.97 (near white, where
 # the caption lies over it): a darker grey keeps it well under white
@@ -196,7 +199,7 @@ TOUR: tuple[Step, ...] = (
          "Water films in air: light reflected at a film's two faces interferes, the colour shifting with "
          "angle. Clear shells (ior 1, no refraction): the floor shows through."
          + _NO_CAUSTICS,
-         _scene(_camera(), _STUDIO, _render("split_sum", raytrace=True), _FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
+         _scene(_camera(), _STUDIO, _render("split_sum", raytrace=True), _WIDE_FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
                 _sphere("thin", 0.75, 0.6, 0.8), _FLOOR_MAT, _mat("bubble", "lecture_soap_bubble"),
                 _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel"),
     # The variances in the caption: per-sample variance averaged over the image at 256 spp
