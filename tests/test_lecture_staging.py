@@ -315,3 +315,74 @@ def test_soap_bubble_step_shows_no_dark_horizon_band():
     miss, n = _floor_misses("soap_bubble")
     print(f"step 13: {miss:.2%} of {n} downward rays pass the floor's edge")
     assert n > 1000 and miss == 0.0
+
+
+def _first_hits(o, d, tris):
+    """Distance to the nearest of ``tris`` (T, 3, 3) along rays from ``o`` (N, 3) in ``d`` (N, 3),
+    and that triangle's index; inf / -1 where none is hit (Moller-Trumbore)."""
+    a, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    p = np.cross(d[:, None, :], e2[None])
+    det = np.sum(p * e1[None], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        s = o[:, None, :] - a[None]
+        u = np.sum(s * p, axis=-1) * inv
+        q = np.cross(s, e1[None])
+        v = np.sum(d[:, None, :] * q, axis=-1) * inv
+        t = np.sum(q * e2[None], axis=-1) * inv
+    ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-6)
+    t = np.where(ok, t, np.inf)
+    k = np.argmin(t, axis=1)
+    best = t[np.arange(len(t)), k]
+    return best, np.where(np.isfinite(best), k, -1)
+
+
+def _refract(d, n, eta):
+    """``d`` refracted into a medium ``eta`` times denser across a face of normal ``n`` (any
+    side); NaN where it is totally reflected."""
+    n = np.where(np.sum(d * n, axis=-1, keepdims=True) > 0, -n, n)
+    c = -np.sum(d * n, axis=-1, keepdims=True)
+    k = 1.0 - (1.0 - c * c) / (eta * eta)
+    out = d / eta + (c / eta - np.sqrt(np.maximum(k, 0.0))) * n
+    return np.where(k >= 0, out, np.nan)
+
+
+def test_dispersion_step_prism_shows_the_bars_over_its_whole_face():
+    """Step 12: the view through the prism (SF11, n 1.77-1.83) lands on the bars' rows over the
+    whole face: every ray that passes the prism (entering its front face, leaving its back one)
+    and reaches the floor among the rows lands within the bars' length. With bars 1.6 m long a
+    wedge of the face's upper left saw the bare black floor beside them (traced and in the
+    reference: the bent view spreads sideways with distance)."""
+    from viewer.scene import load_scene
+
+    sc = load_scene(f"lecture:{_step('dispersion') + 1}")
+    c = sc.camera
+    w, h = 320, 180
+    d = camera_rays(c.position, c.target, c.up, c.fov_y, w, h).reshape(-1, 3)
+    (prism,) = [o for o in sc.objects if o.mesh == "prism"]
+    tris = prism.world_positions()[np.asarray(prism.mesh_data.indices).reshape(-1, 3)]
+    normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    bars = [o for o in sc.objects if o.material == "bar"]
+    xs = [(o.translate[0] - o.scale[0], o.translate[0] + o.scale[0]) for o in bars]
+    zs = sorted(o.translate[2] for o in bars)
+    counted = 0
+    for n_glass in (1.77, 1.83):  # the red and the blue end of SF11's index
+        o = np.broadcast_to(np.asarray(c.position, float), d.shape)
+        t, k = _first_hits(o, d, tris)
+        inside = np.isfinite(t)
+        p = o[inside] + t[inside, None] * d[inside]
+        r = _refract(d[inside], normals[k[inside]], n_glass)
+        t2, k2 = _first_hits(p + 1e-6 * r, np.nan_to_num(r), tris)
+        ok = np.isfinite(t2) & ~np.isnan(r[:, 0])
+        p2 = p[ok] + t2[ok, None] * r[ok]
+        out = _refract(r[ok], normals[k2[ok]], 1.0 / n_glass)
+        down = ~np.isnan(out[:, 0]) & (out[:, 1] < 0)
+        q = p2[down] + (-p2[down, 1] / out[down, 1])[:, None] * out[down]
+        among = (q[:, 2] <= zs[-1]) & (q[:, 2] >= zs[0])  # between the first row and the last
+        beside = (q[:, 0] < min(a for a, _ in xs)) | (q[:, 0] > max(b for _, b in xs))
+        counted += int(among.sum())
+        print(f"n {n_glass}: {inside.sum()} rays into the prism, {among.sum()} land among the rows, "
+              f"{(among & beside).sum()} beside the bars")
+        assert not np.any(among & beside)
+    assert counted > 2000
