@@ -41,11 +41,12 @@ _KEY_LIGHT = '[[lights]]\ntype = "point"\nposition = [-2.0, 4.0, 3.0]\nintensity
 # the prism narrowed to a 30 degree apex (a 60 degree SF11 prism totally reflects a level view at
 # its back face): it bends the view about 27 degrees down, red and blue 2.4 degrees apart, onto
 # the floor behind it, where these white bars lie across a black floor (edges of high contrast);
-# 2.8 m long, reaching left to where the bent view through the prism's upper left lands (with
-# bars 1.6 m long a wedge of its face saw the bare floor beside them), ending right before the diamond
+# 2 m long, reaching left past where the bent view through the prism's upper left lands (x = -1.67;
+# with bars 1.6 m long a wedge of its face saw the bare floor beside them), no farther (the diamond
+# shows what lies around it, the more bars the more coloured glints there)
 _BLACK_FLOOR_MAT = '[materials.floor]\nmodel = "lambert"\nalbedo = [0.02, 0.02, 0.02]\n'
-_BARS = "".join(f'[[objects]]\nmesh = "cube"\nmaterial = "bar"\nscale = [1.4, 0.005, 0.025]\n'
-                f"translate = [-1.2, 0.005, {-0.35 - 0.15 * k:.2f}]\n" for k in range(10))
+_BARS = "".join(f'[[objects]]\nmesh = "cube"\nmaterial = "bar"\nscale = [1.0, 0.005, 0.025]\n'
+                f"translate = [-0.8, 0.005, {-0.35 - 0.15 * k:.2f}]\n" for k in range(10))
 # just above and left of the camera: the mirror direction lands on the ball's front, so the
 # highlight sits where the audience looks
 _HIGHLIGHT_LIGHT = '[[lights]]\ntype = "point"\nposition = [-0.8, 2.2, 4.0]\nintensity = [120.0, 120.0, 120.0]\n'
