@@ -250,6 +250,10 @@ class GpuReferenceRenderer:
             defines["SPECTRAL"] = "1"
         if self.uses_photons:
             defines["PHOTONS"] = "1"
+            from viewer.reference_common.caustics import spectral_photons
+
+            if spectral_photons(s):   # photons of one wavelength each (a dispersive delta surface)
+                defines["PHOTON_WAVELENGTHS"] = "1"
         return models, tuple(sorted(defines.items()))
 
     @property
@@ -279,6 +283,11 @@ class GpuReferenceRenderer:
         set_uniform(prog, "u_mat_tex", unit)
         unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
+        if self.is_spectral and "u_spec_tab" in prog:   # the photon pass with wavelengths reads them too
+            self._spec_tex.use(location=unit)
+            set_uniform(prog, "u_spec_tab", unit)
+            unit += 1
+            set_uniform(prog, "u_mat_spec", self._mat_spec.tobytes())
         if self._measured_params is not None and "u_measured" in prog:
             if self._measured is None:
                 from viewer.gl.measured_tex import MeasuredTextures

@@ -67,6 +67,8 @@ class CausticPhotons:
         self.n = int(setup.extra.get("photons_per_pass") or caustics.photons_per_pass(setup.width, setup.height))
         _centre, radius = caustics.scene_bounds(setup)
         self.r1 = caustics.initial_radius(radius, self.n)
+        # photons of one wavelength each (powers (spectral flux, bin, 0)): caustics.spectral_photons
+        self.wavelengths = caustics.spectral_photons(setup)
         self.pass_index = 0          # the pass whose grid is up (0: none)
         self.stored = 0              # photons stored by that pass
         self.emitted = 0
@@ -107,9 +109,13 @@ class CausticPhotons:
         textures and the material uniforms, returning the next free texture unit. A photon
         stored at a material that also has a delta lobe goes on in the next round (one stored
         photon per fragment and round), until none goes on."""
-        o, d, p = caustics.emit_photons(self.setup, self.n, photon_stream(self.seed, i))
+        gen = photon_stream(self.seed, i)
+        o, d, p = caustics.emit_photons(self.setup, self.n, gen)
         self.emitted = m = o.shape[0]
         zero = np.zeros((m, 1))
+        if self.wavelengths:   # (spectral flux, bin, 0): photon_trace.frag's PHOTON_WAVELENGTHS
+            bins = caustics.photon_bins(gen, m)
+            p = np.stack([caustics.spectral_flux(p, bins), bins, np.zeros(m)], axis=1)
         state = [np.hstack([o, np.arange(m)[:, None]]), np.hstack([d, zero]), np.hstack([p, zero]),
                  np.zeros((m, 4))]
         found = []
