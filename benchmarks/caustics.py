@@ -8,6 +8,23 @@
 3. lecture step 3 at equal time (``--seconds`` each): the raster-vs-reference block p90
    (``viewer.image.compare.agreement``) and the reference's own noise, the block p90 between two
    references of different seeds, for path and photon; ``--png`` writes the references.
+
+`python benchmarks/caustics.py --budget [--steps 2,3,10,11,13] [--size 160x90] [--ref-passes 512]`
+instead measures, per lecture step, how many passes (and seconds) the reference the prepared
+lecture bakes (``bake --lecture --spp 256``: the integrator ``auto`` picks, ``photon`` on these
+steps) needs before its caustics are right:
+
+* the long-run reference: ``--ref-passes`` passes of another seed;
+* the caustic region: the 8 x 8 blocks where the photon map carries at least 10% of the
+  reference's light (the reference minus an image of the same passes with the gather turned off);
+* at 4, 8, ..., 256 passes: the error of the region's mean and the median and 90th percentile of
+  its blocks' relative errors (luminance), and the seconds so far; "within 5%" is the first pass
+  count where the region's mean and its median block are both within 5%.
+
+The size is smaller than the bake's (480 x 270, half the lecture camera's) to fit a run on a
+busy machine: photons per pass are one per pixel either way (``photons_per_pass``), so the gather
+disk holds the same photons per pixel and a pass's relative error per block is about the same;
+the seconds at the bake's size are about (480 x 270) / (w x h) times these (printed too).
 """
 
 from __future__ import annotations
@@ -64,14 +81,100 @@ def slab_time(integrator, workers, limit_s=300.0):
         r.close()
 
 
+def _luminance(img):
+    import numpy as np
+
+    from viewer.brdf.sampling import LUMINANCE_REC709
+
+    return np.asarray(img, dtype=np.float64) @ LUMINANCE_REC709
+
+
+def _blocks(y, b=8):
+    hh, ww = (y.shape[0] // b) * b, (y.shape[1] // b) * b
+    return y[:hh, :ww].reshape(hh // b, b, ww // b, b).mean(axis=(1, 3))
+
+
+def caustic_budget(steps, w, h, ref_passes, workers, checkpoints=(4, 8, 16, 32, 64, 128, 256)):
+    """The --budget measurement (see the module docstring); prints one table per step."""
+    import numpy as np
+
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.pathtracer import photons as cpu_photons
+    from viewer.reference_common.caustics import choose_integrator
+    from viewer.scene.camera import OrbitCamera
+    from viewer.scene.lecture import tour_scene
+
+    scale = (480 * 270) / (w * h)
+    print(f"caustic budget at {w}x{h} ({workers} workers; bake --lecture renders 480x270: seconds x {scale:.1f}),"
+          f" reference {ref_passes} passes")
+    for step in steps:
+        scene = tour_scene(step - 1)
+        cam = OrbitCamera.from_scene(scene)
+        name, why = choose_integrator(scene)
+
+        def make(seed, wk=workers):
+            return ReferenceRenderer(scene, camera=cam, width=w, height=h, max_depth=8, seed=seed, workers=wk,
+                                     integrator="photon")
+
+        t0 = time.perf_counter()
+        with make(11) as r:
+            r.step(ref_passes)
+            ref = _luminance(r.mean())
+        t_ref = time.perf_counter() - t0
+        # the same estimator without the gather (one process: the patch reaches no worker pool)
+        gather = cpu_photons.CausticMap.gather
+        cpu_photons.CausticMap.gather = lambda *a_, **k_: None
+        try:
+            with make(12, 0) as r:
+                r.step(64)
+                rest = _luminance(r.mean())
+        finally:
+            cpu_photons.CausticMap.gather = gather
+        bref, brest = _blocks(ref), _blocks(rest)
+        region = (bref > 0) & ((bref - brest) >= 0.10 * bref)
+        share = float((bref - brest)[region].sum() / max(bref[region].sum(), 1e-30))
+        print(f"step {step}: auto picks {name} ({why}); reference {t_ref:.0f} s; caustic region "
+              f"{int(region.sum())} of {region.size} blocks, the photon map's share there {share:.0%}")
+        if not region.any():
+            continue
+        first = None
+        with make(1) as r:
+            r.warm_up()
+            t0 = time.perf_counter()
+            done = 0
+            for n in checkpoints:
+                r.step(n - done)
+                done = n
+                sec = time.perf_counter() - t0
+                b = _blocks(_luminance(r.mean()))
+                mean_err = float(b[region].mean() / bref[region].mean() - 1.0)
+                rel = np.abs(b[region] / bref[region] - 1.0)
+                med, p90 = float(np.median(rel)), float(np.percentile(rel, 90))
+                ok = abs(mean_err) <= 0.05 and med <= 0.05
+                if ok and first is None:
+                    first = (n, sec)
+                print(f"  {n:4d} passes {sec:7.1f} s (~{sec * scale:6.0f} s at 480x270): region mean {mean_err:+.1%}, "
+                      f"blocks median {med:.1%}, p90 {p90:.1%}{'  <- within 5%' if ok and first == (n, sec) else ''}")
+        said = (f"{first[0]} passes, {first[1]:.0f} s here, about {first[1] * scale:.0f} s at 480x270"
+                if first else f"not within {checkpoints[-1]} passes")
+        print(f"  step {step}: caustic within 5%: {said}; the bake's budget is 256 passes")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--size", default="160x96")
+    ap.add_argument("--size", default=None, help="default 160x96; with --budget 160x90")
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--png", default=None)
+    ap.add_argument("--budget", action="store_true", help="the prepared lecture's budget per glass step")
+    ap.add_argument("--steps", default="2,3,10,11,13", help="with --budget: 1-based lecture steps")
+    ap.add_argument("--ref-passes", type=int, default=512)
     a = ap.parse_args(argv)
-    w, h = (int(x) for x in a.size.split("x"))
+    if a.budget:
+        w, h = (int(x) for x in (a.size or "160x90").split("x"))
+        caustic_budget([int(s) for s in a.steps.split(",")], w, h, a.ref_passes, a.workers)
+        return 0
+    w, h = (int(x) for x in (a.size or "160x96").split("x"))
 
     from viewer.scene.camera import OrbitCamera
     from viewer.image.colour import to_srgb8
