@@ -403,7 +403,10 @@ class GpuReferenceRenderer:
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)
-            self._build_photons()   # a new pass's photon map: apart from the draw's time
+            # a new pass's photon map, made ahead on a worker thread (viewer.gpupt.photons): a
+            # band waits for none of it; until it is up this call renders nothing more
+            if self.photons is not None and not self.photons.advance(self.spp + 1, self._bind_materials):
+                break
             t_pass = time.perf_counter()
             self._pass(r0, r1, 1)
             self.ctx.finish()
@@ -414,6 +417,8 @@ class GpuReferenceRenderer:
             if r1 >= self.height:
                 self.spp += 1
                 self._snapshot()
+            elif self.photons is not None:   # the next pass's map, up to its upload
+                self.photons.advance(self.spp + 2, self._bind_materials, upload=False)
             # aim for a draw of a quarter of the budget
             want = max(1e-3, 0.25 * seconds)
             scale = want / max(dt, 1e-5)
