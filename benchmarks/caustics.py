@@ -17,9 +17,11 @@ steps) needs before its caustics are right:
 * the long-run reference: ``--ref-passes`` passes of another seed;
 * the caustic region: the 8 x 8 blocks where the photon map carries at least 10% of the
   reference's light (the reference minus an image of the same passes with the gather turned off);
-* at 4, 8, ..., 256 passes: the error of the region's mean and the median and 90th percentile of
-  its blocks' relative errors (luminance), and the seconds so far; "within 5%" is the first pass
-  count where the region's mean and its median block are both within 5%.
+* at 4, 8, ..., 256 passes: the error of the region's mean (with its standard error, from the
+  spread of the passes: each pass is an independent estimate) and the median and 90th
+  percentile of its blocks' relative errors (luminance), and the seconds so far; "within 5%" is
+  the pass count from which on the region's mean and its median block stay within 5%; the
+  reference's own standard error on the region's mean is printed beside it.
 
 The size is smaller than the bake's (480 x 270, half the lecture camera's) to fit a run on a
 busy machine: photons per pass are one per pixel either way (``photons_per_pass``), so the gather
@@ -94,6 +96,20 @@ def _blocks(y, b=8):
     return y[:hh, :ww].reshape(hh // b, b, ww // b, b).mean(axis=(1, 3))
 
 
+def _pass_blocks(r, n, b=8):
+    """(n, by, bx) the 8 x 8 block means of the luminance of each of ``n`` more passes of ``r``."""
+    import numpy as np
+
+    out = []
+    prev = np.asarray(r.state()[0], dtype=np.float64)
+    for _ in range(n):
+        r.step(1)
+        cur = np.asarray(r.state()[0], dtype=np.float64)
+        out.append(_blocks(_luminance(cur - prev), b))
+        prev = cur
+    return np.array(out)
+
+
 def caustic_budget(steps, w, h, ref_passes, workers, checkpoints=(4, 8, 16, 32, 64, 128, 256)):
     """The --budget measurement (see the module docstring); prints one table per step."""
     import numpy as np
@@ -106,7 +122,7 @@ def caustic_budget(steps, w, h, ref_passes, workers, checkpoints=(4, 8, 16, 32, 
 
     scale = (480 * 270) / (w * h)
     print(f"caustic budget at {w}x{h} ({workers} workers; bake --lecture renders 480x270: seconds x {scale:.1f}),"
-          f" reference {ref_passes} passes")
+          f" reference {ref_passes} passes", flush=True)
     for step in steps:
         scene = tour_scene(step - 1)
         cam = OrbitCamera.from_scene(scene)
@@ -116,48 +132,56 @@ def caustic_budget(steps, w, h, ref_passes, workers, checkpoints=(4, 8, 16, 32, 
             return ReferenceRenderer(scene, camera=cam, width=w, height=h, max_depth=8, seed=seed, workers=wk,
                                      integrator="photon")
 
-        t0 = time.perf_counter()
-        with make(11) as r:
-            r.step(ref_passes)
-            ref = _luminance(r.mean())
-        t_ref = time.perf_counter() - t0
         # the same estimator without the gather (one process: the patch reaches no worker pool)
         gather = cpu_photons.CausticMap.gather
         cpu_photons.CausticMap.gather = lambda *a_, **k_: None
         try:
             with make(12, 0) as r:
                 r.step(64)
-                rest = _luminance(r.mean())
+                rest = _blocks(_luminance(r.mean()))
         finally:
             cpu_photons.CausticMap.gather = gather
-        bref, brest = _blocks(ref), _blocks(rest)
-        region = (bref > 0) & ((bref - brest) >= 0.10 * bref)
-        share = float((bref - brest)[region].sum() / max(bref[region].sum(), 1e-30))
+        t0 = time.perf_counter()
+        with make(11) as r:
+            ref_p = _pass_blocks(r, ref_passes)
+        t_ref = time.perf_counter() - t0
+        bref = ref_p.mean(axis=0)
+        region = (bref > 0) & ((bref - rest) >= 0.10 * bref)
+        share = float((bref - rest)[region].sum() / max(bref[region].sum(), 1e-30))
         print(f"step {step}: auto picks {name} ({why}); reference {t_ref:.0f} s; caustic region "
-              f"{int(region.sum())} of {region.size} blocks, the photon map's share there {share:.0%}")
+              f"{int(region.sum())} of {region.size} blocks, the photon map's share there {share:.0%}", flush=True)
         if not region.any():
             continue
-        first = None
+        ref_region = ref_p[:, region].mean(axis=1)                 # per pass: the region's mean
+        ref_mean = ref_region.mean()
+        ref_se = ref_region.std(ddof=1) / np.sqrt(ref_passes) / ref_mean
         with make(1) as r:
             r.warm_up()
             t0 = time.perf_counter()
+            run_p = []
+            rows = []
             done = 0
             for n in checkpoints:
-                r.step(n - done)
+                run_p.append(_pass_blocks(r, n - done))
                 done = n
                 sec = time.perf_counter() - t0
-                b = _blocks(_luminance(r.mean()))
-                mean_err = float(b[region].mean() / bref[region].mean() - 1.0)
+                allp = np.concatenate(run_p)
+                b = allp.mean(axis=0)
+                reg = allp[:, region].mean(axis=1)
+                err = float(reg.mean() / ref_mean - 1.0)
+                se = float(reg.std(ddof=1) / np.sqrt(n) / ref_mean) if n > 1 else float("nan")
                 rel = np.abs(b[region] / bref[region] - 1.0)
-                med, p90 = float(np.median(rel)), float(np.percentile(rel, 90))
-                ok = abs(mean_err) <= 0.05 and med <= 0.05
-                if ok and first is None:
-                    first = (n, sec)
-                print(f"  {n:4d} passes {sec:7.1f} s (~{sec * scale:6.0f} s at 480x270): region mean {mean_err:+.1%}, "
-                      f"blocks median {med:.1%}, p90 {p90:.1%}{'  <- within 5%' if ok and first == (n, sec) else ''}")
-        said = (f"{first[0]} passes, {first[1]:.0f} s here, about {first[1] * scale:.0f} s at 480x270"
-                if first else f"not within {checkpoints[-1]} passes")
-        print(f"  step {step}: caustic within 5%: {said}; the bake's budget is 256 passes")
+                rows.append((n, sec, err, se, float(np.median(rel)), float(np.percentile(rel, 90))))
+        ok = [abs(e) <= 0.05 and med <= 0.05 for _n, _s, e, _se, med, _p in rows]
+        first = next((k for k in range(len(rows)) if all(ok[k:])), None)
+        for k, (n, sec, err, se, med, p90) in enumerate(rows):
+            print(f"  {n:4d} passes {sec:7.1f} s (~{sec * scale:6.0f} s at 480x270): region mean {err:+.1%} "
+                  f"(run's standard error {se:.1%}), blocks median {med:.1%}, p90 {p90:.1%}"
+                  f"{'  <- within 5% from here on' if k == first else ''}", flush=True)
+        said = (f"{rows[first][0]} passes, {rows[first][1]:.0f} s here, about {rows[first][1] * scale:.0f} s at 480x270"
+                if first is not None else f"not within 5% for good by {checkpoints[-1]} passes")
+        print(f"  step {step}: the reference's own standard error on the region's mean {ref_se:.1%}; "
+              f"caustic within 5%: {said}; the bake's budget is 256 passes", flush=True)
 
 
 def main(argv=None) -> int:
