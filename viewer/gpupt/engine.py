@@ -183,25 +183,8 @@ class GpuReferenceRenderer:
         self._textures.append(self._mat_tex)
         env = setup.env
         self.env_mode = ENV_MODES["black" if env.is_black else ("map" if env.is_map else "constant")]
-        if self.env_mode == ENV_MODES["map"]:
-            texel_p, row_cdf, col_cdf, to_map = env.distribution()
-            h, w, _ = env.image.shape
-            img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
-            self._env_tex = [ctx.texture((w, h), 4, np.ascontiguousarray(img).tobytes(), dtype="f4"),
-                             ctx.texture((h + 1, 1), 1, row_cdf.astype(np.float32).tobytes(), dtype="f4"),
-                             ctx.texture((w + 1, h), 1, np.ascontiguousarray(col_cdf, np.float32).tobytes(),
-                                         dtype="f4")]
-            import moderngl
-
-            for t in self._env_tex:
-                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._textures.extend(self._env_tex)
-            self._env_size = (w, h)
-            self._to_map = to_map
-        else:
-            self._env_tex = []
-            self._env_size = (1, 1)
-            self._to_map = np.eye(3)
+        self._env_tex, self._env_size, self._to_map = environment_textures(ctx, env, self.env_mode)
+        self._textures.extend(self._env_tex)
         self._targets = []
         for _ in range(2):
             a = ctx.texture((self.width, self.height), 4, dtype="f4")
@@ -283,7 +266,7 @@ class GpuReferenceRenderer:
         set_uniform(prog, "u_mat_tex", unit)
         unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
-        if self.is_spectral and "u_spec_tab" in prog:   # the photon pass with wavelengths reads them too
+        if self.is_spectral and "u_spec_tab" in prog:   # (the photon pass with wavelengths reads them too)
             self._spec_tex.use(location=unit)
             set_uniform(prog, "u_spec_tab", unit)
             unit += 1
@@ -311,11 +294,6 @@ class GpuReferenceRenderer:
             unit += 1
         if self.photons is not None:
             unit = self.photons.bind(prog, unit)
-        if self.is_spectral:
-            self._spec_tex.use(location=unit)
-            set_uniform(prog, "u_spec_tab", unit)
-            unit += 1
-            set_uniform(prog, "u_mat_spec", self._mat_spec.tobytes())
         set_uniform(prog, "u_seed", self.seed & 0xFFFFFFFF)
         set_uniform(prog, "u_max_depth", s.max_depth)
         set_uniform(prog, "u_size", (self.width, self.height))
@@ -506,6 +484,24 @@ class GpuReferenceRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def environment_textures(ctx, env, mode: int):
+    """(textures, (w, h), to_map) of an environment map (its image with each texel's pdf in w, the
+    row and column CDFs; nearest filtering) for ``ENV_MODES["map"]``, else ([], (1, 1), I)."""
+    if mode != ENV_MODES["map"]:
+        return [], (1, 1), np.eye(3)
+    import moderngl
+
+    texel_p, row_cdf, col_cdf, to_map = env.distribution()
+    h, w, _ = env.image.shape
+    img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
+    tex = [ctx.texture((w, h), 4, np.ascontiguousarray(img).tobytes(), dtype="f4"),
+           ctx.texture((h + 1, 1), 1, row_cdf.astype(np.float32).tobytes(), dtype="f4"),
+           ctx.texture((w + 1, h), 1, np.ascontiguousarray(col_cdf, np.float32).tobytes(), dtype="f4")]
+    for t in tex:
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex, (w, h), to_map
 
 
 def _refuse_measured(scene):
