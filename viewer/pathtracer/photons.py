@@ -321,7 +321,8 @@ class PhotonIntegrator(CausticPaths, Integrator):
 
 
 class SpectralPhotonIntegrator(CausticPaths, SpectralIntegrator):
-    """Path tracing plus a progressive caustic photon map, hero wavelengths (photons carry RGB)."""
+    """Path tracing plus a progressive caustic photon map, hero wavelengths (photons carry RGB, or
+    one wavelength each through dispersive or spectral delta surfaces: ``caustics.spectral_photons``)."""
 
 
 def integrator_for(setup):
