@@ -221,3 +221,45 @@ def test_photon_passes_are_the_same_whatever_the_bands(ctx):
         while b.spp < 2:
             b.step_for(1e-4)
         assert np.array_equal(b.mean(), ref)
+
+
+def test_window_bands_never_wait_for_the_photon_map(ctx, monkeypatch):
+    """``step_for`` (the window's) runs no numpy of the photon map on its own thread: emission
+    and the hash grid run on the engine's worker thread, and while the next pass's map is not
+    ready the call returns at once with nothing added (the frame goes on). The image is the
+    same as whole passes give (test_photon_passes_are_the_same_whatever_the_bands)."""
+    import threading
+
+    from viewer.gpupt import GpuReferenceRenderer
+
+    caller = threading.get_ident()
+    seen = {"emit": set(), "grid": set()}
+    gate = threading.Event()
+    emit, build = caustics.emit_photons, caustics.build_grid
+
+    def slow_emit(*a, **k):
+        seen["emit"].add(threading.get_ident())
+        gate.wait(20.0)          # held until the test lets it go (a waiting step_for would stall 20 s)
+        return emit(*a, **k)
+
+    def grid(*a, **k):
+        seen["grid"].add(threading.get_ident())
+        return build(*a, **k)
+
+    monkeypatch.setattr(caustics, "emit_photons", slow_emit)
+    monkeypatch.setattr(caustics, "build_grid", grid)
+    sc = mirror_wall_scene(12)
+    with GpuReferenceRenderer(sc, width=12, height=12, max_depth=2, seed=4, ctx=ctx, integrator="photon") as b:
+        b.rows_per_pass = 5
+        assert b.step_for(1e-4) == 0 and b.spp == 0          # pass 1's emission is held: nothing, at once
+        assert not gate.is_set()
+        gate.set()
+        while b.spp < 2:
+            b.step_for(1e-4)
+        got = b.mean()
+    assert seen["emit"] and caller not in seen["emit"], seen
+    assert seen["grid"] and caller not in seen["grid"], seen
+    monkeypatch.setattr(caustics, "emit_photons", emit)
+    with GpuReferenceRenderer(sc, width=12, height=12, max_depth=2, seed=4, ctx=ctx, integrator="photon") as a:
+        a.step(2)
+        assert np.array_equal(a.mean(), got)

@@ -20,6 +20,13 @@
 // Random numbers: a hash of (the photon's index, pass, seed), one block of four per scattering
 // (xyz the sampler's, w roulette's), the count carried across rounds.
 //
+// PHOTON_WAVELENGTHS (a define; viewer.reference_common.caustics.spectral_photons): a photon
+// carries one wavelength bin, its state2 = (spectral flux, bin, 0, random blocks): a non-spectral
+// material's RGB weight and the Bouguer transmittance are upsampled at the bin (row 0 of
+// u_spec_tab), a spectral material samples with its parameter set at the bin (u_mat_spec.z + bin
+// stride, channel 0: n(lambda) for a dispersive dielectric), as the CPU engine's PhotonSpectra;
+// it is stored as (spectral flux, bin, 0).
+//
 // Radiance and flux: a delta sampler's weight is the radiance-mode one (refraction scales by
 // 1 / eta^2 of the side the radiance arrives on); a photon that enters and leaves a closed
 // dielectric takes eta^2 and 1 / eta^2, which cancel, and photons are stored only outside
@@ -31,6 +38,12 @@
 
 uniform vec4 u_mat_info[2 * MAX_MATERIALS];
 #include "pathtrace/surface.glsl"
+
+#ifdef PHOTON_WAVELENGTHS
+uniform sampler2D u_spec_tab;      // row 0: the upsampling basis at each bin (pathtrace/spectral.glsl)
+uniform vec4 u_mat_spec[MAX_MATERIALS];
+float ph_up(vec3 rgb, int b) { return dot(texelFetch(u_spec_tab, ivec2(b, 0), 0).rgb, rgb); }
+#endif
 
 uniform sampler2D u_ph_state0;   // xyz origin, w the photon's index
 uniform sampler2D u_ph_state1;   // xyz unit direction of travel, w delta vertices passed
@@ -78,7 +91,12 @@ void main() {
     for (int k = 0; k <= PHOTON_MAX_BOUNCES; ++k) {   // each round adds a delta vertex
         BvhHit h;
         if (!bvh_closest(o, d, 0.0, BVH_INF, h)) return;
+#ifdef PHOTON_WAVELENGTHS
+        int bin = int(P.y + 0.5);
+        if (sigma.x > 0.0 || sigma.y > 0.0 || sigma.z > 0.0) P.x *= ph_up(exp(-sigma * h.t), bin);
+#else
         if (sigma.x > 0.0 || sigma.y > 0.0 || sigma.z > 0.0) P *= exp(-sigma * h.t);
+#endif
         Surface s = surface_at(h, d);
         bool stored = false;
         if (!lobe_is_delta(s.lobes) && n_delta > 0) {   // a smooth lobe: stored
@@ -94,7 +112,15 @@ void main() {
         vec3 wi_l;
         float pdf;
         uint lobe;
+#ifdef PHOTON_WAVELENGTHS
+        vec4 ms = u_mat_spec[s.mi];
+        bool rgb_mat = ms.x < 0.5;
+        int off = rgb_mat ? s.moff : int(ms.z + 0.5) + bin * int(ms.w + 0.5);
+        vec3 w3 = brdf_sample(s.model, off, wo_l, r.xyz, wi_l, pdf, lobe);
+        vec3 w = vec3(rgb_mat ? ph_up(w3, bin) : w3.x);
+#else
         vec3 w = brdf_sample(s.model, s.moff, wo_l, r.xyz, wi_l, pdf, lobe);
+#endif
         if (!lobe_has_delta(lobe) || !(pdf > 0.0) || !finite_pos(w) || any(isnan(wi_l)) || any(isinf(wi_l)))
             return;
         vec3 wi = surface_world(s, wi_l);
@@ -105,7 +131,11 @@ void main() {
             if (!(r.w < q)) return;
             w /= q;
         }
+#ifdef PHOTON_WAVELENGTHS
+        P.x *= w.x;
+#else
         P *= w;
+#endif
         if (s.trans) sigma = dot(s.ng_raw, wi) < 0.0 ? u_mat_info[2 * s.mi + 1].xyz : vec3(0.0);
         o = surface_offset(s, wi);
         d = wi;

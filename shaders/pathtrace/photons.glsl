@@ -78,3 +78,45 @@ PhotonSum photon_gather(vec3 p, vec3 n, vec3 ng, vec3 tx, vec3 ty, bool trans, i
     }
     return sum * (1.0 / (PI * u_ph_r2));
 }
+
+#ifdef PHOTON_WAVELENGTHS
+// Photons of one wavelength each (power = (spectral flux, bin, 0)): their estimate as RGB, each
+// f(lambda_p) Phi(lambda_p) / (pi r^2) times SPEC_N_BINS W(lambda_p) (row 1 of u_spec_tab), the
+// one-sample estimate of sum_lambda W L for a bin of probability 1 / SPEC_N_BINS; f of a
+// non-spectral material upsampled at the bin, of a spectral one with its set at the bin
+// (u_mat_spec = (category, _, offset of the per-bin sets, floats per set)). The CPU engine's
+// CausticMap gather with wavelengths; the caller multiplies by the path's mean throughput.
+uniform sampler2D u_spec_tab;
+vec3 photon_gather_rgb(vec3 p, vec3 n, vec3 ng, vec3 tx, vec3 ty, bool trans, int model, int moff, vec3 wo_l,
+                       vec4 ms) {
+    vec3 sum = vec3(0.0);
+    if (u_ph_stored <= 0) return sum;
+    bool rgb_mat = ms.x < 0.5;
+    int o0 = int(ms.z + 0.5), stride = int(ms.w + 0.5);
+    ivec3 base = ivec3(floor(p / u_grid_cell)) - 1;
+    for (int cell = 0; cell < 27; ++cell) {
+        int slot = grid_slot(base + ivec3(cell % 3, (cell / 3) % 3, cell / 9));
+        bool dup = false;
+        for (int k = 0; k < cell; ++k) dup = dup || grid_slot(base + ivec3(k % 3, (k / 3) % 3, k / 9)) == slot;
+        if (dup) continue;
+        vec2 sc = texelFetch(u_grid_table, ph_texel(slot), 0).xy;
+        int first = int(sc.x + 0.5), end = first + int(sc.y + 0.5);
+        for (int j = first; j < end; ++j) {
+            ivec2 t = ph_texel(j);
+            vec3 q = texelFetch(u_gph_pos, t, 0).xyz - p;
+            if (dot(q, q) >= u_ph_r2) continue;
+            if (abs(dot(texelFetch(u_gph_nrm, t, 0).xyz, ng)) < PHOTON_NORMAL_COS) continue;
+            vec3 wi = -texelFetch(u_gph_dir, t, 0).xyz;
+            vec3 wl = vec3(dot(wi, tx), dot(wi, ty), dot(wi, n));
+            float g = dot(ng, wi);
+            if (!(trans ? wl.z * g > 0.0 : (wl.z > 0.0 && g > 0.0))) continue;
+            vec3 power = texelFetch(u_gph_pow, t, 0).rgb;
+            int b = int(power.y + 0.5);
+            vec3 f = clean(brdf_eval(model, rgb_mat ? moff : o0 + b * stride, wl, wo_l));
+            float fb = rgb_mat ? dot(texelFetch(u_spec_tab, ivec2(b, 0), 0).rgb, f) : f.x;
+            sum += (fb * power.x) * texelFetch(u_spec_tab, ivec2(b, 1), 0).rgb;
+        }
+    }
+    return sum * (float(SPEC_N_BINS) / (PI * u_ph_r2));
+}
+#endif

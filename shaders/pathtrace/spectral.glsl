@@ -35,7 +35,9 @@
 // SPEC_STRIDE: bins between a path's wavelengths (420 / 4), SPEC_N_BINS, SPEC_HERO: a hero-only
 // estimate stands for the four wavelengths (the header's, from viewer/reference_common/wavelengths.py)
 
+#ifndef PHOTON_WAVELENGTHS   // (declared by pathtrace/photons.glsl then)
 uniform sampler2D u_spec_tab;      // 420 x 2 texels: row 0 rgb = basis b_r, b_g, b_b at bin l; row 1 rgb = W(l)
+#endif
 // per material: (category 0 rgb / 1 table / 2 hero, float offset of the 105 parameter sets at
 // (c, c + 105, c + 210), float offset of the 420 sets at (l, l, l), floats per set)
 uniform vec4 u_mat_spec[MAX_MATERIALS];
@@ -106,6 +108,7 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
     g_B = mat3x4(vec4(b0.x, b1.x, b2.x, b3.x), vec4(b0.y, b1.y, b2.y, b3.y), vec4(b0.z, b1.z, b2.z, b3.z));
 
     vec4 L = vec4(0.0);
+    vec3 photon_rgb = vec3(0.0);   // PHOTON_WAVELENGTHS: the photons' RGB
     vec4 T = vec4(1.0);
     bool solo = false;          // the secondaries are terminated: T holds the hero alone
     vec3 sigma = vec3(0.0);
@@ -174,7 +177,11 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
 
         // ---- next-event estimation (not for pure delta lobes)
         if (!lobe_is_delta(lobes)) {
-#ifdef PHOTONS
+#if defined(PHOTONS) && defined(PHOTON_WAVELENGTHS)
+            // photons of their own wavelengths: RGB beside the path's, times the path's mean
+            // throughput over its wavelengths (a hero-only path: its hero's)
+            photon_rgb += dot(T, vec4(0.25)) * photon_gather_rgb(p, n, ng, tx, ty, trans, model, moff, wo_l, ms);
+#elif defined(PHOTONS)
             // the caustic photons (RGB power upsampled, the hero-only share as next-event's)
             L = add_sat4(L, mul_sat4(T, photon_gather(p, n, ng, tx, ty, trans, model, moff, wo_l,
                                                       ivec3(cat, o_s, o_3), hmask) * share));
@@ -279,5 +286,5 @@ vec3 trace_spectral(vec3 o, vec3 d, vec2 lam_u, inout Rng rng) {
     // clamp of the positive channels alone would turn the colour's XYZ negative
     vec3 rgb = vec3(0.0);
     for (int j = 0; j < 4; ++j) rgb += L[j] * texelFetch(u_spec_tab, ivec2(lam[j], 1), 0).rgb;
-    return rgb * (SPEC_N_BINS / 4.0);
+    return rgb * (SPEC_N_BINS / 4.0) + photon_rgb;
 }

@@ -183,25 +183,8 @@ class GpuReferenceRenderer:
         self._textures.append(self._mat_tex)
         env = setup.env
         self.env_mode = ENV_MODES["black" if env.is_black else ("map" if env.is_map else "constant")]
-        if self.env_mode == ENV_MODES["map"]:
-            texel_p, row_cdf, col_cdf, to_map = env.distribution()
-            h, w, _ = env.image.shape
-            img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
-            self._env_tex = [ctx.texture((w, h), 4, np.ascontiguousarray(img).tobytes(), dtype="f4"),
-                             ctx.texture((h + 1, 1), 1, row_cdf.astype(np.float32).tobytes(), dtype="f4"),
-                             ctx.texture((w + 1, h), 1, np.ascontiguousarray(col_cdf, np.float32).tobytes(),
-                                         dtype="f4")]
-            import moderngl
-
-            for t in self._env_tex:
-                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            self._textures.extend(self._env_tex)
-            self._env_size = (w, h)
-            self._to_map = to_map
-        else:
-            self._env_tex = []
-            self._env_size = (1, 1)
-            self._to_map = np.eye(3)
+        self._env_tex, self._env_size, self._to_map = environment_textures(ctx, env, self.env_mode)
+        self._textures.extend(self._env_tex)
         self._targets = []
         for _ in range(2):
             a = ctx.texture((self.width, self.height), 4, dtype="f4")
@@ -250,6 +233,10 @@ class GpuReferenceRenderer:
             defines["SPECTRAL"] = "1"
         if self.uses_photons:
             defines["PHOTONS"] = "1"
+            from viewer.reference_common.caustics import spectral_photons
+
+            if spectral_photons(s):   # photons of one wavelength each (a dispersive delta surface)
+                defines["PHOTON_WAVELENGTHS"] = "1"
         return models, tuple(sorted(defines.items()))
 
     @property
@@ -279,6 +266,11 @@ class GpuReferenceRenderer:
         set_uniform(prog, "u_mat_tex", unit)
         unit += 1
         set_uniform(prog, "u_mat_info", self._mat_info.tobytes())
+        if self.is_spectral and "u_spec_tab" in prog:   # (the photon pass with wavelengths reads them too)
+            self._spec_tex.use(location=unit)
+            set_uniform(prog, "u_spec_tab", unit)
+            unit += 1
+            set_uniform(prog, "u_mat_spec", self._mat_spec.tobytes())
         if self._measured_params is not None and "u_measured" in prog:
             if self._measured is None:
                 from viewer.gl.measured_tex import MeasuredTextures
@@ -302,11 +294,6 @@ class GpuReferenceRenderer:
             unit += 1
         if self.photons is not None:
             unit = self.photons.bind(prog, unit)
-        if self.is_spectral:
-            self._spec_tex.use(location=unit)
-            set_uniform(prog, "u_spec_tab", unit)
-            unit += 1
-            set_uniform(prog, "u_mat_spec", self._mat_spec.tobytes())
         set_uniform(prog, "u_seed", self.seed & 0xFFFFFFFF)
         set_uniform(prog, "u_max_depth", s.max_depth)
         set_uniform(prog, "u_size", (self.width, self.height))
@@ -394,7 +381,10 @@ class GpuReferenceRenderer:
         while True:
             r0 = self._band_row
             r1 = min(self.height, r0 + self.rows_per_pass)
-            self._build_photons()   # a new pass's photon map: apart from the draw's time
+            # a new pass's photon map, made ahead on a worker thread (viewer.gpupt.photons): a
+            # band waits for none of it; until it is up this call renders nothing more
+            if self.photons is not None and not self.photons.advance(self.spp + 1, self._bind_materials):
+                break
             t_pass = time.perf_counter()
             self._pass(r0, r1, 1)
             self.ctx.finish()
@@ -405,6 +395,8 @@ class GpuReferenceRenderer:
             if r1 >= self.height:
                 self.spp += 1
                 self._snapshot()
+            elif self.photons is not None:   # the next pass's map, up to its upload
+                self.photons.advance(self.spp + 2, self._bind_materials, upload=False)
             # aim for a draw of a quarter of the budget
             want = max(1e-3, 0.25 * seconds)
             scale = want / max(dt, 1e-5)
@@ -492,6 +484,24 @@ class GpuReferenceRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def environment_textures(ctx, env, mode: int):
+    """(textures, (w, h), to_map) of an environment map (its image with each texel's pdf in w, the
+    row and column CDFs; nearest filtering) for ``ENV_MODES["map"]``, else ([], (1, 1), I)."""
+    if mode != ENV_MODES["map"]:
+        return [], (1, 1), np.eye(3)
+    import moderngl
+
+    texel_p, row_cdf, col_cdf, to_map = env.distribution()
+    h, w, _ = env.image.shape
+    img = np.concatenate([env.image, (texel_p * (w * h))[:, :, None]], axis=2).astype(np.float32)
+    tex = [ctx.texture((w, h), 4, np.ascontiguousarray(img).tobytes(), dtype="f4"),
+           ctx.texture((h + 1, 1), 1, row_cdf.astype(np.float32).tobytes(), dtype="f4"),
+           ctx.texture((w + 1, h), 1, np.ascontiguousarray(col_cdf, np.float32).tobytes(), dtype="f4")]
+    for t in tex:
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    return tex, (w, h), to_map
 
 
 def _refuse_measured(scene):

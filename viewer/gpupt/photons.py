@@ -6,7 +6,8 @@ and powers read from float textures), which writes each stored photon (position 
 flag, direction of travel, power, normal) into four RGBA32F targets; those are read back, put
 into ``caustics``' hash grid for the pass's radius, and the grid (its bucket table and the
 photons sorted by bucket) goes up as float textures that the path-tracing pass's PHOTONS
-variant gathers from (``shaders/pathtrace/photons.glsl``).
+variant gathers from (``shaders/pathtrace/photons.glsl``). The numpy parts (emission, the
+grid) run on a worker thread (``CausticPhotons.advance``), so a window's frame waits for none.
 
 Pass i (1-based; the image's i-th sample per pixel) uses the photons of the random stream
 (seed, ``caustics.PHOTON_STREAM``, i) and gathers with ``caustics.pass_radius(r_1, i)``, so an
@@ -67,6 +68,8 @@ class CausticPhotons:
         self.n = int(setup.extra.get("photons_per_pass") or caustics.photons_per_pass(setup.width, setup.height))
         _centre, radius = caustics.scene_bounds(setup)
         self.r1 = caustics.initial_radius(radius, self.n)
+        # photons of one wavelength each (powers (spectral flux, bin, 0)): caustics.spectral_photons
+        self.wavelengths = caustics.spectral_photons(setup)
         self.pass_index = 0          # the pass whose grid is up (0: none)
         self.stored = 0              # photons stored by that pass
         self.emitted = 0
@@ -74,6 +77,8 @@ class CausticPhotons:
         self.radius = self.r1
         self.table_size = 1
         self._grid_tex: list = []
+        self._pool = None            # the worker thread of the stages made ahead (advance)
+        self._ahead = None           # [pass, stage "emit" | "grid", its future] under way
         self._dummy = [float_texture(ctx, np.zeros((1, 1, 4), np.float32)) for _ in SAMPLERS]
         key = (id(ctx), recipe)
         entry = _PROGRAMS.get(key)
@@ -101,17 +106,26 @@ class CausticPhotons:
         return cls(ctx, setup, seed, (models, defines), virtual_files(models))
 
     # ------------------------------------------------------------------ one pass's photons
-    def trace(self, i: int, bind_scene) -> tuple[np.ndarray, ...]:
-        """Emit and trace pass ``i``'s photons; (positions, directions of travel, powers,
-        normals) of the stored ones (float64). ``bind_scene(prog)`` binds the BVH and material
-        textures and the material uniforms, returning the next free texture unit. A photon
-        stored at a material that also has a delta lobe goes on in the next round (one stored
-        photon per fragment and round), until none goes on."""
-        o, d, p = caustics.emit_photons(self.setup, self.n, photon_stream(self.seed, i))
-        self.emitted = m = o.shape[0]
+    def emit(self, i: int) -> list[np.ndarray]:
+        """Pass ``i``'s new photons as the photon pass's four state arrays (numpy only: any thread)."""
+        gen = photon_stream(self.seed, i)
+        o, d, p = caustics.emit_photons(self.setup, self.n, gen)
+        m = o.shape[0]
         zero = np.zeros((m, 1))
-        state = [np.hstack([o, np.arange(m)[:, None]]), np.hstack([d, zero]), np.hstack([p, zero]),
-                 np.zeros((m, 4))]
+        if self.wavelengths:   # (spectral flux, bin, 0): photon_trace.frag's PHOTON_WAVELENGTHS
+            bins = caustics.photon_bins(gen, m)
+            p = np.stack([caustics.spectral_flux(p, bins), bins, np.zeros(m)], axis=1)
+        return [np.hstack([o, np.arange(m)[:, None]]), np.hstack([d, zero]), np.hstack([p, zero]),
+                np.zeros((m, 4))]
+
+    def trace(self, i: int, bind_scene, state=None) -> tuple[np.ndarray, ...]:
+        """Emit (or take ``state``, ``emit(i)``'s) and trace pass ``i``'s photons; (positions,
+        directions of travel, powers, normals) of the stored ones (float64). ``bind_scene(prog)``
+        binds the BVH and material textures and the material uniforms, returning the next free
+        texture unit. A photon stored at a material that also has a delta lobe goes on in the
+        next round (one stored photon per fragment and round), until none goes on."""
+        state = self.emit(i) if state is None else state
+        self.emitted = state[0].shape[0]
         found = []
         while state[0].shape[0]:
             out = self._round(i, state, bind_scene)
@@ -154,21 +168,63 @@ class CausticPhotons:
             release_gl(fbo, *dst, *src)
 
     def build(self, i: int, bind_scene) -> None:
-        """Trace pass ``i``'s photons and upload their grid for radius r_i (``build_seconds``:
-        the time it took, emission included)."""
+        """Trace pass ``i``'s photons and upload their grid for radius r_i, waiting for any
+        part made ahead (``build_seconds``: the time it took, emission included)."""
         t0 = time.perf_counter()
-        pos, dirs, powers, normals = self.trace(i, bind_scene)
-        self.radius = caustics.pass_radius(self.r1, i)
-        grid = caustics.build_grid(pos, dirs, powers, normals, self.radius)
-        release_gl(*self._grid_tex)
-        table = np.stack([grid.start, grid.count], axis=1).astype(np.float32)   # exact below 2^24
-        self._grid_tex = [float_texture(self.ctx, texels(a)) for a in
-                          (table, grid.positions, grid.directions, grid.powers, grid.normals)]
-        self.table_size = grid.table_size
-        self.cell = grid.cell
-        self.stored = len(grid)
-        self.pass_index = int(i)
+        while not self.advance(i, bind_scene, wait=True):
+            pass
         self.build_seconds = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ made ahead, off the GL thread
+    # A pass's photon map in three stages, so that a window's frame never waits for numpy: the
+    # emission (a worker thread), the photon pass's draws and their read-back (the GL thread: the
+    # GPU's work), the hash grid (a worker thread); then its textures go up (the GL thread).
+    # ``advance`` moves pass i's map on as far as it can without waiting; the engine's
+    # ``step_for`` renders a band only when its pass's map is up, and makes the next pass's up to
+    # its upload while this one's bands render.
+
+    def _worker(self):
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="photon-map")
+        return self._pool
+
+    def _grid_arrays(self, i: int, found) -> tuple:
+        """(table, sorted photons' arrays as texels, table size, stored) of pass ``i`` (any thread)."""
+        grid = caustics.build_grid(*found, caustics.pass_radius(self.r1, i))
+        table = np.stack([grid.start, grid.count], axis=1).astype(np.float32)   # exact below 2^24
+        arrays = [texels(a) for a in (table, grid.positions, grid.directions, grid.powers, grid.normals)]
+        return arrays, grid.table_size, len(grid)
+
+    def advance(self, i: int, bind_scene, wait: bool = False, upload: bool = True) -> bool:
+        """Move pass ``i``'s photon map on; True when it is up (``pass_index == i``). Without
+        ``wait`` nothing here waits for the worker thread: a stage whose input is not ready
+        returns False at once. ``upload=False``: stop before its textures replace the current
+        pass's (the next pass's map made while this one's bands render)."""
+        if self.pass_index == i:
+            return True
+        if self._ahead is None or self._ahead[0] != i:
+            self._ahead = [i, "emit", self._worker().submit(self.emit, i)]
+        _i, stage, fut = self._ahead
+        if not wait and not fut.done():
+            return False
+        if stage == "emit":
+            found = self.trace(i, bind_scene, fut.result())           # GL: the photon pass
+            self._ahead = [i, "grid", self._worker().submit(self._grid_arrays, i, found)]
+            return self.advance(i, bind_scene, wait, upload)
+        if not upload:
+            return False
+        arrays, table_size, stored = fut.result()
+        release_gl(*self._grid_tex)
+        self._grid_tex = [float_texture(self.ctx, a) for a in arrays]
+        self.radius = caustics.pass_radius(self.r1, i)
+        self.table_size = table_size
+        self.cell = self.radius
+        self.stored = stored
+        self.pass_index = int(i)
+        self._ahead = None
+        return True
 
     def bind(self, prog, unit: int) -> int:
         """Point the path-tracing program's photon samplers and uniforms at the current grid
@@ -184,5 +240,9 @@ class CausticPhotons:
         return unit
 
     def release(self):
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        self._ahead = None
         release_gl(*self._grid_tex, *self._dummy)
         self._grid_tex, self._dummy = [], []

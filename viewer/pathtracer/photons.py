@@ -38,6 +38,8 @@ from collections import OrderedDict
 
 import numpy as np
 
+from viewer import brdf
+from viewer.brdf import lobes
 from viewer.brdf.lobes import drew_delta
 from viewer.pathtracer.integrator import Integrator, material_groups, philox, surface_hits
 from viewer.pathtracer.spectral import SpectralIntegrator
@@ -47,9 +49,64 @@ from viewer.reference_common.estimator import RR_MAX, RR_MIN
 QUERY_BATCH = 4096       # gather queries per grid lookup (bounds the candidate pairs held at once)
 
 
-def trace_photons(it, o, d, flux, gen: np.random.Generator):
+class PhotonSpectra:
+    """Wavelength photons (``caustics.spectral_photons``): a photon's flux is one number, its
+    spectral flux at its bin; an RGB weight (a non-spectral material's, a Bouguer
+    transmittance) is upsampled at that bin, a spectral material is sampled and evaluated with
+    its parameters at the bin's wavelength (``brdf.params_at``, as the spectral path tracer's
+    hero wavelength), so n(lambda) bends each photon its own way."""
+
+    def __init__(self):
+        from viewer import spectral
+        from viewer.reference_common.wavelengths import bin_wavelengths, bin_weights
+
+        self.nm = bin_wavelengths()
+        self.basis = spectral.upsampling.basis_at(self.nm)    # (420, 3)
+        self.w_bins = bin_weights()                            # (420, 3)
+        self._params: dict = {}
+
+    def up(self, rgb, bins):
+        """(k,) RGB values (k, 3) upsampled at ``bins`` (k,)."""
+        return np.einsum("kc,kc->k", self.basis[bins], np.asarray(rgb, dtype=np.float64))
+
+    def params(self, prm, b: int):
+        """``prm`` at the wavelength of bin ``b`` in all three channels."""
+        key = (id(prm), int(b))
+        if key not in self._params:
+            self._params[key] = (prm, brdf.params_at(prm, [self.nm[b]] * 3))
+        return self._params[key][1]
+
+    def sample(self, g, u, bins):
+        """(wi local, weight (k,) at each bin, pdf, lobe) of group ``g``'s material."""
+        if not brdf.uses_spectral(g.prm):
+            wi, wgt, pdf, lobe = g.model.sample_lobe(g.prm, g.wo, u)
+            return wi, self.up(np.nan_to_num(np.asarray(wgt, dtype=np.float64)), bins), pdf, lobe
+        k = bins.size
+        wi, wgt, pdf = np.zeros((k, 3)), np.zeros(k), np.zeros(k)
+        lobe = np.zeros(k, dtype=lobes.DTYPE)
+        for b in np.unique(bins):
+            s = np.flatnonzero(bins == b)
+            wi[s], w_s, pdf[s], lobe[s] = g.model.sample_lobe(self.params(g.prm, b), g.wo[s], u[s])
+            wgt[s] = np.asarray(w_s, dtype=np.float64)[:, 0]
+        return wi, wgt, pdf, lobe
+
+    def eval(self, g, wi, wo, bins):
+        """(k,) f of group ``g``'s material at local directions (wi, wo) at each bin."""
+        if not brdf.uses_spectral(g.prm):
+            return self.up(np.nan_to_num(g.model.eval(g.prm, wi, wo)), bins)
+        out = np.zeros(bins.size)
+        for b in np.unique(bins):
+            s = np.flatnonzero(bins == b)
+            out[s] = np.nan_to_num(g.model.eval(self.params(g.prm, b), wi[s], wo[s]))[:, 0]
+        return out
+
+
+def trace_photons(it, o, d, flux, gen: np.random.Generator, bins=None, spectra=None):
     """Trace photons (o, d, flux) through the delta surfaces of integrator ``it``'s scene;
-    returns (positions, directions toward where they came from, flux, normals) of the stored ones."""
+    returns (positions, directions toward where they came from, flux, normals) of the stored ones.
+    ``bins``: the photons' wavelength bins (``caustics.spectral_photons``; ``flux`` their
+    spectral flux (n,), ``spectra`` a ``PhotonSpectra``): the stored flux is then (spectral
+    flux, bin, 0) per photon."""
     mats = it.s.materials
     has_delta = np.array([m.lobes.has_delta for m in mats] or [False])
     has_smooth = np.array([m.lobes.has_smooth for m in mats] or [False])
@@ -57,19 +114,26 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
     sigma = np.zeros((n, 3))
     passed = np.zeros(n, dtype=bool)
     out = [], [], [], []
-    flux = np.asarray(flux, dtype=np.float64).copy()
+    wavelengths = bins is not None
+    if wavelengths:
+        bins = np.asarray(bins, dtype=np.int64)
+        flux = np.asarray(flux, dtype=np.float64).reshape(n, 1).copy()
+    else:
+        bins = np.zeros(n, dtype=np.int64)
+        flux = np.asarray(flux, dtype=np.float64).copy()
     for bounce in range(caustics.MAX_PHOTON_BOUNCES + 1):
         if o.shape[0] == 0:
             break
         t, prim, bu, bv = it.kernel.intersect(o, d, 0.0, np.inf)
         hit = prim >= 0
-        d, flux, sigma, passed = d[hit], flux[hit], sigma[hit], passed[hit]
+        d, flux, sigma, passed, bins = d[hit], flux[hit], sigma[hit], passed[hit], bins[hit]
         t, prim, bu, bv = t[hit], prim[hit], bu[hit], bv[hit]
         if prim.size == 0:
             break
         inside = np.any(sigma > 0, axis=1)
         if np.any(inside):
-            flux[inside] *= np.exp(-sigma[inside] * t[inside, None])
+            a = np.exp(-sigma[inside] * t[inside, None])
+            flux[inside] *= spectra.up(a, bins[inside])[:, None] if wavelengths else a
         hits = surface_hits(it, d, prim, bu, bv)
         store = has_smooth[hits.mat] & passed
         if np.any(store):
@@ -77,7 +141,10 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
             side = np.where(np.einsum("ij,ij->i", ng, d[store]) > 0, -1.0, 1.0)
             out[0].append(hits.p[store])
             out[1].append(-d[store])
-            out[2].append(flux[store])
+            if wavelengths:
+                out[2].append(np.stack([flux[store, 0], bins[store], np.zeros(int(store.sum()))], axis=1))
+            else:
+                out[2].append(flux[store])
             out[3].append(ng * side[:, None])
         go = has_delta[hits.mat]
         if bounce == caustics.MAX_PHOTON_BOUNCES or not np.any(go):
@@ -90,8 +157,12 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
         for g in material_groups(it, hits, act):
             if not g.info.lobes.has_delta:
                 continue
-            wi_l, wgt, pdf, lobe = g.model.sample_lobe(g.prm, g.wo, u[g.sel, :2])
-            wgt = np.asarray(wgt, dtype=np.float64)
+            if wavelengths:
+                wi_l, wgt, pdf, lobe = spectra.sample(g, u[g.sel, :2], bins[g.sel])
+                wgt = wgt[:, None]
+            else:
+                wi_l, wgt, pdf, lobe = g.model.sample_lobe(g.prm, g.wo, u[g.sel, :2])
+                wgt = np.asarray(wgt, dtype=np.float64)
             wi_w = g.world(wi_l)
             ok = drew_delta(lobe) & (np.asarray(pdf) > 0) & np.all(np.isfinite(wgt), axis=1) \
                 & np.all(np.isfinite(wi_l), axis=1)
@@ -106,7 +177,7 @@ def trace_photons(it, o, d, flux, gen: np.random.Generator):
             w = w / q[:, None]
         side = np.where(np.einsum("ij,ij->i", hits.ng, new_d) < 0, -1.0, 1.0)
         o = (hits.p + (hits.eps * side)[:, None] * hits.ng)[keep]
-        d, flux, sigma = new_d[keep], (flux * w)[keep], sigma[keep]
+        d, flux, sigma, bins = new_d[keep], (flux * w)[keep], sigma[keep], bins[keep]
         passed = np.ones(o.shape[0], dtype=bool)
     if not out[0]:
         z = np.zeros((0, 3))
@@ -128,12 +199,18 @@ class CausticMap:
         self.n_photons = int(s.extra.get("photons_per_pass") or caustics.photons_per_pass(s.width, s.height))
         self.r1 = caustics.initial_radius(self.scene_radius, self.n_photons)
         self._grids: OrderedDict = OrderedDict()
+        # photons of one wavelength each (a dispersive or spectral delta surface, spectral estimator)
+        self.spectra = PhotonSpectra() if caustics.spectral_photons(s) else None
 
     def photons(self, seed: int, pass_index: int):
-        """(positions, directions, flux, normals) of the stored photons of pass ``pass_index`` (1-based)."""
+        """(positions, directions, flux, normals) of the stored photons of pass ``pass_index``
+        (1-based); with wavelengths the flux rows are (spectral flux, bin, 0)."""
         gen = self.stream(seed, caustics.PHOTON_STREAM, pass_index)
         o, d, f = caustics.emit_photons(self.it.s, self.n_photons, gen)
-        return trace_photons(self.it, o, d, f, gen)
+        if self.spectra is None:
+            return trace_photons(self.it, o, d, f, gen)
+        bins = caustics.photon_bins(gen, o.shape[0])
+        return trace_photons(self.it, o, d, caustics.spectral_flux(f, bins), gen, bins, self.spectra)
 
     def grid(self, seed: int, pass_index: int) -> caustics.PhotonGrid:
         key = (int(seed), int(pass_index))
@@ -177,6 +254,9 @@ class CausticMap:
                              mi=g.mi, act=g.act[j])
                 pg.prm = g.prm
                 wi = grid.directions[rows]
+                if self.spectra is not None:
+                    self._gather_wavelengths(pg, paths, Tg[j], wi, grid.powers[rows], norm)
+                    continue
                 ((wl, f),) = it.eval_directions(pg, paths, [wi])
                 valid = pg.valid(wl, wi)
                 share = it.emission_share(pg, paths)
@@ -185,6 +265,26 @@ class CausticMap:
                     c = c * share[:, None]
                 c = np.where(valid[:, None], c, 0.0)
                 np.add.at(paths.L, pg.act, c)
+
+
+    def _gather_wavelengths(self, pg, paths, T, wi, power, norm):
+        """Photons of one wavelength each (power rows: spectral flux, bin, 0): each adds
+        T f(lambda_p) Phi(lambda_p) / (pi r^2) converted to RGB, N_BINS W(lambda_p) times it (the
+        one-sample estimate of sum_lambda W(lambda) L(lambda) for a bin drawn with probability
+        1 / N_BINS), to the path sample's RGB (``paths.rgb``, which the spectral estimator adds
+        to its four wavelengths' RGB): the photon's wavelength is none of the path's. T is the
+        mean of the path's throughput over its wavelengths (a hero-only path: its hero's), exact
+        where the throughput is flat in wavelength (a camera ray, achromatic mirrors and glass:
+        the first diffuse vertex of the lecture's caustics), the spectral mean of it otherwise."""
+        from viewer.reference_common.wavelengths import N_BINS
+
+        sp = self.spectra
+        bins = power[:, 1].astype(np.int64)
+        wl = pg.local(wi)
+        f = sp.eval(pg, wl, pg.wo, bins)
+        valid = pg.valid(wl, wi)
+        c = np.where(valid, T.mean(axis=1) * f * power[:, 0] * (norm * N_BINS), 0.0)
+        np.add.at(paths.rgb, pg.act, c[:, None] * sp.w_bins[bins])
 
 
 class CausticPaths:
@@ -221,7 +321,8 @@ class PhotonIntegrator(CausticPaths, Integrator):
 
 
 class SpectralPhotonIntegrator(CausticPaths, SpectralIntegrator):
-    """Path tracing plus a progressive caustic photon map, hero wavelengths (photons carry RGB)."""
+    """Path tracing plus a progressive caustic photon map, hero wavelengths (photons carry RGB, or
+    one wavelength each through dispersive or spectral delta surfaces: ``caustics.spectral_photons``)."""
 
 
 def integrator_for(setup):

@@ -47,6 +47,9 @@ class SpectralPaths(PathState):
         self.lam = lam
         self.hero = hero
         self.hero_only = np.zeros(lam.shape[0], dtype=bool)
+        # RGB added to the sample's beside its wavelengths' (a photon map's photons of their own
+        # wavelengths: viewer.pathtracer.photons)
+        self.rgb = np.zeros((lam.shape[0], 3))
 
 
 class SpectralIntegrator(Integrator):
@@ -107,8 +110,9 @@ class SpectralIntegrator(Integrator):
         hero = np.minimum((lam_u[:, 1] * 4).astype(np.int64), 3)
         lam = c[:, None] + STRIDE * np.arange(4)[None, :]
         o, d = self.camera_rays(rows, cols, jit)
-        Ls = self.trace_spectral(o, d, lam, hero, self._bounce_draws(gens, npix))
-        rgb = (N_BINS / 4.0) * np.einsum("nj,njc->nc", Ls, self.w_bins[lam])
+        paths = SpectralPaths(lam, hero)
+        Ls = self.trace_paths(paths, o, d, self._bounce_draws(gens, npix))
+        rgb = (N_BINS / 4.0) * np.einsum("nj,njc->nc", Ls, self.w_bins[lam]) + paths.rgb
         rgb = rgb.reshape(len(samples), row1 - row0, self.s.width, 3)
         return rgb.sum(axis=0), (rgb * rgb).sum(axis=0)
 

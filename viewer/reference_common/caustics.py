@@ -251,6 +251,50 @@ def emit_photons(setup, n: int, rng_or_seed):
     return np.concatenate(origins), np.concatenate(dirs), np.concatenate(flux)
 
 
+# ----------------------------------------------------------------------------- wavelengths
+
+def spectral_photons(setup) -> bool:
+    """Whether a pass's photons carry one wavelength each: where the spectral estimator runs
+    (``setup.extra["spectral"]``) and a surface a photon passes (one with a delta lobe) has
+    values that depend on the wavelength (a dispersive dielectric: n(lambda) bends each
+    wavelength its own way, so a prism's caustic splits into colours; a spectral mirror).
+    Elsewhere photons carry RGB power, as the RGB estimator's do."""
+    if not setup.extra.get("spectral"):
+        return False
+    from viewer import brdf
+
+    return any(m.lobes.has_delta and brdf.uses_spectral(m.params) for m in setup.materials)
+
+
+def photon_bins(gen: np.random.Generator, n: int) -> np.ndarray:
+    """(n,) wavelength bins (0 .. N_BINS - 1 of ``viewer.reference_common.wavelengths``),
+    uniform: probability 1 / N_BINS each."""
+    from viewer.reference_common.wavelengths import N_BINS
+
+    return np.minimum((gen.random(n) * N_BINS).astype(np.int64), N_BINS - 1)
+
+
+def spectral_flux(flux_rgb, bins) -> np.ndarray:
+    """(n,) the spectral flux at ``bins`` of RGB fluxes (n, 3): the Mallett & Yuksel (2019)
+    upsampling both engines use for RGB quantities, sum_c x_c b_c(lambda)."""
+    from viewer import spectral
+    from viewer.reference_common.wavelengths import bin_wavelengths
+
+    basis = spectral.upsampling.basis_at(bin_wavelengths())
+    return np.einsum("nc,nc->n", basis[np.asarray(bins)], np.asarray(flux_rgb, dtype=np.float64))
+
+
+def flux_to_rgb(phi, bins) -> np.ndarray:
+    """(n, 3) the RGB a photon of spectral flux ``phi`` (n,) at wavelength bins ``bins`` stores:
+    N_BINS phi W(lambda) with W the bins' CIE RGB weights (sum W = 1), the one-sample estimate
+    of sum_lambda W(lambda) Phi(lambda) for a bin drawn with probability 1 / N_BINS, so a
+    photon's expected RGB is the RGB of its spectrum (some bins' W has a negative channel, as a
+    pure wavelength lies outside the Rec. 709 gamut: single photons may store one)."""
+    from viewer.reference_common.wavelengths import N_BINS, bin_weights
+
+    return N_BINS * np.asarray(phi, dtype=np.float64)[:, None] * bin_weights()[np.asarray(bins)]
+
+
 # ----------------------------------------------------------------------------- the hash grid
 
 def hash_cells(cells: np.ndarray, table_size: int) -> np.ndarray:
