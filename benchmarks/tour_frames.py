@@ -22,7 +22,8 @@ long in wall time but short in thread CPU waited for the rasterizer or another t
 through the window's key path (``app.keys.taps``), the editor's actions through the session's,
 as the panels call them. ``--profile TEXT``: the slowest frame of each action whose label holds
 TEXT is profiled (cProfile, by cumulative time); ``--profile-over MS``: every frame over MS
-milliseconds of wall time is (its 25 costliest calls). ``--cold``: every cache starts empty
+milliseconds of wall time is (its 12 costliest calls, and the viewer's
+calls by cumulative time). ``--cold``: every cache starts empty
 (Mesa's shader cache, the environment maps' prefilters, the traced frames: ``XDG_CACHE_HOME`` a
 new folder), as on a machine where the viewer never ran; otherwise the caches are as they are.
 """
@@ -85,7 +86,9 @@ def follow(app, bound_s: float, during=None, profile: bool = False, over_ms: flo
         proc.append(1000 * (time.process_time() - p))
         if over_ms is not None and frames[-1] > over_ms:
             print(f"    frame {i}: {frames[-1]:.0f} ms, thread CPU {cpu[-1]:.0f} ms", flush=True)
-            pstats.Stats(prof).sort_stats("tottime").print_stats(25)
+            st = pstats.Stats(prof)
+            st.sort_stats("tottime").print_stats(12)
+            st.sort_stats("cumulative").print_stats(r"viewer[/\\]", 25)  # the viewer's own calls, nested
         if profile and frames[-1] >= max(frames):
             worst = prof
         i += 1

@@ -38,6 +38,7 @@ class CompileControl:
         # the picker's presets compile there instead, and this list stays empty)
         self.warm = [] if on else list(brdf.names())
         self._ahead_sent = False   # the presets still to send to the child (False: not begun)
+        self._batch = (None, 0)    # (the scene and materials last asked for, their batch number)
 
     def poll(self) -> None:
         """The request the view waits for answered: the view is drawn again, with the material
@@ -102,8 +103,11 @@ class CompileControl:
         traced = rt_held is False and s.renderer.traces(s.scene)
         # a traced scene: its untraced programs first (a fraction of the traced ones' compile),
         # so it is drawn untraced in seconds rather than with stand-ins until the traced are ready
-        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True)
-        rid = None if ca is None else ca.request(s.scene, urgent=True)
+        # this scene's requests go before those of the scenes shown before it (``batch``)
+        batch = self._batch_for(s.scene)
+        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True,
+                                                                     batch=batch)
+        rid = None if ca is None else ca.request(s.scene, urgent=True, batch=batch)
         done_beside = ca is not None and all(
             (keys[n] in progs or keys[n] in ca.compiled) and params_key(s.scene.materials[n]) in ca.tables
             for n in missing)
@@ -147,6 +151,14 @@ class CompileControl:
         self.awaiting = rid
         self.pending = missing
         return out
+
+    def _batch_for(self, scene) -> int:
+        """The compile-ahead batch of ``scene`` as it is now: a new one (higher) for another
+        scene or other materials than the last asked for."""
+        key = (id(scene), tuple(map(id, scene.materials.values())))
+        if key != self._batch[0]:
+            self._batch = (key, self._batch[1] + 1)
+        return self._batch[1]
 
     def untraced_copy(self, scene):
         """``scene`` with its traced chains off (the same copy while the scene is the same)."""
@@ -208,9 +220,13 @@ class CompileControl:
         ca = self.worker()
         if ca is not None:
             try:
-                ca.request(tour_scene(step), urgent=False)
+                scene = tour_scene(step)
             except ViewerError:
-                pass  # the step reports its own problem when it opens
+                return  # the step reports its own problem when it opens
+            if self.session.renderer.traces(scene):  # its untraced programs first, as when it is shown
+                flat = dataclasses.replace(scene, render=dataclasses.replace(scene.render, raytrace=False))
+                ca.request(flat, urgent=False, ahead=True)
+            ca.request(scene, urgent=False, ahead=True)
 
     def _warm_presets_ahead(self) -> None:
         """The presets the material picker offers, each on the scene's first non-plane object,
