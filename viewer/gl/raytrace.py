@@ -120,6 +120,30 @@ def dispersive(scene) -> bool:
     return any(chain_glass(p) and np.ptp(chain_eta(p)) > 0 for p in scene.materials.values())
 
 
+def upscale(img: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
+    """(h, w, C) float32: ``img`` (about (h / s, w / s, C)) enlarged ``s`` times with bilinear
+    interpolation between its pixel centres (clamped at the borders), so that a preview's
+    antialiased silhouettes stay smooth instead of turning into steps ``s`` pixels tall, as
+    repeating each pixel would."""
+    def weights(n_out, n_in):
+        x = np.clip((np.arange(n_out) + 0.5) / s - 0.5, 0.0, n_in - 1)
+        i0 = np.floor(x).astype(np.intp)
+        i1 = np.minimum(i0 + 1, n_in - 1)
+        return i0, i1, (x - i0).astype(np.float32)
+
+    def lerp(a, b, f):  # a + (b - a) f, in place (the view's size: tens of millions of values)
+        b -= a
+        b *= f
+        b += a
+        return b
+
+    src = np.asarray(img, np.float32)
+    x0, x1, fx = weights(w, src.shape[1])  # the narrow pass first: along the rows of the small image
+    cols = lerp(src[:, x0], src[:, x1], fx[None, :, None])
+    y0, y1, fy = weights(h, src.shape[0])
+    return lerp(cols[y0], cols[y1], fy[:, None, None])
+
+
 class RayTrace:
     """The GPU data of traced chains for the current scene, rebuilt when it changes: the BVH
     textures when the geometry changes (meshes or transforms), the material texture when a
@@ -257,7 +281,8 @@ class ProgressiveTrace:
     ``start(traced=False)`` builds a raster frame the same way, for a view whose whole frame
     takes longer than a frame's budget (the window after a change, on software OpenGL): the
     texture first holds an image given for the meantime (the view as it was before the change)
-    or the view at half resolution without MSAA (each pixel standing for its 2 x 2), then every
+    or the view at half resolution without MSAA (or a quarter with it), enlarged with bilinear
+    interpolation (``upscale``: smooth silhouettes, not steps), then every
     pixel is drawn in tiles from the top with the view's MSAA and no traced chains. Once
     ``done`` it holds exactly the whole frame ``Renderer.render(raytrace=False)`` draws: the
     tiles are scissors of it."""
@@ -416,10 +441,10 @@ class ProgressiveTrace:
             hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=msaa if s == 4 else 0, raytrace=False)
             under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
                                   np.float32).reshape(hs, ws, 4)
-            under = np.repeat(np.repeat(under, s, axis=0), s, axis=1)[:h, :w]
+            under = upscale(under, s, h, w)
         if isinstance(under, np.ndarray):
             if under.shape[:2] != (h, w):
-                under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]
+                under = upscale(under, 2, h, w)
             self.texture.write(np.ascontiguousarray(under, np.float32))
         self.base = None  # every pixel is a tile's
         self.mask = np.ones((h, w), bool)
