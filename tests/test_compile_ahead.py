@@ -256,7 +256,7 @@ def test_a_request_asked_for_again_moves_up_and_outranks_the_one_drawn():
 
 
 def test_the_window_asks_for_a_traced_steps_untraced_copy_first_and_a_later_scene_in_a_later_batch(gl_ctx):
-    from viewer.app.session import Session
+    from viewer.app.session import STAND_IN_ALBEDO, Session
     from viewer.gl.renderer import Renderer
     from viewer.scene.lecture import tour_scene
 
@@ -265,18 +265,26 @@ def test_the_window_asks_for_a_traced_steps_untraced_copy_first_and_a_later_scen
             self.requests.append((scene, urgent, priority))
             return len(self.requests)
 
+    def grey(scene):
+        return all(p.model == "lambert" and np.allclose(p["albedo"], STAND_IN_ALBEDO) for p in scene.materials.values())
+
     renderer = Renderer(gl_ctx)
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
     child = s.compiles.child = Child()
     try:
-        s.tour.lecture(1)  # mirror and glass, traced; asks for step 3 ahead
-        ahead = [(sc.render.raytrace, pr) for sc, urgent, pr in child.requests if not urgent]
-        assert ahead == [(False, {"ahead": True}), (True, {"ahead": True})]
+        s.tour.lecture(1)  # mirror and glass, traced; asks for step 3 ahead, in the order it needs them:
+        ahead = [(sc, pr) for sc, urgent, pr in child.requests if not urgent]
+        assert [pr for _, pr in ahead] == [{"ahead": True}] * 3
+        (stand_in, _), (flat, _), (traced, _) = ahead
+        assert grey(stand_in) and stand_in.objects is traced.objects  # its first frame's grey stand-ins
+        assert not flat.render.raytrace and traced.render.raytrace  # its untraced programs, its own
         child.requests.clear()
         # what the view draws while the step's programs compile (no frame drawn: none is needed)
         assert s.compiles.held_back(None, False, True) is not None
-        (flat, u1, p1), (traced, u2, p2) = child.requests[:2]
-        assert u1 and u2 and not flat.render.raytrace and traced is s.scene and p1 == p2
+        (flat, u1, p1), (nxt, u2, p2), (traced, u3, p3) = child.requests[:3]
+        assert u1 and u2 and u3 and p1 == p2 == p3
+        assert not flat.render.raytrace and traced is s.scene
+        assert nxt is stand_in  # the next step's stand-ins (cheap) before this step's traced programs
         s.tour.lecture(2)
         child.requests.clear()
         s.compiles.held_back(None, False, True)
