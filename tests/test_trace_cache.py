@@ -397,3 +397,16 @@ def test_prepare_lecture_child_ends_with_the_window(tmp_path):
     else:
         os.kill(child, signal.SIGKILL)
         raise AssertionError("the bake child outlived its window")
+
+
+def test_prepare_lecture_runs_behind_the_windows_frames():
+    """The bake child runs at the background children's priority (CHILD_NICE), as the prefetch
+    and the compile-ahead child: at the window's own it would take half the window's cores."""
+    from viewer.app.lecture_prep import BackgroundPrep
+    from viewer.app.prefetch import CHILD_NICE
+
+    p = BackgroundPrep((64, 36), steps=[0], command=[sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        assert os.getpriority(os.PRIO_PROCESS, p.child_pid) == max(CHILD_NICE, os.getpriority(os.PRIO_PROCESS, 0))
+    finally:
+        p.cancel()

@@ -296,6 +296,21 @@ class MapPrefilter:
         self._cleanup()
 
 
+#: the niceness of the window's background children (the prefetch, the compile-ahead child, Prepare
+#: lecture's bake): on a two-core machine a child at the window's priority halves its frame rate
+CHILD_NICE = 10
+
+
+def behind_the_window(pid) -> None:
+    """Lower the priority of the child process ``pid``, just started, to ``CHILD_NICE`` (never
+    raise it): its threads (llvmpipe's rasterizer threads, made when its GL context is) inherit
+    it. Where the system does not allow it, nothing happens."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, int(pid), max(CHILD_NICE, os.getpriority(os.PRIO_PROCESS, int(pid))))
+    except (OSError, AttributeError, TypeError, ValueError):
+        pass
+
+
 def stop_child(proc, timeout: float = 10.0) -> None:
     """Terminate a child process still running (None: none), killing it after ``timeout`` s."""
     if proc is not None and proc.poll() is None:
@@ -314,7 +329,7 @@ def stop_child(proc, timeout: float = 10.0) -> None:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
-        os.nice(10)  # behind the window's own frames
+        os.nice(CHILD_NICE)  # behind the window's own frames
     except (OSError, AttributeError):
         pass
     try:
