@@ -5,27 +5,28 @@
 The window opens on the default scene; then, one action at a time: L (lecture mode), the digit
 keys 1-9 and 0 and Right through all the tour's steps, Esc, a preset change in the material
 editor, a slider dragged over 12 frames, the gallery with ray tracing turned on, the compare
-views (split, difference, side by side, reference, and back to the raster) and every tab of the
-plots window. Each action is followed frame by frame, drawn flat out, until the view settles
-(nothing dirty, compiling, tiling, tracing or computing for three frames; a compare view also
-waits for the reference's first pass and, for the difference, its metrics) or a bound is
-reached (``SETTLE_S`` seconds, ``--quick`` a third). Prints per action the longest frame, the
-frames over 150 ms and over 500 ms, the frames followed and the time until settled (``*``:
-the bound was reached first), then the same frames measured in CPU time, which other
-processes on the machine do not lengthen: the longest frame in the window thread's own CPU
-time (``time.thread_time``: the Python work, the GL calls' driver work and llvmpipe's shader
-compiles and code generation, which run on the calling thread) with its frames over 150 and
-500 ms, and the process's CPU time in the frame of longest wall time (``time.process_time``:
-that thread, llvmpipe's rasterizer threads and any other thread of the window, such as the
-plots' worker). On a loaded machine the wall column grows and the CPU columns stay; a frame
-long in wall time but short in thread CPU waited for the rasterizer or another thread. Keys go
-through the window's key path (``app.keys.taps``), the editor's actions through the session's,
-as the panels call them. ``--profile TEXT``: the slowest frame of each action whose label holds
-TEXT is profiled (cProfile, by cumulative time); ``--profile-over MS``: every frame over MS
-milliseconds of wall time is (its 12 costliest calls, and the viewer's
-calls by cumulative time). ``--cold``: every cache starts empty
-(Mesa's shader cache, the environment maps' prefilters, the traced frames: ``XDG_CACHE_HOME`` a
-new folder), as on a machine where the viewer never ran; otherwise the caches are as they are.
+views (split, difference, side by side, reference, and back to the raster), every tab of the
+plots window and *Prepare lecture* (the window's frames while its child traces the steps). Each
+action is followed frame by frame, drawn flat out, until the view settles (nothing dirty,
+compiling, tiling, tracing or computing for three frames; a compare view also waits for the
+reference's first pass and, for the difference, its metrics) or a bound is reached (``SETTLE_S``
+seconds, ``--quick`` a third). Prints per action the longest frame, the frames over 150 ms and
+over 500 ms, the frames followed and the time until settled (``*``: the bound was reached
+first), then the same frames measured in CPU time, which other processes on the machine do not
+lengthen: the longest frame in the window thread's own CPU time (``time.thread_time``: the
+Python work, the GL calls' driver work and llvmpipe's shader compiles and code generation, which
+run on the calling thread) with its frames over 150 and 500 ms, and the process's CPU time in
+the frame of longest wall time (``time.process_time``: that thread, llvmpipe's rasterizer
+threads and any other thread of the window, such as the plots' worker). On a loaded machine the
+wall column grows and the CPU columns stay; a frame long in wall time but short in thread CPU
+waited for the rasterizer or another thread. Keys go through the window's key path
+(``app.keys.taps``), the editor's actions through the session's, as the panels call them.
+``--profile TEXT``: the slowest frame of each action whose label holds TEXT is profiled
+(cProfile, by cumulative time); ``--profile-over MS``: every frame over MS milliseconds of wall
+time is (its 12 costliest calls, and the viewer's calls by cumulative time). ``--cold``: every
+cache starts empty (Mesa's shader cache, the environment maps' prefilters, the traced frames:
+``XDG_CACHE_HOME`` a new folder), as on a machine where the viewer never ran; otherwise the
+caches are as they are.
 """
 
 from __future__ import annotations
@@ -103,6 +104,18 @@ def follow(app, bound_s: float, during=None, profile: bool = False, over_ms: flo
                     "s": time.perf_counter() - t0, "busy": busy(app)}
 
 
+def _for_seconds(seconds: float):
+    """A ``during`` that changes nothing and keeps the frames followed for ``seconds``."""
+    t0 = []
+
+    def during(i):
+        if not t0:
+            t0.append(time.perf_counter())
+        during.frames = i + 2 if time.perf_counter() - t0[0] < seconds else 0
+    during.frames = 1
+    return during
+
+
 def main(argv):
     quick = "--quick" in argv
     wanted = argv[argv.index("--profile") + 1] if "--profile" in argv else None
@@ -167,6 +180,14 @@ def main(argv):
     s.changed()
     for tab in TABS:
         act(f"plots tab: {tab}", lambda t=tab: app.plots.select_tab(t))
+    # Prepare lecture: the window's frames while its child traces the steps (for the bound,
+    # then cancelled; the traced frames it stored stay in the cache: last, so no step above
+    # opens from them)
+    s.set_image_mode("raster")
+    act("Prepare lecture (frames meanwhile)", lambda: s.prepare_lecture(),
+        during=_for_seconds(bound))
+    if s.preparing:
+        s.prepare_lecture()  # again while it runs: cancelled
     app.close()
     for what, col in (("wall time", "frames"), ("the window thread's CPU time", "cpu")):
         worst = max(max(r[col]) for r in rows)
