@@ -144,6 +144,36 @@ def upscale(img: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
     return lerp(cols[y0], cols[y1], fy[:, None, None])
 
 
+#: the disk cache's kind for a scene's flattened BVH (``cached_flat_scene``); bump the version
+#: in ``viewer.environment.cache`` or this name when ``flatten_scene``'s output changes
+BVH_CACHE_KIND = "bvh1"
+
+
+def cached_flat_scene(geom):
+    """``viewer.geometry.bvh_flat.flatten_scene(geom)``, from the disk cache when it holds the
+    same triangles (a lecture step seen before, or drawn by the compile-ahead child, which builds
+    it first): the BVH build is pure Python and takes a second for the soap bubbles on a loaded
+    machine, on the window's thread, in the frame ray tracing starts."""
+    from viewer.environment import cache
+    from viewer.geometry.bvh_flat import FlatScene, flatten_scene
+
+    if geom.n_triangles == 0:
+        return flatten_scene(geom)
+    arrays = (geom.triangles, geom.normals, geom.tangents, geom.object_index, geom.material_index)
+    key = cache.content_key(np.concatenate([np.ascontiguousarray(a, np.float64).ravel() for a in arrays]),
+                            {"n": geom.n_triangles}, kind=BVH_CACHE_KIND)
+    hit = cache.load(key, kind=BVH_CACHE_KIND)
+    names = ("nodes", "tris", "shading", "prim_id")
+    if hit is not None and all(n in hit for n in names + ("sizes",)) and hit["prim_id"].shape == (geom.n_triangles,):
+        n_nodes, n_tris, depth = (int(x) for x in hit["sizes"])
+        return FlatScene(*(hit[n] for n in names), n_nodes, n_tris, depth)
+    flat = flatten_scene(geom)
+    cache.store(key, {"nodes": flat.nodes, "tris": flat.tris, "shading": flat.shading, "prim_id": flat.prim_id,
+                      "sizes": np.array([flat.n_nodes, flat.n_triangles, flat.depth], np.int64)},
+                kind=BVH_CACHE_KIND)
+    return flat
+
+
 class RayTrace:
     """The GPU data of traced chains for the current scene, rebuilt when it changes: the BVH
     textures when the geometry changes (meshes or transforms), the material texture when a
@@ -166,7 +196,7 @@ class RayTrace:
         if gkey != self._geom_key or self.textures is None:
             if self.textures is not None:
                 self.textures.release()
-            self.textures = SceneTextures(self.ctx, build_geometry(scene))
+            self.textures = SceneTextures(self.ctx, flat=cached_flat_scene(build_geometry(scene)))
             self._geom_key = gkey
         mkey = json.dumps({k: p.to_plain() for k, p in scene.materials.items()}, sort_keys=True)
         if mkey != self._mat_key or self.mat_tex is None:
