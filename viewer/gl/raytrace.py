@@ -175,9 +175,14 @@ def cached_flat_scene(geom):
 
     if geom.n_triangles == 0:
         return flatten_scene(geom)
-    arrays = (geom.triangles, geom.normals, geom.tangents, geom.object_index, geom.material_index)
-    key = cache.content_key(np.concatenate([np.ascontiguousarray(a, np.float64).ravel() for a in arrays]),
-                            {"n": geom.n_triangles}, kind=BVH_CACHE_KIND)
+    import hashlib
+
+    digest = hashlib.blake2b(digest_size=20)
+    for a in (geom.triangles, geom.normals, geom.tangents, geom.object_index, geom.material_index):
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(memoryview(a).cast("B"))
+    key = cache.content_key(None, {"n": geom.n_triangles, "arrays": digest.hexdigest()}, kind=BVH_CACHE_KIND)
     hit = cache.load(key, kind=BVH_CACHE_KIND)
     names = ("nodes", "tris", "shading", "prim_id")
     if hit is not None and all(n in hit for n in names + ("sizes",)) and hit["prim_id"].shape == (geom.n_triangles,):
