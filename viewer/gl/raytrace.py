@@ -137,17 +137,19 @@ def upscale(img: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
             at = [slice(None)] * a.ndim
             at[ax] = slice(lo, lo + n)
             return edge[tuple(at)]
-        phases = []
+        out = np.empty(a.shape[:ax] + (n, s) + a.shape[ax + 1:], np.float32)
         for k in range(s):
             d = np.float32((k + 0.5) / s - 0.5)
             lo, hi, f = (1, 2, d) if d >= 0 else (0, 1, np.float32(1) + d)
-            b = shifted(hi) - shifted(lo)
-            b *= f
-            b += shifted(lo)
-            phases.append(b)
+            at = [slice(None)] * out.ndim
+            at[ax + 1] = k
+            phase = out[tuple(at)]  # written in place: no stacked copy
+            np.subtract(shifted(hi), shifted(lo), out=phase)
+            phase *= f
+            phase += shifted(lo)
         shape = list(a.shape)
         shape[ax] = n * s
-        out = np.stack(phases, axis=ax + 1).reshape(shape)
+        out = out.reshape(shape)
         at = [slice(None)] * a.ndim
         at[ax] = slice(0, n_out)
         out = out[tuple(at)]
