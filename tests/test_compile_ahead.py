@@ -78,7 +78,7 @@ class StandIn:
     def __init__(self):
         self.compiled, self.tables, self.requests, self.released = set(), {}, [], False
 
-    def request(self, scene, urgent=True):
+    def request(self, scene, urgent=True, **priority):
         self.requests.append((scene, urgent))
         return len(self.requests)  # a request's id, as the child numbers them
 
@@ -189,3 +189,107 @@ def test_the_viewer_command_can_turn_it_off(capsys):
     with pytest.raises(SystemExit):
         cli.main(["--help"])
     assert "--no-compile-ahead" in capsys.readouterr().out
+
+
+def _req(rid, tier, batch=0):
+    return {"id": rid, "scene": "", "priority": [tier, batch]}
+
+
+def test_the_child_draws_the_scene_shown_first_its_untraced_copy_before_its_traced_programs():
+    """The child's queue (``WorkQueue``): the scene the window shows before the next lecture
+    step's and the warm-up's; of the scenes shown the latest first, a scene's requests in the
+    order sent (a traced scene's untraced copy, then its traced programs)."""
+    from viewer.app.compile_ahead import AHEAD, IDLE, URGENT, WorkQueue
+
+    q = WorkQueue()
+    for r in (_req(0, IDLE), _req(1, AHEAD), _req(2, URGENT, 1), _req(3, URGENT, 1), _req(4, URGENT, 2),
+              _req(5, URGENT, 2), _req(6, IDLE)):
+        q.put(r)
+    q.close()
+    order = []
+    while (r := q.take()) is not None:
+        order.append(r["id"])
+        q.finished()
+    assert order == [4, 5, 2, 3, 1, 0, 6]
+
+
+def test_the_childs_renderers_draw_a_new_map_with_the_quick_prefilter_as_the_window(gl_ctx):
+    from viewer.app.compile_ahead import child_renderer
+    from viewer.app.session import Session
+
+    r = child_renderer(gl_ctx)
+    s = Session(gl_ctx, "default", renderer=r, prefetch=True)  # the window's renderer, as it opens
+    try:
+        assert r.ibl().defer is True and s.renderer.ibl().defer is True
+    finally:
+        s.release()
+        r.release()
+
+
+def test_a_request_asked_for_again_moves_up_and_outranks_the_one_drawn():
+    """The next step's scene, sent ahead, then shown: promoted over the warm-up, and the warm-up
+    request being drawn is put back at its next kind of frame (``check`` raises), to be drawn
+    after it."""
+    from viewer.app.compile_ahead import AHEAD, IDLE, URGENT, Preempted, WorkQueue
+
+    q = WorkQueue()
+    q.put(_req(0, IDLE))
+    q.put(_req(1, AHEAD))
+    q.put(_req(2, IDLE))
+    assert q.take()["id"] == 1
+    q.finished()
+    assert q.take()["id"] == 0  # the warm-up drawn ...
+    q.check()                   # ... nothing outranks it yet
+    q.put(_req(3, IDLE))
+    q.check()                   # another warm-up request waits its turn
+    q.put({"promote": 2, "priority": [URGENT, 5]})  # ... until the scene shown asks for request 2 again
+    with pytest.raises(Preempted):
+        q.check()
+    q.put_back()
+    assert q.take()["id"] == 2
+    q.put({"promote": 2, "priority": [IDLE, 0]})  # a lower priority never demotes one
+    q.put(_req(4, URGENT, 4))   # an earlier scene's request does not preempt a later one's
+    q.check()
+    q.finished()
+    q.close()
+    assert [q.take()["id"] for _ in range(3)] == [4, 0, 3]
+
+
+def test_the_window_asks_for_a_traced_steps_untraced_copy_first_and_a_later_scene_in_a_later_batch(gl_ctx):
+    from viewer.app.session import STAND_IN_ALBEDO, Session
+    from viewer.gl.renderer import Renderer
+    from viewer.scene.lecture import tour_scene
+
+    class Child(StandIn):
+        def request(self, scene, urgent=True, **priority):
+            self.requests.append((scene, urgent, priority))
+            return len(self.requests)
+
+    def grey(scene):
+        return all(p.model == "lambert" and np.allclose(p["albedo"], STAND_IN_ALBEDO) for p in scene.materials.values())
+
+    renderer = Renderer(gl_ctx)
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
+    child = s.compiles.child = Child()
+    try:
+        s.tour.lecture(1)  # mirror and glass, traced; asks for step 3 ahead, in the order it needs them:
+        ahead = [(sc, pr) for sc, urgent, pr in child.requests if not urgent]
+        assert [pr for _, pr in ahead] == [{"ahead": True}] * 3
+        (stand_in, _), (flat, _), (traced, _) = ahead
+        assert grey(stand_in) and stand_in.objects is traced.objects  # its first frame's grey stand-ins
+        assert not flat.render.raytrace and traced.render.raytrace  # its untraced programs, its own
+        child.requests.clear()
+        # what the view draws while the step's programs compile (no frame drawn: none is needed)
+        assert s.compiles.held_back(None, False, True) is not None
+        (flat, u1, p1), (nxt, u2, p2), (traced, u3, p3) = child.requests[:3]
+        assert u1 and u2 and u3 and p1 == p2 == p3
+        assert not flat.render.raytrace and traced is s.scene
+        assert nxt is stand_in  # the next step's stand-ins (cheap) before this step's traced programs
+        s.tour.lecture(2)
+        child.requests.clear()
+        s.compiles.held_back(None, False, True)
+        assert child.requests[0][2]["batch"] > p1["batch"]  # the later scene goes first
+    finally:
+        s.compiles.child = None
+        s.release()
+        renderer.release()

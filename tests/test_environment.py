@@ -497,3 +497,35 @@ def test_stored_dfg_table_is_the_computed_one(tmp_path, monkeypatch):
         assert np.array_equal(stored_dfg_table(8, 64), want)
     files[0].write_bytes(b"not an npz")
     assert np.array_equal(stored_dfg_table(8, 64), want)
+
+
+def test_built_in_maps_warmed_on_a_thread_are_generated_once_and_read_by_the_frame(monkeypatch):
+    """``warm_builtin`` generates the maps into the disk cache beside the window's frames; a
+    frame asking for one meanwhile waits for that generation rather than starting another, and
+    later reads it from the cache (the window's thread never generates a warmed map)."""
+    import threading
+
+    from viewer.environment import procedural
+
+    calls = []
+    release = threading.Event()
+    real = procedural.BUILTIN_MAPS["sky"]
+
+    def counted(w, h):
+        calls.append(threading.current_thread().name)
+        release.wait(60)  # the frame below asks while this generation is under way
+        return real(w, h)
+
+    monkeypatch.setitem(procedural.BUILTIN_MAPS, "sky", counted)
+    th = procedural.warm_builtin(lambda: ["sky"], width=64, height=32)
+    while not calls:
+        th.join(0.01)
+    got = []
+    frame = threading.Thread(target=lambda: got.append(procedural.generate("sky", 64, 32)))
+    frame.start()
+    release.set()
+    th.join(60)
+    frame.join(60)
+    assert calls == ["brdf-viewer-builtin-maps"]  # generated once, on the warm-up thread
+    assert np.array_equal(got[0], real(64, 32).astype(np.float32))
+    assert np.array_equal(procedural.generate("sky", 64, 32), got[0]) and len(calls) == 1  # read back

@@ -32,7 +32,7 @@ class StandInChild:
     def __init__(self):
         self.compiled, self.tables, self.requests, self.answered_ids = set(), {}, [], set()
 
-    def request(self, scene, urgent=True):
+    def request(self, scene, urgent=True, **priority):
         from viewer.scene import scene_to_toml
 
         text = scene_to_toml(scene)   # a scene asked for again is not redone, as the child does

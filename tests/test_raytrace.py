@@ -427,3 +427,31 @@ def test_soap_bubble_shows_the_floor_through_and_the_film_colours(tmp_path, rend
     assert abs(ratio - ratio_ref) < 0.03
     assert np.abs(c_ref - 1.0 / 3.0).max() > 0.008  # the scene does show the film's colour
     assert np.abs(c_img - c_ref).max() < 0.004  # a third of that departure
+
+
+def test_a_scenes_bvh_is_built_once_then_read_from_the_disk_cache(monkeypatch):
+    """The flattened BVH (what ``SceneTextures`` uploads) is read back from the disk cache for
+    the same triangles, equal to the build that stored it; other triangles are built anew."""
+    import dataclasses as dc
+
+    import viewer.geometry.bvh_flat as bvh_flat
+    from viewer.geometry.soup import build_geometry
+    from viewer.gl.raytrace import cached_flat_scene
+    from viewer.scene import load_scene
+
+    full = build_geometry(load_scene("default"))
+    n = 1500  # a part of it: quick to build; moved so that no other test's entry matches
+    geom = dc.replace(full, **{f: getattr(full, f)[:n] for f in ("triangles", "geo_normals", "normals", "tangents",
+                                                                   "object_index", "material_index")})
+    geom = dc.replace(geom, triangles=geom.triangles + 0.123)
+    built = []
+    real = bvh_flat.flatten_scene
+    monkeypatch.setattr(bvh_flat, "flatten_scene", lambda g: built.append(1) or real(g))
+    first = cached_flat_scene(geom)
+    again = cached_flat_scene(geom)
+    assert built == [1]  # built once, then read
+    for name in ("nodes", "tris", "shading", "prim_id"):
+        assert np.array_equal(getattr(again, name), getattr(first, name)), name
+    assert (again.n_nodes, again.n_triangles, again.depth) == (first.n_nodes, first.n_triangles, first.depth)
+    cached_flat_scene(dc.replace(geom, triangles=geom.triangles + 0.5))
+    assert built == [1, 1]  # other triangles: built

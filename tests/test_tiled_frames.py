@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from viewer.gl.raytrace import upscale
 from viewer.scene import material_from_name
 
 SIZE = (120, 80)
@@ -50,11 +51,12 @@ def test_a_raster_frame_in_tiles_is_the_whole_frame_and_shows_the_meantime_until
         while not pt.done:
             pt.step(0.0)
         assert np.array_equal(pt.image(), _whole(renderer, scene2, None, SIZE))
-        # without an image for the meantime: the half-resolution view, each pixel for its 2 x 2
+        # without an image for the meantime: the half-resolution view, enlarged by bilinear
+        # interpolation (smooth silhouettes; the same values up to the rounding of the other
+        # row order: the texture's rows run from the bottom)
         pt.start(renderer, scene, None, w, h, traced=False)
         preview = renderer.read_linear(renderer.render(scene, None, w // 2, h // 2, msaa=0, raytrace=False))
-        assert np.array_equal(pt.image()[::2, ::2], preview)
-        assert np.array_equal(pt.image()[1::2, 1::2], preview)
+        assert np.allclose(pt.image(), upscale(preview, 2, h, w), rtol=1e-5, atol=1e-6)
         pt.finish()
         assert np.array_equal(pt.image(), whole)
     finally:
@@ -124,7 +126,7 @@ def test_a_drag_stops_the_tiles_and_its_end_tiles_over_the_preview(gl_ctx, rende
         shown = renderer.read_linear(s.hdr)
         preview = renderer.read_linear(renderer.render(s.scene, s.camera, SIZE[0] // 2, SIZE[1] // 2, msaa=0,
                                                        raytrace=False))
-        assert np.array_equal(shown[::2, ::2], preview)
+        assert np.allclose(shown, upscale(preview, 2, SIZE[1], SIZE[0]), rtol=1e-5, atol=1e-6)  # see the first test
     finally:
         s.release()
 
@@ -199,9 +201,9 @@ def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_
         preview = renderer.read_linear(renderer.render(s.scene, s.camera, (w + 3) // 4, (h + 3) // 4,
                                                        raytrace=False)).copy()  # with the view's MSAA
         shown = renderer.read_linear(s.hdr)
-        bottom = shown[-(h // 2):]  # below the first tile: the preview, each pixel for its 4 x 4
-        expect = np.repeat(np.repeat(preview, 4, axis=0), 4, axis=1)[:h, :w][-(h // 2):]
-        assert np.array_equal(bottom, expect)
+        bottom = shown[-(h // 2):]  # below the first tile: the preview, enlarged 4 times (bilinear)
+        expect = upscale(preview, 4, h, w)[-(h // 2):]
+        assert np.allclose(bottom, expect, rtol=1e-5, atol=1e-6)  # rounding: see the first test
         while s.quality != "full":
             s.render_view(SIZE)
         assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
@@ -269,3 +271,68 @@ def test_a_compare_view_switch_keeps_the_raster_shown(gl_ctx, renderer):
         assert s.dirty
     finally:
         s.release()
+
+
+def test_a_preview_is_enlarged_without_steps():
+    """A preview's pixels are interpolated between their centres: a ramp stays a ramp (no
+    stairs), the borders hold their pixel's value, a constant stays exactly constant."""
+    ramp = np.tile(np.arange(6, dtype=np.float32)[None, :, None], (2, 1, 4))
+    big = upscale(ramp, 4, 8, 24)
+    assert big.shape == (8, 24, 4) and big.dtype == np.float32
+    row = big[0, :, 0]
+    assert np.allclose(np.diff(row[2:-2]), 0.25)  # between the first and last centres: even steps of 1/4
+    assert row[0] == row[1] == 0.0 and row[-1] == row[-2] == 5.0
+    assert np.array_equal(upscale(np.full((3, 5, 4), 0.3, np.float32), 4, 12, 20), np.full((12, 20, 4), 0.3, np.float32))
+
+
+def test_a_scene_drawn_with_stand_ins_stays_under_the_tiles_of_its_own_frame(gl_ctx):
+    """Once the child has a new scene's programs, its own frame is drawn in tiles over the
+    stand-in frame shown (full resolution, the view's MSAA), not over a new quarter-resolution
+    preview: the view never drops back to a coarser picture of the same scene."""
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import load_scene
+
+    class Child:  # a compile-ahead child whose answer the test releases
+        alive, released = True, False
+
+        def __init__(self):
+            self.compiled, self.tables, self.done = set(), {}, {}
+
+        def request(self, scene, urgent=True, **priority):
+            return id(scene)
+
+        def answered(self, rid):
+            return self.released
+
+        def stop(self):
+            pass
+
+    renderer = Renderer(gl_ctx)  # its own: the new scene's programs not compiled by another test
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True, tiled_frames=True)
+    child = s.compiles.child = Child()
+    try:
+        child.released = True
+        s.render_view(SIZE)  # the first frame: whole
+        child.released = False
+        s.scene = load_scene("default", overrides=["materials.ball.model=oren_nayar"])
+        s.changed()
+        for _ in range(400):
+            s.render_view(SIZE)
+            if not s.tiling:
+                break
+        assert s.frame_source.form == "stand-in" and s.quality == "full"
+        stand_in = renderer.read_linear(s.hdr).copy()
+        child.released = True
+        s.render_view(SIZE)  # the scene's own frame: its first tile over the stand-in frame
+        assert s.frame_source.form == "own" and s.tiling
+        shown = renderer.read_linear(s.hdr)
+        h = SIZE[1]
+        assert np.array_equal(shown[-(h // 2):], stand_in[-(h // 2):])  # below the first tile
+        while s.tiling:
+            s.render_view(SIZE)
+        assert not np.array_equal(renderer.read_linear(s.hdr), stand_in)  # the ball with its own program
+    finally:
+        s.compiles.child = None
+        s.release()
+        renderer.release()

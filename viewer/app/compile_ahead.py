@@ -26,15 +26,26 @@ none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program it
 the child's tables, and the frames of that compile are as long as before. Any failure of the child
 (no EGL, a crash) turns it off with ``error`` set: the window then compiles as it always did.
 
-Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "urgent"}``.
-Out: ``{"working": id}`` after each kind of frame drawn for a request, then ``{"id", "ok": true,
-"keys": [program keys compiled], "tables": {params JSON: exported tables}, "seconds"}`` or
-``{"id", "ok": false, "error"}``.
+The order of the child's work: the scene the window shows first (``URGENT``; of those, the
+latest scene shown first, and a scene's requests in the order sent: a traced scene's untraced
+copy, which lets the window draw its real materials untraced, before its traced programs),
+then the next lecture step's (``AHEAD``), then the idle-time warm-up's (``IDLE``). A request
+asked for again with a higher priority (the next step's scene, now shown) moves up; and a
+request of lower priority than one waiting is put back after the kind of frame it is drawing
+(what it drew stays in Mesa's cache), so the scene shown never waits behind the warm-up. The
+child's renderers draw the environment light with the quick prefilter the window draws with
+(``viewer.gl.ibl.IBL.defer``): the full prefilter is the background prefilter's work
+(``viewer.app.prefetch``), and it would hold the answer back by seconds.
+
+Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "priority":
+[tier, batch]}`` (tier ``URGENT``, ``AHEAD`` or ``IDLE``; a higher batch is a later scene
+shown) or ``{"promote": id, "priority"}``. Out: ``{"working": id}`` after each kind of frame
+drawn for a request, then ``{"id", "ok": true, "keys": [program keys compiled], "tables":
+{params JSON: exported tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
 """
 
 from __future__ import annotations
 
-import collections
 import json
 import os
 import subprocess
@@ -48,6 +59,7 @@ from viewer.app.prefetch import Silence, leash_seconds
 #: a power of two, as a window's view's rarely is: llvmpipe's code for a program that samples a
 #: frame-sized texture (absorbers' thickness, SSR) depends on whether its sides are
 SIZE = (72, 52)
+URGENT, AHEAD, IDLE = 2, 1, 0  # a request's tier: the scene shown, the next lecture step, the warm-up
 TILE_ROWS = 4  # the first raster tile's rows: a part of the frame, drawn under a scissor as the window's
 
 
@@ -127,59 +139,128 @@ def prepare(renderer, scene, echo=None, progress=None) -> dict:
     return {"keys": sorted(keys), "tables": tables}
 
 
-def serve(inp=sys.stdin, out=sys.stdout) -> int:
-    """The child: read requests, urgent ones first, and answer each on one line."""
-    from viewer.gl.context import create_offscreen_context
+class Preempted(Exception):
+    """A request of higher priority came in while this one was drawn: put back, done later."""
+
+
+def _rank(req) -> tuple:
+    """The order of the queue: the highest priority, then the earliest request."""
+    tier, batch = req["priority"]
+    return (int(tier), int(batch), -int(req["id"]))
+
+
+class WorkQueue:
+    """The child's requests waiting and the one being drawn, in the order of the module's text:
+    ``put`` (a request, or ``{"promote": id, "priority"}``: a higher priority for a request
+    waiting or being drawn), ``take`` (the next request, blocking; None once ``close``d and
+    empty), ``check`` (raises ``Preempted`` when a request waiting outranks the one drawn),
+    ``put_back`` (the one drawn, preempted), ``finished``."""
+
+    def __init__(self):
+        self._waiting: list = []
+        self._current = None
+        self._closed = False
+        self._cond = threading.Condition()
+
+    def put(self, req: dict) -> None:
+        with self._cond:
+            if "promote" in req:
+                for r in self._waiting + ([self._current] if self._current else []):
+                    if r["id"] == req["promote"] and _rank({**r, "priority": req["priority"]}) > _rank(r):
+                        r["priority"] = req["priority"]
+            elif {"id", "scene", "priority"} <= set(req):
+                self._waiting.append(req)
+            self._cond.notify()
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
+
+    def take(self) -> dict | None:
+        with self._cond:
+            while not self._waiting and not self._closed:
+                self._cond.wait()
+            if not self._waiting:
+                return None
+            self._current = max(self._waiting, key=_rank)
+            self._waiting.remove(self._current)
+            return self._current
+
+    def check(self) -> None:
+        with self._cond:
+            if self._current is not None and self._waiting and \
+                    max(_rank(r) for r in self._waiting) > _rank(self._current):
+                raise Preempted()
+
+    def put_back(self) -> None:
+        with self._cond:
+            if self._current is not None:
+                self._waiting.append(self._current)
+            self._current = None
+
+    def finished(self) -> None:
+        with self._cond:
+            self._current = None
+
+
+def child_renderer(ctx):
+    """A renderer of the child's: its environment light drawn with the quick prefilter the
+    window draws a map with until the disk cache holds the full one (``IBL.defer``), so that the
+    child compiles what the window will draw and never spends seconds on a full prefilter."""
     from viewer.gl.renderer import Renderer
+
+    r = Renderer(ctx)
+    r.ibl().defer = True
+    return r
+
+
+def serve(inp=sys.stdin, out=sys.stdout) -> int:
+    """The child: read requests, the most urgent first (see the module's text), and answer each
+    on one line."""
+    from viewer.gl.context import create_offscreen_context
     from viewer.scene import load_scene_text
 
-    queue: collections.deque = collections.deque()
-    cond = threading.Condition()
-    closed = []
+    work = WorkQueue()
 
     def read():
         for line in inp:
             try:
-                req = json.loads(line)
-            except ValueError:
+                work.put(json.loads(line))
+            except (ValueError, KeyError, TypeError):
                 continue
-            with cond:
-                if req.get("urgent"):
-                    queue.appendleft(req)
-                else:
-                    queue.append(req)
-                cond.notify()
-        with cond:
-            closed.append(True)
-            cond.notify()
+        work.close()
 
     threading.Thread(target=read, name="compile-ahead-reader", daemon=True).start()
     ctx = create_offscreen_context()
-    renderer = Renderer(ctx)
+
+    renderer = child_renderer(ctx)
     echo = []  # the second renderer, made after the first request's programs are in Mesa's cache
 
     def echo_renderer():
         if not echo:
-            echo.append(Renderer(ctx))
+            echo.append(child_renderer(ctx))
         return echo[0]
     print(json.dumps({"ready": True}), file=out, flush=True)
-    while True:
-        with cond:
-            while not queue and not closed:
-                cond.wait()
-            if not queue:
-                break
-            req = queue.popleft()
+    while (req := work.take()) is not None:
         t0 = time.perf_counter()
+        # a line after each kind of frame: a child at work on a long request (a traced scene
+        # on a loaded machine) is not taken for a silent one and replaced; and the point where
+        # a request of higher priority takes its turn
+        working = json.dumps({"working": req["id"]})
+
+        def progress():
+            print(working, file=out, flush=True)
+            work.check()
         try:
             scene = load_scene_text(req["scene"], base_dir=req.get("base_dir"), label="<compile ahead>")
-            # a line after each kind of frame: a child at work on a long request (a traced
-            # scene on a loaded machine) is not taken for a silent one and replaced
-            working = json.dumps({"working": req["id"]})
-            answer = {"id": req["id"], "ok": True,
-                      **prepare(renderer, scene, echo_renderer, lambda: print(working, file=out, flush=True))}
+            answer = {"id": req["id"], "ok": True, **prepare(renderer, scene, echo_renderer, progress)}
+        except Preempted:
+            work.put_back()
+            continue
         except Exception as e:  # noqa: BLE001 - the window compiles it itself and reports the error
             answer = {"id": req["id"], "ok": False, "error": f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"}
+        work.finished()
         answer["seconds"] = round(time.perf_counter() - t0, 3)
         print(json.dumps(answer), file=out, flush=True)
     for e in echo:
@@ -215,6 +296,7 @@ class CompileAhead:
         self._next = 0
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
         self._sent: dict[int, float] = {}  # unanswered request id -> when it was sent
+        self._priority: dict[int, list] = {}  # request id -> [tier, batch] as the child knows it
         self._silence = Silence()  # the child's last word, and whether it works meanwhile
         self._proc = None
         self._start()
@@ -239,26 +321,38 @@ class CompileAhead:
     def alive(self) -> bool:
         return self._proc is not None and not self.error
 
-    def request(self, scene, urgent: bool = True) -> int | None:
+    def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False) -> int | None:
         """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
-        already asked for), None when the child is not running."""
+        already asked for), None when the child is not running. ``urgent``: the scene the window
+        shows (``batch``: a higher number for a later scene shown; its requests in the order
+        sent); else ``ahead``: the next lecture step's, or the idle-time warm-up's. A scene
+        asked for again with a higher priority, not answered yet, moves up the child's queue."""
         from viewer.scene import scene_to_toml
 
         if not self.alive:
             return None
         text = scene_to_toml(scene, absolute_paths=True)
         base = None if scene.base_dir is None else str(scene.base_dir)
+        priority = [URGENT if urgent else AHEAD if ahead else IDLE, int(batch) if urgent else 0]
         with self._lock:
             key = f"{base}\n{text}"
-            if key in self._ids:
-                return self._ids[key]
-            rid = self._ids[key] = self._next
-            self._next += 1
+            rid = self._ids.get(key)
+            if rid is not None:
+                if rid in self.done or rid not in self._sent or tuple(priority) <= tuple(self._priority[rid]):
+                    return rid
+                self._priority[rid] = priority
+                line = {"promote": rid, "priority": priority}
+            else:
+                rid = self._ids[key] = self._next
+                self._next += 1
+                self._priority[rid] = priority
+                line = {"id": rid, "scene": text, "base_dir": base, "priority": priority}
         try:
-            if not self._sent:  # given work after waiting idle: its silence starts now
-                self._silence.heard(self._proc.pid)
-            self._sent[rid] = time.monotonic()
-            self._proc.stdin.write(json.dumps({"id": rid, "scene": text, "base_dir": base, "urgent": urgent}) + "\n")
+            if "scene" in line:
+                if not self._sent:  # given work after waiting idle: its silence starts now
+                    self._silence.heard(self._proc.pid)
+                self._sent[rid] = time.monotonic()
+            self._proc.stdin.write(json.dumps(line) + "\n")
             self._proc.stdin.flush()
         except (OSError, ValueError) as e:
             self.error = f"stopped ({e})"

@@ -38,6 +38,8 @@ class CompileControl:
         # the picker's presets compile there instead, and this list stays empty)
         self.warm = [] if on else list(brdf.names())
         self._ahead_sent = False   # the presets still to send to the child (False: not begun)
+        self._batch = (None, 0)    # (the scene and materials last asked for, their batch number)
+        self._next = None          # (the next lecture step, its stand-in scene), asked for ahead
 
     def poll(self) -> None:
         """The request the view waits for answered: the view is drawn again, with the material
@@ -102,8 +104,15 @@ class CompileControl:
         traced = rt_held is False and s.renderer.traces(s.scene)
         # a traced scene: its untraced programs first (a fraction of the traced ones' compile),
         # so it is drawn untraced in seconds rather than with stand-ins until the traced are ready
-        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True)
-        rid = None if ca is None else ca.request(s.scene, urgent=True)
+        # this scene's requests go before those of the scenes shown before it (``batch``)
+        batch = self._batch_for(s.scene)
+        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True,
+                                                                     batch=batch)
+        if ca is not None and self._next is not None and self._next[0] == s.lecture_step + 1:
+            # the next step's stand-ins (one cheap program) before this step's traced programs
+            # (tens of seconds on a loaded machine): the step after opens without a compile here
+            ca.request(self._next[1], urgent=True, batch=batch)
+        rid = None if ca is None else ca.request(s.scene, urgent=True, batch=batch)
         done_beside = ca is not None and all(
             (keys[n] in progs or keys[n] in ca.compiled) and params_key(s.scene.materials[n]) in ca.tables
             for n in missing)
@@ -155,23 +164,37 @@ class CompileControl:
         self.pending = missing
         return out
 
+    def _batch_for(self, scene) -> int:
+        """The compile-ahead batch of ``scene`` as it is now: a new one (higher) for another
+        scene or other materials than the last asked for."""
+        key = (id(scene), tuple(map(id, scene.materials.values())))
+        if key != self._batch[0]:
+            self._batch = (key, self._batch[1] + 1)
+        return self._batch[1]
+
     def untraced_copy(self, scene):
         """``scene`` with its traced chains off (the same copy while the scene is the same)."""
         if self._flat is None or self._flat[0] is not scene:
             self._flat = (scene, dataclasses.replace(scene, render=dataclasses.replace(scene.render, raytrace=False)))
         return self._flat[1]
 
-    def stand_in(self, missing):
-        """The scene with ``missing`` materials as grey Lambert stand-ins (``STAND_IN_ALBEDO``):
-        its own objects, drawn with the cheapest program there is (compiled here if it must be,
+    def stand_in(self, missing, scene=None):
+        """The scene (``scene``, else the session's) with ``missing`` materials as grey Lambert
+        stand-ins (``STAND_IN_ALBEDO``): its own objects, drawn with the cheapest program there
+        is (compiled beside ahead of the scene when it is the next lecture step's, else here:
         a fraction of what the missing ones cost) while theirs compile beside."""
         from viewer import brdf
 
-        s = self.session
+        scene = self.session.scene if scene is None else scene
         grey = brdf.get("lambert").params(albedo=[STAND_IN_ALBEDO] * 3)
-        out = dataclasses.replace(s.scene, materials={**s.scene.materials, **{n: grey for n in missing}})
+        out = dataclasses.replace(scene, materials={**scene.materials, **{n: grey for n in missing}})
         out.stand_in = True  # FrameSource.form "stand-in"
         return out
+
+    def _missing(self, scene) -> list[str]:
+        """The materials of ``scene`` whose programs the window's renderer has not built."""
+        progs = self.session.renderer.programs
+        return [n for n, k in self.session.renderer.forward_keys(scene).items() if k not in progs]
 
     @property
     def warming(self) -> bool:
@@ -210,14 +233,26 @@ class CompileControl:
             s.notify(str(e), error=True)
 
     def ask_ahead(self, step: int) -> None:
+        """Lecture ``step``'s programs, compiled beside before it is shown, in the order it needs
+        them: the grey stand-ins of the materials this window has no programs for (its first
+        frame, drawn at once), its untraced programs (a traced step), its own."""
         from viewer.scene.lecture import tour_scene
 
+        self._next = None
         ca = self.worker()
         if ca is not None:
             try:
-                ca.request(tour_scene(step), urgent=False)
+                scene = tour_scene(step)
             except ViewerError:
-                pass  # the step reports its own problem when it opens
+                return  # the step reports its own problem when it opens
+            missing = self._missing(scene)  # as held_back finds them when the step is shown
+            if missing:
+                self._next = (step, self.stand_in(missing, scene))
+                ca.request(self._next[1], urgent=False, ahead=True)
+            if self.session.renderer.traces(scene):  # its untraced programs first, as when it is shown
+                flat = dataclasses.replace(scene, render=dataclasses.replace(scene.render, raytrace=False))
+                ca.request(flat, urgent=False, ahead=True)
+            ca.request(scene, urgent=False, ahead=True)
 
     def _warm_presets_ahead(self) -> None:
         """The presets the material picker offers, each on the scene's first non-plane object,

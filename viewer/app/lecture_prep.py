@@ -161,8 +161,8 @@ _STEP_LINE = re.compile(r"^lecture step (\d+): (traced .* in ([0-9.]+) s|.*alrea
 
 class BackgroundPrep:
     """*Prepare lecture* in a child process: ``brdf-viewer bake --lecture --width W --height H``
-    for the window's framebuffer size, on its own EGL context, so the window's frames never wait
-    for it. The same interface as ``LecturePrep`` for the window: ``done``, ``results`` (one
+    for the window's framebuffer size, on its own EGL context at a lower priority
+    (``viewer.app.prefetch.behind_the_window``), so the window's frames never wait for it. The same interface as ``LecturePrep`` for the window: ``done``, ``results`` (one
     ``StepResult`` per finished step, ``stored`` the line's path), ``messages`` (lines to show),
     ``progress_text``, ``cancel``; ``error`` holds the child's one-line error when it failed.
     ``poll`` takes in what the child printed since (the window calls it each frame)."""
@@ -187,6 +187,9 @@ class BackgroundPrep:
             env = dict(os.environ, **{PARENT_ENV: str(os.getpid())})  # it ends when the window dies
             self._proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                           stderr=subprocess.STDOUT, text=True, bufsize=1, env=env)
+            from viewer.app.prefetch import behind_the_window
+
+            behind_the_window(self._proc.pid)  # the window's frames first, as its other children
         except OSError as e:
             self._proc = None
             self.error = f"Prepare lecture could not start ({e})"

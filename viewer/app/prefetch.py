@@ -94,6 +94,18 @@ def tour_maps(start: int = 0) -> list:
     return out
 
 
+def warm_tour_builtins(start: int = 0):
+    """The tour's built-in maps (``viewer.environment.procedural``), from step ``start`` on,
+    generated into the disk cache on a background thread of the window
+    (``procedural.warm_builtin``): the prefetch child at its low priority may reach them after
+    the class does, and the step's first frame would generate its map on the window's thread."""
+    from viewer.environment import procedural
+
+    def names():  # on the thread: listing the tour's maps loads its scenes (seconds under load)
+        return list(dict.fromkeys(str(env.map) for _, env in tour_maps(start) if env.is_builtin))
+    return procedural.warm_builtin(names)
+
+
 def prefilter_tour(start: int = 0, out=sys.stdout) -> int:
     """Prefilter every map of the tour into the disk cache; one line per map on ``out``:
     ``total N`` first, then ``done K MAP SECONDS cached|prefiltered``."""
@@ -124,7 +136,8 @@ class Prefetch:
     ``BRDF_VIEWER_CHILD_LEASH``: stopped, hung) is killed and started again once, from the same
     step (the maps it finished are cached, so they cost a read); silent again, it is ended with
     ``error`` set, and the window prefilters the remaining maps itself as it would without it.
-    ``command``: the child's command line (a stand-in in tests)."""
+    ``command``: the child's command line (a stand-in in tests; without one the tour's built-in
+    maps are generated on a thread of the window too: ``warm_tour_builtins``)."""
 
     RESTARTS = 1
 
@@ -144,6 +157,9 @@ class Prefetch:
         self._start()
         if self._proc is not None:
             threading.Thread(target=self._watch, name="brdf-viewer-prefetch-leash", daemon=True).start()
+        self.maps_thread = None
+        if command is None:  # the tour's built-in maps, generated here beside the frames
+            self.maps_thread = warm_tour_builtins(start_step)
 
     def _start(self) -> None:
         try:
@@ -296,6 +312,21 @@ class MapPrefilter:
         self._cleanup()
 
 
+#: the niceness of the window's background children (the prefetch, the compile-ahead child, Prepare
+#: lecture's bake): on a two-core machine a child at the window's priority halves its frame rate
+CHILD_NICE = 10
+
+
+def behind_the_window(pid) -> None:
+    """Lower the priority of the child process ``pid``, just started, to ``CHILD_NICE`` (never
+    raise it): its threads (llvmpipe's rasterizer threads, made when its GL context is) inherit
+    it. Where the system does not allow it, nothing happens."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, int(pid), max(CHILD_NICE, os.getpriority(os.PRIO_PROCESS, int(pid))))
+    except (OSError, AttributeError, TypeError, ValueError):
+        pass
+
+
 def stop_child(proc, timeout: float = 10.0) -> None:
     """Terminate a child process still running (None: none), killing it after ``timeout`` s."""
     if proc is not None and proc.poll() is None:
@@ -314,7 +345,7 @@ def stop_child(proc, timeout: float = 10.0) -> None:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
-        os.nice(10)  # behind the window's own frames
+        os.nice(CHILD_NICE)  # behind the window's own frames
     except (OSError, AttributeError):
         pass
     try:

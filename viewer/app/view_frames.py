@@ -270,7 +270,8 @@ class ViewFrames:
     def _tile_step(self, scene, w, h, restart: bool) -> str:
         """The tiled raster frame: (re)start it, or draw its next tiles; "refining" until it is
         whole. Meanwhile the view shows what it showed (materials edited in the same scene at
-        the same size: the new look replaces the old from the top) or its preview (the
+        the same size, or the same scene drawn with stand-ins or untraced while its programs
+        compiled: the new look replaces the old from the top) or its preview (the
         half-resolution frame just drawn while the view moved, else one drawn now)."""
         from viewer.gl.raytrace import ProgressiveTrace
 
@@ -282,9 +283,12 @@ class ViewFrames:
             under = None
             same = (self.drawn_materials is not None and self.drawn_materials[0] is s.scene
                     and self._drawn_view == self._view_key())  # the same scene seen the same way
-            # the preview of this scene just drawn while the view moved, never another scene's
+            # the preview of this scene just drawn while the view moved, or this scene seen the
+            # same way in another form (its grey stand-ins, untraced: the view keeps its full
+            # resolution and MSAA under the tiles), never another scene's
             ours = self.frame_source is not None and self.frame_source.scene is s.scene
-            if self.hdr is not None and ours and (self.quality == "preview" or (same and tuple(self.hdr.size) == (w, h))):
+            seen = ours and self._drawn_view == self._view_key()
+            if self.hdr is not None and ours and (self.quality == "preview" or (seen and tuple(self.hdr.size) == (w, h))):
                 under = self.hdr  # read before any tile draws over the renderer's target
             self._tiles_under = self.frame_source.scene if under is not None else s.scene
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is

@@ -13,6 +13,7 @@ the camera). Elevations are degrees above the horizon.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -232,6 +233,10 @@ def builtin_names() -> tuple[str, ...]:
 GENERATOR_VERSION = 1
 
 
+_GENERATING: dict = {}  # (name, width, height) -> the lock held while one thread generates it
+_GENERATING_LOCK = threading.Lock()
+
+
 def generate(name: str, width: int = 1024, height: int = 512, cache: bool = True) -> np.ndarray:
     """The built-in map ``name`` (``builtin_names()``) at its default parameters. ``cache``:
     kept in the disk cache (``viewer.environment.cache``, kind "procedural"), since generating
@@ -245,9 +250,34 @@ def generate(name: str, width: int = 1024, height: int = 512, cache: bool = True
 
     key = disk.content_key(None, {"name": name, "width": int(width), "height": int(height),
                                   "version": GENERATOR_VERSION}, kind="procedural")
-    hit = disk.load(key, kind="procedural", expect={"map": (int(height), int(width), 3)})
-    if hit is not None and hit["map"].dtype == np.float32:
-        return hit["map"]
-    img = np.ascontiguousarray(BUILTIN_MAPS[name](width, height), dtype=np.float32)
-    disk.store(key, {"map": img}, kind="procedural")
-    return img
+    with _GENERATING_LOCK:
+        lock = _GENERATING.setdefault((name, int(width), int(height)), threading.Lock())
+    # one thread generates a map at a time (the window's background warm-up, ``warm_builtin``,
+    # and its frame): the second reads what the first stored, never starts over
+    with lock:
+        hit = disk.load(key, kind="procedural", expect={"map": (int(height), int(width), 3)})
+        if hit is not None and hit["map"].dtype == np.float32:
+            return hit["map"]
+        img = np.ascontiguousarray(BUILTIN_MAPS[name](width, height), dtype=np.float32)
+        disk.store(key, {"map": img}, kind="procedural")
+        return img
+
+
+def warm_builtin(names, width: int = 1024, height: int = 512) -> threading.Thread:
+    """Generate the built-in maps ``names`` (a list, or a function returning it, called on the
+    thread) into the disk cache on a background thread (numpy lets the window's thread run
+    between its array operations), so that the frame that first shows one reads it in
+    milliseconds instead of generating it (the sky: 0.3-1.5 s)."""
+    def run():
+        try:
+            todo = names() if callable(names) else names
+        except Exception:  # noqa: BLE001 - nothing warmed; each frame generates its own map
+            return
+        for name in todo:
+            try:
+                generate(name, width, height)
+            except Exception:  # noqa: BLE001 - the frame that needs it generates it and reports
+                pass
+    th = threading.Thread(target=run, name="brdf-viewer-builtin-maps", daemon=True)
+    th.start()
+    return th

@@ -120,6 +120,83 @@ def dispersive(scene) -> bool:
     return any(chain_glass(p) and np.ptp(chain_eta(p)) > 0 for p in scene.materials.values())
 
 
+def upscale(img: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
+    """(h, w, C) float32: ``img`` (about (h / s, w / s, C)) enlarged ``s`` times with bilinear
+    interpolation between its pixel centres (clamped at the borders), so that a preview's
+    antialiased silhouettes stay smooth instead of turning into steps ``s`` pixels tall, as
+    repeating each pixel would. Output pixel s i + k of an axis lies at i + (k + 1/2) / s - 1/2
+    in the input's pixel centres: the same two neighbours and weight for every i, so each of the
+    ``s`` phases is one shifted slice (a third of the time gathers by index take at 1344x1080)."""
+    def along(a, n_out, ax):
+        n = a.shape[ax]
+        pad = [(0, 0)] * a.ndim
+        pad[ax] = (1, 1)
+        edge = np.pad(a, pad, mode="edge")  # the borders clamp
+
+        def shifted(lo):
+            at = [slice(None)] * a.ndim
+            at[ax] = slice(lo, lo + n)
+            return edge[tuple(at)]
+        out = np.empty(a.shape[:ax] + (n, s) + a.shape[ax + 1:], np.float32)
+        for k in range(s):
+            d = np.float32((k + 0.5) / s - 0.5)
+            lo, hi, f = (1, 2, d) if d >= 0 else (0, 1, np.float32(1) + d)
+            at = [slice(None)] * out.ndim
+            at[ax + 1] = k
+            phase = out[tuple(at)]  # written in place: no stacked copy
+            np.subtract(shifted(hi), shifted(lo), out=phase)
+            phase *= f
+            phase += shifted(lo)
+        shape = list(a.shape)
+        shape[ax] = n * s
+        out = out.reshape(shape)
+        at = [slice(None)] * a.ndim
+        at[ax] = slice(0, n_out)
+        out = out[tuple(at)]
+        if n_out > n * s:  # more pixels than the input covers: its last one's value
+            pad[ax] = (0, n_out - n * s)
+            out = np.pad(out, pad, mode="edge")
+        return out
+
+    src = np.asarray(img, np.float32)
+    return np.ascontiguousarray(along(along(src, w, 1), h, 0))
+
+
+#: the disk cache's kind for a scene's flattened BVH (``cached_flat_scene``); bump the version
+#: in ``viewer.environment.cache`` or this name when ``flatten_scene``'s output changes
+BVH_CACHE_KIND = "bvh1"
+
+
+def cached_flat_scene(geom):
+    """``viewer.geometry.bvh_flat.flatten_scene(geom)``, from the disk cache when it holds the
+    same triangles (a lecture step seen before, or drawn by the compile-ahead child, which builds
+    it first): the BVH build is pure Python and takes a second for the soap bubbles on a loaded
+    machine, on the window's thread, in the frame ray tracing starts."""
+    from viewer.environment import cache
+    from viewer.geometry.bvh_flat import FlatScene, flatten_scene
+
+    if geom.n_triangles == 0:
+        return flatten_scene(geom)
+    import hashlib
+
+    digest = hashlib.blake2b(digest_size=20)
+    for a in (geom.triangles, geom.normals, geom.tangents, geom.object_index, geom.material_index):
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(memoryview(a).cast("B"))
+    key = cache.content_key(None, {"n": geom.n_triangles, "arrays": digest.hexdigest()}, kind=BVH_CACHE_KIND)
+    hit = cache.load(key, kind=BVH_CACHE_KIND)
+    names = ("nodes", "tris", "shading", "prim_id")
+    if hit is not None and all(n in hit for n in names + ("sizes",)) and hit["prim_id"].shape == (geom.n_triangles,):
+        n_nodes, n_tris, depth = (int(x) for x in hit["sizes"])
+        return FlatScene(*(hit[n] for n in names), n_nodes, n_tris, depth)
+    flat = flatten_scene(geom)
+    cache.store(key, {"nodes": flat.nodes, "tris": flat.tris, "shading": flat.shading, "prim_id": flat.prim_id,
+                      "sizes": np.array([flat.n_nodes, flat.n_triangles, flat.depth], np.int64)},
+                kind=BVH_CACHE_KIND)
+    return flat
+
+
 class RayTrace:
     """The GPU data of traced chains for the current scene, rebuilt when it changes: the BVH
     textures when the geometry changes (meshes or transforms), the material texture when a
@@ -142,7 +219,7 @@ class RayTrace:
         if gkey != self._geom_key or self.textures is None:
             if self.textures is not None:
                 self.textures.release()
-            self.textures = SceneTextures(self.ctx, build_geometry(scene))
+            self.textures = SceneTextures(self.ctx, flat=cached_flat_scene(build_geometry(scene)))
             self._geom_key = gkey
         mkey = json.dumps({k: p.to_plain() for k, p in scene.materials.items()}, sort_keys=True)
         if mkey != self._mat_key or self.mat_tex is None:
@@ -257,7 +334,8 @@ class ProgressiveTrace:
     ``start(traced=False)`` builds a raster frame the same way, for a view whose whole frame
     takes longer than a frame's budget (the window after a change, on software OpenGL): the
     texture first holds an image given for the meantime (the view as it was before the change)
-    or the view at half resolution without MSAA (each pixel standing for its 2 x 2), then every
+    or the view at half resolution without MSAA (or a quarter with it), enlarged with bilinear
+    interpolation (``upscale``: smooth silhouettes, not steps), then every
     pixel is drawn in tiles from the top with the view's MSAA and no traced chains. Once
     ``done`` it holds exactly the whole frame ``Renderer.render(raytrace=False)`` draws: the
     tiles are scissors of it."""
@@ -416,10 +494,10 @@ class ProgressiveTrace:
             hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=msaa if s == 4 else 0, raytrace=False)
             under = np.frombuffer(renderer.resolved_framebuffer(hdr).read(components=4, dtype="f4"),
                                   np.float32).reshape(hs, ws, 4)
-            under = np.repeat(np.repeat(under, s, axis=0), s, axis=1)[:h, :w]
+            under = upscale(under, s, h, w)
         if isinstance(under, np.ndarray):
             if under.shape[:2] != (h, w):
-                under = np.repeat(np.repeat(under, 2, axis=0), 2, axis=1)[:h, :w]
+                under = upscale(under, 2, h, w)
             self.texture.write(np.ascontiguousarray(under, np.float32))
         self.base = None  # every pixel is a tile's
         self.mask = np.ones((h, w), bool)
