@@ -53,9 +53,9 @@ except ImportError:  # numba missing: every step runs its numpy twin (slower, th
         return lambda f: f
 
 from viewer.brdf import lobes as lobes_mod
-from viewer.brdf import microfacet, spectral_fresnel, thin_film
+from viewer.brdf import lambert, microfacet, spectral_fresnel, thin_film
 from viewer.brdf.lobes import Lobe
-from viewer.brdf.sampling import F_MAX
+from viewer.brdf.sampling import F_MAX, INV_PI
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
 __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
@@ -63,94 +63,94 @@ __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_m
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
+_INV_4PI = 1.0 / (4.0 * math.pi)
 
 
 # ----------------------------------------------------------------------------- hit shading
+
+@njit(cache=True, error_model="numpy", inline="always")
+def shade_hit1(k, u, v, d0, d1, d2, tris, vnorm, vtan, gnorm, mat_index, trans_table):
+    """The shading of one hit (triangle ``k`` at barycentrics (u, v) of a ray along d) as
+    ``hit_shading`` defines it, as scalars: (p0, p1, p2, eps, winding normal g0..g2, shading
+    normal n0..n2, geometric normal on its side ng0..ng2, tangent a0..a2, bitangent b0..b2,
+    local wo0..wo2, material, transmissive). The one loop body of ``hit_shading`` and of the
+    fused bounce (``viewer.pathtracer.fused``)."""
+    w = 1.0 - u - v
+    p0 = w * tris[k, 0, 0] + u * tris[k, 1, 0] + v * tris[k, 2, 0]
+    p1 = w * tris[k, 0, 1] + u * tris[k, 1, 1] + v * tris[k, 2, 1]
+    p2 = w * tris[k, 0, 2] + u * tris[k, 1, 2] + v * tris[k, 2, 2]
+    pmax = 0.0
+    if abs(p0) > pmax:
+        pmax = abs(p0)
+    if abs(p1) > pmax:
+        pmax = abs(p1)
+    if abs(p2) > pmax:
+        pmax = abs(p2)
+    eps = EPS_REL * (1.0 + pmax)
+    # interpolated shading normal, normalized (the winding normal where it vanishes)
+    n0 = w * vnorm[k, 0, 0] + u * vnorm[k, 1, 0] + v * vnorm[k, 2, 0]
+    n1 = w * vnorm[k, 0, 1] + u * vnorm[k, 1, 1] + v * vnorm[k, 2, 1]
+    n2 = w * vnorm[k, 0, 2] + u * vnorm[k, 1, 2] + v * vnorm[k, 2, 2]
+    ln = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    g0 = gnorm[k, 0]
+    g1 = gnorm[k, 1]
+    g2 = gnorm[k, 2]
+    if ln > 1e-300:
+        n0 /= ln
+        n1 /= ln
+        n2 /= ln
+    else:
+        n0, n1, n2 = g0, g1, g2
+    t0 = w * vtan[k, 0, 0] + u * vtan[k, 1, 0] + v * vtan[k, 2, 0]
+    t1 = w * vtan[k, 0, 1] + u * vtan[k, 1, 1] + v * vtan[k, 2, 1]
+    t2 = w * vtan[k, 0, 2] + u * vtan[k, 1, 2] + v * vtan[k, 2, 2]
+    t3 = w * vtan[k, 0, 3] + u * vtan[k, 1, 3] + v * vtan[k, 2, 3]
+    m = mat_index[k]
+    tr = trans_table[m]
+    # a back-face hit flips the shading normal (not for transmissive materials)
+    if (d0 * g0 + d1 * g1 + d2 * g2) > 0 and not tr:
+        n0, n1, n2 = -n0, -n1, -n2
+    s = -1.0 if (g0 * n0 + g1 * n1 + g2 * n2) < 0 else 1.0
+    # tangent frame: t = tangent - n (n . tangent) normalized, b = cross(n, t) sign(w)
+    dt = n0 * t0 + n1 * t1 + n2 * t2
+    a0 = t0 - n0 * dt
+    a1 = t1 - n1 * dt
+    a2 = t2 - n2 * dt
+    l2 = a0 * a0 + a1 * a1 + a2 * a2
+    if not (l2 > 1e-12):
+        if abs(n0) < 0.9:      # cross(n, x)
+            a0, a1, a2 = 0.0, n2, -n1
+        else:                  # cross(n, y)
+            a0, a1, a2 = -n2, 0.0, n0
+        lf = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        a0 /= lf
+        a1 /= lf
+        a2 /= lf
+        l2 = 1.0
+    sl = math.sqrt(l2)
+    a0 /= sl
+    a1 /= sl
+    a2 /= sl
+    sg = -1.0 if t3 < 0.0 else 1.0
+    b0 = (n1 * a2 - n2 * a1) * sg
+    b1 = (n2 * a0 - n0 * a2) * sg
+    b2 = (n0 * a1 - n1 * a0) * sg
+    o0, o1, o2 = -d0, -d1, -d2
+    wo0 = o0 * a0 + o1 * a1 + o2 * a2
+    wo1 = o0 * b0 + o1 * b1 + o2 * b2
+    wo2 = o0 * n0 + o1 * n1 + o2 * n2
+    return (p0, p1, p2, eps, g0, g1, g2, n0, n1, n2, g0 * s, g1 * s, g2 * s,
+            a0, a1, a2, b0, b1, b2, wo0, wo1, wo2, m, tr)
+
 
 @njit(cache=True, error_model="numpy")
 def _hit_shading(tris, vnorm, vtan, gnorm, mat_index, trans_table, d, prim, bu, bv,
                  p, ng_raw, n, ng, tx, ty, wo_l, eps, mat, trans):
     for i in range(prim.shape[0]):
-        k = prim[i]
-        u = bu[i]
-        v = bv[i]
-        w = 1.0 - u - v
-        pmax = 0.0
-        for c in range(3):
-            p[i, c] = w * tris[k, 0, c] + u * tris[k, 1, c] + v * tris[k, 2, c]
-            a = abs(p[i, c])
-            if a > pmax:
-                pmax = a
-        eps[i] = EPS_REL * (1.0 + pmax)
-        # interpolated shading normal, normalized (the winding normal where it vanishes)
-        n0 = w * vnorm[k, 0, 0] + u * vnorm[k, 1, 0] + v * vnorm[k, 2, 0]
-        n1 = w * vnorm[k, 0, 1] + u * vnorm[k, 1, 1] + v * vnorm[k, 2, 1]
-        n2 = w * vnorm[k, 0, 2] + u * vnorm[k, 1, 2] + v * vnorm[k, 2, 2]
-        ln = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-        g0 = gnorm[k, 0]
-        g1 = gnorm[k, 1]
-        g2 = gnorm[k, 2]
-        if ln > 1e-300:
-            n0 /= ln
-            n1 /= ln
-            n2 /= ln
-        else:
-            n0, n1, n2 = g0, g1, g2
-        t0 = w * vtan[k, 0, 0] + u * vtan[k, 1, 0] + v * vtan[k, 2, 0]
-        t1 = w * vtan[k, 0, 1] + u * vtan[k, 1, 1] + v * vtan[k, 2, 1]
-        t2 = w * vtan[k, 0, 2] + u * vtan[k, 1, 2] + v * vtan[k, 2, 2]
-        t3 = w * vtan[k, 0, 3] + u * vtan[k, 1, 3] + v * vtan[k, 2, 3]
-        m = mat_index[k]
-        mat[i] = m
-        tr = trans_table[m]
-        trans[i] = tr
-        ng_raw[i, 0] = g0
-        ng_raw[i, 1] = g1
-        ng_raw[i, 2] = g2
-        # a back-face hit flips the shading normal (not for transmissive materials)
-        if (d[i, 0] * g0 + d[i, 1] * g1 + d[i, 2] * g2) > 0 and not tr:
-            n0, n1, n2 = -n0, -n1, -n2
-        n[i, 0] = n0
-        n[i, 1] = n1
-        n[i, 2] = n2
-        s = -1.0 if (g0 * n0 + g1 * n1 + g2 * n2) < 0 else 1.0
-        ng[i, 0] = g0 * s
-        ng[i, 1] = g1 * s
-        ng[i, 2] = g2 * s
-        # tangent frame: t = tangent - n (n . tangent) normalized, b = cross(n, t) sign(w)
-        dt = n0 * t0 + n1 * t1 + n2 * t2
-        a0 = t0 - n0 * dt
-        a1 = t1 - n1 * dt
-        a2 = t2 - n2 * dt
-        l2 = a0 * a0 + a1 * a1 + a2 * a2
-        if not (l2 > 1e-12):
-            if abs(n0) < 0.9:      # cross(n, x)
-                a0, a1, a2 = 0.0, n2, -n1
-            else:                  # cross(n, y)
-                a0, a1, a2 = -n2, 0.0, n0
-            lf = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-            a0 /= lf
-            a1 /= lf
-            a2 /= lf
-            l2 = 1.0
-        sl = math.sqrt(l2)
-        a0 /= sl
-        a1 /= sl
-        a2 /= sl
-        sg = -1.0 if t3 < 0.0 else 1.0
-        b0 = (n1 * a2 - n2 * a1) * sg
-        b1 = (n2 * a0 - n0 * a2) * sg
-        b2 = (n0 * a1 - n1 * a0) * sg
-        tx[i, 0] = a0
-        tx[i, 1] = a1
-        tx[i, 2] = a2
-        ty[i, 0] = b0
-        ty[i, 1] = b1
-        ty[i, 2] = b2
-        o0, o1, o2 = -d[i, 0], -d[i, 1], -d[i, 2]
-        wo_l[i, 0] = o0 * a0 + o1 * a1 + o2 * a2
-        wo_l[i, 1] = o0 * b0 + o1 * b1 + o2 * b2
-        wo_l[i, 2] = o0 * n0 + o1 * n1 + o2 * n2
+        (p[i, 0], p[i, 1], p[i, 2], eps[i], ng_raw[i, 0], ng_raw[i, 1], ng_raw[i, 2], n[i, 0], n[i, 1], n[i, 2],
+         ng[i, 0], ng[i, 1], ng[i, 2], tx[i, 0], tx[i, 1], tx[i, 2], ty[i, 0], ty[i, 1], ty[i, 2],
+         wo_l[i, 0], wo_l[i, 1], wo_l[i, 2], mat[i], trans[i]) = shade_hit1(
+            prim[i], bu[i], bv[i], d[i, 0], d[i, 1], d[i, 2], tris, vnorm, vtan, gnorm, mat_index, trans_table)
 
 
 def hit_shading(geom, trans_table, d, prim, bu, bv) -> dict:
@@ -249,14 +249,11 @@ def _half(ix, iy, iz, ox, oy, oz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, out, j):
-    """microfacet.eval_specular of one pair into out[j]."""
+def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table):
+    """microfacet.eval_specular of one pair: (f_r, f_g, f_b)."""
     ok = iz > 0 and oz > 0
     if not ok:
-        out[j, 0] = 0.0
-        out[j, 1] = 0.0
-        out[j, 2] = 0.0
-        return
+        return 0.0, 0.0, 0.0
     hx, hy, hz = _half(ix, iy, iz, ox, oy, oz)
     D = _d_ggx(hx, hy, hz, ax, ay)
     ih = ix * hx + iy * hy + iz * hz
@@ -271,12 +268,12 @@ def _eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, out, j):
         r = min(a / b, F_MAX) if b > 0 else F_MAX
     else:
         r = 0.0
-    for c in range(3):
-        out[j, c] = _fresnel(ih, c, eta, k, table) * r
+    return (_fresnel(ih, 0, eta, k, table) * r, _fresnel(ih, 1, eta, k, table) * r,
+            _fresnel(ih, 2, eta, k, table) * r)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
+def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
     """microfacet.pdf of one pair (no diffuse base, no walk): the visible-normal density."""
     if not (iz > 0 and oz > 0):
         return 0.0
@@ -289,77 +286,74 @@ def _pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
     return pm / (4.0 * oh)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table):
+    """microfacet.sample without a diffuse base of one wo: visible-normal sampling (Heitz 2018,
+    listing 1) of wo (the pole for wo below the horizon), mirrored; (wi x, y, z, weight f cos /
+    pdf r, g, b, pdf)."""
+    up = oz > 0
+    sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
+    u0 = min(max(u0, 0.0), 1.0 - 1e-16)
+    # stretch, orthonormal basis about vh, a point on the warped disk, unstretch
+    vx, vy, vz = ax * sx, ay * sy, sz
+    lv = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if lv > 0:
+        vx, vy, vz = vx / lv, vy / lv, vz / lv
+    lensq = vx * vx + vy * vy
+    if lensq > 0:
+        inv = 1.0 / math.sqrt(lensq)
+        t1x, t1y, t1z = -vy * inv, vx * inv, 0.0 * inv
+    else:
+        t1x, t1y, t1z = 1.0, 0.0, 0.0
+    t2x = vy * t1z - vz * t1y
+    t2y = vz * t1x - vx * t1z
+    t2z = vx * t1y - vy * t1x
+    rr = math.sqrt(u0)
+    phi = 2.0 * _PI * u1
+    p1 = rr * math.cos(phi)
+    p2 = rr * math.sin(phi)
+    s = 0.5 * (1.0 + vz)
+    p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
+    q = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))
+    nx = p1 * t1x + p2 * t2x + q * vx
+    ny = p1 * t1y + p2 * t2y + q * vy
+    nz = p1 * t1z + p2 * t2z + q * vz
+    mx, my, mz = ax * nx, ay * ny, max(1e-12, nz)
+    lm = math.sqrt(mx * mx + my * my + mz * mz)
+    if lm > 0:
+        mx, my, mz = mx / lm, my / lm, mz / lm
+    dm = sx * mx + sy * my + sz * mz
+    ix = 2.0 * dm * mx - sx
+    iy = 2.0 * dm * my - sy
+    iz = 2.0 * dm * mz - sz
+    pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay)
+    if up and iz > 0 and pd > 0:
+        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table)
+        sc = iz / pd
+        return ix, iy, iz, f0 * sc, f1 * sc, f2 * sc, pd
+    return ix, iy, iz, 0.0, 0.0, 0.0, 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def _mf_eval(wi, wo, ax, ay, eta, k, table, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
         i = j % r
-        _eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1], wo[i, 2], ax, ay, eta, k, table, out, j)
+        out[j, 0], out[j, 1], out[j, 2] = microfacet_eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1],
+                                                           wo[i, 2], ax, ay, eta, k, table)
 
 
 @njit(cache=True, error_model="numpy")
 def _mf_pdf(wi, wo, ax, ay, out):
     for j in range(wi.shape[0]):
-        out[j] = _pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay)
+        out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay)
 
 
 @njit(cache=True, error_model="numpy")
 def _mf_sample(wo, u, ax, ay, eta, k, table, wi, weight, pdf):
-    """microfacet.sample without a diffuse base: visible-normal sampling (Heitz 2018, listing 1)
-    of wo (the pole for wo below the horizon), mirrored; weight f cos / pdf."""
     for j in range(wo.shape[0]):
-        ox, oy, oz = wo[j, 0], wo[j, 1], wo[j, 2]
-        up = oz > 0
-        sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
-        u0 = min(max(u[j, 0], 0.0), 1.0 - 1e-16)
-        u1 = u[j, 1]
-        # stretch, orthonormal basis about vh, a point on the warped disk, unstretch
-        vx, vy, vz = ax * sx, ay * sy, sz
-        lv = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if lv > 0:
-            vx, vy, vz = vx / lv, vy / lv, vz / lv
-        lensq = vx * vx + vy * vy
-        if lensq > 0:
-            inv = 1.0 / math.sqrt(lensq)
-            t1x, t1y, t1z = -vy * inv, vx * inv, 0.0 * inv
-        else:
-            t1x, t1y, t1z = 1.0, 0.0, 0.0
-        t2x = vy * t1z - vz * t1y
-        t2y = vz * t1x - vx * t1z
-        t2z = vx * t1y - vy * t1x
-        rr = math.sqrt(u0)
-        phi = 2.0 * _PI * u1
-        p1 = rr * math.cos(phi)
-        p2 = rr * math.sin(phi)
-        s = 0.5 * (1.0 + vz)
-        p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
-        q = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))
-        nx = p1 * t1x + p2 * t2x + q * vx
-        ny = p1 * t1y + p2 * t2y + q * vy
-        nz = p1 * t1z + p2 * t2z + q * vz
-        mx, my, mz = ax * nx, ay * ny, max(1e-12, nz)
-        lm = math.sqrt(mx * mx + my * my + mz * mz)
-        if lm > 0:
-            mx, my, mz = mx / lm, my / lm, mz / lm
-        dm = sx * mx + sy * my + sz * mz
-        ix = 2.0 * dm * mx - sx
-        iy = 2.0 * dm * my - sy
-        iz = 2.0 * dm * mz - sz
-        wi[j, 0] = ix
-        wi[j, 1] = iy
-        wi[j, 2] = iz
-        pd = _pdf1(ix, iy, iz, ox, oy, oz, ax, ay)
-        ok = up and iz > 0 and pd > 0
-        _eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, weight, j)
-        if ok:
-            sc = iz / pd
-            for c in range(3):
-                weight[j, c] *= sc
-            pdf[j] = pd
-        else:
-            for c in range(3):
-                weight[j, c] = 0.0
-            pdf[j] = 0.0
+        (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
+         pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, eta, k, table)
 
 
 class CompiledMicrofacet:
@@ -407,15 +401,100 @@ class CompiledMicrofacet:
         return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
+# ----------------------------------------------------------------------------- Lambert
+
+@njit(cache=True, error_model="numpy", inline="always")
+def lambert_eval1(iz, oz, r, g, b):
+    """lambert.eval of one pair with albedo (r, g, b)."""
+    if iz > 0 and oz > 0:
+        return r * INV_PI, g * INV_PI, b * INV_PI
+    return 0.0, 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def lambert_pdf1(iz, oz):
+    """lambert.pdf of one pair: cos / pi above the horizon (``sampling.cosine_hemisphere_pdf``)."""
+    return max(iz, 0.0) * INV_PI if oz > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def lambert_sample1(oz, u0, u1, r, g, b):
+    """lambert.sample of one wo: (wi x, y, z, weight = albedo where the pdf is positive, pdf)."""
+    x, y, z = cosine_hemisphere1(u0, u1)
+    pd = lambert_pdf1(z, oz)
+    if pd > 0:
+        return x, y, z, r, g, b, pd
+    return x, y, z, 0.0, 0.0, 0.0, pd
+
+
+@njit(cache=True, error_model="numpy")
+def _lambert_eval(wi, wo, alb, out):
+    r = wo.shape[0]
+    for j in range(wi.shape[0]):
+        out[j, 0], out[j, 1], out[j, 2] = lambert_eval1(wi[j, 2], wo[j % r, 2], alb[0], alb[1], alb[2])
+
+
+@njit(cache=True, error_model="numpy")
+def _lambert_pdf(wi, wo, out):
+    for j in range(wi.shape[0]):
+        out[j] = lambert_pdf1(wi[j, 2], wo[j, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _lambert_sample(wo, u, alb, wi, weight, pdf):
+    for j in range(wo.shape[0]):
+        (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
+         pdf[j]) = lambert_sample1(wo[j, 2], u[j, 0], u[j, 1], alb[0], alb[1], alb[2])
+
+
+class CompiledLambert:
+    """The Lambert model of one material (``viewer.brdf.lambert``) with the interface of
+    ``CompiledMicrofacet``; the albedo is baked in."""
+
+    def __init__(self, p, twin):
+        self.twin = twin
+        self.albedo = np.ascontiguousarray(np.asarray(p.albedo, dtype=np.float64).reshape(3))
+        own = twin.lobes(p)
+        self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
+
+    def lobes(self, p=None):
+        return self.twin.lobes(p)
+
+    def eval(self, p, wi, wo):
+        wi = np.ascontiguousarray(wi, dtype=np.float64)
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        out = np.empty((wi.shape[0], 3))
+        _lambert_eval(wi, wo, self.albedo, out)
+        return out
+
+    def pdf(self, p, wi, wo):
+        wi = np.ascontiguousarray(wi, dtype=np.float64)
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        out = np.empty(wi.shape[0])
+        _lambert_pdf(wi, wo, out)
+        return out
+
+    def sample_lobe(self, p, wo, u):
+        wo = np.ascontiguousarray(wo, dtype=np.float64)
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        n = wo.shape[0]
+        wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+        _lambert_sample(wo, u, self.albedo, wi, weight, pdf)
+        return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
+
+
 def compiled_model(p, twin):
     """A compiled stand-in for ``twin`` (the registry model of material parameters ``p``), or
-    None where none applies: ``twin`` runs ``viewer.brdf.microfacet`` (the module these kernels
-    repeat) with GGX, Smith G, conductor Fresnel (RGB or a spectral table), no diffuse base, no
-    thin film, no multiple scattering."""
-    if not HAVE_NUMBA or getattr(twin, "module", None) is not microfacet:
+    None where none applies: ``twin`` runs ``viewer.brdf.lambert``, or ``viewer.brdf.microfacet``
+    (the module these kernels repeat) with GGX, Smith G, conductor Fresnel (RGB or a spectral
+    table), no diffuse base, no thin film, no multiple scattering."""
+    module = getattr(twin, "module", None)
+    if not HAVE_NUMBA or module not in (microfacet, lambert):
         return None
     if twin.hook("sample_lobe") is not None or twin.hook("reference_model") is not None:
         return None
+    if module is lambert:
+        return CompiledLambert(p, twin)
     ok = (p.distribution == "ggx" and p.shadowing == "smith" and p.fresnel == "conductor"
           and not np.any(np.asarray(p.kd, dtype=np.float64) > 0)
           and not bool(p.get("multiple_scattering", False))
@@ -425,47 +504,58 @@ def compiled_model(p, twin):
 
 # ----------------------------------------------------------------------------- constant environment
 
+@njit(cache=True, error_model="numpy", inline="always")
+def cosine_hemisphere1(u0, u1):
+    """``sampling.cosine_hemisphere`` of one pair: Malley's method on the concentric disk
+    (Shirley-Chiu 1997); (x, y, z)."""
+    a = 2.0 * u0 - 1.0
+    b = 2.0 * u1 - 1.0
+    if abs(a) > abs(b):
+        rr = a
+        phi = (_PI / 4) * (b / (1.0 if a == 0 else a))
+    else:
+        rr = b
+        phi = (_PI / 2) - (_PI / 4) * (a / (1.0 if b == 0 else b))
+    if a == 0 and b == 0:
+        rr = 0.0
+    lx = rr * math.cos(phi)
+    ly = rr * math.sin(phi)
+    return lx, ly, math.sqrt(max(0.0, 1.0 - lx * lx - ly * ly))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def constant_env_sample1(u0, u1, n0, n1, n2, two_sided):
+    """EnvironmentLight.sample of a constant environment at one hit: Malley's method in the
+    frame of ``sampling.frame_from_z`` about the shading normal, pdf cos / pi; a uniform
+    sphere, pdf 1 / (4 pi), where ``two_sided``. (wi x, y, z, pdf)."""
+    if two_sided:
+        z = 1.0 - 2.0 * u0
+        r = math.sqrt(max(0.0, 1.0 - z * z))
+        phi = 2.0 * math.pi * u1
+        return r * math.cos(phi), r * math.sin(phi), z, _INV_4PI
+    lx, ly, lz = cosine_hemisphere1(u0, u1)
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    aa = -1.0 / (sign + n2)
+    bb = n0 * n1 * aa
+    x0, x1, x2 = 1.0 + sign * n0 ** 2 * aa, sign * bb, -sign * n0
+    y0, y1, y2 = bb, sign + n1 ** 2 * aa, -n1
+    return (lx * x0 + ly * y0 + lz * n0, lx * x1 + ly * y1 + lz * n1, lx * x2 + ly * y2 + lz * n2,
+            lz / math.pi)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def constant_env_pdf1(d0, d1, d2, n0, n1, n2, two_sided):
+    """EnvironmentLight.pdf of a constant environment for one direction."""
+    if two_sided:
+        return _INV_4PI
+    return max(d0 * n0 + d1 * n1 + d2 * n2, 0.0) / math.pi
+
+
 @njit(cache=True, error_model="numpy")
 def _constant_env_sample(u, nrm, two_sided, wi, pdf):
-    """EnvironmentLight.sample of a constant environment: Malley's method (the concentric disk,
-    ``sampling.cosine_hemisphere``) in the frame of ``sampling.frame_from_z`` about the shading
-    normal, pdf cos / pi; a uniform sphere, pdf 1 / (4 pi), where ``two_sided``."""
     for i in range(u.shape[0]):
-        if two_sided[i]:
-            z = 1.0 - 2.0 * u[i, 0]
-            r = math.sqrt(max(0.0, 1.0 - z * z))
-            phi = 2.0 * math.pi * u[i, 1]
-            wi[i, 0] = r * math.cos(phi)
-            wi[i, 1] = r * math.sin(phi)
-            wi[i, 2] = z
-            pdf[i] = _INV_4PI
-            continue
-        a = 2.0 * u[i, 0] - 1.0
-        b = 2.0 * u[i, 1] - 1.0
-        if abs(a) > abs(b):
-            rr = a
-            phi = (_PI / 4) * (b / (1.0 if a == 0 else a))
-        else:
-            rr = b
-            phi = (_PI / 2) - (_PI / 4) * (a / (1.0 if b == 0 else b))
-        if a == 0 and b == 0:
-            rr = 0.0
-        lx = rr * math.cos(phi)
-        ly = rr * math.sin(phi)
-        lz = math.sqrt(max(0.0, 1.0 - lx * lx - ly * ly))
-        n0, n1, n2 = nrm[i, 0], nrm[i, 1], nrm[i, 2]
-        sign = 1.0 if n2 >= 0.0 else -1.0
-        aa = -1.0 / (sign + n2)
-        bb = n0 * n1 * aa
-        x0, x1, x2 = 1.0 + sign * n0 ** 2 * aa, sign * bb, -sign * n0
-        y0, y1, y2 = bb, sign + n1 ** 2 * aa, -n1
-        wi[i, 0] = lx * x0 + ly * y0 + lz * n0
-        wi[i, 1] = lx * x1 + ly * y1 + lz * n1
-        wi[i, 2] = lx * x2 + ly * y2 + lz * n2
-        pdf[i] = lz / math.pi
-
-
-_INV_4PI = 1.0 / (4.0 * math.pi)
+        wi[i, 0], wi[i, 1], wi[i, 2], pdf[i] = constant_env_sample1(u[i, 0], u[i, 1], nrm[i, 0], nrm[i, 1], nrm[i, 2],
+                                                                    two_sided[i])
 
 
 def constant_env_sample(env, u, normals, two_sided):
@@ -562,27 +652,37 @@ def embree_rays_numpy(o, d, centre, tmin, tmax, big):
 
 # ----------------------------------------------------------------------------- next-event candidates
 
+@njit(cache=True, error_model="numpy", inline="always")
+def nee1(i, wl2, ww0, ww1, ww2, ng0, ng1, ng2, p0, p1, p2, eps, T, f, fac, share, extra_ok, transmissive, c, o):
+    """One next-event candidate at one hit as ``nee_candidates`` defines it: writes the
+    contribution ``T f |cos| share fac`` into c[i] and the shadow ray's origin into o[i] (the
+    hit point ``p`` offset by ``eps`` along ``ng`` to the side ``ww`` leaves); returns whether
+    it passes the light test with ``extra_ok`` and has a positive channel."""
+    gcos = ng0 * ww0 + ng1 * ww1 + ng2 * ww2
+    z = wl2
+    good = z * gcos > 0 if transmissive else (z > 0 and gcos > 0)
+    good = good and extra_ok
+    cs = abs(z) * share
+    pos = False
+    for k in range(T.shape[0]):
+        v = T[k] * f[k] * cs * fac[k]
+        c[i, k] = v
+        pos = pos or v > 0
+    side = -1.0 if gcos < 0 else 1.0
+    e = eps * side
+    o[i, 0] = p0 + e * ng0
+    o[i, 1] = p1 + e * ng1
+    o[i, 2] = p2 + e * ng2
+    return good and pos
+
+
 @njit(cache=True, error_model="numpy")
 def _nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive, ok, c, o):
-    ch = T.shape[1]
     for i in range(wl.shape[0]):
-        gcos = ng[i, 0] * ww[i, 0] + ng[i, 1] * ww[i, 1] + ng[i, 2] * ww[i, 2]
-        z = wl[i, 2]
-        good = z * gcos > 0 if transmissive else (z > 0 and gcos > 0)
-        if extra_ok.shape[0] > 0:
-            good = good and extra_ok[i]
-        cs = abs(z) if share.shape[0] == 0 else abs(z) * share[i]
-        pos = False
-        for k in range(ch):
-            v = T[i, k] * f[i, k] * cs * fac[i, k]
-            c[i, k] = v
-            pos = pos or v > 0
-        ok[i] = good and pos
-        side = -1.0 if gcos < 0 else 1.0
         j = sel[i]
-        e = eps[j] * side
-        for k in range(3):
-            o[i, k] = p[j, k] + e * ng[i, k]
+        ok[i] = nee1(i, wl[i, 2], ww[i, 0], ww[i, 1], ww[i, 2], ng[i, 0], ng[i, 1], ng[i, 2], p[j, 0], p[j, 1],
+                     p[j, 2], eps[j], T[i], f[i], fac[i], 1.0 if share.shape[0] == 0 else share[i],
+                     True if extra_ok.shape[0] == 0 else extra_ok[i], transmissive, c, o)
 
 
 def nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive):

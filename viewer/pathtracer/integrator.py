@@ -250,9 +250,17 @@ class Integrator:
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
         self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
+        # the whole bounce compiled (viewer/pathtracer/fused.py) where every step has a stand-in:
+        # this class's own steps only (subclasses override them), no film over height
+        self.fused = None
+        if type(self) is Integrator and not self._object_y and self.COMPILED_MODELS:
+            from viewer.pathtracer.fused import plan  # numba: only where paths are traced
+
+            self.fused = plan(self)
 
     def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
         self.strategy = strategy
+        self.mis_heuristic = mis_heuristic
         self.heuristic = HEURISTICS[mis_heuristic]
         self.russian_roulette = bool(russian_roulette)
         self.env_on = not self.s.env.is_black
@@ -601,6 +609,8 @@ class Integrator:
     def trace_paths(self, paths: PathState, o, d, draw):
         """Follow the rays (o, d) of ``paths`` to ``max_depth`` scattering events; returns the
         paths' radiance in their channels."""
+        if self.fused is not None:   # the same steps, compiled into one loop per bounce
+            return self._final(self.fused.trace(paths, o, d, draw))
         s = self.s
         act = np.arange(o.shape[0])
         for depth in range(1, s.max_depth + 2):

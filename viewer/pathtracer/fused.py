@@ -1,0 +1,345 @@
+"""The whole bounce in one compiled loop: the integrator's estimator (``integrator.py``) for the
+scenes every step of which has a compiled stand-in.
+
+Between the two batched ray queries of a bounce (closest hit; occlusion of the shadow rays)
+``_shade`` runs, path by path, what ``Integrator._bounce`` and its neighbours do material
+group by material group in numpy: the environment reached by a ray that missed (weighted
+against light sampling), the hit's shading (``compiled.shade_hit1``), next-event estimation of
+every point and directional light and of the constant environment (``compiled.nee1``,
+``compiled.constant_env_sample1``, the material's ``eval1`` and ``pdf1``, the MIS heuristic),
+the BSDF sample (``sample1``), light sampling's density in its direction, the new throughput,
+Russian roulette, and the next ray. It writes into arrays allocated once per chunk: the next
+wavefront (compacted, in path order) and the shadow rays with their contributions;
+``_add_unoccluded`` adds the contributions of the unoccluded ones after the occlusion query.
+
+Nothing here is a formula of its own: the per-path steps are the functions of
+``viewer.pathtracer.compiled`` (each tested against its numpy twin), called in the order of the
+numpy steps and on the same random numbers (``rnd[:, 0:2]`` the BSDF, ``rnd[:, 2:4]`` the
+environment, ``rnd[:, 4]`` roulette), so an image agrees with the numpy path to roundoff
+(tests/test_fused_bounce.py), and a seed gives the same image every time.
+
+Where it applies (``plan``): the RGB path tracer itself (not the spectral or photon
+integrators, which override its steps), every material a ``CompiledLambert`` or
+``CompiledMicrofacet``, none transmissive and none a film over height, a constant (or black)
+environment, point and directional lights. Any other scene runs the numpy steps, unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.brdf.lobes import Lobe
+from viewer.pathtracer import compiled
+from viewer.pathtracer.compiled import (
+    HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, lambert_eval1,
+    lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1, microfacet_sample1, nee1, shade_hit1)
+from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
+
+__all__ = ["FusedBounce", "plan"]
+
+njit = compiled.njit
+LAMBERT, MICROFACET = 0, 1
+STRATEGY = {"mis": 0, "bsdf": 1, "light": 2}
+POINT, DIRECTIONAL = 0, 1
+
+
+# ----------------------------------------------------------------------------- per path
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _eval(kind, m, ix, iy, iz, ox, oy, oz, albedo, ax, ay, eta, kk, tables, nrows):
+    if kind == LAMBERT:
+        return lambert_eval1(iz, oz, albedo[m, 0], albedo[m, 1], albedo[m, 2])
+    return microfacet_eval1(ix, iy, iz, ox, oy, oz, ax[m], ay[m], eta[m], kk[m], tables[m, :nrows[m]])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pdf(kind, m, ix, iy, iz, ox, oy, oz, ax, ay):
+    if kind == LAMBERT:
+        return lambert_pdf1(iz, oz)
+    return microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax[m], ay[m])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sample(kind, m, ox, oy, oz, u0, u1, albedo, ax, ay, eta, kk, tables, nrows):
+    if kind == LAMBERT:
+        return lambert_sample1(oz, u0, u1, albedo[m, 0], albedo[m, 1], albedo[m, 2])
+    return microfacet_sample1(ox, oy, oz, u0, u1, ax[m], ay[m], eta[m], kk[m], tables[m, :nrows[m]])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _heuristic(a, b, power):
+    """integrator._power (Veach 1997, eq. 9.13) or integrator._balance (eq. 9.10)."""
+    if power:
+        a2, b2 = a * a, b * b
+        s = a2 + b2
+        return a2 / s if s > 0 else 0.0
+    s = a + b
+    return a / s if s > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clean3(f, bad):
+    """Integrator._clean of one (3,) model output: NaN, Inf and negative entries counted, zeroed."""
+    for c in range(3):
+        if not (f[c] >= 0.0) or f[c] == np.inf:
+            bad[0] += 1
+            f[c] = 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clean1(x, bad):
+    if not (x >= 0.0) or x == np.inf:
+        bad[0] += 1
+        return 0.0
+    return x
+
+
+# ----------------------------------------------------------------------------- one bounce
+
+@njit(cache=True, error_model="numpy")
+def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
+           tris, vnorm, vtan, gnorm, mat_index, trans_table,
+           kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows,
+           lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
+           L, T, prev_pdf, prev_lpdf, prev_delta,
+           act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
+    """One bounce of the ``m`` rays (paths ``act``, directions ``d``) whose closest hits are
+    (prim, bu, bv) (prim < 0: a miss). ``scatter`` False: the rays after the last scattering
+    event (only the environment they reach). Returns (next wavefront's size, shadow rays)."""
+    nl = lkind.shape[0]
+    n_out = 0
+    ns = 0
+    f = np.empty(3)
+    w = np.empty(3)
+    tb = np.empty(3)
+    fac = np.empty(3)
+    for i in range(m):
+        a = act[i]
+        k = prim[i]
+        if k < 0:
+            # BSDF sampling's part of the environment (Integrator._bsdf_hits_environment)
+            if env_on:
+                if strategy == 0:
+                    wm = 1.0 if prev_delta[a] else _heuristic(prev_pdf[a], prev_lpdf[a], power)
+                elif strategy == 1:
+                    wm = 1.0
+                else:
+                    wm = 1.0 if prev_delta[a] else 0.0
+                for c in range(3):
+                    L[a, c] += T[a, c] * env[c] * wm
+            continue
+        if not scatter:
+            continue
+        (p0, p1, p2, eps, gr0, gr1, gr2, n0, n1, n2, g0, g1, g2, t0, t1, t2, b0, b1, b2,
+         o0, o1, o2, mt, tr) = shade_hit1(k, bu[i], bv[i], d[i, 0], d[i, 1], d[i, 2], tris, vnorm, vtan, gnorm,
+                                          mat_index, trans_table)
+        kind = kinds[mt]
+        for c in range(3):
+            tb[c] = T[a, c]
+        # light sampling of the environment (Integrator._light_sample_environment)
+        e0, e1, e2, pe = 0.0, 0.0, 0.0, 0.0
+        if env_by_light:
+            e0, e1, e2, pe = constant_env_sample1(rnd[a, 2], rnd[a, 3], n0, n1, n2, tr)
+            pe = _clean1(pe, bad)
+        # next-event estimation (Integrator._next_event): the delta lights, then the environment
+        if nee_on[mt]:
+            for j in range(nl):
+                if lkind[j] == POINT:
+                    dv0, dv1, dv2 = lpos[j, 0] - p0, lpos[j, 1] - p1, lpos[j, 2] - p2
+                    r2 = max(dv0 * dv0 + dv1 * dv1 + dv2 * dv2, 1e-300)
+                    r = np.sqrt(r2)
+                    w0, w1, w2 = dv0 / r, dv1 / r, dv2 / r
+                    for c in range(3):
+                        fac[c] = lval[j, c] / r2
+                    tmax = r - eps
+                else:
+                    w0, w1, w2 = -lpos[j, 0], -lpos[j, 1], -lpos[j, 2]
+                    for c in range(3):
+                        fac[c] = lval[j, c]
+                    tmax = np.inf
+                l0 = w0 * t0 + w1 * t1 + w2 * t2
+                l1 = w0 * b0 + w1 * b1 + w2 * b2
+                l2 = w0 * n0 + w1 * n1 + w2 * n2
+                f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
+                _clean3(f, bad)
+                if nee1(ns, l2, w0, w1, w2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, True, tr, s_c, s_o):
+                    s_idx[ns] = a
+                    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = w0, w1, w2
+                    s_tmax[ns] = tmax
+                    ns += 1
+            if env_by_light:
+                l0 = e0 * t0 + e1 * t1 + e2 * t2
+                l1 = e0 * b0 + e1 * b1 + e2 * b2
+                l2 = e0 * n0 + e1 * n1 + e2 * n2
+                f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
+                _clean3(f, bad)
+                if strategy == 0:
+                    pb = _clean1(_pdf(kind, mt, l0, l1, l2, o0, o1, o2, ax, ay), bad)
+                    wmis = _heuristic(pe, pb, power) / (pe if pe > 0 else 1.0)
+                else:
+                    wmis = 1.0 / (pe if pe > 0 else 1.0)
+                for c in range(3):
+                    fac[c] = env[c] * wmis
+                if nee1(ns, l2, e0, e1, e2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, pe > 0, tr, s_c, s_o):
+                    s_idx[ns] = a
+                    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = e0, e1, e2
+                    s_tmax[ns] = np.inf
+                    ns += 1
+        # the BSDF sample (Integrator._sample_bsdf, _scatter)
+        x, y, z, w[0], w[1], w[2], pdf_s = _sample(kind, mt, o0, o1, o2, rnd[a, 0], rnd[a, 1], albedo, ax, ay,
+                                                   eta, kk, tables, nrows)
+        _clean3(w, bad)
+        pdf_s = _clean1(pdf_s, bad)
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+            bad[0] += 1
+            x, y, z = 0.0, 0.0, 1.0
+            w[0], w[1], w[2] = 0.0, 0.0, 0.0
+        disc = delta[mt]
+        q0 = x * t0 + y * b0 + z * n0
+        q1 = x * t1 + y * b1 + z * n1
+        q2 = x * t2 + y * b2 + z * n2
+        gc = g0 * q0 + g1 * q1 + g2 * q2
+        valid = z * gc > 0 if tr else (z > 0 and gc > 0)
+        ok = valid and pdf_s > 0 and (w[0] > 0 or w[1] > 0 or w[2] > 0)
+        lpdf = 0.0
+        if env_by_light and env_by_bsdf:   # MIS: light sampling's density there
+            lpdf = 0.0 if disc else constant_env_pdf1(q0, q1, q2, n0, n1, n2, tr)
+        # the new throughput, roulette, the next ray (Integrator._continue, _roulette)
+        alive = False
+        tmx = 0.0
+        for c in range(3):
+            v = tb[c] * (w[c] if ok else 0.0)
+            tb[c] = v
+            alive = alive or v > 0
+            if c == 0 or v > tmx:
+                tmx = v
+        if roulette and depth >= RR_START_DEPTH:
+            qs = min(max(tmx, RR_MIN), RR_MAX)
+            alive = alive and rnd[a, 4] < qs
+            for c in range(3):
+                tb[c] = tb[c] / qs
+        for c in range(3):
+            T[a, c] = tb[c]
+        prev_pdf[a] = pdf_s
+        prev_lpdf[a] = lpdf
+        prev_delta[a] = disc
+        if alive:
+            e = eps * (-1.0 if gc < 0 else 1.0)
+            act_out[n_out] = a
+            o_out[n_out, 0] = p0 + e * g0
+            o_out[n_out, 1] = p1 + e * g1
+            o_out[n_out, 2] = p2 + e * g2
+            d_out[n_out, 0], d_out[n_out, 1], d_out[n_out, 2] = q0, q1, q2
+            n_out += 1
+    return n_out, ns
+
+
+@njit(cache=True, error_model="numpy")
+def _add_unoccluded(L, s_idx, s_c, blocked, ns):
+    """Integrator._trace_shadows' sum: the unoccluded shadow rays' contributions, in ray order."""
+    for j in range(ns):
+        if not blocked[j]:
+            a = s_idx[j]
+            for c in range(3):
+                L[a, c] += s_c[j, c]
+
+
+# ----------------------------------------------------------------------------- the integrator's side
+
+def plan(it) -> "FusedBounce | None":
+    """The fused bounce for integrator ``it`` (an ``Integrator``), or None where a step has no
+    compiled stand-in (see the module docstring)."""
+    s = it.s
+    if not HAVE_NUMBA or it.CHANNELS != 3 or s.env.is_map or it.trans_table.any():
+        return None
+    if not all(isinstance(m, (CompiledLambert, CompiledMicrofacet)) for m in it.models) or not it.models:
+        return None
+    if any(kind not in ("point", "directional") for kind, _, _ in s.lights):
+        return None
+    return FusedBounce(it)
+
+
+class FusedBounce:
+    """``Integrator.trace_paths`` with every bounce one ``_shade`` call (see the module
+    docstring); buffers are allocated once per wavefront size and reused."""
+
+    def __init__(self, it):
+        self.it = it
+        s = it.s
+        models = it.models
+        nm = len(models)
+        self.kinds = np.array([LAMBERT if isinstance(m, CompiledLambert) else MICROFACET for m in models], np.int64)
+        self.nee_on = np.array([not info.lobes.is_delta for info in s.materials], np.bool_)
+        self.delta = np.array([bool(m.lobe & np.uint8(Lobe.DELTA)) for m in models], np.bool_)
+        self.albedo = np.zeros((nm, 3))
+        self.ax, self.ay = np.ones(nm), np.ones(nm)
+        self.eta, self.kk = np.ones((nm, 3)), np.zeros((nm, 3))
+        rows = max([m.table.shape[0] for m in models if isinstance(m, CompiledMicrofacet)] + [0])
+        self.tables = np.zeros((nm, rows, 3))
+        self.nrows = np.zeros(nm, np.int64)
+        for i, m in enumerate(models):
+            if isinstance(m, CompiledLambert):
+                self.albedo[i] = m.albedo
+            else:
+                self.ax[i], self.ay[i], self.eta[i], self.kk[i] = m.ax, m.ay, m.eta, m.k
+                self.nrows[i] = m.table.shape[0]
+                self.tables[i, :self.nrows[i]] = m.table
+        nl = len(s.lights)
+        self.lkind = np.array([POINT if kind == "point" else DIRECTIONAL for kind, _, _ in s.lights], np.int64)
+        self.lpos = np.array([a for _, a, _ in s.lights], np.float64).reshape(nl, 3)
+        self.lval = np.array([v for _, _, v in s.lights], np.float64).reshape(nl, 3)
+        self.env = np.ascontiguousarray(np.asarray(s.env.constant, np.float64).reshape(3))
+        self._cap = -1
+
+    def _buffers(self, n: int):
+        if n > self._cap:
+            nl = self.lkind.shape[0] + 1
+            self._act = [np.empty(n, np.int64), np.empty(n, np.int64)]
+            self._o = [np.empty((n, 3)), np.empty((n, 3))]
+            self._d = [np.empty((n, 3)), np.empty((n, 3))]
+            self._s_idx = np.empty(n * nl, np.int64)
+            self._s_o, self._s_d, self._s_c = np.empty((n * nl, 3)), np.empty((n * nl, 3)), np.empty((n * nl, 3))
+            self._s_tmax = np.empty(n * nl)
+            self._cap = n
+        return self
+
+    def trace(self, paths, o, d, draw):
+        """``Integrator.trace_paths`` of ``paths`` along the rays (o, d): their radiance
+        ``paths.L`` before the final check for NaN (the integrator's)."""
+        it = self.it
+        s, g, kernel = it.s, it.geom, it.kernel
+        n = o.shape[0]
+        self._buffers(n)
+        bad = np.zeros(1, np.int64)
+        act = np.arange(n, dtype=np.int64)
+        o = np.ascontiguousarray(o, np.float64)
+        d = np.ascontiguousarray(d, np.float64)
+        no_rnd = np.zeros((0, 5))
+        opts = (self.env, bool(it.env_on), bool(it.env_by_light), bool(it.env_by_bsdf), STRATEGY[it.strategy],
+                it.mis_heuristic == "power", bool(it.russian_roulette))
+        flip = 0
+        for depth in range(1, s.max_depth + 2):
+            m = act.shape[0]
+            if m == 0:
+                break
+            scatter = depth <= s.max_depth
+            rnd = np.ascontiguousarray(draw(), np.float64) if scatter else no_rnd
+            _, prim, bu, bv = kernel.intersect(o, d, 0.0, np.inf)
+            act_out, o_out, d_out = self._act[flip], self._o[flip], self._d[flip]
+            m_out, ns = _shade(depth, scatter, m, act, d, np.ascontiguousarray(prim, np.int64),
+                               np.ascontiguousarray(bu, np.float64), np.ascontiguousarray(bv, np.float64), rnd,
+                               g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
+                               self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.eta,
+                               self.kk, self.tables, self.nrows, self.lkind, self.lpos, self.lval, *opts,
+                               paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf, paths.prev_delta,
+                               act_out, o_out, d_out, self._s_idx, self._s_o, self._s_d, self._s_tmax, self._s_c,
+                               bad)
+            if not scatter:
+                break
+            if ns:
+                blocked = kernel.occluded(self._s_o[:ns], self._s_d[:ns], 0.0, self._s_tmax[:ns])
+                _add_unoccluded(paths.L, self._s_idx, self._s_c, np.ascontiguousarray(blocked, np.bool_), ns)
+            act, o, d = act_out[:m_out], o_out[:m_out], d_out[:m_out]
+            flip = 1 - flip
+        it.bad_values += int(bad[0])
+        return paths.L
