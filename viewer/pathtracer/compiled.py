@@ -44,13 +44,18 @@ import math
 import numpy as np
 
 try:
-    from numba import njit
+    from llvmlite import ir as llvm_ir
+    from numba import njit, types as nb_types
+    from numba.extending import intrinsic
     HAVE_NUMBA = True
 except ImportError:  # numba missing: every step runs its numpy twin (slower, the same values)
     HAVE_NUMBA = False
 
     def njit(*args, **kwargs):
         return lambda f: f
+
+    def intrinsic(f):
+        return f
 
 from viewer.brdf import lobes as lobes_mod
 from viewer.brdf import lambert, microfacet, spectral_fresnel, thin_film
@@ -572,15 +577,21 @@ def constant_env_sample(env, u, normals, two_sided):
 
 # ----------------------------------------------------------------------------- Embree rays
 
+@njit(cache=True, error_model="numpy", inline="always")
+def embree_ray1(o0, o1, o2, d0, d1, d2, centre, tmin, tmax, big):
+    """One float32 ray as ``embree_rays`` makes it: (origin x, y, z, direction x, y, z, far,
+    whether far is positive)."""
+    far = min(tmax - tmin, big)
+    return (np.float32((o0 - centre[0]) + tmin * d0), np.float32((o1 - centre[1]) + tmin * d1),
+            np.float32((o2 - centre[2]) + tmin * d2), np.float32(d0), np.float32(d1), np.float32(d2),
+            np.float32(far if far > 0 else 0.0), far > 0)
+
+
 @njit(cache=True, error_model="numpy")
 def _embree_rays(o, d, centre, tmin, tmax, big, o32, d32, far32, live):
     for i in range(o.shape[0]):
-        for c in range(3):
-            o32[i, c] = np.float32((o[i, c] - centre[c]) + tmin * d[i, c])
-            d32[i, c] = np.float32(d[i, c])
-        far = min(tmax[i] - tmin, big)
-        live[i] = far > 0
-        far32[i] = np.float32(far if far > 0 else 0.0)
+        (o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2], far32[i],
+         live[i]) = embree_ray1(o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], centre, tmin, tmax[i], big)
 
 
 def embree_rays(o, d, centre, tmin, tmax, big):
@@ -648,6 +659,100 @@ def embree_rays_numpy(o, d, centre, tmin, tmax, big):
     far = np.minimum(tmax - tmin, big)
     far32 = np.ascontiguousarray(np.where(far > 0, far, 0.0).astype(np.float32))
     return o32, d32, far32, far > 0
+
+
+# ----------------------------------------------------------------------------- Embree, ray by ray
+
+@intrinsic
+def _c_call3(typingctx, fn, a, b, c):
+    """Call the C function at address ``fn`` (void f(void *, void *, void *)) with three
+    addresses. An address taken as an argument, not baked into the code: the compiled
+    functions stay cacheable across processes."""
+    u64 = nb_types.uint64
+    sig = nb_types.void(u64, u64, u64, u64)
+
+    def codegen(context, builder, signature, args):
+        i8p = llvm_ir.IntType(8).as_pointer()
+        fnty = llvm_ir.FunctionType(llvm_ir.VoidType(), [i8p, i8p, i8p])
+        fptr = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fptr, [builder.inttoptr(x, i8p) for x in args[1:]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+_INVALID_ID = 0xFFFFFFFF
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _ray_into(rh, ox, oy, oz, dx, dy, dz, far):
+    """Fill the RTCRayHit ``rh`` (uint32 words: the ray's 12, then the hit's) with a float32 ray
+    from tnear 0 to ``far``, every mask bit, no hit."""
+    f = rh.view(np.float32)
+    f[0], f[1], f[2], f[3] = ox, oy, oz, 0.0
+    f[4], f[5], f[6], f[7] = dx, dy, dz, 0.0
+    f[8] = far
+    rh[9] = _INVALID_ID   # mask
+    rh[10] = 0            # id
+    rh[11] = 0            # flags
+    rh[18] = _INVALID_ID  # geomID
+    rh[19] = _INVALID_ID  # instID[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def embree_intersect1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live, tmin):
+    """``rtcIntersect1`` of one float32 ray (``compiled.embree_rays``'s conventions): (prim, t,
+    u, v) as ``embree_hits`` gives them (a miss or a dead ray: -1, inf, 0, 0)."""
+    if not live:
+        return -1, np.inf, 0.0, 0.0
+    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _c_call3(fn, scene, rh.ctypes.data, 0)
+    if rh[18] == _INVALID_ID:
+        return -1, np.inf, 0.0, 0.0
+    f = rh.view(np.float32)
+    return np.int64(rh[17]), np.float64(f[8]) + tmin, np.float64(f[15]), np.float64(f[16])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def embree_occluded1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live):
+    """``rtcOccluded1`` of one float32 ray: whether something lies between tnear and ``far``
+    (Embree sets tfar to -inf when it finds a hit)."""
+    if not live:
+        return False
+    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _c_call3(fn, scene, rh.ctypes.data, 0)
+    return rh.view(np.float32)[8] == -np.inf
+
+
+@njit(cache=True, error_model="numpy")
+def _embree_intersect(scene, fn, rh, o32, d32, far32, live, tmin, t, prim, u, v):
+    for i in range(o32.shape[0]):
+        prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+                                                      d32[i, 1], d32[i, 2], far32[i], live[i], tmin)
+
+
+@njit(cache=True, error_model="numpy")
+def _embree_occluded(scene, fn, rh, o32, d32, far32, live, out):
+    for i in range(o32.shape[0]):
+        out[i] = embree_occluded1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
+                                  far32[i], live[i])
+
+
+def embree_intersect(direct, o32, d32, far32, live, tmin):
+    """(t, prim, u, v) of the float32 rays (``embree_rays``) in ``direct`` (a
+    ``kernel_embree.DirectScene``), ray by ray; what ``embree_hits`` makes of Embree's batch."""
+    n = o32.shape[0]
+    t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+    _embree_intersect(np.uint64(direct.scene), np.uint64(direct.intersect1), direct.rayhit, o32, d32, far32, live,
+                      float(tmin), t, prim, u, v)
+    return t, prim, u, v
+
+
+def embree_occluded(direct, o32, d32, far32, live):
+    """(N,) bool: which float32 rays (``embree_rays``) something in ``direct`` blocks."""
+    out = np.empty(o32.shape[0], np.bool_)
+    _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), direct.rayhit, o32, d32, far32, live, out)
+    return out
 
 
 # ----------------------------------------------------------------------------- next-event candidates

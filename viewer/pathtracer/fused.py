@@ -31,8 +31,10 @@ import numpy as np
 from viewer.brdf.lobes import Lobe
 from viewer.pathtracer import compiled
 from viewer.pathtracer.compiled import (
-    HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, lambert_eval1,
-    lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1, microfacet_sample1, nee1, shade_hit1)
+    HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, embree_intersect1,
+    embree_occluded1, embree_ray1, lambert_eval1, lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1,
+    microfacet_sample1, nee1, shade_hit1)
+from viewer.pathtracer.kernel_embree import F32_MAX_T
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 
 __all__ = ["FusedBounce", "plan"]
@@ -94,18 +96,40 @@ def _clean1(x, bad):
     return x
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d, s_tmax, s_c):
+    """The shadow ray of path ``a`` from s_o[ns] along w with contribution s_c[ns]: traced now
+    and its contribution added where unoccluded (``direct``; Integrator._trace_shadows), or
+    written out as row ``ns``. Returns the rows written out."""
+    if direct:
+        x0, x1, x2, y0, y1, y2, far, live = embree_ray1(s_o[ns, 0], s_o[ns, 1], s_o[ns, 2], w0, w1, w2, centre, 0.0,
+                                                        tmax, F32_MAX_T)
+        if not embree_occluded1(scene, fn_occ, rh, x0, x1, x2, y0, y1, y2, far, live):
+            for c in range(3):
+                L[a, c] += s_c[ns, c]
+        return ns
+    s_idx[ns] = a
+    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = w0, w1, w2
+    s_tmax[ns] = tmax
+    return ns + 1
+
+
 # ----------------------------------------------------------------------------- one bounce
 
 @njit(cache=True, error_model="numpy")
-def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
+def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
            kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
            L, T, prev_pdf, prev_lpdf, prev_delta,
            act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
-    """One bounce of the ``m`` rays (paths ``act``, directions ``d``) whose closest hits are
-    (prim, bu, bv) (prim < 0: a miss). ``scatter`` False: the rays after the last scattering
-    event (only the environment they reach). Returns (next wavefront's size, shadow rays)."""
+    """One bounce of the ``m`` rays (paths ``act``, origins ``o``, directions ``d``).
+    ``direct``: each ray and shadow ray goes to Embree here (``scene``, the addresses of
+    rtcIntersect1 / rtcOccluded1, the RTCRayHit ``rh``, the scene's ``centre``) and each
+    unoccluded contribution is added at once; else their closest hits are (prim, bu, bv)
+    (prim < 0: a miss) and the shadow rays are written out for a batched query. ``scatter``
+    False: the rays after the last scattering event (only the environment they reach).
+    Returns (next wavefront's size, shadow rays written out)."""
     nl = lkind.shape[0]
     n_out = 0
     ns = 0
@@ -115,7 +139,12 @@ def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
     fac = np.empty(3)
     for i in range(m):
         a = act[i]
-        k = prim[i]
+        if direct:
+            x0, x1, x2, y0, y1, y2, far, live = embree_ray1(o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
+                                                            centre, 0.0, np.inf, F32_MAX_T)
+            k, _, hu, hv = embree_intersect1(scene, fn_hit, rh, x0, x1, x2, y0, y1, y2, far, live, 0.0)
+        else:
+            k, hu, hv = prim[i], bu[i], bv[i]
         if k < 0:
             # BSDF sampling's part of the environment (Integrator._bsdf_hits_environment)
             if env_on:
@@ -131,7 +160,7 @@ def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
         if not scatter:
             continue
         (p0, p1, p2, eps, gr0, gr1, gr2, n0, n1, n2, g0, g1, g2, t0, t1, t2, b0, b1, b2,
-         o0, o1, o2, mt, tr) = shade_hit1(k, bu[i], bv[i], d[i, 0], d[i, 1], d[i, 2], tris, vnorm, vtan, gnorm,
+         o0, o1, o2, mt, tr) = shade_hit1(k, hu, hv, d[i, 0], d[i, 1], d[i, 2], tris, vnorm, vtan, gnorm,
                                           mat_index, trans_table)
         kind = kinds[mt]
         for c in range(3):
@@ -163,10 +192,8 @@ def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
                 f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
                 _clean3(f, bad)
                 if nee1(ns, l2, w0, w1, w2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, True, tr, s_c, s_o):
-                    s_idx[ns] = a
-                    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = w0, w1, w2
-                    s_tmax[ns] = tmax
-                    ns += 1
+                    ns = _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d,
+                                 s_tmax, s_c)
             if env_by_light:
                 l0 = e0 * t0 + e1 * t1 + e2 * t2
                 l1 = e0 * b0 + e1 * b1 + e2 * b2
@@ -181,10 +208,8 @@ def _shade(depth, scatter, m, act, d, prim, bu, bv, rnd,
                 for c in range(3):
                     fac[c] = env[c] * wmis
                 if nee1(ns, l2, e0, e1, e2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, pe > 0, tr, s_c, s_o):
-                    s_idx[ns] = a
-                    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = e0, e1, e2
-                    s_tmax[ns] = np.inf
-                    ns += 1
+                    ns = _shadow(direct, ns, a, e0, e1, e2, np.inf, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d,
+                                 s_tmax, s_c)
         # the BSDF sample (Integrator._sample_bsdf, _scatter)
         x, y, z, w[0], w[1], w[2], pdf_s = _sample(kind, mt, o0, o1, o2, rnd[a, 0], rnd[a, 1], albedo, ax, ay,
                                                    eta, kk, tables, nrows)
@@ -289,17 +314,20 @@ class FusedBounce:
         self.lpos = np.array([a for _, a, _ in s.lights], np.float64).reshape(nl, 3)
         self.lval = np.array([v for _, _, v in s.lights], np.float64).reshape(nl, 3)
         self.env = np.ascontiguousarray(np.asarray(s.env.constant, np.float64).reshape(3))
+        # Embree called from inside the loop where the kernel has a DirectScene (kernel_embree.py)
+        self.direct = getattr(it.kernel, "direct", None)
+        self.centre = np.ascontiguousarray(np.asarray(getattr(it.kernel, "centre", np.zeros(3)), np.float64))
         self._cap = -1
 
     def _buffers(self, n: int):
         if n > self._cap:
-            nl = self.lkind.shape[0] + 1
+            rows = 1 if self.direct is not None else n * (self.lkind.shape[0] + 1)
             self._act = [np.empty(n, np.int64), np.empty(n, np.int64)]
             self._o = [np.empty((n, 3)), np.empty((n, 3))]
             self._d = [np.empty((n, 3)), np.empty((n, 3))]
-            self._s_idx = np.empty(n * nl, np.int64)
-            self._s_o, self._s_d, self._s_c = np.empty((n * nl, 3)), np.empty((n * nl, 3)), np.empty((n * nl, 3))
-            self._s_tmax = np.empty(n * nl)
+            self._s_idx = np.empty(rows, np.int64)
+            self._s_o, self._s_d, self._s_c = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
+            self._s_tmax = np.empty(rows)
             self._cap = n
         return self
 
@@ -314,9 +342,15 @@ class FusedBounce:
         act = np.arange(n, dtype=np.int64)
         o = np.ascontiguousarray(o, np.float64)
         d = np.ascontiguousarray(d, np.float64)
-        no_rnd = np.zeros((0, 5))
+        no_rnd, no_i, no_f = np.zeros((0, 5)), np.zeros(0, np.int64), np.zeros(0)
         opts = (self.env, bool(it.env_on), bool(it.env_by_light), bool(it.env_by_bsdf), STRATEGY[it.strategy],
                 it.mis_heuristic == "power", bool(it.russian_roulette))
+        ds = self.direct
+        if ds is not None:
+            rays = (True, self.centre, np.uint64(ds.scene), np.uint64(ds.intersect1), np.uint64(ds.occluded1),
+                    ds.rayhit)
+        else:
+            rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.zeros(32, np.uint32))
         flip = 0
         for depth in range(1, s.max_depth + 2):
             m = act.shape[0]
@@ -324,10 +358,14 @@ class FusedBounce:
                 break
             scatter = depth <= s.max_depth
             rnd = np.ascontiguousarray(draw(), np.float64) if scatter else no_rnd
-            _, prim, bu, bv = kernel.intersect(o, d, 0.0, np.inf)
+            if ds is None:
+                _, prim, bu, bv = kernel.intersect(o, d, 0.0, np.inf)
+                prim = np.ascontiguousarray(prim, np.int64)
+                bu, bv = np.ascontiguousarray(bu, np.float64), np.ascontiguousarray(bv, np.float64)
+            else:
+                prim, bu, bv = no_i, no_f, no_f
             act_out, o_out, d_out = self._act[flip], self._o[flip], self._d[flip]
-            m_out, ns = _shade(depth, scatter, m, act, d, np.ascontiguousarray(prim, np.int64),
-                               np.ascontiguousarray(bu, np.float64), np.ascontiguousarray(bv, np.float64), rnd,
+            m_out, ns = _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, *rays,
                                g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
                                self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.eta,
                                self.kk, self.tables, self.nrows, self.lkind, self.lpos, self.lval, *opts,
