@@ -198,26 +198,35 @@ def hit_shading_numpy(geom, trans_table, d, prim, bu, bv) -> dict:
 # ----------------------------------------------------------------------------- microfacet
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _fresnel(c, ch, eta, k, table):
-    """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c``: the spectral table's lookup
-    (``spectral_fresnel.lookup``) when ``table`` has rows, else ``fresnel.fresnel_conductor``."""
-    nt = table.shape[0]
+def _abs2(z):
+    """|z|^2 as re^2 + im^2 (the twin squares np.abs, a hypot: the two differ in the last place)."""
+    return z.real * z.real + z.imag * z.imag
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _fresnel(c, ch, eta, k, table, nrows, m):
+    """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c`` for material row ``m`` of
+    ``eta``, ``k`` (M, 3), ``table`` (M, rows, 3) with ``nrows`` (M,): the spectral table's
+    lookup (``spectral_fresnel.lookup``) when its table has rows, else
+    ``fresnel.fresnel_conductor``. (Rows of stacked arrays, not views of them: a view made in a
+    loop costs two atomic reference counts.)"""
+    nt = nrows[m]
     if nt > 0:
         cc = min(max(c, 0.0), 1.0)
         x = math.sqrt(cc) * (nt - 1)
         i = min(int(math.floor(x)), nt - 2)
         f = x - i
-        return table[i, ch] * (1.0 - f) + table[i + 1, ch] * f
+        return table[m, i, ch] * (1.0 - f) + table[m, i + 1, ch] * f
     cc = min(max(c, 0.0), 1.0)
-    nc = complex(eta[ch], k[ch])
+    nc = complex(eta[m, ch], k[m, ch])
     sin2 = complex(1.0 - cc * cc, 0.0)
     n2 = nc * nc
     w = cmath.sqrt(n2 - sin2)
     a = n2 * cc
-    den_s = abs(cc + w) ** 2
-    den_p = abs(a + w) ** 2
-    rs = abs(cc - w) ** 2 / den_s if den_s > 0 else 1.0
-    rp = abs(a - w) ** 2 / den_p if den_p > 0 else 1.0
+    den_s = _abs2(cc + w)
+    den_p = _abs2(a + w)
+    rs = _abs2(cc - w) / den_s if den_s > 0 else 1.0
+    rp = _abs2(a - w) / den_p if den_p > 0 else 1.0
     return 0.5 * (min(rs, 1.0) + min(rp, 1.0))
 
 
@@ -254,8 +263,9 @@ def _half(ix, iy, iz, ox, oy, oz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table):
-    """microfacet.eval_specular of one pair: (f_r, f_g, f_b)."""
+def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, m):
+    """microfacet.eval_specular of one pair: (f_r, f_g, f_b) (the Fresnel of material row ``m``,
+    ``_fresnel``)."""
     ok = iz > 0 and oz > 0
     if not ok:
         return 0.0, 0.0, 0.0
@@ -273,8 +283,8 @@ def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table):
         r = min(a / b, F_MAX) if b > 0 else F_MAX
     else:
         r = 0.0
-    return (_fresnel(ih, 0, eta, k, table) * r, _fresnel(ih, 1, eta, k, table) * r,
-            _fresnel(ih, 2, eta, k, table) * r)
+    return (_fresnel(ih, 0, eta, k, table, nrows, m) * r, _fresnel(ih, 1, eta, k, table, nrows, m) * r,
+            _fresnel(ih, 2, eta, k, table, nrows, m) * r)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -292,7 +302,7 @@ def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table):
+def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, m):
     """microfacet.sample without a diffuse base of one wo: visible-normal sampling (Heitz 2018,
     listing 1) of wo (the pole for wo below the horizon), mirrored; (wi x, y, z, weight f cos /
     pdf r, g, b, pdf)."""
@@ -333,19 +343,19 @@ def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table):
     iz = 2.0 * dm * mz - sz
     pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay)
     if up and iz > 0 and pd > 0:
-        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table)
+        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, m)
         sc = iz / pd
         return ix, iy, iz, f0 * sc, f1 * sc, f2 * sc, pd
     return ix, iy, iz, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_eval(wi, wo, ax, ay, eta, k, table, out):
+def _mf_eval(wi, wo, ax, ay, eta, k, table, nrows, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
         i = j % r
         out[j, 0], out[j, 1], out[j, 2] = microfacet_eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1],
-                                                           wo[i, 2], ax, ay, eta, k, table)
+                                                           wo[i, 2], ax, ay, eta, k, table, nrows, 0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -355,10 +365,11 @@ def _mf_pdf(wi, wo, ax, ay, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_sample(wo, u, ax, ay, eta, k, table, wi, weight, pdf):
+def _mf_sample(wo, u, ax, ay, eta, k, table, nrows, wi, weight, pdf):
     for j in range(wo.shape[0]):
         (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
-         pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, eta, k, table)
+         pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, eta, k, table,
+                                      nrows, 0)
 
 
 class CompiledMicrofacet:
@@ -377,6 +388,10 @@ class CompiledMicrofacet:
             self.table = np.array(spectral_fresnel.table(p.spectral), dtype=np.float64, order="C")  # writable: one compiled signature
         else:
             self.table = np.zeros((0, 3))
+        # the Fresnel's data as row 0 of stacked arrays (``_fresnel``)
+        self.eta_rows, self.k_rows = self.eta.reshape(1, 3).copy(), self.k.reshape(1, 3).copy()
+        self.table_rows = self.table.reshape(1, -1, 3).copy()
+        self.nrows = np.array([self.table.shape[0]], np.int64)
         own = twin.lobes(p)
         self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
 
@@ -387,7 +402,7 @@ class CompiledMicrofacet:
         wi = np.ascontiguousarray(wi, dtype=np.float64)
         wo = np.ascontiguousarray(wo, dtype=np.float64)
         out = np.empty((wi.shape[0], 3))
-        _mf_eval(wi, wo, self.ax, self.ay, self.eta, self.k, self.table, out)
+        _mf_eval(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, out)
         return out
 
     def pdf(self, p, wi, wo):
@@ -402,7 +417,7 @@ class CompiledMicrofacet:
         u = np.ascontiguousarray(u, dtype=np.float64)
         n = wo.shape[0]
         wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-        _mf_sample(wo, u, self.ax, self.ay, self.eta, self.k, self.table, wi, weight, pdf)
+        _mf_sample(wo, u, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, wi, weight, pdf)
         return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
@@ -685,13 +700,12 @@ _INVALID_ID = 0xFFFFFFFF
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _ray_into(rh, ox, oy, oz, dx, dy, dz, far):
-    """Fill the RTCRayHit ``rh`` (uint32 words: the ray's 12, then the hit's) with a float32 ray
-    from tnear 0 to ``far``, every mask bit, no hit."""
-    f = rh.view(np.float32)
-    f[0], f[1], f[2], f[3] = ox, oy, oz, 0.0
-    f[4], f[5], f[6], f[7] = dx, dy, dz, 0.0
-    f[8] = far
+def _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far):
+    """Fill the RTCRayHit ``rh`` (uint32 words: the ray's 12, then the hit's; ``rf`` the same
+    memory as float32) with a float32 ray from tnear 0 to ``far``, every mask bit, no hit."""
+    rf[0], rf[1], rf[2], rf[3] = ox, oy, oz, 0.0
+    rf[4], rf[5], rf[6], rf[7] = dx, dy, dz, 0.0
+    rf[8] = far
     rh[9] = _INVALID_ID   # mask
     rh[10] = 0            # id
     rh[11] = 0            # flags
@@ -700,41 +714,41 @@ def _ray_into(rh, ox, oy, oz, dx, dy, dz, far):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def embree_intersect1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live, tmin):
-    """``rtcIntersect1`` of one float32 ray (``compiled.embree_rays``'s conventions): (prim, t,
-    u, v) as ``embree_hits`` gives them (a miss or a dead ray: -1, inf, 0, 0)."""
+def embree_intersect1(scene, fn, rh, rf, ox, oy, oz, dx, dy, dz, far, live, tmin):
+    """``rtcIntersect1`` of one float32 ray (``compiled.embree_rays``'s conventions) with the
+    RTCRayHit ``rh`` / ``rf`` (``_ray_into``): (prim, t, u, v) as ``embree_hits`` gives them (a
+    miss or a dead ray: -1, inf, 0, 0)."""
     if not live:
         return -1, np.inf, 0.0, 0.0
-    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far)
     _c_call3(fn, scene, rh.ctypes.data, 0)
     if rh[18] == _INVALID_ID:
         return -1, np.inf, 0.0, 0.0
-    f = rh.view(np.float32)
-    return np.int64(rh[17]), np.float64(f[8]) + tmin, np.float64(f[15]), np.float64(f[16])
+    return np.int64(rh[17]), np.float64(rf[8]) + tmin, np.float64(rf[15]), np.float64(rf[16])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def embree_occluded1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live):
+def embree_occluded1(scene, fn, rh, rf, ox, oy, oz, dx, dy, dz, far, live):
     """``rtcOccluded1`` of one float32 ray: whether something lies between tnear and ``far``
     (Embree sets tfar to -inf when it finds a hit)."""
     if not live:
         return False
-    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far)
     _c_call3(fn, scene, rh.ctypes.data, 0)
-    return rh.view(np.float32)[8] == -np.inf
+    return rf[8] == -np.inf
 
 
 @njit(cache=True, error_model="numpy")
-def _embree_intersect(scene, fn, rh, o32, d32, far32, live, tmin, t, prim, u, v):
+def _embree_intersect(scene, fn, rh, rf, o32, d32, far32, live, tmin, t, prim, u, v):
     for i in range(o32.shape[0]):
-        prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+        prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, rf, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
                                                       d32[i, 1], d32[i, 2], far32[i], live[i], tmin)
 
 
 @njit(cache=True, error_model="numpy")
-def _embree_occluded(scene, fn, rh, o32, d32, far32, live, out):
+def _embree_occluded(scene, fn, rh, rf, o32, d32, far32, live, out):
     for i in range(o32.shape[0]):
-        out[i] = embree_occluded1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
+        out[i] = embree_occluded1(scene, fn, rh, rf, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
                                   far32[i], live[i])
 
 
@@ -743,15 +757,16 @@ def embree_intersect(direct, o32, d32, far32, live, tmin):
     ``kernel_embree.DirectScene``), ray by ray; what ``embree_hits`` makes of Embree's batch."""
     n = o32.shape[0]
     t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
-    _embree_intersect(np.uint64(direct.scene), np.uint64(direct.intersect1), direct.rayhit, o32, d32, far32, live,
-                      float(tmin), t, prim, u, v)
+    _embree_intersect(np.uint64(direct.scene), np.uint64(direct.intersect1), direct.rayhit, direct.rayhit_f32, o32,
+                      d32, far32, live, float(tmin), t, prim, u, v)
     return t, prim, u, v
 
 
 def embree_occluded(direct, o32, d32, far32, live):
     """(N,) bool: which float32 rays (``embree_rays``) something in ``direct`` blocks."""
     out = np.empty(o32.shape[0], np.bool_)
-    _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), direct.rayhit, o32, d32, far32, live, out)
+    _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), direct.rayhit, direct.rayhit_f32, o32, d32,
+                     far32, live, out)
     return out
 
 

@@ -51,7 +51,7 @@ POINT, DIRECTIONAL = 0, 1
 def _eval(kind, m, ix, iy, iz, ox, oy, oz, albedo, ax, ay, eta, kk, tables, nrows):
     if kind == LAMBERT:
         return lambert_eval1(iz, oz, albedo[m, 0], albedo[m, 1], albedo[m, 2])
-    return microfacet_eval1(ix, iy, iz, ox, oy, oz, ax[m], ay[m], eta[m], kk[m], tables[m, :nrows[m]])
+    return microfacet_eval1(ix, iy, iz, ox, oy, oz, ax[m], ay[m], eta, kk, tables, nrows, m)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -65,7 +65,7 @@ def _pdf(kind, m, ix, iy, iz, ox, oy, oz, ax, ay):
 def _sample(kind, m, ox, oy, oz, u0, u1, albedo, ax, ay, eta, kk, tables, nrows):
     if kind == LAMBERT:
         return lambert_sample1(oz, u0, u1, albedo[m, 0], albedo[m, 1], albedo[m, 2])
-    return microfacet_sample1(ox, oy, oz, u0, u1, ax[m], ay[m], eta[m], kk[m], tables[m, :nrows[m]])
+    return microfacet_sample1(ox, oy, oz, u0, u1, ax[m], ay[m], eta, kk, tables, nrows, m)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -97,14 +97,14 @@ def _clean1(x, bad):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d, s_tmax, s_c):
+def _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d, s_tmax, s_c):
     """The shadow ray of path ``a`` from s_o[ns] along w with contribution s_c[ns]: traced now
     and its contribution added where unoccluded (``direct``; Integrator._trace_shadows), or
     written out as row ``ns``. Returns the rows written out."""
     if direct:
         x0, x1, x2, y0, y1, y2, far, live = embree_ray1(s_o[ns, 0], s_o[ns, 1], s_o[ns, 2], w0, w1, w2, centre, 0.0,
                                                         tmax, F32_MAX_T)
-        if not embree_occluded1(scene, fn_occ, rh, x0, x1, x2, y0, y1, y2, far, live):
+        if not embree_occluded1(scene, fn_occ, rh, rf, x0, x1, x2, y0, y1, y2, far, live):
             for c in range(3):
                 L[a, c] += s_c[ns, c]
         return ns
@@ -117,7 +117,7 @@ def _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, L, s_idx
 # ----------------------------------------------------------------------------- one bounce
 
 @njit(cache=True, error_model="numpy")
-def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
+def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh, rf,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
            kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
@@ -142,7 +142,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
         if direct:
             x0, x1, x2, y0, y1, y2, far, live = embree_ray1(o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
                                                             centre, 0.0, np.inf, F32_MAX_T)
-            k, _, hu, hv = embree_intersect1(scene, fn_hit, rh, x0, x1, x2, y0, y1, y2, far, live, 0.0)
+            k, _, hu, hv = embree_intersect1(scene, fn_hit, rh, rf, x0, x1, x2, y0, y1, y2, far, live, 0.0)
         else:
             k, hu, hv = prim[i], bu[i], bv[i]
         if k < 0:
@@ -192,7 +192,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                 f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
                 _clean3(f, bad)
                 if nee1(ns, l2, w0, w1, w2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, True, tr, s_c, s_o):
-                    ns = _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d,
+                    ns = _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d,
                                  s_tmax, s_c)
             if env_by_light:
                 l0 = e0 * t0 + e1 * t1 + e2 * t2
@@ -208,7 +208,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                 for c in range(3):
                     fac[c] = env[c] * wmis
                 if nee1(ns, l2, e0, e1, e2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, pe > 0, tr, s_c, s_o):
-                    ns = _shadow(direct, ns, a, e0, e1, e2, np.inf, centre, scene, fn_occ, rh, L, s_idx, s_o, s_d,
+                    ns = _shadow(direct, ns, a, e0, e1, e2, np.inf, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d,
                                  s_tmax, s_c)
         # the BSDF sample (Integrator._sample_bsdf, _scatter)
         x, y, z, w[0], w[1], w[2], pdf_s = _sample(kind, mt, o0, o1, o2, rnd[a, 0], rnd[a, 1], albedo, ax, ay,
@@ -348,9 +348,9 @@ class FusedBounce:
         ds = self.direct
         if ds is not None:
             rays = (True, self.centre, np.uint64(ds.scene), np.uint64(ds.intersect1), np.uint64(ds.occluded1),
-                    ds.rayhit)
+                    ds.rayhit, ds.rayhit_f32)
         else:
-            rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.zeros(32, np.uint32))
+            rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.zeros(32, np.uint32), np.zeros(32, np.float32))
         flip = 0
         for depth in range(1, s.max_depth + 2):
             m = act.shape[0]
