@@ -64,7 +64,8 @@ from viewer.brdf.sampling import F_MAX, INV_PI
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
 __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
-           "embree_rays", "embree_rays_numpy", "embree_hits", "embree_hits_numpy", "nee_candidates", "nee_candidates_numpy"]
+           "embree_rays", "embree_rays_numpy", "embree_hits", "embree_hits_numpy", "nee_candidates", "nee_candidates_numpy",
+           "embree_intersect", "embree_occluded"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -696,59 +697,100 @@ def _c_call3(typingctx, fn, a, b, c):
     return sig, codegen
 
 
+def _mem_intrinsic(kind, store):
+    """An intrinsic that loads (``store`` False: (addr, index) -> value) or stores ((addr,
+    index, value)) element ``index`` of the float32 / uint32 array at address ``addr``: the
+    RTCRayHit is reached through its address, so no array (and no reference count) travels
+    through the per-ray functions."""
+    u64, i64 = nb_types.uint64, nb_types.int64
+    val = nb_types.float32 if kind == "f32" else nb_types.uint32
+
+    def impl(typingctx, addr, index, value=None):
+        def codegen(context, builder, signature, args):
+            lty = llvm_ir.FloatType() if kind == "f32" else llvm_ir.IntType(32)
+            ptr = builder.gep(builder.inttoptr(args[0], lty.as_pointer()), [args[1]])
+            if store:
+                builder.store(args[2], ptr)
+                return context.get_dummy_value()
+            return builder.load(ptr)
+
+        sig = nb_types.void(u64, i64, val) if store else val(u64, i64)
+        return sig, codegen
+
+    if store:
+        def typer(typingctx, addr, index, value):
+            return impl(typingctx, addr, index, value)
+    else:
+        def typer(typingctx, addr, index):
+            return impl(typingctx, addr, index)
+    typer.__name__ = f"_{'st' if store else 'ld'}_{kind}"
+    return intrinsic(typer)
+
+
+_ld_f32 = _mem_intrinsic("f32", False)
+_st_f32 = _mem_intrinsic("f32", True)
+_ld_u32 = _mem_intrinsic("u32", False)
+_st_u32 = _mem_intrinsic("u32", True)
 _INVALID_ID = 0xFFFFFFFF
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far):
-    """Fill the RTCRayHit ``rh`` (uint32 words: the ray's 12, then the hit's; ``rf`` the same
-    memory as float32) with a float32 ray from tnear 0 to ``far``, every mask bit, no hit."""
-    rf[0], rf[1], rf[2], rf[3] = ox, oy, oz, 0.0
-    rf[4], rf[5], rf[6], rf[7] = dx, dy, dz, 0.0
-    rf[8] = far
-    rh[9] = _INVALID_ID   # mask
-    rh[10] = 0            # id
-    rh[11] = 0            # flags
-    rh[18] = _INVALID_ID  # geomID
-    rh[19] = _INVALID_ID  # instID[0]
+def _ray_into(rh, ox, oy, oz, dx, dy, dz, far):
+    """Fill the RTCRayHit at address ``rh`` (uint32 words: the ray's 12, then the hit's) with a
+    float32 ray from tnear 0 to ``far``, every mask bit, no hit."""
+    _st_f32(rh, 0, ox)
+    _st_f32(rh, 1, oy)
+    _st_f32(rh, 2, oz)
+    _st_f32(rh, 3, np.float32(0.0))
+    _st_f32(rh, 4, dx)
+    _st_f32(rh, 5, dy)
+    _st_f32(rh, 6, dz)
+    _st_f32(rh, 7, np.float32(0.0))
+    _st_f32(rh, 8, far)
+    _st_u32(rh, 9, np.uint32(_INVALID_ID))    # mask
+    _st_u32(rh, 10, np.uint32(0))             # id
+    _st_u32(rh, 11, np.uint32(0))             # flags
+    _st_u32(rh, 18, np.uint32(_INVALID_ID))   # geomID
+    _st_u32(rh, 19, np.uint32(_INVALID_ID))   # instID[0]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def embree_intersect1(scene, fn, rh, rf, ox, oy, oz, dx, dy, dz, far, live, tmin):
+def embree_intersect1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live, tmin):
     """``rtcIntersect1`` of one float32 ray (``compiled.embree_rays``'s conventions) with the
-    RTCRayHit ``rh`` / ``rf`` (``_ray_into``): (prim, t, u, v) as ``embree_hits`` gives them (a
-    miss or a dead ray: -1, inf, 0, 0)."""
+    RTCRayHit at address ``rh`` (16-byte aligned, 80 bytes or more): (prim, t, u, v) as
+    ``embree_hits`` gives them (a miss or a dead ray: -1, inf, 0, 0)."""
     if not live:
         return -1, np.inf, 0.0, 0.0
-    _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far)
-    _c_call3(fn, scene, rh.ctypes.data, 0)
-    if rh[18] == _INVALID_ID:
+    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _c_call3(fn, scene, rh, np.uint64(0))
+    if _ld_u32(rh, 18) == _INVALID_ID:
         return -1, np.inf, 0.0, 0.0
-    return np.int64(rh[17]), np.float64(rf[8]) + tmin, np.float64(rf[15]), np.float64(rf[16])
+    return (np.int64(_ld_u32(rh, 17)), np.float64(_ld_f32(rh, 8)) + tmin, np.float64(_ld_f32(rh, 15)),
+            np.float64(_ld_f32(rh, 16)))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def embree_occluded1(scene, fn, rh, rf, ox, oy, oz, dx, dy, dz, far, live):
+def embree_occluded1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live):
     """``rtcOccluded1`` of one float32 ray: whether something lies between tnear and ``far``
     (Embree sets tfar to -inf when it finds a hit)."""
     if not live:
         return False
-    _ray_into(rh, rf, ox, oy, oz, dx, dy, dz, far)
-    _c_call3(fn, scene, rh.ctypes.data, 0)
-    return rf[8] == -np.inf
+    _ray_into(rh, ox, oy, oz, dx, dy, dz, far)
+    _c_call3(fn, scene, rh, np.uint64(0))
+    return _ld_f32(rh, 8) == -np.inf
 
 
 @njit(cache=True, error_model="numpy")
-def _embree_intersect(scene, fn, rh, rf, o32, d32, far32, live, tmin, t, prim, u, v):
+def _embree_intersect(scene, fn, rh, o32, d32, far32, live, tmin, t, prim, u, v):
     for i in range(o32.shape[0]):
-        prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, rf, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+        prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
                                                       d32[i, 1], d32[i, 2], far32[i], live[i], tmin)
 
 
 @njit(cache=True, error_model="numpy")
-def _embree_occluded(scene, fn, rh, rf, o32, d32, far32, live, out):
+def _embree_occluded(scene, fn, rh, o32, d32, far32, live, out):
     for i in range(o32.shape[0]):
-        out[i] = embree_occluded1(scene, fn, rh, rf, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
+        out[i] = embree_occluded1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
                                   far32[i], live[i])
 
 
@@ -757,7 +799,7 @@ def embree_intersect(direct, o32, d32, far32, live, tmin):
     ``kernel_embree.DirectScene``), ray by ray; what ``embree_hits`` makes of Embree's batch."""
     n = o32.shape[0]
     t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
-    _embree_intersect(np.uint64(direct.scene), np.uint64(direct.intersect1), direct.rayhit, direct.rayhit_f32, o32,
+    _embree_intersect(np.uint64(direct.scene), np.uint64(direct.intersect1), np.uint64(direct.rayhit_address), o32,
                       d32, far32, live, float(tmin), t, prim, u, v)
     return t, prim, u, v
 
@@ -765,44 +807,48 @@ def embree_intersect(direct, o32, d32, far32, live, tmin):
 def embree_occluded(direct, o32, d32, far32, live):
     """(N,) bool: which float32 rays (``embree_rays``) something in ``direct`` blocks."""
     out = np.empty(o32.shape[0], np.bool_)
-    _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), direct.rayhit, direct.rayhit_f32, o32, d32,
-                     far32, live, out)
+    _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), np.uint64(direct.rayhit_address), o32,
+                     d32, far32, live, out)
     return out
 
 
 # ----------------------------------------------------------------------------- next-event candidates
 
 @njit(cache=True, error_model="numpy", inline="always")
-def nee1(i, wl2, ww0, ww1, ww2, ng0, ng1, ng2, p0, p1, p2, eps, T, f, fac, share, extra_ok, transmissive, c, o):
-    """One next-event candidate at one hit as ``nee_candidates`` defines it: writes the
-    contribution ``T f |cos| share fac`` into c[i] and the shadow ray's origin into o[i] (the
-    hit point ``p`` offset by ``eps`` along ``ng`` to the side ``ww`` leaves); returns whether
-    it passes the light test with ``extra_ok`` and has a positive channel."""
+def nee_test1(wl2, ww0, ww1, ww2, ng0, ng1, ng2, p0, p1, p2, eps, share, extra_ok, transmissive):
+    """One next-event direction at one hit as ``nee_candidates`` defines it, but its
+    contribution: (whether it passes the light test and ``extra_ok``, the factor ``|cos|
+    share``, the shadow ray's origin: the hit point ``p`` offset by ``eps`` along ``ng`` to the
+    side ``ww`` leaves)."""
     gcos = ng0 * ww0 + ng1 * ww1 + ng2 * ww2
     z = wl2
     good = z * gcos > 0 if transmissive else (z > 0 and gcos > 0)
     good = good and extra_ok
     cs = abs(z) * share
-    pos = False
-    for k in range(T.shape[0]):
-        v = T[k] * f[k] * cs * fac[k]
-        c[i, k] = v
-        pos = pos or v > 0
     side = -1.0 if gcos < 0 else 1.0
     e = eps * side
-    o[i, 0] = p0 + e * ng0
-    o[i, 1] = p1 + e * ng1
-    o[i, 2] = p2 + e * ng2
-    return good and pos
+    return good, cs, p0 + e * ng0, p1 + e * ng1, p2 + e * ng2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def nee_term1(t, f, cs, fac):
+    """One channel of a next-event contribution: throughput, BSDF, cosine (and share), light."""
+    return t * f * cs * fac
 
 
 @njit(cache=True, error_model="numpy")
 def _nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive, ok, c, o):
     for i in range(wl.shape[0]):
         j = sel[i]
-        ok[i] = nee1(i, wl[i, 2], ww[i, 0], ww[i, 1], ww[i, 2], ng[i, 0], ng[i, 1], ng[i, 2], p[j, 0], p[j, 1],
-                     p[j, 2], eps[j], T[i], f[i], fac[i], 1.0 if share.shape[0] == 0 else share[i],
-                     True if extra_ok.shape[0] == 0 else extra_ok[i], transmissive, c, o)
+        good, cs, o[i, 0], o[i, 1], o[i, 2] = nee_test1(
+            wl[i, 2], ww[i, 0], ww[i, 1], ww[i, 2], ng[i, 0], ng[i, 1], ng[i, 2], p[j, 0], p[j, 1], p[j, 2], eps[j],
+            1.0 if share.shape[0] == 0 else share[i], True if extra_ok.shape[0] == 0 else extra_ok[i], transmissive)
+        pos = False
+        for k in range(T.shape[1]):
+            v = nee_term1(T[i, k], f[i, k], cs, fac[i, k])
+            c[i, k] = v
+            pos = pos or v > 0
+        ok[i] = good and pos
 
 
 def nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive):

@@ -33,7 +33,7 @@ from viewer.pathtracer import compiled
 from viewer.pathtracer.compiled import (
     HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, embree_intersect1,
     embree_occluded1, embree_ray1, lambert_eval1, lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1,
-    microfacet_sample1, nee1, shade_hit1)
+    microfacet_sample1, nee_term1, nee_test1, shade_hit1)
 from viewer.pathtracer.kernel_embree import F32_MAX_T
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 
@@ -48,27 +48,6 @@ POINT, DIRECTIONAL = 0, 1
 # ----------------------------------------------------------------------------- per path
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _eval(kind, m, ix, iy, iz, ox, oy, oz, albedo, ax, ay, eta, kk, tables, nrows):
-    if kind == LAMBERT:
-        return lambert_eval1(iz, oz, albedo[m, 0], albedo[m, 1], albedo[m, 2])
-    return microfacet_eval1(ix, iy, iz, ox, oy, oz, ax[m], ay[m], eta, kk, tables, nrows, m)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _pdf(kind, m, ix, iy, iz, ox, oy, oz, ax, ay):
-    if kind == LAMBERT:
-        return lambert_pdf1(iz, oz)
-    return microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax[m], ay[m])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sample(kind, m, ox, oy, oz, u0, u1, albedo, ax, ay, eta, kk, tables, nrows):
-    if kind == LAMBERT:
-        return lambert_sample1(oz, u0, u1, albedo[m, 0], albedo[m, 1], albedo[m, 2])
-    return microfacet_sample1(ox, oy, oz, u0, u1, ax[m], ay[m], eta, kk, tables, nrows, m)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
 def _heuristic(a, b, power):
     """integrator._power (Veach 1997, eq. 9.13) or integrator._balance (eq. 9.10)."""
     if power:
@@ -80,44 +59,17 @@ def _heuristic(a, b, power):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _clean3(f, bad):
-    """Integrator._clean of one (3,) model output: NaN, Inf and negative entries counted, zeroed."""
-    for c in range(3):
-        if not (f[c] >= 0.0) or f[c] == np.inf:
-            bad[0] += 1
-            f[c] = 0.0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _clean1(x, bad):
+def _clean(x):
+    """Integrator._clean of one model output: (x, 0), or (0, 1) where x is NaN, Inf or negative."""
     if not (x >= 0.0) or x == np.inf:
-        bad[0] += 1
-        return 0.0
-    return x
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d, s_tmax, s_c):
-    """The shadow ray of path ``a`` from s_o[ns] along w with contribution s_c[ns]: traced now
-    and its contribution added where unoccluded (``direct``; Integrator._trace_shadows), or
-    written out as row ``ns``. Returns the rows written out."""
-    if direct:
-        x0, x1, x2, y0, y1, y2, far, live = embree_ray1(s_o[ns, 0], s_o[ns, 1], s_o[ns, 2], w0, w1, w2, centre, 0.0,
-                                                        tmax, F32_MAX_T)
-        if not embree_occluded1(scene, fn_occ, rh, rf, x0, x1, x2, y0, y1, y2, far, live):
-            for c in range(3):
-                L[a, c] += s_c[ns, c]
-        return ns
-    s_idx[ns] = a
-    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = w0, w1, w2
-    s_tmax[ns] = tmax
-    return ns + 1
+        return 0.0, 1
+    return x, 0
 
 
 # ----------------------------------------------------------------------------- one bounce
 
 @njit(cache=True, error_model="numpy")
-def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh, rf,
+def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
            kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
@@ -125,24 +77,22 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
            act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
     """One bounce of the ``m`` rays (paths ``act``, origins ``o``, directions ``d``).
     ``direct``: each ray and shadow ray goes to Embree here (``scene``, the addresses of
-    rtcIntersect1 / rtcOccluded1, the RTCRayHit ``rh``, the scene's ``centre``) and each
+    rtcIntersect1 / rtcOccluded1 and of an RTCRayHit ``rh``, the scene's ``centre``) and each
     unoccluded contribution is added at once; else their closest hits are (prim, bu, bv)
     (prim < 0: a miss) and the shadow rays are written out for a batched query. ``scatter``
     False: the rays after the last scattering event (only the environment they reach).
-    Returns (next wavefront's size, shadow rays written out)."""
+    Returns (next wavefront's size, shadow rays written out); ``bad[0]`` counts the model
+    outputs cleaned (``Integrator.bad_values``)."""
     nl = lkind.shape[0]
     n_out = 0
     ns = 0
-    f = np.empty(3)
-    w = np.empty(3)
-    tb = np.empty(3)
-    fac = np.empty(3)
+    nbad = 0
     for i in range(m):
         a = act[i]
         if direct:
             x0, x1, x2, y0, y1, y2, far, live = embree_ray1(o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
                                                             centre, 0.0, np.inf, F32_MAX_T)
-            k, _, hu, hv = embree_intersect1(scene, fn_hit, rh, rf, x0, x1, x2, y0, y1, y2, far, live, 0.0)
+            k, _, hu, hv = embree_intersect1(scene, fn_hit, rh, x0, x1, x2, y0, y1, y2, far, live, 0.0)
         else:
             k, hu, hv = prim[i], bu[i], bv[i]
         if k < 0:
@@ -162,89 +112,114 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
         (p0, p1, p2, eps, gr0, gr1, gr2, n0, n1, n2, g0, g1, g2, t0, t1, t2, b0, b1, b2,
          o0, o1, o2, mt, tr) = shade_hit1(k, hu, hv, d[i, 0], d[i, 1], d[i, 2], tris, vnorm, vtan, gnorm,
                                           mat_index, trans_table)
-        kind = kinds[mt]
-        for c in range(3):
-            tb[c] = T[a, c]
+        lam = kinds[mt] == LAMBERT
+        tb0, tb1, tb2 = T[a, 0], T[a, 1], T[a, 2]
         # light sampling of the environment (Integrator._light_sample_environment)
         e0, e1, e2, pe = 0.0, 0.0, 0.0, 0.0
         if env_by_light:
             e0, e1, e2, pe = constant_env_sample1(rnd[a, 2], rnd[a, 3], n0, n1, n2, tr)
-            pe = _clean1(pe, bad)
+            pe, nb = _clean(pe)
+            nbad += nb
         # next-event estimation (Integrator._next_event): the delta lights, then the environment
         if nee_on[mt]:
-            for j in range(nl):
-                if lkind[j] == POINT:
-                    dv0, dv1, dv2 = lpos[j, 0] - p0, lpos[j, 1] - p1, lpos[j, 2] - p2
-                    r2 = max(dv0 * dv0 + dv1 * dv1 + dv2 * dv2, 1e-300)
-                    r = np.sqrt(r2)
-                    w0, w1, w2 = dv0 / r, dv1 / r, dv2 / r
-                    for c in range(3):
-                        fac[c] = lval[j, c] / r2
-                    tmax = r - eps
-                else:
-                    w0, w1, w2 = -lpos[j, 0], -lpos[j, 1], -lpos[j, 2]
-                    for c in range(3):
-                        fac[c] = lval[j, c]
+            for j in range(nl + 1):
+                if j < nl:
+                    if lkind[j] == POINT:
+                        dv0, dv1, dv2 = lpos[j, 0] - p0, lpos[j, 1] - p1, lpos[j, 2] - p2
+                        r2 = max(dv0 * dv0 + dv1 * dv1 + dv2 * dv2, 1e-300)
+                        r = np.sqrt(r2)
+                        w0, w1, w2 = dv0 / r, dv1 / r, dv2 / r
+                        fc0, fc1, fc2 = lval[j, 0] / r2, lval[j, 1] / r2, lval[j, 2] / r2
+                        tmax = r - eps
+                    else:
+                        w0, w1, w2 = -lpos[j, 0], -lpos[j, 1], -lpos[j, 2]
+                        fc0, fc1, fc2 = lval[j, 0], lval[j, 1], lval[j, 2]
+                        tmax = np.inf
+                elif env_by_light:
+                    w0, w1, w2 = e0, e1, e2
                     tmax = np.inf
+                else:
+                    break
                 l0 = w0 * t0 + w1 * t1 + w2 * t2
                 l1 = w0 * b0 + w1 * b1 + w2 * b2
                 l2 = w0 * n0 + w1 * n1 + w2 * n2
-                f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
-                _clean3(f, bad)
-                if nee1(ns, l2, w0, w1, w2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, True, tr, s_c, s_o):
-                    ns = _shadow(direct, ns, a, w0, w1, w2, tmax, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d,
-                                 s_tmax, s_c)
-            if env_by_light:
-                l0 = e0 * t0 + e1 * t1 + e2 * t2
-                l1 = e0 * b0 + e1 * b1 + e2 * b2
-                l2 = e0 * n0 + e1 * n1 + e2 * n2
-                f[0], f[1], f[2] = _eval(kind, mt, l0, l1, l2, o0, o1, o2, albedo, ax, ay, eta, kk, tables, nrows)
-                _clean3(f, bad)
-                if strategy == 0:
-                    pb = _clean1(_pdf(kind, mt, l0, l1, l2, o0, o1, o2, ax, ay), bad)
-                    wmis = _heuristic(pe, pb, power) / (pe if pe > 0 else 1.0)
+                if lam:
+                    f0, f1, f2 = lambert_eval1(l2, o2, albedo[mt, 0], albedo[mt, 1], albedo[mt, 2])
                 else:
-                    wmis = 1.0 / (pe if pe > 0 else 1.0)
-                for c in range(3):
-                    fac[c] = env[c] * wmis
-                if nee1(ns, l2, e0, e1, e2, g0, g1, g2, p0, p1, p2, eps, tb, f, fac, 1.0, pe > 0, tr, s_c, s_o):
-                    ns = _shadow(direct, ns, a, e0, e1, e2, np.inf, centre, scene, fn_occ, rh, rf, L, s_idx, s_o, s_d,
-                                 s_tmax, s_c)
+                    f0, f1, f2 = microfacet_eval1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, mt)
+                f0, nb0 = _clean(f0)
+                f1, nb1 = _clean(f1)
+                f2, nb2 = _clean(f2)
+                nbad += nb0 + nb1 + nb2
+                extra = True
+                if j == nl:   # the environment: MIS against BSDF sampling
+                    extra = pe > 0
+                    if strategy == 0:
+                        if lam:
+                            pb = lambert_pdf1(l2, o2)
+                        else:
+                            pb = microfacet_pdf1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt])
+                        pb, nb = _clean(pb)
+                        nbad += nb
+                        wmis = _heuristic(pe, pb, power) / (pe if pe > 0 else 1.0)
+                    else:
+                        wmis = 1.0 / (pe if pe > 0 else 1.0)
+                    fc0, fc1, fc2 = env[0] * wmis, env[1] * wmis, env[2] * wmis
+                good, cs, q0, q1, q2 = nee_test1(l2, w0, w1, w2, g0, g1, g2, p0, p1, p2, eps, 1.0, extra, tr)
+                c0 = nee_term1(tb0, f0, cs, fc0)
+                c1 = nee_term1(tb1, f1, cs, fc1)
+                c2 = nee_term1(tb2, f2, cs, fc2)
+                if not (good and (c0 > 0 or c1 > 0 or c2 > 0)):
+                    continue
+                if direct:   # the shadow ray now; Integrator._trace_shadows' sum
+                    x0, x1, x2, y0, y1, y2, far, live = embree_ray1(q0, q1, q2, w0, w1, w2, centre, 0.0, tmax,
+                                                                    F32_MAX_T)
+                    if not embree_occluded1(scene, fn_occ, rh, x0, x1, x2, y0, y1, y2, far, live):
+                        L[a, 0] += c0
+                        L[a, 1] += c1
+                        L[a, 2] += c2
+                else:
+                    s_idx[ns] = a
+                    s_o[ns, 0], s_o[ns, 1], s_o[ns, 2] = q0, q1, q2
+                    s_d[ns, 0], s_d[ns, 1], s_d[ns, 2] = w0, w1, w2
+                    s_tmax[ns] = tmax
+                    s_c[ns, 0], s_c[ns, 1], s_c[ns, 2] = c0, c1, c2
+                    ns += 1
         # the BSDF sample (Integrator._sample_bsdf, _scatter)
-        x, y, z, w[0], w[1], w[2], pdf_s = _sample(kind, mt, o0, o1, o2, rnd[a, 0], rnd[a, 1], albedo, ax, ay,
-                                                   eta, kk, tables, nrows)
-        _clean3(w, bad)
-        pdf_s = _clean1(pdf_s, bad)
+        if lam:
+            x, y, z, wt0, wt1, wt2, pdf_s = lambert_sample1(o2, rnd[a, 0], rnd[a, 1], albedo[mt, 0], albedo[mt, 1],
+                                                            albedo[mt, 2])
+        else:
+            x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, rnd[a, 0], rnd[a, 1], ax[mt], ay[mt], eta,
+                                                               kk, tables, nrows, mt)
+        wt0, nb0 = _clean(wt0)
+        wt1, nb1 = _clean(wt1)
+        wt2, nb2 = _clean(wt2)
+        pdf_s, nb3 = _clean(pdf_s)
+        nbad += nb0 + nb1 + nb2 + nb3
         if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
-            bad[0] += 1
+            nbad += 1
             x, y, z = 0.0, 0.0, 1.0
-            w[0], w[1], w[2] = 0.0, 0.0, 0.0
+            wt0, wt1, wt2 = 0.0, 0.0, 0.0
         disc = delta[mt]
         q0 = x * t0 + y * b0 + z * n0
         q1 = x * t1 + y * b1 + z * n1
         q2 = x * t2 + y * b2 + z * n2
         gc = g0 * q0 + g1 * q1 + g2 * q2
         valid = z * gc > 0 if tr else (z > 0 and gc > 0)
-        ok = valid and pdf_s > 0 and (w[0] > 0 or w[1] > 0 or w[2] > 0)
+        if not (valid and pdf_s > 0 and (wt0 > 0 or wt1 > 0 or wt2 > 0)):
+            wt0, wt1, wt2 = 0.0, 0.0, 0.0
         lpdf = 0.0
         if env_by_light and env_by_bsdf:   # MIS: light sampling's density there
             lpdf = 0.0 if disc else constant_env_pdf1(q0, q1, q2, n0, n1, n2, tr)
         # the new throughput, roulette, the next ray (Integrator._continue, _roulette)
-        alive = False
-        tmx = 0.0
-        for c in range(3):
-            v = tb[c] * (w[c] if ok else 0.0)
-            tb[c] = v
-            alive = alive or v > 0
-            if c == 0 or v > tmx:
-                tmx = v
+        tb0, tb1, tb2 = tb0 * wt0, tb1 * wt1, tb2 * wt2
+        alive = tb0 > 0 or tb1 > 0 or tb2 > 0
         if roulette and depth >= RR_START_DEPTH:
-            qs = min(max(tmx, RR_MIN), RR_MAX)
+            qs = min(max(max(tb0, max(tb1, tb2)), RR_MIN), RR_MAX)
             alive = alive and rnd[a, 4] < qs
-            for c in range(3):
-                tb[c] = tb[c] / qs
-        for c in range(3):
-            T[a, c] = tb[c]
+            tb0, tb1, tb2 = tb0 / qs, tb1 / qs, tb2 / qs
+        T[a, 0], T[a, 1], T[a, 2] = tb0, tb1, tb2
         prev_pdf[a] = pdf_s
         prev_lpdf[a] = lpdf
         prev_delta[a] = disc
@@ -256,6 +231,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
             o_out[n_out, 2] = p2 + e * g2
             d_out[n_out, 0], d_out[n_out, 1], d_out[n_out, 2] = q0, q1, q2
             n_out += 1
+    bad[0] += nbad
     return n_out, ns
 
 
@@ -348,9 +324,9 @@ class FusedBounce:
         ds = self.direct
         if ds is not None:
             rays = (True, self.centre, np.uint64(ds.scene), np.uint64(ds.intersect1), np.uint64(ds.occluded1),
-                    ds.rayhit, ds.rayhit_f32)
+                    np.uint64(ds.rayhit_address))
         else:
-            rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.zeros(32, np.uint32), np.zeros(32, np.float32))
+            rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.uint64(0))
         flip = 0
         for depth in range(1, s.max_depth + 2):
             m = act.shape[0]

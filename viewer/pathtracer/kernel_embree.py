@@ -110,7 +110,7 @@ class DirectScene:
         raw = np.zeros(40, np.uint32)
         off = (-raw.ctypes.data % 16) // 4
         self.rayhit = raw[off:off + 32]
-        self.rayhit_f32 = self.rayhit.view(np.float32)
+        self.rayhit_address = int(self.rayhit.ctypes.data)
 
     def __del__(self):
         lib = getattr(self, "_lib", None)
