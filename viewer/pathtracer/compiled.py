@@ -65,7 +65,7 @@ from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shadi
 
 __all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
            "embree_rays", "embree_rays_numpy", "embree_hits", "embree_hits_numpy", "nee_candidates", "nee_candidates_numpy",
-           "embree_intersect", "embree_occluded"]
+           "embree_intersect", "embree_occluded", "draw_paths", "philox_uniform1"]
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi
@@ -810,6 +810,85 @@ def embree_occluded(direct, o32, d32, far32, live):
     _embree_occluded(np.uint64(direct.scene), np.uint64(direct.occluded1), np.uint64(direct.rayhit_address), o32,
                      d32, far32, live, out)
     return out
+
+
+# ----------------------------------------------------------------------------- Philox, number by number
+
+@intrinsic
+def _mulhilo64(typingctx, a, b):
+    """(high, low) 64-bit words of the 128-bit product of two uint64 (Random123's mulhilo64)."""
+    u64 = nb_types.uint64
+    sig = nb_types.UniTuple(u64, 2)(u64, u64)
+
+    def codegen(context, builder, signature, args):
+        i128, i64 = llvm_ir.IntType(128), llvm_ir.IntType(64)
+        prod = builder.mul(builder.zext(args[0], i128), builder.zext(args[1], i128))
+        hi = builder.trunc(builder.lshr(prod, llvm_ir.Constant(i128, 64)), i64)
+        return context.make_tuple(builder, signature.return_type, [hi, builder.trunc(prod, i64)])
+
+    return sig, codegen
+
+
+_PHILOX_M0 = np.uint64(0xD2E7470EE14C6C93)
+_PHILOX_M1 = np.uint64(0xCA5A826395121157)
+_PHILOX_W0 = np.uint64(0x9E3779B97F4A7C15)
+_PHILOX_W1 = np.uint64(0xBB67AE8584CAA73B)
+_DOUBLE_UNIT = 1.0 / 9007199254740992.0   # 2^-53
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def philox4x64_10(c0, c1, c2, c3, k0, k1):
+    """Philox4x64 with 10 rounds of counter (c0..c3) and key (k0, k1) (Salmon et al. 2011;
+    Random123's philox4x64_R, the function numpy's ``Philox`` runs): four uint64."""
+    for r in range(10):
+        if r > 0:
+            k0 += _PHILOX_W0
+            k1 += _PHILOX_W1
+        hi0, lo0 = _mulhilo64(_PHILOX_M0, c0)
+        hi1, lo1 = _mulhilo64(_PHILOX_M1, c2)
+        c0, c1, c2, c3 = hi1 ^ c1 ^ k0, lo1, hi0 ^ c3 ^ k1, lo0
+    return c0, c1, c2, c3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def philox_uniform1(k0, k1, c2, c3, q):
+    """The ``q``-th double (from 0) that ``Generator(Philox(key=(k0, k1), counter=(0, 0, c2,
+    c3))).random()`` returns: numpy's Philox raises the counter's low word before each block of
+    four uint64 (the first block is counter + 1), and a double is the top 53 bits of one uint64
+    times 2^-53."""
+    blk = q // np.uint64(4)
+    w = philox4x64_10(blk + np.uint64(1), np.uint64(0), c2, c3, k0, k1)
+    lane = q % np.uint64(4)
+    x = w[0] if lane == 0 else (w[1] if lane == 1 else (w[2] if lane == 2 else w[3]))
+    return np.float64(x >> np.uint64(11)) * _DOUBLE_UNIT
+
+
+@njit(cache=True, error_model="numpy")
+def _draw_paths(act, m, k0, k1, stream, pix, c2, c3, first, width, rnd):
+    """Row ``act[i]`` of ``rnd`` (N, width) for the i < m paths ``act``: numbers first[s] +
+    width * pix .. + width - 1 of the path's stream s = ``stream[a]`` (counter (0, 0, c2[s],
+    c3[s])), each Philox block computed once for the numbers it holds."""
+    for i in range(m):
+        a = act[i]
+        s = stream[a]
+        q = first[s] + np.uint64(width) * np.uint64(pix[a])
+        blk = q // np.uint64(4)
+        w = philox4x64_10(blk + np.uint64(1), np.uint64(0), c2[s], c3[s], k0, k1)
+        for k in range(width):
+            qk = q + np.uint64(k)
+            if qk // np.uint64(4) != blk:
+                blk = qk // np.uint64(4)
+                w = philox4x64_10(blk + np.uint64(1), np.uint64(0), c2[s], c3[s], k0, k1)
+            lane = qk % np.uint64(4)
+            x = w[0] if lane == 0 else (w[1] if lane == 1 else (w[2] if lane == 2 else w[3]))
+            rnd[a, k] = np.float64(x >> np.uint64(11)) * _DOUBLE_UNIT
+
+
+def draw_paths(act, k0, k1, stream, pix, c2, c3, first, rnd):
+    """Fill the rows ``act`` of ``rnd`` (N, width) with the numbers the paths' Philox streams
+    (see ``_draw_paths``; ``first`` per stream, uint64) hold for them (compiled)."""
+    _draw_paths(np.ascontiguousarray(act, np.int64), int(act.shape[0]), np.uint64(k0), np.uint64(k1),
+                stream, pix, c2, c3, first, int(rnd.shape[1]), rnd)
 
 
 # ----------------------------------------------------------------------------- next-event candidates

@@ -120,6 +120,42 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+class BounceDraws:
+    """``draw()`` for ``Integrator.trace``: each call returns the next bounce's numbers
+    (N, DIMS_PER_BOUNCE) of every stream ``gens`` (``counts`` paths each), in stream order;
+    ``calls`` counts them. ``streams``: a ``StreamTable`` of the same streams, or None."""
+
+    def __init__(self, gens, counts):
+        self.gens, self.counts = gens, list(counts)
+        self.calls = 0
+        self.streams = None
+
+    def __call__(self):
+        self.calls += 1
+        return np.concatenate([g.random((n, DIMS_PER_BOUNCE)) for g, n in zip(self.gens, self.counts)])
+
+
+class StreamTable:
+    """The Philox streams ``philox(seed, block, sample)`` of a wavefront, one per ``(block,
+    sample)`` in ``keys`` with ``counts`` paths each (consecutive, in stream order), from each of
+    which ``drawn`` numbers per path were drawn before the first bounce: what a compiled loop
+    needs to compute any path's numbers of any bounce itself (``compiled.draw_paths``)."""
+
+    def __init__(self, seed: int, keys, counts, drawn: int):
+        self.key = (int(seed) & 0xFFFFFFFFFFFFFFFF, KEY_SALT)
+        self.c2 = np.array([int(b) & 0xFFFFFFFFFFFFFFFF for b, _ in keys], np.uint64)
+        self.c3 = np.array([int(si) & 0xFFFFFFFFFFFFFFFF for _, si in keys], np.uint64)
+        self.counts = np.asarray(counts, np.int64)
+        self.drawn = int(drawn)
+        self.stream = np.repeat(np.arange(len(self.counts)), self.counts)
+        starts = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
+        self.pix = np.arange(int(self.counts.sum())) - np.repeat(starts, self.counts)
+
+    def first(self, bounce: int) -> np.ndarray:
+        """Per stream, the index of its first number of bounce ``bounce`` (0: the first)."""
+        return (self.counts * (self.drawn + bounce * DIMS_PER_BOUNCE)).astype(np.uint64)
+
+
 # ----------------------------------------------------------------------------- integrator
 
 class _Group:
@@ -340,7 +376,7 @@ class Integrator:
         """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order
         (``npix``: the paths of every stream, or one count per stream)."""
         counts = [npix] * len(gens) if np.ndim(npix) == 0 else list(npix)
-        return lambda: np.concatenate([g.random((n, DIMS_PER_BOUNCE)) for g, n in zip(gens, counts)])
+        return BounceDraws(gens, counts)
 
     def render_block(self, row0: int, row1: int, samples, seed: int, block_id: int):
         """Render rows [row0, row1) with the given sample indices. Returns (sum, sum of squares)
@@ -354,7 +390,11 @@ class Integrator:
         samples = list(samples)
         gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
         o, d = self.camera_rays(rows, cols, jit)
-        L = self.trace(o, d, self._bounce_draws(gens, counts))
+        draw = self._bounce_draws(gens, counts)
+        # the streams are philox(seed, block, sample), two numbers (the jitter) drawn from each:
+        # the fused bounce may compute a path's numbers itself (the same numbers)
+        draw.streams = StreamTable(seed, [(b, si) for _, _, b in blocks for si in samples], counts, 2)
+        L = self.trace(o, d, draw)
         out, off = [], 0
         for r0, r1, _ in blocks:
             n = len(samples) * (r1 - r0) * self.s.width
