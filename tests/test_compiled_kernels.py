@@ -129,8 +129,10 @@ def test_compiled_model_only_where_it_applies():
     for change in ({"kd": [0.2, 0.2, 0.2]}, {"distribution": "beckmann"}, {"fresnel": "schlick"},
                    {"fresnel": "dielectric"}, {"multiple_scattering": True}, {"shadowing": "v_cavity"}):
         assert compiled.compiled_model(_gold(**change)[1], model) is None, change
-    lam = brdf.get("lambert")
-    assert compiled.compiled_model(lam.params(), lam) is None
+    lam = brdf.get("lambert")      # Lambert has its own (tests/test_fused_bounce.py)
+    assert isinstance(compiled.compiled_model(lam.params(), lam), compiled.CompiledLambert)
+    phong = brdf.get("phong")
+    assert compiled.compiled_model(phong.params(), phong) is None
 
 
 def _scene(tmp_path):
