@@ -1,39 +1,47 @@
 """Compiled (numba) stand-ins for the hot steps of a bounce, each checked against its numpy twin.
 
 The wavefront integrator (``integrator.py``) spends most of a bounce in numpy's per-call cost
-and temporaries on arrays of a few thousand paths. These steps are compiled here into one loop
-each; everything else stays numpy:
+and temporaries on arrays of a few thousand paths. These steps are compiled here, each as a
+function of one path (``*1``: scalars in, a tuple out) and a loop over arrays that calls it;
+the fused bounce (``fused.py``) calls the same per-path functions from its one loop:
 
-* ``hit_shading``: the surface points of a bounce's hits in the rasterizer's conventions
-  (``integrator._Hits``): hit points, interpolated shading normals and tangents
+* ``hit_shading`` (``shade_hit1``): the surface points of a bounce's hits in the rasterizer's
+  conventions (``integrator._Hits``): hit points, interpolated shading normals and tangents
   (``viewer.geometry.soup.hit_points`` / ``interpolate_shading``), the back-face flip, the
   geometric normal on the shading normal's side, the tangent frame (``soup.shading_frame``),
   ``wo`` in it and the ray offset. ``hit_shading_numpy`` is the same computed with the numpy
   functions of ``viewer.geometry.soup``: the twin the compiled loop is tested against.
-* ``CompiledMicrofacet``: the microfacet model (``viewer.brdf.microfacet``) for what the
-  reference meets most, GGX with height-correlated Smith G and conductor Fresnel (RGB eta, k or
-  a spectral table) and no diffuse base, film or random walk: ``eval``, ``pdf`` and
-  ``sample_lobe`` with the twin's interface, arguments and random numbers, so the estimator and
-  its random streams are unchanged. ``compiled_model`` says which materials it takes (any other
-  is evaluated by its numpy twin).
-* ``constant_env_sample``: light sampling of a constant environment
-  (``viewer.reference_common.envmap.EnvironmentLight.sample``: cosine-weighted about the shading
-  normal, the uniform sphere for transmissive surfaces).
-* ``nee_candidates``: one next-event direction at a material group's hits (the light test, the
-  contribution, the shadow ray's origin).
-* ``embree_rays``, ``embree_hits``: the float32 rays ``kernel_embree.EmbreeKernel`` hands
-  Embree, and its hits in float64.
+* ``CompiledMicrofacet`` (``microfacet_eval1``, ``microfacet_pdf1``, ``microfacet_sample1``):
+  the microfacet model (``viewer.brdf.microfacet``) for what the reference meets most, GGX
+  with height-correlated Smith G and conductor Fresnel (RGB eta, k or a spectral table) and no
+  diffuse base, film or random walk: ``eval``, ``pdf`` and ``sample_lobe`` with the twin's
+  interface, arguments and random numbers, so the estimator and its random streams are
+  unchanged. ``CompiledLambert`` (``lambert_*1``): ``viewer.brdf.lambert`` the same way.
+  ``compiled_model`` says which materials they take (any other is evaluated by its numpy twin).
+* ``constant_env_sample`` (``constant_env_sample1``, ``constant_env_pdf1``): light sampling of
+  a constant environment (``viewer.reference_common.envmap.EnvironmentLight.sample`` / ``pdf``:
+  cosine-weighted about the shading normal, the uniform sphere for transmissive surfaces).
+* ``nee_candidates`` (``nee_test1``, ``nee_term1``): one next-event direction at a material
+  group's hits (the light test, the contribution, the shadow ray's origin).
+* ``embree_rays``, ``embree_hits`` (``embree_ray1``): the float32 rays
+  ``kernel_embree.EmbreeKernel`` hands Embree, and its hits in float64; ``embree_intersect``,
+  ``embree_occluded`` (``embree_intersect1``, ``embree_occluded1``): the same rays handed to
+  Embree's C functions one by one (``kernel_embree.DirectScene``; the function and the
+  RTCRayHit are passed as addresses, so the compiled code holds none and stays cacheable).
+* ``draw_paths`` (``philox_uniform1``): the numbers numpy's ``Philox`` stream of a path holds
+  for it at any bounce, computed for the live paths only (Philox4x64-10, Salmon et al. 2011).
 
 The formulas are the twin's (``microfacet.eval_specular`` / ``pdf`` / ``sample``,
 ``microfacet_dist`` GGX ``D``, ``Lambda``, visible-normal sampling, ``fresnel.fresnel_conductor``,
-``spectral_fresnel.lookup``, ``sampling.ratio_capped``), step by step in the same order, so
-results agree with the twin to a few float64 roundings; tests/test_compiled_kernels.py checks
-that on many random inputs (below the horizon, grazing, and at the edges of the interpolation
-tables included).
+``spectral_fresnel.lookup``, ``sampling.ratio_capped``, ``sampling.cosine_hemisphere``), step
+by step in the same order, so results agree with the twin to a few float64 roundings;
+tests/test_compiled_kernels.py and tests/test_fused_bounce.py check that on many random inputs
+(below the horizon, grazing, and at the edges of the interpolation tables included).
 
 Without numba every step runs its numpy twin. Compiled with ``cache=True``: the first process
-in a fresh environment compiles them (about 5 CPU seconds), later ones load numba's cache (about
-0.4 CPU seconds); a worker does either at its start (``Integrator.warm``).
+in a fresh environment compiles what it calls (about 12 CPU seconds for the fused bounce, 5 for
+the rest), later ones load numba's cache (about 0.3 CPU seconds, nearly all numba's own start);
+a worker does either at its start (``Integrator.warm``).
 """
 
 from __future__ import annotations
