@@ -269,7 +269,6 @@ class FusedBounce:
     docstring); buffers are allocated once per wavefront size and reused."""
 
     def __init__(self, it):
-        self.it = it
         s = it.s
         models = it.models
         nm = len(models)
@@ -312,10 +311,11 @@ class FusedBounce:
             self._cap = n
         return self
 
-    def trace(self, paths, o, d, draw):
-        """``Integrator.trace_paths`` of ``paths`` along the rays (o, d): their radiance
-        ``paths.L`` before the final check for NaN (the integrator's)."""
-        it = self.it
+    def trace(self, it, paths, o, d, draw):
+        """``Integrator.trace_paths`` of integrator ``it`` (the one this was planned for) for
+        ``paths`` along the rays (o, d): their radiance ``paths.L`` before the final check for
+        NaN (the integrator's). (The integrator is an argument, not an attribute: no reference
+        cycle keeps a dropped integrator's Embree scene alive until a garbage collection.)"""
         s, g, kernel = it.s, it.geom, it.kernel
         n = o.shape[0]
         self._buffers(n)

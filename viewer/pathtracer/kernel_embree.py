@@ -69,7 +69,7 @@ def _embree_library():
                               ("rtcSetSharedGeometryBuffer", None, [vp, ci, ctypes.c_uint, ci, vp, sz, sz, sz]),
                               ("rtcCommitGeometry", None, [vp]), ("rtcAttachGeometry", ctypes.c_uint, [vp, vp]),
                               ("rtcReleaseGeometry", None, [vp]), ("rtcCommitScene", None, [vp]),
-                              ("rtcReleaseScene", None, [vp]), ("rtcReleaseDevice", None, [vp]),
+                              ("rtcReleaseScene", None, [vp]),
                               ("rtcGetDeviceError", ci, [vp])):
             f = getattr(lib, fn)
             f.restype, f.argtypes = res, args
@@ -77,19 +77,21 @@ def _embree_library():
     return None
 
 
-_LIB: list = []   # [the library or None], loaded once per process
+_LIB: list = []   # [the library or None, its device], loaded and created once per process
 
 
 class DirectScene:
     """An Embree scene of float32 triangles ``verts`` (V, 3) (three per triangle, in order)
-    built through Embree's C interface: ``scene`` (its address), ``intersect1`` and
-    ``occluded1`` (the addresses of ``rtcIntersect1`` / ``rtcOccluded1``) for compiled loops."""
+    built through Embree's C interface on ``device`` (one per process: a device holds Embree's
+    thread pool): ``scene`` (its address), ``intersect1`` and ``occluded1`` (the addresses of
+    ``rtcIntersect1`` / ``rtcOccluded1``) for compiled loops. The scene is released with this
+    object; it keeps the vertex and index arrays Embree reads."""
 
-    def __init__(self, lib, verts: np.ndarray):
+    def __init__(self, lib, device, verts: np.ndarray):
         self._lib = lib
         self._verts = np.ascontiguousarray(verts, dtype=np.float32)
         self._index = np.arange(self._verts.shape[0], dtype=np.uint32).reshape(-1, 3).copy()
-        self._device = lib.rtcNewDevice(None)
+        self._device = device
         self._scene = lib.rtcNewScene(self._device)
         geom = lib.rtcNewGeometry(self._device, RTC_GEOMETRY_TYPE_TRIANGLE)
         lib.rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, self._verts.ctypes.data,
@@ -116,7 +118,6 @@ class DirectScene:
         lib = getattr(self, "_lib", None)
         if lib is not None and getattr(self, "_scene", None):
             lib.rtcReleaseScene(self._scene)
-            lib.rtcReleaseDevice(self._device)
             self._scene = None
 
 
@@ -127,10 +128,12 @@ def direct_scene(verts: np.ndarray) -> DirectScene | None:
     if not HAVE_NUMBA or os.environ.get("BRDF_VIEWER_EMBREE_DIRECT", "1") == "0":
         return None
     if not _LIB:
-        _LIB.append(_embree_library())
-    if _LIB[0] is None:
+        lib = _embree_library()
+        # one thread: the pool has a process per core, and no thread of Embree's outlives a render
+        _LIB.extend([lib, lib.rtcNewDevice(b"threads=1") if lib is not None else None])
+    if _LIB[0] is None or not _LIB[1]:
         return None
-    return DirectScene(_LIB[0], verts)
+    return DirectScene(_LIB[0], _LIB[1], verts)
 
 
 class EmbreeKernel:
