@@ -51,15 +51,16 @@ def _render(it, setup, seed=7):
     return np.concatenate([s for s, _ in out]), np.concatenate([s2 for _, s2 in out])
 
 
-@pytest.mark.parametrize("strategy, heuristic, roulette, spectral", [
-    ("mis", "power", True, "none"), ("mis", "balance", True, "Au"), ("bsdf", "power", True, "none"),
-    ("light", "power", False, "none")])
-def test_the_fused_bounce_equals_the_numpy_steps(tmp_path, strategy, heuristic, roulette, spectral):
+@pytest.mark.parametrize("strategy, heuristic, roulette, spectral, kernel", [
+    ("mis", "power", True, "none", "embree"), ("mis", "balance", True, "Au", "embree"),
+    ("bsdf", "power", True, "none", "embree"), ("light", "power", False, "none", "embree"),
+    ("mis", "power", True, "none", "numba")])   # numba's ray kernel: batched queries around the loop
+def test_the_fused_bounce_equals_the_numpy_steps(tmp_path, strategy, heuristic, roulette, spectral, kernel):
     setup = RenderSetup.from_scene(_scene(tmp_path, spectral=spectral), max_depth=6, strategy=strategy,
-                                   mis_heuristic=heuristic)
+                                   mis_heuristic=heuristic, kernel=kernel)
     setup.russian_roulette = roulette
     a, b = Integrator(setup), Integrator(setup)
-    assert isinstance(a.fused, FusedBounce)
+    assert isinstance(a.fused, FusedBounce) and (a.fused.direct is None) == (kernel == "numba")
     b.fused = None                      # the numpy steps (with the same compiled models)
     sa, qa = _render(a, setup)
     sb, qb = _render(b, setup)

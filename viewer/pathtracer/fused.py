@@ -1,16 +1,19 @@
 """The whole bounce in one compiled loop: the integrator's estimator (``integrator.py``) for the
 scenes every step of which has a compiled stand-in.
 
-Between the two batched ray queries of a bounce (closest hit; occlusion of the shadow rays)
-``_shade`` runs, path by path, what ``Integrator._bounce`` and its neighbours do material
-group by material group in numpy: the environment reached by a ray that missed (weighted
-against light sampling), the hit's shading (``compiled.shade_hit1``), next-event estimation of
-every point and directional light and of the constant environment (``compiled.nee1``,
-``compiled.constant_env_sample1``, the material's ``eval1`` and ``pdf1``, the MIS heuristic),
-the BSDF sample (``sample1``), light sampling's density in its direction, the new throughput,
-Russian roulette, and the next ray. It writes into arrays allocated once per chunk: the next
-wavefront (compacted, in path order) and the shadow rays with their contributions;
-``_add_unoccluded`` adds the contributions of the unoccluded ones after the occlusion query.
+``_shade`` runs, path by path, what ``Integrator.trace_paths`` and its steps do material group
+by material group in numpy: the ray's closest hit, the environment reached by a ray that missed
+(weighted against light sampling), the hit's shading (``compiled.shade_hit1``), next-event
+estimation of every point and directional light and of the constant environment
+(``compiled.constant_env_sample1``, the material's ``eval1`` and ``pdf1``, the MIS heuristic,
+``compiled.nee_test1`` and ``nee_term1``) with its shadow rays, the BSDF sample (``sample1``),
+light sampling's density in its direction, the new throughput, Russian roulette, and the next
+ray. With Embree's ``DirectScene`` (``kernel_embree.py``) every ray and shadow ray goes to
+Embree from inside the loop and an unoccluded contribution is added at once; with another ray
+kernel (numba's, or Embree through ``embreex``) the closest hits come from one batched query
+before the loop, the shadow rays are written out, and ``_add_unoccluded`` adds the unoccluded
+ones' contributions after a batched occlusion query. The next wavefront (compacted, in path
+order) goes into arrays allocated once per wavefront size.
 
 Nothing here is a formula of its own: the per-path steps are the functions of
 ``viewer.pathtracer.compiled`` (each tested against its numpy twin), called in the order of the
