@@ -30,13 +30,17 @@ from viewer.scene import load_scene  # noqa: E402
 from scene_text import camera, environment, material, point_light, scene, sphere_on_floor, table  # noqa: E402
 
 
-def _scene(tmp_path, *, spectral="none", floor=None):
+PLASTIC = {"model": "microfacet", "distribution": "ggx", "shadowing": "smith", "fresnel": "dielectric", "ior": 1.5,
+           "alpha": 0.3, "kd": [0.62, 0.26, 0.1]}   # the default scene's ball: a diffuse base under a dielectric
+
+
+def _scene(tmp_path, *, spectral="none", floor=None, ball=None):
     text = scene(camera([0.0, 1.2, 3.5], [0.0, 0.4, 0.0], 45.0, 32, 24),
                  environment(constant=[0.3, 0.35, 0.4]),
                  point_light([2.0, 3.0, 2.0], [20.0, 20.0, 20.0]),
                  table("[lights]", type="directional", direction=[-0.3, -1.0, -0.2], irradiance=[0.8, 0.7, 0.6]),
                  sphere_on_floor(height=0.5),
-                 material("ball", preset="gold", alpha=0.25, spectral=spectral),
+                 material("ball", **(ball or {"preset": "gold", "alpha": 0.25, "spectral": spectral})),
                  floor or material("floor", model="lambert", albedo=[0.6, 0.5, 0.4]))
     f = tmp_path / "s.toml"
     f.write_text(textwrap.dedent(text))
@@ -51,12 +55,13 @@ def _render(it, setup, seed=7):
     return np.concatenate([s for s, _ in out]), np.concatenate([s2 for _, s2 in out])
 
 
-@pytest.mark.parametrize("strategy, heuristic, roulette, spectral, kernel", [
-    ("mis", "power", True, "none", "embree"), ("mis", "balance", True, "Au", "embree"),
-    ("bsdf", "power", True, "none", "embree"), ("light", "power", False, "none", "embree"),
-    ("mis", "power", True, "none", "numba")])   # numba's ray kernel: batched queries around the loop
-def test_the_fused_bounce_equals_the_numpy_steps(tmp_path, strategy, heuristic, roulette, spectral, kernel):
-    setup = RenderSetup.from_scene(_scene(tmp_path, spectral=spectral), max_depth=6, strategy=strategy,
+@pytest.mark.parametrize("strategy, heuristic, roulette, spectral, kernel, ball", [
+    ("mis", "power", True, "none", "embree", None), ("mis", "balance", True, "Au", "embree", None),
+    ("bsdf", "power", True, "none", "embree", None), ("light", "power", False, "none", "embree", None),
+    ("mis", "power", True, "none", "numba", None),   # numba's ray kernel: batched queries around the loop
+    ("mis", "power", True, "none", "embree", PLASTIC)])
+def test_the_fused_bounce_equals_the_numpy_steps(tmp_path, strategy, heuristic, roulette, spectral, kernel, ball):
+    setup = RenderSetup.from_scene(_scene(tmp_path, spectral=spectral, ball=ball), max_depth=6, strategy=strategy,
                                    mis_heuristic=heuristic, kernel=kernel)
     setup.russian_roulette = roulette
     a, b = Integrator(setup), Integrator(setup)

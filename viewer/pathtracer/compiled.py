@@ -13,8 +13,9 @@ the fused bounce (``fused.py``) calls the same per-path functions from its one l
   functions of ``viewer.geometry.soup``: the twin the compiled loop is tested against.
 * ``CompiledMicrofacet`` (``microfacet_eval1``, ``microfacet_pdf1``, ``microfacet_sample1``):
   the microfacet model (``viewer.brdf.microfacet``) for what the reference meets most, GGX
-  with height-correlated Smith G and conductor Fresnel (RGB eta, k or a spectral table) and no
-  diffuse base, film or random walk: ``eval``, ``pdf`` and ``sample_lobe`` with the twin's
+  with height-correlated Smith G, conductor or dielectric Fresnel (RGB eta, k, an ior, or a
+  spectral table), with or without its diffuse base, no film or random walk: ``eval``, ``pdf``
+  and ``sample_lobe`` with the twin's
   interface, arguments and random numbers, so the estimator and its random streams are
   unchanged. ``CompiledLambert`` (``lambert_*1``): ``viewer.brdf.lambert`` the same way.
   ``compiled_model`` says which materials they take (any other is evaluated by its numpy twin).
@@ -217,8 +218,9 @@ def _fresnel(c, ch, eta, k, table, nrows, m):
     """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c`` for material row ``m`` of
     ``eta``, ``k`` (M, 3), ``table`` (M, rows, 3) with ``nrows`` (M,): the spectral table's
     lookup (``spectral_fresnel.lookup``) when its table has rows, else
-    ``fresnel.fresnel_conductor``. (Rows of stacked arrays, not views of them: a view made in a
-    loop costs two atomic reference counts.)"""
+    ``fresnel.fresnel_conductor``, or, where ``k`` is negative (``CompiledMicrofacet``'s mark
+    of a dielectric), ``fresnel.fresnel_dielectric`` of index ``eta``. (Rows of stacked arrays,
+    not views of them: a view made in a loop costs two atomic reference counts.)"""
     nt = nrows[m]
     if nt > 0:
         cc = min(max(c, 0.0), 1.0)
@@ -227,6 +229,17 @@ def _fresnel(c, ch, eta, k, table, nrows, m):
         f = x - i
         return table[m, i, ch] * (1.0 - f) + table[m, i + 1, ch] * f
     cc = min(max(c, 0.0), 1.0)
+    if k[m, ch] < 0:   # fresnel_dielectric_polarized (cos >= 0: light from outside, n_i = 1, n_t = eta)
+        e = eta[m, ch]
+        sin2_t = max(0.0, 1.0 - cc * cc) / (e * e)
+        if sin2_t >= 1.0:
+            return 1.0
+        cos_t = math.sqrt(max(0.0, 1.0 - sin2_t))
+        den_s = cc + e * cos_t
+        den_p = e * cc + cos_t
+        rs = (cc - e * cos_t) / den_s if den_s > 0 else 1.0
+        rp = (e * cc - cos_t) / den_p if den_p > 0 else 1.0
+        return 0.5 * (rs * rs + rp * rp)
     nc = complex(eta[m, ch], k[m, ch])
     sin2 = complex(1.0 - cc * cc, 0.0)
     n2 = nc * nc
@@ -272,9 +285,24 @@ def _half(ix, iy, iz, ox, oy, oz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, m):
-    """microfacet.eval_specular of one pair: (f_r, f_g, f_b) (the Fresnel of material row ``m``,
-    ``_fresnel``)."""
+def _p_diffuse1(co, eta, k, table, nrows, kd, m):
+    """microfacet._p_diffuse of one wo (cos ``co``): the probability of sampling the diffuse
+    base, mean(kd (1 - F(co))) / (mean(kd (1 - F(co))) + mean(F(co))); 0 without a base."""
+    if not (kd[m, 0] > 0 or kd[m, 1] > 0 or kd[m, 2] > 0):
+        return 0.0
+    f0 = _fresnel(co, 0, eta, k, table, nrows, m)
+    f1 = _fresnel(co, 1, eta, k, table, nrows, m)
+    f2 = _fresnel(co, 2, eta, k, table, nrows, m)
+    wd = (kd[m, 0] * max(1.0 - f0, 0.0) + kd[m, 1] * max(1.0 - f1, 0.0) + kd[m, 2] * max(1.0 - f2, 0.0)) / 3.0
+    ws = (f0 + f1 + f2) / 3.0
+    tot = wd + ws
+    return wd / tot if tot > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m):
+    """microfacet.eval of one pair: (f_r, f_g, f_b), ``eval_specular`` plus, where material row
+    ``m`` has one, ``eval_diffuse`` (the Fresnel of row ``m``: ``_fresnel``)."""
     ok = iz > 0 and oz > 0
     if not ok:
         return 0.0, 0.0, 0.0
@@ -292,15 +320,22 @@ def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, m):
         r = min(a / b, F_MAX) if b > 0 else F_MAX
     else:
         r = 0.0
-    return (_fresnel(ih, 0, eta, k, table, nrows, m) * r, _fresnel(ih, 1, eta, k, table, nrows, m) * r,
-            _fresnel(ih, 2, eta, k, table, nrows, m) * r)
+    f0 = _fresnel(ih, 0, eta, k, table, nrows, m) * r
+    f1 = _fresnel(ih, 1, eta, k, table, nrows, m) * r
+    f2 = _fresnel(ih, 2, eta, k, table, nrows, m) * r
+    if kd[m, 0] > 0 or kd[m, 1] > 0 or kd[m, 2] > 0:   # eval_diffuse: kd / pi (1 - F(ci)) (1 - F(co))
+        f0 = f0 + kd[m, 0] * INV_PI * max(1.0 - _fresnel(iz, 0, eta, k, table, nrows, m), 0.0) * max(
+            1.0 - _fresnel(oz, 0, eta, k, table, nrows, m), 0.0)
+        f1 = f1 + kd[m, 1] * INV_PI * max(1.0 - _fresnel(iz, 1, eta, k, table, nrows, m), 0.0) * max(
+            1.0 - _fresnel(oz, 1, eta, k, table, nrows, m), 0.0)
+        f2 = f2 + kd[m, 2] * INV_PI * max(1.0 - _fresnel(iz, 2, eta, k, table, nrows, m), 0.0) * max(
+            1.0 - _fresnel(oz, 2, eta, k, table, nrows, m), 0.0)
+    return f0, f1, f2
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
-    """microfacet.pdf of one pair (no diffuse base, no walk): the visible-normal density."""
-    if not (iz > 0 and oz > 0):
-        return 0.0
+def _pdf_specular1(ix, iy, iz, ox, oy, oz, ax, ay):
+    """microfacet._pdf_specular of one pair: the visible-normal density, reflected."""
     hx, hy, hz = _half(ix, iy, iz, ox, oy, oz)
     oh = ox * hx + oy * hy + oz * hz
     if not (oh > 0):
@@ -311,14 +346,21 @@ def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, m):
-    """microfacet.sample without a diffuse base of one wo: visible-normal sampling (Heitz 2018,
-    listing 1) of wo (the pole for wo below the horizon), mirrored; (wi x, y, z, weight f cos /
-    pdf r, g, b, pdf)."""
-    up = oz > 0
-    sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
-    u0 = min(max(u0, 0.0), 1.0 - 1e-16)
-    # stretch, orthonormal basis about vh, a point on the warped disk, unstretch
+def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m):
+    """microfacet.pdf of one pair (no walk): the specular density and, where material row ``m``
+    has a diffuse base, the mixture with the cosine lobe by ``_p_diffuse1``."""
+    if not (iz > 0 and oz > 0):
+        return 0.0
+    pd = _p_diffuse1(oz, eta, k, table, nrows, kd, m)
+    ps = _pdf_specular1(ix, iy, iz, ox, oy, oz, ax, ay)
+    return (1.0 - pd) * ps + pd * max(iz, 0.0) * INV_PI
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _vndf_reflect1(sx, sy, sz, u0, u1, ax, ay):
+    """microfacet_dist.sample_vndf_ggx of the upper-hemisphere direction s (Heitz 2018,
+    listing 1: stretch, an orthonormal basis about it, a point on the warped disk, unstretch),
+    then s mirrored about that normal (``sampling.reflect``)."""
     vx, vy, vz = ax * sx, ay * sy, sz
     lv = math.sqrt(vx * vx + vy * vy + vz * vz)
     if lv > 0:
@@ -347,38 +389,58 @@ def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, m):
     if lm > 0:
         mx, my, mz = mx / lm, my / lm, mz / lm
     dm = sx * mx + sy * my + sz * mz
-    ix = 2.0 * dm * mx - sx
-    iy = 2.0 * dm * my - sy
-    iz = 2.0 * dm * mz - sz
-    pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay)
+    return 2.0 * dm * mx - sx, 2.0 * dm * my - sy, 2.0 * dm * mz - sz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, kd, m):
+    """microfacet.sample (no walk) of one wo: the diffuse base with probability
+    ``_p_diffuse1`` (u0 rescaled within its choice) by the cosine lobe, else visible-normal
+    sampling of wo (the pole for wo below the horizon), mirrored; (wi x, y, z, weight f cos /
+    pdf r, g, b, pdf) with the whole model's f and pdf."""
+    up = oz > 0
+    sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
+    pdif = _p_diffuse1(sz, eta, k, table, nrows, kd, m)
+    diffuse = u0 < pdif
+    if diffuse:
+        uu = u0 / (pdif if pdif > 0 else 1.0)
+    else:
+        uu = (u0 - pdif) / ((1.0 - pdif) if pdif < 1 else 1.0)
+    uu = min(max(uu, 0.0), 1.0 - 1e-16)
+    if diffuse:
+        ix, iy, iz = cosine_hemisphere1(uu, u1)
+    else:
+        ix, iy, iz = _vndf_reflect1(sx, sy, sz, uu, u1, ax, ay)
+    pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m)
     if up and iz > 0 and pd > 0:
-        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, m)
+        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m)
         sc = iz / pd
         return ix, iy, iz, f0 * sc, f1 * sc, f2 * sc, pd
     return ix, iy, iz, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_eval(wi, wo, ax, ay, eta, k, table, nrows, out):
+def _mf_eval(wi, wo, ax, ay, eta, k, table, nrows, kd, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
         i = j % r
         out[j, 0], out[j, 1], out[j, 2] = microfacet_eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1],
-                                                           wo[i, 2], ax, ay, eta, k, table, nrows, 0)
+                                                           wo[i, 2], ax, ay, eta, k, table, nrows, kd, 0)
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_pdf(wi, wo, ax, ay, out):
+def _mf_pdf(wi, wo, ax, ay, eta, k, table, nrows, kd, out):
     for j in range(wi.shape[0]):
-        out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay)
+        out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay, eta, k, table,
+                                 nrows, kd, 0)
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_sample(wo, u, ax, ay, eta, k, table, nrows, wi, weight, pdf):
+def _mf_sample(wo, u, ax, ay, eta, k, table, nrows, kd, wi, weight, pdf):
     for j in range(wo.shape[0]):
         (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
          pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, eta, k, table,
-                                      nrows, 0)
+                                      nrows, kd, 0)
 
 
 class CompiledMicrofacet:
@@ -391,8 +453,12 @@ class CompiledMicrofacet:
         self.twin = twin
         self.ax = float(p.alpha_x)
         self.ay = float(p.alpha_y)
-        self.eta = np.ascontiguousarray(np.asarray(p.eta, dtype=np.float64).reshape(3))
-        self.k = np.ascontiguousarray(np.asarray(p.k, dtype=np.float64).reshape(3))
+        if p.fresnel == "conductor":
+            self.eta = np.ascontiguousarray(np.asarray(p.eta, dtype=np.float64).reshape(3))
+            self.k = np.ascontiguousarray(np.asarray(p.k, dtype=np.float64).reshape(3))
+        else:   # a dielectric of index ior, marked by k = -1 (``_fresnel``)
+            self.eta, self.k = np.full(3, float(p.ior)), np.full(3, -1.0)
+        self.kd = np.ascontiguousarray(np.asarray(p.kd, dtype=np.float64).reshape(3))
         if p.spectral != spectral_fresnel.NONE:
             self.table = np.array(spectral_fresnel.table(p.spectral), dtype=np.float64, order="C")  # writable: one compiled signature
         else:
@@ -401,6 +467,7 @@ class CompiledMicrofacet:
         self.eta_rows, self.k_rows = self.eta.reshape(1, 3).copy(), self.k.reshape(1, 3).copy()
         self.table_rows = self.table.reshape(1, -1, 3).copy()
         self.nrows = np.array([self.table.shape[0]], np.int64)
+        self.kd_rows = self.kd.reshape(1, 3).copy()
         own = twin.lobes(p)
         self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
 
@@ -411,14 +478,14 @@ class CompiledMicrofacet:
         wi = np.ascontiguousarray(wi, dtype=np.float64)
         wo = np.ascontiguousarray(wo, dtype=np.float64)
         out = np.empty((wi.shape[0], 3))
-        _mf_eval(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, out)
+        _mf_eval(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, out)
         return out
 
     def pdf(self, p, wi, wo):
         wi = np.ascontiguousarray(wi, dtype=np.float64)
         wo = np.ascontiguousarray(wo, dtype=np.float64)
         out = np.empty(wi.shape[0])
-        _mf_pdf(wi, wo, self.ax, self.ay, out)
+        _mf_pdf(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, out)
         return out
 
     def sample_lobe(self, p, wo, u):
@@ -426,7 +493,8 @@ class CompiledMicrofacet:
         u = np.ascontiguousarray(u, dtype=np.float64)
         n = wo.shape[0]
         wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-        _mf_sample(wo, u, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, wi, weight, pdf)
+        _mf_sample(wo, u, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, wi,
+                   weight, pdf)
         return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
@@ -515,8 +583,8 @@ class CompiledLambert:
 def compiled_model(p, twin):
     """A compiled stand-in for ``twin`` (the registry model of material parameters ``p``), or
     None where none applies: ``twin`` runs ``viewer.brdf.lambert``, or ``viewer.brdf.microfacet``
-    (the module these kernels repeat) with GGX, Smith G, conductor Fresnel (RGB or a spectral
-    table), no diffuse base, no thin film, no multiple scattering."""
+    (the module these kernels repeat) with GGX, Smith G, conductor or dielectric Fresnel (RGB or
+    a spectral table), with or without a diffuse base, no thin film, no multiple scattering."""
     module = getattr(twin, "module", None)
     if not HAVE_NUMBA or module not in (microfacet, lambert):
         return None
@@ -524,8 +592,7 @@ def compiled_model(p, twin):
         return None
     if module is lambert:
         return CompiledLambert(p, twin)
-    ok = (p.distribution == "ggx" and p.shadowing == "smith" and p.fresnel == "conductor"
-          and not np.any(np.asarray(p.kd, dtype=np.float64) > 0)
+    ok = (p.distribution == "ggx" and p.shadowing == "smith" and p.fresnel in ("conductor", "dielectric")
           and not bool(p.get("multiple_scattering", False))
           and not twin.has_film(p) and not thin_film.at_point(p) and not thin_film.varies(p))
     return CompiledMicrofacet(p, twin) if ok else None

@@ -78,7 +78,7 @@ def _clean(x):
 @njit(cache=True, error_model="numpy")
 def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
-           kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows,
+           kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows, kd,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
            L, T, prev_pdf, prev_lpdf, prev_delta,
            act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
@@ -153,7 +153,8 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                 if lam:
                     f0, f1, f2 = lambert_eval1(l2, o2, albedo[mt, 0], albedo[mt, 1], albedo[mt, 2])
                 else:
-                    f0, f1, f2 = microfacet_eval1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, mt)
+                    f0, f1, f2 = microfacet_eval1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, kd,
+                                                  mt)
                 f0, nb0 = _clean(f0)
                 f1, nb1 = _clean(f1)
                 f2, nb2 = _clean(f2)
@@ -165,7 +166,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                         if lam:
                             pb = lambert_pdf1(l2, o2)
                         else:
-                            pb = microfacet_pdf1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt])
+                            pb = microfacet_pdf1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, kd, mt)
                         pb, nb = _clean(pb)
                         nbad += nb
                         wmis = _heuristic(pe, pb, power) / (pe if pe > 0 else 1.0)
@@ -198,7 +199,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                                                             albedo[mt, 2])
         else:
             x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, rnd[a, 0], rnd[a, 1], ax[mt], ay[mt], eta,
-                                                               kk, tables, nrows, mt)
+                                                               kk, tables, nrows, kd, mt)
         wt0, nb0 = _clean(wt0)
         wt1, nb1 = _clean(wt1)
         wt2, nb2 = _clean(wt2)
@@ -280,7 +281,7 @@ class FusedBounce:
         self.delta = np.array([bool(m.lobe & np.uint8(Lobe.DELTA)) for m in models], np.bool_)
         self.albedo = np.zeros((nm, 3))
         self.ax, self.ay = np.ones(nm), np.ones(nm)
-        self.eta, self.kk = np.ones((nm, 3)), np.zeros((nm, 3))
+        self.eta, self.kk, self.kd = np.ones((nm, 3)), np.zeros((nm, 3)), np.zeros((nm, 3))
         rows = max([m.table.shape[0] for m in models if isinstance(m, CompiledMicrofacet)] + [0])
         self.tables = np.zeros((nm, rows, 3))
         self.nrows = np.zeros(nm, np.int64)
@@ -288,7 +289,7 @@ class FusedBounce:
             if isinstance(m, CompiledLambert):
                 self.albedo[i] = m.albedo
             else:
-                self.ax[i], self.ay[i], self.eta[i], self.kk[i] = m.ax, m.ay, m.eta, m.k
+                self.ax[i], self.ay[i], self.eta[i], self.kk[i], self.kd[i] = m.ax, m.ay, m.eta, m.k, m.kd
                 self.nrows[i] = m.table.shape[0]
                 self.tables[i, :self.nrows[i]] = m.table
         nl = len(s.lights)
@@ -363,7 +364,7 @@ class FusedBounce:
             m_out, ns = _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, *rays,
                                g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
                                self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.eta,
-                               self.kk, self.tables, self.nrows, self.lkind, self.lpos, self.lval, *opts,
+                               self.kk, self.tables, self.nrows, self.kd, self.lkind, self.lpos, self.lval, *opts,
                                paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf, paths.prev_delta,
                                act_out, o_out, d_out, self._s_idx, self._s_o, self._s_d, self._s_tmax, self._s_c,
                                bad)
