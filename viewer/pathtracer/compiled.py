@@ -214,23 +214,21 @@ def _abs2(z):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _fresnel(c, ch, eta, k, table, nrows, m):
-    """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c`` for material row ``m`` of
-    ``eta``, ``k`` (M, 3), ``table`` (M, rows, 3) with ``nrows`` (M,): the spectral table's
-    lookup (``spectral_fresnel.lookup``) when its table has rows, else
-    ``fresnel.fresnel_conductor``, or, where ``k`` is negative (``CompiledMicrofacet``'s mark
-    of a dielectric), ``fresnel.fresnel_dielectric`` of index ``eta``. (Rows of stacked arrays,
-    not views of them: a view made in a loop costs two atomic reference counts.)"""
-    nt = nrows[m]
+def _fresnel(c, ch, md, m):
+    """Channel ``ch`` of ``microfacet.fresnel_rgb`` at cos ``c`` for row ``m`` of the material
+    data ``md`` (``material_rows``): the spectral table's lookup (``spectral_fresnel.lookup``)
+    when the row has a table, else ``fresnel.fresnel_conductor`` of its eta, k, or, where k is
+    negative (the mark of a dielectric), ``fresnel.fresnel_dielectric`` of index eta."""
+    nt = int(md[m, MD_NROWS])
     if nt > 0:
         cc = min(max(c, 0.0), 1.0)
         x = math.sqrt(cc) * (nt - 1)
         i = min(int(math.floor(x)), nt - 2)
         f = x - i
-        return table[m, i, ch] * (1.0 - f) + table[m, i + 1, ch] * f
+        return md[m, MD_TABLE + 3 * i + ch] * (1.0 - f) + md[m, MD_TABLE + 3 * (i + 1) + ch] * f
     cc = min(max(c, 0.0), 1.0)
-    if k[m, ch] < 0:   # fresnel_dielectric_polarized (cos >= 0: light from outside, n_i = 1, n_t = eta)
-        e = eta[m, ch]
+    if md[m, MD_K + ch] < 0:   # fresnel_dielectric_polarized (cos >= 0: light from outside, n_i = 1, n_t = eta)
+        e = md[m, MD_ETA + ch]
         sin2_t = max(0.0, 1.0 - cc * cc) / (e * e)
         if sin2_t >= 1.0:
             return 1.0
@@ -240,7 +238,7 @@ def _fresnel(c, ch, eta, k, table, nrows, m):
         rs = (cc - e * cos_t) / den_s if den_s > 0 else 1.0
         rp = (e * cc - cos_t) / den_p if den_p > 0 else 1.0
         return 0.5 * (rs * rs + rp * rp)
-    nc = complex(eta[m, ch], k[m, ch])
+    nc = complex(md[m, MD_ETA + ch], md[m, MD_K + ch])
     sin2 = complex(1.0 - cc * cc, 0.0)
     n2 = nc * nc
     w = cmath.sqrt(n2 - sin2)
@@ -285,22 +283,23 @@ def _half(ix, iy, iz, ox, oy, oz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _p_diffuse1(co, eta, k, table, nrows, kd, m):
+def _p_diffuse1(co, md, m):
     """microfacet._p_diffuse of one wo (cos ``co``): the probability of sampling the diffuse
     base, mean(kd (1 - F(co))) / (mean(kd (1 - F(co))) + mean(F(co))); 0 without a base."""
-    if not (kd[m, 0] > 0 or kd[m, 1] > 0 or kd[m, 2] > 0):
+    kd0, kd1, kd2 = md[m, MD_KD], md[m, MD_KD + 1], md[m, MD_KD + 2]
+    if not (kd0 > 0 or kd1 > 0 or kd2 > 0):
         return 0.0
-    f0 = _fresnel(co, 0, eta, k, table, nrows, m)
-    f1 = _fresnel(co, 1, eta, k, table, nrows, m)
-    f2 = _fresnel(co, 2, eta, k, table, nrows, m)
-    wd = (kd[m, 0] * max(1.0 - f0, 0.0) + kd[m, 1] * max(1.0 - f1, 0.0) + kd[m, 2] * max(1.0 - f2, 0.0)) / 3.0
+    f0 = _fresnel(co, 0, md, m)
+    f1 = _fresnel(co, 1, md, m)
+    f2 = _fresnel(co, 2, md, m)
+    wd = (kd0 * max(1.0 - f0, 0.0) + kd1 * max(1.0 - f1, 0.0) + kd2 * max(1.0 - f2, 0.0)) / 3.0
     ws = (f0 + f1 + f2) / 3.0
     tot = wd + ws
     return wd / tot if tot > 0 else 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m):
+def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, md, m):
     """microfacet.eval of one pair: (f_r, f_g, f_b), ``eval_specular`` plus, where material row
     ``m`` has one, ``eval_diffuse`` (the Fresnel of row ``m``: ``_fresnel``)."""
     ok = iz > 0 and oz > 0
@@ -320,16 +319,17 @@ def microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m
         r = min(a / b, F_MAX) if b > 0 else F_MAX
     else:
         r = 0.0
-    f0 = _fresnel(ih, 0, eta, k, table, nrows, m) * r
-    f1 = _fresnel(ih, 1, eta, k, table, nrows, m) * r
-    f2 = _fresnel(ih, 2, eta, k, table, nrows, m) * r
-    if kd[m, 0] > 0 or kd[m, 1] > 0 or kd[m, 2] > 0:   # eval_diffuse: kd / pi (1 - F(ci)) (1 - F(co))
-        f0 = f0 + kd[m, 0] * INV_PI * max(1.0 - _fresnel(iz, 0, eta, k, table, nrows, m), 0.0) * max(
-            1.0 - _fresnel(oz, 0, eta, k, table, nrows, m), 0.0)
-        f1 = f1 + kd[m, 1] * INV_PI * max(1.0 - _fresnel(iz, 1, eta, k, table, nrows, m), 0.0) * max(
-            1.0 - _fresnel(oz, 1, eta, k, table, nrows, m), 0.0)
-        f2 = f2 + kd[m, 2] * INV_PI * max(1.0 - _fresnel(iz, 2, eta, k, table, nrows, m), 0.0) * max(
-            1.0 - _fresnel(oz, 2, eta, k, table, nrows, m), 0.0)
+    f0 = _fresnel(ih, 0, md, m) * r
+    f1 = _fresnel(ih, 1, md, m) * r
+    f2 = _fresnel(ih, 2, md, m) * r
+    kd0, kd1, kd2 = md[m, MD_KD], md[m, MD_KD + 1], md[m, MD_KD + 2]
+    if kd0 > 0 or kd1 > 0 or kd2 > 0:   # eval_diffuse: kd / pi (1 - F(ci)) (1 - F(co))
+        f0 = f0 + kd0 * INV_PI * max(1.0 - _fresnel(iz, 0, md, m), 0.0) * max(
+            1.0 - _fresnel(oz, 0, md, m), 0.0)
+        f1 = f1 + kd1 * INV_PI * max(1.0 - _fresnel(iz, 1, md, m), 0.0) * max(
+            1.0 - _fresnel(oz, 1, md, m), 0.0)
+        f2 = f2 + kd2 * INV_PI * max(1.0 - _fresnel(iz, 2, md, m), 0.0) * max(
+            1.0 - _fresnel(oz, 2, md, m), 0.0)
     return f0, f1, f2
 
 
@@ -346,12 +346,12 @@ def _pdf_specular1(ix, iy, iz, ox, oy, oz, ax, ay):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m):
+def microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, md, m):
     """microfacet.pdf of one pair (no walk): the specular density and, where material row ``m``
     has a diffuse base, the mixture with the cosine lobe by ``_p_diffuse1``."""
     if not (iz > 0 and oz > 0):
         return 0.0
-    pd = _p_diffuse1(oz, eta, k, table, nrows, kd, m)
+    pd = _p_diffuse1(oz, md, m)
     ps = _pdf_specular1(ix, iy, iz, ox, oy, oz, ax, ay)
     return (1.0 - pd) * ps + pd * max(iz, 0.0) * INV_PI
 
@@ -393,14 +393,14 @@ def _vndf_reflect1(sx, sy, sz, u0, u1, ax, ay):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, kd, m):
+def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, md, m):
     """microfacet.sample (no walk) of one wo: the diffuse base with probability
     ``_p_diffuse1`` (u0 rescaled within its choice) by the cosine lobe, else visible-normal
     sampling of wo (the pole for wo below the horizon), mirrored; (wi x, y, z, weight f cos /
     pdf r, g, b, pdf) with the whole model's f and pdf."""
     up = oz > 0
     sx, sy, sz = (ox, oy, oz) if up else (0.0, 0.0, 1.0)
-    pdif = _p_diffuse1(sz, eta, k, table, nrows, kd, m)
+    pdif = _p_diffuse1(sz, md, m)
     diffuse = u0 < pdif
     if diffuse:
         uu = u0 / (pdif if pdif > 0 else 1.0)
@@ -411,36 +411,53 @@ def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, eta, k, table, nrows, kd, m):
         ix, iy, iz = cosine_hemisphere1(uu, u1)
     else:
         ix, iy, iz = _vndf_reflect1(sx, sy, sz, uu, u1, ax, ay)
-    pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m)
+    pd = microfacet_pdf1(ix, iy, iz, ox, oy, oz, ax, ay, md, m)
     if up and iz > 0 and pd > 0:
-        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, eta, k, table, nrows, kd, m)
+        f0, f1, f2 = microfacet_eval1(ix, iy, iz, ox, oy, oz, ax, ay, md, m)
         sc = iz / pd
         return ix, iy, iz, f0 * sc, f1 * sc, f2 * sc, pd
     return ix, iy, iz, 0.0, 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_eval(wi, wo, ax, ay, eta, k, table, nrows, kd, out):
+def _mf_eval(wi, wo, ax, ay, md, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
         i = j % r
         out[j, 0], out[j, 1], out[j, 2] = microfacet_eval1(wi[j, 0], wi[j, 1], wi[j, 2], wo[i, 0], wo[i, 1],
-                                                           wo[i, 2], ax, ay, eta, k, table, nrows, kd, 0)
+                                                           wo[i, 2], ax, ay, md, 0)
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_pdf(wi, wo, ax, ay, eta, k, table, nrows, kd, out):
+def _mf_pdf(wi, wo, ax, ay, md, out):
     for j in range(wi.shape[0]):
-        out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay, eta, k, table,
-                                 nrows, kd, 0)
+        out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay, md, 0)
 
 
 @njit(cache=True, error_model="numpy")
-def _mf_sample(wo, u, ax, ay, eta, k, table, nrows, kd, wi, weight, pdf):
+def _mf_sample(wo, u, ax, ay, md, wi, weight, pdf):
     for j in range(wo.shape[0]):
         (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
-         pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, eta, k, table,
-                                      nrows, kd, 0)
+         pdf[j]) = microfacet_sample1(wo[j, 0], wo[j, 1], wo[j, 2], u[j, 0], u[j, 1], ax, ay, md, 0)
+
+
+MD_ETA, MD_K, MD_KD, MD_NROWS, MD_TABLE = 0, 3, 6, 9, 10
+
+
+def material_rows(models) -> np.ndarray:
+    """The data of microfacet models (``CompiledMicrofacet``; other entries None) as one float64
+    row each, what ``_fresnel`` and the microfacet functions read: eta (3), k (3; -1 marks a
+    dielectric of index eta), kd (3), the spectral table's rows, the table (rows x 3,
+    flattened). One array, not five: every array handed down a chain of inlined functions
+    costs atomic reference counts in the loop."""
+    rows = max([m.table.shape[0] for m in models if m is not None] + [0])
+    md = np.zeros((len(models), MD_TABLE + 3 * rows))
+    for i, m in enumerate(models):
+        if m is not None:
+            md[i, MD_ETA:MD_ETA + 3], md[i, MD_K:MD_K + 3], md[i, MD_KD:MD_KD + 3] = m.eta, m.k, m.kd
+            md[i, MD_NROWS] = m.table.shape[0]
+            md[i, MD_TABLE:MD_TABLE + m.table.size] = m.table.reshape(-1)
+    return md
 
 
 class CompiledMicrofacet:
@@ -463,11 +480,7 @@ class CompiledMicrofacet:
             self.table = np.array(spectral_fresnel.table(p.spectral), dtype=np.float64, order="C")  # writable: one compiled signature
         else:
             self.table = np.zeros((0, 3))
-        # the Fresnel's data as row 0 of stacked arrays (``_fresnel``)
-        self.eta_rows, self.k_rows = self.eta.reshape(1, 3).copy(), self.k.reshape(1, 3).copy()
-        self.table_rows = self.table.reshape(1, -1, 3).copy()
-        self.nrows = np.array([self.table.shape[0]], np.int64)
-        self.kd_rows = self.kd.reshape(1, 3).copy()
+        self.md = material_rows([self])   # the data as the per-path functions read it
         own = twin.lobes(p)
         self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
 
@@ -478,14 +491,14 @@ class CompiledMicrofacet:
         wi = np.ascontiguousarray(wi, dtype=np.float64)
         wo = np.ascontiguousarray(wo, dtype=np.float64)
         out = np.empty((wi.shape[0], 3))
-        _mf_eval(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, out)
+        _mf_eval(wi, wo, self.ax, self.ay, self.md, out)
         return out
 
     def pdf(self, p, wi, wo):
         wi = np.ascontiguousarray(wi, dtype=np.float64)
         wo = np.ascontiguousarray(wo, dtype=np.float64)
         out = np.empty(wi.shape[0])
-        _mf_pdf(wi, wo, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, out)
+        _mf_pdf(wi, wo, self.ax, self.ay, self.md, out)
         return out
 
     def sample_lobe(self, p, wo, u):
@@ -493,8 +506,7 @@ class CompiledMicrofacet:
         u = np.ascontiguousarray(u, dtype=np.float64)
         n = wo.shape[0]
         wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-        _mf_sample(wo, u, self.ax, self.ay, self.eta_rows, self.k_rows, self.table_rows, self.nrows, self.kd_rows, wi,
-                   weight, pdf)
+        _mf_sample(wo, u, self.ax, self.ay, self.md, wi, weight, pdf)
         return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 

@@ -36,7 +36,7 @@ from viewer.pathtracer import compiled
 from viewer.pathtracer.compiled import (
     HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, embree_intersect1,
     embree_occluded1, embree_ray1, lambert_eval1, lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1,
-    microfacet_sample1, nee_term1, nee_test1, shade_hit1, draw_paths)
+    microfacet_sample1, nee_term1, nee_test1, shade_hit1, draw_paths, material_rows)
 from viewer.pathtracer.kernel_embree import F32_MAX_T
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 
@@ -78,7 +78,7 @@ def _clean(x):
 @njit(cache=True, error_model="numpy")
 def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
-           kinds, nee_on, delta, albedo, ax, ay, eta, kk, tables, nrows, kd,
+           kinds, nee_on, delta, albedo, ax, ay, md,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
            L, T, prev_pdf, prev_lpdf, prev_delta,
            act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
@@ -153,8 +153,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                 if lam:
                     f0, f1, f2 = lambert_eval1(l2, o2, albedo[mt, 0], albedo[mt, 1], albedo[mt, 2])
                 else:
-                    f0, f1, f2 = microfacet_eval1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, kd,
-                                                  mt)
+                    f0, f1, f2 = microfacet_eval1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], md, mt)
                 f0, nb0 = _clean(f0)
                 f1, nb1 = _clean(f1)
                 f2, nb2 = _clean(f2)
@@ -166,7 +165,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                         if lam:
                             pb = lambert_pdf1(l2, o2)
                         else:
-                            pb = microfacet_pdf1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], eta, kk, tables, nrows, kd, mt)
+                            pb = microfacet_pdf1(l0, l1, l2, o0, o1, o2, ax[mt], ay[mt], md, mt)
                         pb, nb = _clean(pb)
                         nbad += nb
                         wmis = _heuristic(pe, pb, power) / (pe if pe > 0 else 1.0)
@@ -198,8 +197,8 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
             x, y, z, wt0, wt1, wt2, pdf_s = lambert_sample1(o2, rnd[a, 0], rnd[a, 1], albedo[mt, 0], albedo[mt, 1],
                                                             albedo[mt, 2])
         else:
-            x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, rnd[a, 0], rnd[a, 1], ax[mt], ay[mt], eta,
-                                                               kk, tables, nrows, kd, mt)
+            x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, rnd[a, 0], rnd[a, 1], ax[mt], ay[mt], md,
+                                                               mt)
         wt0, nb0 = _clean(wt0)
         wt1, nb1 = _clean(wt1)
         wt2, nb2 = _clean(wt2)
@@ -281,17 +280,12 @@ class FusedBounce:
         self.delta = np.array([bool(m.lobe & np.uint8(Lobe.DELTA)) for m in models], np.bool_)
         self.albedo = np.zeros((nm, 3))
         self.ax, self.ay = np.ones(nm), np.ones(nm)
-        self.eta, self.kk, self.kd = np.ones((nm, 3)), np.zeros((nm, 3)), np.zeros((nm, 3))
-        rows = max([m.table.shape[0] for m in models if isinstance(m, CompiledMicrofacet)] + [0])
-        self.tables = np.zeros((nm, rows, 3))
-        self.nrows = np.zeros(nm, np.int64)
         for i, m in enumerate(models):
             if isinstance(m, CompiledLambert):
                 self.albedo[i] = m.albedo
             else:
-                self.ax[i], self.ay[i], self.eta[i], self.kk[i], self.kd[i] = m.ax, m.ay, m.eta, m.k, m.kd
-                self.nrows[i] = m.table.shape[0]
-                self.tables[i, :self.nrows[i]] = m.table
+                self.ax[i], self.ay[i] = m.ax, m.ay
+        self.md = material_rows([m if isinstance(m, CompiledMicrofacet) else None for m in models])
         nl = len(s.lights)
         self.lkind = np.array([POINT if kind == "point" else DIRECTIONAL for kind, _, _ in s.lights], np.int64)
         self.lpos = np.array([a for _, a, _ in s.lights], np.float64).reshape(nl, 3)
@@ -363,8 +357,8 @@ class FusedBounce:
             act_out, o_out, d_out = self._act[flip], self._o[flip], self._d[flip]
             m_out, ns = _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, *rays,
                                g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
-                               self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.eta,
-                               self.kk, self.tables, self.nrows, self.kd, self.lkind, self.lpos, self.lval, *opts,
+                               self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.md,
+                               self.lkind, self.lpos, self.lval, *opts,
                                paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf, paths.prev_delta,
                                act_out, o_out, d_out, self._s_idx, self._s_o, self._s_d, self._s_tmax, self._s_c,
                                bad)
