@@ -125,7 +125,7 @@ def direct_scene(verts: np.ndarray) -> DirectScene | None:
     """A ``DirectScene`` of ``verts``, or None where numba or Embree's library is missing."""
     from viewer.pathtracer.compiled import HAVE_NUMBA
 
-    if not HAVE_NUMBA or os.environ.get("BRDF_VIEWER_EMBREE_DIRECT", "1") == "0":
+    if not HAVE_NUMBA:
         return None
     if not _LIB:
         lib = _embree_library()
