@@ -92,13 +92,18 @@ def _gold(spectral="none", ax=0.3, ay=None, **kw):
     return m, m.params(**dict(values, **kw))
 
 
-CASES = [("none", 0.3, None), ("Au", 0.3, None), ("none", 0.05, 0.4), ("Au", 1.0, 0.02), ("Cu", 0.002, None)]
+CASES = [("none", 0.3, None, {}), ("Au", 0.3, None, {}), ("none", 0.05, 0.4, {}), ("Au", 1.0, 0.02, {}),
+         ("Cu", 0.002, None, {}),
+         # the diffuse base over a dielectric (the default scene's plastic) and over a conductor
+         ("none", 0.25, None, {"fresnel": "dielectric", "ior": 1.5, "kd": [0.62, 0.26, 0.1]}),
+         ("none", 0.6, 0.1, {"fresnel": "dielectric", "ior": 2.4, "kd": [1.0, 0.0, 0.3]}),
+         ("Au", 0.3, None, {"kd": [0.2, 0.5, 0.0]})]
 
 
-@pytest.mark.parametrize("spectral, ax, ay", CASES)
-def test_compiled_microfacet_matches_the_twin(spectral, ax, ay):
+@pytest.mark.parametrize("spectral, ax, ay, extra", CASES)
+def test_compiled_microfacet_matches_the_twin(spectral, ax, ay, extra):
     rng = np.random.default_rng(2)
-    model, p = _gold(spectral, ax, ay)
+    model, p = _gold(spectral, ax, ay, **extra)
     cm = compiled.compiled_model(p, model)
     assert isinstance(cm, compiled.CompiledMicrofacet)
     n = 20000
@@ -118,7 +123,8 @@ def test_compiled_microfacet_matches_the_twin(spectral, ax, ay):
     for g, w in zip(got[:3], want[:3]):
         _close(g, w)
     assert np.array_equal(got[3], want[3]) and got[3].dtype == want[3].dtype
-    assert np.all(got[3] == np.uint8(Lobe.REFLECTION | Lobe.GLOSSY))
+    diffuse = Lobe.DIFFUSE if extra.get("kd") else Lobe.NONE
+    assert np.all(got[3] == np.uint8(Lobe.REFLECTION | Lobe.GLOSSY | diffuse))
 
 
 def test_compiled_model_only_where_it_applies():
@@ -126,11 +132,15 @@ def test_compiled_model_only_where_it_applies():
     assert compiled.compiled_model(p, model) is not None
     gold = model.params(**{k: v for k, v in PRESETS["gold"].items() if k != "model"})
     assert compiled.compiled_model(gold, model) is not None
-    for change in ({"kd": [0.2, 0.2, 0.2]}, {"distribution": "beckmann"}, {"fresnel": "schlick"},
-                   {"fresnel": "dielectric"}, {"multiple_scattering": True}, {"shadowing": "v_cavity"}):
+    for change in ({"kd": [0.2, 0.2, 0.2]}, {"fresnel": "dielectric"}):
+        assert compiled.compiled_model(_gold(**change)[1], model) is not None, change
+    for change in ({"distribution": "beckmann"}, {"fresnel": "schlick"}, {"multiple_scattering": True},
+                   {"shadowing": "v_cavity"}):
         assert compiled.compiled_model(_gold(**change)[1], model) is None, change
-    lam = brdf.get("lambert")
-    assert compiled.compiled_model(lam.params(), lam) is None
+    lam = brdf.get("lambert")      # Lambert has its own (tests/test_fused_bounce.py)
+    assert isinstance(compiled.compiled_model(lam.params(), lam), compiled.CompiledLambert)
+    phong = brdf.get("phong")
+    assert compiled.compiled_model(phong.params(), phong) is None
 
 
 def _scene(tmp_path):

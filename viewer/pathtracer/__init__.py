@@ -5,6 +5,9 @@ the GPU engine (the interface, the setup, the environment light, the cache) in `
 * ``kernel_embree``  ray queries with Embree (``EmbreeKernel``); ``kernel_numba`` the same
                      interface without Embree (``NumbaKernel``)
 * ``integrator``     wavefront path tracing in numpy (NEE, MIS, Russian roulette, Bouguer)
+* ``compiled``       numba stand-ins for its hot steps, each tested against its numpy twin
+* ``fused``          the whole bounce in one compiled loop, for scenes whose every step has a
+                     compiled stand-in (the same estimator and random numbers)
 * ``progressive``    ``ReferenceRenderer``: deterministic progressive accumulation on a
                      process pool, cancellable
 

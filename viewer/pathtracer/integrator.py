@@ -120,6 +120,58 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+class BounceDraws:
+    """``draw()`` for ``Integrator.trace``: each call returns the next bounce's numbers
+    (N, DIMS_PER_BOUNCE) of every stream ``gens`` (``counts`` paths each), in stream order;
+    ``calls`` counts them. ``streams``: a ``StreamTable`` of the same streams, or None."""
+
+    def __init__(self, gens, counts, streams=None):
+        self.gens, self.counts = gens, list(counts)
+        self.calls = 0
+        self.streams = streams
+
+    def __call__(self):
+        self.calls += 1
+        out = np.empty((sum(self.counts), DIMS_PER_BOUNCE))
+        off = 0
+        for g, n in zip(self.gens, self.counts):   # each stream's numbers straight into its rows
+            g.random(out=out[off:off + n])
+            off += n
+        return out
+
+
+class StreamTable:
+    """The Philox streams ``philox(seed, block, sample)`` of a wavefront, one per ``(block,
+    sample)`` in ``keys`` with ``counts`` paths each (consecutive, in stream order), from each of
+    which ``drawn`` numbers per path were drawn before the first bounce: what a compiled loop
+    needs to compute any path's numbers of any bounce itself (``compiled.draw_paths``)."""
+
+    def __init__(self, seed: int, keys, counts, drawn: int):
+        self.key = (int(seed) & 0xFFFFFFFFFFFFFFFF, KEY_SALT)
+        self.c2 = np.array([int(b) & 0xFFFFFFFFFFFFFFFF for b, _ in keys], np.uint64)
+        self.c3 = np.array([int(si) & 0xFFFFFFFFFFFFFFFF for _, si in keys], np.uint64)
+        self.counts = np.asarray(counts, np.int64)
+        self.drawn = int(drawn)
+        self.stream = np.repeat(np.arange(len(self.counts)), self.counts)
+        starts = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
+        self.pix = np.arange(int(self.counts.sum())) - np.repeat(starts, self.counts)
+
+    def first(self, bounce: int) -> np.ndarray:
+        """Per stream, the index of its first number of bounce ``bounce`` (0: the first)."""
+        return (self.counts * (self.drawn + bounce * DIMS_PER_BOUNCE)).astype(np.uint64)
+
+
+def fused_bounce(it):
+    """The whole bounce compiled (``viewer.pathtracer.fused``) for integrator ``it`` where every
+    step has a compiled stand-in, else None: the RGB integrator's own steps only (subclasses
+    override them), its materials' compiled models, no film over height."""
+    if type(it) is not Integrator or it._object_y or not it.COMPILED_MODELS:
+        return None
+    from viewer.pathtracer.fused import plan  # numba: only where paths are traced
+
+    return plan(it)
+
+
 # ----------------------------------------------------------------------------- integrator
 
 class _Group:
@@ -250,10 +302,11 @@ class Integrator:
         self.sigma_table = np.array([m.sigma_a for m in setup.materials] or [np.zeros(3)])
         self.bad_values = 0
         self._set_options(setup.strategy, setup.mis_heuristic, setup.russian_roulette)
+        self.fused = fused_bounce(self)   # the whole bounce compiled, where every step has a stand-in
 
     def _set_options(self, strategy: str, mis_heuristic: str, russian_roulette: bool):
         self.strategy = strategy
-        self.heuristic = HEURISTICS[mis_heuristic]
+        self.mis_heuristic, self.heuristic = mis_heuristic, HEURISTICS[mis_heuristic]
         self.russian_roulette = bool(russian_roulette)
         self.env_on = not self.s.env.is_black
         # which strategies reach the environment (point / directional lights: always NEE)
@@ -328,11 +381,11 @@ class Integrator:
         return gens, counts, np.concatenate(rows), np.concatenate(cols), np.concatenate(jit)
 
     @staticmethod
-    def _bounce_draws(gens, npix):
+    def _bounce_draws(gens, npix, streams=None):
         """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order
-        (``npix``: the paths of every stream, or one count per stream)."""
+        (``npix``: the paths of every stream, or one count per stream; ``streams``: a StreamTable)."""
         counts = [npix] * len(gens) if np.ndim(npix) == 0 else list(npix)
-        return lambda: np.concatenate([g.random((n, DIMS_PER_BOUNCE)) for g, n in zip(gens, counts)])
+        return BounceDraws(gens, counts, streams)
 
     def render_block(self, row0: int, row1: int, samples, seed: int, block_id: int):
         """Render rows [row0, row1) with the given sample indices. Returns (sum, sum of squares)
@@ -346,7 +399,8 @@ class Integrator:
         samples = list(samples)
         gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
         o, d = self.camera_rays(rows, cols, jit)
-        L = self.trace(o, d, self._bounce_draws(gens, counts))
+        streams = StreamTable(seed, [(b, si) for _, _, b in blocks for si in samples], counts, 2)  # jitter drawn
+        L = self.trace(o, d, self._bounce_draws(gens, counts, streams))
         out, off = [], 0
         for r0, r1, _ in blocks:
             n = len(samples) * (r1 - r0) * self.s.width
@@ -601,6 +655,8 @@ class Integrator:
     def trace_paths(self, paths: PathState, o, d, draw):
         """Follow the rays (o, d) of ``paths`` to ``max_depth`` scattering events; returns the
         paths' radiance in their channels."""
+        if self.fused is not None:   # the same steps, compiled into one loop per bounce (fused.py)
+            return self._final(self.fused.trace(self, paths, o, d, draw))
         s = self.s
         act = np.arange(o.shape[0])
         for depth in range(1, s.max_depth + 2):
