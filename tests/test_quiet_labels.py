@@ -31,14 +31,18 @@ class StandInChild:
 
     def __init__(self):
         self.compiled, self.tables, self.requests, self.answered_ids = set(), {}, [], set()
+        self.texts = []  # each request's scene text, written when it was asked for
 
     def request(self, scene, urgent=True, **priority):
         from viewer.scene import scene_to_toml
 
-        text = scene_to_toml(scene)   # a scene asked for again is not redone, as the child does
-        for rid, (earlier, _) in enumerate(self.requests):
-            if scene_to_toml(earlier) == text:
-                return rid
+        # a scene asked for again is not redone, as the child does; compared by the text written
+        # at the time of asking, as the child's pipe carries it: the session edits its scene's
+        # materials in place, so the scene object asked for earlier may read as today's scene
+        text = scene_to_toml(scene)
+        if text in self.texts:
+            return self.texts.index(text)
+        self.texts.append(text)
         self.requests.append((scene, urgent))
         return len(self.requests) - 1
 

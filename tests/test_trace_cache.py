@@ -347,6 +347,40 @@ def test_bake_lecture_without_a_size_prepares_the_last_sessions_window(cache_dir
     assert out[0].startswith("preparing lecture for a 70x64 window") and "traced 70x64 in" in out[1]
 
 
+def test_bake_lecture_without_a_size_prepares_the_framebuffer_the_last_session_drew(cache_dir, monkeypatch,
+                                                                                    capsys, tmp_path):
+    """Full screen, or a HiDPI screen (framebuffer twice the window): the last session's window
+    size is not what it drew; the framebuffer it saved is what Prepare lecture prepares."""
+    from viewer.commands import cli
+    from viewer.app.state import save_state
+
+    state = tmp_path / "state.toml"
+    save_state({"window_width": 64, "window_height": 64, "framebuffer_width": 40, "framebuffer_height": 18}, state)
+    monkeypatch.setenv("BRDF_VIEWER_STATE", str(state))
+    assert cli.main(["bake", "--lecture", "--steps", str(_step("tir") + 1)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("preparing lecture for a 40x18 window") and "traced 40x18 in" in out[1]
+
+
+def test_the_window_saves_the_framebuffer_it_drew_into():
+    """What the window writes at exit (``App.save_state``, on a stand-in window): full screen on
+    a HiDPI screen, the framebuffer it drew into (``session.window_px``) beside the windowed
+    size it will reopen at."""
+    import types
+
+    from viewer.app.main import App
+
+    saved = {}
+    glfw = types.SimpleNamespace(get_window_pos=lambda w: (0, 0), get_window_size=lambda w: (1280, 720))
+    session = types.SimpleNamespace(window_px=(3840, 2160), state={}, save_state=lambda st: saved.update(st) or True)
+    app = types.SimpleNamespace(_fullscreen_restore=(10, 20, 1280, 720), glfw=glfw, window=None, ui_scale=1.5,
+                                show_ui=True, plots=types.SimpleNamespace(visible=False), _size_failed=False,
+                                session=session)
+    assert App.save_state(app)
+    assert (saved["window_width"], saved["window_height"]) == (1280, 720)
+    assert (saved["framebuffer_width"], saved["framebuffer_height"]) == (3840, 2160)
+
+
 @pytest.mark.slow(reason="traces every traced lecture step (about a minute on two software-GL cores)")
 def test_bake_lecture_cli_every_traced_step(tmp_path):
     from viewer.app.lecture_prep import traced_steps

@@ -269,6 +269,8 @@ class App:
                 self.session.state.pop(k, None)
         elif w >= 64 and h >= 64:
             st.update(window_width=w, window_height=h, window_x=x, window_y=y)
+        if self.session.window_px:  # what was drawn into (full screen, HiDPI): bake --lecture's size
+            st.update(framebuffer_width=self.session.window_px[0], framebuffer_height=self.session.window_px[1])
         return self.session.save_state(st)
 
     # ------------------------------------------------------------------ layout

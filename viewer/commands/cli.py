@@ -771,14 +771,17 @@ def _lecture_steps(text: str) -> list[int]:
 
 def _lecture_window(args) -> tuple[int, int]:
     """The window size the lecture's traced frames are for: --width and --height, else the
-    window the last session used (its state file), else the window's default size."""
+    framebuffer the last session drew into (its state file: full screen, or a HiDPI screen's
+    pixels, as the window's Prepare lecture prepares), else that session's window size, else
+    the window's default size."""
     if args.width is not None:
         return args.width, args.height
     from viewer.app.state import DEFAULT_WINDOW, load_state
 
     st = load_state()
-    if "window_width" in st and "window_height" in st:
-        return st["window_width"], st["window_height"]
+    for w, h in (("framebuffer_width", "framebuffer_height"), ("window_width", "window_height")):
+        if w in st and h in st:
+            return st[w], st[h]
     return DEFAULT_WINDOW
 
 
