@@ -363,22 +363,18 @@ def test_bake_lecture_without_a_size_prepares_the_framebuffer_the_last_session_d
 
 
 def test_the_window_saves_the_framebuffer_it_drew_into():
-    """What the window writes at exit (``App.save_state``, on a stand-in window): full screen on
-    a HiDPI screen, the framebuffer it drew into (``session.window_px``) beside the windowed
-    size it will reopen at."""
-    import types
+    """What the window writes at exit (``viewer.app.main.window_state``, which ``App.save_state``
+    writes): full screen on a HiDPI screen, the framebuffer it drew into beside the windowed size
+    it will reopen at; a size that failed is not saved, the framebuffer still is."""
+    from viewer.app.main import window_state
 
-    from viewer.app.main import App
-
-    saved = {}
-    glfw = types.SimpleNamespace(get_window_pos=lambda w: (0, 0), get_window_size=lambda w: (1280, 720))
-    session = types.SimpleNamespace(window_px=(3840, 2160), state={}, save_state=lambda st: saved.update(st) or True)
-    app = types.SimpleNamespace(_fullscreen_restore=(10, 20, 1280, 720), glfw=glfw, window=None, ui_scale=1.5,
-                                show_ui=True, plots=types.SimpleNamespace(visible=False), _size_failed=False,
-                                session=session)
-    assert App.save_state(app)
-    assert (saved["window_width"], saved["window_height"]) == (1280, 720)
-    assert (saved["framebuffer_width"], saved["framebuffer_height"]) == (3840, 2160)
+    st = window_state(1.5, True, False, (10, 20, 1280, 720), False, (3840, 2160))
+    assert (st["window_width"], st["window_height"], st["window_x"], st["window_y"]) == (1280, 720, 10, 20)
+    assert (st["framebuffer_width"], st["framebuffer_height"]) == (3840, 2160)
+    assert st["ui_scale"] == 1.5 and st["show_ui"] and not st["plots_visible"]
+    failed = window_state(1.0, True, True, (10, 20, 1280, 720), True, (1280, 720))
+    assert "window_width" not in failed and failed["framebuffer_width"] == 1280
+    assert "framebuffer_width" not in window_state(1.0, True, True, (0, 0, 800, 600), False, None)
 
 
 @pytest.mark.slow(reason="traces every traced lecture step (about a minute on two software-GL cores)")

@@ -38,6 +38,21 @@ TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
 PLOT_WORKER_ENV = "BRDF_VIEWER_PLOT_WORKER"
 
 
+
+def window_state(ui_scale: float, show_ui: bool, plots_visible: bool, pos_size, size_failed: bool,
+                 window_px) -> dict:
+    """What the window writes to the state file at exit: its UI, its windowed place and size
+    ``pos_size`` = (x, y, w, h) unless a frame failed at that size (``size_failed``) or it is under
+    64 px, and the framebuffer it drew into (``window_px``: full screen, HiDPI), which
+    ``bake --lecture`` prepares when given no size."""
+    x, y, w, h = pos_size
+    st = dict(ui_scale=ui_scale, show_ui=show_ui, plots_visible=plots_visible)
+    if not size_failed and w >= 64 and h >= 64:
+        st.update(window_width=w, window_height=h, window_x=x, window_y=y)
+    if window_px:
+        st.update(framebuffer_width=window_px[0], framebuffer_height=window_px[1])
+    return st
+
 class App:
     """The window: glfw, the imgui backends, the frame and the toasts. ``session`` holds the
     scene and the actions; the panels draw it. Its other jobs are parts of its own that it holds
@@ -263,14 +278,11 @@ class App:
         except Exception as e:  # noqa: BLE001 - never lose the session to a state-file problem
             print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
             return False
-        st = dict(ui_scale=self.ui_scale, show_ui=self.show_ui, plots_visible=self.plots.visible)
+        st = window_state(self.ui_scale, self.show_ui, self.plots.visible, (x, y, w, h), self._size_failed,
+                          self.session.window_px)
         if self._size_failed:  # neither this size nor the one restored: the next start opens at the default
             for k in ("window_width", "window_height", "window_x", "window_y"):
                 self.session.state.pop(k, None)
-        elif w >= 64 and h >= 64:
-            st.update(window_width=w, window_height=h, window_x=x, window_y=y)
-        if self.session.window_px:  # what was drawn into (full screen, HiDPI): bake --lecture's size
-            st.update(framebuffer_width=self.session.window_px[0], framebuffer_height=self.session.window_px[1])
         return self.session.save_state(st)
 
     # ------------------------------------------------------------------ layout
