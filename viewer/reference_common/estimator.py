@@ -128,5 +128,5 @@ def variance_of_mean(total, total2, n) -> np.ndarray:
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         m = total / np.maximum(n, 1.0)
         var = np.maximum(total2 - n * m * m, 0.0) / np.maximum(n - 1.0, 1.0) / np.maximum(n, 1.0)
-        var = np.where(np.isfinite(total2), var, np.inf)
+        var = np.where(np.isfinite(total2) & (var <= FLOAT32_MAX), var, np.inf)  # past float32: inf, said so
     return np.where(n >= 2, var, np.inf).astype(np.float32)
