@@ -50,28 +50,42 @@ from __future__ import annotations
 
 import cmath
 import math
-
 import sys
+import threading
 
 import numpy as np
 
 
+class _NoScipyLinalgInThisThread:
+    """A finder on ``sys.meta_path`` that refuses ``scipy.linalg`` to the thread that made it
+    and says nothing to any other (another thread's import of scipy goes on as ever)."""
+
+    def __init__(self):
+        self.thread = threading.get_ident()
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "scipy.linalg" and threading.get_ident() == self.thread:
+            raise ImportError("scipy.linalg is not loaded for numba's array math (viewer.pathtracer.compiled)")
+        return None
+
+
 def _load_numba_math_without_scipy():
     """Import ``numba.np.arraymath`` (numba loads it with its CPU target, at the first compile
-    or cache load) while ``scipy.linalg`` cannot be imported. Its module body imports
-    ``scipy.linalg`` only to pick the inner product of ``np.correlate`` / ``np.convolve``
-    (BLAS or a loop): about 0.2 CPU seconds in every worker process, and scipy's own OpenBLAS
-    starts a thread pool that lasts as long as the process. Our kernels call neither function,
-    so numba's loop is chosen and nothing else changes: a function that needs BLAS (``np.dot``,
-    ``np.linalg``) still imports scipy when it is compiled (``numba.np.linalg.ensure_blas``)."""
+    or cache load) while ``scipy.linalg`` cannot be imported in this thread. Its module body
+    imports ``scipy.linalg`` only to pick the inner product of ``np.correlate`` /
+    ``np.convolve`` (BLAS or a loop): about 0.2 CPU seconds in every worker process, and
+    scipy's own OpenBLAS starts a thread pool that lasts as long as the process. Our kernels
+    call neither function, so numba's loop is chosen and nothing else changes: a function that
+    needs BLAS (``np.dot``, ``np.linalg``) still imports scipy when it is compiled
+    (``numba.np.linalg.ensure_blas``)."""
     if "scipy.linalg" in sys.modules or "numba.np.arraymath" in sys.modules:
         return   # already paid for (or already decided): nothing to save
-    sys.modules["scipy.linalg"] = None   # "import scipy.linalg..." raises ImportError meanwhile
+    finder = _NoScipyLinalgInThisThread()
+    sys.meta_path.insert(0, finder)
     try:
         import numba.np.arraymath  # noqa: F401
     finally:
-        if sys.modules.get("scipy.linalg", 0) is None:
-            del sys.modules["scipy.linalg"]
+        sys.meta_path.remove(finder)
 
 
 try:
