@@ -125,6 +125,14 @@ def restart_storm(n: int, workers: int = 2, seed: int = 0, max_pause_s: float = 
     samples, peak, errors = [], 0, []
     rss_warm = None
     seen: set[int] = set()
+    # one finished pass first: the renderer's compiled kernels are loaded (in this process with
+    # workers=0, where numba and its kernels add tens of MB once) before the memory baseline at
+    # a tenth of the storm, which a storm of short pauses can otherwise reach before any render
+    rv.update(scene, cam, (160, 120))
+    t_warm = time.perf_counter()
+    while rv.spp < 1 and not rv.error and time.perf_counter() - t_warm < 600:
+        time.sleep(0.01)
+    seen.update(rv.worker_pids())
     t0 = time.perf_counter()
     for i in range(n):
         cam.yaw += 1e-3

@@ -12,6 +12,7 @@ formula error shows at 1e-3 and up).
 
 from __future__ import annotations
 
+import os
 import textwrap
 
 import numpy as np
@@ -261,3 +262,44 @@ def test_blocks_traced_together_give_each_blocks_own_sums(tmp_path):
         a, a2 = it.render_block(r0, r1, [3, 4], 11, b)
         assert np.array_equal(s, a) and np.array_equal(s2, a2)
         assert s.shape == (r1 - r0, setup.width, 3) and s.sum() > 0
+
+
+NO_SCIPY_LINALG = """
+import threading
+import numpy as np
+seen = []
+def other():   # another thread importing scipy's linear algebra meanwhile is never refused
+    import scipy.linalg
+    seen.append(scipy.linalg.__name__)
+t = threading.Thread(target=other)
+t.start()
+from viewer.pathtracer import compiled
+t.join()
+print("scipy.linalg from the other thread:", seen)
+import numba
+@numba.njit
+def dot(a, b):
+    return np.dot(a, b)   # BLAS: numba imports scipy.linalg when this compiles
+print("dot", dot(np.arange(3.0), np.ones(3)))
+"""
+
+
+def test_numba_array_math_loads_without_scipy_linalg(tmp_path):
+    """``compiled`` keeps scipy's linear algebra (0.2 CPU s, a thread pool) out of numba's array
+    math in the importing thread only: another thread's import of it succeeds, and a numba
+    function that needs BLAS still compiles afterwards. A fresh process, since this test's own
+    process may hold scipy.linalg already."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = textwrap.dedent(NO_SCIPY_LINALG)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "scipy.linalg from the other thread: ['scipy.linalg']" in r.stdout and "dot 3.0" in r.stdout, r.stdout
+
+    alone = ("import sys\nfrom viewer.pathtracer import compiled\nimport numba.np.arraymath as a\n"
+             "print('scipy.linalg' in sys.modules, a._HAVE_BLAS)\n")
+    r = subprocess.run([sys.executable, "-c", alone], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0 and r.stdout.split() == ["False", "False"], (r.stdout, r.stderr)

@@ -41,7 +41,8 @@ tests/test_compiled_kernels.py and tests/test_fused_bounce.py check that on many
 
 Without numba every step runs its numpy twin. Compiled with ``cache=True``: the first process
 in a fresh environment compiles what it calls (about 12 CPU seconds for the fused bounce, 5 for
-the rest), later ones load numba's cache (about 0.3 CPU seconds, nearly all numba's own start);
+the rest), later ones load numba's cache (about 0.3 CPU seconds, nearly all numba's own start; scipy's
+linear algebra, which numba would import for nothing, is kept out: ``_load_numba_math_without_scipy``);
 a worker does either at its start (``Integrator.warm``).
 """
 
@@ -49,10 +50,46 @@ from __future__ import annotations
 
 import cmath
 import math
+import sys
+import threading
 
 import numpy as np
 
+
+class _NoScipyLinalgInThisThread:
+    """A finder on ``sys.meta_path`` that refuses ``scipy.linalg`` to the thread that made it
+    and says nothing to any other (another thread's import of scipy goes on as ever)."""
+
+    def __init__(self):
+        self.thread = threading.get_ident()
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "scipy.linalg" and threading.get_ident() == self.thread:
+            raise ImportError("scipy.linalg is not loaded for numba's array math (viewer.pathtracer.compiled)")
+        return None
+
+
+def _load_numba_math_without_scipy():
+    """Import ``numba.np.arraymath`` (numba loads it with its CPU target, at the first compile
+    or cache load) while ``scipy.linalg`` cannot be imported in this thread. Its module body
+    imports ``scipy.linalg`` only to pick the inner product of ``np.correlate`` /
+    ``np.convolve`` (BLAS or a loop): about 0.2 CPU seconds in every worker process, and
+    scipy's own OpenBLAS starts a thread pool that lasts as long as the process. Our kernels
+    call neither function, so numba's loop is chosen and nothing else changes: a function that
+    needs BLAS (``np.dot``, ``np.linalg``) still imports scipy when it is compiled
+    (``numba.np.linalg.ensure_blas``)."""
+    if "scipy.linalg" in sys.modules or "numba.np.arraymath" in sys.modules:
+        return   # already paid for (or already decided): nothing to save
+    finder = _NoScipyLinalgInThisThread()
+    sys.meta_path.insert(0, finder)
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        sys.meta_path.remove(finder)
+
+
 try:
+    _load_numba_math_without_scipy()
     from llvmlite import ir as llvm_ir
     from numba import njit, types as nb_types
     from numba.extending import intrinsic
