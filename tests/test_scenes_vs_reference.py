@@ -8,8 +8,12 @@ Each scene's tolerance stands beside it with its reason: what the rasterizer doe
 (light between objects, occlusion of the environment) and by how much, measured; the
 reference's own noise at 16 spp is about 3% per block on diffuse scenes and more where a
 small bright source is seen through glass. The reference is deterministic for a seed, so the
-figures do not move between runs. ``benchmarks/scenes_vs_reference.py`` prints the same table."""
+figures do not move between runs. ``benchmarks/scenes_vs_reference.py`` prints the same table.
 
+Where a scene shows the sun through smooth glass (``SUN_GLINTS``) the pixels the reference has not
+resolved (its estimate rests on about one sample) are named, counted and left out of the figures."""
+
+import numpy as np
 import pytest
 
 from viewer.scene.camera import OrbitCamera
@@ -77,6 +81,22 @@ TOLERANCE = {
                    "shadows, which the raster leaves out, and 16 spp on the lit floor [0.025 / 0.158]"),
 }
 
+# Scenes whose reference sees the sun (0.53 deg, 1e6 times the sky) through a smooth dielectric over a
+# small part of a pixel: a glint the raster, which shades pixel centres, does not draw, and which a
+# few hundred samples of the pixel see 0 or 1 times, so the one pixel's estimate is off by many times
+# its value. Those pixels (relative standard error of the reference's mean at least
+# UNRESOLVED_REL_ERR: about one sample carries the pixel) are left out of both images, at most
+# MAX_UNRESOLVED of them; the rest of the scene keeps its tolerance.
+SUN_GLINTS = {
+    "lecture:12": "the sun seen in the diamond ball over 3% of pixel (44, 103) at 160 x 96: 7.8 (mean "
+                  "of RGB) traced analytically on a 1000 x 1000 grid of the pixel (one index per channel, "
+                  "Fresnel at every face), 7.2 from 204,800 reference samples of it, 0.047 without the "
+                  "sun (the raster: 0.047); 1.3% of the image's mean. Seed 1's 128 samples put one on "
+                  "it: 62.3, 10% of the image's mean, mean rel 0.082 with it, 0.027 without",
+}
+UNRESOLVED_REL_ERR = 0.9   # one sample of k carrying a pixel: 1 / sqrt(k) (1.0 for k = 1, 0.71 for 2)
+MAX_UNRESOLVED = 4         # more is not a glint: a broken region the test must see
+
 # The default suite runs these (what they guard: traced glass under MSAA on step 2, block p90
 # 0.299 before its fix; the single-lobe steps' lighting on 1 and 4; SSR on reflective_floor,
 # though at this size the old SSR is within its noise: tests/test_ssr.py's ball on a mirror
@@ -107,13 +127,31 @@ def _compare(renderer, name, size):
     try:
         ref.step(spp)
         mean = ref.mean()
+        variance = ref.variance()
     finally:
         ref.close()
+    if base in SUN_GLINTS:
+        mean = _without_unresolved(name, raster, mean, variance)
     g = agreement(raster, mean)
     tol_mean, tol_p90, why = TOLERANCE[name]
     print(f"{name} {w}x{h} {spp} spp: mean rel {g['mean_rel']:.3f} (< {tol_mean}), block p90 "
           f"{g['block_p90']:.3f} (< {tol_p90}): {why}")
     return g, tol_mean, tol_p90
+
+
+def _without_unresolved(name, raster, mean, variance):
+    """The reference with its unresolved pixels (see ``SUN_GLINTS``) replaced by the raster's, so
+    that they count in neither image; prints each one and asserts there are few."""
+    total = mean.sum(axis=-1)
+    rel = np.sqrt(np.maximum(variance, 0.0).sum(axis=-1)) / np.maximum(np.abs(total), 1e-12)
+    out = rel >= UNRESOLVED_REL_ERR
+    m = float(mean.mean())
+    for r, c in np.argwhere(out):
+        print(f"{name}: pixel (row {r}, col {c}) left out, reference {mean[r, c].mean():.3f} "
+              f"(rel. std. error {rel[r, c]:.2f}, {mean[r, c].mean() / mean[..., 0].size / m:.1%} of the "
+              f"image's mean), raster {raster[r, c].mean():.3f}: {SUN_GLINTS[name.partition('/')[0]]}")
+    assert out.sum() <= MAX_UNRESOLVED, f"{name}: {int(out.sum())} pixels unresolved in the reference"
+    return np.where(out[..., None], raster, mean)
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=_marks(n, n not in FAST)) for n in SCENES])
