@@ -92,10 +92,14 @@ SUN_GLINTS = {
                   "of RGB) traced analytically on a 1000 x 1000 grid of the pixel (one index per channel, "
                   "Fresnel at every face), 7.2 from 204,800 reference samples of it, 0.047 without the "
                   "sun (the raster: 0.047); 1.3% of the image's mean. Seed 1's 128 samples put one on "
-                  "it: 62.3, 10% of the image's mean, mean rel 0.082 with it, 0.027 without",
+                  "it: 62.3, 10% of the image's sum, mean rel 0.082 with it, 0.027 without. Pixel (70, 122) on the "
+                  "black floor right of the ball: a path from the floor through the ball to the sun (its "
+                  "caustic), 1.4 from one sample of 128, 0.003 from 102,400 samples of the pixel",
 }
 UNRESOLVED_REL_ERR = 0.9   # one sample of k carrying a pixel: 1 / sqrt(k) (1.0 for k = 1, 0.71 for 2)
 MAX_UNRESOLVED = 4         # more is not a glint: a broken region the test must see
+MIN_SHARE = 0.001          # unresolved pixels under 0.1% of the image's sum (15 times its mean pixel at
+                           # 160 x 96) move neither figure: they stay in
 
 # The default suite runs these (what they guard: traced glass under MSAA on step 2, block p90
 # 0.299 before its fix; the single-lobe steps' lighting on 1 and 4; SSR on reflective_floor,
@@ -140,16 +144,16 @@ def _compare(renderer, name, size):
 
 
 def _without_unresolved(name, raster, mean, variance):
-    """The reference with its unresolved pixels (see ``SUN_GLINTS``) replaced by the raster's, so
-    that they count in neither image; prints each one and asserts there are few."""
+    """The reference with its unresolved pixels that matter (see ``SUN_GLINTS``) replaced by the
+    raster's, so that they count in neither image; prints each one and asserts there are few."""
     total = mean.sum(axis=-1)
     rel = np.sqrt(np.maximum(variance, 0.0).sum(axis=-1)) / np.maximum(np.abs(total), 1e-12)
-    out = rel >= UNRESOLVED_REL_ERR
-    m = float(mean.mean())
+    share = mean.mean(axis=-1) / max(float(mean.mean(axis=-1).sum()), 1e-12)
+    out = (rel >= UNRESOLVED_REL_ERR) & (share >= MIN_SHARE)
+    print(f"{name}: {SUN_GLINTS[name.partition('/')[0]]}")
     for r, c in np.argwhere(out):
-        print(f"{name}: pixel (row {r}, col {c}) left out, reference {mean[r, c].mean():.3f} "
-              f"(rel. std. error {rel[r, c]:.2f}, {mean[r, c].mean() / mean[..., 0].size / m:.1%} of the "
-              f"image's mean), raster {raster[r, c].mean():.3f}: {SUN_GLINTS[name.partition('/')[0]]}")
+        print(f"  pixel (row {r}, col {c}) left out: reference {mean[r, c].mean():.3f} (rel. std. error "
+              f"{rel[r, c]:.2f}, {share[r, c]:.1%} of the image's sum), raster {raster[r, c].mean():.3f}")
     assert out.sum() <= MAX_UNRESOLVED, f"{name}: {int(out.sum())} pixels unresolved in the reference"
     return np.where(out[..., None], raster, mean)
 
