@@ -14,6 +14,7 @@ import numpy as np
 
 from viewer.scene.camera import OrbitCamera, gl_bytes
 from viewer.gl import texture_units
+from viewer.gl.unit_fill import UnitFill
 from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BASE
 from viewer.gl.program_set import BACKGROUND, SHADOW_GLASS, THICKNESS, absorbing, frame_switches, scene_traces
 from viewer.gl.raytrace import chain_traces, dispersive
@@ -54,6 +55,7 @@ class FramePasses:
         self.draws = draws
         self.output = output
         self.shadows = ShadowMaps(ctx)
+        self.unit_fill = UnitFill(ctx)  # what the optional units hold when the frame fills none
         self.thickness = ThicknessPass(ctx)
         self.ssr_back = ThicknessPass(ctx)  # the nearest back face of every object, for SSR hits
         self._ibl = None
@@ -97,6 +99,7 @@ class FramePasses:
             glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
             self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects, glass)
         thickness = self.environment(scene, f)
+        self.unit_fill.bind()  # before the frame's own textures, which are bound over them
         if f.region is not None:  # applied by every use() of the frame's colour target
             f.targets.draw_fbo.scissor = f.region
         try:
@@ -224,6 +227,7 @@ class FramePasses:
 
     def release(self):
         self.shadows.release()
+        self.unit_fill.release()
         for part in (self.thickness, self.ssr_back, self._ibl, self._ssr, self._rt):
             if part is not None:
                 part.release()
