@@ -265,3 +265,16 @@ def test_spectral_plot_data_and_png(tmp_path):
 
     with pytest.raises(ViewerError, match="no spectral table"):
         plots.figure(plots.as_params({"model": "lambert"}), "spectral")
+
+
+def test_a_reflectance_colour_over_one_is_said_to_lie_outside_the_srgb_cube():
+    """Gold's normal-incidence linear sRGB has red above 1 although no wavelength reflects more
+    than all its light: the note says why; a colour inside the cube (silver) gets none."""
+    from viewer.plots.spectral import rgb_over_one, spectral_data
+
+    gold = spectral_data("Au")
+    R0 = f0_conductor(gold["n"], gold["k"])
+    assert R0.max() <= 1.0 and gold["rgb"][0][0] > 1.0
+    assert "R over 1" in rgb_over_one(gold["rgb"][0]) and "G" not in rgb_over_one(gold["rgb"][0]).split(":")[0]
+    silver = spectral_data("Ag")
+    assert silver["rgb"][0].max() <= 1.0 and rgb_over_one(silver["rgb"][0]) == ""

@@ -98,6 +98,17 @@ def spectral_data(p_or_name) -> dict:
             "labels": ("Schlick - spectral", "3 wavelengths - spectral")}
 
 
+def rgb_over_one(rgb) -> str:
+    """A note for a linear-sRGB reflectance with a channel over 1 ("" when none is): every
+    wavelength's reflectance is at most 1, but the sRGB cube does not hold every object colour
+    (gold's saturated yellow needs red above 1 at its luminance), so the channel is not light made."""
+    over = [c for c, v in zip("RGB", np.asarray(rgb, float)) if v > 1.0]
+    if not over:
+        return ""
+    return (f" ({', '.join(over)} over 1: the colour lies outside the sRGB cube; every wavelength's "
+            f"reflectance is at most 1)")
+
+
 def spectral_figure(p, label: str, sub: str):
     d = spectral_data(p)
     curves = []
@@ -109,7 +120,7 @@ def spectral_figure(p, label: str, sub: str):
     notes = [f"{d['name']} ({d['description']}): {d['source'][:110]}",
              f"max |error| over angles and channels: {first} {d['max_err_schlick']:.3f}, "
              f"3 wavelengths (650/550/450 nm) {d['max_err_three']:.3f}; "
-             f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}"]
+             f"normal incidence RGB {np.round(d['rgb'][0], 3).tolist()}{rgb_over_one(d['rgb'][0])}"]
     emax = max(d["max_err_schlick"], d["max_err_three"], 1e-3)
     return Figure("spectral", p.model, p, f"{label}: spectral Fresnel reflectance of {d['name']}",
                   "angle of incidence (deg)", "RGB error", curves, [], (0.0, 90.0),

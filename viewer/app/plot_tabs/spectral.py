@@ -29,7 +29,7 @@ def nk_limits(n, k) -> tuple[float, float]:
 
 def draw(panel, names, materials):
     from viewer.image.colour import to_srgb8
-    from viewer.plots.spectral import spectral_data
+    from viewer.plots.spectral import rgb_over_one, spectral_data
 
     have = [n for n in names if plots.spectral_source(materials[n]) is not None]
     missing = [n for n in names if n not in have]
@@ -55,7 +55,8 @@ def draw(panel, names, materials):
         return
     # three short lines (the docked panel's room goes to the plots); the table's description and
     # source in the first line's tooltip
-    imgui.text_wrapped(f"{name}: {d['name']}, normal incidence RGB {np.round(d['rgb'][0], 2).tolist()}")
+    imgui.text_wrapped(f"{name}: {d['name']}, normal incidence RGB {np.round(d['rgb'][0], 2).tolist()}"
+                       f"{rgb_over_one(d['rgb'][0])}")
     if imgui.is_item_hovered():
         imgui.set_tooltip(f"{d['description']}\n{d['source']}")
     imgui.text_wrapped(f"max |error| Schlick {d['max_err_schlick']:.3f}, 3 wavelengths (650/550/450 nm) "
