@@ -170,3 +170,26 @@ def test_tour_maps_prefiltered_in_the_background(tmp_path):
     while not p2.done:
         __import__("time").sleep(0.1)
     assert all(cached for _, _, cached in p2.seconds), p2.seconds
+
+
+def test_leaving_the_reference_cancels_it_without_waiting_for_its_thread():
+    """A mode without the reference (a lecture step, the raster view) cancels the reference's
+    job and goes on: the cancelled job publishes nothing more, so the frame never waits for a
+    busy reference thread (it waited up to 5 s: step 14 to 15 of the tour)."""
+    import types
+
+    from viewer.app.view_state import ViewState
+
+    class BusyReference:
+        waited = None
+
+        def stop(self, timeout=5.0):
+            self.waited = timeout
+            return False   # a thread that stays busy: only a caller that waits would notice
+
+    ref = BusyReference()
+    compare = types.SimpleNamespace(mode="split", uses_reference=False)
+    session = types.SimpleNamespace(compare=compare, monte_carlo=types.SimpleNamespace(active=False),
+                                    reference=ref, hdr=object(), dirty=False)
+    ViewState(session).set_image_mode("raster")
+    assert compare.mode == "raster" and ref.waited == 0

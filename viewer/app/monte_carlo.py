@@ -121,7 +121,7 @@ class MonteCarloPanel:
             if imgui.button("clear stored"):
                 self.stored = None
         if was_active and not self.active and not compare_uses_reference:
-            ref_view.stop()
+            ref_view.stop(timeout=0)  # cancelled, it publishes nothing more: the frame never waits for it
 
     # ------------------------------------------------------------------ convergence window
     def draw_windows(self, ref_view) -> None:

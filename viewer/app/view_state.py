@@ -58,7 +58,7 @@ class ViewState:
             raise ViewerError(f"image mode {mode!r}: unknown; allowed: {', '.join(MODES)}")
         was, s.compare.mode = s.compare.mode, mode
         if not s.compare.uses_reference and not s.monte_carlo.active and s.reference is not None:
-            s.reference.stop()
+            s.reference.stop(timeout=0)  # cancelled, it publishes nothing more: the frame never waits for it
         if was == "reference" or s.hdr is None:
             s.dirty = True
 
