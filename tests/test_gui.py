@@ -171,6 +171,8 @@ def test_environment_switch_and_bad_file_keeps_previous(display, tmp_path):
     assert "ENV OK" in r.stdout
 
 
+@pytest.mark.slow  # a window's brute-force IBL programs: ~20 s of compiles; the accumulation itself is
+# tests/test_file_same_image.py's (a session offscreen), the window's frame loop every other test's here
 def test_brute_force_ibl_accumulates_in_the_window(display):
     r = run_py("""
         from viewer.app.main import App
