@@ -443,3 +443,15 @@ def test_prepare_lecture_runs_behind_the_windows_frames():
         assert os.getpriority(os.PRIO_PROCESS, p.child_pid) == max(CHILD_NICE, os.getpriority(os.PRIO_PROCESS, 0))
     finally:
         p.cancel()
+
+
+def test_a_state_file_cannot_ask_bake_for_a_frame_larger_than_its_options_allow(tmp_path, monkeypatch):
+    """A framebuffer in the state file past what --width allows (16384) is dropped on reading,
+    so `bake --lecture` falls back to the window size instead of allocating a huge frame."""
+    from viewer.app.state import load_state
+
+    path = tmp_path / "state.toml"
+    path.write_text("framebuffer_width = 65536\nframebuffer_height = 65536\nwindow_width = 800\nwindow_height = 600\n")
+    st = load_state(path)
+    assert "framebuffer_width" not in st and "framebuffer_height" not in st
+    assert (st["window_width"], st["window_height"]) == (800, 600)

@@ -31,8 +31,8 @@ SCHEMA = {
     "window_y": (int, -32768, 32768),
     # the framebuffer the last session drew into (full screen, or twice the window on a HiDPI
     # screen): what `bake --lecture` with no size prepares, as the window's Prepare lecture does
-    "framebuffer_width": (int, 1, 65536),
-    "framebuffer_height": (int, 1, 65536),
+    "framebuffer_width": (int, 1, 16384),   # as --width: a state file cannot ask bake for more
+    "framebuffer_height": (int, 1, 16384),
     "ui_scale": (float, 0.5, 4.0),
     "show_ui": (bool,),
     "compare_mode": (str, None),
