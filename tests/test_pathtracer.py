@@ -240,13 +240,17 @@ def test_determinism_and_seed_statistics(tmp_path):
     spp = 32
     a = ReferenceRenderer(sc, seed=7, workers=0)
     a.step(spp)
-    b = ReferenceRenderer(sc, seed=7, workers=2)
+    b = ReferenceRenderer(sc, seed=7, workers=2, pool="processes")
     b.step(spp)
     c = ReferenceRenderer(sc, seed=8, workers=0)
     c.step(spp)
+    d = ReferenceRenderer(sc, seed=7, workers=2)   # "auto": this scene's bounce is compiled, so threads
+    d.step(spp)
     try:
-        assert np.array_equal(a.mean(), b.mean())
-        assert np.array_equal(a.variance(), b.variance())
+        assert d.pool_kind == "threads" and b.pool_kind == "processes"
+        for other in (b, d):   # the same chunks, streams and order of sums, whatever renders them
+            assert np.array_equal(a.mean(), other.mean())
+            assert np.array_equal(a.variance(), other.variance())
         assert a.mean().shape == (24, 32, 3) and a.mean().dtype == np.float32
         # different seeds: (a - b)^2 / (var_a + var_b) has mean (n - 1) / (n - 3) for normal
         # sample means with variances estimated from n samples (E[1 / chi^2_{n-1}] scaling);
@@ -270,7 +274,7 @@ def test_determinism_and_seed_statistics(tmp_path):
                                 or m.startswith(("viewer.app", "viewer.gpupt", "scipy.linalg")) for m in mods), \
             [m for m in mods if m.startswith(("viewer.app", "viewer.gpupt", "scipy.linalg", "PIL", "trimesh"))]
     finally:
-        for r in (a, b, c):
+        for r in (a, b, c, d):
             r.close()
 
 
@@ -307,11 +311,13 @@ def test_no_nan_inf_negative_at_parameter_extremes(tmp_path, name):
 CANCEL_BOUND_S = 30.0   # a loaded machine meets it; the latency itself: benchmarks/cancel.py
 
 
-def test_cancel_discards_the_pass_and_leaves_no_processes(tmp_path):
+@pytest.mark.parametrize("pool", ["processes", "threads"])
+def test_cancel_discards_the_pass_and_leaves_no_processes(tmp_path, pool):
     """A cancelled ``step`` returns False soon, adds nothing, leaves the renderer usable, and
-    ``close`` ends exactly the worker processes this renderer started."""
+    ``close`` ends exactly the worker processes this renderer started (threads: none)."""
     sc = scene_from(tmp_path, small_scene(64, 64))
-    r = ReferenceRenderer(sc, seed=0, workers=2)
+    r = ReferenceRenderer(sc, seed=0, workers=2, pool=pool)
+    assert r.pool_kind == pool
     r.step(1)
     ref = r.mean().copy()
     cancel, running = threading.Event(), threading.Event()
@@ -332,9 +338,11 @@ def test_cancel_discards_the_pass_and_leaves_no_processes(tmp_path):
     # still usable after a cancel
     assert r.step(1) and r.spp == 2
     pids = r.worker_pids()
-    assert pids
+    assert bool(pids) == (pool == "processes")
     r.close()   # waits for its workers
     assert not set(pids) & {p.pid for p in mp.active_children()}
+    if pool == "threads":
+        assert not [t for t in threading.enumerate() if t.name.startswith("reference")]
 
 
 # ----------------------------------------------------------------------------- CLI
@@ -430,7 +438,7 @@ def test_reset_reuses_workers_and_matches_a_fresh_renderer(tmp_path):
     (tmp_path / "a.toml").write_text(body.format(a=0.5))
     (tmp_path / "b.toml").write_text(body.format(a=0.2))
     a, b = load_scene(tmp_path / "a.toml"), load_scene(tmp_path / "b.toml")
-    with ReferenceRenderer(a, max_depth=2, seed=3, workers=2) as r:
+    with ReferenceRenderer(a, max_depth=2, seed=3, workers=2, pool="processes") as r:
         r.step(2)
         pids = set(r.worker_pids())
         r.reset(b)
@@ -476,3 +484,23 @@ def test_scene_environment_map_is_used(tmp_path):
     c = img[7:9, 7:9].reshape(-1, 3)
     se = np.sqrt(var[7:9, 7:9].reshape(-1, 3))
     assert np.all(np.abs(c - 0.75) <= 4 * se + 1e-6), (c, se)
+
+
+def test_auto_pool_follows_the_scene_across_resets(tmp_path):
+    """``pool="auto"``: threads where every bounce is compiled (the compiled loop releases the GIL),
+    worker processes for the photon integrator's numpy steps, switched on ``reset``; each image
+    equals a fresh in-process renderer's, bit for bit. An unknown pool is refused by name."""
+    sc = scene_from(tmp_path, small_scene(16, 12))
+    with pytest.raises(ValueError, match="pool: 'fork'"):
+        ReferenceRenderer(sc, workers=2, pool="fork")
+    with ReferenceRenderer(sc, max_depth=3, seed=5, workers=2) as r:
+        seen = []
+        for integrator in ("path", "photon", "path"):
+            if seen:
+                r.reset(sc, integrator=integrator)
+            r.step(2)
+            with ReferenceRenderer(sc, max_depth=3, seed=5, workers=0, integrator=integrator) as fresh:
+                fresh.step(2)
+                assert np.array_equal(r.mean(), fresh.mean()), integrator
+            seen.append((r.pool_kind, bool(r.worker_pids())))
+        assert seen == [("threads", False), ("processes", True), ("threads", False)]

@@ -123,7 +123,7 @@ def test_renderer_close_ends_its_processes(private_tmp):
     before = lifecycle.task_count()
     started = []
     for _ in range(2):
-        with ReferenceRenderer(scene, max_depth=2, workers=2) as r:
+        with ReferenceRenderer(scene, max_depth=2, workers=2, pool="processes") as r:
             r.warm_up()
             r.step(1)
             r.reset(scene)

@@ -114,7 +114,8 @@ class CpuThread:
                 self.renderer.reset(scene, camera=camera, width=w, height=h, **options)  # keeps its workers
             else:
                 self.renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
-                                                  max_depth=v.max_depth, workers=v.workers, **options)
+                                                  max_depth=v.max_depth, workers=v.workers, pool="processes",
+                                                  **options)   # processes: the GUI thread never waits for the GIL
             r = self.renderer
             key, have = resume_cached(r, v.notice)
             if have:

@@ -195,7 +195,7 @@ def shade_hit1(k, u, v, d0, d1, d2, tris, vnorm, vtan, gnorm, mat_index, trans_t
             a0, a1, a2, b0, b1, b2, wo0, wo1, wo2, m, tr)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _hit_shading(tris, vnorm, vtan, gnorm, mat_index, trans_table, d, prim, bu, bv,
                  p, ng_raw, n, ng, tx, ty, wo_l, eps, mat, trans):
     for i in range(prim.shape[0]):
@@ -456,7 +456,7 @@ def microfacet_sample1(ox, oy, oz, u0, u1, ax, ay, md, m):
     return ix, iy, iz, 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _mf_eval(wi, wo, ax, ay, md, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
@@ -465,13 +465,13 @@ def _mf_eval(wi, wo, ax, ay, md, out):
                                                            wo[i, 2], ax, ay, md, 0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _mf_pdf(wi, wo, ax, ay, md, out):
     for j in range(wi.shape[0]):
         out[j] = microfacet_pdf1(wi[j, 0], wi[j, 1], wi[j, 2], wo[j, 0], wo[j, 1], wo[j, 2], ax, ay, md, 0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _mf_sample(wo, u, ax, ay, md, wi, weight, pdf):
     for j in range(wo.shape[0]):
         (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
@@ -573,20 +573,20 @@ def lambert_sample1(oz, u0, u1, r, g, b):
     return x, y, z, 0.0, 0.0, 0.0, pd
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _lambert_eval(wi, wo, alb, out):
     r = wo.shape[0]
     for j in range(wi.shape[0]):
         out[j, 0], out[j, 1], out[j, 2] = lambert_eval1(wi[j, 2], wo[j % r, 2], alb[0], alb[1], alb[2])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _lambert_pdf(wi, wo, out):
     for j in range(wi.shape[0]):
         out[j] = lambert_pdf1(wi[j, 2], wo[j, 2])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _lambert_sample(wo, u, alb, wi, weight, pdf):
     for j in range(wo.shape[0]):
         (wi[j, 0], wi[j, 1], wi[j, 2], weight[j, 0], weight[j, 1], weight[j, 2],
@@ -696,7 +696,7 @@ def constant_env_pdf1(d0, d1, d2, n0, n1, n2, two_sided):
     return max(d0 * n0 + d1 * n1 + d2 * n2, 0.0) / math.pi
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _constant_env_sample(u, nrm, two_sided, wi, pdf):
     for i in range(u.shape[0]):
         wi[i, 0], wi[i, 1], wi[i, 2], pdf[i] = constant_env_sample1(u[i, 0], u[i, 1], nrm[i, 0], nrm[i, 1], nrm[i, 2],
@@ -727,7 +727,7 @@ def embree_ray1(o0, o1, o2, d0, d1, d2, centre, tmin, tmax, big):
             np.float32(far if far > 0 else 0.0), far > 0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _embree_rays(o, d, centre, tmin, tmax, big, o32, d32, far32, live):
     for i in range(o.shape[0]):
         (o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2], far32[i],
@@ -750,7 +750,7 @@ def embree_rays(o, d, centre, tmin, tmax, big):
     return o32, d32, far32, live
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _embree_hits(prim_id, tfar, u32, v32, live, tmin, t, prim, u, v):
     for i in range(prim_id.shape[0]):
         k = prim_id[i]
@@ -904,14 +904,14 @@ def embree_occluded1(scene, fn, rh, ox, oy, oz, dx, dy, dz, far, live):
     return _ld_f32(rh, 8) == -np.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _embree_intersect(scene, fn, rh, o32, d32, far32, live, tmin, t, prim, u, v):
     for i in range(o32.shape[0]):
         prim[i], t[i], u[i], v[i] = embree_intersect1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
                                                       d32[i, 1], d32[i, 2], far32[i], live[i], tmin)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _embree_occluded(scene, fn, rh, o32, d32, far32, live, out):
     for i in range(o32.shape[0]):
         out[i] = embree_occluded1(scene, fn, rh, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1], d32[i, 2],
@@ -987,7 +987,7 @@ def philox_uniform1(k0, k1, c2, c3, q):
     return np.float64(x >> np.uint64(11)) * _DOUBLE_UNIT
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _draw_paths(act, m, k0, k1, stream, pix, c2, c3, first, width, rnd):
     """Row ``act[i]`` of ``rnd`` (N, width) for the i < m paths ``act``: numbers first[s] +
     width * pix .. + width - 1 of the path's stream s = ``stream[a]`` (counter (0, 0, c2[s],
@@ -1039,7 +1039,7 @@ def nee_term1(t, f, cs, fac):
     return t * f * cs * fac
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _nee_candidates(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, transmissive, ok, c, o):
     for i in range(wl.shape[0]):
         j = sel[i]

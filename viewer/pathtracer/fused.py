@@ -75,7 +75,7 @@ def _clean(x):
 
 # ----------------------------------------------------------------------------- one bounce
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
            kinds, nee_on, delta, albedo, ax, ay, md,
@@ -242,7 +242,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
     return n_out, ns
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _add_unoccluded(L, s_idx, s_c, blocked, ns):
     """Integrator._trace_shadows' sum: the unoccluded shadow rays' contributions, in ray order."""
     for j in range(ns):
