@@ -53,6 +53,7 @@ import numpy as np
 
 from viewer.brdf import twin_trust
 from viewer.reference_common.estimator import EstimatorOptions, mean_of, variance_of_mean
+from viewer.pathtracer.heap import keep_freed_memory
 from viewer.pathtracer.integrator import Integrator
 from viewer.reference_common.setup import RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded
@@ -109,6 +110,7 @@ def watch_parent(parent_pid: int, every_s: float = PARENT_CHECK_S) -> threading.
 
 def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None):
     global _INITIAL
+    keep_freed_memory()
     if parent_pid is not None:
         watch_parent(parent_pid)
     _INITIAL = (setup, key)
@@ -251,6 +253,7 @@ class ReferenceRenderer:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
             self._drop_setup_file()
+        keep_freed_memory()   # this process renders: its chunks reuse their freed arrays (heap.py)
         its = [first if first is not None else _build(self.setup)]
         its += [_build(self.setup) for _ in range(self.workers - 1)]
         warm_kernels(its[0])   # loads the compiled kernels once for every thread
@@ -298,6 +301,7 @@ class ReferenceRenderer:
         self._version += 1
         self._key = f"{os.getpid()}-{id(self)}-{self._version}"
         if self.workers == 0:
+            keep_freed_memory()
             self._local = None
             self._local = _build(setup)
 
