@@ -117,3 +117,169 @@ def test_a_shells_program_has_no_ssr_outputs():
     assert "THIN_SHELL" in defines and key.endswith(":shell")
     with pytest.raises(ValueError, match="SSR"):
         forward_variant(params, shell=True, ssr=True)
+
+
+# ---- the shells' reflection of the floor (viewer/scene/ground.py): a face's reflected ray going
+# down meets the scene's floor, shaded as the raster shades it, not the environment below the horizon
+
+FLOOR_SCENE = """
+[camera]
+position = [0.0, 0.9, 4.0]
+target   = [0.0, 0.6, 0.0]
+fov_y    = 36.0
+width    = 96
+height   = 64
+
+[render]
+ibl = "split_sum"
+msaa = 1
+shadows = false
+
+[environment]
+constant = [{sky}, {sky}, {sky}]
+
+[[objects]]
+mesh = "plane"
+material = "floor"
+scale = 6.0
+
+[[objects]]
+mesh = "sphere"
+material = "shell"
+scale = 0.6
+translate = [0.0, 0.7, 0.0]
+
+[materials.floor]
+model = "lambert"
+albedo = [{floor}, {floor}, {floor}]
+
+[materials.shell]
+model = "dielectric"
+ior = 1.0
+alpha = 0.0
+thin_film = {{ ior = 1.33, thickness_nm = 300.0 }}
+"""
+SKY = 0.8
+CENTRE, RADIUS, FLOOR_HALF = np.array([0.0, 0.7, 0.0]), 0.6, 6.0
+
+
+def _floor_scene(floor: float):
+    return load_scene_text(FLOOR_SCENE.format(sky=SKY, floor=floor))
+
+
+def _pixel_rays(scene, w, h, offset=(0.0, 0.0)):
+    """World-space unit directions through the pixel centres (+ offset in pixels), row 0 = top,
+    from the camera's own view and projection matrices."""
+    from viewer.scene.camera import OrbitCamera
+
+    cam = OrbitCamera.from_scene(scene)
+    inv = np.linalg.inv(cam.projection(w / h) @ cam.view())
+    j, i = np.meshgrid(np.arange(w) + 0.5 + offset[0], np.arange(h) + 0.5 + offset[1])
+    ndc = np.stack([2.0 * j / w - 1.0, 1.0 - 2.0 * i / h, np.ones_like(j), np.ones_like(j)], axis=-1)
+    far = ndc @ inv.T
+    d = far[..., :3] / far[..., 3:] - cam.position
+    return cam.position, d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def _on_floor(p, r):
+    """Whether rays p + t r (t > 0) land on the floor (y = 0, |x|, |z| <= FLOOR_HALF)."""
+    down = r[..., 1] < 0.0
+    t = np.where(down, -p[..., 1] / np.where(down, r[..., 1], -1.0), -1.0)
+    q = p + t[..., None] * r
+    return down & (t > 0) & (np.abs(q[..., 0]) <= FLOOR_HALF) & (np.abs(q[..., 2]) <= FLOOR_HALF)
+
+
+def _floor_share(scene, w, h, offset=(0.0, 0.0)):
+    """Per pixel: what the floor adds to the shell's pixel per unit floor radiance, traced
+    analytically on the exact sphere (the raster's model of a shell: each face passes 1 - R of
+    what lies behind it and reflects R of what its mirror ray meets, the floor or the sky),
+    (H, W, 3); with the mask of the pixels whose ray meets the sphere, the cosine there and the
+    three floor hits (the front face's mirror ray, the far face's, the ray straight through)."""
+    from viewer.brdf import thin_film
+
+    o, d = _pixel_rays(scene, w, h, offset)
+    oc = o - CENTRE
+    b = d @ oc
+    disc = b * b - (oc @ oc - RADIUS ** 2)
+    hit = disc > 0.0
+    s = np.sqrt(np.maximum(disc, 0.0))
+    p_f = o + (-b - s)[..., None] * d
+    p_b = o + (-b + s)[..., None] * d
+    n_f = (p_f - CENTRE) / RADIUS
+    n_b = -(p_b - CENTRE) / RADIUS               # the far face seen from inside: its normal points in
+    cos = np.clip(-(d * n_f).sum(-1), 0.0, 1.0)  # the same at both faces of a sphere
+    r_f = d - 2.0 * (d * n_f).sum(-1, keepdims=True) * n_f
+    r_b = d - 2.0 * (d * n_b).sum(-1, keepdims=True) * n_b
+    g_f, g_b, g_t = _on_floor(p_f, r_f), _on_floor(p_b, r_b), _on_floor(np.broadcast_to(o, d.shape), d)
+    R = thin_film.dielectric_reflectance_rgb(scene.materials["shell"], cos.reshape(-1), 1.0).reshape(h, w, 3)
+    share = R * g_f[..., None] + (1.0 - R) * (R * g_b[..., None] + (1.0 - R) * g_t[..., None])
+    return share, hit, cos, (g_f, g_b, g_t)
+
+
+def _table_count_error(params) -> float:
+    """The most a film's albedo table entry (viewer/brdf/albedo.py) can be off in R or in T = 1 - R
+    per channel: its sampler reflects with the mean m of the RGB R and weighs R / m (T: (1 - R) /
+    (1 - m)), and the table's multi-jittered pattern counts the reflected fraction within
+    1 / N_SIDE^2 of m (albedo.stratified_u), so R is off by up to R / (m N_SIDE^2), T by
+    (1 - R) / ((1 - m) N_SIDE^2); the largest over the angles, from the numpy twin."""
+    from viewer.brdf import albedo, thin_film
+
+    c = np.linspace(1e-3, 1.0, 2000)
+    R = thin_film.dielectric_reflectance_rgb(params, c, 1.0)
+    m = R.mean(axis=1, keepdims=True)
+    return float(max((R / m).max(), ((1.0 - R) / (1.0 - m)).max())) / albedo.N_SIDE ** 2
+
+
+def test_a_bubble_over_a_white_floor_in_a_constant_sky_is_invisible(renderer):
+    # White furnace: a floor of albedo 1 under a sky of radiance L (no lights) is drawn at L (the
+    # raster's floor: albedo / pi times the irradiance pi L), so whatever a lossless film
+    # (R + T = 1) reflects or lets through, above the horizon or below, the floor or the sky, is
+    # L: the bubble must vanish. A ground reflection with a wrong scale (the irradiance pi L not
+    # divided by pi) is off by R (pi - 1) L, 0.1 L on average here. The bound: each face's
+    # R + T is 1 within twice the table's counting error (_table_count_error, 0.005 for this
+    # film) and the two faces' errors add (measured: 0.0028 L at most).
+    scene = _floor_scene(1.0)
+    img = renderer.render_arrays(scene)[0][..., :3]
+    _, hit, _, _ = _floor_share(scene, img.shape[1], img.shape[0])
+    assert hit.sum() > 500
+    bound = 2.0 * 2.0 * _table_count_error(scene.materials["shell"]) * SKY + 1e-4
+    err = np.max(np.abs(img - SKY))
+    print(f"white furnace: max |pixel - L| {err / SKY:.4f} L (bound {bound / SKY:.4f} L)")
+    assert err < bound
+
+
+def test_a_bubble_reflects_the_floor_in_its_upper_half(renderer):
+    # The floor's part of each pixel: a white floor's frame minus a black floor's, both under the
+    # same sky L (no lights): the floor's radiance is albedo L, so the difference is L times the
+    # analytic share of _floor_share. In the bubble's upper half the far face, a concave mirror,
+    # looks down at the floor and reflects R of it there; reflecting the environment below the
+    # horizon instead (the studio map's dark floor in the lecture's step) left a difference of 0.
+    w, h = 96, 64
+    white = renderer.render_arrays(_floor_scene(1.0), width=w, height=h)[0][..., :3].astype(np.float64)
+    black = renderer.render_arrays(_floor_scene(0.0), width=w, height=h)[0][..., :3].astype(np.float64)
+    scene = _floor_scene(1.0)
+    share, hit, cos, (g_f, g_b, g_t) = _floor_share(scene, w, h)
+    # pixels whose three floor hits are the same over the pixel's extent (an edge crossing the
+    # pixel: its centre's alone decides) and away from the rim (cos > 0.3: the mesh's polygonal
+    # silhouette, and the steep part of R where the table's linear steps are coarse)
+    keep = hit & (cos > 0.3)
+    for dx, dy in ((-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)):
+        _, ht, _, gs = _floor_share(scene, w, h, (dx, dy))
+        keep &= ht & (g_f == gs[0]) & (g_b == gs[1]) & (g_t == gs[2])
+    upper = keep & g_b & ~g_t            # the far face reflects the floor, the sky lies behind
+    lower = keep & g_t                   # the floor seen through
+    assert upper.sum() > 100 and lower.sum() > 100, (upper.sum(), lower.sum())
+    diff = white - black
+    err = np.abs(diff - SKY * share)
+    print(f"upper half: {upper.sum()} px, floor share {np.mean(diff[upper]) / SKY:.4f} (analytic "
+          f"{np.mean(share[upper]):.4f}), max err {err[upper].max() / SKY:.4f} L; lower: {lower.sum()} px, "
+          f"max err {err[lower].max() / SKY:.4f} L")
+    # the upper half's analytic share: R of the far face (water: 0.05 on average here)
+    assert np.mean(share[upper]) > 0.03
+    # per pixel: the table's counting error in R and T of both faces (4 x 0.0052) and its linear
+    # steps between entries 1/32 apart in cos (under 0.004 in R for cos > 0.3, from the twin),
+    # at the tessellated sphere's interpolated normal: 0.01 L (measured 0.002 L); the region's
+    # mean within 0.005 L (the interpolation's bias does not average out)
+    assert err[upper].max() < 0.01 * SKY
+    assert err[lower].max() < 0.01 * SKY
+    assert abs(np.mean(diff[upper]) - SKY * np.mean(share[upper])) < 0.005 * SKY
