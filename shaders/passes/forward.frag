@@ -245,6 +245,18 @@ void main() {
     vec3 ground_q;
     bool on_ground = shell_ground_hit(v_position, reflect(-wo_w, n), ground_q);
     vec3 ground_l = on_ground ? shell_ground_lights(ground_q) : vec3(0.0);
+    // a smooth shell (delta lobes only) reflects R at this point and lets 1 - R through, R from
+    // the model's own sampler (its reflection branch, taken at u.x = 0, weighs R / P with P the
+    // branch's probability, its pdf): the film's thickness at this height, which the albedo
+    // tables, made without a position, do not follow (a bubble thinner at its top)
+    vec3 shell_r = vec3(-1.0);  // < 0: a rough shell, from the tables
+    if (u_ibl_delta != 0 && wo.z > 0.0) {
+        vec3 wi_s;
+        float pdf_s;
+        uint lobe_s;
+        vec3 w_s = brdf_sample(u_model_id, MAT_BASE, wo, vec3(0.0, 0.5, 0.5), wi_s, pdf_s, lobe_s);
+        shell_r = (lobe_s & LOBE_REFLECTION) != 0u && pdf_s > 0.0 ? clamp(w_s * pdf_s, 0.0, 1.0) : vec3(0.0);
+    }
 #else
     const bool on_ground = false;
 #endif
@@ -307,6 +319,9 @@ void main() {
         albedo_lerp(wo.z, k0, k1, fx);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
         vec3 rho_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho);
+#ifdef THIN_SHELL
+        if (shell_r.x >= 0.0) rho = rho_s = shell_r;  // its R at this height (above)
+#endif
         vec3 rho_d = rho - rho_s;
         vec3 r_w = reflect(-wo_w, n);
         if (wo.z > 0.0) {
@@ -406,9 +421,15 @@ void main() {
         float front = length(v_position - u_camera_pos);
         float back = texelFetch(u_thickness, ivec2(gl_FragCoord.xy), 0).r;
         float d = (gl_FrontFacing && any(greaterThan(u_sigma_a, vec3(0.0))) && back > front) ? back - front : 0.0;
-        shell_t = clamp(mix(u_albedo_t[k0], u_albedo_t[k1], fx), 0.0, 1.0) * exp(-u_sigma_a * d);
-        // its reflection of the ground (shell_ground_hit): the specular albedo times the floor's radiance
-        if (on_ground) radiance += min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), mix(u_albedo[k0], u_albedo[k1], fx)) * ground_l;
+        vec3 r_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), mix(u_albedo[k0], u_albedo[k1], fx));
+        vec3 t_s = clamp(mix(u_albedo_t[k0], u_albedo_t[k1], fx), 0.0, 1.0);
+        if (shell_r.x >= 0.0) {  // smooth: R at this height, and a lossless interface's T = 1 - R
+            r_s = shell_r;
+            t_s = 1.0 - shell_r;
+        }
+        shell_t = t_s * exp(-u_sigma_a * d);
+        // its reflection of the ground (shell_ground_hit): R times the floor's radiance
+        if (on_ground) radiance += r_s * ground_l;
     }
     frag_transmit = vec4(shell_t, 1.0);
 #endif
