@@ -244,6 +244,11 @@ void main() {
     // where this face's reflected ray lands on the ground, and the ground's radiance there
     vec3 ground_q;
     bool on_ground = shell_ground_hit(v_position, reflect(-wo_w, n), ground_q);
+#ifdef ENV_LIGHT
+    // the environment term below replaces its lookup by the ground in its split-sum path only (a
+    // rough shell's sampled one, fis or brute force, sees the environment below the horizon)
+    on_ground = on_ground && (u_env_on == 0 || u_ibl_delta != 0 || u_ibl_mode == IBL_MODE_SPLIT_SUM);
+#endif
     vec3 ground_l = on_ground ? shell_ground_lights(ground_q) : vec3(0.0);
     // a smooth shell (delta lobes only) reflects R at this point and lets 1 - R through, R from
     // the model's own sampler (its reflection branch, taken at u.x = 0, weighs R / P with P the
