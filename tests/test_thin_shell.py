@@ -276,3 +276,32 @@ def test_a_bubble_reflects_the_floor_in_its_upper_half(renderer):
     assert err[upper].max() < 0.005 * SKY
     assert err[lower].max() < 0.005 * SKY
     assert abs(np.mean(diff[upper]) - SKY * np.mean(share[upper])) < 0.002 * SKY
+
+
+def test_the_ground_is_the_largest_lambert_plane_as_placed():
+    # viewer/scene/ground.py against the objects' own model matrices: points of the plane mesh's
+    # [-1, 1]^2 mapped to the world lie on the ground, points just outside do not (a plane turned
+    # 30 degrees about +y, scaled unevenly); a larger plane of another model, and a cube, are not
+    # the ground; a scene without a Lambert plane has none
+    from viewer.scene.ground import ground_plane
+
+    base = FLOOR_SCENE.format(sky=SKY, floor=0.5)
+    text = base.replace('scale = 6.0\n', 'scale = [2.0, 1.0, 0.5]\ntranslate = [0.3, -0.2, 0.7]\nrotate_y_deg = 30.0\n')
+    text += ('\n[[objects]]\nmesh = "plane"\nmaterial = "shiny"\nscale = 50.0\n'
+             '\n[[objects]]\nmesh = "cube"\nmaterial = "floor"\nscale = 90.0\n'
+             '\n[materials.shiny]\nmodel = "mirror"\n')
+    scene = load_scene_text(text)
+    g = ground_plane(scene)
+    floor = next(o for o in scene.objects if o.material == "floor" and o.mesh == "plane")
+    assert g is not None and g.origin[1] == -0.2 and np.allclose(g.albedo, 0.5)
+    m = floor.model_matrix()
+    rng = np.random.default_rng(3)
+    for k, inside in ((0.98, True), (1.02, False)):
+        # points on the edges of the square of half-side k, and (inside) any point within it
+        u = rng.uniform(-1.0, 1.0, (200, 2))
+        edge = np.where(rng.random(200)[:, None] < 0.5, np.stack([np.sign(u[:, 0]), u[:, 1]], 1),
+                        np.stack([u[:, 0], np.sign(u[:, 1])], 1)) * k
+        w = (m @ np.stack([edge[:, 0], np.zeros(200), edge[:, 1], np.ones(200)]))[:3]
+        assert np.all(g.contains(w[0], w[2]) == inside)
+    assert ground_plane(load_scene_text(base.replace('model = "lambert"\nalbedo = [0.5, 0.5, 0.5]',
+                                                     'model = "mirror"'))) is None
