@@ -76,6 +76,61 @@ const bool SSR_ON = false;
 #include "common/specular_chain.glsl"
 #endif
 
+// Light i at p: the direction to it (world) and its irradiance at normal incidence.
+void light_incident(int i, vec3 p, out vec3 wi_w, out vec3 e) {
+    if (u_light_type[i] == LIGHT_POINT) {
+        vec3 d = u_light_pos[i] - p;
+        float r2 = max(dot(d, d), 1e-12);
+        wi_w = d * inversesqrt(r2);
+        e = u_light_value[i] / r2;            // I / r^2 (docs/conventions.md)
+    } else {
+        wi_w = -normalize(u_light_pos[i]);
+        e = u_light_value[i];
+    }
+}
+
+#ifdef THIN_SHELL
+// The ground a shell's reflections meet (viewer/scene/ground.py): the scene's floor, a
+// horizontal rectangle of Lambert albedo u_ground_albedo. The environment map has no floor (the
+// studio map is dark below the horizon), so a face's reflected ray going down meets this plane
+// first and sees the floor's radiance where it lands, shaded as the floor itself is (the lights
+// with their shadow maps, the environment's irradiance from above); elsewhere the environment.
+uniform int u_ground_on;
+uniform vec3 u_ground_origin;      // its centre (world)
+uniform vec4 u_ground_to_local;    // the rows of the 2 x 2 map world (dx, dz) -> the plane's [-1, 1]^2
+uniform vec3 u_ground_albedo;
+bool shell_ground_hit(vec3 p, vec3 r, out vec3 q) {
+    q = p;
+    if (u_ground_on == 0 || r.y >= 0.0 || p.y <= u_ground_origin.y) return false;
+    q = p + r * ((u_ground_origin.y - p.y) / r.y);
+    vec2 d = q.xz - u_ground_origin.xz;
+    vec2 u = vec2(dot(u_ground_to_local.xy, d), dot(u_ground_to_local.zw, d));
+    return all(lessThanEqual(abs(u), vec2(1.0)));
+}
+
+// The ground's radiance at q from the lights (its environment part is added where the
+// environment lights the scene): albedo / pi times the irradiance, with the shadow maps.
+vec3 shell_ground_lights(vec3 q) {
+    const vec3 up = vec3(0.0, 1.0, 0.0);
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < MAX_LIGHTS; ++i) {
+        if (i >= u_num_lights) break;
+        vec3 wi_w, e;
+        light_incident(i, q, wi_w, e);
+        float c = wi_w.y;
+        if (c <= 0.0) continue;
+        bool is_point = u_light_type[i] == LIGHT_POINT;
+#ifdef GLASS_SHADOW
+        vec3 vis = shadow_transmittance(i, is_point, u_light_pos[i], q, up, c);
+#else
+        float vis = shadow_visibility(i, is_point, u_light_pos[i], q, up, c);
+#endif
+        sum += e * c * vis;
+    }
+    return u_ground_albedo * INV_PI * sum;
+}
+#endif
+
 #ifdef IBL_SAMPLED
 // Environment light by importance sampling the material's own BRDF (brdf_eval) with a proxy
 // density: a GGX lobe of the material's alpha about the normal (reflected half vectors, Walter
@@ -185,6 +240,31 @@ void main() {
     vec3 wo = to_local * wo_w;
 
     vec3 radiance = vec3(0.0);
+#ifdef THIN_SHELL
+    // where this face's reflected ray lands on the ground, and the ground's radiance there
+    vec3 ground_q;
+    bool on_ground = shell_ground_hit(v_position, reflect(-wo_w, n), ground_q);
+#ifdef ENV_LIGHT
+    // the environment term below replaces its lookup by the ground in its split-sum path only (a
+    // rough shell's sampled one, fis or brute force, sees the environment below the horizon)
+    on_ground = on_ground && (u_env_on == 0 || u_ibl_delta != 0 || u_ibl_mode == IBL_MODE_SPLIT_SUM);
+#endif
+    vec3 ground_l = on_ground ? shell_ground_lights(ground_q) : vec3(0.0);
+    // a smooth shell (delta lobes only) reflects R at this point and lets 1 - R through, R from
+    // the model's own sampler (its reflection branch, taken at u.x = 0, weighs R / P with P the
+    // branch's probability, its pdf): the film's thickness at this height, which the albedo
+    // tables, made without a position, do not follow (a bubble thinner at its top)
+    vec3 shell_r = vec3(-1.0);  // < 0: a rough shell, from the tables
+    if (u_ibl_delta != 0 && wo.z > 0.0) {
+        vec3 wi_s;
+        float pdf_s;
+        uint lobe_s;
+        vec3 w_s = brdf_sample(u_model_id, MAT_BASE, wo, vec3(0.0, 0.5, 0.5), wi_s, pdf_s, lobe_s);
+        shell_r = (lobe_s & LOBE_REFLECTION) != 0u && pdf_s > 0.0 ? clamp(w_s * pdf_s, 0.0, 1.0) : vec3(0.0);
+    }
+#else
+    const bool on_ground = false;
+#endif
     vec3 first_terms = vec3(-1.0);
     float first_ndotl = 0.0;
     float first_visibility = 0.0;
@@ -194,15 +274,7 @@ void main() {
         bool is_point = u_light_type[i] == LIGHT_POINT;
         vec3 wi_w;
         vec3 e;  // irradiance at normal incidence from this light
-        if (is_point) {
-            vec3 d = u_light_pos[i] - v_position;
-            float r2 = max(dot(d, d), 1e-12);
-            wi_w = d * inversesqrt(r2);
-            e = u_light_value[i] / r2;            // I / r^2 (docs/conventions.md)
-        } else {
-            wi_w = -normalize(u_light_pos[i]);
-            e = u_light_value[i];
-        }
+        light_incident(i, v_position, wi_w, e);
         vec3 wi = to_local * wi_w;
         float cos_i = wi.z;
         vec3 f = brdf_eval(u_model_id, MAT_BASE, wi, wo);
@@ -241,6 +313,9 @@ void main() {
 #else
     if (u_env_on != 0) {
 #endif
+#ifdef THIN_SHELL
+        if (on_ground) ground_l += u_ground_albedo * ENV_IRRADIANCE(vec3(0.0, 1.0, 0.0)) * INV_PI;
+#endif
         // Environment light. Tables (viewer/brdf/albedo.py, the model's own sampler) give the
         // directional albedo rho(wo), its specular part rho_s (the model's ibl_split hook) and the
         // transmitted part; rho_d = rho - rho_s is treated as diffuse.
@@ -249,6 +324,9 @@ void main() {
         albedo_lerp(wo.z, k0, k1, fx);
         vec3 rho = mix(u_albedo[k0], u_albedo[k1], fx);
         vec3 rho_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), rho);
+#ifdef THIN_SHELL
+        if (shell_r.x >= 0.0) rho = rho_s = shell_r;  // its R at this height (above)
+#endif
         vec3 rho_d = rho - rho_s;
         vec3 r_w = reflect(-wo_w, n);
         if (wo.z > 0.0) {
@@ -264,7 +342,9 @@ void main() {
                 radiance += rho_d * rt_occluded_irradiance(v_position, n, ng, AO_RAYS) * INV_PI
                           + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
 #else
-                radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI + rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha);
+                // (a shell's reflection that lands on the ground takes the ground's radiance, below)
+                radiance += rho_d * ENV_IRRADIANCE(n) * INV_PI
+                          + (on_ground ? vec3(0.0) : rho_s * ENV_PREFILTERED(r_w, u_ibl_alpha));
 #endif
                 if (u_ms_on != 0 && u_ibl_delta == 0) {
                     // Fdez-Aguera 2019, sec. 3-4: single scattering loses E_ms = 1 - E_ss of the
@@ -346,7 +426,15 @@ void main() {
         float front = length(v_position - u_camera_pos);
         float back = texelFetch(u_thickness, ivec2(gl_FragCoord.xy), 0).r;
         float d = (gl_FrontFacing && any(greaterThan(u_sigma_a, vec3(0.0))) && back > front) ? back - front : 0.0;
-        shell_t = clamp(mix(u_albedo_t[k0], u_albedo_t[k1], fx), 0.0, 1.0) * exp(-u_sigma_a * d);
+        vec3 r_s = min(mix(u_albedo_s[k0], u_albedo_s[k1], fx), mix(u_albedo[k0], u_albedo[k1], fx));
+        vec3 t_s = clamp(mix(u_albedo_t[k0], u_albedo_t[k1], fx), 0.0, 1.0);
+        if (shell_r.x >= 0.0) {  // smooth: R at this height, and a lossless interface's T = 1 - R
+            r_s = shell_r;
+            t_s = 1.0 - shell_r;
+        }
+        shell_t = t_s * exp(-u_sigma_a * d);
+        // its reflection of the ground (shell_ground_hit): R times the floor's radiance
+        if (on_ground) radiance += r_s * ground_l;
     }
     frag_transmit = vec4(shell_t, 1.0);
 #endif

@@ -15,6 +15,7 @@ from viewer.gl import texture_units
 from viewer.gl.brdf_glsl import uniform_block
 from viewer.gl.program_set import brdf_spec
 from viewer.gl.shaders import set_uniform as _set
+from viewer.scene.ground import ground_plane
 
 
 class MaterialUniforms:
@@ -59,6 +60,17 @@ class MaterialUniforms:
         self._ms(prog, params, ms_scene)
         if env:
             self._environment(prog, params, thickness)
+
+    def ground(self, prog, scene):
+        """A thin shell's ground (viewer/scene/ground.py): the plane its reflected rays meet
+        before the environment, or none (u_ground_on 0)."""
+        g = ground_plane(scene)
+        _set(prog, "u_ground_on", int(g is not None))
+        if g is not None:
+            m = g.to_local
+            _set(prog, "u_ground_origin", tuple(float(v) for v in g.origin))
+            _set(prog, "u_ground_to_local", (float(m[0, 0]), float(m[0, 1]), float(m[1, 0]), float(m[1, 1])))
+            _set(prog, "u_ground_albedo", tuple(float(v) for v in g.albedo))
 
     def sampled_env(self, prog, params, scene):
         """A file material samples its environment light with its own sampler, its lookups

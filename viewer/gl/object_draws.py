@@ -119,6 +119,7 @@ class ObjectDraws:
                 ibl.bind(prog, scene.environment.rotation_deg)
                 # always: the transmittance comes from the material's albedo tables
                 self.materials.set(prog, obj, params, bool(uniforms["u_ms_on"]), thickness, env=True)
+                self.materials.ground(prog, scene)  # the floor its reflections meet
                 mesh = self.meshes.get(obj.mesh_data)
                 for side in ("front", "back"):  # culled: far faces first, then near ones
                     ctx.cull_face = side
