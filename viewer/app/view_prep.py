@@ -11,7 +11,8 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
 * "the DFG table" (``viewer.gl.ibl.IBL.ensure_dfg``: the disk cache, else one GPU pass);
 * "the view's targets" (the HDR colour and depth targets at the view's size);
 * "the environment light" (``IBL.set_environment``: the map, its mip chain and prefilter);
-* "the materials' tables" (``MaterialUniforms.prepare``: albedo tables, compensation terms);
+* "the tables of <material>" (``MaterialUniforms.prepare``: albedo tables, compensation terms),
+  one material per frame;
 * "the sky's program" (the background pass, drawn once into one pixel of the view's target);
 * "the program of <materials>" (each forward program the frame lacks, drawn once into one
   pixel with the shadow and thickness passes it needs), one per frame;
@@ -84,8 +85,12 @@ class ViewPrep:
         if (env.map is not None and read is not True) or \
                 not ibl.holds(env_map, None if env_map is not None else self._env_constant(drawn)):
             out.append(Part("the environment light", "environment"))
-        if not r.material_uniforms.prepared(drawn, env_tables=ssr_on or env_on):
-            out.append(Part("the materials' tables", "tables"))
+        for name in dict.fromkeys(o.material for o in drawn.objects):
+            one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
+            if not r.material_uniforms.prepared(one, env_tables=ssr_on or env_on) \
+                    and not any(p.kind == "tables" and drawn.materials[p.materials[0]] == drawn.materials[name]
+                                for p in out):  # grey stand-ins share theirs
+                out.append(Part(f"the tables of {name}", "tables", (name,)))
         if env.map is not None and not ssr_on and "background" not in r.programs:
             out.append(Part("the sky's program", "sky"))
         keys = r.forward_keys(drawn, raytrace=raytrace)
@@ -192,7 +197,8 @@ class ViewPrep:
             from viewer.gl.program_set import frame_switches
 
             ssr_on, env_on = frame_switches(drawn, raytrace)[:2]
-            r.material_uniforms.prepare(drawn, env_tables=ssr_on or env_on)
+            one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material in part.materials])
+            r.material_uniforms.prepare(one, env_tables=ssr_on or env_on)
         else:  # a trial draw into one pixel: the program is linked and its machine code made
             objects = [] if part.kind == "sky" else [o for o in drawn.objects if o.material in part.materials]
             trial = dataclasses.replace(drawn, objects=objects)
