@@ -125,6 +125,10 @@ class ViewPrep:
             self.scene, self.done, self.started, self.last = s.scene, [], False, None
         self.drawn = (drawn, raytrace, size)
         todo = self.plan(drawn, raytrace, size)
+        env = drawn.environment
+        if env.map is not None and "the environment map" not in self.done and not any(p.kind == "map" for p in todo) \
+                and id(env) in self._maps:  # read beside since the last frame: a part made
+            self.done.append("the environment map")
         if todo and todo[0].kind == "map":
             self._read_map(drawn.environment)  # on a worker thread: the other parts meanwhile
             if not self.started or len(todo) == 1 or todo[1].kind == "environment":
