@@ -235,3 +235,60 @@ def test_a_quick_prefilters_sh_comes_from_the_maps_mip_level(gl_ctx, tmp_path, m
         assert not np.array_equal(ibl.sh, full)  # from the mip level indeed, not the map
     finally:
         ibl.release()
+
+
+class _Child:
+    """The compile-ahead child as the preparation sees it: asked for a scene, answered or not."""
+
+    alive = True
+
+    def __init__(self):
+        self.asked, self.done = [], False
+
+    def request(self, scene, urgent=True, batch=0, ahead=False):
+        self.asked.append((scene, urgent))
+        return 7
+
+    def answered(self, rid):
+        return self.done
+
+
+def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkeypatch):
+    """A program part waits (the placeholder, saying so) while the child compiles it, and is made
+    on the window's thread once the child answered; without an answer it waits no longer than
+    ``CHILD_WAIT_S``."""
+    from viewer.app import view_prep
+
+    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 3600.0)  # only the answer ends the wait here
+    s = _session(gl_ctx)
+    child = s.compiles.child = _Child()
+    try:
+        for _ in range(20):
+            s.render_view(SIZE)
+            if "compiling in the background" in s.trace_status:
+                break
+        m = re.search(r"next: the program of (.+) \(compiling in the background\)$", s.trace_status)
+        assert m, s.trace_status
+        assert child.asked and child.asked[0][0].objects == s.scene.objects and child.asked[0][1]  # urgent
+        every = s.renderer.forward_keys(s.scene)
+        keys = {every[n] for n in m.group(1).split(", ")}
+        for _ in range(3):  # still waiting: the program is not made here
+            s.render_view(SIZE)
+            assert s.frame_source.form == PREPARING and not keys & set(s.renderer.programs)
+        child.done = True
+        s.render_view(SIZE)  # answered: made on this thread now
+        assert keys <= set(s.renderer.programs) and s.frame_source.form == PREPARING
+        _prepare(s)  # the other program (the child answered that request too), then the frame
+        assert s.frame_source.form == "own" and s.hdr is not None
+    finally:
+        s.compiles.child = None
+        s.release()
+    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 0.0)  # no answer: made at once
+    s = _session(gl_ctx)
+    child = s.compiles.child = _Child()
+    try:
+        _prepare(s)
+        assert child.asked and s.frame_source.form == "own" and s.hdr is not None
+    finally:
+        s.compiles.child = None
+        s.release()

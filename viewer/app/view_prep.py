@@ -17,7 +17,9 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
 * "the program of <materials>" (each forward program the frame lacks, drawn once into one
   pixel with the shadow and thickness passes it needs), one per frame;
 
-then the frame itself, with every program drawn before. What is still to do is worked out from
+then the frame itself, with every program drawn before. Where the compile-ahead child runs, a
+program part first waits for it (asked for the scene as drawn) up to ``CHILD_WAIT_S``: its answer
+puts the program's machine code in Mesa's disk cache, and the window's first draw reads it. What is still to do is worked out from
 the renderer's state each frame (``plan``), so a part another frame already made (the
 compile-ahead child's programs, a map the disk cache now holds) is never made twice, and the
 label is the state's. The first frame of a preparation makes nothing: it shows the placeholder
@@ -30,6 +32,10 @@ import dataclasses
 
 #: the FrameSource form of the view while it is prepared: no image shown
 PREPARING = "preparing"
+#: the longest wait, in seconds, for the compile-ahead child to compile a program the
+#: preparation needs, before the window makes it itself (the child's answer lets the window read
+#: the program's machine code from Mesa's disk cache: milliseconds instead of 0.2-0.5 s)
+CHILD_WAIT_S = 1.0
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)
 
@@ -56,6 +62,7 @@ class ViewPrep:
         self.started = False  # its placeholder frame was shown
         self.last = None      # the part the last frame made (None: none, or the placeholder)
         self.drawn = None     # (scene as drawn, raytrace, size) of the last step: what the label plans
+        self.waiting = None   # (part, request id, since): a program the compile-ahead child makes
         self._maps: dict = {}  # environment -> (thread, [error]) reading its map (radiance_map)
 
     @property
@@ -67,6 +74,7 @@ class ViewPrep:
         """The parts a frame of ``drawn`` (the scene as the view would draw it: the session's,
         or its grey stand-ins) at ``size`` (w, h) still lacks, in the order they are made (the
         environment map's read first: it runs beside the others)."""
+        from viewer.gl.ibl import holds as ibl_holds
         from viewer.gl.program_set import frame_switches
 
         r = self.session.renderer
@@ -83,7 +91,7 @@ class ViewPrep:
             out.append(Part("the view's targets", "targets"))
         env_map = env.radiance_map() if env.map is not None and read is True else None
         if (env.map is not None and read is not True) or \
-                not ibl.holds(env_map, None if env_map is not None else self._env_constant(drawn)):
+                not ibl_holds(ibl, env_map, None if env_map is not None else self._env_constant(drawn)):
             out.append(Part("the environment light", "environment"))
         for name in dict.fromkeys(o.material for o in drawn.objects):
             one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
@@ -122,7 +130,7 @@ class ViewPrep:
         made, or none yet); False: nothing is left, the frame itself is drawn now."""
         s = self.session
         if self.scene is not s.scene:  # a new preparation (or another scene meanwhile)
-            self.scene, self.done, self.started, self.last = s.scene, [], False, None
+            self.scene, self.done, self.started, self.last, self.waiting = s.scene, [], False, None, None
         self.drawn = (drawn, raytrace, size)
         todo = self.plan(drawn, raytrace, size)
         env = drawn.environment
@@ -144,9 +152,31 @@ class ViewPrep:
             self.last = None
             return True
         part = todo[0]
+        if part.kind == "program" and self._beside(drawn, part):
+            return True  # the compile-ahead child makes it: the placeholder meanwhile
         self._make(part, drawn, size, view_mode, raytrace)
         self.done.append(part.name)
         self.last = part.name
+        return True
+
+    def _beside(self, drawn, part: Part) -> bool:
+        """Whether to wait for the compile-ahead child, asked for ``drawn``, to compile
+        ``part``'s program (then the window's link and first draw read Mesa's disk cache:
+        milliseconds instead of a few hundred), at most ``CHILD_WAIT_S`` from when the part came
+        next; after that, or once the child answered, the part is made here."""
+        import time
+
+        s = self.session
+        now = time.monotonic()
+        if self.waiting is None or self.waiting[0] != part.name:
+            rid = s.compiles.ask_beside(drawn)
+            if rid is None:
+                return False
+            self.waiting = (part.name, rid, now)
+        _, rid, since = self.waiting
+        ca = s.compiles.child
+        if ca is None or ca.answered(rid) or now - since > CHILD_WAIT_S:
+            return False
         return True
 
     def _map_read(self, env):
@@ -186,6 +216,7 @@ class ViewPrep:
     def finish(self) -> None:
         """The frame itself is drawn now (or the scene went): no preparation."""
         self.scene, self.done, self.started, self.last, self.drawn = None, [], False, None, None
+        self.waiting = None
 
     def _make(self, part: Part, drawn, size, view_mode, raytrace) -> None:
         r = self.session.renderer
@@ -219,4 +250,6 @@ class ViewPrep:
             todo = []
         n = len(self.done) + len(todo)
         nxt = f"; next: {todo[0].name}" if todo else "; the view comes next"
+        if todo and self.waiting is not None and self.waiting[0] == todo[0].name:
+            nxt += " (compiling in the background)"
         return f"preparing the view: {len(self.done)} of {n} parts ready{nxt}"

@@ -128,6 +128,21 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
     return sizes
 
 
+def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
+    """Whether ``ibl.set_environment(latlong, constant)`` would do no work now: the same map
+    array (or the same constant) is set with its DFG table, and no full prefilter of a quick one
+    waits in the disk cache."""
+    last = getattr(ibl, "_last_ident", None)
+    if last is None or ibl._key is None or ibl.dfg_tex is None:
+        return False
+    if latlong is not None:
+        same = last[0] == "map" and last[1] is latlong
+    else:
+        c = tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,)))
+        same = last[0] == "constant" and last[1] == c
+    return same and (ibl.provisional is None or not cache.path_for(ibl.provisional).is_file())
+
+
 class IBL:
     ALPHAS = ALPHAS
     SAMPLES = SAMPLES
@@ -235,20 +250,6 @@ class IBL:
         _set(prog, "u_env_num_levels", len(self.alphas))
 
     # ------------------------------------------------------------------ environment
-    def holds(self, latlong: np.ndarray | None, constant=None) -> bool:
-        """Whether ``set_environment(latlong, constant)`` would do no work now: the same map
-        array (or the same constant) is set, and no full prefilter of a quick one waits in the
-        disk cache."""
-        last = getattr(self, "_last_ident", None)
-        if last is None or self._key is None or self.dfg_tex is None:
-            return False
-        if latlong is not None:
-            same = last[0] == "map" and last[1] is latlong
-        else:
-            c = tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,)))
-            same = last[0] == "constant" and last[1] == c
-        return same and (self.provisional is None or not cache.path_for(self.provisional).is_file())
-
     def set_environment(self, latlong: np.ndarray | None, constant=None) -> None:
         """Build (or load from the disk cache) every texture for ``latlong`` (float32 (H, W, 3)
         radiance, intensity applied, rotation not applied) or, when it is None, for the constant
@@ -282,7 +283,7 @@ class IBL:
         for name in ("ibl_downsample", "ibl_prefilter"):
             self._program(name)
         t_compile = time.perf_counter() - tc
-        self._ensure_dfg()
+        self.ensure_dfg()
         h, w = img.shape[:2]
         lw = min(self.layer_width, w)
         lh = max(1, min(self.layer_width // 2, h))
@@ -417,11 +418,8 @@ class IBL:
 
     # ------------------------------------------------------------------ DFG
     def ensure_dfg(self) -> None:
-        """Make the DFG table now (from the disk cache, else on the GPU) unless it is made:
-        the window prepares it in a frame of its own (``viewer.app.view_prep``)."""
-        self._ensure_dfg()
-
-    def _ensure_dfg(self):
+        """Make the DFG table now (from the disk cache, else on the GPU) unless it is made
+        (the window makes it in a frame of its own: ``viewer.app.view_prep``)."""
         if self.dfg_tex is not None:
             self._dfg_s = 0.0
             return
