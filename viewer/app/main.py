@@ -150,6 +150,7 @@ class App:
         self.frame_count = 0
         self.frame_ms = 0.0
         self.first_frame_s = None
+        self.first_view_s = None  # the first frame that shows the scene (viewer/app/view_prep.py)
         self._closing = False
         self._said_no_room = False
         if self.session.lecture_step >= 0:  # opened as lecture:N
@@ -374,6 +375,9 @@ class App:
         if self.first_frame_s is None:
             self.first_frame_s = time.perf_counter() - self.t_start
             print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
+        if self.first_view_s is None and s.hdr is not None and s.frames.prep.on:  # the placeholder's frames before
+            self.first_view_s = time.perf_counter() - self.t_start
+            print(f"brdf-viewer: first view after {self.first_view_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
         if s.raster_version != drawn:  # the rest of a frame that drew the view: the tiles' budget
             rest = max(0.0, self.frame_ms - s.render_ms) / 1000
