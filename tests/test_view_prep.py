@@ -265,9 +265,9 @@ def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkey
     try:
         for _ in range(20):
             s.render_view(SIZE)
-            if "compiling in the background" in s.trace_status:
+            if "waiting for the background compile" in s.trace_status:
                 break
-        m = re.search(r"next: the program of (.+) \(compiling in the background\)$", s.trace_status)
+        m = re.search(r"next: the program of (.+) \(waiting for the background compile\)$", s.trace_status)
         assert m, s.trace_status
         assert child.asked and child.asked[0][0].objects == s.scene.objects and child.asked[0][1]  # urgent
         every = s.renderer.forward_keys(s.scene)

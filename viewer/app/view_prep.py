@@ -17,14 +17,15 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
 * "the program of <materials>" (each forward program the frame lacks, drawn once into one
   pixel with the shadow and thickness passes it needs), one per frame;
 
-then the frame itself, with every program drawn before. Where the compile-ahead child runs, a
-program part first waits for it (asked for the scene as drawn) up to ``CHILD_WAIT_S``: its answer
-puts the program's machine code in Mesa's disk cache, and the window's first draw reads it. What is still to do is worked out from
-the renderer's state each frame (``plan``), so a part another frame already made (the
-compile-ahead child's programs, a map the disk cache now holds) is never made twice, and the
-label is the state's. The first frame of a preparation makes nothing: it shows the placeholder
-at once. ``ViewPrep`` is held by ``viewer.app.view_frames.ViewFrames`` as ``frames.prep``; GL
-calls stay on the window's thread (one context). No imgui, no glfw."""
+then the frame itself, with every program drawn before. Where the compile-ahead child runs and
+has started, a program part first waits for it (asked for the scene as drawn) up to
+``CHILD_WAIT_S``: its answer puts the program's machine code in Mesa's disk cache, and the
+window's first draw reads it. What is still to do is worked out from the renderer's state each
+frame (``plan``), so a part another frame already made (the compile-ahead child's programs, a map
+the disk cache now holds) is never made twice, and the label is the state's. The first frame of a
+preparation makes nothing: it shows the placeholder at once. ``ViewPrep`` is held by
+``viewer.app.view_frames.ViewFrames`` as ``frames.prep``; GL calls stay on the window's thread
+(one context). No imgui, no glfw."""
 
 from __future__ import annotations
 
@@ -43,8 +44,8 @@ PIXEL = (0, 0, 1, 1)
 @dataclasses.dataclass(frozen=True)
 class Part:
     """One part of the frame still to make: its ``name`` (as the label says it) and ``kind``
-    ("dfg", "environment", "tables", "sky" or "program"); ``materials``: for a program, the
-    materials of the scene it draws."""
+    ("map", "dfg", "targets", "environment", "tables", "sky" or "program"); ``materials``: for
+    tables or a program, the materials of the scene they are for."""
     name: str
     kind: str
     materials: tuple = ()
@@ -60,10 +61,9 @@ class ViewPrep:
         self.scene = None     # the session's scene being prepared (None: none)
         self.done: list[str] = []  # the parts made for it, in order
         self.started = False  # its placeholder frame was shown
-        self.last = None      # the part the last frame made (None: none, or the placeholder)
         self.drawn = None     # (scene as drawn, raytrace, size) of the last step: what the label plans
         self.waiting = None   # (part, request id, since): a program the compile-ahead child makes
-        self._maps: dict = {}  # environment -> (thread, [error]) reading its map (radiance_map)
+        self._maps: dict = {}  # id(environment) -> (environment, thread, [error]): its map's read
 
     @property
     def active(self) -> bool:
@@ -130,7 +130,7 @@ class ViewPrep:
         made, or none yet); False: nothing is left, the frame itself is drawn now."""
         s = self.session
         if self.scene is not s.scene:  # a new preparation (or another scene meanwhile)
-            self.scene, self.done, self.started, self.last, self.waiting = s.scene, [], False, None, None
+            self.scene, self.done, self.started, self.waiting = s.scene, [], False, None
         self.drawn = (drawn, raytrace, size)
         todo = self.plan(drawn, raytrace, size)
         env = drawn.environment
@@ -141,7 +141,6 @@ class ViewPrep:
             self._read_map(drawn.environment)  # on a worker thread: the other parts meanwhile
             if not self.started or len(todo) == 1 or todo[1].kind == "environment":
                 self.started = True
-                self.last = None
                 return True   # waits for the map (the placeholder)
             todo = todo[1:]
         if not todo:
@@ -149,14 +148,12 @@ class ViewPrep:
             return False
         if not self.started:  # the first frame: the placeholder alone, at once
             self.started = True
-            self.last = None
             return True
         part = todo[0]
         if part.kind == "program" and self._beside(drawn, part):
             return True  # the compile-ahead child makes it: the placeholder meanwhile
         self._make(part, drawn, size, view_mode, raytrace)
         self.done.append(part.name)
-        self.last = part.name
         return True
 
     def _beside(self, drawn, part: Part) -> bool:
@@ -169,6 +166,9 @@ class ViewPrep:
         s = self.session
         now = time.monotonic()
         if self.waiting is None or self.waiting[0] != part.name:
+            ca = s.compiles.child
+            if ca is None or not getattr(ca, "ready", True):
+                return False  # none, or still starting (seconds): no answer would come in time
             rid = s.compiles.ask_beside(drawn)
             if rid is None:
                 return False
@@ -215,8 +215,7 @@ class ViewPrep:
 
     def finish(self) -> None:
         """The frame itself is drawn now (or the scene went): no preparation."""
-        self.scene, self.done, self.started, self.last, self.drawn = None, [], False, None, None
-        self.waiting = None
+        self.scene, self.done, self.started, self.drawn, self.waiting = None, [], False, None, None
 
     def _make(self, part: Part, drawn, size, view_mode, raytrace) -> None:
         r = self.session.renderer
@@ -251,5 +250,5 @@ class ViewPrep:
         n = len(self.done) + len(todo)
         nxt = f"; next: {todo[0].name}" if todo else "; the view comes next"
         if todo and self.waiting is not None and self.waiting[0] == todo[0].name:
-            nxt += " (compiling in the background)"
+            nxt += " (waiting for the background compile)"
         return f"preparing the view: {len(self.done)} of {n} parts ready{nxt}"
