@@ -16,12 +16,14 @@ from viewer.app.view_prep import PREPARING
 SIZE = (64, 48)
 
 
-def _session(gl_ctx, scene="default", prepare=True):
+def _session(gl_ctx, scene="default", prepare=True, budget_s=0.0):
     from viewer.app.session import Session
     from viewer.gl.renderer import Renderer
 
-    return Session(gl_ctx, scene, renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=False,
-                   prepare_frames=prepare)
+    s = Session(gl_ctx, scene, renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=False,
+                prepare_frames=prepare)
+    s.frames.prep.budget_s = budget_s   # 0: one part per frame, whatever each costs
+    return s
 
 
 def _state(s, scene):
@@ -291,4 +293,17 @@ def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkey
         assert child.asked and s.frame_source.form == "own" and s.hdr is not None
     finally:
         s.compiles.child = None
+        s.release()
+
+
+def test_parts_within_the_budget_share_a_frame(gl_ctx):
+    """With a budget no part passes, one frame makes them all: the placeholder, one frame of
+    parts, then the frame itself (the view comes as soon as a frame drawn at once would)."""
+    s = _session(gl_ctx, "default", budget_s=1e9)
+    try:
+        frames = _prepare(s)
+        assert len(frames) == 2, [label for _, label, _ in frames]
+        assert all(frames[1][0].values()), frames[1][0]   # every part made in the second frame
+        assert s.hdr is not None and s.frame_source.scene is s.scene
+    finally:
         s.release()

@@ -36,7 +36,11 @@ PREPARING = "preparing"
 #: the longest wait, in seconds, for the compile-ahead child to compile a program the
 #: preparation needs, before the window makes it itself (the child's answer lets the window read
 #: the program's machine code from Mesa's disk cache: milliseconds instead of 0.2-0.5 s)
-CHILD_WAIT_S = 1.0
+CHILD_WAIT_S = 0.3   # at load 7-12 the child never answered within 1 s: the wait only delayed the view
+#: the seconds of parts one frame makes before it shows the placeholder (the frame goal): cheap
+#: parts (a cached DFG table, targets, a material's tables) share a frame, so the view comes
+#: about as soon as it did when the whole first frame was drawn at once
+BUDGET_S = 0.15
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)
 
@@ -58,6 +62,7 @@ class ViewPrep:
     def __init__(self, session, on: bool = False):
         self.session = session
         self.on = on
+        self.budget_s = BUDGET_S   # 0: one part per frame
         self.scene = None     # the session's scene being prepared (None: none)
         self.done: list[str] = []  # the parts made for it, in order
         self.started = False  # its placeholder frame was shown
@@ -126,7 +131,7 @@ class ViewPrep:
 
     def step(self, drawn, size, view_mode: int = 0, raytrace=None) -> bool:
         """One frame of the preparation of ``drawn`` at ``size`` (w, h): the placeholder first,
-        then one part per frame. True: the view shows the placeholder this frame (a part was
+        then parts until one passes ``budget_s`` (at least one per frame). True: the view shows the placeholder this frame (a part was
         made, or none yet); False: nothing is left, the frame itself is drawn now."""
         s = self.session
         if self.scene is not s.scene:  # a new preparation (or another scene meanwhile)
@@ -149,12 +154,20 @@ class ViewPrep:
         if not self.started:  # the first frame: the placeholder alone, at once
             self.started = True
             return True
-        part = todo[0]
-        if part.kind == "program" and self._beside(drawn, part):
-            return True  # the compile-ahead child makes it: the placeholder meanwhile
-        self._make(part, drawn, size, view_mode, raytrace)
-        self.done.append(part.name)
-        return True
+        import time
+
+        t0 = time.perf_counter()
+        while True:
+            part = todo[0]
+            if part.kind == "program" and self._beside(drawn, part):
+                return True  # the compile-ahead child makes it: the placeholder meanwhile
+            self._make(part, drawn, size, view_mode, raytrace)
+            self.done.append(part.name)
+            if time.perf_counter() - t0 >= self.budget_s:
+                return True
+            todo = self.plan(drawn, raytrace, size)
+            if not todo or any(p.kind == "map" for p in todo):
+                return True   # the frame itself (or the map's wait) from the next frame on
 
     def _beside(self, drawn, part: Part) -> bool:
         """Whether to wait for the compile-ahead child, asked for ``drawn``, to compile
