@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 # each figure is one whole frame (a still view drawn in tiles would take several frames to be
 # whole; benchmarks/preset_switch.py measures those)
 os.environ.setdefault("BRDF_VIEWER_TILED_FRAMES", "0")
+os.environ.setdefault("BRDF_VIEWER_PREPARE_FRAMES", "0")  # and a scene's first frame at once
 
 
 def main():

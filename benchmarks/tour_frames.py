@@ -26,7 +26,9 @@ waited for the rasterizer or another thread. Keys go through the window's key pa
 time is (its 12 costliest calls, and the viewer's calls by cumulative time). ``--cold``: every
 cache starts empty (Mesa's shader cache, the environment maps' prefilters, the traced frames:
 ``XDG_CACHE_HOME`` a new folder), as on a machine where the viewer never ran; otherwise the
-caches are as they are.
+caches are as they are. ``--frames N``: each action's first N frames in thread CPU (ms), one line
+each, to see how a scene's first frame is spread over its preparation's frames
+(``viewer/app/view_prep.py``).
 """
 
 from __future__ import annotations
@@ -120,6 +122,7 @@ def main(argv):
     quick = "--quick" in argv
     wanted = argv[argv.index("--profile") + 1] if "--profile" in argv else None
     over_ms = float(argv[argv.index("--profile-over") + 1]) if "--profile-over" in argv else None
+    first_n = int(argv[argv.index("--frames") + 1]) if "--frames" in argv else 0
     bound = SETTLE_S / 3 if quick else SETTLE_S
     if "--cold" in argv:  # before anything reads a cache: Mesa's, the viewer's
         import tempfile
@@ -148,6 +151,8 @@ def main(argv):
               f"  {len(f):4d} {r['s']:6.1f} s{'' if r['settled'] else '*':1}"
               f" | {max(c):6.0f} ms {sum(x > GOAL_MS for x in c):3d} {sum(x > LIMIT_MS for x in c):3d}"
               f" {r['proc'][at]:7.0f} ms{'' if r['settled'] else '  (' + r['busy'] + ')'}", flush=True)
+        if first_n:
+            print(f"    first frames, thread CPU ms: {' '.join(f'{x:.0f}' for x in c[:first_n])}", flush=True)
 
     def key(k):
         return lambda: app.keys.taps.append(k)

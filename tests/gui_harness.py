@@ -32,6 +32,9 @@ def window_env(display: str) -> dict:
     # every still frame whole: a test reads the frame a change drew (tests/test_tiled_frames.py
     # tiles them)
     env.setdefault("BRDF_VIEWER_TILED_FRAMES", "0")
+    # a scene's first frame drawn at once, not prepared over frames (tests/test_view_prep.py
+    # prepares them)
+    env.setdefault("BRDF_VIEWER_PREPARE_FRAMES", "0")
     # the plots' data in the frame that draws them (tests/test_plot_worker.py runs the worker)
     env.setdefault("BRDF_VIEWER_PLOT_WORKER", "0")
     env.pop("WAYLAND_DISPLAY", None)

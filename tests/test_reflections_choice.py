@@ -91,6 +91,7 @@ def test_window_draws_the_choice(tmp_path):
     env["BRDF_VIEWER_STATE"] = str(tmp_path / "state.toml")
     env["BRDF_VIEWER_COMPILE_AHEAD"] = "0"  # the switch's programs compile at once, in the frame
     env["BRDF_VIEWER_TILED_FRAMES"] = "0"  # and the frame after it is whole
+    env["BRDF_VIEWER_PREPARE_FRAMES"] = "0"  # the scene's first frame too, at once
     cmd = [sys.executable, "-c", code]
     if not env.get("DISPLAY"):
         cmd = ["xvfb-run", "-a"] + cmd

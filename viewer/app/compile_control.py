@@ -164,6 +164,14 @@ class CompileControl:
         self.pending = missing
         return out
 
+    def ask_beside(self, scene):
+        """Ask the compile-ahead child for ``scene``'s programs with the session's scene's
+        urgency (the same request as before for the same scene); its id, or None without a child."""
+        ca = self.child
+        if ca is None or not ca.alive:
+            return None
+        return ca.request(scene, urgent=True, batch=self._batch_for(self.session.scene))
+
     def _batch_for(self, scene) -> int:
         """The compile-ahead batch of ``scene`` as it is now: a new one (higher) for another
         scene or other materials than the last asked for."""

@@ -33,6 +33,9 @@ from viewer.gl.context import GL_REQUIRED, GLUnavailable
 COMPILE_AHEAD_ENV = "BRDF_VIEWER_COMPILE_AHEAD"
 # "0" draws every still frame whole, however long it takes (Session's tiled_frames off)
 TILED_FRAMES_ENV = "BRDF_VIEWER_TILED_FRAMES"
+# "0" draws a scene's first frame at once, however long its programs take (Session's
+# prepare_frames off: viewer/app/view_prep.py)
+PREPARE_FRAMES_ENV = "BRDF_VIEWER_PREPARE_FRAMES"
 # "0" computes the plots' data on the window's thread, in the frame that shows them (PlotsPanel's
 # background off)
 PLOT_WORKER_ENV = "BRDF_VIEWER_PLOT_WORKER"
@@ -130,8 +133,9 @@ class App:
         if compile_ahead is None:  # on unless the environment turns it off (the window tests do)
             compile_ahead = os.environ.get(COMPILE_AHEAD_ENV, "1") != "0"
         tiled = os.environ.get(TILED_FRAMES_ENV, "1") != "0"
+        prepared = os.environ.get(PREPARE_FRAMES_ENV, "1") != "0"
         self.session = Session(self.ctx, scene_ref, scene=scene, state=state, compile_ahead=compile_ahead,
-                               tiled_frames=tiled)
+                               tiled_frames=tiled, prepare_frames=prepared)
         self.session.step_listeners.append(self._on_step)
         self.session.wake = glfw.post_empty_event  # the reference's thread ends the loop's sleep
         self.hot_reload = HotReload(self.session.renderer)
@@ -146,6 +150,7 @@ class App:
         self.frame_count = 0
         self.frame_ms = 0.0
         self.first_frame_s = None
+        self.first_view_s = None  # the first frame that shows the scene (viewer/app/view_prep.py)
         self._closing = False
         self._said_no_room = False
         if self.session.lecture_step >= 0:  # opened as lecture:N
@@ -370,6 +375,9 @@ class App:
         if self.first_frame_s is None:
             self.first_frame_s = time.perf_counter() - self.t_start
             print(f"brdf-viewer: first frame after {self.first_frame_s:.2f} s", file=sys.stderr, flush=True)
+        if self.first_view_s is None and s.hdr is not None and s.frames.prep.on:  # the placeholder's frames before
+            self.first_view_s = time.perf_counter() - self.t_start
+            print(f"brdf-viewer: first view after {self.first_view_s:.2f} s", file=sys.stderr, flush=True)
         self.frame_ms = 1000 * (time.perf_counter() - t0)
         if s.raster_version != drawn:  # the rest of a frame that drew the view: the tiles' budget
             rest = max(0.0, self.frame_ms - s.render_ms) / 1000

@@ -64,7 +64,9 @@ class Session:
     and keep drawing it as it was meanwhile; the scene's presets compile ahead while idle.
     ``tiled_frames``: a still view whose whole frame takes longer than ``TILE_BUDGET_S``
     (``viewer.app.view_frames``) is drawn in tiles over the next frames, over the view as it was
-    or its half-resolution preview (``quality`` "refining" meanwhile)."""
+    or its half-resolution preview (``quality`` "refining" meanwhile). ``prepare_frames``: the
+    first frame of a scene the view has not drawn is prepared over several frames, one costly
+    part each, under a labelled placeholder (``viewer.app.view_prep``)."""
 
     # files: scenes, materials, meshes, environment maps
     set_material = Part("files")
@@ -138,7 +140,7 @@ class Session:
 
     def __init__(self, ctx, scene_ref=None, overrides=(), *, scene=None, renderer=None,
                  state: dict | None = None, prefetch: bool = True, compile_ahead: bool = False,
-                 tiled_frames: bool = False):
+                 tiled_frames: bool = False, prepare_frames: bool = False):
         from viewer.app.compare_view import MODES, CompareView
         from viewer.app.monte_carlo import MonteCarloPanel
         from viewer.scene.camera import OrbitCamera
@@ -147,7 +149,7 @@ class Session:
 
         self.ctx = ctx
         self.files = FileActions(self)
-        self.frames = ViewFrames(self, tiled_frames)
+        self.frames = ViewFrames(self, tiled_frames, prepare_frames)
         self.compiles = CompileControl(self, compile_ahead)
         self.tour = LectureControl(self, prefetch)
         self.env = EnvironmentWatch(self)

@@ -17,6 +17,7 @@ import numpy as np
 
 from viewer import ViewerError
 from viewer.app.compile_control import KEEP_IMAGE, UNTRACED
+from viewer.app.view_prep import PREPARING, ViewPrep
 from viewer.app.frame_mean import BF_FRAMES, FrameMean, frames_wanted  # noqa: F401 (BF_FRAMES: the window's)
 from viewer.gl.context import release_gl
 
@@ -39,7 +40,8 @@ class FrameSource:
     its materials (``materials``: name -> params as drawn), and ``form``: "own" (every material
     with its own programs), "held" (the same scene with the edited materials as they were),
     "untraced" (the scene without its traced chains), "stand-in" (its objects, the materials not
-    ready drawn as grey Lambert stand-ins). ``under``: where the frame is drawn in tiles, the
+    ready drawn as grey Lambert stand-ins) or "preparing" (no image: the parts of the scene's
+    first frame are made, ``viewer.app.view_prep``). ``under``: where the frame is drawn in tiles, the
     scene of the image the tiles not drawn yet show (the same scene, always)."""
     scene: object
     materials: dict
@@ -52,8 +54,9 @@ class ViewFrames:
     takes longer than ``TILE_BUDGET_S`` is drawn in tiles over the next frames, ``quality``
     "refining" meanwhile)."""
 
-    def __init__(self, session, tiled_frames: bool = False):
+    def __init__(self, session, tiled_frames: bool = False, prepare_frames: bool = False):
         self.session = session
+        self.prep = ViewPrep(session, prepare_frames)  # a new scene's first frame, made over frames
         self.hdr = None            # the raster image shown (a texture), None before the first
         self.hdr_for = None        # the view size (w, h) the image shown was drawn for
         self.raster_version = 0
@@ -130,6 +133,8 @@ class ViewFrames:
         whose programs compile beside ("" otherwise)."""
         s = self.session
         src = self.frame_source
+        if self.prep.active:
+            return self.prep.label()
         if s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS:
             return f"compiling {', '.join(s.pending)} in the background: {FORM_WORDS[src.form]} until ready"
         if self.tiling:
@@ -184,6 +189,8 @@ class ViewFrames:
         quality = "preview" if interacting else "full"
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
             if s.compiles.on else None
+        if held is not KEEP_IMAGE and self.prep.needed(self.frame_source) and self._prepare(held, traced, rw, rh):
+            return  # the placeholder: still dirty, so the next frame follows at once
         source = None
         try:
             if held is KEEP_IMAGE:
@@ -235,6 +242,24 @@ class ViewFrames:
         s.env.watch()
         if s.tour.step_timer is not None and not interacting and held is not KEEP_IMAGE:
             s.tour.step_shown()
+
+    def _prepare(self, held, traced: bool, w: int, h: int) -> bool:
+        """One frame of the preparation of a scene the view has not drawn yet
+        (``viewer.app.view_prep``): True when the view shows the placeholder this frame (no
+        image: never the last scene's frame, and its form "preparing" makes no note about a
+        frame drawn otherwise true), False when the frame itself is drawn now."""
+        s = self.session
+        drawn = s.scene if held is None or held is UNTRACED else held
+        try:
+            if not self.prep.step(drawn, (w, h), s.view_mode, False if traced else None):
+                return False
+        except ViewerError as e:  # a program that does not compile: the frame reports it as always
+            self.prep.finish()
+            s.notify(str(e), error=True)
+            return False
+        self.hdr = None
+        self.frame_source = FrameSource(s.scene, dict(drawn.materials), PREPARING)
+        return True
 
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last

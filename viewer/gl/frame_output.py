@@ -28,6 +28,10 @@ class FrameOutput:
         """The HDR targets of this size and sample count (remade when those change)."""
         return self._hdr.ensure(w, h, samples)
 
+    def holds(self, w, h, samples) -> bool:
+        """Whether the HDR targets are of this size and sample count (``ensure`` makes none)."""
+        return self._hdr.holds(w, h, samples)
+
     def begin(self, targets: FrameTargets):
         """``targets`` are the frame's (the HDR targets, or the SSR pass's)."""
         self._frame_targets = targets

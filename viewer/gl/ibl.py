@@ -22,7 +22,10 @@ rotation *not* applied: the rotation is a uniform, so turning the map costs noth
    convention of ``viewer.environment.dfg``: s = alpha, t = NoV, (r, g) = (A, B), E_ss = F0 A + B.
    It depends on no environment, so it is made once per ``IBL`` (and disk-cached).
 4. **SH9 irradiance**: ``viewer.environment.sh.project_latlong`` on the CPU (exact texel
-   integrals; ~tens of ms for 1024 x 512), 9 vec3 uniforms ``u_env_sh``.
+   integrals; ~tens of ms for 1024 x 512, over 100 ms for a 2048 x 1024 file), 9 vec3 uniforms
+   ``u_env_sh``. A quick prefilter (``defer``) projects the map's first mip level at most
+   ``SH_QUICK_WIDTH`` wide instead (its texels are solid-angle weighted means of the map's, so
+   the integral is the map's and the l = 1, 2 bands differ by the box filter's blur).
 5. On request, ``cubemap()``: the map resampled into a float cube map on the GPU
    (``passes/ibl_cubemap.frag``), checked against ``viewer.environment.latlong.to_cubemap``.
 
@@ -89,6 +92,8 @@ LAYER_WIDTH = 256
 #: (the window's background child) and fills the disk cache, which the next frame then reads
 QUICK_LAYER_WIDTH = 32
 QUICK_SAMPLES = 64
+#: a quick prefilter's SH9 irradiance: projected from the map's first mip level at most this wide
+SH_QUICK_WIDTH = 256
 #: DFG table: size and quadrature points, as viewer.environment.dfg.dfg_table's defaults
 DFG_SAMPLES = 4096
 #: a constant environment is a small constant map (the same code path, exact results)
@@ -121,6 +126,21 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
         w, h = sizes[-1]
         sizes.append((max(1, w // 2), max(1, h // 2)))
     return sizes
+
+
+def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
+    """Whether ``ibl.set_environment(latlong, constant)`` would do no work now: the same map
+    array (or the same constant) is set with its DFG table, and no full prefilter of a quick one
+    waits in the disk cache."""
+    last = getattr(ibl, "_last_ident", None)
+    if last is None or ibl._key is None or ibl.dfg_tex is None:
+        return False
+    if latlong is not None:
+        same = last[0] == "map" and last[1] is latlong
+    else:
+        c = tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,)))
+        same = last[0] == "constant" and last[1] == c
+    return same and (ibl.provisional is None or not cache.path_for(ibl.provisional).is_file())
 
 
 class IBL:
@@ -159,6 +179,7 @@ class IBL:
         self._programs = {}
         self._vaos = {}
         self._dfg_s = 0.0
+        self._quick_sh_source = None
 
     # ------------------------------------------------------------------ helpers
     def _program(self, name: str):
@@ -262,7 +283,7 @@ class IBL:
         for name in ("ibl_downsample", "ibl_prefilter"):
             self._program(name)
         t_compile = time.perf_counter() - tc
-        self._ensure_dfg()
+        self.ensure_dfg()
         h, w = img.shape[:2]
         lw = min(self.layer_width, w)
         lh = max(1, min(self.layer_width // 2, h))
@@ -292,7 +313,10 @@ class IBL:
             from viewer.environment.sh import project_latlong
 
             t3 = time.perf_counter()
-            coeffs = project_latlong(img)
+            # SH9 of the map's mip level at most SH_QUICK_WIDTH wide (a solid-angle weighted box
+            # filter of the map: its l <= 2 bands are the map's to well under a percent), for the
+            # meantime as the quick prefilter: the full one brings the full map's
+            coeffs = project_latlong(self._quick_sh_source if self._quick_sh_source is not None else img)
             t_sh = time.perf_counter() - t3
             provisional = key
         else:
@@ -335,6 +359,7 @@ class IBL:
         """The map with its solid-angle weighted mip chain, built level by level on the GPU."""
         ctx = self.ctx
         h, w = img.shape[:2]
+        self._quick_sh_source = None  # the first level at most SH_QUICK_WIDTH wide, read back below
         if self.map_tex is not None:
             self.map_tex.release()
         tex = ctx.texture((w, h), 3, img.tobytes(), dtype="f4")
@@ -359,6 +384,8 @@ class IBL:
                 self._draw("ibl_downsample", scratch[1], (0, 0, dw, dh))
                 data = np.frombuffer(scratch[0].read(), dtype="f4").reshape(dh, dw, 4)[:, :, :3]
                 tex.write(np.ascontiguousarray(data).tobytes(), level=k)
+                if self._quick_sh_source is None and dw <= SH_QUICK_WIDTH:
+                    self._quick_sh_source = np.ascontiguousarray(data)
         finally:
             if scratch is not None:
                 release_gl(scratch[1], scratch[0])
@@ -390,7 +417,9 @@ class IBL:
             release_gl(fbo, tex)
 
     # ------------------------------------------------------------------ DFG
-    def _ensure_dfg(self):
+    def ensure_dfg(self) -> None:
+        """Make the DFG table now (from the disk cache, else on the GPU) unless it is made
+        (the window makes it in a frame of its own: ``viewer.app.view_prep``)."""
         if self.dfg_tex is not None:
             self._dfg_s = 0.0
             return

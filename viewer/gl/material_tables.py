@@ -107,6 +107,12 @@ class MaterialTables:
             params = params.replace(multiple_scattering=False)
         return albedo_tables(model, params)
 
+    def built(self, params, ms: bool = False) -> bool:
+        """Whether the tables of ``params`` (``ms``: and its compensation's terms) are built:
+        asking for them costs nothing."""
+        key = json.dumps(params.to_plain(), sort_keys=True)
+        return key in self._cache and (not ms or key in self._ms_cache)
+
     def ready(self, params) -> bool:
         """Whether the tables of ``params`` come without compiling a program: cached, built with
         numpy, or the GPU builder has the sampling programs of the material, its specular part

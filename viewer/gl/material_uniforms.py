@@ -38,6 +38,17 @@ class MaterialUniforms:
             if ms_scene or bool(params.get("multiple_scattering", False)):
                 self.tables.ms_terms(params)  # point and directional lights use them too
 
+    def prepared(self, scene, env_tables: bool) -> bool:
+        """Whether ``prepare(scene, env_tables)`` has nothing left to build."""
+        ms_scene = bool(getattr(scene.render, "ms_compensation", False))
+        for name in dict.fromkeys(o.material for o in scene.objects):
+            params = scene.materials[name]
+            # albedo_tables brings the compensation's terms too (its ms_f0)
+            ms = env_tables or ms_scene or bool(params.get("multiple_scattering", False))
+            if ms and not self.tables.built(params, ms):
+                return False
+        return True
+
     def measured_textures(self):
         """The 3D textures of measured BRDF tables (viewer/gl/measured_tex.py), made on first use."""
         if self._measured is None:

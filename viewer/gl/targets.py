@@ -36,11 +36,18 @@ class HdrTarget:
         self._targets = None
         self._key = None
 
+    def holds(self, w, h, samples) -> bool:
+        """Whether the targets are of this size and sample count."""
+        return self._key == self._key_of(w, h, samples)
+
+    def _key_of(self, w, h, samples):
+        samples = samples if samples > 1 else 0
+        return (w, h, min(samples, self.ctx.max_samples))
+
     def ensure(self, w, h, samples) -> FrameTargets:
         """The targets of this size and sample count."""
-        samples = samples if samples > 1 else 0
-        samples = min(samples, self.ctx.max_samples)
-        key = (w, h, samples)
+        key = self._key_of(w, h, samples)
+        samples = key[2]
         if self._key == key:
             return self._targets
         self.release()

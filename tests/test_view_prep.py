@@ -1,0 +1,309 @@
+"""A scene's first frame prepared over several frames (viewer/app/view_prep.py): the first frame
+defers every costly part and shows no image, each frame after makes at most one part (counted
+on the renderer's own state, not on the preparation's bookkeeping), the label says what is ready
+and what comes next, true of the state at every frame, and the frame drawn at the end is the one
+drawn without any preparation. Also the disk-cached DFG table (a corrupt file is recomputed) and
+the quick prefilter's SH9 from the map's mip level. No timing is asserted."""
+
+import re
+import time
+
+import numpy as np
+import pytest
+
+from viewer.app.view_prep import PREPARING
+
+SIZE = (64, 48)
+
+
+def _session(gl_ctx, scene="default", prepare=True, budget_s=0.0):
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+
+    s = Session(gl_ctx, scene, renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=False,
+                prepare_frames=prepare)
+    s.frames.prep.budget_s = budget_s   # 0: one part per frame, whatever each costs
+    return s
+
+
+def _state(s, scene):
+    """What the renderer holds of the parts of a frame of ``scene``, read from the renderer
+    itself: {part: built}."""
+    from viewer.gl.program_set import frame_switches
+
+    r = s.renderer
+    ssr_on, env_on = frame_switches(scene, False if r.traces(scene) else None)[:2]
+    env = scene.environment
+    out = {"dfg": r.ibl().dfg_tex is not None, "targets": r.output.holds(*SIZE, scene.render.msaa)}
+    for name in dict.fromkeys(o.material for o in scene.objects):
+        out[f"tables {name}"] = not (ssr_on or env_on) or r.tables.built(scene.materials[name], True)
+    for name, key in r.forward_keys(scene, raytrace=False if r.traces(scene) else None).items():
+        out[f"program {name}"] = key in r.programs
+    if env.map is not None:
+        out["sky"] = "background" in r.programs
+    return out
+
+
+def _prepare(s):
+    """Frames until the view shows its frame; per frame (state, label, hdr shown)."""
+    frames = []
+    deadline = time.monotonic() + 120  # a bound against a hang, not a timing
+    while time.monotonic() < deadline:
+        s.render_view(SIZE)
+        if s.frame_source is None or s.frame_source.form != PREPARING:
+            return frames
+        frames.append((_state(s, s.scene), s.trace_status, s.hdr))
+        time.sleep(0.002)  # the map's worker thread's turn
+    raise AssertionError("the preparation did not end")
+
+
+def _settle(s, limit=400):
+    """Frames until the view rests (a traced view's strips, tiles)."""
+    for _ in range(limit):
+        s.render_view(SIZE)
+        if not (s.dirty or s.refining):
+            return
+    raise AssertionError("the view did not settle")
+
+
+def test_the_first_frame_defers_the_costly_parts(gl_ctx):
+    s = _session(gl_ctx)
+    try:
+        s.render_view(SIZE)
+        r = s.renderer
+        assert s.frame_source.form == PREPARING and s.frame_source.scene is s.scene
+        assert s.hdr is None and s.dirty and not s.view_finished  # no image; the next frame follows
+        built = _state(s, s.scene)
+        assert not any(built.values()), built  # the DFG table, targets, tables, programs: none made
+        kinds = [p.kind for p in s.frames.prep.plan(s.scene, None, SIZE)]
+        assert kinds[:2] == ["dfg", "targets"] and {"environment", "tables", "program"} <= set(kinds)
+        assert s.trace_status == f"preparing the view: 0 of {len(kinds)} parts ready; next: the DFG table"
+        assert r.ibl().dfg_tex is None
+    finally:
+        s.release()
+
+
+# a constant sky; a sky map read beside with traced glass (slow: its traced programs compile and two
+# traced views settle, ~30 s on 2 loaded cores)
+@pytest.mark.parametrize("scene", ["default", pytest.param("lecture:2", marks=pytest.mark.slow)])
+def test_one_part_per_frame_with_a_true_label_then_the_frame_itself(gl_ctx, scene):
+    s = _session(gl_ctx, scene)
+    plain = _session(gl_ctx, scene, prepare=False)
+    try:
+        frames = _prepare(s)
+        assert len(frames) >= 5  # the placeholder, the DFG table, targets, environment, tables, programs
+        before = {k: False for k in frames[0][0]}
+        for state, label, hdr in frames:
+            assert hdr is None  # never an image while it prepares
+            made = [k for k, v in state.items() if v and not before.get(k)]
+            assert len(made) <= 1, made  # at most one part per frame
+            before = state
+            m = re.fullmatch(r"preparing the view: (\d+) of (\d+) parts ready; (?:next: (.+)|the view comes next)", label)
+            assert m, label
+            ready, total, nxt = int(m.group(1)), int(m.group(2)), m.group(3)
+            assert ready <= total
+            # the next part named is one the renderer does not hold yet
+            if nxt == "the DFG table":
+                assert not state["dfg"]
+            elif nxt == "the view's targets":
+                assert not state["targets"]
+            elif nxt and nxt.startswith("the program of "):
+                names = nxt[len("the program of "):].split(", ")
+                assert all(not state[f"program {n}"] for n in names)
+            elif nxt and nxt.startswith("the tables of "):
+                assert not state["tables " + nxt[len("the tables of "):]]
+        assert all(frames[-1][0].values()), frames[-1][0]  # everything made before the frame
+        if s.scene.environment.map is not None:
+            assert any(label.endswith("next: the sky's program") for _, label, _ in frames)
+        assert s.frame_source.form == "own" and s.hdr is not None
+        assert not s.frames.prep.active and "preparing" not in s.trace_status
+        _settle(s)
+        _settle(plain)
+        assert plain.frame_source.form == "own"
+        # the same picture as a frame drawn at once (same programs, same driver: bit for bit)
+        assert np.array_equal(s.renderer.read_linear(s.hdr), plain.renderer.read_linear(plain.hdr))
+    finally:
+        s.release()
+        plain.release()
+
+
+def test_another_scene_never_shows_the_last_ones_frame(gl_ctx):
+    s = _session(gl_ctx)
+    try:
+        _prepare(s)
+        assert s.hdr is not None
+        first = s.scene
+        s.open_scene("default")  # another scene object: its first frame is prepared too
+        assert s.scene is not first
+        s.render_view(SIZE)
+        src = s.frame_source
+        if src.form == PREPARING:  # parts to make (the environment light of the new scene)
+            assert s.hdr is None and src.scene is s.scene
+        else:  # nothing to make: drawn at once, of the new scene
+            assert src.scene is s.scene and s.hdr is not None
+        _prepare(s)
+        assert s.frame_source.scene is s.scene and s.hdr is not None
+    finally:
+        s.release()
+
+
+def test_the_stand_in_note_is_not_shown_over_the_placeholder(gl_ctx):
+    """A note about a frame drawn with grey stand-ins is true only while that frame is shown."""
+    s = _session(gl_ctx)
+    try:
+        s.render_view(SIZE)
+        s.notify("compiling ball in the background: drawn with grey stand-ins until ready",
+                 frame=(s.scene, "stand-in"))
+        assert s.last_message is None and s.status != "compiling ball in the background: drawn with grey stand-ins until ready"
+        assert s.trace_status.startswith("preparing the view")
+    finally:
+        s.release()
+
+
+def test_a_map_that_fails_to_read_is_reported_not_raised(gl_ctx, tmp_path):
+    """The environment map is read on a worker thread: a bad file's error comes back to the
+    window's thread, which reports it in one line and draws the scene as always."""
+    from viewer.scene import load_scene
+
+    s = _session(gl_ctx)
+    try:
+        bad = tmp_path / "bad.hdr"
+        bad.write_bytes(b"not an image")
+        import dataclasses
+
+        scene = load_scene("default")
+        env = dataclasses.replace(scene.environment, map=str(bad))
+        with pytest.raises(Exception):
+            env.radiance_map()  # the file is bad indeed
+        s.scene = dataclasses.replace(scene, environment=dataclasses.replace(scene.environment, map=str(bad)))
+        deadline = time.monotonic() + 60  # a bound against a hang, not a timing: the read is milliseconds
+        while not any(m.error for m in s.messages) and time.monotonic() < deadline:
+            s.render_view(SIZE)
+            time.sleep(0.005)  # the worker thread's turn
+        assert any(m.error and "bad.hdr" in m.text for m in s.messages), [m.text for m in s.messages]
+        assert not s.frames.prep.active
+    finally:
+        s.release()
+
+
+def test_a_corrupt_dfg_cache_file_is_recomputed(gl_ctx, tmp_path, monkeypatch):
+    from viewer.environment import cache
+    from viewer.gl.ibl import IBL
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    first = IBL(gl_ctx)
+    first.ensure_dfg()
+    files = list(tmp_path.glob("dfg-*.npz"))
+    assert len(files) == 1
+    want = first.dfg.copy()
+    first.release()
+    files[0].write_bytes(b"PK\x03\x04 truncated")  # a zip header and nothing after it
+    again = IBL(gl_ctx)
+    try:
+        again.ensure_dfg()  # no crash: read as a miss and computed again
+        assert np.array_equal(again.dfg, want)
+        with np.load(files[0]) as z:  # stored again, whole (atomically)
+            assert np.array_equal(z["dfg"], want)
+    finally:
+        again.release()
+    assert cache.cache_dir() == tmp_path
+
+
+def test_a_quick_prefilters_sh_comes_from_the_maps_mip_level(gl_ctx, tmp_path, monkeypatch):
+    """SH9 of the map's first mip level at most 256 wide: its texels are solid-angle weighted
+    means of the map's, so the integral (l = 0) is the map's up to float32 rounding; the l = 1, 2
+    bands see each texel's light at the texel's centre, at most half a texel's diagonal (about 1
+    degree at 256 x 128) from where it was, which moves a sun's cosine-weighted irradiance by at
+    most sin(1 degree) = 1.7 % of the largest irradiance: the bound below is 2 %."""
+    from viewer.environment.sh import irradiance, project_latlong
+    from viewer.gl.ibl import IBL
+    from viewer.scene import load_scene
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    img = load_scene("lecture:2").environment.radiance_map()
+    assert img.shape[1] > 256
+    ibl = IBL(gl_ctx)
+    ibl.defer = True
+    try:
+        ibl.set_environment(img)
+        assert ibl.stats["provisional"]
+        full = project_latlong(img)
+        assert np.abs(ibl.sh[0] - full[0]).max() < 1e-4 * np.abs(full[0]).max()  # the mean: kept
+        rng = np.random.default_rng(3)
+        n = rng.normal(size=(2000, 3))
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        e_full, e_quick = irradiance(full, n), irradiance(ibl.sh, n)
+        assert np.abs(e_quick - e_full).max() < 0.02 * e_full.max()
+        assert not np.array_equal(ibl.sh, full)  # from the mip level indeed, not the map
+    finally:
+        ibl.release()
+
+
+class _Child:
+    """The compile-ahead child as the preparation sees it: asked for a scene, answered or not."""
+
+    alive = True
+
+    def __init__(self):
+        self.asked, self.done = [], False
+
+    def request(self, scene, urgent=True, batch=0, ahead=False):
+        self.asked.append((scene, urgent))
+        return 7
+
+    def answered(self, rid):
+        return self.done
+
+
+def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkeypatch):
+    """A program part waits (the placeholder, saying so) while the child compiles it, and is made
+    on the window's thread once the child answered; without an answer it waits no longer than
+    ``CHILD_WAIT_S``."""
+    from viewer.app import view_prep
+
+    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 3600.0)  # only the answer ends the wait here
+    s = _session(gl_ctx)
+    child = s.compiles.child = _Child()
+    try:
+        for _ in range(20):
+            s.render_view(SIZE)
+            if "waiting for the background compile" in s.trace_status:
+                break
+        m = re.search(r"next: the program of (.+) \(waiting for the background compile\)$", s.trace_status)
+        assert m, s.trace_status
+        assert child.asked and child.asked[0][0].objects == s.scene.objects and child.asked[0][1]  # urgent
+        every = s.renderer.forward_keys(s.scene)
+        keys = {every[n] for n in m.group(1).split(", ")}
+        for _ in range(3):  # still waiting: the program is not made here
+            s.render_view(SIZE)
+            assert s.frame_source.form == PREPARING and not keys & set(s.renderer.programs)
+        child.done = True
+        s.render_view(SIZE)  # answered: made on this thread now
+        assert keys <= set(s.renderer.programs) and s.frame_source.form == PREPARING
+        _prepare(s)  # the other program (the child answered that request too), then the frame
+        assert s.frame_source.form == "own" and s.hdr is not None
+    finally:
+        s.compiles.child = None
+        s.release()
+    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 0.0)  # no answer: made at once
+    s = _session(gl_ctx)
+    child = s.compiles.child = _Child()
+    try:
+        _prepare(s)
+        assert child.asked and s.frame_source.form == "own" and s.hdr is not None
+    finally:
+        s.compiles.child = None
+        s.release()
+
+
+def test_parts_within_the_budget_share_a_frame(gl_ctx):
+    """With a budget no part passes, one frame makes them all: the placeholder, one frame of
+    parts, then the frame itself (the view comes as soon as a frame drawn at once would)."""
+    s = _session(gl_ctx, "default", budget_s=1e9)
+    try:
+        frames = _prepare(s)
+        assert len(frames) == 2, [label for _, label, _ in frames]
+        assert all(frames[1][0].values()), frames[1][0]   # every part made in the second frame
+        assert s.hdr is not None and s.frame_source.scene is s.scene
+    finally:
+        s.release()

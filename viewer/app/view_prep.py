@@ -1,0 +1,267 @@
+"""The view's first frame of a scene, prepared over several frames: on software OpenGL the parts
+a frame needs the first time (the DFG table, the environment light's textures, the materials'
+tables, and above all each program's machine code, which llvmpipe generates at its first draw)
+cost up to a second of the window's thread together. Where the view would draw a scene it has
+not drawn yet (the session's first frame, another scene, a lecture step), ``ViewPrep`` makes
+those parts one per frame instead, and the view meanwhile shows no image (never the last
+scene's frame) under the label ``label`` gives: what is ready and what comes next. The parts:
+
+* "the environment map" (a file read or a sky generated: numpy on a worker thread, the frames
+  meanwhile make the other parts or wait);
+* "the DFG table" (``viewer.gl.ibl.IBL.ensure_dfg``: the disk cache, else one GPU pass);
+* "the view's targets" (the HDR colour and depth targets at the view's size);
+* "the environment light" (``IBL.set_environment``: the map, its mip chain and prefilter);
+* "the tables of <material>" (``MaterialUniforms.prepare``: albedo tables, compensation terms),
+  one material per frame;
+* "the sky's program" (the background pass, drawn once into one pixel of the view's target);
+* "the program of <materials>" (each forward program the frame lacks, drawn once into one
+  pixel with the shadow and thickness passes it needs), one per frame;
+
+then the frame itself, with every program drawn before. Where the compile-ahead child runs and
+has started, a program part first waits for it (asked for the scene as drawn) up to
+``CHILD_WAIT_S``: its answer puts the program's machine code in Mesa's disk cache, and the
+window's first draw reads it. What is still to do is worked out from the renderer's state each
+frame (``plan``), so a part another frame already made (the compile-ahead child's programs, a map
+the disk cache now holds) is never made twice, and the label is the state's. The first frame of a
+preparation makes nothing: it shows the placeholder at once. ``ViewPrep`` is held by
+``viewer.app.view_frames.ViewFrames`` as ``frames.prep``; GL calls stay on the window's thread
+(one context). No imgui, no glfw."""
+
+from __future__ import annotations
+
+import dataclasses
+
+#: the FrameSource form of the view while it is prepared: no image shown
+PREPARING = "preparing"
+#: the longest wait, in seconds, for the compile-ahead child to compile a program the
+#: preparation needs, before the window makes it itself (the child's answer lets the window read
+#: the program's machine code from Mesa's disk cache: milliseconds instead of 0.2-0.5 s)
+CHILD_WAIT_S = 0.3   # at load 7-12 the child never answered within 1 s: the wait only delayed the view
+#: the seconds of parts one frame makes before it shows the placeholder (the frame goal): cheap
+#: parts (a cached DFG table, targets, a material's tables) share a frame, so the view comes
+#: about as soon as it did when the whole first frame was drawn at once
+BUDGET_S = 0.15
+#: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
+PIXEL = (0, 0, 1, 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Part:
+    """One part of the frame still to make: its ``name`` (as the label says it) and ``kind``
+    ("map", "dfg", "targets", "environment", "tables", "sky" or "program"); ``materials``: for
+    tables or a program, the materials of the scene they are for."""
+    name: str
+    kind: str
+    materials: tuple = ()
+
+
+class ViewPrep:
+    """The preparation of ``session``'s view (``on``: the window's; off, every frame is drawn
+    whole at once, as offscreen)."""
+
+    def __init__(self, session, on: bool = False):
+        self.session = session
+        self.on = on
+        self.budget_s = BUDGET_S   # 0: one part per frame
+        self.scene = None     # the session's scene being prepared (None: none)
+        self.done: list[str] = []  # the parts made for it, in order
+        self.started = False  # its placeholder frame was shown
+        self.drawn = None     # (scene as drawn, raytrace, size) of the last step: what the label plans
+        self.waiting = None   # (part, request id, since): a program the compile-ahead child makes
+        self._maps: dict = {}  # id(environment) -> (environment, thread, [error]): its map's read
+
+    @property
+    def active(self) -> bool:
+        """The view shows the placeholder while the parts of its first frame are made."""
+        return self.scene is not None
+
+    def plan(self, drawn, raytrace=None, size=None) -> list[Part]:
+        """The parts a frame of ``drawn`` (the scene as the view would draw it: the session's,
+        or its grey stand-ins) at ``size`` (w, h) still lacks, in the order they are made (the
+        environment map's read first: it runs beside the others)."""
+        from viewer.gl.ibl import holds as ibl_holds
+        from viewer.gl.program_set import frame_switches
+
+        r = self.session.renderer
+        ibl = r.ibl()
+        env = drawn.environment
+        ssr_on, env_on = frame_switches(drawn, raytrace)[:2]
+        out = []
+        read = self._map_read(env)
+        if env.map is not None and read is not True:
+            out.append(Part("the environment map", "map"))
+        if ibl.dfg_tex is None:
+            out.append(Part("the DFG table", "dfg"))
+        if size is not None and not ssr_on and not r.output.holds(size[0], size[1], drawn.render.msaa):
+            out.append(Part("the view's targets", "targets"))
+        env_map = env.radiance_map() if env.map is not None and read is True else None
+        if (env.map is not None and read is not True) or \
+                not ibl_holds(ibl, env_map, None if env_map is not None else self._env_constant(drawn)):
+            out.append(Part("the environment light", "environment"))
+        for name in dict.fromkeys(o.material for o in drawn.objects):
+            one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
+            if not r.material_uniforms.prepared(one, env_tables=ssr_on or env_on) \
+                    and not any(p.kind == "tables" and drawn.materials[p.materials[0]] == drawn.materials[name]
+                                for p in out):  # grey stand-ins share theirs
+                out.append(Part(f"the tables of {name}", "tables", (name,)))
+        if env.map is not None and not ssr_on and "background" not in r.programs:
+            out.append(Part("the sky's program", "sky"))
+        keys = r.forward_keys(drawn, raytrace=raytrace)
+        by_key: dict[str, list[str]] = {}
+        for name, key in keys.items():
+            if key not in r.programs:
+                by_key.setdefault(key, []).append(name)
+        for names in by_key.values():
+            out.append(Part(f"the program of {', '.join(names)}", "program", tuple(names)))
+        return out
+
+    @staticmethod
+    def _env_constant(scene):
+        import numpy as np
+
+        env = scene.environment
+        return np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
+
+    def needed(self, frame_source) -> bool:
+        """Whether the view's next frame is one a preparation may stand for: the session's scene
+        is not the one the view shows (its first frame, another scene), or it is being prepared."""
+        if not self.on:
+            return False
+        return self.scene is not None or frame_source is None or frame_source.scene is not self.session.scene
+
+    def step(self, drawn, size, view_mode: int = 0, raytrace=None) -> bool:
+        """One frame of the preparation of ``drawn`` at ``size`` (w, h): the placeholder first,
+        then parts until one passes ``budget_s`` (at least one per frame). True: the view shows the placeholder this frame (a part was
+        made, or none yet); False: nothing is left, the frame itself is drawn now."""
+        s = self.session
+        if self.scene is not s.scene:  # a new preparation (or another scene meanwhile)
+            self.scene, self.done, self.started, self.waiting = s.scene, [], False, None
+        self.drawn = (drawn, raytrace, size)
+        todo = self.plan(drawn, raytrace, size)
+        env = drawn.environment
+        if env.map is not None and "the environment map" not in self.done and not any(p.kind == "map" for p in todo) \
+                and id(env) in self._maps:  # read beside since the last frame: a part made
+            self.done.append("the environment map")
+        if todo and todo[0].kind == "map":
+            self._read_map(drawn.environment)  # on a worker thread: the other parts meanwhile
+            if not self.started or len(todo) == 1 or todo[1].kind == "environment":
+                self.started = True
+                return True   # waits for the map (the placeholder)
+            todo = todo[1:]
+        if not todo:
+            self.finish()
+            return False
+        if not self.started:  # the first frame: the placeholder alone, at once
+            self.started = True
+            return True
+        import time
+
+        t0 = time.perf_counter()
+        while True:
+            part = todo[0]
+            if part.kind == "program" and self._beside(drawn, part):
+                return True  # the compile-ahead child makes it: the placeholder meanwhile
+            self._make(part, drawn, size, view_mode, raytrace)
+            self.done.append(part.name)
+            if time.perf_counter() - t0 >= self.budget_s:
+                return True
+            todo = self.plan(drawn, raytrace, size)
+            if not todo or any(p.kind == "map" for p in todo):
+                return True   # the frame itself (or the map's wait) from the next frame on
+
+    def _beside(self, drawn, part: Part) -> bool:
+        """Whether to wait for the compile-ahead child, asked for ``drawn``, to compile
+        ``part``'s program (then the window's link and first draw read Mesa's disk cache:
+        milliseconds instead of a few hundred), at most ``CHILD_WAIT_S`` from when the part came
+        next; after that, or once the child answered, the part is made here."""
+        import time
+
+        s = self.session
+        now = time.monotonic()
+        if self.waiting is None or self.waiting[0] != part.name:
+            ca = s.compiles.child
+            if ca is None or not getattr(ca, "ready", True):
+                return False  # none, or still starting (seconds): no answer would come in time
+            rid = s.compiles.ask_beside(drawn)
+            if rid is None:
+                return False
+            self.waiting = (part.name, rid, now)
+        _, rid, since = self.waiting
+        ca = s.compiles.child
+        if ca is None or ca.answered(rid) or now - since > CHILD_WAIT_S:
+            return False
+        return True
+
+    def _map_read(self, env):
+        """True: ``env``'s map was read (or it has none); None: not asked yet; False: being
+        read. A read that failed raises its error here (the frame then reports it)."""
+        if env.map is None:
+            return True
+        job = self._maps.get(id(env))
+        if job is None or job[0] is not env:
+            return None
+        if job[1].is_alive():
+            return False
+        if job[2]:
+            raise job[2][0]
+        return True
+
+    def _read_map(self, env) -> None:
+        """Read (or generate) ``env``'s map on a worker thread: ``radiance_map`` decodes it once
+        and caches it on the environment, where the frames then find it."""
+        import threading
+
+        if self._map_read(env) is not None:
+            return
+        errors: list = []
+
+        def read():
+            try:
+                env.radiance_map()
+            except Exception as e:  # noqa: BLE001 - given to the window's thread, which reports it
+                errors.append(e)
+
+        t = threading.Thread(target=read, name="brdf-viewer-map-read", daemon=True)
+        self._maps = {k: v for k, v in self._maps.items() if v[1].is_alive()}  # only those running
+        self._maps[id(env)] = (env, t, errors)
+        t.start()
+
+    def finish(self) -> None:
+        """The frame itself is drawn now (or the scene went): no preparation."""
+        self.scene, self.done, self.started, self.drawn, self.waiting = None, [], False, None, None
+
+    def _make(self, part: Part, drawn, size, view_mode, raytrace) -> None:
+        r = self.session.renderer
+        if part.kind == "dfg":
+            r.ibl().ensure_dfg()
+        elif part.kind == "targets":
+            r.output.ensure(size[0], size[1], drawn.render.msaa)
+        elif part.kind == "environment":
+            env = drawn.environment
+            env_map = env.radiance_map() if env.map is not None else None
+            r.ibl().set_environment(env_map, constant=None if env_map is not None else self._env_constant(drawn))
+        elif part.kind == "tables":
+            from viewer.gl.program_set import frame_switches
+
+            ssr_on, env_on = frame_switches(drawn, raytrace)[:2]
+            one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material in part.materials])
+            r.material_uniforms.prepare(one, env_tables=ssr_on or env_on)
+        else:  # a trial draw into one pixel: the program is linked and its machine code made
+            objects = [] if part.kind == "sky" else [o for o in drawn.objects if o.material in part.materials]
+            trial = dataclasses.replace(drawn, objects=objects)
+            r.render(trial, self.session.camera, size[0], size[1], view_mode, raytrace=raytrace, region=PIXEL)
+
+    def label(self) -> str:
+        """What the view says while it is prepared: the parts ready and the one that comes next
+        (planned from the state now, so it is true of the frame shown)."""
+        if self.scene is None or self.drawn is None:
+            return ""
+        try:
+            todo = self.plan(*self.drawn)
+        except Exception:  # noqa: BLE001 - a map that failed: the next frame reports it
+            todo = []
+        n = len(self.done) + len(todo)
+        nxt = f"; next: {todo[0].name}" if todo else "; the view comes next"
+        if todo and self.waiting is not None and self.waiting[0] == todo[0].name:
+            nxt += " (waiting for the background compile)"
+        return f"preparing the view: {len(self.done)} of {n} parts ready{nxt}"
