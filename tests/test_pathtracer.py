@@ -509,12 +509,9 @@ def test_auto_pool_follows_the_scene_across_resets(tmp_path):
 def test_a_rendering_process_keeps_its_freed_memory(tmp_path):
     """Where this process renders (threads or ``workers=0``), glibc's heap keeps freed chunk arrays
     and numpy stops advising huge pages (``viewer.pathtracer.heap``: each cost a page fault or a
-    memory compaction per chunk). Checked through numpy's own getter, which reads the flag back."""
-    import numpy._core.multiarray as multiarray
-
+    memory compaction per chunk)."""
     from viewer.pathtracer import heap
 
     with ReferenceRenderer(scene_from(tmp_path, small_scene(8, 6)), workers=0) as r:
         r.step(1)
     assert heap.keep_freed_memory() == {"heap": sys.platform.startswith("linux"), "numpy": True}
-    assert multiarray._get_madvise_hugepage() is False

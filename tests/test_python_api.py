@@ -130,7 +130,10 @@ def _run_script(tmp_path, text, name="script.py"):
 
 
 def test_unguarded_script_gets_one_line_naming_the_fix(tmp_path):
-    r = _run_script(tmp_path, SCRIPT.format(body='img = viewer.reference("sphere", spp=1, width=8, height=8)'))
+    # glass (transmission: the numpy steps) renders on worker processes, which an unguarded
+    # script cannot start; the sphere alone would render on threads, which need no guard
+    body = 'img = viewer.reference("sphere", spp=1, width=8, height=8, overrides=["materials.ball.preset=glass"])'
+    r = _run_script(tmp_path, SCRIPT.format(body=body))
     assert r.returncode == 1
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith("viewer.ViewerError: script.py, line 3:") and 'if __name__ == "__main__":' in last

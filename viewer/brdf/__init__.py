@@ -406,6 +406,13 @@ def is_measured(params) -> bool:
     return get(params.model).is_measured(params)
 
 
+def lambertian_albedo(params):
+    """The RGB albedo where the material reflects as a Lambert surface, else None: its model's
+    ``lambertian_albedo`` hook."""
+    fn = get(params.model).hook("lambertian_albedo")
+    return None if fn is None else fn(params)
+
+
 def params_at(params, lam3) -> Params:
     """The material at three wavelengths ``lam3`` (nm): its model's ``params_at``."""
     return get(params.model).params_at(params, lam3)

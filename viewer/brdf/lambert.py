@@ -39,3 +39,8 @@ def sample(p, wo, u):
 
 def lobes(p):
     return Lobe.REFLECTION | Lobe.DIFFUSE
+
+
+def lambertian_albedo(p):
+    """The albedo: a Lambert surface everywhere (the model hook)."""
+    return np.broadcast_to(np.asarray(p["albedo"], dtype=np.float64), (3,)).copy()

@@ -403,6 +403,9 @@ HOOKS = {h.name: h for h in (
          "'field'} | {'type': 'conductor', 'eta', 'k', 'field'} | {'type': 'schlick', 'f0', 'field'} | None"),
     Hook("ibl_split", "function", ("p",), "None (no specular part: diffuse image-based lighting)",
          "(specular params, alpha[, diffuse albedo]): the part the split-sum prefilter serves and its width"),
+    Hook("lambertian_albedo", "function", ("p",), "None (not a Lambert reflector)",
+         "the RGB albedo where p reflects as a Lambert surface (f = albedo / pi everywhere), else None: "
+         "what the raster's thin shells see of a floor in their reflections"),
     Hook("splits_u", "function", ("p",), "False",
          "True when sample splits u[:, 0] into a lobe choice and a continuous part (split_uniform)"),
     Hook("eval_mean", "function", ("p", "wi", "wo"), "eval",

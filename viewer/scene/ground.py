@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viewer import brdf
+
 
 @dataclass(frozen=True)
 class Ground:
@@ -44,7 +46,7 @@ def ground_plane(scene) -> Ground | None:
     best, best_area = None, 0.0
     for obj in scene.objects:
         params = scene.materials.get(obj.material)
-        if obj.mesh != "plane" or params is None or params.model != "lambert":
+        if obj.mesh != "plane" or params is None or brdf.lambertian_albedo(params) is None:
             continue
         s = np.broadcast_to(np.asarray(obj.scale, dtype=np.float64), (3,))
         area = float(s[0] * s[2])
@@ -58,6 +60,6 @@ def ground_plane(scene) -> Ground | None:
     # the model matrix maps the mesh's (x, z) to world (c s_x x + sn s_z z, -sn s_x x + c s_z z)
     # (SceneObject.model_matrix: T R_y S); its inverse: R_y transposed, then 1 / scale
     to_local = np.array([[c / s[0], -sn / s[0]], [sn / s[2], c / s[2]]])
-    albedo = np.broadcast_to(np.asarray(params.get("albedo", 0.0), dtype=np.float64), (3,)).copy()
+    albedo = brdf.lambertian_albedo(params)
     return Ground(origin=np.asarray(obj.translate, dtype=np.float64).copy(), to_local=to_local, albedo=albedo)
 
