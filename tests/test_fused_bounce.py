@@ -25,7 +25,7 @@ pytest.importorskip("numba")
 from viewer import brdf  # noqa: E402
 from viewer.pathtracer import compiled, kernel_embree  # noqa: E402
 from viewer.pathtracer.fused import FusedBounce  # noqa: E402
-from viewer.pathtracer.integrator import KEY_SALT, Integrator, philox  # noqa: E402
+from viewer.pathtracer.integrator import KEY_SALT, Integrator, philox, philox_key  # noqa: E402
 from viewer.reference_common.setup import RenderSetup  # noqa: E402
 from viewer.scene import load_scene  # noqa: E402
 
@@ -111,7 +111,7 @@ def test_the_compiled_camera_rays_are_the_integrators(tmp_path):
             cols.append(pix % W)
             jit.append(philox(seed, b, si).random((pix.size, 2)))
     want_o, want_d = it.camera_rays(np.concatenate(rows), np.concatenate(cols), np.concatenate(jit))
-    o, d, _ = it.fused.camera_rays(it, blocks, samples, seed)
+    o, d, _ = it.fused.camera_rays(it, blocks, samples, philox_key(seed))
     assert o.shape == want_o.shape == (len(samples) * setup.height * W, 3)
     assert np.array_equal(o, want_o) and np.array_equal(d, want_d)
 

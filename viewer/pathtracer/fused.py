@@ -37,7 +37,6 @@ from viewer.pathtracer.compiled import (
     HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, embree_intersect1,
     embree_occluded1, embree_ray1, lambert_eval1, lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1,
     microfacet_sample1, nee_term1, nee_test1, shade_hit1, material_rows, stream_numbers2, stream_numbers5)
-from viewer.pathtracer.integrator import DIMS_PER_BOUNCE, KEY_SALT, PathState
 from viewer.pathtracer.kernel_embree import F32_MAX_T
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 
@@ -47,10 +46,9 @@ njit = compiled.njit
 LAMBERT, MICROFACET = 0, 1
 STRATEGY = {"mis": 0, "bsdf": 1, "light": 2}
 POINT, DIRECTIONAL = 0, 1
-DIMS = 5                     # numbers per path and bounce (``compiled.stream_numbers5``)
+DIMS = 5                     # numbers per path and bounce (integrator.DIMS_PER_BOUNCE; ``compiled.stream_numbers5``)
 JITTER = 2                   # numbers per path drawn for the camera ray before the first bounce
 NO_BLOCK = np.uint64(2**64 - 1)   # no Philox block cached
-assert DIMS == DIMS_PER_BOUNCE
 
 
 # ----------------------------------------------------------------------------- per path
@@ -422,14 +420,14 @@ class FusedBounce:
         d = np.ascontiguousarray(d, np.float64)
         return self._bounces(it, paths, np.arange(n, dtype=np.int64), o, d, None, draw)
 
-    def camera_rays(self, it, blocks, samples, seed: int):
+    def camera_rays(self, it, blocks, samples, key):
         """The camera rays (o, d) of ``Integrator.render_blocks``' wavefront (blocks ``(row0,
         row1, block_id)``, block by block and sample by sample), computed: each path's jitter is
-        the first two numbers of its pixel in the stream ``philox(seed, block, sample)``, as
-        ``Integrator._block_streams`` draws them, and the ray ``Integrator.camera_rays``' in the
-        same arithmetic. Returns (o, d) (views of this object's buffers) and what the bounces'
-        numbers are computed from: (key 0, key 1, each path's stream and pixel, the streams'
-        counter words 2 and 3, their paths' counts)."""
+        the first two numbers of its pixel in the stream ``philox(seed, block, sample)`` (``key``:
+        its Philox key, ``integrator.philox_key``), as ``Integrator._block_streams`` draws them,
+        and the ray ``Integrator.camera_rays``' in the same arithmetic. Returns (o, d) (views of
+        this object's buffers) and what the bounces' numbers are computed from: (key 0, key 1,
+        each path's stream and pixel, the streams' counter words 2 and 3, their paths' counts)."""
         s = it.s
         W = s.width
         counts = np.array([(r1 - r0) * W for r0, r1, _ in blocks for _ in samples], np.int64)
@@ -438,23 +436,22 @@ class FusedBounce:
         c3 = np.array([int(si) & 0xFFFFFFFFFFFFFFFF for _ in blocks for si in samples], np.uint64)
         n = int(counts.sum())
         self._buffers(n)
-        key = (np.uint64(int(seed) & 0xFFFFFFFFFFFFFFFF), np.uint64(KEY_SALT))
+        key = (np.uint64(key[0]), np.uint64(key[1]))
         o, d = self._o[0][:n], self._d[0][:n]
         cam = [np.ascontiguousarray(v, np.float64) for v in (s.cam_pos, s.cam_forward, s.cam_right, s.cam_up)]
         _camera_rays(counts, row0, W, s.height, float(s.tan_half_y), s.width / s.height, *cam, *key, c2, c3,
                      self._stream, self._pix, o, d)
         return o, d, key + (self._stream, self._pix, c2, c3, counts)
 
-    def render(self, it, blocks, samples, seed: int):
-        """``Integrator.render_blocks``' radiance (N, 3) of its wavefront before the final check
-        for NaN: the camera rays (``camera_rays``) and every bounce's numbers computed from the
-        paths' Philox streams (``DIMS`` numbers per path and bounce after the jitter, what
-        ``Integrator._block_streams`` and ``BounceDraws`` draw), so the image is the numpy
-        steps' to roundoff; with Embree's ``DirectScene`` every bounce in one call."""
-        o, d, numbers = self.camera_rays(it, blocks, samples, seed)
+    def render(self, it, paths, blocks, samples, key):
+        """``Integrator.render_blocks``' radiance ``paths.L`` (``paths``: the state of its
+        wavefront's N paths) before the final check for NaN: the camera rays (``camera_rays``)
+        and every bounce's numbers computed from the paths' Philox streams (``DIMS`` numbers per
+        path and bounce after the jitter, what ``Integrator._block_streams`` and ``BounceDraws``
+        draw), so the image is the numpy steps' to roundoff; with Embree's ``DirectScene`` every
+        bounce in one call."""
+        o, d, numbers = self.camera_rays(it, blocks, samples, key)
         n = o.shape[0]
-        it.sample_of_path = np.repeat(np.array([si for _ in blocks for si in samples], np.int64), numbers[-1])
-        paths = PathState(n, 3)
         if self.direct is None:
             return self._bounces(it, paths, np.arange(n, dtype=np.int64), o, d, 0, numbers)
         rays, args = self._args(it)

@@ -91,6 +91,11 @@ def make_kernel(triangles, kind: str = "embree"):
     return EmbreeKernel(triangles)
 
 
+def philox_key(seed: int) -> tuple[int, int]:
+    """The Philox key of the streams of ``seed`` (``philox``)."""
+    return int(seed) & 0xFFFFFFFFFFFFFFFF, KEY_SALT
+
+
 def philox(seed: int, block: int, sample: int) -> np.random.Generator:
     """The counter-based stream of (seed, block of pixels, sample index): Philox4x64 keyed by
     the seed, its counter starting at (0, 0, block, sample); draws advance the lowest word only,
@@ -148,6 +153,14 @@ def fused_bounce(it):
     from viewer.pathtracer.fused import plan  # numba: only where paths are traced
 
     return plan(it)
+
+
+def fused_render(it, blocks, samples, seed: int):
+    """``Integrator.render_blocks``' radiance of its wavefront by the fused bounce of ``it``
+    (``fused.FusedBounce.render``: the camera rays and every number computed in the loop)."""
+    counts = [(r1 - r0) * it.s.width for r0, r1, _ in blocks for _ in samples]
+    it.sample_of_path = np.repeat(np.array([si for _ in blocks for si in samples], np.int64), counts)
+    return it.fused.render(it, PathState(sum(counts), it.CHANNELS), blocks, samples, philox_key(seed))
 
 
 # ----------------------------------------------------------------------------- integrator
@@ -376,11 +389,10 @@ class Integrator:
         and sample's stream as ``render_block`` does, so each block's sums are the same."""
         samples = list(samples)
         if self.fused is not None:   # the camera rays and every number compiled too (fused.py)
-            L = self._final(self.fused.render(self, blocks, samples, seed))
+            L = self._final(fused_render(self, blocks, samples, seed))
         else:
             gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
-            o, d = self.camera_rays(rows, cols, jit)
-            L = self.trace(o, d, self._bounce_draws(gens, counts))
+            L = self.trace(*self.camera_rays(rows, cols, jit), self._bounce_draws(gens, counts))
         out, off = [], 0
         for r0, r1, _ in blocks:
             n = len(samples) * (r1 - r0) * self.s.width
@@ -390,10 +402,9 @@ class Integrator:
         return out
 
     def warm(self):
-        """Trace one ray onto each material's first triangle (the spectral integrator and the
-        fused bounce: one row of the image), the result thrown away: the compiled kernels
-        (``viewer.pathtracer.compiled``, ``fused``) a render of this scene calls are loaded from
-        numba's cache (or compiled, the first time) now rather than in the first chunk."""
+        """Trace one ray onto each material's first triangle (or render a row, below), the result
+        thrown away: the compiled kernels (``viewer.pathtracer.compiled``, ``fused``) a render of
+        this scene calls are loaded from numba's cache (or compiled) now, not in the first chunk."""
         geom = self.geom
         mats = geom.material_index
         idx = np.array([np.flatnonzero(mats == m)[0] for m in np.unique(mats)], dtype=np.int64)
@@ -406,8 +417,7 @@ class Integrator:
         draw = lambda: rng.random((idx.size, DIMS_PER_BOUNCE))  # noqa: E731
         if self.CHANNELS == 3 and self.fused is None:
             self.trace(o, -n, draw)
-        else:  # (the spectral integrator's paths carry wavelengths, and the fused bounce renders a
-            # chunk with kernels of its own (fused.py): a row of its own image)
+        else:  # (spectral paths carry wavelengths; the fused bounce renders with its own kernels)
             mid = self.s.height // 2
             self.render_block(mid, mid + 1, [0], 0, 0)
 
