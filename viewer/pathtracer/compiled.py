@@ -17,7 +17,9 @@ the fused bounce (``fused.py``) calls the same per-path functions from its one l
   spectral table), with or without its diffuse base, no film or random walk: ``eval``, ``pdf``
   and ``sample_lobe`` with the twin's
   interface, arguments and random numbers, so the estimator and its random streams are
-  unchanged. ``CompiledLambert`` (``lambert_*1``): ``viewer.brdf.lambert`` the same way.
+  unchanged. ``CompiledLambert`` (``lambert_*1``): ``viewer.brdf.lambert`` the same way. Both
+  are ``CompiledStandIn``s: the interface's wrappers are written once there, and each stand-in
+  states only its baked-in data and the compiled loops that take them.
   ``compiled_model`` says which materials they take (any other is evaluated by its numpy twin).
 * ``constant_env_sample`` (``constant_env_sample1``, ``constant_env_pdf1``): light sampling of
   a constant environment (``viewer.reference_common.envmap.EnvironmentLight.sample`` / ``pdf``:
@@ -109,7 +111,8 @@ from viewer.brdf.lobes import Lobe
 from viewer.brdf.sampling import F_MAX, INV_PI
 from viewer.geometry.soup import EPS_REL, hit_points, interpolate_shading, shading_frame
 
-__all__ = ["hit_shading", "hit_shading_numpy", "CompiledMicrofacet", "compiled_model", "constant_env_sample",
+__all__ = ["hit_shading", "hit_shading_numpy", "CompiledStandIn", "CompiledMicrofacet", "CompiledLambert",
+           "compiled_model", "constant_env_sample",
            "embree_rays", "embree_rays_numpy", "embree_hits", "embree_hits_numpy", "nee_candidates", "nee_candidates_numpy",
            "embree_intersect", "embree_occluded", "draw_paths", "philox_uniform1"]
 
@@ -497,14 +500,55 @@ def material_rows(models) -> np.ndarray:
     return md
 
 
-class CompiledMicrofacet:
-    """The microfacet model of one material (see ``compiled_model``) with the interface the
-    integrator uses of a ``viewer.brdf.Model``: ``eval``, ``pdf``, ``sample_lobe`` on (N, 3)
-    local directions; ``p`` is accepted and must be the material's parameters (they are baked
-    in). ``eval`` takes ``wi`` as r stacked sets of the N ``wo`` (``wo`` given once or tiled)."""
+def _f64(a):
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+class CompiledStandIn:
+    """What the compiled stand-ins of a material's model share: the interface the integrator
+    uses of a ``viewer.brdf.Model`` (``lobes``, and ``eval``, ``pdf``, ``sample_lobe`` on (N, 3)
+    local directions; ``p`` is accepted and must be the material's parameters: a stand-in bakes
+    them in; ``eval`` takes ``wi`` as r stacked sets of the N ``wo``, ``wo`` given once or
+    tiled), the inputs made contiguous float64 and the outputs allocated here. A subclass bakes
+    in its material's data (``__init__``, after this one's) and states how its compiled loops
+    take them: ``_eval_into(wi, wo, out)``, ``_pdf_into(wi, wo, out)`` and ``_sample_into(wo, u,
+    wi, weight, pdf)``, each filling the arrays it is given."""
 
     def __init__(self, p, twin):
         self.twin = twin
+        own = twin.lobes(p)
+        # what sample_lobe reports of every sample: delta where the model is, else its smooth lobes, reflected
+        self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
+
+    def lobes(self, p=None):
+        return self.twin.lobes(p)
+
+    def eval(self, p, wi, wo):
+        wi, wo = _f64(wi), _f64(wo)
+        out = np.empty((wi.shape[0], 3))
+        self._eval_into(wi, wo, out)
+        return out
+
+    def pdf(self, p, wi, wo):
+        wi, wo = _f64(wi), _f64(wo)
+        out = np.empty(wi.shape[0])
+        self._pdf_into(wi, wo, out)
+        return out
+
+    def sample_lobe(self, p, wo, u):
+        wo, u = _f64(wo), _f64(u)
+        n = wo.shape[0]
+        wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+        self._sample_into(wo, u, wi, weight, pdf)
+        return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
+
+
+class CompiledMicrofacet(CompiledStandIn):
+    """The microfacet model of one material (see ``compiled_model``); its alphas, Fresnel data
+    and diffuse base are baked in (``material_rows``)."""
+
+    def __init__(self, p, twin):
+        super().__init__(p, twin)
         self.ax = float(p.alpha_x)
         self.ay = float(p.alpha_y)
         if p.fresnel == "conductor":
@@ -518,33 +562,15 @@ class CompiledMicrofacet:
         else:
             self.table = np.zeros((0, 3))
         self.md = material_rows([self])   # the data as the per-path functions read it
-        own = twin.lobes(p)
-        self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
 
-    def lobes(self, p=None):
-        return self.twin.lobes(p)
-
-    def eval(self, p, wi, wo):
-        wi = np.ascontiguousarray(wi, dtype=np.float64)
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        out = np.empty((wi.shape[0], 3))
+    def _eval_into(self, wi, wo, out):
         _mf_eval(wi, wo, self.ax, self.ay, self.md, out)
-        return out
 
-    def pdf(self, p, wi, wo):
-        wi = np.ascontiguousarray(wi, dtype=np.float64)
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        out = np.empty(wi.shape[0])
+    def _pdf_into(self, wi, wo, out):
         _mf_pdf(wi, wo, self.ax, self.ay, self.md, out)
-        return out
 
-    def sample_lobe(self, p, wo, u):
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        u = np.ascontiguousarray(u, dtype=np.float64)
-        n = wo.shape[0]
-        wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+    def _sample_into(self, wo, u, wi, weight, pdf):
         _mf_sample(wo, u, self.ax, self.ay, self.md, wi, weight, pdf)
-        return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
 # ----------------------------------------------------------------------------- Lambert
@@ -593,40 +619,21 @@ def _lambert_sample(wo, u, alb, wi, weight, pdf):
          pdf[j]) = lambert_sample1(wo[j, 2], u[j, 0], u[j, 1], alb[0], alb[1], alb[2])
 
 
-class CompiledLambert:
-    """The Lambert model of one material (``viewer.brdf.lambert``) with the interface of
-    ``CompiledMicrofacet``; the albedo is baked in."""
+class CompiledLambert(CompiledStandIn):
+    """The Lambert model of one material (``viewer.brdf.lambert``); the albedo is baked in."""
 
     def __init__(self, p, twin):
-        self.twin = twin
+        super().__init__(p, twin)
         self.albedo = np.ascontiguousarray(np.asarray(p.albedo, dtype=np.float64).reshape(3))
-        own = twin.lobes(p)
-        self.lobe = np.uint8((Lobe.DELTA if own.is_delta else own & lobes_mod.SMOOTH) | Lobe.REFLECTION)
 
-    def lobes(self, p=None):
-        return self.twin.lobes(p)
-
-    def eval(self, p, wi, wo):
-        wi = np.ascontiguousarray(wi, dtype=np.float64)
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        out = np.empty((wi.shape[0], 3))
+    def _eval_into(self, wi, wo, out):
         _lambert_eval(wi, wo, self.albedo, out)
-        return out
 
-    def pdf(self, p, wi, wo):
-        wi = np.ascontiguousarray(wi, dtype=np.float64)
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        out = np.empty(wi.shape[0])
+    def _pdf_into(self, wi, wo, out):
         _lambert_pdf(wi, wo, out)
-        return out
 
-    def sample_lobe(self, p, wo, u):
-        wo = np.ascontiguousarray(wo, dtype=np.float64)
-        u = np.ascontiguousarray(u, dtype=np.float64)
-        n = wo.shape[0]
-        wi, weight, pdf = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+    def _sample_into(self, wo, u, wi, weight, pdf):
         _lambert_sample(wo, u, self.albedo, wi, weight, pdf)
-        return wi, weight, pdf, np.full(n, self.lobe, dtype=lobes_mod.DTYPE)
 
 
 def compiled_model(p, twin):
