@@ -74,7 +74,7 @@ def _clean(x):
 
 # ----------------------------------------------------------------------------- one bounce
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, computed, k0, k1, stream, pix, ctr2, ctr3, first,
            direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
@@ -253,7 +253,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, computed, k0, k1, st
     return n_out, ns
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _add_unoccluded(L, s_idx, s_c, blocked, ns):
     """Integrator._trace_shadows' sum: the unoccluded shadow rays' contributions, in ray order."""
     for j in range(ns):
@@ -265,7 +265,7 @@ def _add_unoccluded(L, s_idx, s_c, blocked, ns):
 
 # ----------------------------------------------------------------------------- a chunk
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _camera_rays(counts, row0, width, height, tan_half_y, aspect, pos, fwd, right, up, k0, k1, c2, c3,
                  stream, pix, o, d):
     """``Integrator._block_streams`` and ``camera_rays`` for the streams ``(c2, c3)`` = (block,
@@ -300,7 +300,7 @@ def _firsts(counts, depth, first):
         first[s] = np.uint64(counts[s]) * np.uint64(JITTER + DIMS * (depth - 1))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _trace_direct(n, max_depth, k0, k1, stream, pix, c2, c3, counts, first, on, centre, scene, fn_hit, fn_occ, rh,
                   tris, vnorm, vtan, gnorm, mat_index, trans_table,
                   kinds, nee_on, delta, albedo, ax, ay, md,
