@@ -15,10 +15,19 @@ before the loop, the shadow rays are written out, and ``_add_unoccluded`` adds t
 ones' contributions after a batched occlusion query. The next wavefront (compacted, in path
 order) goes into arrays allocated once per wavefront size.
 
+``FusedBounce.render`` is ``Integrator.render_blocks``' wavefront: the camera rays
+(``_camera_rays``) and every bounce's random numbers are computed here, each path's from its
+Philox stream ``philox(seed, block, sample)`` (``compiled.stream_numbers5``: the two numbers
+of the jitter, then five per bounce at the offsets numpy's draws would give them; a path
+reuses the Philox block its neighbour in the stream ended in, and a ray that misses draws
+nothing), and with a ``DirectScene`` all of a chunk's bounces run in one compiled call
+(``_trace_direct``). ``FusedBounce.trace`` takes rays and a ``draw()`` from the caller
+(``Integrator.trace``).
+
 Nothing here is a formula of its own: the per-path steps are the functions of
 ``viewer.pathtracer.compiled`` (each tested against its numpy twin), called in the order of the
-numpy steps and on the same random numbers (``rnd[:, 0:2]`` the BSDF, ``rnd[:, 2:4]`` the
-environment, ``rnd[:, 4]`` roulette), so an image agrees with the numpy path to roundoff
+numpy steps and on the same random numbers (of a path's five a bounce: two the BSDF's, two the
+environment's, one roulette's), so an image agrees with the numpy path to roundoff
 (tests/test_fused_bounce.py), and a seed gives the same image every time.
 
 Where it applies (``plan``): the RGB path tracer itself (not the spectral or photon
