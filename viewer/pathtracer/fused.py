@@ -20,9 +20,10 @@ order) goes into arrays allocated once per wavefront size.
 Philox stream ``philox(seed, block, sample)`` (``compiled.stream_numbers5``: the two numbers
 of the jitter, then five per bounce at the offsets numpy's draws would give them; a path
 reuses the Philox block its neighbour in the stream ended in, and a ray that misses draws
-nothing), and with a ``DirectScene`` all of a chunk's bounces run in one compiled call
-(``_trace_direct``). ``FusedBounce.trace`` takes rays and a ``draw()`` from the caller
-(``Integrator.trace``).
+nothing). ``FusedBounce.trace`` takes rays and a ``draw()`` from the caller
+(``Integrator.trace``). (All of a chunk's bounces in one compiled call would save the Python
+call of ``_shade`` per bounce, about 1.5% of a chunk's time, but LLVM inlines ``_shade`` into
+that caller, so a fresh environment would compile it twice: 9 more CPU seconds.)
 
 Nothing here is a formula of its own: the per-path steps are the functions of
 ``viewer.pathtracer.compiled`` (each tested against its numpy twin), called in the order of the
@@ -301,48 +302,6 @@ def _camera_rays(counts, row0, width, height, tan_half_y, aspect, pos, fwd, righ
     return a
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _firsts(counts, depth, first):
-    """Per stream, the index of its first number of bounce ``depth`` (from 1): the jitter, then
-    ``DIMS`` numbers per path for each bounce before."""
-    for s in range(counts.shape[0]):
-        first[s] = np.uint64(counts[s]) * np.uint64(JITTER + DIMS * (depth - 1))
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _trace_direct(n, max_depth, k0, k1, stream, pix, c2, c3, counts, first, on, centre, scene, fn_hit, fn_occ, rh,
-                  tris, vnorm, vtan, gnorm, mat_index, trans_table,
-                  kinds, nee_on, delta, albedo, ax, ay, md,
-                  lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
-                  L, T, prev_pdf, prev_lpdf, prev_delta,
-                  act, o, d, act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad):
-    """``FusedBounce.trace``'s bounces with Embree called from the loop, all in one call: the
-    ``n`` paths along (o, d) (the camera rays), each bounce's numbers computed from the paths'
-    streams; (act, o, d) and (act_out, o_out, d_out) take turns holding the wavefront. ``on``:
-    True (an argument, not a constant: ``_shade`` is compiled for the types of its calls from
-    Python, and a constant would be typed apart and compile it once more)."""
-    for i in range(n):
-        act[i] = i
-    m = n
-    no_rnd, no_i, no_f = np.zeros((0, DIMS)), np.zeros(0, np.int64), np.zeros(0)
-    for depth in range(1, max_depth + 2):
-        if m == 0:
-            break
-        scatter = depth <= max_depth
-        _firsts(counts, depth, first)
-        m_out, _ = _shade(depth, scatter, m, act, o, d, no_i, no_f, no_f, no_rnd, on, k0, k1, stream, pix, c2, c3,
-                          first, on, centre, scene, fn_hit, fn_occ, rh, tris, vnorm, vtan, gnorm, mat_index,
-                          trans_table, kinds, nee_on, delta, albedo, ax, ay, md, lkind, lpos, lval, env, env_on,
-                          env_by_light, env_by_bsdf, strategy, power, roulette, L, T, prev_pdf, prev_lpdf,
-                          prev_delta, act_out, o_out, d_out, s_idx, s_o, s_d, s_tmax, s_c, bad)
-        if not scatter:
-            break
-        act, act_out = act_out, act
-        o, o_out = o_out, o
-        d, d_out = d_out, d
-        m = m_out
-
-
 # ----------------------------------------------------------------------------- the integrator's side
 
 def plan(it) -> "FusedBounce | None":
@@ -457,20 +416,9 @@ class FusedBounce:
         wavefront's N paths) before the final check for NaN: the camera rays (``camera_rays``)
         and every bounce's numbers computed from the paths' Philox streams (``DIMS`` numbers per
         path and bounce after the jitter, what ``Integrator._block_streams`` and ``BounceDraws``
-        draw), so the image is the numpy steps' to roundoff; with Embree's ``DirectScene`` every
-        bounce in one call."""
+        draw), so the image is the numpy steps' to roundoff."""
         o, d, numbers = self.camera_rays(it, blocks, samples, key)
-        n = o.shape[0]
-        if self.direct is None:
-            return self._bounces(it, paths, np.arange(n, dtype=np.int64), o, d, 0, numbers)
-        rays, args = self._args(it)
-        bad = np.zeros(1, np.int64)
-        _trace_direct(n, it.s.max_depth, *numbers, np.empty(len(numbers[-1]), np.uint64), *rays, *args,
-                      paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf, paths.prev_delta,
-                      self._act[0], self._o[0], self._d[0], self._act[1], self._o[1], self._d[1],
-                      self._s_idx, self._s_o, self._s_d, self._s_tmax, self._s_c, bad)
-        it.bad_values += int(bad[0])
-        return paths.L
+        return self._bounces(it, paths, np.arange(o.shape[0], dtype=np.int64), o, d, 0, numbers)
 
     def _bounces(self, it, paths, act, o, d, held, rnd_of):
         """The bounces of the paths ``act`` along (o, d) (``held``: which of the two buffer sets
