@@ -1,12 +1,14 @@
 """The whole bounce compiled (viewer/pathtracer/fused.py) against the integrator's numpy steps,
-and the compiled pieces it rests on: Embree called ray by ray (``kernel_embree.DirectScene``)
+and the compiled pieces it rests on: its camera rays against ``Integrator.camera_rays`` on the
+jitter numpy's ``Philox`` streams hold, Embree called ray by ray (``kernel_embree.DirectScene``)
 against embreex's batched queries, the Philox numbers computed path by path
-(``compiled.draw_paths``) against numpy's ``Philox``, the compiled Lambert against its twin.
+(``compiled.draw_paths``, ``compiled.stream_numbers5``) against numpy's ``Philox``, the compiled
+Lambert against its twin.
 
 Tolerances: the fused loop runs the numpy steps' arithmetic on the same random numbers and the
 same ray queries, so images agree to a few float64 roundings (1e-12 relative: a formula error
-or one random number out of place shows at 1e-3 and up); the random numbers and Lambert's
-values are exact; Embree's two scenes may split a tie between triangles sharing an edge
+or one random number out of place shows at 1e-3 and up); the random numbers, the camera rays
+(the same operations in the same order on the same numbers) and Lambert's values are exact; Embree's two scenes may split a tie between triangles sharing an edge
 differently and round a hit differently in float32, so hits are compared on all but a few in
 ten thousand rays, to float32 roundoff.
 """
@@ -23,7 +25,7 @@ pytest.importorskip("numba")
 from viewer import brdf  # noqa: E402
 from viewer.pathtracer import compiled, kernel_embree  # noqa: E402
 from viewer.pathtracer.fused import FusedBounce  # noqa: E402
-from viewer.pathtracer.integrator import KEY_SALT, Integrator, philox  # noqa: E402
+from viewer.pathtracer.integrator import KEY_SALT, Integrator, philox, philox_key  # noqa: E402
 from viewer.reference_common.setup import RenderSetup  # noqa: E402
 from viewer.scene import load_scene  # noqa: E402
 
@@ -48,8 +50,8 @@ def _scene(tmp_path, *, spectral="none", floor=None, ball=None):
 
 
 def _render(it, setup, seed=7):
-    """Two chunks of two blocks each, 3 samples: the fused loop switches to computed random
-    numbers in the later bounces (fused.DRAW_ALIVE_SHARE)."""
+    """Two blocks in one chunk, 3 samples: the fused path computes the camera rays and every
+    bounce's numbers itself, the numpy steps draw them from numpy's ``Philox`` streams."""
     h = setup.height // 2
     out = it.render_blocks([(0, h, 0), (h, setup.height, 1)], [0, 1, 2], seed)
     return np.concatenate([s for s, _ in out]), np.concatenate([s2 for _, s2 in out])
@@ -74,6 +76,44 @@ def test_the_fused_bounce_equals_the_numpy_steps(tmp_path, strategy, heuristic, 
     assert np.abs(sa - sb).max() <= 1e-12 * scale
     assert np.abs(qa - qb).max() <= 1e-12 * max(1.0, float(np.abs(qb).max()))
     assert a.bad_values == b.bad_values == 0
+
+
+def test_the_fused_bounce_traces_given_rays_with_drawn_numbers_as_the_numpy_steps(tmp_path):
+    """``Integrator.trace`` (what ``warm`` runs): rays and a ``draw()`` from the caller."""
+    setup = RenderSetup.from_scene(_scene(tmp_path), max_depth=6)
+    a, b = Integrator(setup), Integrator(setup)
+    b.fused = None
+    rng = np.random.default_rng(5)
+    n = 3000
+    o = np.tile([0.0, 1.2, 3.5], (n, 1))
+    d = np.array([0.0, -0.2, -1.0]) + rng.normal(size=(n, 3)) * 0.2
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    out = []
+    for it in (a, b):
+        g = np.random.default_rng(9)
+        out.append(it.trace(o, d, lambda g=g: g.random((n, 5))))
+    assert out[0].mean() > 0.05
+    assert np.abs(out[0] - out[1]).max() <= 1e-12 * max(1.0, float(np.abs(out[1]).max()))
+
+
+def test_the_compiled_camera_rays_are_the_integrators(tmp_path):
+    """Each path's jitter is the first two numbers of its pixel in ``philox(seed, block,
+    sample)``; the rays are ``Integrator.camera_rays``' to the last bit."""
+    setup = RenderSetup.from_scene(_scene(tmp_path), max_depth=2)
+    it = Integrator(setup)
+    W = setup.width
+    blocks, samples, seed = [(0, 5, 0), (5, setup.height, 2**40 + 3)], [0, 2, 7], 2**63 + 5
+    rows, cols, jit = [], [], []
+    for r0, r1, b in blocks:
+        pix = np.arange((r1 - r0) * W)
+        for si in samples:
+            rows.append(r0 + pix // W)
+            cols.append(pix % W)
+            jit.append(philox(seed, b, si).random((pix.size, 2)))
+    want_o, want_d = it.camera_rays(np.concatenate(rows), np.concatenate(cols), np.concatenate(jit))
+    o, d, _ = it.fused.camera_rays(it, blocks, samples, philox_key(seed))
+    assert o.shape == want_o.shape == (len(samples) * setup.height * W, 3)
+    assert np.array_equal(o, want_o) and np.array_equal(d, want_d)
 
 
 def test_a_seed_gives_the_same_image_and_another_seed_another(tmp_path):
@@ -122,6 +162,23 @@ def test_philox_numbers_computed_path_by_path_are_numpys():
         ref = np.concatenate([w[b] for w in want])[act]
         assert np.array_equal(got, ref)
         assert np.all(np.delete(rnd, act, axis=0) == -1.0)      # other rows untouched
+
+
+def test_five_numbers_computed_inline_are_numpys():
+    """``compiled.stream_numbers5``: numbers q .. q + 4 of a stream, at every offset in a Philox
+    block, with the block a neighbour computed reused or computed anew."""
+    seed, c2, c3 = 2**64 - 7, 2**40 + 3, 9
+    want = philox(seed, c2, c3).random(200)
+    k0, k1 = np.uint64(seed), np.uint64(KEY_SALT)
+    blk, words = np.uint64(2**64 - 1), (np.uint64(0),) * 4
+    for q in list(range(0, 190, 5)) + [3, 6, 101, 102]:   # consecutive paths, then jumps
+        *u, blk, words = compiled.stream_numbers5(np.uint64(q), np.uint64(c2), np.uint64(c3), k0, k1, blk, words)
+        assert np.array_equal(u, want[q:q + 5])
+        blk, words = np.uint64(blk), tuple(np.uint64(x) for x in words)   # (numba hands back Python ints)
+    for q in (0, 2, 100, 198):
+        u0, u1, _, _ = compiled.stream_numbers2(np.uint64(q), np.uint64(c2), np.uint64(c3), k0, k1,
+                                                np.uint64(2**64 - 1), (np.uint64(0),) * 4)
+        assert (u0, u1) == (want[q], want[q + 1])
 
 
 def test_embree_ray_by_ray_matches_the_batched_queries(monkeypatch):

@@ -1094,3 +1094,48 @@ def nee_candidates_numpy(wl, ww, ng, sel, p, eps, T, f, fac, share, extra_ok, tr
     ok &= np.any(c > 0, axis=1)
     side = np.where(g < 0, -1.0, 1.0)
     return ok, c, p[sel] + (eps[sel] * side)[:, None] * ng
+
+
+# ----------------------------------------------------------------------------- a path's numbers, inline
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _word8(w, v, j):
+    """Word ``j`` (0..7) of two Philox blocks ``w`` then ``v`` as a double in [0, 1) (the top
+    53 bits times 2^-53, numpy's ``random``)."""
+    if j < 4:
+        x = w[0] if j == 0 else (w[1] if j == 1 else (w[2] if j == 2 else w[3]))
+    else:
+        x = v[0] if j == 4 else (v[1] if j == 5 else (v[2] if j == 6 else v[3]))
+    return np.float64(x >> np.uint64(11)) * _DOUBLE_UNIT
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def stream_numbers5(q, c2, c3, k0, k1, cached_blk, cached):
+    """Numbers ``q`` .. ``q + 4`` (from 0) of the Philox stream with counter (0, 0, c2, c3) and
+    key (k0, k1), as ``philox_uniform1`` gives them one by one: five numbers always span two
+    blocks, q // 4 and the next. ``cached``: the words of block ``cached_blk`` (a path's
+    neighbour in the same stream computed it: its last block is this path's first), reused
+    instead of computed again. Returns the five numbers and (index, words) of the last block."""
+    four = np.uint64(4)
+    b0 = q // four
+    if b0 == cached_blk:
+        w = cached
+    else:
+        w = philox4x64_10(b0 + np.uint64(1), np.uint64(0), c2, c3, k0, k1)
+    v = philox4x64_10(b0 + np.uint64(2), np.uint64(0), c2, c3, k0, k1)
+    lane = np.int64(q % four)
+    return (_word8(w, v, lane), _word8(w, v, lane + 1), _word8(w, v, lane + 2), _word8(w, v, lane + 3),
+            _word8(w, v, lane + 4), b0 + np.uint64(1), v)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def stream_numbers2(q, c2, c3, k0, k1, cached_blk, cached):
+    """Numbers ``q`` and ``q + 1`` (``q`` even: one block) of a Philox stream (see
+    ``stream_numbers5``); returns them and (index, words) of their block."""
+    b0 = q // np.uint64(4)
+    if b0 == cached_blk:
+        w = cached
+    else:
+        w = philox4x64_10(b0 + np.uint64(1), np.uint64(0), c2, c3, k0, k1)
+    lane = np.int64(q % np.uint64(4))
+    return _word8(w, w, lane), _word8(w, w, lane + 1), b0, w

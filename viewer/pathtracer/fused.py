@@ -15,10 +15,20 @@ before the loop, the shadow rays are written out, and ``_add_unoccluded`` adds t
 ones' contributions after a batched occlusion query. The next wavefront (compacted, in path
 order) goes into arrays allocated once per wavefront size.
 
+``FusedBounce.render`` is ``Integrator.render_blocks``' wavefront: the camera rays
+(``_camera_rays``) and every bounce's random numbers are computed here, each path's from its
+Philox stream ``philox(seed, block, sample)`` (``compiled.stream_numbers5``: the two numbers
+of the jitter, then five per bounce at the offsets numpy's draws would give them; a path
+reuses the Philox block its neighbour in the stream ended in, and a ray that misses draws
+nothing). ``FusedBounce.trace`` takes rays and a ``draw()`` from the caller
+(``Integrator.trace``). (All of a chunk's bounces in one compiled call would save the Python
+call of ``_shade`` per bounce, about 1.5% of a chunk's time, but LLVM inlines ``_shade`` into
+that caller, so a fresh environment would compile it twice: 9 more CPU seconds.)
+
 Nothing here is a formula of its own: the per-path steps are the functions of
 ``viewer.pathtracer.compiled`` (each tested against its numpy twin), called in the order of the
-numpy steps and on the same random numbers (``rnd[:, 0:2]`` the BSDF, ``rnd[:, 2:4]`` the
-environment, ``rnd[:, 4]`` roulette), so an image agrees with the numpy path to roundoff
+numpy steps and on the same random numbers (of a path's five a bounce: two the BSDF's, two the
+environment's, one roulette's), so an image agrees with the numpy path to roundoff
 (tests/test_fused_bounce.py), and a seed gives the same image every time.
 
 Where it applies (``plan``): the RGB path tracer itself (not the spectral or photon
@@ -36,7 +46,7 @@ from viewer.pathtracer import compiled
 from viewer.pathtracer.compiled import (
     HAVE_NUMBA, CompiledLambert, CompiledMicrofacet, constant_env_pdf1, constant_env_sample1, embree_intersect1,
     embree_occluded1, embree_ray1, lambert_eval1, lambert_pdf1, lambert_sample1, microfacet_eval1, microfacet_pdf1,
-    microfacet_sample1, nee_term1, nee_test1, shade_hit1, draw_paths, material_rows)
+    microfacet_sample1, nee_term1, nee_test1, shade_hit1, material_rows, stream_numbers2, stream_numbers5)
 from viewer.pathtracer.kernel_embree import F32_MAX_T
 from viewer.reference_common.estimator import RR_MAX, RR_MIN, RR_START_DEPTH
 
@@ -46,10 +56,9 @@ njit = compiled.njit
 LAMBERT, MICROFACET = 0, 1
 STRATEGY = {"mis": 0, "bsdf": 1, "light": 2}
 POINT, DIRECTIONAL = 0, 1
-#: below this share of the wavefront's paths alive, a bounce's numbers are computed path by path
-#: (``compiled.draw_paths``, the same numbers) instead of drawn for every path of every stream
-#: (numpy: about 20 ns a path; compiled: about 60 ns a live path)
-DRAW_ALIVE_SHARE = 0.3
+DIMS = 5                     # numbers per path and bounce (integrator.DIMS_PER_BOUNCE; ``compiled.stream_numbers5``)
+JITTER = 2                   # numbers per path drawn for the camera ray before the first bounce
+NO_BLOCK = np.uint64(2**64 - 1)   # no Philox block cached
 
 
 # ----------------------------------------------------------------------------- per path
@@ -76,7 +85,8 @@ def _clean(x):
 # ----------------------------------------------------------------------------- one bounce
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scene, fn_hit, fn_occ, rh,
+def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, computed, k0, k1, stream, pix, ctr2, ctr3, first,
+           direct, centre, scene, fn_hit, fn_occ, rh,
            tris, vnorm, vtan, gnorm, mat_index, trans_table,
            kinds, nee_on, delta, albedo, ax, ay, md,
            lkind, lpos, lval, env, env_on, env_by_light, env_by_bsdf, strategy, power, roulette,
@@ -94,6 +104,8 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
     n_out = 0
     ns = 0
     nbad = 0
+    c_st, c_blk = -1, NO_BLOCK   # the stream and Philox block the last path's numbers ended in
+    c_w = (np.uint64(0), np.uint64(0), np.uint64(0), np.uint64(0))
     for i in range(m):
         a = act[i]
         if direct:
@@ -121,10 +133,19 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                                           mat_index, trans_table)
         lam = kinds[mt] == LAMBERT
         tb0, tb1, tb2 = T[a, 0], T[a, 1], T[a, 2]
+        # the path's five numbers of this bounce
+        if computed:
+            st = stream[a]
+            q = first[st] + np.uint64(DIMS) * np.uint64(pix[a])
+            u0, u1, u2, u3, u4, c_blk, c_w = stream_numbers5(q, ctr2[st], ctr3[st], k0, k1,
+                                                             c_blk if st == c_st else NO_BLOCK, c_w)
+            c_st = st
+        else:
+            u0, u1, u2, u3, u4 = rnd[a, 0], rnd[a, 1], rnd[a, 2], rnd[a, 3], rnd[a, 4]
         # light sampling of the environment (Integrator._light_sample_environment)
         e0, e1, e2, pe = 0.0, 0.0, 0.0, 0.0
         if env_by_light:
-            e0, e1, e2, pe = constant_env_sample1(rnd[a, 2], rnd[a, 3], n0, n1, n2, tr)
+            e0, e1, e2, pe = constant_env_sample1(u2, u3, n0, n1, n2, tr)
             pe, nb = _clean(pe)
             nbad += nb
         # next-event estimation (Integrator._next_event): the delta lights, then the environment
@@ -194,10 +215,10 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
                     ns += 1
         # the BSDF sample (Integrator._sample_bsdf, _scatter)
         if lam:
-            x, y, z, wt0, wt1, wt2, pdf_s = lambert_sample1(o2, rnd[a, 0], rnd[a, 1], albedo[mt, 0], albedo[mt, 1],
+            x, y, z, wt0, wt1, wt2, pdf_s = lambert_sample1(o2, u0, u1, albedo[mt, 0], albedo[mt, 1],
                                                             albedo[mt, 2])
         else:
-            x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, rnd[a, 0], rnd[a, 1], ax[mt], ay[mt], md,
+            x, y, z, wt0, wt1, wt2, pdf_s = microfacet_sample1(o0, o1, o2, u0, u1, ax[mt], ay[mt], md,
                                                                mt)
         wt0, nb0 = _clean(wt0)
         wt1, nb1 = _clean(wt1)
@@ -224,7 +245,7 @@ def _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, direct, centre, scen
         alive = tb0 > 0 or tb1 > 0 or tb2 > 0
         if roulette and depth >= RR_START_DEPTH:
             qs = min(max(max(tb0, max(tb1, tb2)), RR_MIN), RR_MAX)
-            alive = alive and rnd[a, 4] < qs
+            alive = alive and u4 < qs
             tb0, tb1, tb2 = tb0 / qs, tb1 / qs, tb2 / qs
         T[a, 0], T[a, 1], T[a, 2] = tb0, tb1, tb2
         prev_pdf[a] = pdf_s
@@ -250,6 +271,35 @@ def _add_unoccluded(L, s_idx, s_c, blocked, ns):
             a = s_idx[j]
             for c in range(3):
                 L[a, c] += s_c[j, c]
+
+
+# ----------------------------------------------------------------------------- a chunk
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _camera_rays(counts, row0, width, height, tan_half_y, aspect, pos, fwd, right, up, k0, k1, c2, c3,
+                 stream, pix, o, d):
+    """``Integrator._block_streams`` and ``camera_rays`` for the streams ``(c2, c3)`` = (block,
+    sample) of ``counts`` paths each (block rows from ``row0``): each path's stream index and
+    pixel (``stream``, ``pix``), its jitter (numbers 2 pix and 2 pix + 1 of its stream) and its
+    camera ray (o, d), in the same arithmetic as the numpy steps. Returns the paths' count."""
+    a = 0
+    for s in range(counts.shape[0]):
+        cblk = NO_BLOCK
+        cw = (np.uint64(0), np.uint64(0), np.uint64(0), np.uint64(0))
+        for p in range(counts[s]):
+            j0, j1, cblk, cw = stream_numbers2(np.uint64(JITTER) * np.uint64(p), c2[s], c3[s], k0, k1, cblk, cw)
+            row, col = row0[s] + p // width, p % width
+            x = (2.0 * (col + j0) / width - 1.0) * tan_half_y * aspect
+            y = (1.0 - 2.0 * (row + j1) / height) * tan_half_y
+            d0 = fwd[0] + x * right[0] + y * up[0]
+            d1 = fwd[1] + x * right[1] + y * up[1]
+            d2 = fwd[2] + x * right[2] + y * up[2]
+            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            d[a, 0], d[a, 1], d[a, 2] = d0 / r, d1 / r, d2 / r
+            o[a, 0], o[a, 1], o[a, 2] = pos[0], pos[1], pos[2]
+            stream[a], pix[a] = s, p
+            a += 1
+    return a
 
 
 # ----------------------------------------------------------------------------- the integrator's side
@@ -297,6 +347,8 @@ class FusedBounce:
         self._cap = -1
 
     def _buffers(self, n: int):
+        """Wavefront buffers for ``n`` paths (two sets of (act, o, d) taking turns), the shadow
+        rays a batched occlusion query takes, and each path's stream and pixel."""
         if n > self._cap:
             rows = 1 if self.direct is not None else n * (self.lkind.shape[0] + 1)
             self._act = [np.empty(n, np.int64), np.empty(n, np.int64)]
@@ -305,69 +357,112 @@ class FusedBounce:
             self._s_idx = np.empty(rows, np.int64)
             self._s_o, self._s_d, self._s_c = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
             self._s_tmax = np.empty(rows)
-            self._rnd = np.empty((n, 5))
+            self._stream, self._pix = np.empty(n, np.int64), np.empty(n, np.int64)
             self._cap = n
         return self
 
-    def trace(self, it, paths, o, d, draw):
-        """``Integrator.trace_paths`` of integrator ``it`` (the one this was planned for) for
-        ``paths`` along the rays (o, d): their radiance ``paths.L`` before the final check for
-        NaN (the integrator's). (The integrator is an argument, not an attribute: no reference
-        cycle keeps a dropped integrator's Embree scene alive until a garbage collection.)"""
-        s, g, kernel = it.s, it.geom, it.kernel
-        n = o.shape[0]
-        self._buffers(n)
-        bad = np.zeros(1, np.int64)
-        act = np.arange(n, dtype=np.int64)
-        o = np.ascontiguousarray(o, np.float64)
-        d = np.ascontiguousarray(d, np.float64)
-        no_rnd, no_i, no_f = np.zeros((0, 5)), np.zeros(0, np.int64), np.zeros(0)
-        opts = (self.env, bool(it.env_on), bool(it.env_by_light), bool(it.env_by_bsdf), STRATEGY[it.strategy],
-                it.mis_heuristic == "power", bool(it.russian_roulette))
+    def _args(self, it):
+        """The scene's, the materials', the lights' and the options' arguments of ``_shade``."""
+        g = it.geom
         ds = self.direct
         if ds is not None:
             rays = (True, self.centre, np.uint64(ds.scene), np.uint64(ds.intersect1), np.uint64(ds.occluded1),
                     np.uint64(ds.rayhit_address))
         else:
             rays = (False, self.centre, np.uint64(0), np.uint64(0), np.uint64(0), np.uint64(0))
-        flip = 0
-        table = getattr(draw, "streams", None)
-        first = None   # per stream, the index of the next bounce's first number (computed draws)
+        return rays, (g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
+                      self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.md,
+                      self.lkind, self.lpos, self.lval, self.env, bool(it.env_on), bool(it.env_by_light),
+                      bool(it.env_by_bsdf), STRATEGY[it.strategy], it.mis_heuristic == "power",
+                      bool(it.russian_roulette))
+
+    def trace(self, it, paths, o, d, draw):
+        """``Integrator.trace_paths`` of integrator ``it`` (the one this was planned for) for
+        ``paths`` along the rays (o, d), ``draw()`` giving each bounce's numbers of every path:
+        their radiance ``paths.L`` before the final check for NaN (the integrator's). (The
+        integrator is an argument, not an attribute: no reference cycle keeps a dropped
+        integrator's Embree scene alive until a garbage collection.)"""
+        n = o.shape[0]
+        self._buffers(n)
+        o = np.ascontiguousarray(o, np.float64)
+        d = np.ascontiguousarray(d, np.float64)
+        return self._bounces(it, paths, np.arange(n, dtype=np.int64), o, d, None, draw)
+
+    def camera_rays(self, it, blocks, samples, key):
+        """The camera rays (o, d) of ``Integrator.render_blocks``' wavefront (blocks ``(row0,
+        row1, block_id)``, block by block and sample by sample), computed: each path's jitter is
+        the first two numbers of its pixel in the stream ``philox(seed, block, sample)`` (``key``:
+        its Philox key, ``integrator.philox_key``), as ``Integrator._block_streams`` draws them,
+        and the ray ``Integrator.camera_rays``' in the same arithmetic. Returns (o, d) (views of
+        this object's buffers) and what the bounces' numbers are computed from: (key 0, key 1,
+        each path's stream and pixel, the streams' counter words 2 and 3, their paths' counts)."""
+        s = it.s
+        W = s.width
+        counts = np.array([(r1 - r0) * W for r0, r1, _ in blocks for _ in samples], np.int64)
+        row0 = np.array([r0 for r0, _, _ in blocks for _ in samples], np.int64)
+        c2 = np.array([int(b) & 0xFFFFFFFFFFFFFFFF for _, _, b in blocks for _ in samples], np.uint64)
+        c3 = np.array([int(si) & 0xFFFFFFFFFFFFFFFF for _ in blocks for si in samples], np.uint64)
+        n = int(counts.sum())
+        self._buffers(n)
+        key = (np.uint64(key[0]), np.uint64(key[1]))
+        o, d = self._o[0][:n], self._d[0][:n]
+        cam = [np.ascontiguousarray(v, np.float64) for v in (s.cam_pos, s.cam_forward, s.cam_right, s.cam_up)]
+        _camera_rays(counts, row0, W, s.height, float(s.tan_half_y), s.width / s.height, *cam, *key, c2, c3,
+                     self._stream, self._pix, o, d)
+        return o, d, key + (self._stream, self._pix, c2, c3, counts)
+
+    def render(self, it, paths, blocks, samples, key):
+        """``Integrator.render_blocks``' radiance ``paths.L`` (``paths``: the state of its
+        wavefront's N paths) before the final check for NaN: the camera rays (``camera_rays``)
+        and every bounce's numbers computed from the paths' Philox streams (``DIMS`` numbers per
+        path and bounce after the jitter, what ``Integrator._block_streams`` and ``BounceDraws``
+        draw), so the image is the numpy steps' to roundoff."""
+        o, d, numbers = self.camera_rays(it, blocks, samples, key)
+        return self._bounces(it, paths, np.arange(o.shape[0], dtype=np.int64), o, d, 0, numbers)
+
+    def _bounces(self, it, paths, act, o, d, held, rnd_of):
+        """The bounces of the paths ``act`` along (o, d) (``held``: which of the two buffer sets
+        holds them, None: neither), a ``_shade`` call each; ``rnd_of``: ``draw`` (each bounce's
+        numbers of every path) or the key, streams and pixels the numbers are computed from."""
+        s, kernel = it.s, it.kernel
+        bad = np.zeros(1, np.int64)
+        no_rnd, no_i, no_f, no_u = np.zeros((0, DIMS)), np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.uint64)
+        rays, args = self._args(it)
+        computed = not callable(rnd_of)
+        if computed:
+            k0, k1, stream, pix, c2, c3, counts = rnd_of
+        else:
+            k0, k1, stream, pix, c2, c3, counts = np.uint64(0), np.uint64(0), no_i, no_i, no_u, no_u, no_i
+        first = np.empty(len(counts), np.uint64)
+        ds = self.direct
         for depth in range(1, s.max_depth + 2):
             m = act.shape[0]
             if m == 0:
                 break
             scatter = depth <= s.max_depth
-            if not scatter:
-                rnd = no_rnd
-            elif first is None and (table is None or m >= DRAW_ALIVE_SHARE * n):
-                rnd = np.ascontiguousarray(draw(), np.float64)
-            else:   # the live paths' numbers of this bounce, computed (draw() is not called again)
-                if first is None:
-                    first = table.first(draw.calls)
-                rnd = self._rnd
-                draw_paths(act, table.key[0], table.key[1], table.stream, table.pix, table.c2, table.c3, first, rnd)
-                first = first + (table.counts * 5).astype(np.uint64)
+            rnd = no_rnd
+            if computed:
+                first[:] = counts.astype(np.uint64) * np.uint64(JITTER + DIMS * (depth - 1))
+            elif scatter:
+                rnd = np.ascontiguousarray(rnd_of(), np.float64)
             if ds is None:
                 _, prim, bu, bv = kernel.intersect(o, d, 0.0, np.inf)
                 prim = np.ascontiguousarray(prim, np.int64)
                 bu, bv = np.ascontiguousarray(bu, np.float64), np.ascontiguousarray(bv, np.float64)
             else:
                 prim, bu, bv = no_i, no_f, no_f
-            act_out, o_out, d_out = self._act[flip], self._o[flip], self._d[flip]
-            m_out, ns = _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, *rays,
-                               g.triangles, g.normals, g.tangents, g.geo_normals, g.material_index, it.trans_table,
-                               self.kinds, self.nee_on, self.delta, self.albedo, self.ax, self.ay, self.md,
-                               self.lkind, self.lpos, self.lval, *opts,
-                               paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf, paths.prev_delta,
-                               act_out, o_out, d_out, self._s_idx, self._s_o, self._s_d, self._s_tmax, self._s_c,
-                               bad)
+            out = 1 if held == 0 else 0
+            act_out, o_out, d_out = self._act[out], self._o[out], self._d[out]
+            m_out, ns = _shade(depth, scatter, m, act, o, d, prim, bu, bv, rnd, computed, k0, k1, stream, pix, c2, c3,
+                               first, *rays, *args, paths.L, paths.T, paths.prev_pdf, paths.prev_lpdf,
+                               paths.prev_delta, act_out, o_out, d_out, self._s_idx, self._s_o, self._s_d,
+                               self._s_tmax, self._s_c, bad)
             if not scatter:
                 break
             if ns:
                 blocked = kernel.occluded(self._s_o[:ns], self._s_d[:ns], 0.0, self._s_tmax[:ns])
                 _add_unoccluded(paths.L, self._s_idx, self._s_c, np.ascontiguousarray(blocked, np.bool_), ns)
-            act, o, d = act_out[:m_out], o_out[:m_out], d_out[:m_out]
-            flip = 1 - flip
+            act, o, d, held = act_out[:m_out], o_out[:m_out], d_out[:m_out], out
         it.bad_values += int(bad[0])
         return paths.L
+

@@ -91,6 +91,11 @@ def make_kernel(triangles, kind: str = "embree"):
     return EmbreeKernel(triangles)
 
 
+def philox_key(seed: int) -> tuple[int, int]:
+    """The Philox key of the streams of ``seed`` (``philox``)."""
+    return int(seed) & 0xFFFFFFFFFFFFFFFF, KEY_SALT
+
+
 def philox(seed: int, block: int, sample: int) -> np.random.Generator:
     """The counter-based stream of (seed, block of pixels, sample index): Philox4x64 keyed by
     the seed, its counter starting at (0, 0, block, sample); draws advance the lowest word only,
@@ -123,12 +128,11 @@ def _dot(a, b):
 class BounceDraws:
     """``draw()`` for ``Integrator.trace``: each call returns the next bounce's numbers
     (N, DIMS_PER_BOUNCE) of every stream ``gens`` (``counts`` paths each), in stream order;
-    ``calls`` counts them. ``streams``: a ``StreamTable`` of the same streams, or None."""
+    ``calls`` counts them."""
 
-    def __init__(self, gens, counts, streams=None):
+    def __init__(self, gens, counts):
         self.gens, self.counts = gens, list(counts)
         self.calls = 0
-        self.streams = streams
 
     def __call__(self):
         self.calls += 1
@@ -140,27 +144,6 @@ class BounceDraws:
         return out
 
 
-class StreamTable:
-    """The Philox streams ``philox(seed, block, sample)`` of a wavefront, one per ``(block,
-    sample)`` in ``keys`` with ``counts`` paths each (consecutive, in stream order), from each of
-    which ``drawn`` numbers per path were drawn before the first bounce: what a compiled loop
-    needs to compute any path's numbers of any bounce itself (``compiled.draw_paths``)."""
-
-    def __init__(self, seed: int, keys, counts, drawn: int):
-        self.key = (int(seed) & 0xFFFFFFFFFFFFFFFF, KEY_SALT)
-        self.c2 = np.array([int(b) & 0xFFFFFFFFFFFFFFFF for b, _ in keys], np.uint64)
-        self.c3 = np.array([int(si) & 0xFFFFFFFFFFFFFFFF for _, si in keys], np.uint64)
-        self.counts = np.asarray(counts, np.int64)
-        self.drawn = int(drawn)
-        self.stream = np.repeat(np.arange(len(self.counts)), self.counts)
-        starts = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
-        self.pix = np.arange(int(self.counts.sum())) - np.repeat(starts, self.counts)
-
-    def first(self, bounce: int) -> np.ndarray:
-        """Per stream, the index of its first number of bounce ``bounce`` (0: the first)."""
-        return (self.counts * (self.drawn + bounce * DIMS_PER_BOUNCE)).astype(np.uint64)
-
-
 def fused_bounce(it):
     """The whole bounce compiled (``viewer.pathtracer.fused``) for integrator ``it`` where every
     step has a compiled stand-in, else None: the RGB integrator's own steps only (subclasses
@@ -170,6 +153,14 @@ def fused_bounce(it):
     from viewer.pathtracer.fused import plan  # numba: only where paths are traced
 
     return plan(it)
+
+
+def fused_render(it, blocks, samples, seed: int):
+    """``Integrator.render_blocks``' radiance of its wavefront by the fused bounce of ``it``
+    (``fused.FusedBounce.render``: the camera rays and every number computed in the loop)."""
+    counts = [(r1 - r0) * it.s.width for r0, r1, _ in blocks for _ in samples]
+    it.sample_of_path = np.repeat(np.array([si for _ in blocks for si in samples], np.int64), counts)
+    return it.fused.render(it, PathState(sum(counts), it.CHANNELS), blocks, samples, philox_key(seed))
 
 
 # ----------------------------------------------------------------------------- integrator
@@ -381,11 +372,11 @@ class Integrator:
         return gens, counts, np.concatenate(rows), np.concatenate(cols), np.concatenate(jit)
 
     @staticmethod
-    def _bounce_draws(gens, npix, streams=None):
+    def _bounce_draws(gens, npix):
         """``draw()`` for ``trace``: the next bounce's numbers of every stream, in stream order
-        (``npix``: the paths of every stream, or one count per stream; ``streams``: a StreamTable)."""
+        (``npix``: the paths of every stream, or one count per stream)."""
         counts = [npix] * len(gens) if np.ndim(npix) == 0 else list(npix)
-        return BounceDraws(gens, counts, streams)
+        return BounceDraws(gens, counts)
 
     def render_block(self, row0: int, row1: int, samples, seed: int, block_id: int):
         """Render rows [row0, row1) with the given sample indices. Returns (sum, sum of squares)
@@ -397,10 +388,11 @@ class Integrator:
         batches: less of numpy's cost per call per path). Every path draws from its own block's
         and sample's stream as ``render_block`` does, so each block's sums are the same."""
         samples = list(samples)
-        gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
-        o, d = self.camera_rays(rows, cols, jit)
-        streams = StreamTable(seed, [(b, si) for _, _, b in blocks for si in samples], counts, 2)  # jitter drawn
-        L = self.trace(o, d, self._bounce_draws(gens, counts, streams))
+        if self.fused is not None:   # the camera rays and every number compiled too (fused.py)
+            L = self._final(fused_render(self, blocks, samples, seed))
+        else:
+            gens, counts, rows, cols, jit = self._block_streams(blocks, samples, seed)
+            L = self.trace(*self.camera_rays(rows, cols, jit), self._bounce_draws(gens, counts))
         out, off = [], 0
         for r0, r1, _ in blocks:
             n = len(samples) * (r1 - r0) * self.s.width
@@ -410,10 +402,9 @@ class Integrator:
         return out
 
     def warm(self):
-        """Trace one ray onto each material's first triangle, the result thrown away: the
-        compiled kernels (``viewer.pathtracer.compiled``) a render of this scene calls are
-        loaded from numba's cache (or compiled, the first time) now rather than in the first
-        chunk."""
+        """Trace one ray onto each material's first triangle (or render a row, below), the result
+        thrown away: the compiled kernels (``viewer.pathtracer.compiled``, ``fused``) a render of
+        this scene calls are loaded from numba's cache (or compiled) now, not in the first chunk."""
         geom = self.geom
         mats = geom.material_index
         idx = np.array([np.flatnonzero(mats == m)[0] for m in np.unique(mats)], dtype=np.int64)
@@ -424,9 +415,9 @@ class Integrator:
         o = c + n * (1e-2 * (1.0 + np.abs(c).max(axis=1)))[:, None]
         rng = np.random.default_rng(0)
         draw = lambda: rng.random((idx.size, DIMS_PER_BOUNCE))  # noqa: E731
-        if self.CHANNELS == 3:
+        if self.CHANNELS == 3 and self.fused is None:
             self.trace(o, -n, draw)
-        else:  # (the spectral integrator's paths carry wavelengths: a row of its own image)
+        else:  # (spectral paths carry wavelengths; the fused bounce renders with its own kernels)
             mid = self.s.height // 2
             self.render_block(mid, mid + 1, [0], 0, 0)
 
