@@ -15,14 +15,16 @@ import pytest
 from viewer.gl.programs import forward_variant
 from viewer.scene import load_scene_text
 
-SCENE = """
+CAMERA = """
 [camera]
 position = [0.0, 0.9, 4.0]
 target   = [0.0, 0.6, 0.0]
 fov_y    = 36.0
 width    = 96
 height   = 64
+"""
 
+SCENE = CAMERA + """
 [render]
 ibl = "{ibl}"
 msaa = 1
@@ -127,14 +129,7 @@ def test_a_shells_program_has_no_ssr_outputs():
 # ---- the shells' reflection of the floor (viewer/scene/ground.py): a face's reflected ray going
 # down meets the scene's floor, shaded as the raster shades it, not the environment below the horizon
 
-FLOOR_SCENE = """
-[camera]
-position = [0.0, 0.9, 4.0]
-target   = [0.0, 0.6, 0.0]
-fov_y    = 36.0
-width    = 96
-height   = 64
-
+FLOOR_SCENE = CAMERA + """
 [render]
 ibl = "split_sum"
 msaa = 1
