@@ -336,3 +336,50 @@ def test_a_scene_drawn_with_stand_ins_stays_under_the_tiles_of_its_own_frame(gl_
         s.compiles.child = None
         s.release()
         renderer.release()
+
+
+def test_a_tile_draws_only_the_objects_over_it_and_equals_the_whole_frame_there(gl_ctx, renderer):
+    # the gallery's objects, each tile drawing only those whose projected box reaches it: every
+    # tile's pixels are the whole frame's, bit for bit, and a tile over one corner leaves most
+    # objects out (their vertex work was a tile's whole fixed cost on software OpenGL)
+    from viewer.gl.frame_passes import Frame
+    from viewer.gl.object_draws import in_region
+    from viewer.scene import load_scene
+    from viewer.scene.camera import OrbitCamera
+
+    scene = load_scene("gallery")
+    w, h = SIZE
+    cam = OrbitCamera.from_scene(scene)
+    whole = _whole(renderer, scene, cam, SIZE)
+
+    def kept(region):
+        f = Frame(w, h, cam, None, 0, False, 0, [], False, np.zeros(3), None, False, False, region)
+        return len(in_region(scene.objects, f))
+
+    assert kept(None) == len(scene.objects)
+    assert kept((0, 0, 6, 6)) < len(scene.objects) // 2
+    for region in [(0, 0, 6, 6), (w // 2 - 10, h // 2 - 7, 20, 14), (0, h - 8, w, 8), (w - 9, 0, 9, h)]:
+        x, y, rw, rh = region
+        img = renderer.read_linear(renderer.render(scene, cam, w, h, region=region, raytrace=False))
+        rows = slice(h - y - rh, h - y)  # read_linear: row 0 at the top, GL's region from the bottom
+        assert np.array_equal(img[rows, x:x + rw], whole[rows, x:x + rw]), region
+
+
+def test_a_trace_sizes_its_tiles_from_a_probe_of_their_fixed_cost(gl_ctx, renderer):
+    # the first traced tile is a 16-pixel probe: its time is the fixed part of a tile, not a
+    # tile's whole time over glass, which sized the next tiles to a second each
+    from viewer.gl.raytrace import PROBE_PIXELS, ProgressiveTrace
+    from viewer.scene.lecture import TOUR, tour_scene
+
+    scene = tour_scene([s.key for s in TOUR].index("absorbing_glass"))
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        pt.start(renderer, scene, None, *SIZE)
+        assert pt.pixels == PROBE_PIXELS
+        pt.step(0.0)
+        assert pt.steps == 1 and pt.overhead_s > 0 and pt.pixels > PROBE_PIXELS
+        while not pt.done:
+            pt.step(0.05)
+        assert pt.progress == 1.0
+    finally:
+        pt.release()

@@ -36,6 +36,7 @@ MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 need
 # keeps tiles smaller unless a frame's fixed cost (every triangle through the vertex and geometry
 # stages, whatever the scissor) would dominate
 STRIP_PIXELS = 16384
+PROBE_PIXELS = 16      # a trace's first tile: a probe of the fixed part of a tile's time
 
 
 def chain_lobes(params) -> Lobe:
@@ -437,7 +438,11 @@ class ProgressiveTrace:
             return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last,
                                       preview_scale)
         self._tile_args = {"msaa": 0, "raytrace": None}
-        self.raster = False
+        self.raster, self._worst_px = False, 0.0
+        # the first tile a probe of PROBE_PIXELS: its time is the fixed part of every tile (the
+        # scene's vertex work), which sizes the next; a first tile of whole rows over glass took
+        # 0.3 s on software OpenGL and, taken for that fixed part, grew the next ones to a second
+        self.pixels = min(self.pixels, PROBE_PIXELS)
         if cache or store:
             self.cache_key = trace_cache.frame_key(scene, camera, w, h, view_mode, msaa,
                                                    renderer.ctx.info.get("GL_RENDERER", ""))
@@ -543,7 +548,8 @@ class ProgressiveTrace:
 
         renderer, scene, camera, w, h, view_mode = self._job
         p = self._pass()
-        tile = p.next_tile(self.pixels)
+        asked = self.pixels
+        tile = p.next_tile(asked)
         x, y, tw, th = tile
         t0 = time.perf_counter()
         hdr = renderer.render(scene, camera, p.w, p.h, view_mode, region=tile, **self._tile_args)
@@ -577,8 +583,12 @@ class ProgressiveTrace:
         if self.raster:
             self._raster_next(p, y, th, per_px, budget_s, n)
             return dt, n
+        # at the dearest cost per pixel of the trace so far: the cost jumps 10 times over where a
+        # tile reaches the glass from the sky beside it, and a tile sized at the sky's would
+        # take seconds; past the dear part the tiles stay small (more tiles, no long frame)
         want = int((target - 0.9 * self.overhead_s) / per_px)
-        self.pixels = max(16, min(int(1.5 * n) + 16, want, self.max_pixels))
+        # grown from the size asked for, not the size drawn: the last tile of a block is cut short
+        self.pixels = max(16, min(int(1.5 * max(n, asked)) + 16, want, self.max_pixels))
         return dt, n
 
     def _raster_next(self, p, y, th, per_px, budget_s, n):
