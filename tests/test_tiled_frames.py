@@ -354,6 +354,7 @@ def test_a_tile_draws_only_the_objects_over_it_and_equals_the_whole_frame_there(
 
     def kept(region):
         f = Frame(w, h, cam, None, 0, False, 0, [], False, np.zeros(3), None, False, False, region)
+        assert in_region(scene.objects, f._replace(cull=False)) == list(enumerate(scene.objects))
         return len(in_region(scene.objects, f))
 
     assert kept(None) == len(scene.objects)

@@ -307,3 +307,53 @@ def test_parts_within_the_budget_share_a_frame(gl_ctx):
         assert s.hdr is not None and s.frame_source.scene is s.scene
     finally:
         s.release()
+
+
+def test_a_traced_views_bvh_is_made_beside_and_the_untraced_frame_stays_meanwhile(gl_ctx, monkeypatch):
+    # the soup and BVH of a traced scene (0.3-1.5 s of numpy and Python for the gallery) are made
+    # on a thread of their own, held here on a gate: meanwhile no traced tile is drawn and the
+    # view shows the scene's untraced frame; then the trace ends as the one made at once
+    import threading
+
+    from viewer.gl import raytrace
+    from viewer.scene import material_from_name
+
+    gate, entered, where = threading.Event(), threading.Event(), []
+    made = raytrace.cached_flat_scene
+
+    def held(geom):
+        where.append(threading.current_thread().name)
+        entered.set()
+        assert gate.wait(60)
+        return made(geom)
+
+    monkeypatch.setattr(raytrace, "cached_flat_scene", held)
+    s = _session(gl_ctx, budget_s=10.0)
+    try:
+        ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
+        s.set_material(ball, material_from_name("glass"))
+        s.set_reflection_mode("ray traced")
+        _prepare(s)
+        for _ in range(5):
+            s.render_view(SIZE)
+            assert s.tracing and s.frames.trace.steps == 0 and s.hdr is not None
+            assert s.frame_source.scene is s.scene and s.frame_source.form == "own"
+        assert entered.wait(60) and where == ["brdf-viewer-bvh"]   # on its own thread, at the gate
+        s.render_view(SIZE)
+        assert s.tracing and s.frames.trace.steps == 0
+        gate.set()
+        deadline = time.monotonic() + 60  # a bound against a hang, not a timing
+        while s.tracing and time.monotonic() < deadline:
+            s.render_view(SIZE)
+            time.sleep(0.002)
+        assert not s.tracing and s.frames.trace.steps > 0
+        pt = raytrace.ProgressiveTrace(gl_ctx)   # the same view traced in one piece
+        try:
+            pt.start(s.renderer, s.scene, s.camera, *SIZE)
+            pt.finish()
+            assert np.array_equal(s.renderer.read_linear(s.hdr), pt.image())
+        finally:
+            pt.release()
+    finally:
+        gate.set()
+        s.release()

@@ -98,6 +98,7 @@ def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
     if not r.ssr and frames_wanted(scene) == 1:  # the frames the window may draw in tiles
         for scale in (4, 2):
             pt = ProgressiveTrace(renderer.ctx)
+            pt.cull = False  # every object's program drawn under a scissor, wherever it lies
             try:
                 pt.start(renderer, scene, None, w, h, traced=False, rows=TILE_ROWS, max_pixels=w * h,
                          preview_scale=scale)
@@ -108,6 +109,7 @@ def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
             did((f"tiles over a 1/{scale} preview", None, False))
     if progressive:
         pt = ProgressiveTrace(renderer.ctx)
+        pt.cull = False
         try:
             pt.start(renderer, scene, None, w, h, rows=TILE_ROWS)
             pt.step(0.0)

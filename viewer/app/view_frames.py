@@ -366,6 +366,8 @@ class ViewFrames:
                 return "tracing"
             s.notify(f"ray traced view from the prepared cache ({t.elapsed_s:.2f} s)")
             return "full"
+        if self.prep.on and not s.renderer.raytrace_state().ready(s.scene):
+            return "tracing"  # its BVH is made beside: the untraced frame stays meanwhile
         self.hdr = t.step(TRACE_BUDGET_S)
         if not t.done:
             return "tracing"

@@ -55,6 +55,12 @@ class Part:
     materials: tuple = ()
 
 
+def _same(a, b) -> bool:
+    """Two materials' parameters are the same values (``==`` on parameters holding arrays, such as
+    two glasses' absorption colours, has no single truth value)."""
+    return a is b or (type(a) is type(b) and a.to_plain() == b.to_plain())
+
+
 class ViewPrep:
     """The preparation of ``session``'s view (``on``: the window's; off, every frame is drawn
     whole at once, as offscreen)."""
@@ -101,7 +107,7 @@ class ViewPrep:
         for name in dict.fromkeys(o.material for o in drawn.objects):
             one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
             if not r.material_uniforms.prepared(one, env_tables=ssr_on or env_on) \
-                    and not any(p.kind == "tables" and drawn.materials[p.materials[0]] == drawn.materials[name]
+                    and not any(p.kind == "tables" and _same(drawn.materials[p.materials[0]], drawn.materials[name])
                                 for p in out):  # grey stand-ins share theirs
                 out.append(Part(f"the tables of {name}", "tables", (name,)))
         if env.map is not None and not ssr_on and "background" not in r.programs:
@@ -247,9 +253,10 @@ class ViewPrep:
             one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material in part.materials])
             r.material_uniforms.prepare(one, env_tables=ssr_on or env_on)
         else:  # a trial draw into one pixel: the program is linked and its machine code made
-            objects = [] if part.kind == "sky" else [o for o in drawn.objects if o.material in part.materials]
-            trial = dataclasses.replace(drawn, objects=objects)
-            r.render(trial, self.session.camera, size[0], size[1], view_mode, raytrace=raytrace, region=PIXEL)
+            # the whole scene (its objects decide switches every program has, such as glass
+            # shadows), with only the part's objects drawn, wherever they lie
+            r.render(drawn, self.session.camera, size[0], size[1], view_mode, raytrace=raytrace, region=PIXEL,
+                     cull=False, only=() if part.kind == "sky" else part.materials)
 
     def label(self) -> str:
         """What the view says while it is prepared: the parts ready and the one that comes next

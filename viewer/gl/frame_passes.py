@@ -40,6 +40,8 @@ class Frame(NamedTuple):
     env_on: bool         # the environment lights the scene (IBL not off, not black)
     raytrace: bool       # traced chains on (the scene's ``raytrace`` unless the call overrides it)
     region: tuple | None  # (x, y, w, h) scissor of the background and forward draws, else None
+    cull: bool = True    # objects that cannot reach the region are not drawn (object_draws.in_region)
+    only: frozenset | None = None  # the materials whose objects are drawn (None: all)
 
 
 class FramePasses:
@@ -92,9 +94,11 @@ class FramePasses:
         return {"ssr": self._ssr, "ibl": self._ibl}
 
     # ---------------------------------------------------------------- the frame
-    def run(self, scene, camera, width, height, view_mode, msaa, frame_index, raytrace=None, region=None):
+    def run(self, scene, camera, width, height, view_mode, msaa, frame_index, raytrace=None, region=None, cull=True,
+            only=None):
         """Render a frame into the linear HDR target; returns the resolved float texture."""
-        f = self.begin(scene, camera, width, height, view_mode, msaa, raytrace, region)
+        f = self.begin(scene, camera, width, height, view_mode, msaa, raytrace, region)._replace(
+            cull=cull, only=None if only is None else frozenset(only))
         if f.shadows:
             glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
             self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects, glass)

@@ -28,9 +28,9 @@ def in_region(objects, f) -> list:
     whatever the scissor (28 ms a tile for the gallery's 11 objects on software OpenGL): an
     object whose box, projected, lies wholly outside the region (by 2 pixels) writes nothing
     there and is left out, so the tile's pixels are the whole frame's exactly. A box crossing
-    the camera's plane is kept."""
-    pairs = list(enumerate(objects))
-    if f.region is None or not pairs:
+    the camera's plane is kept. ``f.only``: only the objects of those materials (a trial draw)."""
+    pairs = [(i, o) for i, o in enumerate(objects) if f.only is None or o.material in f.only]
+    if f.region is None or not f.cull or not pairs:
         return pairs
     x0, y0, rw, rh = f.region
     vp = f.cam.projection(f.w / f.h) @ f.cam.view()

@@ -210,17 +210,61 @@ class RayTrace:
         self.mat_tex = None
         self._mat_key = None
         self.rows: dict[str, int] = {}
+        self._building = None  # (geometry key, {"flat": FlatScene or "error": exception}, thread)
+
+    @staticmethod
+    def _key(scene):
+        gkey = tuple((id(o.mesh_data), o.material, o.model_matrix().tobytes()) for o in scene.objects)
+        return gkey, tuple(scene.materials)
+
+    def ready(self, scene) -> bool:
+        """Whether ``update`` can make ``scene``'s textures at once: its geometry is the one the
+        textures hold, or its flattened BVH has been made. If not, that is started on a thread of
+        its own (``build_geometry`` and the BVH or its cache entry: 0.3-1.5 s of numpy and
+        Python for the gallery, which the window's thread would spend in one frame); the window
+        keeps its untraced frame until then. ``update`` alone (offscreen rendering) makes it
+        where it is called."""
+        import copy
+        import threading
+
+        gkey = self._key(scene)
+        if gkey == self._geom_key and self.textures is not None:
+            return True
+        job = self._building
+        if job is not None and job[0] == gkey:
+            return not job[2].is_alive()
+        # a snapshot of what the soup is made of: the window may edit the scene meanwhile
+        snap = copy.copy(scene)
+        snap.objects = [copy.copy(o) for o in scene.objects]
+        snap.materials = dict.fromkeys(scene.materials)
+        out: dict = {}
+
+        def build():
+            from viewer.geometry.soup import build_geometry
+
+            try:
+                out["flat"] = cached_flat_scene(build_geometry(snap))
+            except Exception as e:  # noqa: BLE001 - update() makes it again where it is called, and raises there
+                out["error"] = e
+        thread = threading.Thread(target=build, name="brdf-viewer-bvh", daemon=True)
+        self._building = (gkey, out, thread)
+        thread.start()
+        return False
 
     def update(self, scene, albedo_tables):
         from viewer.gl.scene_textures import SceneTextures, float_texture
         from viewer.geometry.soup import build_geometry
 
-        gkey = tuple((id(o.mesh_data), o.material, o.model_matrix().tobytes()) for o in scene.objects)
-        gkey = (gkey, tuple(scene.materials))
+        gkey = self._key(scene)
         if gkey != self._geom_key or self.textures is None:
+            job, self._building = self._building, None
+            if job is not None and job[0] == gkey and not job[2].is_alive() and "flat" in job[1]:
+                flat = job[1]["flat"]
+            else:
+                flat = cached_flat_scene(build_geometry(scene))
             if self.textures is not None:
                 self.textures.release()
-            self.textures = SceneTextures(self.ctx, flat=cached_flat_scene(build_geometry(scene)))
+            self.textures = SceneTextures(self.ctx, flat=flat)
             self._geom_key = gkey
         mkey = json.dumps({k: p.to_plain() for k, p in scene.materials.items()}, sort_keys=True)
         if mkey != self._mat_key or self.mat_tex is None:
@@ -244,6 +288,7 @@ class RayTrace:
         return unit + 1
 
     def release(self):
+        self._building = None  # a thread still at work finishes into nothing
         if self.textures is not None:
             self.textures.release()
             self.textures = None
@@ -373,6 +418,9 @@ class ProgressiveTrace:
         self._scale = 1.0        # this frame's cost over the last one's, on its last tile
         self._next_s = 0.0       # a raster frame's predicted time of its next tile
         self._raster_w = 0
+        # a tile draws only the objects that can reach it (False: every object, as the
+        # compile-ahead child's tiles must, to make each program's code for a scissored draw)
+        self.cull = True
 
     @property
     def active(self) -> bool:
@@ -552,7 +600,7 @@ class ProgressiveTrace:
         tile = p.next_tile(asked)
         x, y, tw, th = tile
         t0 = time.perf_counter()
-        hdr = renderer.render(scene, camera, p.w, p.h, view_mode, region=tile, **self._tile_args)
+        hdr = renderer.render(scene, camera, p.w, p.h, view_mode, region=tile, cull=self.cull, **self._tile_args)
         data = renderer.resolved_framebuffer(hdr).read(viewport=tile, components=4, dtype="f4")
         traced = np.frombuffer(data, np.float32).reshape(th, tw, 4)
         s = p.scale

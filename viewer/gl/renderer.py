@@ -175,7 +175,8 @@ class Renderer:
     # ---------------------------------------------------------------- the frame
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
                height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0,
-               raytrace: bool | None = None, region: tuple | None = None):
+               raytrace: bool | None = None, region: tuple | None = None, cull: bool = True,
+               only=None):
         """Render the scene into the linear HDR target; returns the resolved float texture.
 
         ``raytrace``: False draws mirrors and smooth glass with the untraced approximation even
@@ -183,7 +184,11 @@ class Renderer:
         scene. ``region`` = (x, y, w, h) in pixels from the bottom left: only those pixels are
         drawn (a scissor on the background and forward draws; shadow maps and the other passes
         are whole), each exactly as in a whole frame (the window's progressive trace,
-        ``viewer.gl.raytrace.ProgressiveTrace``); the rest of the target is left undefined.
+        ``viewer.gl.raytrace.ProgressiveTrace``); the rest of the target is left undefined. An
+        object that cannot reach the region is not drawn at all (``object_draws.in_region``)
+        unless ``cull`` is False (a trial draw that is to make every object's program). ``only``:
+        the names of the materials whose objects are drawn (the others still count for what the
+        whole scene switches, e.g. the glass shadows every program receives); None: all.
 
         Raises ShaderError when a program it needs does not compile, except in hot-reload mode
         (``hot_reload``): there the error goes to ``shader_errors``, an object whose forward
@@ -191,9 +196,9 @@ class Renderer:
         colour target as it is (normally the previous frame)."""
         self.program_set.keep_files(scene.materials.values())  # a file the scene let go: no stale error
         if not self.hot_reload:
-            return self.passes.run(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region)
+            return self.passes.run(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region, cull, only)
         try:
-            hdr = self.passes.run(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region)
+            hdr = self.passes.run(scene, camera, width, height, view_mode, msaa, frame_index, raytrace, region, cull, only)
         except ShaderError as e:
             self.program_set.render_error = e
             w = int(width or scene.camera.width)
