@@ -357,3 +357,19 @@ def test_a_traced_views_bvh_is_made_beside_and_the_untraced_frame_stays_meanwhil
     finally:
         gate.set()
         s.release()
+
+
+def test_the_plan_of_two_glasses_with_absorption_colours(gl_ctx):
+    # two materials of one model whose parameters hold arrays (the absorbing glass step, two
+    # glasses of the same values): the plan compares their values (== on the parameters has no
+    # single truth value) and the two share one part for their tables
+    from viewer.scene.lecture import TOUR, tour_scene
+
+    s = _session(gl_ctx)
+    try:
+        scene = tour_scene([t.key for t in TOUR].index("absorbing_glass"))
+        parts = s.frames.prep.plan(scene, False, SIZE)
+        assert scene.materials["glass_big"].to_plain() == scene.materials["glass_small"].to_plain()
+        assert sorted(p.materials[0] for p in parts if p.kind == "tables") == ["floor", "glass_big"]
+    finally:
+        s.release()
