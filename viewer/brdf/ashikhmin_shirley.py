@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, luminance, normalize,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot, luminance, normalize,
                                   phong_alpha, pick_lobe, pow_one_minus, ratio_capped, reflect,
                                   sample_weight)
 from viewer.brdf.lobes import Lobe
@@ -71,7 +71,7 @@ def as_specular(p, wi, wo):
     """Ashikhmin & Shirley 2000, eq. 4: p_h(h) / (4 (h.k) max(n.k1, n.k2)) F(k.h)
     (= sqrt((nu+1)(nv+1)) / (8 pi) (n.h)^e F / ((h.k) max(n.k1, n.k2)))."""
     h = normalize(wi + wo)
-    hk = np.sum(h * wo, axis=-1)
+    hk = dot(h, wo)
     den = 4.0 * hk * np.maximum(wi[:, 2], wo[:, 2])
     ok = den > 0
     s = ratio_capped(D_AshikhminShirley(h, p.nu, p.nv), den)
@@ -101,7 +101,7 @@ def _specular_probability(p, wo):
 
 def _pdf(p, wi, wo, ps):
     h = normalize(wi + wo)
-    hk = np.sum(h * wo, axis=-1)
+    hk = dot(h, wo)
     spec = np.where(hk > 0, D_AshikhminShirley(h, p.nu, p.nv) / (4.0 * np.where(hk > 0, hk, 1.0)), 0.0)
     val = ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi)
     return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), val, 0.0)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot,
                                   energy_conserving_kd_ks, INV_PI, normalize, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect, sample_weight,
                                   specular_probability)
@@ -80,7 +80,7 @@ def _specular_probability(p):
 def _pdf(p, wi, wo, ps):
     n = p.shininess
     h = half_vector(wi, wo)
-    cos_oh = np.sum(wo * h, axis=-1)
+    cos_oh = dot(wo, h)
     # Walter et al. 2007, eq. 14: p(wi) = p(h) / (4 |wo . h|); p(h) = (n + 1) / (2 pi) cos^n(theta_h)
     ph = (n + 1.0) / (2.0 * np.pi) * np.where(h[:, 2] > 0, pow_one_minus(one_minus_cos_h(h), n), 0.0)
     spec = np.where(cos_oh > 0, ph / (4.0 * np.where(cos_oh > 0, cos_oh, 1.0)), 0.0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot,
                                   energy_conserving_kd_ks, INV_PI, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect_z, sample_weight,
                                   specular_probability, to_world)
@@ -48,7 +48,7 @@ energy_conserving = energy_conserving_kd_ks  # the test harness hook
 def one_minus_cos_mirror(wi, wo):
     """1 - cos(alpha_r) = |wi - r|^2 / 2 with r the mirror of wo: exact where wi ~ r (no cancellation)."""
     d = wi - reflect_z(wo)
-    return 0.5 * np.sum(d * d, axis=-1)
+    return 0.5 * dot(d, d)
 
 
 def phong_lobe_normalized(wi, wo, n):
