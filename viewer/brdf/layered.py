@@ -133,19 +133,21 @@ def _base(p):
 def refract_in(w, eta):
     """w refracted into the layer through the mean surface, pointing up (z > 0): Snell's law
     in vector form for the normal +z. Incident from outside, so no total internal reflection."""
-    xy = w[:, :2] / eta
-    z = np.sqrt(np.maximum(0.0, 1.0 - dot(xy, xy)))
-    return np.concatenate([xy, z[:, None]], axis=-1)
+    out = np.empty((len(w), 3))
+    xy = np.divide(w[:, :2], eta, out=out[:, :2])
+    out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - dot(xy, xy)))
+    return out
 
 
 def refract_out(w, eta):
     """A direction inside the layer (z > 0) refracted out; ok = False under total internal
     reflection."""
-    xy = w[:, :2] * eta
+    out = np.empty((len(w), 3))
+    xy = np.multiply(w[:, :2], eta, out=out[:, :2])
     s2 = dot(xy, xy)
     ok = s2 < 1.0
-    z = np.sqrt(np.maximum(0.0, 1.0 - s2))
-    return np.concatenate([xy, z[:, None]], axis=-1), ok
+    out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - s2))
+    return out, ok
 
 
 def _dist(p):
@@ -186,7 +188,7 @@ def film_table_rgb(p, cos) -> np.ndarray:
     x = np.sqrt(np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)) * (FILM_TABLE - 1)
     i = np.minimum(np.floor(x).astype(int), FILM_TABLE - 2)
     f = (x - i)[:, None]
-    return (1.0 - f) * t[i] + f * t[i + 1]
+    return (1.0 - f) * np.take(t, i, axis=0) + f * np.take(t, i + 1, axis=0)  # t[i], t[i + 1]
 
 
 def derived(p) -> np.ndarray:
@@ -449,7 +451,7 @@ def _table_rgb(t, cos_out):
     x = np.sqrt(np.clip(np.asarray(cos_out, dtype=np.float64), 0.0, 1.0)) * (BASE_TABLE - 1)
     i = np.minimum(np.floor(x).astype(int), BASE_TABLE - 2)
     f = (x - i)[:, None]
-    return (1.0 - f) * t[i] + f * t[i + 1]
+    return (1.0 - f) * np.take(t, i, axis=0) + f * np.take(t, i + 1, axis=0)  # t[i], t[i + 1]
 
 
 def base_interreflections(p, wi, wo):
