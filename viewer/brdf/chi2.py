@@ -93,12 +93,13 @@ def histogram(model, p, wo, n, rng, rows, cols, sphere):
     problems = []
     for wi, w, pdf in sample_chunks(model, p, wo, n, rng):
         ok = pdf > 0
-        failed += int((~ok).sum())
-        if not np.all(np.isfinite(wi[ok])) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(pdf)):
+        n_ok = int(np.count_nonzero(ok))
+        failed += len(ok) - n_ok
+        d = wi if n_ok == len(ok) else wi[ok]  # (no copy when every sample succeeded)
+        if not np.all(np.isfinite(d)) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(pdf)):
             problems.append("non-finite wi / weight / pdf from sample")
-        if np.any(w[~ok] != 0):
+        if n_ok < len(ok) and np.any(w[~ok] != 0):
             problems.append("weight != 0 where pdf == 0")
-        d = wi[ok]
         c = np.clip(d[:, 2], -1.0, 1.0)
         if not sphere and np.any(c < 0):
             problems.append(f"{int((c < 0).sum())} samples below the surface with pdf > 0 "
