@@ -22,7 +22,7 @@ import tempfile
 import numpy as np
 
 from viewer import brdf
-from viewer.brdf.chi2 import sample_chunks
+from viewer.brdf.chi2 import CHUNK, sample_chunks
 from viewer.brdf.spec import Params
 
 # ----------------------------------------------------------------------------- directions
@@ -295,7 +295,7 @@ def albedo_uniform(model, p, wo, n, rng, sphere=False):
     s2 = np.zeros(3)
     done = 0
     while done < n:
-        m = min(250_000, n - done)
+        m = min(CHUNK, n - done)
         u = rng.random((m, 2))
         wi = uniform_sphere(u) if sphere else uniform_hemisphere(u)
         inv_pdf = 4.0 * np.pi if sphere else 2.0 * np.pi

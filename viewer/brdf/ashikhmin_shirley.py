@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, luminance, normalize,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot, luminance, normalize,
                                   phong_alpha, pick_lobe, pow_one_minus, ratio_capped, reflect,
                                   sample_weight)
 from viewer.brdf.lobes import Lobe
@@ -67,14 +67,20 @@ def D_AshikhminShirley(h, nu, nv):
     return np.where(h[:, 2] > 0, val, 0.0)
 
 
-def as_specular(p, wi, wo):
-    """Ashikhmin & Shirley 2000, eq. 4: p_h(h) / (4 (h.k) max(n.k1, n.k2)) F(k.h)
-    (= sqrt((nu+1)(nv+1)) / (8 pi) (n.h)^e F / ((h.k) max(n.k1, n.k2)))."""
+def _half_terms(p, wi, wo):
+    """(h, h.k, D(h)): the half vector's terms that f and the pdf share."""
     h = normalize(wi + wo)
-    hk = np.sum(h * wo, axis=-1)
+    return h, dot(h, wo), D_AshikhminShirley(h, p.nu, p.nv)
+
+
+def as_specular(p, wi, wo, terms=None):
+    """Ashikhmin & Shirley 2000, eq. 4: p_h(h) / (4 (h.k) max(n.k1, n.k2)) F(k.h)
+    (= sqrt((nu+1)(nv+1)) / (8 pi) (n.h)^e F / ((h.k) max(n.k1, n.k2)));
+    ``terms``: ``_half_terms(p, wi, wo)`` when the caller has them."""
+    _, hk, D = _half_terms(p, wi, wo) if terms is None else terms
     den = 4.0 * hk * np.maximum(wi[:, 2], wo[:, 2])
     ok = den > 0
-    s = ratio_capped(D_AshikhminShirley(h, p.nu, p.nv), den)
+    s = ratio_capped(D, den)
     return np.where(ok, s, 0.0)[:, None] * F_Schlick(p.rs, hk)
 
 
@@ -85,9 +91,9 @@ def as_diffuse(p, wi, wo):
     return (28.0 / (23.0 * np.pi)) * p.rd[None, :] * (1.0 - p.rs[None, :]) * (a * b)[:, None]
 
 
-def eval(p, wi, wo):
+def eval(p, wi, wo, terms=None):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    f = as_diffuse(p, wi, wo) + as_specular(p, wi, wo)
+    f = as_diffuse(p, wi, wo) + as_specular(p, wi, wo, terms)
     return np.where(ok[:, None], f, 0.0)
 
 
@@ -99,10 +105,9 @@ def _specular_probability(p, wo):
     return np.where(tot > 0, ws / np.where(tot > 0, tot, 1.0), 0.5)
 
 
-def _pdf(p, wi, wo, ps):
-    h = normalize(wi + wo)
-    hk = np.sum(h * wo, axis=-1)
-    spec = np.where(hk > 0, D_AshikhminShirley(h, p.nu, p.nv) / (4.0 * np.where(hk > 0, hk, 1.0)), 0.0)
+def _pdf(p, wi, wo, ps, terms=None):
+    _, hk, D = _half_terms(p, wi, wo) if terms is None else terms
+    spec = np.where(hk > 0, D / (4.0 * np.where(hk > 0, hk, 1.0)), 0.0)
     val = ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi)
     return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), val, 0.0)
 
@@ -128,11 +133,20 @@ def sample_half_vector(u, nu, nv):
 
 def sample(p, wo, u):
     ps = _specular_probability(p, wo)
-    k, u0 = pick_lobe(u[:, 0], np.stack([ps, 1.0 - ps], axis=1))
-    uu = np.stack([u0, u[:, 1]], axis=-1)
-    wi_spec = reflect(wo, sample_half_vector(uu, p.nu, p.nv))
-    wi = normalize(np.where((k == 0)[:, None], wi_spec, cosine_hemisphere(uu)))
-    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, ps))
+    probs = np.empty((len(u), 2))
+    probs[:, 0] = ps
+    probs[:, 1] = 1.0 - ps
+    k, u0 = pick_lobe(u[:, 0], probs)
+    uu = np.empty((len(u), 2))
+    uu[:, 0] = u0
+    uu[:, 1] = u[:, 1]
+    wi = np.empty((len(u), 3))
+    spec = k == 0  # each lobe's directions for its own rows only
+    wi[spec] = reflect(wo[spec], sample_half_vector(uu[spec], p.nu, p.nv))
+    wi[~spec] = cosine_hemisphere(uu[~spec])
+    wi = normalize(wi)
+    terms = _half_terms(p, wi, wo)
+    weight, pdf_ = sample_weight(eval(p, wi, wo, terms), wi, _pdf(p, wi, wo, ps, terms))
     return wi, weight, pdf_
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot,
                                   energy_conserving_kd_ks, INV_PI, normalize, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect, sample_weight,
                                   specular_probability)
@@ -61,44 +61,60 @@ def one_minus_cos_h(h):
     return (h[:, 0] ** 2 + h[:, 1] ** 2) / (1.0 + np.maximum(h[:, 2], 0.0))
 
 
+def _cos_n(h, n):
+    """cos^n(theta_h) of half vectors h (0 below the surface), the factor f and pdf share."""
+    return np.where(h[:, 2] > 0, pow_one_minus(one_minus_cos_h(h), n), 0.0)
+
+
 def blinn_lobe_normalized(wi, wo, n):
     """Blinn 1977 cos^n(theta_h) with Giesen's 2009 normalization."""
-    h = half_vector(wi, wo)
-    return normalization_giesen(n) * np.where(h[:, 2] > 0, pow_one_minus(one_minus_cos_h(h), n), 0.0)
+    return normalization_giesen(n) * _cos_n(half_vector(wi, wo), n)
+
+
+def _eval(p, wi, wo, cos_n):
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    lobe = normalization_giesen(p.shininess) * cos_n  # blinn_lobe_normalized
+    f = p.kd[None, :] * INV_PI + p.ks[None, :] * lobe[:, None]
+    return np.where(ok[:, None], f, 0.0)
 
 
 def eval(p, wi, wo):
-    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    f = p.kd[None, :] * INV_PI + p.ks[None, :] * blinn_lobe_normalized(wi, wo, p.shininess)[:, None]
-    return np.where(ok[:, None], f, 0.0)
+    return _eval(p, wi, wo, _cos_n(half_vector(wi, wo), p.shininess))
 
 
 def _specular_probability(p):
     return specular_probability(p.kd, p.ks)
 
 
-def _pdf(p, wi, wo, ps):
+def _pdf(p, wi, wo, ps, h, cos_n):
     n = p.shininess
-    h = half_vector(wi, wo)
-    cos_oh = np.sum(wo * h, axis=-1)
+    cos_oh = dot(wo, h)
     # Walter et al. 2007, eq. 14: p(wi) = p(h) / (4 |wo . h|); p(h) = (n + 1) / (2 pi) cos^n(theta_h)
-    ph = (n + 1.0) / (2.0 * np.pi) * np.where(h[:, 2] > 0, pow_one_minus(one_minus_cos_h(h), n), 0.0)
+    ph = (n + 1.0) / (2.0 * np.pi) * cos_n
     spec = np.where(cos_oh > 0, ph / (4.0 * np.where(cos_oh > 0, cos_oh, 1.0)), 0.0)
     val = ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wi)
     return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), val, 0.0)
 
 
 def pdf(p, wi, wo):
-    return _pdf(p, wi, wo, _specular_probability(p))
+    h = half_vector(wi, wo)
+    return _pdf(p, wi, wo, _specular_probability(p), h, _cos_n(h, p.shininess))
 
 
 def sample(p, wo, u):
     ps = _specular_probability(p)
     k, u0 = pick_lobe(u[:, 0], np.tile([[ps, 1.0 - ps]], (len(u), 1)))
-    uu = np.stack([u0, u[:, 1]], axis=-1)
-    wi_spec = reflect(wo, power_cosine(uu, p.shininess))
-    wi = normalize(np.where((k == 0)[:, None], wi_spec, cosine_hemisphere(uu)))
-    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, ps))
+    uu = np.empty((len(u), 2))
+    uu[:, 0] = u0
+    uu[:, 1] = u[:, 1]
+    wi = np.empty((len(u), 3))
+    spec = k == 0  # each lobe's directions for its own rows only
+    wi[spec] = reflect(wo[spec], power_cosine(uu[spec], p.shininess))
+    wi[~spec] = cosine_hemisphere(uu[~spec])
+    wi = normalize(wi)
+    h = half_vector(wi, wo)
+    cos_n = _cos_n(h, p.shininess)
+    weight, pdf_ = sample_weight(_eval(p, wi, wo, cos_n), wi, _pdf(p, wi, wo, ps, h, cos_n))
     return wi, weight, pdf_
 
 

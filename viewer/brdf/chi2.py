@@ -13,7 +13,15 @@ import math
 import numpy as np
 
 
-def sample_chunks(model, p, wo, n, rng, chunk=250_000):
+# Rows per call to a model's sample / pdf. Chunks of ~8k rows keep the numpy temporaries in the CPU
+# caches: the twins run 1.3 to 2.5 times faster than with 250k rows (measured per model), and no
+# more Python calls than that pay off. The random stream (rng.random draws the same numbers in
+# chunks as at once) and every row's result do not depend on the chunking, so neither do the
+# histograms, integrals and statistics.
+CHUNK = 8_192
+
+
+def sample_chunks(model, p, wo, n, rng, chunk=CHUNK):
     """Yield (wi, weight, pdf) for n samples at a fixed wo, in chunks (bounded memory)."""
     done = 0
     while done < n:
@@ -39,7 +47,7 @@ def _integrate_cells(model, p, wo, rows, cols, c0, cells, sub, order=4):
     dc = (1.0 - c0) / rows
     dphi = 2.0 * np.pi / cols
     out = np.empty(len(cells))
-    chunk = max(1, 400_000 // (k * k))
+    chunk = max(1, 2 * CHUNK // (k * k))  # cells per pdf call: ~2 CHUNK nodes (see CHUNK)
     for s in range(0, len(cells), chunk):
         cc = cells[s:s + chunk]
         c = c0 + (cc[:, 0, None] + t[None, :]) * dc  # (m, k)
@@ -85,12 +93,13 @@ def histogram(model, p, wo, n, rng, rows, cols, sphere):
     problems = []
     for wi, w, pdf in sample_chunks(model, p, wo, n, rng):
         ok = pdf > 0
-        failed += int((~ok).sum())
-        if not np.all(np.isfinite(wi[ok])) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(pdf)):
+        n_ok = int(np.count_nonzero(ok))
+        failed += len(ok) - n_ok
+        d = wi if n_ok == len(ok) else wi[ok]  # (no copy when every sample succeeded)
+        if not np.all(np.isfinite(d)) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(pdf)):
             problems.append("non-finite wi / weight / pdf from sample")
-        if np.any(w[~ok] != 0):
+        if n_ok < len(ok) and np.any(w[~ok] != 0):
             problems.append("weight != 0 where pdf == 0")
-        d = wi[ok]
         c = np.clip(d[:, 2], -1.0, 1.0)
         if not sphere and np.any(c < 0):
             problems.append(f"{int((c < 0).sum())} samples below the surface with pdf > 0 "

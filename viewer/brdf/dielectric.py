@@ -35,7 +35,7 @@ import numpy as np
 from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.fresnel import fresnel_dielectric, fresnel_dielectric_transmittance
 from viewer.brdf.microfacet_dist import Distribution
-from viewer.brdf.sampling import F_MAX, normalize, ratio_capped, reflect, reflect_z, split_uniform
+from viewer.brdf.sampling import F_MAX, dot, normalize, ratio_capped, reflect, reflect_z, split_uniform
 from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -71,7 +71,7 @@ def refract(w, m, eta):
     """Refract w (pointing away, on the side m points to) through the facet m; eta = n_t / n_i.
     Returns (wt, ok); ok is False under total internal reflection (Snell's law, vector form:
     wt = -w / eta + (cos_i / eta - cos_t) m)."""
-    cos_i = np.sum(w * m, axis=-1)
+    cos_i = dot(w, m)
     sin2_t = np.maximum(0.0, 1.0 - cos_i * cos_i) / (eta * eta)
     ok = sin2_t < 1.0
     cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
@@ -110,12 +110,12 @@ def _rough_eval_pdf(p, wi, wo):
     etap = np.where(reflect_, 1.0, eta)
     # generalized half vector, Walter et al. 2007 eq. 16 (h_t = -(eta_i wi + eta_o wo), up to sign)
     h = wi * etap[:, None] + wo
-    hlen2 = np.sum(h * h, axis=-1)
+    hlen2 = dot(h, h)
     valid = (ci != 0) & (co > 0) & (hlen2 > 0)
     wm = normalize(h)
     wm = np.where((wm[:, 2] < 0)[:, None], -wm, wm)
-    im = np.sum(wi * wm, axis=-1)
-    om = np.sum(wo * wm, axis=-1)
+    im = dot(wi, wm)
+    om = dot(wo, wm)
     valid &= (im * ci > 0) & (om * co > 0)
     dist = Distribution("ggx", p.alpha, p.alpha)
     D = dist.D(wm)
@@ -209,7 +209,7 @@ def _sample_rough(p, wo, u):
     wo_s = np.where(up[:, None], wo_u, np.array([0.0, 0.0, 1.0]))
     dist = Distribution("ggx", p.alpha, p.alpha)
     m = dist.sample_m(wo_s, np.stack([u0, u[:, 1]], axis=-1))
-    om = np.sum(wo_s * m, axis=-1)
+    om = dot(wo_s, m)
     F = film_or_fresnel(p, np.clip(om, 0.0, 1.0), eta)[0].mean(axis=1)
     choose_r = uc < F
     wr = reflect(wo_s, m)

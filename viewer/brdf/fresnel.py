@@ -114,7 +114,26 @@ def fresnel_conductor_polarized(cos_i, eta, k):
     where w becomes imaginary and |r| = 1). cos_i is clamped to [0, 1]."""
     scalar = _is_scalar(cos_i, eta, k)
     c = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
-    n = np.asarray(eta, dtype=np.float64) + 1j * np.asarray(k, dtype=np.float64)
+    eta = np.asarray(eta, dtype=np.float64)
+    k = np.asarray(k, dtype=np.float64)
+    shape = np.broadcast_shapes(c.shape, eta.shape, k.shape)
+    if len(shape) == 2 and c.shape == (shape[0], 1) and 1 < shape[1] <= 4 \
+            and all(v.ndim < 2 or v.shape[0] == 1 for v in (eta, k)):
+        # (N, 1) cosines against per-channel indices (the models' RGB Fresnel): one channel at a time
+        # on a contiguous column is about 1.7 times faster than numpy's broadcasting of (N, 1)
+        # against (1, 3), whose inner loops run over 3 elements; the same arithmetic per element
+        Rs, Rp = np.empty(shape), np.empty(shape)
+        eta, k = (np.broadcast_to(v, (1, shape[1]))[0] for v in (eta, k))
+        for j in range(shape[1]):
+            Rs[:, j], Rp[:, j] = _conductor(c[:, 0], eta[j], k[j])
+        return Rs, Rp
+    Rs, Rp = _conductor(c, eta, k)
+    return _out(Rs, scalar), _out(Rp, scalar)
+
+
+def _conductor(c, eta, k):
+    """(Rs, Rp) of ``fresnel_conductor_polarized`` for c already clamped to [0, 1]."""
+    n = eta + 1j * k
     sin2 = (1.0 - c * c).astype(np.complex128)
     n2 = n * n
     w = np.sqrt(n2 - sin2)
@@ -123,9 +142,7 @@ def fresnel_conductor_polarized(cos_i, eta, k):
     den_p = np.abs(a + w) ** 2
     Rs = np.where(den_s > 0, np.abs(c - w) ** 2 / np.where(den_s > 0, den_s, 1.0), 1.0)
     Rp = np.where(den_p > 0, np.abs(a - w) ** 2 / np.where(den_p > 0, den_p, 1.0), 1.0)
-    Rs = np.minimum(Rs, 1.0)
-    Rp = np.minimum(Rp, 1.0)
-    return _out(Rs, scalar), _out(Rp, scalar)
+    return np.minimum(Rs, 1.0), np.minimum(Rp, 1.0)
 
 
 def fresnel_conductor(cos_i, eta, k):

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, luminance, \
-    phong_alpha, pick_lobe, power_cosine, sample_weight, to_world
+from viewer.brdf.sampling import INV_PI, cosine_hemisphere, cosine_hemisphere_pdf, dot, luminance, \
+    normalize, phong_alpha, pick_lobe, power_cosine, sample_weight, to_world
 from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -106,12 +106,12 @@ def lobe_axis(lobe, wo):
     when |C| ~ 1, where |v|^n with n = 5000 would turn one rounding of |v|^2 into 3e-4 relative
     (the float32 shader uses the same form; here wo is renormalized so the identity holds exactly).
     Where |v|^2 < 1/2 the plain log|v| is used instead (there L ~ 1 would cancel)."""
-    w = wo / np.linalg.norm(wo, axis=-1, keepdims=True)
+    w = normalize(wo)
     c = np.array([lobe.cx, lobe.cy, lobe.cz])
     v = w * c
-    length = np.linalg.norm(v, axis=-1)
+    length = np.sqrt(dot(v, v))
     axis = v / np.where(length > 0, length, 1.0)[:, None]
-    L = np.sum(w * w * ((1.0 - c) * (1.0 + c)), axis=-1)
+    L = dot(w * w, (1.0 - c) * (1.0 + c))
     # the L form where |v| is near 1 (L <= 0.5); the plain log|v| where |v| is small (L ~ 1 cancels there)
     near_one = L <= 0.5
     log_len = np.where(near_one, 0.5 * np.log1p(-np.where(near_one, L, 0.0)),
@@ -122,49 +122,62 @@ def lobe_axis(lobe, wo):
 def one_minus_cos(wi, axis):
     """1 - wi . axis = |wi - axis|^2 / 2, exact where wi ~ axis (sharp lobes)."""
     d = wi - axis
-    return 0.5 * np.sum(d * d, axis=-1)
+    return 0.5 * dot(d, d)
+
+
+def _lobe_value(lobe, log_len, x):
+    """max(0, (C o wo) . wi)^n from log|v| and x = 1 - cos(wi, v) (``lafortune_lobe``)."""
+    on = (x < 1.0) & np.isfinite(log_len)
+    log_val = lobe.n * (np.where(on, log_len, 0.0) + np.log1p(-np.where(on, x, 0.0)))
+    return np.where(on, np.exp(np.minimum(log_val, LOG_CLAMP)), 0.0)
 
 
 def lafortune_lobe(lobe, wi, wo):
     """Lafortune et al. 1997, Sec. 3: max(0, (C o wo) . wi)^n, evaluated as exp(n (log|v| + log1p(-x)))
     with x = 1 - cos(wi, v) so a sharp lobe keeps its precision (and n = 0 never meets pow(0, 0))."""
     log_len, axis = lobe_axis(lobe, wo)
-    x = one_minus_cos(wi, axis)
-    on = (x < 1.0) & np.isfinite(log_len)
-    log_val = lobe.n * (np.where(on, log_len, 0.0) + np.log1p(-np.where(on, x, 0.0)))
-    return np.where(on, np.exp(np.minimum(log_val, LOG_CLAMP)), 0.0)
+    return _lobe_value(lobe, log_len, one_minus_cos(wi, axis))
 
 
-def eval(p, wi, wo):
+def _axes(p, wo):
+    """``lobe_axis`` of every lobe: computed once per call and shared by the lobe choice, the
+    sampled directions, f and the pdf."""
+    return [lobe_axis(lobe, wo) for lobe in p.lobes]
+
+
+def _eval(p, wi, wo, axes, xs):
+    """f from the lobes' axes and their x = 1 - cos(wi, axis) (``one_minus_cos``)."""
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     spec = np.zeros(len(wi))
-    for lobe in p.lobes:
-        spec = spec + lafortune_lobe(lobe, wi, wo)
+    for lobe, (log_len, _), x in zip(p.lobes, axes, xs):
+        spec = spec + _lobe_value(lobe, log_len, x)
     f = p.kd[None, :] * INV_PI + spec[:, None]
     return np.where(ok[:, None], f, 0.0)
 
 
-def _probabilities(p, wo):
+def eval(p, wi, wo):
+    axes = _axes(p, wo)
+    return _eval(p, wi, wo, axes, [one_minus_cos(wi, axis) for _, axis in axes])
+
+
+def _probabilities(p, wo, axes):
     """(N, 1 + lobes) selection probabilities: luminance(kd) for the cosine part and, per lobe, its
     estimated albedo |v|^n 2 pi / (n + 1) times max(axis.z, 0.1) (the share of a sharp lobe above the horizon)."""
-    cols = [np.full(len(wo), luminance(p.kd))]
-    for lobe in p.lobes:
-        log_len, axis = lobe_axis(lobe, wo)
+    w = np.empty((len(wo), 1 + len(p.lobes)))
+    w[:, 0] = luminance(p.kd)
+    for j, (lobe, (log_len, axis)) in enumerate(zip(p.lobes, axes)):
         on = np.isfinite(log_len)
-        w = np.exp(np.minimum(lobe.n * np.where(on, log_len, 0.0), LOG_CLAMP)) * 2.0 * np.pi / (lobe.n + 1.0)
-        cols.append(np.where(on, w * np.clip(axis[:, 2], 0.1, 1.0), 0.0))
-    w = np.stack(cols, axis=1)
+        a = np.exp(np.minimum(lobe.n * np.where(on, log_len, 0.0), LOG_CLAMP)) * 2.0 * np.pi / (lobe.n + 1.0)
+        w[:, j + 1] = np.where(on, a * np.clip(axis[:, 2], 0.1, 1.0), 0.0)
     total = w.sum(axis=1, keepdims=True)
     uniform = np.zeros_like(w)
     uniform[:, 0] = 1.0  # nothing reflects: sample the cosine part (f = 0 anyway)
     return np.where(total > 0, w / np.where(total > 0, total, 1.0), uniform)
 
 
-def _pdf(p, wi, wo, probs):
+def _pdf(p, wi, wo, probs, xs):
     val = probs[:, 0] * cosine_hemisphere_pdf(wi)
-    for j, lobe in enumerate(p.lobes):
-        _, axis = lobe_axis(lobe, wo)
-        x = one_minus_cos(wi, axis)
+    for j, (lobe, x) in enumerate(zip(p.lobes, xs)):
         on = x < 1.0
         lobe_pdf = (lobe.n + 1.0) / (2.0 * np.pi) * np.where(
             on, np.exp(lobe.n * np.log1p(-np.where(on, x, 0.0))), 0.0)
@@ -173,20 +186,27 @@ def _pdf(p, wi, wo, probs):
 
 
 def pdf(p, wi, wo):
-    return _pdf(p, wi, wo, _probabilities(p, wo))
+    axes = _axes(p, wo)
+    return _pdf(p, wi, wo, _probabilities(p, wo, axes), [one_minus_cos(wi, axis) for _, axis in axes])
 
 
 def sample(p, wo, u):
-    probs = _probabilities(p, wo)
+    axes = _axes(p, wo)
+    probs = _probabilities(p, wo, axes)
     k, u0 = pick_lobe(u[:, 0], probs)
-    uu = np.stack([u0, u[:, 1]], axis=-1)
-    wi = cosine_hemisphere(uu)
-    for j, lobe in enumerate(p.lobes):
-        _, axis = lobe_axis(lobe, wo)
-        wi = np.where((k == j + 1)[:, None], to_world(power_cosine(uu, lobe.n), axis), wi)
+    uu = np.empty((len(u), 2))
+    uu[:, 0] = u0
+    uu[:, 1] = u[:, 1]
+    wi = np.empty((len(u), 3))
+    diffuse = k == 0
+    wi[diffuse] = cosine_hemisphere(uu[diffuse])
+    for j, (lobe, (_, axis)) in enumerate(zip(p.lobes, axes)):
+        sel = k == j + 1
+        wi[sel] = to_world(power_cosine(uu[sel], lobe.n), axis[sel])
+    xs = [one_minus_cos(wi, axis) for _, axis in axes]
     # f is clamped at e^80 (LOG_CLAMP) but the pdf is not: far out in a huge lobe (|C| = 10,
     # n = 10^4, u ~ 1e-300) f cos / pdf overflows; sample_weight fails that sample.
-    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, probs))
+    weight, pdf_ = sample_weight(_eval(p, wi, wo, axes, xs), wi, _pdf(p, wi, wo, probs, xs))
     return wi, weight, pdf_
 
 

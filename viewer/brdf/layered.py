@@ -87,7 +87,7 @@ import numpy as np
 from viewer.brdf import spectral_fresnel, thin_film
 from viewer.brdf.fresnel import fresnel_dielectric
 from viewer.brdf.microfacet_dist import Distribution
-from viewer.brdf.sampling import normalize, ratio_capped, reflect, split_uniform
+from viewer.brdf.sampling import dot, normalize, ratio_capped, reflect, split_uniform
 from viewer.brdf import lobes as lobe_flags
 from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
@@ -133,19 +133,21 @@ def _base(p):
 def refract_in(w, eta):
     """w refracted into the layer through the mean surface, pointing up (z > 0): Snell's law
     in vector form for the normal +z. Incident from outside, so no total internal reflection."""
-    xy = w[:, :2] / eta
-    z = np.sqrt(np.maximum(0.0, 1.0 - np.sum(xy * xy, axis=-1)))
-    return np.concatenate([xy, z[:, None]], axis=-1)
+    out = np.empty((len(w), 3))
+    xy = np.divide(w[:, :2], eta, out=out[:, :2])
+    out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - dot(xy, xy)))
+    return out
 
 
 def refract_out(w, eta):
     """A direction inside the layer (z > 0) refracted out; ok = False under total internal
     reflection."""
-    xy = w[:, :2] * eta
-    s2 = np.sum(xy * xy, axis=-1)
+    out = np.empty((len(w), 3))
+    xy = np.multiply(w[:, :2], eta, out=out[:, :2])
+    s2 = dot(xy, xy)
     ok = s2 < 1.0
-    z = np.sqrt(np.maximum(0.0, 1.0 - s2))
-    return np.concatenate([xy, z[:, None]], axis=-1), ok
+    out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - s2))
+    return out, ok
 
 
 def _dist(p):
@@ -186,7 +188,7 @@ def film_table_rgb(p, cos) -> np.ndarray:
     x = np.sqrt(np.clip(np.asarray(cos, dtype=np.float64).reshape(-1), 0.0, 1.0)) * (FILM_TABLE - 1)
     i = np.minimum(np.floor(x).astype(int), FILM_TABLE - 2)
     f = (x - i)[:, None]
-    return (1.0 - f) * t[i] + f * t[i + 1]
+    return (1.0 - f) * np.take(t, i, axis=0) + f * np.take(t, i + 1, axis=0)  # t[i], t[i + 1]
 
 
 def derived(p) -> np.ndarray:
@@ -229,7 +231,7 @@ def eval_coat(p, wi, wo):
     h = normalize(wi + wo)
     d = _dist(p)
     # Walter et al. 2007 eq. 20 with the dielectric F (Fresnel at the microfacet)
-    F = coat_fresnel(p, np.sum(wi * h, axis=-1))
+    F = coat_fresnel(p, dot(wi, h))
     val = F * ratio_capped(d.G2(wi, wo, h) * d.D(h), 4.0 * np.where(ok, ci * co, 1.0))[:, None]
     return np.where(ok[:, None], val, 0.0)
 
@@ -249,7 +251,7 @@ def _coat_albedo_cached(ior: float, alpha: float) -> tuple:
     d = Distribution("ggx", alpha, alpha)
     m = d.sample_m(wo_r, u_r)
     wi = reflect(wo_r, m)
-    om = np.clip(np.sum(wo_r * m, axis=-1), 0.0, 1.0)
+    om = np.clip(dot(wo_r, m), 0.0, 1.0)
     # VNDF sampling of the coat lobe: weight f cos / pdf = F(o.m) G2 / G1(wo) (Heitz 2018 sec. 2)
     g1 = d.G1(wo_r, m)
     ok = (wi[:, 2] > 0) & (g1 > 0)
@@ -449,7 +451,7 @@ def _table_rgb(t, cos_out):
     x = np.sqrt(np.clip(np.asarray(cos_out, dtype=np.float64), 0.0, 1.0)) * (BASE_TABLE - 1)
     i = np.minimum(np.floor(x).astype(int), BASE_TABLE - 2)
     f = (x - i)[:, None]
-    return (1.0 - f) * t[i] + f * t[i + 1]
+    return (1.0 - f) * np.take(t, i, axis=0) + f * np.take(t, i + 1, axis=0)  # t[i], t[i + 1]
 
 
 def base_interreflections(p, wi, wo):
@@ -477,7 +479,7 @@ def _p_coat(p, wo):
 
 def _pdf_coat(p, wi, wo):
     h = normalize(wi + wo)
-    oh = np.sum(wo * h, axis=-1)
+    oh = dot(wo, h)
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (oh > 0)
     return np.where(ok, _dist(p).D_visible(wo, h) / (4.0 * np.where(ok, oh, 1.0)), 0.0)
 

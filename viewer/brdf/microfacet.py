@@ -37,7 +37,7 @@ from viewer.brdf.fresnel import f0_conductor, fresnel_conductor, fresnel_dielect
 from viewer.brdf.microfacet_dist import DISTRIBUTIONS, SHADOWING, Distribution, G_blinn_smith, G_v_cavity
 from viewer.brdf import microfacet_walk, spectral_fresnel, thin_film
 from viewer.brdf.presets import METALS
-from viewer.brdf.sampling import INV_PI, cosine_hemisphere, normalize, ratio_capped, reflect
+from viewer.brdf.sampling import INV_PI, cosine_hemisphere, dot, normalize, ratio_capped, reflect
 from viewer.brdf.lobes import Lobe
 from viewer.brdf.spec import ModelSpec, Param
 
@@ -123,7 +123,7 @@ def fdg(p, wi, wo):
             G = G_blinn_smith(dist, wi, wo, h)
     else:
         G = G_v_cavity(wi, wo, h)
-    F = fresnel_rgb(p, np.sum(wi * h, axis=-1))
+    F = fresnel_rgb(p, dot(wi, h))
     return F, D, G, h
 
 
@@ -217,7 +217,7 @@ def _p_diffuse(p, wo):
 
 def _pdf_specular(p, wi, wo):
     h = _half(wi, wo)
-    oh = np.sum(wo * h, axis=-1)
+    oh = dot(wo, h)
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (oh > 0)
     # reflection Jacobian dm/dwi = 1 / (4 |wo.m|) (Walter et al. 2007, eq. 14)
     pm = distribution(p).pdf_m(wo, h)

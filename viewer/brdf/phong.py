@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf,
+from viewer.brdf.sampling import (cosine_hemisphere, cosine_hemisphere_pdf, dot,
                                   energy_conserving_kd_ks, INV_PI, phong_alpha,
                                   pick_lobe, pow_one_minus, power_cosine, reflect_z, sample_weight,
                                   specular_probability, to_world)
@@ -48,7 +48,7 @@ energy_conserving = energy_conserving_kd_ks  # the test harness hook
 def one_minus_cos_mirror(wi, wo):
     """1 - cos(alpha_r) = |wi - r|^2 / 2 with r the mirror of wo: exact where wi ~ r (no cancellation)."""
     d = wi - reflect_z(wo)
-    return 0.5 * np.sum(d * d, axis=-1)
+    return 0.5 * dot(d, d)
 
 
 def phong_lobe_normalized(wi, wo, n):
@@ -56,34 +56,48 @@ def phong_lobe_normalized(wi, wo, n):
     return (n + 2.0) / (2.0 * np.pi) * pow_one_minus(one_minus_cos_mirror(wi, wo), n)
 
 
-def eval(p, wi, wo):
+def _cos_n(p, wi, wo):
+    """cos^n(alpha_r) (``pow_one_minus`` of ``one_minus_cos_mirror``), the factor f and pdf share."""
+    return pow_one_minus(one_minus_cos_mirror(wi, wo), p.shininess)
+
+
+def _eval(p, wi, wo, cos_n):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    f = p.kd[None, :] * INV_PI + p.ks[None, :] * phong_lobe_normalized(wi, wo, p.shininess)[:, None]
+    lobe = (p.shininess + 2.0) / (2.0 * np.pi) * cos_n  # phong_lobe_normalized
+    f = p.kd[None, :] * INV_PI + p.ks[None, :] * lobe[:, None]
     return np.where(ok[:, None], f, 0.0)
+
+
+def eval(p, wi, wo):
+    return _eval(p, wi, wo, _cos_n(p, wi, wo))
 
 
 def _specular_probability(p):
     return specular_probability(p.kd, p.ks)
 
 
-def _pdf(p, wi, wo, ps):
-    n = p.shininess
-    lobe = (n + 1.0) / (2.0 * np.pi) * pow_one_minus(one_minus_cos_mirror(wi, wo), n)
+def _pdf(p, wi, wo, ps, cos_n):
+    lobe = (p.shininess + 1.0) / (2.0 * np.pi) * cos_n
     val = ps * lobe + (1.0 - ps) * cosine_hemisphere_pdf(wi)
     return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), val, 0.0)
 
 
 def pdf(p, wi, wo):
-    return _pdf(p, wi, wo, _specular_probability(p))
+    return _pdf(p, wi, wo, _specular_probability(p), _cos_n(p, wi, wo))
 
 
 def sample(p, wo, u):
     ps = _specular_probability(p)
     k, u0 = pick_lobe(u[:, 0], np.tile([[ps, 1.0 - ps]], (len(u), 1)))
-    uu = np.stack([u0, u[:, 1]], axis=-1)
-    wi_spec = to_world(power_cosine(uu, p.shininess), reflect_z(wo))
-    wi = np.where((k == 0)[:, None], wi_spec, cosine_hemisphere(uu))
-    weight, pdf_ = sample_weight(eval(p, wi, wo), wi, _pdf(p, wi, wo, ps))
+    uu = np.empty((len(u), 2))
+    uu[:, 0] = u0
+    uu[:, 1] = u[:, 1]
+    wi = np.empty((len(u), 3))
+    spec = k == 0  # each lobe's directions for its own rows only
+    wi[spec] = to_world(power_cosine(uu[spec], p.shininess), reflect_z(wo[spec]))
+    wi[~spec] = cosine_hemisphere(uu[~spec])
+    cos_n = _cos_n(p, wi, wo)
+    weight, pdf_ = sample_weight(_eval(p, wi, wo, cos_n), wi, _pdf(p, wi, wo, ps, cos_n))
     return wi, weight, pdf_
 
 
