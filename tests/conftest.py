@@ -118,9 +118,9 @@ def pytest_configure(config):
     """With worker processes (``-n 2``, the default), compile the CPU reference's numba kernels
     once, here in the controller, before the workers start: on a fresh clone numba's cache is
     empty, and every test process and every reference worker process it starts would otherwise
-    compile the same kernels at once (about 55 CPU seconds each on two cores; measured: one
-    process 56 s cold, then test_pathtracer.py 9 s instead of 67 s). Later runs load the cache
-    (a second or two)."""
+    compile the same kernels at once (the fused bounce about 21 CPU s since its Fresnel term is a
+    call of its own, 110 s before; test_pathtracer.py then takes 9 s instead of 67 s). Later runs
+    load the cache (a second or two)."""
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
     try:
