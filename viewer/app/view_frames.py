@@ -264,22 +264,22 @@ class ViewFrames:
     def _tiled(self, scene, w, h) -> bool:
         """Whether the still view of ``scene`` is drawn in tiles: ``tiled_frames`` on, its last
         whole frame (or tiled one) over ``TILE_BUDGET_S`` (at another size, scaled by the pixels),
-        or another scene (its cost not known yet: a lecture step's soap bubbles cost 30 times the
-        step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
+        or another scene or the view's first frame (its cost not known yet: a lecture step's soap
+        bubbles cost 30 times the step before), a frame that tiles (not SSR, whose pass reads the whole frame, nor brute-force
         IBL or a file material's sampled environment light, whose means average whole frames)."""
         if not self._tiles_on or scene.render.ssr or frames_wanted(scene) > 1:
             return False
         if self.tiling:
             return True
-        if self._whole_s is None:
-            return False
+        if self._whole_s is None:  # the view's first frame: its cost is not known (the default
+            return True            # scene's whole first frame took 0.6 s on software OpenGL)
         (w0, h0), cost, objects = self._whole_s
         # another size (side by side, a resize, lecture mode's strip): the cost scaled by the pixels
         return objects is not scene.objects or cost * (w * h) / max(w0 * h0, 1) > self.tile_budget_s
 
     def _new_scene(self, scene) -> bool:
-        """No frame of ``scene`` was drawn whole yet (another scene was)."""
-        return self._whole_s is not None and self._whole_s[2] is not scene.objects
+        """No frame of ``scene`` was drawn whole yet (another scene was, or none)."""
+        return self._whole_s is None or self._whole_s[2] is not scene.objects
 
     @property
     def tile_budget_s(self) -> float:
