@@ -304,6 +304,7 @@ class ViewFrames:
         if self._tiles is None:
             self._tiles = ProgressiveTrace(s.ctx)
         t = self._tiles
+        t.msaa_made = self.prep.on  # the preparation drew each program at the view's MSAA
         if restart or not t.active:
             under = None
             same = (self.drawn_materials is not None and self.drawn_materials[0] is s.scene
