@@ -309,7 +309,10 @@ def test_the_screenshot_waits_for_the_finished_view(gl_ctx, renderer, tiled):
     s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
     s.warm = []
     try:
-        s.render_view(SIZE)
+        s.render_view(SIZE)   # the view's first frame, in tiles (its cost is not known yet)
+        assert s.tiling and not s.view_finished
+        while s.tiling:
+            s.render_view(SIZE)
         assert s.view_finished
         s.set_material_param("ball", "kd", [0.2, 0.6, 0.3])
         assert not s.view_finished   # a change: not drawn yet

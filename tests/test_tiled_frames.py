@@ -391,3 +391,24 @@ def test_a_trace_sizes_its_tiles_from_a_probe_of_their_fixed_cost(gl_ctx, render
         assert pt.progress == 1.0
     finally:
         pt.release()
+
+
+@pytest.mark.parametrize("s, h, w", [(4, 37, 50), (2, 30, 41)])
+def test_the_preview_is_enlarged_on_the_gpu_as_upscale_does(gl_ctx, renderer, s, h, w):
+    # shaders/passes/enlarge.frag against the numpy enlargement (the same weights, the borders
+    # clamped), on random texels; sizes not multiples of the factor, as a view's rarely are
+    from viewer.gl.raytrace import ProgressiveTrace
+
+    rng = np.random.default_rng(3)
+    hs, ws = (h + s - 1) // s, (w + s - 1) // s
+    small = rng.random((hs, ws, 4)).astype(np.float32)
+    src = gl_ctx.texture((ws, hs), 4, dtype="f4")
+    src.write(small.tobytes())
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        tex = pt.enlarge(renderer, src, s, w, h)
+        got = np.frombuffer(tex.read(), np.float32).reshape(h, w, 4)
+        np.testing.assert_allclose(got, upscale(small, s, h, w), rtol=1e-6, atol=1e-6)  # float32 rounding
+    finally:
+        pt.release()
+        src.release()

@@ -23,6 +23,7 @@ FIXED = {
 }
 # programs built on first use
 BACKGROUND = Recipe("passes/fullscreen.vert", "passes/background.frag")
+ENLARGE = Recipe("passes/fullscreen.vert", "passes/enlarge.frag")   # a preview enlarged (ProgressiveTrace)
 THICKNESS = Recipe("passes/forward.vert", "passes/thickness.frag")
 TRACED_MASK = Recipe("passes/forward.vert", "passes/traced_mask.frag")
 SHADOW_GLASS = Recipe("passes/shadow_glass.vert", "passes/shadow_glass.frag")
