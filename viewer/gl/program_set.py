@@ -23,7 +23,7 @@ FIXED = {
 }
 # programs built on first use
 BACKGROUND = Recipe("passes/fullscreen.vert", "passes/background.frag")
-ENLARGE = Recipe("passes/fullscreen.vert", "passes/enlarge.frag")   # a preview enlarged (ProgressiveTrace)
+ENLARGE = Recipe("passes/fullscreen.vert", "passes/enlarge.frag")   # a preview enlarged (raytrace.ProgressiveTrace)
 THICKNESS = Recipe("passes/forward.vert", "passes/thickness.frag")
 TRACED_MASK = Recipe("passes/forward.vert", "passes/traced_mask.frag")
 SHADOW_GLASS = Recipe("passes/shadow_glass.vert", "passes/shadow_glass.frag")
@@ -125,6 +125,10 @@ class ProgramSet:
     def get(self, key: str, recipe: Recipe):
         """The program ``key``, built from ``recipe`` on first use (raises ShaderError)."""
         return self.cache.get(key, recipe)
+
+    def enlarge(self):
+        """The program that enlarges a preview (shaders/passes/enlarge.frag), made on first use."""
+        return self.get("enlarge", ENLARGE)
 
     def fullscreen_vao(self, prog):
         return self.cache.fullscreen_vao(prog)

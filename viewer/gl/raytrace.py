@@ -576,12 +576,11 @@ class ProgressiveTrace:
     def enlarge(self, renderer, src, s: int, w: int, h: int):
         """``src`` (a texture) enlarged ``s`` times into the texture, of (w, h) (``upscale``'s
         weights, shaders/passes/enlarge.frag); returns the texture."""
-        from viewer.gl.program_set import ENLARGE
         from viewer.gl.shaders import set_uniform
 
         ctx = self.ctx
         self._target(w, h)
-        prog = renderer.program_set.get("enlarge", ENLARGE)
+        prog = renderer.program_set.enlarge()
         self._fbo.use()
         self._fbo.viewport = (0, 0, w, h)
         ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
