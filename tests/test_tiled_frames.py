@@ -360,9 +360,10 @@ def test_a_tile_draws_only_the_objects_over_it_and_equals_the_whole_frame_there(
     whole = _whole(renderer, scene, cam, SIZE)
 
     def kept(region):
-        f = Frame(w, h, cam, None, 0, False, 0, [], False, np.zeros(3), None, False, False, region)
-        assert in_region(scene.objects, f._replace(cull=False)) == list(enumerate(scene.objects))
-        return len(in_region(scene.objects, f))
+        def frame(cull):
+            return Frame(w, h, cam, None, 0, False, 0, [], False, np.zeros(3), None, False, False, region, cull=cull)
+        assert in_region(scene.objects, frame(False)) == list(enumerate(scene.objects))
+        return len(in_region(scene.objects, frame(True)))
 
     assert kept(None) == len(scene.objects)
     assert kept((0, 0, 6, 6)) < len(scene.objects) // 2

@@ -487,7 +487,7 @@ class ProgressiveTrace:
             return self._start_raster(renderer, scene, camera, w, h, view_mode, msaa, under, like_last,
                                       preview_scale)
         self._tile_args = {"msaa": 0, "raytrace": None}
-        self.raster, self._worst_px = False, 0.0
+        self.raster = False
         # the first tile a probe of PROBE_PIXELS: its time is the fixed part of every tile (the
         # scene's vertex work), which sizes the next; a first tile of whole rows over glass took
         # 0.3 s on software OpenGL and, taken for that fixed part, grew the next ones to a second

@@ -68,8 +68,12 @@ class MeshData:
     indices: np.ndarray     # uint32 (F,3)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(min xyz, max xyz) of the vertex positions, float32."""
-        return self.positions.min(axis=0), self.positions.max(axis=0)
+        """(min xyz, max xyz) of the vertex positions, float32; kept for the positions array they
+        were taken of (a tiled frame asks for them each tile, for every object)."""
+        kept = self.__dict__.get("_bounds")
+        if kept is None or kept[0] is not self.positions:
+            kept = self.__dict__["_bounds"] = (self.positions, self.positions.min(axis=0), self.positions.max(axis=0))
+        return kept[1], kept[2]
 
     def copy(self) -> "MeshData":
         return MeshData(self.name, self.positions.copy(), self.normals.copy(), self.tangents.copy(),
