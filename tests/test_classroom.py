@@ -128,6 +128,7 @@ def test_split_view_shows_raster_left_and_reference_right(display, tmp_path):
             app.frame(); time.sleep(0.02)
         for _ in range(3):
             app.frame()
+        app.session.compare.settle()   # the metrics measured on the worker thread, adopted
         shot = app.capture_window().astype(float)
         raster = app.session.renderer.read_srgb(app.session.hdr).astype(float)
         ref, spp = app.session.reference.latest()

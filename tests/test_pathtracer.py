@@ -508,9 +508,9 @@ def test_auto_pool_follows_the_scene_across_resets(tmp_path):
 
 def test_a_rendering_process_keeps_its_freed_memory(tmp_path):
     """Where this process renders (threads or ``workers=0``), glibc's heap keeps freed chunk arrays
-    and numpy stops advising huge pages (``viewer.pathtracer.heap``: each cost a page fault or a
+    and numpy stops advising huge pages (``viewer.base.heap``: each cost a page fault or a
     memory compaction per chunk)."""
-    from viewer.pathtracer import heap
+    from viewer.base import heap
 
     with ReferenceRenderer(scene_from(tmp_path, small_scene(8, 6)), workers=0) as r:
         r.step(1)

@@ -209,6 +209,7 @@ def test_metrics_belong_to_the_reference_view_they_were_taken_on(gl_ctx, rendere
         s.update_reference(SIZE)
         rv.publish(np.full((SIZE[1], SIZE[0], 3), 0.5, np.float32), 35)
         s.update_reference(SIZE)
+        s.compare.settle()   # measured on the worker thread: this snapshot's metrics
         text = s.metrics_text()
         assert text.startswith("RMSE") and "(35 spp)" in text
         assert s.compare.metrics_for == rv.key
@@ -225,7 +226,53 @@ def test_metrics_belong_to_the_reference_view_they_were_taken_on(gl_ctx, rendere
         assert labels == ["raster", "reference (4 spp)"]
         s.render_view(SIZE)
         s.update_reference(SIZE)
+        s.compare.settle()
         assert "(4 spp)" in s.metrics_text() and s.compare.metrics_for == rv.key
+    finally:
+        s.reference = None
+        s.release()
+
+
+def test_metrics_are_measured_on_a_worker_and_a_left_view_s_are_never_adopted(gl_ctx, renderer, monkeypatch):
+    """The RMSE and the difference view's heat map are computed on the worker thread (the
+    window's thread only reads the raster back); a measurement asked for on a view of the
+    reference that has since changed is dropped when it finishes, never shown."""
+    import threading
+
+    from viewer.app import compare_view
+
+    gate, threads = threading.Event(), []
+    measure = compare_view.measure
+
+    def held(*args):
+        threads.append(threading.current_thread().name)
+        assert gate.wait(10)
+        return measure(*args)
+
+    monkeypatch.setattr(compare_view, "measure", held)
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    s.warm = []
+    rv = s.reference = StandInReference()
+    try:
+        s.set_image_mode("difference")
+        s.render_view(SIZE)
+        s.update_reference(SIZE)
+        rv.publish(np.full((SIZE[1], SIZE[0], 3), 0.5, np.float32), 35)
+        s.update_reference(SIZE)   # asked for; held on the worker: this call returned meanwhile
+        assert s.compare.metrics is None and s.metrics_text() == ""
+        assert s.compare.heat_texture(relative=False) is None
+        assert s.open_scene("sphere")   # another view of the reference: what is under way is the old one's
+        s.update_reference(SIZE)
+        gate.set()
+        s.compare.settle()
+        assert s.compare.metrics is None and s.compare.heat_texture(relative=False) is None
+        rv.publish(np.full((SIZE[1], SIZE[0], 3), 0.25, np.float32), 8)
+        s.render_view(SIZE)
+        s.update_reference(SIZE)
+        s.compare.settle()
+        assert "(8 spp)" in s.metrics_text() and s.compare.metrics_for == rv.key
+        assert s.compare.heat_texture(relative=False) is not None   # measured with the metrics
+        assert threads and all(t.startswith("brdf-viewer-metrics") for t in threads)
     finally:
         s.reference = None
         s.release()
@@ -330,7 +377,8 @@ def test_the_screenshot_waits_for_the_finished_view(gl_ctx, renderer, tiled):
         assert not s.view_finished   # the view shows the reference: a pass of it first
         rv.publish(np.full((SIZE[1], SIZE[0], 3), 0.5, np.float32), 4)
         assert not s.view_finished   # and its metrics
-        s.update_reference(SIZE)
+        s.update_reference(SIZE)     # asked for on the worker thread
+        s.compare.settle()
         assert s.view_finished
         rv.spp, rv.error = 0, "no reference: why, in one line"
         assert s.view_finished   # none will come: the line says why

@@ -256,8 +256,7 @@ class Session:
         for line, error in rv.take_notices():   # a damaged cache entry repaired, a cache that cannot store
             self.notify(line, error=error)
         tex = rv.texture_for_display()
-        if self.compare.metrics_for != rv.key:  # taken on another scene or view: gone with it
-            self.compare.forget_metrics()
+        self.compare.follow(rv.key)  # metrics taken on another scene or view: gone with it
         # the raster as the scene now is: whole, at full quality, no material drawn as it was
         if self.compare.mode != "reference" and self.quality == "full" and self.hdr is not None \
                 and self.compiles.awaiting is None and not self.pending:

@@ -53,7 +53,7 @@ import numpy as np
 
 from viewer.brdf import twin_trust
 from viewer.reference_common.estimator import EstimatorOptions, mean_of, variance_of_mean
-from viewer.pathtracer.heap import keep_freed_memory
+from viewer.base.heap import keep_freed_memory
 from viewer.pathtracer.integrator import Integrator
 from viewer.reference_common.setup import RenderSetup
 from viewer.pathtracer.spawn_guard import check_entry_point_guarded

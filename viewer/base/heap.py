@@ -1,4 +1,5 @@
-"""Memory the CPU reference's chunks take again and again, kept instead of faulted in anew.
+"""Memory taken again and again (the CPU reference's chunks, the window's readbacks), kept instead of
+faulted in anew.
 
 A chunk allocates and frees the same few dozen arrays of 0.1-10 MB per bounce (numpy
 temporaries of 32,768 paths). Two defaults make each of those allocations cost kernel time:
