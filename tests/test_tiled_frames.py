@@ -277,6 +277,46 @@ def test_a_compare_view_switch_keeps_the_raster_shown(gl_ctx, renderer):
         s.release()
 
 
+def test_the_view_at_another_size_of_its_framing_tiles_over_its_last_frame_resampled(gl_ctx, renderer, tiled):
+    """A compare view's half and the whole view again (the same framing at another size): the
+    tiles start over the frame shown, resampled on the GPU (a 2 x 2 box going down, the preview's
+    bilinear weights going up), never over a preview drawn anew."""
+    from viewer.gl import raytrace
+
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
+    half = (SIZE[0] // 2, SIZE[1] // 2)
+    try:
+        while s.quality != "full" or s.hdr is None:
+            s.render_view(SIZE)
+        whole = renderer.read_linear(s.hdr).copy()
+        drawn = []
+        render = renderer.render
+        renderer.render = lambda *a, **k: drawn.append(tuple(a[2:4])) or render(*a, **k)
+        try:
+            s.render_view(half)
+            first = renderer.read_linear(s.hdr).copy()
+            assert s.tiling
+            # the bottom row is under the tiles: the whole frame's two bottom rows, boxed 2 x 2
+            boxed = whole.reshape(half[1], 2, half[0], 2, 3).mean(axis=(1, 3))
+            np.testing.assert_allclose(first[-1], boxed[-1], rtol=1e-5, atol=1e-6)
+            while s.quality != "full":
+                s.render_view(half)
+            small = renderer.read_linear(s.hdr).copy()
+            s.render_view(SIZE)
+            again = renderer.read_linear(s.hdr).copy()
+            grown = raytrace.upscale(np.ascontiguousarray(small[::-1]), 2, SIZE[1], SIZE[0])[::-1]
+            np.testing.assert_allclose(again[-1], grown[-1], rtol=1e-5, atol=1e-6)
+        finally:
+            renderer.render = render
+        # no preview was drawn: every render was a tile of the view's own size
+        assert set(drawn) == {half, SIZE}, drawn
+        while s.quality != "full":
+            s.render_view(SIZE)
+        assert np.array_equal(renderer.read_linear(s.hdr), _whole(renderer, s.scene, s.camera, SIZE))
+    finally:
+        s.release()
+
+
 def test_a_preview_is_enlarged_without_steps():
     """A preview's pixels are interpolated between their centres: a ramp stays a ramp (no
     stairs), the borders hold their pixel's value, a constant stays exactly constant."""

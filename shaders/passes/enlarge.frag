@@ -1,13 +1,15 @@
 #version 410 core
-// A preview enlarged u_scale times with bilinear interpolation between its texel centres,
-// clamped at the borders: the output pixel p lies at (p + 1/2) / s - 1/2 in the preview's texel
-// centres (viewer.gl.raytrace.upscale, the same weights, here on the GPU).
+// An image resampled to the target's size with bilinear interpolation between its texel centres,
+// clamped at the borders: the output pixel p lies at (p + 1/2) u_ratio - 1/2 in the source's texel
+// centres, u_ratio the source's texels per output pixel on each axis. A preview enlarged s times
+// has u_ratio = 1 / s (viewer.gl.raytrace.upscale, the same weights, here on the GPU); the view
+// drawn at another size (a compare view's half) has u_ratio = its size / the target's.
 uniform sampler2D u_src;   // read by texelFetch: the driver's filtering plays no part
-uniform int u_scale;
+uniform vec2 u_ratio;
 out vec4 color;
 void main() {
     ivec2 size = textureSize(u_src, 0);
-    vec2 x = (gl_FragCoord.xy) / float(u_scale) - 0.5;   // gl_FragCoord is at the pixel's centre
+    vec2 x = gl_FragCoord.xy * u_ratio - 0.5;   // gl_FragCoord is at the pixel's centre
     vec2 i0 = floor(x);
     vec2 f = x - i0;
     ivec2 a = clamp(ivec2(i0), ivec2(0), size - 1);

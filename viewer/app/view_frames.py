@@ -49,6 +49,13 @@ class FrameSource:
     under: object = None
 
 
+def _same_framing(size, other) -> bool:
+    """Two sizes of one view's framing: the same aspect to within a pixel (the compare views draw
+    the raster letterboxed into half the view, ``layout.fit_rect``)."""
+    (w0, h0), (w1, h1) = size, other
+    return w0 > 0 and h0 > 0 and abs(w0 * h1 / h0 - w1) <= 1.0 and abs(h0 * w1 / w0 - h1) <= 1.0
+
+
 class ViewFrames:
     """The raster frames of ``session``'s view (``tiled_frames``: a still view whose whole frame
     takes longer than ``TILE_BUDGET_S`` is drawn in tiles over the next frames, ``quality``
@@ -314,8 +321,10 @@ class ViewFrames:
             # resolution and MSAA under the tiles), never another scene's
             ours = self.frame_source is not None and self.frame_source.scene is s.scene
             seen = ours and self._drawn_view == self._view_key()
-            if self.hdr is not None and ours and (self.quality == "preview" or (seen and tuple(self.hdr.size) == (w, h))):
-                under = self.hdr  # read before any tile draws over the renderer's target
+            if self.hdr is not None and ours and (self.quality == "preview" or (seen and _same_framing(self.hdr.size, (w, h)))):
+                # read before any tile draws over the renderer's target; at another size of the
+                # same framing (a compare view's half and the whole view) resampled on the GPU
+                under = self.hdr
             self._tiles_under = self.frame_source.scene if under is not None else s.scene
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last

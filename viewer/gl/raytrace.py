@@ -422,6 +422,7 @@ class ProgressiveTrace:
         # compile-ahead child's tiles must, to make each program's code for a scissored draw)
         self.cull = True
         self.msaa_made = False  # the programs' machine code at the view's MSAA is made (see _start_raster)
+        self._kept = None       # the last target, at another size, until it is read (``_target``)
 
     @property
     def active(self) -> bool:
@@ -442,9 +443,17 @@ class ProgressiveTrace:
             return 1.0
         return self.traced_px / self.total_px if self.total_px else 0.0
 
-    def _target(self, w, h):
+    def _target(self, w, h, keep=None):
+        """The texture at (w, h), made anew at another size; ``keep``: a texture read after this
+        call, which may be the old one (then released once read, ``_kept``)."""
         if self.texture is None or self.texture.size != (w, h):
-            self.release()
+            if keep is not None and keep is self.texture:
+                if self._kept is not None:
+                    release_gl(self._kept)
+                release_gl(self._fbo)
+                self._job, self._kept = None, keep
+            else:
+                self.release()
             self.texture = self.ctx.texture((w, h), 4, dtype="f4")
             self.texture.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
             self._fbo = self.ctx.framebuffer(color_attachments=[self.texture])
@@ -473,7 +482,9 @@ class ProgressiveTrace:
         from viewer.gl import trace_cache
 
         self.started = time.perf_counter()
-        tex = self._target(w, h)
+        resized = (not traced and under is not None and not isinstance(under, np.ndarray)
+                   and tuple(under.size) != (w, h))   # the view drawn at another size
+        tex = self._target(w, h, keep=under if resized else None)
         self._job = (renderer, scene, camera, w, h, view_mode)
         self.height, self.width = h, w
         self.steps, self.trace_s, self.elapsed_s, self.traced_px = 0, 0.0, 0.0, 0
@@ -539,8 +550,9 @@ class ProgressiveTrace:
                     self.ctx.copy_framebuffer(self._fbo, fbo)
                     release_gl(fbo)
                 under = True  # in the texture now
-            else:
-                under = np.frombuffer(under.read(), np.float32).reshape(under.height, under.width, 4)
+            else:  # the view drawn at another size (a compare view's half): resampled on the GPU
+                self.enlarge(renderer, under, None, w, h)
+                under = True
         if isinstance(under, np.ndarray) and under.shape[:2] not in ((h, w), (h2, w2)):
             under = None
         if under is None:
@@ -573,21 +585,27 @@ class ProgressiveTrace:
         self.overhead_s = None
         return self.texture
 
-    def enlarge(self, renderer, src, s: int, w: int, h: int):
-        """``src`` (a texture) enlarged ``s`` times into the texture, of (w, h) (``upscale``'s
-        weights, shaders/passes/enlarge.frag); returns the texture."""
+    def enlarge(self, renderer, src, s: int | None, w: int, h: int):
+        """``src`` (a texture) resampled into the texture, of (w, h): enlarged ``s`` times
+        (``upscale``'s weights), or with ``s`` None from whatever size it has (bilinear between
+        its texel centres; shaders/passes/enlarge.frag); returns the texture. ``src`` may be the
+        texture itself at another size: it is released once read."""
         from viewer.gl.shaders import set_uniform
 
         ctx = self.ctx
-        self._target(w, h)
+        self._target(w, h, keep=src)
         prog = renderer.program_set.enlarge()
         self._fbo.use()
         self._fbo.viewport = (0, 0, w, h)
         ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
         src.use(location=texture_units.SOURCE)
         set_uniform(prog, "u_src", texture_units.SOURCE)
-        set_uniform(prog, "u_scale", int(s))
+        ratio = (1.0 / s, 1.0 / s) if s else (src.width / w, src.height / h)
+        set_uniform(prog, "u_ratio", ratio)
         renderer.program_set.fullscreen_vao(prog).render(vertices=3)
+        if self._kept is not None:  # the old target, read: released now
+            release_gl(self._kept)
+            self._kept = None
         return self.texture
 
     def step(self, budget_s: float = 0.15):
@@ -751,3 +769,6 @@ class ProgressiveTrace:
         if self._fbo is not None:
             release_gl(self._fbo, self.texture)
         self._fbo = self.texture = None
+        if self._kept is not None:
+            release_gl(self._kept)
+            self._kept = None
