@@ -3,7 +3,11 @@ keys, tables equal to the window's own), and the session holding a changed mater
 until the answer comes (driven with a stand-in child whose answer the test releases, so no
 test waits on the timing of a process)."""
 
+import math
+import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -293,3 +297,143 @@ def test_the_window_asks_for_a_traced_steps_untraced_copy_first_and_a_later_scen
         s.compiles.child = None
         s.release()
         renderer.release()
+
+
+# ------------------------------------------------------------------ the two children
+
+# A stand-in child: the module's own main() (its command line, its niceness) around a serve()
+# that answers each request at once with its process id (as a program key and a table's key);
+# but the child behind the window (--nice above 0) holds a request whose base_dir is named "held"
+# until told to drop it, and then answers it all the same (a child that was drawing it when the
+# other child answered).
+TWO_CHILDREN = [sys.executable, "-c", (
+    "import json, os, sys\n"
+    "import viewer.app.compile_ahead as ca\n"
+    "def serve():\n"
+    "    print(json.dumps({'ready': True}), flush=True)\n"
+    "    for line in sys.stdin:\n"
+    "        msg = json.loads(line)\n"
+    "        held = 'scene' in msg and os.path.basename(msg['base_dir'] or '') == 'held' and sys.argv[-1] != '0'\n"
+    "        if 'drop' in msg or ('scene' in msg and not held):\n"
+    "            me = str(os.getpid())\n"
+    "            rid = msg['drop'] if 'drop' in msg else msg['id']\n"
+    "            print(json.dumps({'id': rid, 'ok': True, 'keys': ['pid ' + me], 'tables': {me: {}}}), flush=True)\n"
+    "    return 0\n"
+    "ca.serve = serve\n"
+    "sys.exit(ca.main())\n")]
+
+
+def _niceness(pid: int) -> int:
+    with open(f"/proc/{pid}/stat") as f:  # field 19; the name (field 2) may hold spaces
+        return int(f.read().rsplit(")", 1)[1].split()[16])
+
+
+def _scene(name, held=False, preset=None):
+    scene = load_scene(name, overrides=[f"materials.ball.preset={preset}"] if preset else ())
+    if held:
+        scene.base_dir = Path("/nowhere/held")  # the stand-in holds it (its meshes are built in)
+    return scene
+
+
+def _answered_by(ca, rid) -> int:
+    _wait(lambda: ca.answered(rid), f"request {rid}", 60)
+    ans = ca.done[rid]
+    assert ans["ok"], ans
+    return int(ans["keys"][0].split()[1])
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the children's niceness from Linux /proc")
+def test_the_scene_shown_compiles_at_the_windows_priority_and_the_work_ahead_behind_it():
+    from viewer.app.compile_ahead import AHEAD_NICE
+
+    mine = _niceness(os.getpid())
+    behind = min(mine + AHEAD_NICE, 19)
+    if behind == mine:
+        pytest.skip("this process already has the lowest priority: the children's cannot differ")
+    ca = CompileAhead(command=TWO_CHILDREN, leash=math.inf)
+    try:
+        shown = _answered_by(ca, ca.request(_scene("sphere"), urgent=True, batch=1))
+        assert ca.ahead_pid is None  # a window that never warms anything runs one child
+        assert shown == ca.pid and _niceness(shown) == mine
+        nxt = _answered_by(ca, ca.request(_scene("default"), urgent=False, ahead=True))
+        warm = _answered_by(ca, ca.request(_scene("cornell"), urgent=False))
+        assert nxt == warm == ca.ahead_pid != shown
+        assert _niceness(nxt) == behind
+        assert ca.outstanding == 0
+        pids = (shown, nxt)
+    finally:
+        ca.stop()
+    assert not ca.alive and not any(os.path.exists(f"/proc/{p}") for p in pids)  # both ended and reaped
+
+
+def test_a_request_sent_ahead_then_shown_is_drawn_by_the_urgent_child_and_answered_once():
+    calls = []
+    ca = CompileAhead(on_done=lambda: calls.append(sorted(ca.done)), command=TWO_CHILDREN, leash=math.inf)
+    try:
+        scene = _scene("sphere", held=True)
+        rid = ca.request(scene, urgent=False, ahead=True)  # the next step, held by the ahead child
+        assert not ca.answered(rid) and ca.outstanding == 1
+        assert ca.request(scene, urgent=False, ahead=True) == rid  # asked again ahead: nothing new
+        assert ca.request(scene, urgent=True, batch=2) == rid       # now shown: the same request
+        assert _answered_by(ca, rid) == ca.pid
+        # the ahead child, told to drop it, answers all the same: merged, not counted again
+        _wait(lambda: str(ca.ahead_pid) in ca.tables and calls, "the ahead child's late answer", 60)
+        assert ca.done[rid]["keys"] == [f"pid {ca.pid}"] and ca.outstanding == 0
+        later = ca.request(_scene("default"), urgent=False)  # answered after the late one, in order
+        _wait(lambda: calls and later in calls[-1], "the warm-up request", 60)
+        assert calls == [[rid], [rid, later]]
+    finally:
+        ca.stop()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="the leash reads a child's CPU time from Linux /proc")
+def test_replacing_a_silent_child_leaves_the_other_serving():
+    import signal
+
+    notes = []
+    ca = CompileAhead(on_notice=notes.append, command=TWO_CHILDREN, leash=0.3)
+    try:
+        urgent = ca.pid
+        held = ca.request(_scene("sphere", held=True), urgent=False, ahead=True)
+        ahead = ca.ahead_pid
+        _wait(lambda: ca.answered(held), "the ahead child's leash", 60)
+        assert not ca.done[held]["ok"] and "no answer within 0.3 s" in ca.done[held]["error"]
+        assert ca.replaced == 1 and ca.pid == urgent and ca.ahead_pid not in (None, ahead)
+        assert len(notes) == 1 and "did not answer within 0.3 s" in notes[0]
+        ca.leash = math.inf  # a loaded machine's pause is not taken for silence from here on
+        assert _answered_by(ca, ca.request(_scene("default"), urgent=True)) == urgent
+        ahead = ca.ahead_pid
+        ca.leash = 0.3
+        os.kill(urgent, signal.SIGSTOP)  # the other way round: the urgent child stops
+        stuck = ca.request(_scene("cornell"), urgent=True)
+        _wait(lambda: ca.answered(stuck), "the urgent child's leash", 60)
+        assert ca.replaced == 2 and ca.alive and ca.pid != urgent and ca.ahead_pid == ahead
+        ca.leash = math.inf
+        assert _answered_by(ca, ca.request(_scene("default", preset="glass"), urgent=False)) == ahead
+        assert _answered_by(ca, ca.request(_scene("default", preset="gold"), urgent=True)) == ca.pid
+    finally:
+        ca.stop()
+
+
+def test_the_childs_command_line_says_its_niceness():
+    from viewer.app.compile_ahead import AHEAD_NICE, main, niceness
+
+    assert niceness([]) == AHEAD_NICE and niceness(["--nice", "0"]) == 0 and niceness(["--nice", "10"]) == 10
+    for bad in (["--nice", "x"], ["--nice", "-3"], ["--nice"], ["--fast"]):
+        with pytest.raises(ValueError):
+            niceness(bad)
+    assert main(["--nice", "twenty"]) == 2  # one line, before any priority is changed
+
+
+def test_a_request_answered_by_the_other_child_is_dropped_from_the_queue():
+    from viewer.app.compile_ahead import AHEAD, IDLE, WorkQueue
+
+    q = WorkQueue()
+    for r in (_req(0, AHEAD), _req(1, AHEAD), _req(2, IDLE)):
+        q.put(r)
+    assert q.take()["id"] == 0
+    q.put({"drop": 0})  # being drawn: it finishes
+    q.put({"drop": 1})
+    q.finished()
+    q.close()
+    assert q.take()["id"] == 2 and q.take() is None

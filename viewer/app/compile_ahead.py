@@ -2,8 +2,8 @@
 stops the window's frames while the shader compiler works (on a software rasterizer a program
 takes 0.1-6 s: the GLSL link and llvmpipe's code generation at the first draw).
 
-A child process (``python -m viewer.app.compile_ahead``), at a lower priority and on its own
-headless OpenGL context (EGL), draws each scene the window sends it at a tiny size in every kind
+A child process (``python -m viewer.app.compile_ahead [--nice N]``), on its own headless
+OpenGL context (EGL), draws each scene the window sends it at a tiny size in every kind
 of frame the window draws (``window_frames``: the view while dragged, the raster frame whole and
 in tiles over its quarter-resolution preview, a traced scene's mask and traced tiles, with the
 window's own ``ProgressiveTrace``), because llvmpipe makes a program's machine code at its first
@@ -24,22 +24,35 @@ with work outstanding: then it is replaced and the window compiles the change it
 before the compile-ahead of the scene's presets. Without a driver cache (a driver that keeps
 none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program itself, after
 the child's tables, and the frames of that compile are as long as before. Any failure of the child
-(no EGL, a crash) turns it off with ``error`` set: the window then compiles as it always did.
+that serves the scene shown (no EGL, a crash) turns compile-ahead off with ``error`` set: the
+window then compiles as it always did; a failure of the other stops only the work ahead.
 
-The order of the child's work: the scene the window shows first (``URGENT``; of those, the
+Two such children run (``CompileAhead``): one for the scene the window shows, at the window's own
+priority, and one for the next lecture step and the warm-up, at niceness ``AHEAD_NICE`` above it
+(started with its first request), behind the window's frames. One child at a lower priority for
+all of it got a tenth of a core beside two busy processes on two cores, and the scene shown (a
+traced lecture step, ~10 CPU s of llvmpipe's) stayed on its stand-ins for 30-100 s; and a
+process cannot lower its niceness again, so one child cannot serve both. A request sent ahead
+and then shown goes to both under one id: the first answer counts, and the other child is told
+to drop it. Once nothing is outstanding both children block on their pipes.
+
+The order of a child's work: the scene the window shows first (``URGENT``; of those, the
 latest scene shown first, and a scene's requests in the order sent: a traced scene's untraced
 copy, which lets the window draw its real materials untraced, before its traced programs),
 then the next lecture step's (``AHEAD``), then the idle-time warm-up's (``IDLE``). A request
-asked for again with a higher priority (the next step's scene, now shown) moves up; and a
+asked for again with a higher priority (a warm-up scene that is the next step's, a scene shown
+again later) moves up its child's queue; and a
 request of lower priority than one waiting is put back after the kind of frame it is drawing
-(what it drew stays in Mesa's cache), so the scene shown never waits behind the warm-up. The
-child's renderers draw the environment light with the quick prefilter the window draws with
+(what it drew stays in Mesa's cache), so the scene shown never waits behind the warm-up (the
+urgent child only ever holds the scene shown; the ahead child the next step and the warm-up). The
+children's renderers draw the environment light with the quick prefilter the window draws with
 (``viewer.gl.ibl.IBL.defer``): the full prefilter is the background prefilter's work
 (``viewer.app.prefetch``), and it would hold the answer back by seconds.
 
 Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "priority":
 [tier, batch]}`` (tier ``URGENT``, ``AHEAD`` or ``IDLE``; a higher batch is a later scene
-shown) or ``{"promote": id, "priority"}``. Out: ``{"working": id}`` after each kind of frame
+shown), ``{"promote": id, "priority"}`` or ``{"drop": id}`` (answered by the other child: out
+of the queue if it waits). Out: ``{"working": id}`` after each kind of frame
 drawn for a request, then ``{"id", "ok": true, "keys": [program keys compiled], "tables":
 {params JSON: exported tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
 """
@@ -153,8 +166,8 @@ def _rank(req) -> tuple:
 
 class WorkQueue:
     """The child's requests waiting and the one being drawn, in the order of the module's text:
-    ``put`` (a request, or ``{"promote": id, "priority"}``: a higher priority for a request
-    waiting or being drawn), ``take`` (the next request, blocking; None once ``close``d and
+    ``put`` (a request, ``{"promote": id, "priority"}``: a higher priority for a request
+    waiting or being drawn, or ``{"drop": id}``: a request waiting taken out), ``take`` (the next request, blocking; None once ``close``d and
     empty), ``check`` (raises ``Preempted`` when a request waiting outranks the one drawn),
     ``put_back`` (the one drawn, preempted), ``finished``."""
 
@@ -170,6 +183,8 @@ class WorkQueue:
                 for r in self._waiting + ([self._current] if self._current else []):
                     if r["id"] == req["promote"] and _rank({**r, "priority": req["priority"]}) > _rank(r):
                         r["priority"] = req["priority"]
+            elif "drop" in req:  # answered by the other child: not drawn here (one being drawn finishes)
+                self._waiting = [r for r in self._waiting if r["id"] != req["drop"]]
             elif {"id", "scene", "priority"} <= set(req):
                 self._waiting.append(req)
             self._cond.notify()
@@ -272,16 +287,61 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
     return 0
 
 
-class CompileAhead:
-    """The child process and what it has done: ``compiled`` (program keys), ``tables`` (params
-    JSON -> exported tables), ``done`` (request ids answered). ``on_done`` is called from the
-    reader thread after each answer (the window wakes its loop with it).
+#: the children's niceness, added to the window's: the scene shown at the window's own priority
+#: (at nice 10 beside two busy processes on two cores a child got a tenth of a core, and a traced
+#: step's ~10 CPU s took 30-100 s), the next step's and the warm-up's behind the window's frames
+URGENT_NICE, AHEAD_NICE = 0, 10
 
-    The child is on a leash: when a request has waited ``leash`` seconds (``leash_seconds()``)
-    with no word from the child (a stopped, hung or swapped-out child), ``answered`` kills it,
-    answers its outstanding requests with a failure (so the window compiles them itself), starts
-    a new child and passes a one-line notice to ``on_notice`` (the session's status line).
-    ``command``: the child's command line (a stand-in in tests)."""
+
+class _Child:
+    """One of ``CompileAhead``'s processes: ``nice`` (its niceness over the window's), the
+    requests sent to it and not answered (``sent``: id -> when; ``priority``: id -> [tier,
+    batch] as it knows them), its silence (the leash), its error once it ended."""
+
+    def __init__(self, role: str, nice: int):
+        self.role, self.nice = role, nice
+        self.proc = None
+        self.ready = False
+        self.error = ""
+        self.replaced = 0
+        self.sent: dict[int, float] = {}
+        self.priority: dict[int, list] = {}
+        self.silence = Silence()
+        self.writing = threading.Lock()  # a line written whole (the window and a reader thread write)
+
+    @property
+    def pid(self) -> int | None:
+        return None if self.proc is None else self.proc.pid
+
+    def write(self, line: dict) -> None:
+        with self.writing:
+            self.proc.stdin.write(json.dumps(line) + "\n")
+            self.proc.stdin.flush()
+
+
+class CompileAhead:
+    """The child processes and what they have done: ``compiled`` (program keys), ``tables``
+    (params JSON -> exported tables), ``done`` (request ids answered, each with its first
+    answer). ``on_done`` is called from a reader thread after each first answer (the window wakes
+    its loop with it).
+
+    Two children: the urgent one (the scene the window shows) at the window's own priority,
+    started at once, and the ahead one (the next lecture step, the warm-up) at niceness
+    ``AHEAD_NICE`` above it, started with the first such request. A process cannot lower its
+    niceness again without privilege, so one child cannot serve both. A request sent ahead and
+    then asked for as urgent (the next step, now shown) goes to the urgent child too, under the
+    same id: the first answer counts, the other child is told to drop it (``{"drop": id}``: gone
+    from its queue, or answered all the same if it was being drawn, an answer that changes
+    nothing but what ``compiled`` and ``tables`` already hold). ``pid``, ``ready``, ``error``
+    and ``alive`` are the urgent child's (``alive``: urgent requests can be served);
+    ``ahead_pid`` the other's.
+
+    Each child is on its own leash: when a request has waited ``leash`` seconds
+    (``leash_seconds()``) with no word from the child holding it (a stopped, hung or swapped-out
+    child), ``answered`` kills that child, answers the requests only it held with a failure (so
+    the window compiles them itself), starts another in its place and passes a one-line notice to
+    ``on_notice`` (the session's status line); the other child goes on. ``command``: the
+    children's command line, to which ``--nice N`` is added (a stand-in in tests)."""
 
     def __init__(self, on_done=None, on_notice=None, command=None, leash: float | None = None):
         self.on_done = on_done
@@ -291,44 +351,67 @@ class CompileAhead:
         self.compiled: set[str] = set()
         self.tables: dict[str, dict] = {}
         self.done: dict[int, dict] = {}
-        self.error = ""
-        self.ready = False
-        self.replaced = 0               # children killed for silence
         self._lock = threading.Lock()
         self._next = 0
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
-        self._sent: dict[int, float] = {}  # unanswered request id -> when it was sent
-        self._priority: dict[int, list] = {}  # request id -> [tier, batch] as the child knows it
-        self._silence = Silence()  # the child's last word, and whether it works meanwhile
-        self._proc = None
-        self._start()
+        self._urgent = _Child("urgent", URGENT_NICE)
+        self._ahead: _Child | None = None  # started with the first request of the next step or the warm-up
+        self._start(self._urgent)
 
-    def _start(self) -> None:
+    def _start(self, child: _Child) -> None:
         try:
-            proc = subprocess.Popen(self.command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    stderr=subprocess.PIPE, text=True, env=dict(os.environ), cwd=os.getcwd())
+            proc = subprocess.Popen(self.command + ["--nice", str(child.nice)], stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                    env=dict(os.environ), cwd=os.getcwd())
         except OSError as e:
-            self.error = f"cannot start ({e})"
+            child.error = f"cannot start ({e})"
             return
-        self._proc, self.ready = proc, False
-        self._silence = Silence(proc.pid)
-        threading.Thread(target=self._read, args=(proc,), name="brdf-viewer-compile-ahead", daemon=True).start()
+        child.proc, child.ready = proc, False
+        child.silence = Silence(proc.pid)
+        threading.Thread(target=self._read, args=(child, proc), name=f"brdf-viewer-compile-ahead-{child.role}",
+                         daemon=True).start()
+
+    def _children(self) -> list[_Child]:
+        return [c for c in (self._urgent, self._ahead) if c is not None]
 
     @property
     def pid(self) -> int | None:
-        """The child's process id (None: none started)."""
-        return None if self._proc is None else self._proc.pid
+        """The urgent child's process id (None: none started)."""
+        return self._urgent.pid
+
+    @property
+    def ahead_pid(self) -> int | None:
+        """The ahead child's process id (None: not started yet, or it could not start)."""
+        return None if self._ahead is None else self._ahead.pid
+
+    @property
+    def ready(self) -> bool:
+        """The urgent child has made its context and waits for work."""
+        return self._urgent.ready
+
+    @property
+    def error(self) -> str:
+        """Why the urgent child does not run ("" while it does)."""
+        return self._urgent.error
+
+    @property
+    def replaced(self) -> int:
+        """Children killed for silence, both kinds together."""
+        return sum(c.replaced for c in self._children())
 
     @property
     def alive(self) -> bool:
-        return self._proc is not None and not self.error
+        """Urgent requests can be served (the ahead child's failure only stops the ahead work)."""
+        return self._urgent.proc is not None and not self._urgent.error
 
     def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False) -> int | None:
         """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
-        already asked for), None when the child is not running. ``urgent``: the scene the window
-        shows (``batch``: a higher number for a later scene shown; its requests in the order
-        sent); else ``ahead``: the next lecture step's, or the idle-time warm-up's. A scene
-        asked for again with a higher priority, not answered yet, moves up the child's queue."""
+        already asked for), None when the child it goes to is not running. ``urgent``: the scene
+        the window shows (``batch``: a higher number for a later scene shown; its requests in the
+        order sent), for the urgent child; else ``ahead``: the next lecture step's, or the
+        idle-time warm-up's, for the ahead child. A scene asked for again with a higher priority,
+        not answered yet, moves up its child's queue; one sent ahead and now urgent goes to the
+        urgent child as well."""
         from viewer.scene import scene_to_toml
 
         if not self.alive:
@@ -339,118 +422,178 @@ class CompileAhead:
         with self._lock:
             key = f"{base}\n{text}"
             rid = self._ids.get(key)
-            if rid is not None:
-                if rid in self.done or rid not in self._sent or tuple(priority) <= tuple(self._priority[rid]):
+            if rid is not None and rid in self.done:
+                return rid
+            child = self._urgent if urgent else self._ahead
+            if rid is not None and child is not None and rid in child.sent:
+                if tuple(priority) <= tuple(child.priority[rid]):
                     return rid
-                self._priority[rid] = priority
+                child.priority[rid] = priority
                 line = {"promote": rid, "priority": priority}
+            elif rid is not None and not urgent:
+                return rid  # the urgent child has it: a higher tier already
             else:
-                rid = self._ids[key] = self._next
-                self._next += 1
-                self._priority[rid] = priority
+                if child is None:  # the first request of the next step or the warm-up
+                    child = self._ahead = _Child("ahead", AHEAD_NICE)
+                    self._start(child)
+                if child.error:
+                    return None
+                if rid is None:
+                    rid = self._ids[key] = self._next
+                    self._next += 1
+                if not child.sent:  # given work after waiting idle: its silence starts now
+                    child.silence.heard(child.pid)
+                child.sent[rid] = time.monotonic()
+                child.priority[rid] = priority
                 line = {"id": rid, "scene": text, "base_dir": base, "priority": priority}
         try:
-            if "scene" in line:
-                if not self._sent:  # given work after waiting idle: its silence starts now
-                    self._silence.heard(self._proc.pid)
-                self._sent[rid] = time.monotonic()
-            self._proc.stdin.write(json.dumps(line) + "\n")
-            self._proc.stdin.flush()
+            child.write(line)
         except (OSError, ValueError) as e:
-            self.error = f"stopped ({e})"
+            child.error = child.error or f"stopped ({e})"
+            self._fail(child, "stopped")
             return None
         return rid
 
     @property
     def outstanding(self) -> int:
-        """Requests sent and not answered yet (0: the child has nothing to do and blocks on its
-        pipe)."""
+        """Requests sent and not answered yet (0: both children have nothing to do and block on
+        their pipes)."""
         with self._lock:
             return self._next - len(self.done)
 
     def answered(self, rid) -> bool:
-        """The request ``rid`` was answered, or will not be (no child, or the child stayed silent
-        past the leash and was replaced)."""
+        """The request ``rid`` was answered, or will not be (no urgent child, or every child
+        holding it stayed silent past the leash and was replaced)."""
         if rid in self.done or not self.alive:
             return True
         # silent past the leash and not working (stopped, hung): replaced; a child still using
         # CPU is compiling (a traced program takes tens of seconds on a loaded machine), and
         # the window compiling it itself meanwhile would freeze its frames for as long
-        if rid in self._sent and self._silence.over(self.leash, self.pid):
-            self._replace()
-            return True
-        return False
+        for child in self._children():
+            if rid in child.sent and child.silence.over(self.leash, child.pid):
+                self._replace(child)
+        return rid in self.done or not self.alive
 
-    def _replace(self) -> None:
-        """Kill the silent child (SIGKILL: a stopped one too), fail what it had, start another."""
-        old = self._proc
+    def _fail(self, child: _Child, why: str) -> None:
+        """Answer the requests ``child`` held with a failure, but for those the other child
+        holds too (it may still answer them)."""
         with self._lock:
-            for rid in list(self._sent):
-                self.done.setdefault(rid, {"id": rid, "ok": False, "error": f"no answer within {self.leash:g} s"})
-            self._sent.clear()
-        self._proc = None
+            others = [c for c in self._children() if c is not child]
+            for rid in list(child.sent):
+                if not any(rid in c.sent for c in others):
+                    self.done.setdefault(rid, {"id": rid, "ok": False, "error": why})
+            child.sent.clear()
+            child.priority.clear()
+
+    def _replace(self, child: _Child) -> None:
+        """Kill the silent ``child`` (SIGKILL: a stopped one too), fail what only it had, start
+        another in its place."""
+        old = child.proc
+        self._fail(child, f"no answer within {self.leash:g} s")
+        child.proc = None
         if old is not None and old.poll() is None:
             try:
                 old.kill()
             except OSError:
                 pass
             old.wait()
-        self.replaced += 1
-        self._start()
+        child.replaced += 1
+        self._start(child)
         if self.on_notice is not None:
-            self.on_notice(f"the compile-ahead process did not answer within {self.leash:g} s: restarted it; "
-                           f"compiling here meanwhile")
+            which = "" if child is self._urgent else " (the next step's and the warm-up's)"
+            self.on_notice(f"the compile-ahead process{which} did not answer within {self.leash:g} s: "
+                           f"restarted it; compiling here meanwhile")
 
-    def _read(self, proc):
+    def _read(self, child: _Child, proc):
         for line in proc.stdout:
             try:
                 msg = json.loads(line)
             except ValueError:
                 continue
-            if proc is not self._proc:
+            if proc is not child.proc:
                 continue  # a replaced child's last words
-            self._silence.heard(proc.pid)
+            child.silence.heard(proc.pid)
             if msg.get("ready"):
-                self.ready = True
+                child.ready = True
                 continue
-            if "working" in msg:  # between the kinds of frame of a request: heard, nothing done yet
+            if "working" in msg or "id" not in msg:  # between the kinds of frame of a request: heard
                 continue
+            rid = msg["id"]
             with self._lock:
-                if msg.get("ok"):
+                if msg.get("ok"):  # a duplicate's programs and tables are the same: merged all the same
                     self.compiled.update(msg.get("keys", ()))
                     self.tables.update(msg.get("tables", {}))
-                self.done[msg["id"]] = msg
-                self._sent.pop(msg["id"], None)
-            if self.on_done is not None:
+                first = rid not in self.done
+                if first:
+                    self.done[rid] = msg
+                child.sent.pop(rid, None)
+                child.priority.pop(rid, None)
+                others = [c for c in self._children() if c is not child and rid in c.sent]
+                for c in others:  # answered: the other child need not draw it
+                    c.sent.pop(rid, None)
+                    c.priority.pop(rid, None)
+            for c in others:
+                try:
+                    c.write({"drop": rid})
+                except (OSError, ValueError, AttributeError):
+                    pass  # it ended or is being replaced: nothing to drop
+            if first and self.on_done is not None:
                 self.on_done()
         err = proc.stderr.read()
         rc = proc.wait()
-        if proc is not self._proc:
+        if proc is not child.proc:
             return  # replaced: the new child carries on
-        if not self.error:
+        if not child.error:
             last = [x for x in err.strip().splitlines() if x.strip()]
-            self.error = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
+            child.error = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
+        self._fail(child, child.error)  # what it held is compiled by the window, or by the other child
         if self.on_done is not None:
             self.on_done()
 
     def stop(self, timeout: float = 10.0) -> None:
-        """End the child (a request half done is simply not answered)."""
+        """End both children (a request half done is simply not answered)."""
         from viewer.app.prefetch import stop_child
 
-        if self._proc is not None and self._proc.poll() is None:
-            try:
-                self._proc.stdin.close()
-            except OSError:
-                pass
-        stop_child(self._proc, timeout)
-        self.error = self.error or "stopped"
+        children = self._children()
+        for c in children:
+            if c.proc is not None and c.proc.poll() is None:
+                try:
+                    c.proc.stdin.close()
+                except OSError:
+                    pass
+        for c in children:
+            stop_child(c.proc, timeout)
+            c.error = c.error or "stopped"
+
+
+def niceness(argv) -> int:
+    """The niceness the child's command line asks for (``--nice N``, added to the window's;
+    ``AHEAD_NICE`` when not said). ValueError, with one line to show, for anything else."""
+    args = list(argv)
+    if not args:
+        return AHEAD_NICE
+    if len(args) == 2 and args[0] == "--nice":
+        try:
+            n = int(args[1])
+        except ValueError:
+            n = -1
+        if 0 <= n <= 19:
+            return n
+        raise ValueError(f"--nice takes a whole number from 0 to 19, not {args[1]!r}")
+    raise ValueError(f"usage: python -m viewer.app.compile_ahead [--nice N] (got {' '.join(args)!r})")
 
 
 def main(argv=None) -> int:
     try:
-        os.nice(10)  # behind the window's own frames
-    except (OSError, AttributeError):
-        pass
+        nice = niceness(sys.argv[1:] if argv is None else argv)
+    except ValueError as e:
+        print(e, file=sys.stderr)
+        return 2
+    if nice:
+        try:
+            os.nice(nice)  # behind the window's own frames (the next step's, the warm-up's)
+        except (OSError, AttributeError):
+            pass
     try:
         return serve()
     except Exception as e:  # noqa: BLE001 - one line for the window's panel
