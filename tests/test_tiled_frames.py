@@ -317,6 +317,41 @@ def test_the_view_at_another_size_of_its_framing_tiles_over_its_last_frame_resam
         s.release()
 
 
+def test_a_raster_tile_ends_where_an_object_begins_and_probes_it_alone(gl_ctx, renderer):
+    """A new scene's tiles (no cost known) stop above the row where an object's projected box
+    begins, and the block of 4 rows where it begins is a tile of its own, whose time sizes the
+    next: a tile sized at the sky's cost that ran into the soap bubbles took 0.6-0.8 s. The
+    frame is still the whole frame, texel for texel."""
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.scene import load_scene
+    from viewer.scene.camera import OrbitCamera, screen_box
+
+    scene = load_scene("sphere", ["camera.fov_y=100"])
+    w, h = 96, 160   # tall, the ball small in the middle: the sky above it spans 14 blocks
+    cam = OrbitCamera.from_scene(scene)
+    ball = next(o for o in scene.objects if o.mesh == "sphere")
+    top = int(screen_box(cam, w, h, ball)[3]) // 4
+    assert 4 < top < h // 4 - 2   # the ball begins well inside the frame
+    pt = ProgressiveTrace(gl_ctx)
+    regions = []   # each tile's (x, y, w, h), from the bottom
+    render = renderer.render
+    renderer.render = lambda *a, **k: (k.get("region") and regions.append(k["region"])) or render(*a, **k)
+    try:
+        pt.start(renderer, scene, cam, w, h, 0, traced=False, rows=4, max_pixels=w * h)
+        while not pt.done:
+            pt.step(0.3)   # tiles grow over the cheap sky (a third of the budget each)
+        renderer.render = render
+        spans = [(y // 4, (y + th - 1) // 4) for _, y, _, th in regions]   # (lowest, highest) block
+        assert max(hi - lo for lo, hi in spans if lo > top) > 0   # over the sky: tiles of several blocks
+        assert (top, top) in spans   # the block where the ball begins: a tile of its own
+        assert not any(lo < top < hi or (lo < top and hi == top) for lo, hi in spans)
+        whole = _whole(renderer, scene, cam, (w, h))
+        assert np.array_equal(pt.image(), whole)
+    finally:
+        renderer.render = render
+        pt.release()
+
+
 def test_a_preview_is_enlarged_without_steps():
     """A preview's pixels are interpolated between their centres: a ramp stays a ramp (no
     stairs), the borders hold their pixel's value, a constant stays exactly constant."""

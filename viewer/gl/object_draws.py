@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf import thin_film
-from viewer.scene.camera import OrbitCamera, gl_bytes
+from viewer.scene.camera import OrbitCamera, gl_bytes, screen_box
 from viewer.gl import texture_units
 from viewer.gl.constants import IBL_MODES, MAT_FLOATS
 from viewer.gl.context import release_gl
@@ -33,19 +33,10 @@ def in_region(objects, f) -> list:
     if f.region is None or not f.cull or not pairs:
         return pairs
     x0, y0, rw, rh = f.region
-    vp = f.cam.projection(f.w / f.h) @ f.cam.view()
     keep = []
     for i, obj in pairs:
-        lo, hi = obj.mesh_data.bounds()
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        clip = corners @ (vp @ obj.model_matrix()).T
-        w = clip[:, 3]
-        if not np.all(w > 1e-6):
-            keep.append((i, obj))
-            continue
-        px = (clip[:, 0] / w + 1.0) * 0.5 * f.w
-        py = (clip[:, 1] / w + 1.0) * 0.5 * f.h
-        if px.max() + 2 < x0 or px.min() - 2 > x0 + rw or py.max() + 2 < y0 or py.min() - 2 > y0 + rh:
+        box = screen_box(f.cam, f.w, f.h, obj)
+        if box is not None and (box[2] + 2 < x0 or box[0] - 2 > x0 + rw or box[3] + 2 < y0 or box[1] - 2 > y0 + rh):
             continue
         keep.append((i, obj))
     return keep

@@ -25,6 +25,7 @@ from viewer.brdf.lobes import Lobe
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 from viewer.gl.context import release_gl
 from viewer.gl import texture_units
+from viewer.scene.camera import OrbitCamera, screen_box
 
 ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
@@ -298,6 +299,19 @@ class RayTrace:
         self._geom_key = self._mat_key = None
 
 
+def _object_tops(scene, camera, w, h) -> frozenset:
+    """The blocks of 4 rows (from the bottom) of a w x h frame where the projected box of one of
+    ``scene``'s objects begins, seen from the top (the raster tiles' order); boxes crossing the
+    camera's plane or outside the frame are left out."""
+    tops = set()
+    for obj in scene.objects:
+        box = screen_box(camera, w, h, obj)
+        if box is None or box[3] < 0 or box[1] >= h or box[2] < 0 or box[0] >= w:
+            continue
+        tops.add(int(min(box[3], h - 1)) // 4)
+    return frozenset(tops)
+
+
 class _Pass:
     """One resolution of the progressive trace: its size, its mask of traced pixels and, per
     block of 4 rows from the bottom (software rasterizers shade 4 x 4 blocks), the columns
@@ -358,6 +372,84 @@ class _Pass:
         self.x = 0
 
 
+class RasterTileSizes:
+    """The sizes of a raster frame's tiles (``ProgressiveTrace.start(traced=False)``), from what
+    its tiles cost so far and what the last frame's cost in each block of 4 rows (``like_last``),
+    and where the objects' projected boxes begin (``contacts``)."""
+
+    def __init__(self):
+        self.worst_px = 0.0     # this frame's highest cost per pixel so far
+        self.rows_cost = None   # this frame's cost per pixel in each block of 4 rows (NaN: not drawn)
+        self.prior = None       # the last frame's, for a view of the same size
+        self.scale = 1.0        # this frame's cost over the last one's, on its last tile
+        self.next_s = 0.0       # the predicted time of the next tile
+        self.width = 0
+        self.contacts = frozenset()  # the blocks where an object's box begins
+
+    def start(self, w: int, h: int, like_last: bool, contacts: frozenset) -> None:
+        """A new frame of (w, h); ``like_last``: the same scene seen as the last frame."""
+        nb = (h + 3) // 4
+        last = self.rows_cost
+        same = like_last and last is not None and last.shape == (nb,) and self.width == w
+        self.prior = last if same else None
+        self.rows_cost, self.width, self.scale, self.worst_px = np.full(nb, np.nan), w, 1.0, 0.0
+        self.contacts = contacts
+
+    def next_pixels(self, p, y, th, per_px, budget_s, n, overhead_s) -> int:
+        """A raster frame's next tile, after one over rows [y, y + th) cost ``per_px`` a pixel:
+        whole blocks of rows from the next one down, as many as a third of the budget covers.
+        The cost of a block is the last frame's there (``like_last``), times what this frame
+        cost over the last one on this tile, at least 1 (a changed material: the costly rows are
+        where they were, the cost differs), and at least the highest cost per pixel seen so far
+        in this frame; where the last frame gives none, that highest cost alone, at
+        most 1.5 times as many pixels as this tile (the cost jumps 5-20 times over where the
+        tiles reach an object from the sky above it). Returns the next tile's pixels;
+        ``next_s`` is its predicted time."""
+        b0, b1 = y // 4, (y + th - 1) // 4
+        self.rows_cost[b0:b1 + 1] = per_px
+        self.worst_px = max(self.worst_px, per_px)
+        prior = self.prior
+        ref = np.inf  # the last frame's cost where the scale was measured
+        if prior is not None:
+            before = prior[b0:b1 + 1]
+            before = before[np.isfinite(before)]
+            if before.size and before.mean() > 0:  # never below the last frame's: a cheaper
+                # first tile (the sky) says nothing of the object below it
+                ref = float(before.mean())
+                self.scale = max(1.0, per_px / ref)
+        o = 0.9 * overhead_s
+        target = max(budget_s / 3.0, 3.0 * overhead_s)
+        row_px = 4 * p.w
+        total, blocks, b, guessed, dearer = o, 0, p.block, False, 0
+        while b >= 0:
+            c = prior[b] * self.scale if prior is not None and np.isfinite(prior[b]) else np.nan
+            unknown = not np.isfinite(c)
+            if unknown:
+                c, guessed = self.worst_px, True
+            else:
+                if prior[b] > 2.0 * ref:  # rows dearer than where the scale was measured: a
+                    dearer += 1           # changed material may cost more there, take two
+                # never below the dearest pixel of this frame so far: a block of the last frame
+                # holds the mean of a tile, which may have spanned the sky and the object
+                c = max(c, self.worst_px)
+            # where an object's box begins and its cost is not known, the tile ends above it,
+            # and the block where it begins is a tile of its own (a probe of its cost): a tile
+            # sized at the sky's cost that ran into the soap bubbles took 0.6-0.8 s
+            contact = unknown and b in self.contacts
+            if blocks and (total + c * row_px > target or dearer > 2 or contact):
+                break
+            total += c * row_px
+            blocks += 1
+            b -= 1
+            if contact:
+                break
+        pixels = blocks * row_px
+        if guessed:  # 1.5 times as many, and at least a block more (tiles are whole blocks)
+            pixels = min(pixels, max(int(1.5 * n) + 16, n + row_px))
+        self.next_s = total
+        return pixels
+
+
 class ProgressiveTrace:
     """The traced image of a still view, built over several frames (the window on software
     OpenGL, where one traced frame takes seconds).
@@ -412,12 +504,7 @@ class ProgressiveTrace:
         self._store = False
         self._tile_args = {"msaa": 0, "raytrace": None}  # how a tile is drawn
         self.raster = False      # a raster frame in tiles (start(traced=False)), not a trace
-        self._worst_px = 0.0     # a raster frame's highest cost per pixel so far
-        self._rows_cost = None   # a raster frame's cost per pixel in each block of 4 rows (NaN: not drawn)
-        self._rows_prior = None  # the last raster frame's, for a view of the same size
-        self._scale = 1.0        # this frame's cost over the last one's, on its last tile
-        self._next_s = 0.0       # a raster frame's predicted time of its next tile
-        self._raster_w = 0
+        self._sizes = RasterTileSizes()  # a raster frame's tiles: their sizes from their costs
         # a tile draws only the objects that can reach it (False: every object, as the
         # compile-ahead child's tiles must, to make each program's code for a scissored draw)
         self.cull = True
@@ -574,12 +661,8 @@ class ProgressiveTrace:
         self.base = None  # every pixel is a tile's
         self.mask = np.ones((h, w), bool)
         self._tile_args = {"msaa": msaa, "raytrace": False}
-        self.raster, self._worst_px = True, 0.0
-        nb = (h + 3) // 4
-        last = self._rows_cost
-        same = like_last and last is not None and last.shape == (nb,) and self._raster_w == w
-        self._rows_prior = last if same else None
-        self._rows_cost, self._raster_w, self._scale = np.full(nb, np.nan), w, 1.0
+        self.raster = True
+        self._sizes.start(w, h, like_last, _object_tops(scene, camera or OrbitCamera.from_scene(scene), w, h))
         self._passes = [_Pass(w, h, self.mask, 1)]
         self.total_px = self._passes[0].total
         self.overhead_s = None
@@ -676,7 +759,8 @@ class ProgressiveTrace:
         per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
         target = max(budget_s, 3.0 * self.overhead_s)
         if self.raster:
-            self._raster_next(p, y, th, per_px, budget_s, n)
+            pixels = self._sizes.next_pixels(p, y, th, per_px, budget_s, n, self.overhead_s)
+            self.pixels = max(16, min(pixels, self.max_pixels))
             return dt, n
         # at the dearest cost per pixel of the trace so far: the cost jumps 10 times over where a
         # tile reaches the glass from the sky beside it, and a tile sized at the sky's would
@@ -686,56 +770,10 @@ class ProgressiveTrace:
         self.pixels = max(16, min(int(1.5 * max(n, asked)) + 16, want, self.max_pixels))
         return dt, n
 
-    def _raster_next(self, p, y, th, per_px, budget_s, n):
-        """A raster frame's next tile, after one over rows [y, y + th) cost ``per_px`` a pixel:
-        whole blocks of rows from the next one down, as many as a third of the budget covers.
-        The cost of a block is the last frame's there (``like_last``), times what this frame
-        cost over the last one on this tile, at least 1 (a changed material: the costly rows are
-        where they were, the cost differs), and at least the highest cost per pixel seen so far
-        in this frame; where the last frame gives none, that highest cost alone, at
-        most 1.5 times as many pixels as this tile (the cost jumps 5-20 times over where the
-        tiles reach an object from the sky above it)."""
-        b0, b1 = y // 4, (y + th - 1) // 4
-        self._rows_cost[b0:b1 + 1] = per_px
-        self._worst_px = max(self._worst_px, per_px)
-        prior = self._rows_prior
-        ref = np.inf  # the last frame's cost where the scale was measured
-        if prior is not None:
-            before = prior[b0:b1 + 1]
-            before = before[np.isfinite(before)]
-            if before.size and before.mean() > 0:  # never below the last frame's: a cheaper
-                # first tile (the sky) says nothing of the object below it
-                ref = float(before.mean())
-                self._scale = max(1.0, per_px / ref)
-        o = 0.9 * self.overhead_s
-        target = max(budget_s / 3.0, 3.0 * self.overhead_s)
-        row_px = 4 * p.w
-        total, blocks, b, guessed, dearer = o, 0, p.block, False, 0
-        while b >= 0:
-            c = prior[b] * self._scale if prior is not None and np.isfinite(prior[b]) else np.nan
-            if not np.isfinite(c):
-                c, guessed = self._worst_px, True
-            else:
-                if prior[b] > 2.0 * ref:  # rows dearer than where the scale was measured: a
-                    dearer += 1           # changed material may cost more there, take two
-                # never below the dearest pixel of this frame so far: a block of the last frame
-                # holds the mean of a tile, which may have spanned the sky and the object
-                c = max(c, self._worst_px)
-            if blocks and (total + c * row_px > target or dearer > 2):
-                break
-            total += c * row_px
-            blocks += 1
-            b -= 1
-        pixels = blocks * row_px
-        if guessed:
-            pixels = min(pixels, int(1.5 * n) + 16)
-        self.pixels = max(16, min(pixels, self.max_pixels))
-        self._next_s = total
-
     def _predict(self, pixels, dt, n) -> float:
         """The predicted time of a tile of ``pixels`` after one of ``n`` took ``dt``."""
         if self.raster:
-            return self._next_s
+            return self._sizes.next_s
         o = 0.9 * (self.overhead_s or 0.0)
         return o + pixels * max(dt - o, 1e-9) / n
 
