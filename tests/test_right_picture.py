@@ -192,8 +192,15 @@ def test_a_traced_step_is_drawn_untraced_once_its_untraced_programs_are_ready(gl
         traced = [rid for rid, sc in mine if sc.render.raytrace]
         assert flat and traced and flat[0] < traced[0]  # the untraced first
         child.answer(flat[0])
+        s.render_view(SIZE)
+        # its untraced frame's tiles over the stand-ins: the label says what the rest still shows
+        assert s.frame_source.form == "untraced" and s.tiling
+        assert "drawn untraced until ready (in tiles: " in s.trace_status
+        assert s.trace_status.endswith("%, the rest grey stand-ins)")
+        while s.tiling:
+            s.render_view(SIZE)
         _frames_are_of_this_scene(s)
-        assert s.frame_source.form == "untraced" and "drawn untraced until ready" in s.trace_status
+        assert s.frame_source.form == "untraced" and s.trace_status.endswith("drawn untraced until ready")
         for rid in traced:
             child.answer(rid)
         for _ in range(400):

@@ -32,6 +32,10 @@ FRAME_GOAL_S = 0.12
 
 #: what the view says of a frame drawn while the scene's own programs compile beside
 FORM_WORDS = {"stand-in": "drawn with grey stand-ins", "untraced": "drawn untraced", "held": "drawn as before"}
+#: what the pixels a tiled frame's tiles have not reached yet show, by the form drawn before
+#: ("preview": a preview of the frame drawn, at a quarter or half of its resolution)
+UNDER_WORDS = {"stand-in": "grey stand-ins", "untraced": "untraced", "held": "as before", "own": "as it was",
+               "preview": "a preview"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +78,7 @@ class ViewFrames:
         self.frame_source = None   # what the raster image shown was drawn from (FrameSource)
         self.drawn_materials = None  # (scene, {material name: params}) last drawn with their own programs
         self._tiles_under = None   # the scene of the image under a tiled frame's tiles
+        self._tiles_under_form = "preview"  # and what it shows (UNDER_WORDS)
         self._mean = FrameMean()   # brute-force IBL, file materials' environment light
         self._nonfinite_said = None
         self._trace = None         # the progressive trace of a still view (viewer.gl.raytrace)
@@ -142,10 +147,14 @@ class ViewFrames:
         src = self.frame_source
         if self.prep.active:
             return self.prep.label()
+        rest = UNDER_WORDS.get(self._tiles_under_form, "as it was")
         if s.pending and src is not None and src.scene is s.scene and src.form in FORM_WORDS:
-            return f"compiling {', '.join(s.pending)} in the background: {FORM_WORDS[src.form]} until ready"
+            text = f"compiling {', '.join(s.pending)} in the background: {FORM_WORDS[src.form]} until ready"
+            if self.tiling and self._tiles_under_form != src.form:  # the tiles not there yet show another form
+                text += f" (in tiles: {100 * self._tiles.progress:.0f}%, the rest {rest})"
+            return text
         if self.tiling:
-            return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest as it was)"
+            return f"drawing the view in tiles: {100 * self._tiles.progress:.0f}% (the rest {rest})"
         n = self.frames_wanted
         if s.scene.render.ibl != "brute_force" and self.averaging and self._mean.count > 0:
             return f"environment light of file materials: converging {self._mean.count}/{n} frames"
@@ -326,6 +335,8 @@ class ViewFrames:
                 # same framing (a compare view's half and the whole view) resampled on the GPU
                 under = self.hdr
             self._tiles_under = self.frame_source.scene if under is not None else s.scene
+            self._tiles_under_form = ("preview" if under is None or self.quality == "preview"
+                                      else self.frame_source.form)
             # the first tile: a 32nd of the view (the cost per pixel of a changed material is
             # not known yet); the next follow the time of the last
             self.hdr = t.start(s.renderer, scene, s.camera, w, h, s.view_mode, traced=False,
