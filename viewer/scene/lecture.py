@@ -208,8 +208,7 @@ TOUR: tuple[Step, ...] = (
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
     Step("soap_bubble", "Soap bubbles: thin-film interference",
          "Water films in air: light reflected at a film's two faces interferes, the colour shifting with "
-         "angle. Clear shells (ior 1, no refraction), seen against the dark studio: their colours are "
-         "the light the films reflect, the lit floor mirrored in their lower halves."
+         "angle. Clear shells (ior 1, no refraction), seen against the dark studio."
          + _NO_CAUSTICS,
          # the camera low, looking up: the bubbles stand against the studio's dark walls, where the
          # films' colours show; from eye height the floor's far edge ran through their middles,
