@@ -140,3 +140,37 @@ def test_built_in_maps_are_kept_in_the_disk_cache(cache_dir):
     path = cache.path_for(key, kind="procedural")
     path.write_bytes(b"damaged")  # a damaged entry reads as a miss and is generated again
     assert np.array_equal(procedural.generate("sky", 64, 32), procedural.generate("sky", 64, 32, cache=False))
+
+
+def test_a_prefilter_no_longer_needed_is_stopped_without_waiting_for_its_child(cache_dir, monkeypatch):
+    """Another map shown: the old map's prefilter child is signalled and reaped on a thread of its
+    own (the window's frame waited 0.5 s for it beside two busy processes), and a new prefilter
+    of the same map has a file of its own, which the old one's clean-up cannot remove."""
+    import threading
+
+    from viewer.app import prefetch
+
+    real, gate, order = prefetch.stop_child, threading.Event(), []
+
+    def held(proc, timeout=10.0):
+        assert gate.wait(5)
+        order.append("reaped")
+        real(proc, timeout)
+
+    monkeypatch.setattr(prefetch, "stop_child", held)
+    img = _map(3)
+    old = prefetch.MapPrefilter("k", img)
+    new = prefetch.MapPrefilter("k", img)   # the same map again: its own file
+    assert not old.error and not new.error
+    assert len(list(cache_dir.glob("pending-k-*.npy"))) == 2
+    old.stop(wait=False)
+    order.append("returned")   # before the child was reaped: the caller did not wait
+    gate.set()
+    for t in threading.enumerate():
+        if t.name == "brdf-viewer-prefilter-stop":
+            t.join(30)
+    assert order == ["returned", "reaped"] and old.finished
+    assert len(list(cache_dir.glob("pending-k-*.npy"))) == 1   # the new job's file is still there
+    monkeypatch.setattr(prefetch, "stop_child", real)
+    new.stop()
+    assert new.finished and not list(cache_dir.glob("pending-k-*.npy"))

@@ -38,7 +38,7 @@ class EnvironmentWatch:
         job = self._job
         if job is not None:
             if job.key != ibl.provisional:  # another map now (or the full one is read): not needed
-                job.stop()
+                job.stop(wait=False)  # reaped on a thread: no frame waits for the child to exit
                 self._job = job = None
             elif job.ready:
                 self._job = None

@@ -14,6 +14,7 @@ the prefetch with ``error`` set; the window works as before without it.
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -251,6 +252,9 @@ def prefilter_file(path, out=sys.stdout) -> int:
     return 0
 
 
+_PENDING = itertools.count()  # the background prefilters' files, one each
+
+
 class MapPrefilter:
     """The full prefilter of the map the window's renderer drew with a quick one
     (``viewer.gl.ibl.IBL.defer``): ``prefilter_file`` in a child process. ``key`` is the map's
@@ -267,7 +271,9 @@ class MapPrefilter:
         self.error = ""
         self.started = time.perf_counter()
         self._proc = None
-        self._path = cache.cache_dir() / f"pending-{key}.npy"
+        # its own file: a stopped job's child may still be exiting (and then removes its file)
+        # when a job of the same map starts again
+        self._path = cache.cache_dir() / f"pending-{key}-{os.getpid()}-{next(_PENDING)}.npy"
         try:
             self._path.parent.mkdir(parents=True, exist_ok=True)
             import io
@@ -307,7 +313,17 @@ class MapPrefilter:
         except OSError:
             pass
 
-    def stop(self, timeout: float = 10.0) -> None:
+    def stop(self, timeout: float = 10.0, wait: bool = True) -> None:
+        """End the child (terminated, killed after ``timeout`` s) and remove its file;
+        ``wait=False``: the child is signalled and reaped on a thread of its own (the window's
+        frames never wait for a child to exit: 0.5 s beside two busy processes)."""
+        if not wait:
+            proc = self._proc
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+            threading.Thread(target=self.stop, args=(timeout,), name="brdf-viewer-prefilter-stop",
+                             daemon=True).start()
+            return
         stop_child(self._proc, timeout)
         self._cleanup()
 
