@@ -86,9 +86,6 @@ class StandIn:
         self.requests.append((scene, urgent))
         return len(self.requests)  # a request's id, as the child numbers them
 
-    def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-        return False
-
     def answered(self, rid):
         return self.released
 

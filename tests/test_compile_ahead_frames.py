@@ -119,9 +119,6 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
         def request(self, scene, urgent=True, **priority):
             return id(scene)
 
-        def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-            return False
-
         def answered(self, rid):
             return self.released
 

@@ -50,9 +50,6 @@ class StandInChild:
     def outstanding(self):
         return len(self.requests) - len(self.answered_ids)
 
-    def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-        return False
-
     def answered(self, rid):
         return rid in self.answered_ids
 

@@ -22,9 +22,6 @@ class StandIn:
         self.requests.append((scene, urgent))
         return len(self.requests)
 
-    def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-        return False
-
     def answered(self, rid):
         return self.released
 
@@ -168,9 +165,6 @@ class AnsweringChild(StandIn):
             if sc is scene:
                 return i + 1
         return super().request(scene, urgent)
-
-    def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-        return False
 
     def answered(self, rid):
         return rid in self.done

@@ -431,9 +431,6 @@ def test_a_scene_drawn_with_stand_ins_stays_under_the_tiles_of_its_own_frame(gl_
         def request(self, scene, urgent=True, **priority):
             return id(scene)
 
-        def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-            return False
-
         def answered(self, rid):
             return self.released
 

@@ -251,9 +251,6 @@ class _Child:
         self.asked.append((scene, urgent))
         return 7
 
-    def drew(self, scene):  # no frame drawn beside: the preview keeps the view's MSAA
-        return False
-
     def answered(self, rid):
         return self.done
 
