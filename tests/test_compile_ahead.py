@@ -437,17 +437,3 @@ def test_a_request_answered_by_the_other_child_is_dropped_from_the_queue():
     q.finished()
     q.close()
     assert q.take()["id"] == 2 and q.take() is None
-
-
-def test_drew_says_whether_a_child_answered_that_scene_without_asking():
-    """``drew(scene)``: a request for that very scene was answered without error (its frames'
-    machine code is in the driver's cache); a scene never asked for is not sent by the question."""
-    ca = CompileAhead(command=TWO_CHILDREN, leash=math.inf)
-    try:
-        shown, other = _scene("sphere"), _scene("default")
-        assert not ca.drew(shown)
-        _answered_by(ca, ca.request(shown, urgent=True, batch=1))
-        assert ca.drew(shown) and not ca.drew(other)
-        assert ca.outstanding == 0   # the question sent nothing
-    finally:
-        ca.stop()

@@ -215,54 +215,6 @@ def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_
         s.release()
 
 
-@pytest.mark.parametrize("drew", [False, True])
-def test_a_new_scene_s_preview_drops_msaa_only_where_the_child_drew_it(gl_ctx, renderer, drew):
-    """llvmpipe makes a program's machine code per sample count: the quarter-resolution preview
-    takes the view's MSAA (the code the preparation's trial draws and the tiles share) unless the
-    compile-ahead child drew that scene in every kind of frame (then its code without MSAA is in
-    the driver's cache). Cold, the soap bubbles' preview without MSAA compiled for 10.9 s."""
-    from viewer.app.session import Session
-    from viewer.scene import load_scene
-
-    class Child:
-        alive, ready, compiled, tables, done = True, True, set(), {}, {}
-
-        def drew(self, scene):
-            return drew
-
-        def request(self, scene, urgent=True, **priority):
-            return 1
-
-        def answered(self, rid):
-            return True
-
-        def stop(self):
-            pass
-
-    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
-    s.compiles.child = Child()
-    asked = []
-    render = renderer.render
-    try:
-        while s.quality != "full" or s.hdr is None:
-            s.render_view(SIZE)
-        s.scene = load_scene("sphere")
-        s.changed()
-        renderer.render = lambda *a, **k: asked.append((tuple(a[2:4]), k.get("msaa"))) or render(*a, **k)
-        for _ in range(40):
-            s.render_view(SIZE)
-            if s.tiling:
-                break
-        renderer.render = render
-        quarter = ((SIZE[0] + 3) // 4, (SIZE[1] + 3) // 4)
-        previews = [m for size, m in asked if size == quarter]
-        assert previews == [0 if drew else None], asked   # None: the view's own MSAA
-    finally:
-        renderer.render = render
-        s.compiles.child = None
-        s.release()
-
-
 def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(gl_ctx, renderer, tiled):
     """Ray tracing turned on where the untraced frame is over the budget: no whole frame at
     once; the untraced frame is drawn in tiles, then traced from it, and the end is the

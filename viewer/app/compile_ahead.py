@@ -404,17 +404,6 @@ class CompileAhead:
         """Urgent requests can be served (the ahead child's failure only stops the ahead work)."""
         return self._urgent.proc is not None and not self._urgent.error
 
-    def drew(self, scene) -> bool:
-        """A child drew ``scene`` (a request for it answered without error, in every kind of frame
-        the window draws): its programs' machine code for those frames is in the driver's cache.
-        Asks nothing."""
-        from viewer.scene import scene_to_toml
-
-        key = f"{None if scene.base_dir is None else str(scene.base_dir)}\n{scene_to_toml(scene, absolute_paths=True)}"
-        with self._lock:
-            rid = self._ids.get(key)
-            return rid is not None and bool(self.done.get(rid, {}).get("ok"))
-
     def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False) -> int | None:
         """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
         already asked for), None when the child it goes to is not running. ``urgent``: the scene

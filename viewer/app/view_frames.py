@@ -320,13 +320,7 @@ class ViewFrames:
         if self._tiles is None:
             self._tiles = ProgressiveTrace(s.ctx)
         t = self._tiles
-        # the preview without MSAA only where that code is made already: the compile-ahead child
-        # drew this scene in every kind of frame (the drag's are without MSAA). Otherwise it
-        # takes the view's MSAA, whose code the preparation's trial draws and the tiles share:
-        # cold, the soap bubbles' preview without MSAA made new machine code for 10.9 s of CPU,
-        # 19 ms with it (step 11: 624 against 20 ms)
-        ca = s.compiles.child
-        t.preview_no_msaa = ca is not None and getattr(ca, "alive", False) and ca.drew(scene)
+        t.msaa_made = self.prep.on  # the preparation drew each program at the view's MSAA
         if restart or not t.active:
             under = None
             same = (self.drawn_materials is not None and self.drawn_materials[0] is s.scene

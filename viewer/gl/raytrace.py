@@ -508,7 +508,7 @@ class ProgressiveTrace:
         # a tile draws only the objects that can reach it (False: every object, as the
         # compile-ahead child's tiles must, to make each program's code for a scissored draw)
         self.cull = True
-        self.preview_no_msaa = False  # the quarter preview's code without MSAA is made (see _start_raster)
+        self.msaa_made = False  # the programs' machine code at the view's MSAA is made (see _start_raster)
         self._kept = None       # the last target, at another size, until it is read (``_target``)
 
     @property
@@ -646,10 +646,11 @@ class ProgressiveTrace:
             s = 4 if preview_scale >= 4 else 2
             ws, hs = (w + s - 1) // s, (h + s - 1) // s
             # a quarter-resolution preview with the tiles' MSAA: llvmpipe makes a program's
-            # machine code per sample count at its first draw, so the preview and the tiles share
-            # it; without MSAA where that code is made already (``preview_no_msaa``: the window's
-            # compile-ahead child drew the scene in every kind of frame)
-            pm = 0 if s == 2 or self.preview_no_msaa else msaa
+            # machine code per sample count at its first draw, so the tiles reuse the preview's;
+            # without it where that code was made already (``msaa_made``: the window's view
+            # preparation drew each program at the view's MSAA; the soap bubbles' preview took
+            # 0.6 s with it)
+            pm = 0 if s == 2 or self.msaa_made else msaa
             hdr = renderer.render(scene, camera, ws, hs, view_mode, msaa=pm, raytrace=False)
             self.enlarge(renderer, hdr, s, w, h)  # on the GPU: ``upscale`` took 0.3-0.6 s at 1344x1000
             under = True
