@@ -324,13 +324,13 @@ def test_a_raster_tile_ends_where_an_object_begins_and_probes_it_alone(gl_ctx, r
     frame is still the whole frame, texel for texel."""
     from viewer.gl.raytrace import ProgressiveTrace
     from viewer.scene import load_scene
-    from viewer.scene.camera import OrbitCamera, screen_box
+    from viewer.scene.camera import OrbitCamera, screen_boxes
 
     scene = load_scene("sphere", ["camera.fov_y=100"])
     w, h = 96, 160   # tall, the ball small in the middle: the sky above it spans 14 blocks
     cam = OrbitCamera.from_scene(scene)
     ball = next(o for o in scene.objects if o.mesh == "sphere")
-    top = int(screen_box(cam, w, h, ball)[3]) // 4
+    top = int(screen_boxes(cam, w, h, [ball])[0][3]) // 4
     assert 4 < top < h // 4 - 2   # the ball begins well inside the frame
     pt = ProgressiveTrace(gl_ctx)
     regions = []   # each tile's (x, y, w, h), from the bottom

@@ -161,12 +161,14 @@ class CompareView:
     def _submit(self, kind, key, ref_key, spp, fn, *args) -> None:
         self._jobs.append(_Job(kind, key, ref_key, spp, self._generation, self._executor().submit(fn, *args)))
 
-    def _heat_wanted(self):
-        """The heat map the view draws: (relative, the scale asked for or None for automatic),
-        None when the view is not a difference view."""
-        if self.mode not in ("difference", "relative difference"):
-            return None
-        return (self.mode == "relative difference", None if self.auto_scale else float(self.scale))
+    def _heat_wanted(self, relative=None):
+        """The heat map ``relative`` (default: the one the view draws, None when the view is not
+        a difference view) as asked for: (relative, the scale asked for or None for automatic)."""
+        if relative is None:
+            if self.mode not in ("difference", "relative difference"):
+                return None
+            relative = self.mode == "relative difference"
+        return (relative, None if self.auto_scale else float(self.scale))
 
     def _adopt(self) -> None:
         """Take the measurements finished on the worker thread, in the order asked; those asked
@@ -231,7 +233,7 @@ class CompareView:
         last heat map of the same kind is shown meanwhile."""
         if self._pair is None:
             return None
-        wanted = (relative, None if self.auto_scale else float(self.scale))
+        wanted = self._heat_wanted(relative)
         key = (self._metrics_key,) + wanted
         if key != self._heat_key and not any(j.key == key for j in self._jobs):
             self._submit("heat", key, self.metrics_for, self.metrics_spp, heat_image, *self._pair, wanted)

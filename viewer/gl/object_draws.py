@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.brdf import thin_film
-from viewer.scene.camera import OrbitCamera, gl_bytes, screen_box
+from viewer.scene.camera import OrbitCamera, gl_bytes, screen_boxes
 from viewer.gl import texture_units
 from viewer.gl.constants import IBL_MODES, MAT_FLOATS
 from viewer.gl.context import release_gl
@@ -33,13 +33,9 @@ def in_region(objects, f) -> list:
     if f.region is None or not f.cull or not pairs:
         return pairs
     x0, y0, rw, rh = f.region
-    keep = []
-    for i, obj in pairs:
-        box = screen_box(f.cam, f.w, f.h, obj)
-        if box is not None and (box[2] + 2 < x0 or box[0] - 2 > x0 + rw or box[3] + 2 < y0 or box[1] - 2 > y0 + rh):
-            continue
-        keep.append((i, obj))
-    return keep
+    boxes = screen_boxes(f.cam, f.w, f.h, [o for _, o in pairs])
+    return [pair for pair, box in zip(pairs, boxes)
+            if box is None or not (box[2] + 2 < x0 or box[0] - 2 > x0 + rw or box[3] + 2 < y0 or box[1] - 2 > y0 + rh)]
 
 
 class ObjectDraws:

@@ -25,7 +25,7 @@ from viewer.brdf.lobes import Lobe
 from viewer.gl.constants import ALBEDO_TABLE, CHAIN_ROW_TEXELS, CHAIN_TEXELS
 from viewer.gl.context import release_gl
 from viewer.gl import texture_units
-from viewer.scene.camera import OrbitCamera, screen_box
+from viewer.scene.camera import OrbitCamera, screen_boxes
 
 ROW_TEXELS = CHAIN_ROW_TEXELS  # texels per material row (see shaders/common/specular_chain.glsl)
 T_ALBEDO, T_SPEC, T_TRANS, T_INFO, T_SIGMA, T_ETA, T_K = (CHAIN_TEXELS[k] for k in ("albedo", "spec", "trans", "info",
@@ -303,13 +303,8 @@ def _object_tops(scene, camera, w, h) -> frozenset:
     """The blocks of 4 rows (from the bottom) of a w x h frame where the projected box of one of
     ``scene``'s objects begins, seen from the top (the raster tiles' order); boxes crossing the
     camera's plane or outside the frame are left out."""
-    tops = set()
-    for obj in scene.objects:
-        box = screen_box(camera, w, h, obj)
-        if box is None or box[3] < 0 or box[1] >= h or box[2] < 0 or box[0] >= w:
-            continue
-        tops.add(int(min(box[3], h - 1)) // 4)
-    return frozenset(tops)
+    return frozenset(int(min(box[3], h - 1)) // 4 for box in screen_boxes(camera, w, h, scene.objects)
+                     if box is not None and box[3] >= 0 and box[1] < h and box[2] >= 0 and box[0] < w)
 
 
 class _Pass:
@@ -639,6 +634,9 @@ class ProgressiveTrace:
                 under = True  # in the texture now
             else:  # the view drawn at another size (a compare view's half): resampled on the GPU
                 self.enlarge(renderer, under, None, w, h)
+                if under is self._kept:  # the old target, read: released now
+                    release_gl(self._kept)
+                    self._kept = None
                 under = True
         if isinstance(under, np.ndarray) and under.shape[:2] not in ((h, w), (h2, w2)):
             under = None
@@ -671,12 +669,11 @@ class ProgressiveTrace:
     def enlarge(self, renderer, src, s: int | None, w: int, h: int):
         """``src`` (a texture) resampled into the texture, of (w, h): enlarged ``s`` times
         (``upscale``'s weights), or with ``s`` None from whatever size it has (bilinear between
-        its texel centres; shaders/passes/enlarge.frag); returns the texture. ``src`` may be the
-        texture itself at another size: it is released once read."""
+        its texel centres; shaders/passes/enlarge.frag); returns the texture."""
         from viewer.gl.shaders import set_uniform
 
         ctx = self.ctx
-        self._target(w, h, keep=src)
+        self._target(w, h)
         prog = renderer.program_set.enlarge()
         self._fbo.use()
         self._fbo.viewport = (0, 0, w, h)
@@ -686,9 +683,6 @@ class ProgressiveTrace:
         ratio = (1.0 / s, 1.0 / s) if s else (src.width / w, src.height / h)
         set_uniform(prog, "u_ratio", ratio)
         renderer.program_set.fullscreen_vao(prog).render(vertices=3)
-        if self._kept is not None:  # the old target, read: released now
-            release_gl(self._kept)
-            self._kept = None
         return self.texture
 
     def step(self, budget_s: float = 0.15):

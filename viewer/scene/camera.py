@@ -121,17 +121,21 @@ class OrbitCamera:
         self.set_clip_from_bounds(lo, hi)
 
 
-def screen_box(camera: OrbitCamera, w: int, h: int, obj):
-    """(x0, y0, x1, y1): the pixels (from the bottom left of a w x h frame) that the box of
-    ``obj`` (a scene object: its mesh's bounds under its model matrix) covers when projected,
-    or None where the box crosses the camera's plane (then it may cover any pixel)."""
-    lo, hi = obj.mesh_data.bounds()
-    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    clip = corners @ (camera.projection(w / h) @ camera.view() @ obj.model_matrix()).T
-    cw = clip[:, 3]
-    if not np.all(cw > 1e-6):
-        return None
-    px = (clip[:, 0] / cw + 1.0) * 0.5 * w
-    py = (clip[:, 1] / cw + 1.0) * 0.5 * h
-    return float(px.min()), float(py.min()), float(px.max()), float(py.max())
-
+def screen_boxes(camera: OrbitCamera, w: int, h: int, objects) -> list:
+    """Per object of ``objects`` (scene objects: a mesh's bounds under a model matrix), the
+    pixels (x0, y0, x1, y1), from the bottom left of a w x h frame, that its box covers when
+    projected; None where the box crosses the camera's plane (then it may cover any pixel)."""
+    vp = camera.projection(w / h) @ camera.view()
+    out = []
+    for obj in objects:
+        lo, hi = obj.mesh_data.bounds()
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        clip = corners @ (vp @ obj.model_matrix()).T
+        cw = clip[:, 3]
+        if not np.all(cw > 1e-6):
+            out.append(None)
+            continue
+        px = (clip[:, 0] / cw + 1.0) * 0.5 * w
+        py = (clip[:, 1] / cw + 1.0) * 0.5 * h
+        out.append((float(px.min()), float(py.min()), float(px.max()), float(py.max())))
+    return out
