@@ -208,12 +208,9 @@ TOUR: tuple[Step, ...] = (
                 '[materials.diamond]\nmodel = "dielectric"\nspectral = "diamond"\n'), "spectral"),
     Step("soap_bubble", "Soap bubbles: thin-film interference",
          "Water films in air: light reflected at a film's two faces interferes, the colour shifting with "
-         "angle. Clear shells (ior 1, no refraction), seen against the dark studio."
+         "angle. Clear shells (ior 1, no refraction): the floor shows through."
          + _NO_CAUSTICS,
-         # the camera low, looking up: the bubbles stand against the studio's dark walls, where the
-         # films' colours show; from eye height the floor's far edge ran through their middles,
-         # dark above and the bright floor seen through below (a hard seam across each bubble)
-         _scene(_camera((0.0, 0.35, 4.6), (0.0, 0.8, 0.0)), _STUDIO, _render("split_sum", raytrace=True), _WIDE_FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
+         _scene(_camera(), _STUDIO, _render("split_sum", raytrace=True), _WIDE_FLOOR, _sphere("bubble", -0.75, 0.6, 0.8),
                 _sphere("thin", 0.75, 0.6, 0.8), _FLOOR_MAT, _mat("bubble", "lecture_soap_bubble"),
                 _mat("thin", "lecture_soap_bubble") + "thin_film = { ior = 1.33, thickness_nm = 250.0 }\n"), "fresnel"),
     # The variances in the caption: per-sample variance averaged over the image at 256 spp
