@@ -195,8 +195,8 @@ def test_the_viewer_command_can_turn_it_off(capsys):
     assert "--no-compile-ahead" in capsys.readouterr().out
 
 
-def _req(rid, tier, batch=0):
-    return {"id": rid, "scene": "", "priority": [tier, batch]}
+def _req(rid, tier, batch=0, lead=None):
+    return {"id": rid, "scene": "", "priority": [tier, batch] + ([] if lead is None else [lead])}
 
 
 def test_the_child_draws_the_scene_shown_first_its_untraced_copy_before_its_traced_programs():
@@ -215,6 +215,30 @@ def test_the_child_draws_the_scene_shown_first_its_untraced_copy_before_its_trac
         order.append(r["id"])
         q.finished()
     assert order == [4, 5, 2, 3, 1, 0, 6]
+
+
+def test_the_form_the_view_waits_for_goes_first_in_its_batch_and_preempts_the_rest():
+    """A request marked ``lead`` (the view's preparation waits for it: the grey stand-ins, or the
+    untraced copy) goes before the requests of its scene sent earlier (its traced programs), and
+    one of them being drawn is put back at its next kind of frame; a later scene still goes
+    first."""
+    from viewer.app.compile_ahead import URGENT, Preempted, WorkQueue
+
+    q = WorkQueue()
+    q.put(_req(0, URGENT, 1, 0))
+    q.put(_req(1, URGENT, 1, 0))
+    assert q.take()["id"] == 0  # the traced programs being drawn ...
+    q.put(_req(2, URGENT, 1, 1))
+    with pytest.raises(Preempted):  # ... put back for the stand-ins the view waits for
+        q.check()
+    q.put_back()
+    q.put(_req(3, URGENT, 2, 0))  # a later scene shown
+    q.close()
+    order = []
+    while (r := q.take()) is not None:
+        order.append(r["id"])
+        q.finished()
+    assert order == [3, 2, 0, 1]
 
 
 def test_the_childs_renderers_draw_a_new_map_with_the_quick_prefilter_as_the_window(gl_ctx):
@@ -367,6 +391,8 @@ def test_the_scene_shown_compiles_at_the_windows_priority_and_the_work_ahead_beh
 
 
 def test_a_request_sent_ahead_then_shown_is_drawn_by_the_urgent_child_and_answered_once():
+    from viewer.app.driver_cache import drawing_state
+
     calls = []
     ca = CompileAhead(on_done=lambda: calls.append(sorted(ca.done)), command=TWO_CHILDREN, leash=math.inf)
     try:
@@ -375,6 +401,7 @@ def test_a_request_sent_ahead_then_shown_is_drawn_by_the_urgent_child_and_answer
         assert not ca.answered(rid) and ca.outstanding == 1
         assert ca.request(scene, urgent=False, ahead=True) == rid  # asked again ahead: nothing new
         assert ca.request(scene, urgent=True, batch=2) == rid       # now shown: the same request
+        assert ca.states[rid] == drawing_state(scene)  # the state its answer puts in the driver's cache
         assert _answered_by(ca, rid) == ca.pid
         # the ahead child, told to drop it, answers all the same: merged, not counted again
         _wait(lambda: str(ca.ahead_pid) in ca.tables and calls, "the ahead child's late answer", 60)

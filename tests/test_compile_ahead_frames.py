@@ -53,7 +53,9 @@ def test_the_child_draws_the_kinds_of_frame_the_window_draws(gl_ctx):
     from viewer.gl.renderer import Renderer
 
     window, child = Renderer(gl_ctx), Renderer(gl_ctx)
-    s = Session(gl_ctx, "default", renderer=window, prefetch=False, compile_ahead=False, tiled_frames=True)
+    # prepared as the window's view is (its quarter-resolution preview then has no MSAA)
+    s = Session(gl_ctx, "default", renderer=window, prefetch=False, compile_ahead=False, tiled_frames=True,
+                prepare_frames=True)
     try:
         size = (96, 64)
         _settle(s, size)  # a whole frame: the next scene's cost is not known, so it is tiled

@@ -245,23 +245,24 @@ class _Child:
     alive = True
 
     def __init__(self):
-        self.asked, self.done = [], False
+        self.asked, self.finished, self.done = [], False, {}
 
-    def request(self, scene, urgent=True, batch=0, ahead=False):
-        self.asked.append((scene, urgent))
+    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False):
+        self.asked.append((scene, urgent, lead))
         return 7
 
     def answered(self, rid):
-        return self.done
+        return self.finished
 
 
 def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkeypatch):
-    """A program part waits (the placeholder, saying so) while the child compiles it, and is made
-    on the window's thread once the child answered; without an answer it waits no longer than
-    ``CHILD_WAIT_S``."""
-    from viewer.app import view_prep
+    """A program part the driver's cache does not hold waits (the placeholder, saying so) for the
+    child, asked for the scene as drawn ahead of its other requests, however long it takes, and
+    is made on the window's thread once the child answered; a program the driver's cache holds
+    (``viewer.app.driver_cache``, as recorded) is made at once, the child not asked."""
+    from viewer.app import driver_cache
 
-    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 3600.0)  # only the answer ends the wait here
+    monkeypatch.setattr(driver_cache, "cache_identity", lambda: "a shader cache")  # whatever Mesa's is here
     s = _session(gl_ctx)
     child = s.compiles.child = _Child()
     try:
@@ -271,13 +272,14 @@ def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkey
                 break
         m = re.search(r"next: the program of (.+) \(waiting for the background compile\)$", s.trace_status)
         assert m, s.trace_status
-        assert child.asked and child.asked[0][0].objects == s.scene.objects and child.asked[0][1]  # urgent
+        scene, urgent, lead = child.asked[0]
+        assert scene.objects == s.scene.objects and urgent and lead  # the scene shown, first of its batch
         every = s.renderer.forward_keys(s.scene)
         keys = {every[n] for n in m.group(1).split(", ")}
-        for _ in range(3):  # still waiting: the program is not made here
+        for _ in range(30):  # still waiting, as long as no answer comes: the program is not made here
             s.render_view(SIZE)
             assert s.frame_source.form == PREPARING and not keys & set(s.renderer.programs)
-        child.done = True
+        child.finished = True
         s.render_view(SIZE)  # answered: made on this thread now
         assert keys <= set(s.renderer.programs) and s.frame_source.form == PREPARING
         _prepare(s)  # the other program (the child answered that request too), then the frame
@@ -285,25 +287,31 @@ def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkey
     finally:
         s.compiles.child = None
         s.release()
-    monkeypatch.setattr(view_prep, "CHILD_WAIT_S", 0.0)  # no answer: made at once
     s = _session(gl_ctx)
     child = s.compiles.child = _Child()
     try:
+        s.compiles.record().add(s.renderer.forward_keys(s.scene).values(), driver_cache.drawing_state(s.scene))
         _prepare(s)
-        assert child.asked and s.frame_source.form == "own" and s.hdr is not None
+        assert not child.asked and s.frame_source.form == "own" and s.hdr is not None
     finally:
         s.compiles.child = None
         s.release()
 
 
-def test_parts_within_the_budget_share_a_frame(gl_ctx):
-    """With a budget no part passes, one frame makes them all: the placeholder, one frame of
-    parts, then the frame itself (the view comes as soon as a frame drawn at once would)."""
+def test_parts_within_the_budget_share_a_frame_but_each_program_has_its_own(gl_ctx):
+    """With a budget no part passes, the cheap parts share one frame; a program's trial draw
+    (its cost not known before it: 50-400 ms on llvmpipe) ends its frame, so each program has a
+    frame of its own: the placeholder, the cheap parts with the first program, one frame for
+    each other program, then the frame itself."""
     s = _session(gl_ctx, "default", budget_s=1e9)
     try:
+        programs = len(set(s.renderer.forward_keys(s.scene).values()))
         frames = _prepare(s)
-        assert len(frames) == 2, [label for _, label, _ in frames]
-        assert all(frames[1][0].values()), frames[1][0]   # every part made in the second frame
+        assert programs == 2 and len(frames) == 1 + programs, [label for _, label, _ in frames]
+        made = frames[1][0]
+        assert all(v for k, v in made.items() if not k.startswith("program")), made  # the cheap parts
+        assert sum(v for k, v in made.items() if k.startswith("program")) == 1, made  # one program
+        assert all(frames[2][0].values()), frames[2][0]   # the other program
         assert s.hdr is not None and s.frame_source.scene is s.scene
     finally:
         s.release()
@@ -372,4 +380,141 @@ def test_the_plan_of_two_glasses_with_absorption_colours(gl_ctx):
         assert scene.materials["glass_big"].to_plain() == scene.materials["glass_small"].to_plain()
         assert sorted(p.materials[0] for p in parts if p.kind == "tables") == ["floor", "glass_big"]
     finally:
+        s.release()
+
+
+def test_the_loop_sleeps_while_the_placeholder_waits_for_the_child(gl_ctx, monkeypatch):
+    """While the view's preparation waits for the compile-ahead child, the window's loop draws the
+    placeholder no more than once an ``IDLE_FRAME_S`` (its frames would take the CPU the child
+    needs); the child's answer (which wakes the loop) makes it draw at once. On state: the loop's
+    ``loop_wait``, no timing."""
+    import types
+
+    from viewer.app import driver_cache
+    from viewer.app.pacing import Pacing
+
+    monkeypatch.setattr(driver_cache, "cache_identity", lambda: "a shader cache")
+    s = _session(gl_ctx)
+    child = s.compiles.child = _Child()
+    app = types.SimpleNamespace(session=s, keys=types.SimpleNamespace(last_event=-1e9))
+    pacing = Pacing(app)
+    try:
+        assert pacing.loop_wait() == ("draw", 0.0)  # the first frame of a new scene
+        for _ in range(20):
+            s.render_view(SIZE)
+            if s.frames.prep.waits_on_child:
+                break
+        assert s.dirty and s.frame_source.form == PREPARING
+        assert pacing.loop_wait() == ("frames", Pacing.IDLE_FRAME_S)
+        child.finished = True  # answered
+        assert not s.frames.prep.waits_on_child and pacing.loop_wait() == ("draw", 0.0)
+    finally:
+        s.compiles.child = None
+        s.release()
+
+
+def test_a_program_drawn_for_another_scene_is_prepared_again_in_a_new_drawing_state(gl_ctx):
+    """llvmpipe makes a program's code for the state it is drawn in (the sample count, the
+    environment map's and the shadow atlas's kinds of texture: ``driver_cache.drawing_state``):
+    a scene whose programs the renderer linked for another scene in another state gets their
+    parts (a trial draw each) all the same; one in the same state does not."""
+    from viewer.scene import load_scene
+
+    s = _session(gl_ctx)
+    try:
+        _prepare(s)
+        keys = set(s.renderer.forward_keys(s.scene).values())
+        gold = load_scene("default", overrides=["materials.floor.albedo=[0.3, 0.3, 0.3]"])  # the same state
+        eight = load_scene("default", overrides=["render.msaa=8"])  # another
+        assert set(s.renderer.forward_keys(eight).values()) == keys <= set(s.renderer.programs)
+        for scene, parts in ((gold, False), (eight, True)):
+            s.scene = scene
+            s.changed()
+            labels = [label for _, label, _ in _prepare(s)]
+            assert any("the program of" in label for label in labels) is parts, labels
+            assert s.frame_source.form == "own"
+    finally:
+        s.release()
+
+
+def _until(s, done, bound_s=120):
+    """Frames until ``done()`` (a bound against a hang, not a timing: the map is read on a thread)."""
+    deadline = time.monotonic() + bound_s
+    while not done():
+        assert time.monotonic() < deadline, s.trace_status
+        s.render_view(SIZE)
+        time.sleep(0.002)
+
+
+class _Answering:
+    """A compile-ahead child whose answers the test gives (``answer``), keeping a scene's id when
+    it is asked for again, as the child does."""
+
+    alive = True
+
+    def __init__(self):
+        self.compiled, self.tables, self.requests, self.done, self.states = set(), {}, [], {}, {}
+
+    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False):
+        from viewer.scene import scene_to_toml
+
+        text = scene_to_toml(scene)
+        for i, (t, _, _) in enumerate(self.requests):
+            if t == text:
+                return i + 1
+        self.requests.append((text, scene, lead))
+        return len(self.requests)
+
+    def answered(self, rid):
+        return rid in self.done
+
+    def answer(self, rid):
+        self.done[rid] = {"id": rid, "ok": True}
+
+    def stop(self):
+        pass
+
+
+def test_a_new_form_of_the_scene_shown_is_prepared_under_the_image_it_replaces(gl_ctx, monkeypatch):
+    """A traced step opens on its grey stand-ins (prepared behind the placeholder once the child
+    answered them); when its untraced programs are answered, the view keeps the stand-ins' image
+    while their trial draws are made, one program a frame, under a label that says so, and
+    only then draws the step untraced: never the placeholder again, never another scene."""
+    from viewer.app import driver_cache
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+    from viewer.scene.lecture import TOUR
+
+    monkeypatch.setattr(driver_cache, "cache_identity", lambda: "a shader cache")
+    s = Session(gl_ctx, "default", renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=True,
+                tiled_frames=True, prepare_frames=True)
+    child = s.compile_ahead = _Answering()
+    try:
+        s.lecture([t.key for t in TOUR].index("fresnel"))
+        _until(s, lambda: s.frames.prep.waits_on_child)  # the placeholder, waiting for the stand-ins
+        lead = [i + 1 for i, (_, sc, first) in enumerate(child.requests) if first]
+        assert lead and all(getattr(child.requests[i - 1][1], "stand_in", False) for i in lead)
+        child.answer(lead[0])
+        _until(s, lambda: s.frame_source.form == "stand-in")
+        assert s.frame_source.form == "stand-in" and s.hdr is not None
+        flat = next(i + 1 for i, (_, sc, first) in enumerate(child.requests)
+                    if not first and sc.objects is s.scene.objects and not sc.render.raytrace)
+        child.answer(flat)
+        untraced = set(s.renderer.forward_keys(s.scene, raytrace=False).values()) - set(s.renderer.programs)
+        assert untraced
+        kept = 0
+        for _ in range(60):
+            before = set(s.renderer.programs)
+            s.render_view(SIZE)
+            src = s.frame_source
+            assert src.scene is s.scene and src.form in ("stand-in", "untraced"), src.form
+            if src.form == "untraced":
+                break
+            assert s.hdr is not None and s.trace_status.startswith("drawn with grey stand-ins; preparing the view")
+            assert len(set(s.renderer.programs) - before) <= 1  # one program a frame
+            kept += 1
+        assert s.frame_source.form == "untraced" and kept >= len(untraced)
+        assert untraced <= set(s.renderer.programs)
+    finally:
+        s.compile_ahead = None
         s.release()

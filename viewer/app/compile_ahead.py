@@ -50,8 +50,8 @@ children's renderers draw the environment light with the quick prefilter the win
 (``viewer.app.prefetch``), and it would hold the answer back by seconds.
 
 Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "priority":
-[tier, batch]}`` (tier ``URGENT``, ``AHEAD`` or ``IDLE``; a higher batch is a later scene
-shown), ``{"promote": id, "priority"}`` or ``{"drop": id}`` (answered by the other child: out
+[tier, batch, lead]}`` (tier ``URGENT``, ``AHEAD`` or ``IDLE``; a higher batch is a later scene
+shown; lead 1: the form the view shows while it waits, before the rest of its batch), ``{"promote": id, "priority"}`` or ``{"drop": id}`` (answered by the other child: out
 of the queue if it waits). Out: ``{"working": id}`` after each kind of frame
 drawn for a request, then ``{"id", "ok": true, "keys": [program keys compiled], "tables":
 {params JSON: exported tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
@@ -112,6 +112,10 @@ def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
         for scale in (4, 2):
             pt = ProgressiveTrace(renderer.ctx)
             pt.cull = False  # every object's program drawn under a scissor, wherever it lies
+            # the window's view is prepared before it tiles (``ViewPrep``), so its quarter-
+            # resolution preview is drawn without MSAA (``msaa_made``): drawn with it here, that
+            # preview's code was made on the window's thread (0.4-1 s a program, cold)
+            pt.msaa_made = True
             try:
                 pt.start(renderer, scene, None, w, h, traced=False, rows=TILE_ROWS, max_pixels=w * h,
                          preview_scale=scale)
@@ -159,9 +163,10 @@ class Preempted(Exception):
 
 
 def _rank(req) -> tuple:
-    """The order of the queue: the highest priority, then the earliest request."""
-    tier, batch = req["priority"]
-    return (int(tier), int(batch), -int(req["id"]))
+    """The order of the queue: the highest priority (tier, batch, then a request the view waits
+    for before the rest of its batch), then the earliest request."""
+    tier, batch, *lead = req["priority"]
+    return (int(tier), int(batch), int(lead[0]) if lead else 0, -int(req["id"]))
 
 
 class WorkQueue:
@@ -251,6 +256,9 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
     threading.Thread(target=read, name="compile-ahead-reader", daemon=True).start()
     ctx = create_offscreen_context()
 
+    from viewer.app.driver_cache import CacheWriters
+
+    writers = CacheWriters()
     renderer = child_renderer(ctx)
     echo = []  # the second renderer, made after the first request's programs are in Mesa's cache
 
@@ -272,6 +280,9 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
         try:
             scene = load_scene_text(req["scene"], base_dir=req.get("base_dir"), label="<compile ahead>")
             answer = {"id": req["id"], "ok": True, **prepare(renderer, scene, echo_renderer, progress)}
+            # answered once what it made is in the driver's cache, not queued for it (a lowest-
+            # priority thread's work: seconds behind on a loaded machine); heard meanwhile
+            writers.wait(progress=lambda: print(working, file=out, flush=True))
         except Preempted:
             work.put_back()
             continue
@@ -351,6 +362,7 @@ class CompileAhead:
         self.compiled: set[str] = set()
         self.tables: dict[str, dict] = {}
         self.done: dict[int, dict] = {}
+        self.states: dict[int, str] = {}  # request id -> its scene's drawing_state (viewer.app.driver_cache)
         self._lock = threading.Lock()
         self._next = 0
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
@@ -404,21 +416,25 @@ class CompileAhead:
         """Urgent requests can be served (the ahead child's failure only stops the ahead work)."""
         return self._urgent.proc is not None and not self._urgent.error
 
-    def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False) -> int | None:
+    def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False,
+                lead: bool = False) -> int | None:
         """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
         already asked for), None when the child it goes to is not running. ``urgent``: the scene
         the window shows (``batch``: a higher number for a later scene shown; its requests in the
-        order sent), for the urgent child; else ``ahead``: the next lecture step's, or the
+        order sent, except that one marked ``lead``, the form the view shows while it waits for
+        it, goes first), for the urgent child; else ``ahead``: the next lecture step's, or the
         idle-time warm-up's, for the ahead child. A scene asked for again with a higher priority,
         not answered yet, moves up its child's queue; one sent ahead and now urgent goes to the
         urgent child as well."""
+        from viewer.app.driver_cache import drawing_state
         from viewer.scene import scene_to_toml
 
         if not self.alive:
             return None
         text = scene_to_toml(scene, absolute_paths=True)
         base = None if scene.base_dir is None else str(scene.base_dir)
-        priority = [URGENT if urgent else AHEAD if ahead else IDLE, int(batch) if urgent else 0]
+        priority = [URGENT if urgent else AHEAD if ahead else IDLE, int(batch) if urgent else 0,
+                    int(bool(lead and urgent))]
         with self._lock:
             key = f"{base}\n{text}"
             rid = self._ids.get(key)
@@ -445,6 +461,7 @@ class CompileAhead:
                     child.silence.heard(child.pid)
                 child.sent[rid] = time.monotonic()
                 child.priority[rid] = priority
+                self.states[rid] = drawing_state(scene)
                 line = {"id": rid, "scene": text, "base_dir": base, "priority": priority}
         try:
             child.write(line)

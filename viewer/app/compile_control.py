@@ -16,6 +16,9 @@ UNTRACED = object()    # held_back: the scene itself, untraced, while its traced
 #: a stand-in material's albedo: a new scene whose programs compile beside is drawn with grey
 #: Lambert stand-ins for the materials not ready (its own objects, never the last scene's frame)
 STAND_IN_ALBEDO = 0.5
+#: the seconds of a frame spent linking programs again from the driver's cache (a link from the
+#: cache takes 2-30 ms; see ``CompileControl._relink_some``)
+RELINK_S = 0.04
 
 
 class CompileControl:
@@ -40,6 +43,12 @@ class CompileControl:
         self._ahead_sent = False   # the presets still to send to the child (False: not begun)
         self._batch = (None, 0)    # (the scene and materials last asked for, their batch number)
         self._next = None          # (the next lecture step, its stand-in scene), asked for ahead
+        self._record = None        # what the driver's cache holds (DriverCacheRecord), read on first use
+        self._recorded = 0         # the children's answers put in the record so far
+        self._relinked: set[str] = set()  # programs linked again from the driver's cache (_relink_some)
+        from viewer.app.driver_cache import CacheWriters
+
+        self._writers = CacheWriters()  # this window's cache writes: relinked only once they are done
 
     def poll(self) -> None:
         """The request the view waits for answered: the view is drawn again, with the material
@@ -50,6 +59,61 @@ class CompileControl:
         if self.awaiting_flat is not None and self.child.answered(self.awaiting_flat):
             self.awaiting_flat = None  # the untraced programs: drawn untraced from now on
             self.session.dirty = True
+        if self.child is not None and len(getattr(self.child, "done", ())) > self._recorded:
+            self._record_answers()
+        if self._recorded and self._writers.idle():
+            self._relink_some()
+
+    def _relink_some(self) -> None:
+        """Link again, from the driver's cache, the programs this window linked once only (its
+        fixed passes at start, a program made here before any child had made it), up to
+        ``RELINK_S`` of them a frame. A program compiled afresh gets machine code of its own on
+        llvmpipe, keyed apart from the code of the same program linked from the driver's cache,
+        which is how the compile-ahead child's echo links it: drawn in a new state, only the
+        relinked one reads the child's code (a lecture step's program took 0.3-0.4 s of this
+        thread otherwise). Once the child has answered a request, and while this window's own
+        cache writes are done (``CacheWriters``: a program whose entry is not written yet would
+        be compiled afresh again)."""
+        import time
+
+        r = self.session.renderer
+        t0 = time.perf_counter()
+        for key in r.program_keys():
+            if key in self._relinked:
+                continue
+            r.relink_programs([key])
+            self._relinked.add(key)
+            if time.perf_counter() - t0 >= RELINK_S:
+                return  # at least one a frame
+
+    def record(self):
+        """What the driver's cache holds of the programs (``viewer.app.driver_cache``), for this
+        window's driver."""
+        if self._record is None:
+            from viewer.app.driver_cache import DriverCacheRecord
+
+            info = self.session.renderer.ctx.info
+            self._record = DriverCacheRecord(f"{info.get('GL_RENDERER', '')}|{info.get('GL_VERSION', '')}")
+        return self._record
+
+    def _record_answers(self) -> None:
+        """The programs of the children's answers since the last call, each drawn there in every
+        kind of frame the window draws: in the driver's cache now."""
+        ca = self.child
+        answers = list(ca.done.items())
+        self._recorded = len(answers)
+        states = getattr(ca, "states", {})
+        for rid, msg in answers:
+            if msg.get("ok") and rid in states:
+                self.record().add(msg.get("keys", ()), states[rid])
+
+    def in_driver_cache(self, keys, scene) -> bool:
+        """The programs ``keys`` drawn in ``scene`` are in the driver's cache (a child drew them
+        in a scene of the same ``drawing_state``, in every kind of frame the window draws, this
+        session or an earlier one)."""
+        from viewer.app.driver_cache import drawing_state
+
+        return self.record().holds(keys, drawing_state(scene))
 
     @property
     def compiling(self) -> bool:
@@ -166,11 +230,13 @@ class CompileControl:
 
     def ask_beside(self, scene):
         """Ask the compile-ahead child for ``scene``'s programs with the session's scene's
-        urgency (the same request as before for the same scene); its id, or None without a child."""
+        urgency, before the rest of its requests (the view waits for them: ``scene`` is the form
+        it shows meanwhile); the same request as before for the same scene. Its id, or None
+        without a child."""
         ca = self.child
         if ca is None or not ca.alive:
             return None
-        return ca.request(scene, urgent=True, batch=self._batch_for(self.session.scene))
+        return ca.request(scene, urgent=True, batch=self._batch_for(self.session.scene), lead=True)
 
     def _batch_for(self, scene) -> int:
         """The compile-ahead batch of ``scene`` as it is now: a new one (higher) for another

@@ -36,6 +36,9 @@ class Pacing:
         ``POLL_S``) nothing changes: no frame until input or a wake-up."""
         app = self.app
         s = app.session
+        if self.throttle and s.frames.prep.waits_on_child:
+            # the view's placeholder waits for the compile-ahead child's answer, which wakes the loop
+            return "frames", self.IDLE_FRAME_S
         if not self.throttle or s.dirty or s.quality != "full" or s.refining:
             return "draw", 0.0
         if s.compile_ready or (s.reference is not None and s.reference.needs_frames):

@@ -205,8 +205,10 @@ class ViewFrames:
         quality = "preview" if interacting else "full"
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
             if s.compiles.on else None
-        if held is not KEEP_IMAGE and self.prep.needed(self.frame_source) and self._prepare(held, traced, rw, rh):
-            return  # the placeholder: still dirty, so the next frame follows at once
+        if held is not KEEP_IMAGE and self.prep.needed(
+                self.frame_source, None if interacting else (s.scene if held is None or held is UNTRACED else held),
+                False if traced else None) and self._prepare(held, traced, rw, rh):
+            return  # the placeholder (or the image kept): still dirty, so the next frame follows at once
         source = None
         try:
             if held is KEEP_IMAGE:
@@ -266,6 +268,10 @@ class ViewFrames:
         frame drawn otherwise true), False when the frame itself is drawn now."""
         s = self.session
         drawn = s.scene if held is None or held is UNTRACED else held
+        # the same scene in another form (untraced after its stand-ins, a material edited): the
+        # view keeps its image (of this scene) while the new form's programs are made
+        src = self.frame_source
+        keep = src is not None and src.scene is s.scene and src.form != PREPARING and self.hdr is not None
         try:
             if not self.prep.step(drawn, (w, h), s.view_mode, False if traced else None):
                 return False
@@ -273,8 +279,10 @@ class ViewFrames:
             self.prep.finish()
             s.notify(str(e), error=True)
             return False
-        self.hdr = None
-        self.frame_source = FrameSource(s.scene, dict(drawn.materials), PREPARING)
+        self.prep.kept = FORM_WORDS.get(src.form, "the view as it was") if keep else None
+        if not keep:
+            self.hdr = None
+            self.frame_source = FrameSource(s.scene, dict(drawn.materials), PREPARING)
         return True
 
     def _tiled(self, scene, w, h) -> bool:

@@ -17,10 +17,12 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
 * "the program of <materials>" (each forward program the frame lacks, drawn once into one
   pixel with the shadow and thickness passes it needs), one per frame;
 
-then the frame itself, with every program drawn before. Where the compile-ahead child runs and
-has started, a program part first waits for it (asked for the scene as drawn) up to
-``CHILD_WAIT_S``: its answer puts the program's machine code in Mesa's disk cache, and the
-window's first draw reads it. What is still to do is worked out from the renderer's state each
+then the frame itself, with every program drawn before. Where the compile-ahead child runs, a
+program part the driver's cache does not hold yet (``viewer.app.driver_cache``) first waits
+for it, asked for the scene as drawn before its other requests, until it answers: the child
+draws the scene in every kind of frame the window draws, which puts the machine code of all
+of them in Mesa's disk cache, and the window's first draws (this trial draw, the preview, the
+tiles) read it. What is still to do is worked out from the renderer's state each
 frame (``plan``), so a part another frame already made (the compile-ahead child's programs, a map
 the disk cache now holds) is never made twice, and the label is the state's. The first frame of a
 preparation makes nothing: it shows the placeholder at once. ``ViewPrep`` is held by
@@ -33,10 +35,6 @@ import dataclasses
 
 #: the FrameSource form of the view while it is prepared: no image shown
 PREPARING = "preparing"
-#: the longest wait, in seconds, for the compile-ahead child to compile a program the
-#: preparation needs, before the window makes it itself (the child's answer lets the window read
-#: the program's machine code from Mesa's disk cache: milliseconds instead of 0.2-0.5 s)
-CHILD_WAIT_S = 0.3   # at load 7-12 the child never answered within 1 s: the wait only delayed the view
 #: the seconds of parts one frame makes before it shows the placeholder (the frame goal): cheap
 #: parts (a cached DFG table, targets, a material's tables) share a frame, so the view comes
 #: about as soon as it did when the whole first frame was drawn at once
@@ -73,8 +71,12 @@ class ViewPrep:
         self.done: list[str] = []  # the parts made for it, in order
         self.started = False  # its placeholder frame was shown
         self.drawn = None     # (scene as drawn, raytrace, size) of the last step: what the label plans
-        self.waiting = None   # (part, request id, since): a program the compile-ahead child makes
+        self.waiting = None   # (part, request id): a program the compile-ahead child makes
+        self.kept = None      # what the view shows meanwhile, where it keeps its image (words), else None
         self._maps: dict = {}  # id(environment) -> (environment, thread, [error]): its map's read
+        # the programs (and "background", the sky's) drawn by this view, each in the drawing
+        # states drawn (``viewer.app.driver_cache.entry``)
+        self.made: set[str] = set()
 
     @property
     def active(self) -> bool:
@@ -85,6 +87,7 @@ class ViewPrep:
         """The parts a frame of ``drawn`` (the scene as the view would draw it: the session's,
         or its grey stand-ins) at ``size`` (w, h) still lacks, in the order they are made (the
         environment map's read first: it runs beside the others)."""
+        from viewer.app.driver_cache import drawing_state, entry
         from viewer.gl.ibl import holds as ibl_holds
         from viewer.gl.program_set import frame_switches
 
@@ -110,12 +113,16 @@ class ViewPrep:
                     and not any(p.kind == "tables" and _same(drawn.materials[p.materials[0]], drawn.materials[name])
                                 for p in out):  # grey stand-ins share theirs
                 out.append(Part(f"the tables of {name}", "tables", (name,)))
-        if env.map is not None and not ssr_on and "background" not in r.programs:
+        # a program linked for another scene is made again where this scene's drawing state is
+        # new to it: llvmpipe makes its code per state (``viewer.app.driver_cache``)
+        state = drawing_state(drawn)
+        if env.map is not None and not ssr_on and ("background" not in r.programs
+                                                   or entry("background", state) not in self.made):
             out.append(Part("the sky's program", "sky"))
         keys = r.forward_keys(drawn, raytrace=raytrace)
         by_key: dict[str, list[str]] = {}
         for name, key in keys.items():
-            if key not in r.programs:
+            if key not in r.programs or entry(key, state) not in self.made:
                 by_key.setdefault(key, []).append(name)
         for names in by_key.values():
             out.append(Part(f"the program of {', '.join(names)}", "program", tuple(names)))
@@ -128,12 +135,26 @@ class ViewPrep:
         env = scene.environment
         return np.zeros(3) if env.constant is None else np.asarray(env.constant, float) * env.intensity
 
-    def needed(self, frame_source) -> bool:
+    def needed(self, frame_source, drawn=None, raytrace=None) -> bool:
         """Whether the view's next frame is one a preparation may stand for: the session's scene
-        is not the one the view shows (its first frame, another scene), or it is being prepared."""
+        is not the one the view shows (its first frame, another scene), or it is being prepared,
+        or ``drawn`` (the form of the scene the view draws next: untraced after its grey
+        stand-ins, a material edited) has a program this view never drew in its drawing state
+        (``unmade``; the view then keeps its image while the parts are made)."""
         if not self.on:
             return False
-        return self.scene is not None or frame_source is None or frame_source.scene is not self.session.scene
+        return (self.scene is not None or frame_source is None or frame_source.scene is not self.session.scene
+                or (drawn is not None and self.unmade(drawn, raytrace)))
+
+    def unmade(self, drawn, raytrace=None) -> bool:
+        """A program of ``drawn`` (drawn with ``raytrace``) this view has not drawn in ``drawn``'s
+        drawing state: its first draw would make (or read from the driver's cache, which on
+        llvmpipe still builds the program's code: 50-400 ms a program) its code on this thread."""
+        from viewer.app.driver_cache import drawing_state, entry
+
+        state = drawing_state(drawn)
+        keys = self.session.renderer.forward_keys(drawn, raytrace=raytrace)
+        return any(entry(k, state) not in self.made for k in keys.values())
 
     def step(self, drawn, size, view_mode: int = 0, raytrace=None) -> bool:
         """One frame of the preparation of ``drawn`` at ``size`` (w, h): the placeholder first,
@@ -155,6 +176,7 @@ class ViewPrep:
                 return True   # waits for the map (the placeholder)
             todo = todo[1:]
         if not todo:
+            self._made_all(drawn, raytrace)
             self.finish()
             return False
         if not self.started:  # the first frame: the placeholder alone, at once
@@ -165,38 +187,55 @@ class ViewPrep:
         t0 = time.perf_counter()
         while True:
             part = todo[0]
-            if part.kind == "program" and self._beside(drawn, part):
+            if part.kind in ("program", "sky") and self._beside(drawn, part, raytrace):
                 return True  # the compile-ahead child makes it: the placeholder meanwhile
             self._make(part, drawn, size, view_mode, raytrace)
+            self._made(part, drawn, raytrace)
             self.done.append(part.name)
-            if time.perf_counter() - t0 >= self.budget_s:
+            # one program a frame: a trial draw's cost is not known before it (50-400 ms a
+            # program on llvmpipe, even from the driver's cache); two in one frame made 0.6 s
+            if part.kind in ("program", "sky") or time.perf_counter() - t0 >= self.budget_s:
                 return True
             todo = self.plan(drawn, raytrace, size)
             if not todo or any(p.kind == "map" for p in todo):
                 return True   # the frame itself (or the map's wait) from the next frame on
 
-    def _beside(self, drawn, part: Part) -> bool:
-        """Whether to wait for the compile-ahead child, asked for ``drawn``, to compile
-        ``part``'s program (then the window's link and first draw read Mesa's disk cache:
-        milliseconds instead of a few hundred), at most ``CHILD_WAIT_S`` from when the part came
-        next; after that, or once the child answered, the part is made here."""
-        import time
-
+    def _beside(self, drawn, part: Part, raytrace) -> bool:
+        """Whether to wait for the compile-ahead child, asked for ``drawn`` before its other
+        requests, to make ``part``'s program (or the sky's): until it answers, unless the driver's cache holds
+        the program already (``CompileControl.in_driver_cache``: then the window's link and
+        first draw read it, milliseconds) or there is no child. A child that stops or stays
+        silent past its leash counts as answered (``CompileAhead.answered``): the part is then
+        made here. Waiting no longer than a fixed time was tried: on a cold cache beside two
+        busy processes the child rarely answered within it, and the window then made the code
+        itself, 0.8-1.5 s frames."""
         s = self.session
-        now = time.monotonic()
+        ca = s.compiles.child
+        if ca is None or not ca.alive:
+            return False
+        keys = s.renderer.forward_keys(drawn, raytrace=raytrace)
+        # the sky's program: held where the scene's programs are (the child drew it with them)
+        if s.compiles.in_driver_cache([keys[n] for n in part.materials or keys], drawn):
+            return False
         if self.waiting is None or self.waiting[0] != part.name:
-            ca = s.compiles.child
-            if ca is None or not getattr(ca, "ready", True):
-                return False  # none, or still starting (seconds): no answer would come in time
-            rid = s.compiles.ask_beside(drawn)
+            # a traced scene drawn untraced: its untraced copy, the request the view's held-back
+            # frames ask for first too (the traced programs would take many times longer)
+            untraced = raytrace is False and s.renderer.traces(drawn)
+            rid = s.compiles.ask_beside(s.compiles.untraced_copy(drawn) if untraced else drawn)
             if rid is None:
                 return False
-            self.waiting = (part.name, rid, now)
-        _, rid, since = self.waiting
-        ca = s.compiles.child
-        if ca is None or ca.answered(rid) or now - since > CHILD_WAIT_S:
+            self.waiting = (part.name, rid)
+        return not ca.answered(self.waiting[1])
+
+    @property
+    def waits_on_child(self) -> bool:
+        """The placeholder stays until the compile-ahead child answers (``_beside``): the window's
+        loop need not draw it again before then (its frames would take the CPU the child
+        needs); the child's answer wakes the loop."""
+        if self.scene is None or self.waiting is None:
             return False
-        return True
+        ca = self.session.compiles.child
+        return ca is not None and not ca.answered(self.waiting[1])
 
     def _map_read(self, env):
         """True: ``env``'s map was read (or it has none); None: not asked yet; False: being
@@ -232,9 +271,28 @@ class ViewPrep:
         self._maps[id(env)] = (env, t, errors)
         t.start()
 
+    def _made(self, part: Part, drawn, raytrace) -> None:
+        """``part``'s program (or the sky's) drawn in ``drawn``'s drawing state."""
+        from viewer.app.driver_cache import drawing_state, entry
+
+        if part.kind in ("program", "sky"):
+            keys = self.session.renderer.forward_keys(drawn, raytrace=raytrace)
+            state = drawing_state(drawn)
+            self.made.update(entry(k, state) for k in ([keys[n] for n in part.materials] or ["background"]))
+
+    def _made_all(self, drawn, raytrace) -> None:
+        """Every program of ``drawn`` (and the sky's) is drawn in its drawing state from now on
+        (its frame is drawn next)."""
+        from viewer.app.driver_cache import drawing_state, entry
+
+        state = drawing_state(drawn)
+        keys = self.session.renderer.forward_keys(drawn, raytrace=raytrace)
+        self.made.update(entry(k, state) for k in [*keys.values(), "background"])
+
     def finish(self) -> None:
         """The frame itself is drawn now (or the scene went): no preparation."""
         self.scene, self.done, self.started, self.drawn, self.waiting = None, [], False, None, None
+        self.kept = None
 
     def _make(self, part: Part, drawn, size, view_mode, raytrace) -> None:
         r = self.session.renderer
@@ -271,4 +329,5 @@ class ViewPrep:
         nxt = f"; next: {todo[0].name}" if todo else "; the view comes next"
         if todo and self.waiting is not None and self.waiting[0] == todo[0].name:
             nxt += " (waiting for the background compile)"
-        return f"preparing the view: {len(self.done)} of {n} parts ready{nxt}"
+        text = f"preparing the view: {len(self.done)} of {n} parts ready{nxt}"
+        return text if self.kept is None else f"{self.kept}; {text}"

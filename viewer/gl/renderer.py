@@ -108,6 +108,17 @@ class Renderer:
             self.tables.shaders_changed()  # the albedo tables come from the GLSL samplers
         return self.program_set.reload(changed, passes=self.passes.reloadable())
 
+    def program_keys(self) -> list[str]:
+        """The keys of every program built so far, but the passes' own (IBL, SSR: a pass given a
+        new program redoes its work, such as the environment's prefilter)."""
+        return self.program_set.cache.keys()
+
+    def relink_programs(self, keys=None) -> list[str]:
+        """Link programs again, now from the driver's cache of linked programs
+        (``ProgramCache.relink``): ``keys`` (``program_keys``'), or all of those. The keys
+        relinked."""
+        return self.program_set.cache.relink(keys)
+
     def forward_program(self, params, ssr: bool = False,
                         ibl_sampled: bool = False, env_light: bool = True, env_constant: bool = False,
                         traced=None, dispersion: bool = False, shell: bool = False, glass_shadow: bool = False,
