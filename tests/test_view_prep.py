@@ -518,3 +518,28 @@ def test_a_new_form_of_the_scene_shown_is_prepared_under_the_image_it_replaces(g
     finally:
         s.compile_ahead = None
         s.release()
+
+
+def test_the_placeholder_s_label_stands_over_a_note_but_not_over_an_error(gl_ctx, monkeypatch):
+    """While the view shows its placeholder, its label (what is prepared, what it waits for) is
+    what the view says: a note (the environment light's) is not shown over it; an error is."""
+    from viewer.app import driver_cache
+    from viewer.app.panels.overlays import toast
+
+    monkeypatch.setattr(driver_cache, "cache_identity", lambda: "a shader cache")
+    s = _session(gl_ctx)
+    s.compiles.child = _Child()
+    try:
+        _until(s, lambda: s.frames.prep.waits_on_child)
+        assert s.frame_source.form == PREPARING and "waiting for the background compile" in s.trace_status
+        s.notify("environment light: a quick low-resolution prefilter until the full one is ready")
+        assert toast(s, 60.0) is None
+        s.notify("a shader did not compile", error=True)
+        assert toast(s, 60.0) is not None and toast(s, 60.0).error
+        s.compiles.child.finished = True
+        _until(s, lambda: s.frame_source.form != PREPARING)  # the view itself: notes show again
+        s.notify("opened default")
+        assert toast(s, 60.0).text == "opened default"
+    finally:
+        s.compiles.child = None
+        s.release()

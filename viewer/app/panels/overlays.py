@@ -30,9 +30,15 @@ def measure():
 
 
 def toast(session, toast_s: float):
-    """The message to show as a toast now (None: none), shown for ``toast_s`` seconds."""
+    """The message to show as a toast now (None: none), shown for ``toast_s`` seconds; none but
+    an error while the view shows its placeholder (no image: its label, what is being prepared
+    and what it waits for, is then all the view says; a note about the environment light stood
+    there for 6 s of a 10 s wait)."""
     m = session.last_message
     if m is None or not m.text or time.perf_counter() - m.time > toast_s:
+        return None
+    prep = session.frames.prep
+    if prep.active and prep.kept is None and not m.error:
         return None
     return m
 
