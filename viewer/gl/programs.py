@@ -216,6 +216,8 @@ class ProgramCache:
             try:
                 sources = self._sources(key, recipe)
                 text = texts(sources)
+                if text != self._good.get(key):
+                    continue  # its files changed since: hot reload's to build (and report)
                 prog = self._link(key, sources, text)
             except ShaderError:
                 continue
