@@ -65,6 +65,9 @@ def test_a_broken_record_is_empty_and_a_cache_that_is_off_holds_nothing(tmp_path
         assert not DriverCacheRecord("d", path).holds(["k"], "s")
     path.write_text(json.dumps({"driver": "d", "cache": "index#1", "programs": ["k@s", 3, None]}))
     assert DriverCacheRecord("d", path).holds(["k"], "s")
+    with open(path, "ab") as f:  # the same record, still valid JSON, grown past MAX_BYTES: not ours, never read
+        f.write(b" " * driver_cache.MAX_BYTES)
+    assert not DriverCacheRecord("d", path).holds(["k"], "s")
     cache_id["now"] = None  # no cache (MESA_SHADER_CACHE_DISABLE, or none written yet)
     rec = DriverCacheRecord("d", path)
     rec.add(["k"], "s")

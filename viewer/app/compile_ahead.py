@@ -51,8 +51,9 @@ children's renderers draw the environment light with the quick prefilter the win
 
 Protocol: one JSON object per line. In: ``{"id", "scene" (TOML text), "base_dir", "priority":
 [tier, batch, lead]}`` (tier ``URGENT``, ``AHEAD`` or ``IDLE``; a higher batch is a later scene
-shown; lead 1: the form the view shows while it waits, before the rest of its batch), ``{"promote": id, "priority"}`` or ``{"drop": id}`` (answered by the other child: out
-of the queue if it waits). Out: ``{"working": id}`` after each kind of frame
+shown; lead 1: the form the view shows while it waits, before the rest of its batch),
+``{"promote": id, "priority"}`` or ``{"drop": id}`` (answered by the other child: out of the
+queue if it waits). Out: ``{"working": id}`` after each kind of frame
 drawn for a request, then ``{"id", "ok": true, "keys": [program keys compiled], "tables":
 {params JSON: exported tables}, "seconds"}`` or ``{"id", "ok": false, "error"}``.
 """

@@ -27,6 +27,7 @@ class CompileControl:
 
     def __init__(self, session, on: bool = False):
         from viewer import brdf
+        from viewer.app.driver_cache import CacheWriters
 
         self.session = session
         self.on = on
@@ -46,8 +47,6 @@ class CompileControl:
         self._record = None        # what the driver's cache holds (DriverCacheRecord), read on first use
         self._recorded = 0         # the children's answers put in the record so far
         self._relinked: set[str] = set()  # programs linked again from the driver's cache (_relink_some)
-        from viewer.app.driver_cache import CacheWriters
-
         self._writers = CacheWriters()  # this window's cache writes: relinked only once they are done
 
     def poll(self) -> None:
@@ -61,7 +60,7 @@ class CompileControl:
             self.session.dirty = True
         if self.child is not None and len(getattr(self.child, "done", ())) > self._recorded:
             self._record_answers()
-        if self._recorded and self._writers.idle():
+        if self._recorded:
             self._relink_some()
 
     def _relink_some(self) -> None:
@@ -77,10 +76,11 @@ class CompileControl:
         import time
 
         r = self.session.renderer
+        todo = [k for k in r.program_keys() if k not in self._relinked]
+        if not todo or not self._writers.idle():  # nothing new (every frame after): no /proc read
+            return
         t0 = time.perf_counter()
-        for key in r.program_keys():
-            if key in self._relinked:
-                continue
+        for key in todo:
             r.relink_programs([key])
             self._relinked.add(key)
             if time.perf_counter() - t0 >= RELINK_S:

@@ -18,9 +18,10 @@ the state it is drawn in, which holds more than the program (the sample count, a
 texture at each of its units: the environment map's, the shadow atlas's, whose sizes differ
 between scenes), so a program drawn in one scene is not held for another: the lecture's Lambert
 floor under the studio map and a point light took 0.4 s of the window's thread after the same
-program had been drawn under the sky with no light. It holds data only, is written atomically, and a file that cannot be read is an empty
-record. Mesa's cache may still evict an entry the record names; then the window makes that
-program itself, as it would have without the record. No GL, no imgui, no glfw."""
+program had been drawn under the sky with no light. It holds data only, is written atomically,
+and a file that cannot be read is an empty record. Mesa's cache may still evict an entry the
+record names; then the window makes that program itself, as it would have without the record.
+No imgui, no glfw, no GL calls."""
 
 from __future__ import annotations
 
@@ -34,6 +35,9 @@ FILE = "driver_programs.json"
 #: the most programs the record keeps (the latest): the presets of every model at a few switch
 #: settings are a few hundred
 MAX_ENTRIES = 4096
+#: the largest record read (``MAX_ENTRIES`` of about 120 bytes is about 0.5 MB): a bigger file is
+#: an empty record, never read into memory
+MAX_BYTES = 2 ** 21
 
 
 def shader_cache_index() -> Path | None:
@@ -94,6 +98,8 @@ class DriverCacheRecord:
         if self.cache is None:
             return []
         try:
+            if self.path.stat().st_size > MAX_BYTES:  # not one this viewer wrote: never read whole
+                return []
             data = json.loads(self.path.read_text())
         except (OSError, ValueError):
             return []

@@ -205,9 +205,10 @@ class ViewFrames:
         quality = "preview" if interacting else "full"
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
             if s.compiles.on else None
-        if held is not KEEP_IMAGE and self.prep.needed(
-                self.frame_source, None if interacting else (s.scene if held is None or held is UNTRACED else held),
-                False if traced else None) and self._prepare(held, traced, rw, rh):
+        as_drawn = s.scene if held is None or held is UNTRACED else held  # the scene as this frame draws it
+        if held is not KEEP_IMAGE and self.prep.needed(self.frame_source, None if interacting else as_drawn,
+                                                       False if traced else None) \
+                and self._prepare(as_drawn, traced, rw, rh):
             return  # the placeholder (or the image kept): still dirty, so the next frame follows at once
         source = None
         try:
@@ -222,7 +223,7 @@ class ViewFrames:
                 # held: a changed material's programs compile beside, so it is drawn as it was
                 # (not "preview" when still: that would draw it again each frame until the
                 # answer comes, which marks the view dirty by itself)
-                drawn = s.scene if held is None or held is UNTRACED else held
+                drawn = as_drawn
                 form = ("own" if held is None else "untraced" if held is UNTRACED
                         else "stand-in" if getattr(held, "stand_in", False) else "held")
                 source = FrameSource(s.scene, dict(drawn.materials), form)
@@ -261,13 +262,12 @@ class ViewFrames:
         if s.tour.step_timer is not None and not interacting and held is not KEEP_IMAGE:
             s.tour.step_shown()
 
-    def _prepare(self, held, traced: bool, w: int, h: int) -> bool:
+    def _prepare(self, drawn, traced: bool, w: int, h: int) -> bool:
         """One frame of the preparation of a scene the view has not drawn yet
         (``viewer.app.view_prep``): True when the view shows the placeholder this frame (no
         image: never the last scene's frame, and its form "preparing" makes no note about a
         frame drawn otherwise true), False when the frame itself is drawn now."""
         s = self.session
-        drawn = s.scene if held is None or held is UNTRACED else held
         # the same scene in another form (untraced after its stand-ins, a material edited): the
         # view keeps its image (of this scene) while the new form's programs are made
         src = self.frame_source

@@ -196,33 +196,30 @@ class ProgramCache:
             install(prog, text)
             self.last_reloaded.append(key)
 
-    def keys(self, passes: dict | None = None) -> list[str]:
-        """The keys of every program that can be built again: this cache's and those of
-        ``passes`` (as ``reload`` takes them), "prefix:name" for the latter."""
-        return [k for k, _, _ in self._slots(passes or {})]
+    def keys(self) -> list[str]:
+        """The keys of this cache's programs (not the passes' own, which ``reload`` also reaches)."""
+        return list(self._recipes)
 
-    def relink(self, keys=None, passes: dict | None = None) -> list[str]:
-        """Link programs again from the same sources: ``keys`` (None: every program, the passes'
-        too). Where the driver keeps a cache of linked programs (Mesa's, on disk), a program
-        compiled afresh before its entry was there is then linked from it, as every process
-        that links it later does; llvmpipe keys a program's machine code apart for the two, so
-        only the relinked one finds the code another process (the compile-ahead child) made.
-        Each program that links replaces the old one (and its vertex arrays); one that fails
-        keeps the old one. Never raises ShaderError. Returns the keys relinked."""
+    def relink(self, keys=None) -> list[str]:
+        """Link this cache's programs again from the same sources: ``keys`` (None: all). Where
+        the driver keeps a cache of linked programs (Mesa's, on disk), a program compiled afresh
+        before its entry was there is then linked from it, as every process that links it later
+        does; llvmpipe keys a program's machine code apart for the two, so only the relinked one
+        finds the code another process (the compile-ahead child) made. Each program that links
+        replaces the old one (and its vertex arrays); one that fails, or whose files changed
+        since (hot reload's to build and report), keeps the old one. Never raises ShaderError.
+        Returns the keys relinked."""
         out = []
-        for key, recipe, install in self._slots(passes or {}):
-            if keys is not None and key not in keys:
-                continue
+        for key in self.keys() if keys is None else [k for k in keys if k in self._recipes]:
             try:
-                sources = self._sources(key, recipe)
+                sources = self._sources(key, self._recipes[key])
                 text = texts(sources)
                 if text != self._good.get(key):
-                    continue  # its files changed since: hot reload's to build (and report)
+                    continue
                 prog = self._link(key, sources, text)
             except ShaderError:
                 continue
-            self._good[key] = text
-            install(prog, text)
+            self._install(key, prog, text)
             out.append(key)
         return out
 
