@@ -215,6 +215,41 @@ def test_another_scene_tiles_over_a_quarter_resolution_preview_then_is_whole(gl_
         s.release()
 
 
+@pytest.mark.parametrize("goal_s, scale", [(0.0, 16), (1e9, 2)])
+def test_a_preview_at_another_framing_is_as_coarse_as_the_scenes_known_cost_needs(gl_ctx, renderer, tiled,
+                                                                                 monkeypatch, goal_s, scale):
+    """The view at another framing (lecture mode left: the strip gone) has no frame of its own to
+    tile over: its preview is drawn anew, at half the resolution for a scene whose tiles showed
+    what a pixel costs, and coarser (up to a 16th) where that cost over the preview's pixels
+    exceeds a frame's goal. A goal of 0 s: every known cost is over it; an unbounded one: none is.
+    A scene whose cost is not known (none of its tiles drawn) keeps the quarter resolution."""
+    import viewer.app.view_frames as frames
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.scene import load_scene
+
+    monkeypatch.setattr(frames, "FRAME_GOAL_S", goal_s)
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, tiled_frames=True)
+    other = (160, 60)  # another aspect: not the same framing
+    try:
+        while s.quality != "full" or s.hdr is None:
+            s.render_view(SIZE)
+        assert s.frames._tiles.raster_cost_px(s.scene) > 0
+        drawn = []
+        render = renderer.render
+        renderer.render = lambda *a, **k: drawn.append(tuple(a[2:4])) or render(*a, **k)
+        try:
+            s.render_view(other)
+        finally:
+            renderer.render = render
+        assert drawn[0] == ((other[0] + scale - 1) // scale, (other[1] + scale - 1) // scale), drawn
+        # another scene: its cost not known, a quarter whatever the goal
+        pt = ProgressiveTrace(gl_ctx)
+        assert pt.raster_cost_px(s.scene) is None
+        assert s.frames._tiles.raster_cost_px(load_scene("sphere")) is None
+    finally:
+        s.release()
+
+
 def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(gl_ctx, renderer, tiled):
     """Ray tracing turned on where the untraced frame is over the budget: no whole frame at
     once; the untraced frame is drawn in tiles, then traced from it, and the end is the

@@ -505,10 +505,19 @@ class ProgressiveTrace:
         self.cull = True
         self.msaa_made = False  # the programs' machine code at the view's MSAA is made (see _start_raster)
         self._kept = None       # the last target, at another size, until it is read (``_target``)
+        self._raster_objects = None  # the objects of the last raster frame (``raster_cost_px``)
 
     @property
     def active(self) -> bool:
         return self._job is not None
+
+    def raster_cost_px(self, scene) -> float | None:
+        """The dearest time per pixel (s) that the last raster frame's tiles took where that
+        frame was ``scene``'s (the same objects, at whatever size): what its preview at another
+        size will cost about, per pixel; None where it is not known."""
+        if self._raster_objects is scene.objects and self._sizes.worst_px > 0:
+            return self._sizes.worst_px
+        return None
 
     @property
     def done(self) -> bool:
@@ -554,8 +563,9 @@ class ProgressiveTrace:
         ``like_last``: the same scene seen as the last raster frame, with materials or lights
         edited (its tiles are sized by the cost of the last one's rows); ``coarse``, ``cache``
         and ``store`` do not apply; ``preview_scale``: the preview drawn here at 1 / 2 or 1 / 4
-        of the resolution (4: a scene whose cost is not known yet, e.g. thin films over the whole
-        view, whose half-resolution frame alone may take seconds on software OpenGL).
+        of the resolution, or less (4: a scene whose cost is not known yet, e.g. thin films over the
+        whole view, whose half-resolution frame alone may take seconds on software OpenGL; 8 or
+        16: one whose tiles showed it dear, ``raster_cost_px``).
         The quarter-resolution preview is drawn with the tiles' MSAA (the half-resolution one
         without). ``untraced``: a texture of the view's size holding the untraced view already drawn (the
         window's tiles): copied instead of rendered again."""
@@ -641,7 +651,7 @@ class ProgressiveTrace:
         if isinstance(under, np.ndarray) and under.shape[:2] not in ((h, w), (h2, w2)):
             under = None
         if under is None:
-            s = 4 if preview_scale >= 4 else 2
+            s = max(2, int(preview_scale))
             ws, hs = (w + s - 1) // s, (h + s - 1) // s
             # a quarter-resolution preview with the tiles' MSAA: llvmpipe makes a program's
             # machine code per sample count at its first draw, so the tiles reuse the preview's;
@@ -661,6 +671,7 @@ class ProgressiveTrace:
         self._tile_args = {"msaa": msaa, "raytrace": False}
         self.raster = True
         self._sizes.start(w, h, like_last, _object_tops(scene, camera or OrbitCamera.from_scene(scene), w, h))
+        self._raster_objects = scene.objects
         self._passes = [_Pass(w, h, self.mask, 1)]
         self.total_px = self._passes[0].total
         self.overhead_s = None
