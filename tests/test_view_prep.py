@@ -543,3 +543,58 @@ def test_the_placeholder_s_label_stands_over_a_note_but_not_over_an_error(gl_ctx
     finally:
         s.compiles.child = None
         s.release()
+
+
+def test_a_traced_views_tiles_come_once_each_program_is_drawn_in_their_state_one_a_frame(gl_ctx):
+    # a traced tile draws its programs without MSAA in the traced frame's state, which llvmpipe
+    # makes code for apart from the untraced frame's: each program of that state is drawn first
+    # into one pixel, one a frame, before any tile; the trace then ends as the one made at once
+    from viewer.app.view_prep import PIXEL
+    from viewer.gl import raytrace
+    from viewer.scene import material_from_name
+
+    s = _session(gl_ctx, budget_s=10.0)
+    try:
+        ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
+        s.set_material(ball, material_from_name("glass"))
+        s.set_reflection_mode("ray traced")
+        _prepare(s)
+        calls = []
+        render = s.renderer.render
+
+        def logged(*a, **k):
+            calls.append((a[2:4], k.get("msaa"), k.get("raytrace"), k.get("region"), k.get("only")))
+            return render(*a, **k)
+
+        s.renderer.render = logged
+        trials, frames = [], 0
+        deadline = time.monotonic() + 120  # a bound against a hang, not a timing
+        while s.tracing and time.monotonic() < deadline:
+            calls.clear()
+            steps = s.frames.trace.steps
+            s.render_view(SIZE)
+            mine = [c for c in calls if c[3] == PIXEL]
+            assert len(mine) <= 1   # one program a frame
+            if mine:
+                assert s.frames.trace.steps == steps   # no tile in that frame
+                assert steps == 0                      # every one before the first tile
+                trials.append(mine[0])
+            frames += 1
+            time.sleep(0.002)
+        assert not s.tracing and s.frames.trace.steps > 0
+        keys = s.renderer.forward_keys(s.scene, raytrace=None)
+        assert len(trials) == len(set(keys.values())) >= 2
+        half = ((SIZE[0] + 1) // 2, (SIZE[1] + 1) // 2)   # the coarse pass's size, the first tiles'
+        for size, msaa, rt, region, only in trials:
+            assert size == half and msaa == 0 and rt is None
+        assert {keys[n] for t in trials for n in t[4]} == set(keys.values())
+        s.renderer.render = render
+        pt = raytrace.ProgressiveTrace(gl_ctx)   # the trial draws left no trace in the image
+        try:
+            pt.start(s.renderer, s.scene, s.camera, *SIZE)
+            pt.finish()
+            assert np.array_equal(s.renderer.read_linear(s.hdr), pt.image())
+        finally:
+            pt.release()
+    finally:
+        s.release()

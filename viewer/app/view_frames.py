@@ -412,6 +412,8 @@ class ViewFrames:
             return "full"
         if self.prep.on and not s.renderer.raytrace_state().ready(s.scene):
             return "tracing"  # its BVH is made beside: the untraced frame stays meanwhile
+        if self.prep.on and self.prep.trace_part(s.scene, t.pass_size, s.view_mode):
+            return "tracing"  # one program drawn in the tiles' state this frame (``ViewPrep.trace_part``)
         self.hdr = t.step(TRACE_BUDGET_S)
         if not t.done:
             return "tracing"

@@ -289,6 +289,30 @@ class ViewPrep:
         keys = self.session.renderer.forward_keys(drawn, raytrace=raytrace)
         self.made.update(entry(k, state) for k in [*keys.values(), "background"])
 
+    def trace_part(self, scene, size, view_mode) -> bool:
+        """Before a traced view's tiles: each program a traced tile of ``scene`` draws (the traced
+        chains' and the other materials'), drawn once into one pixel in the tiles' state (no
+        MSAA, the traced frame's passes and textures) at ``size`` (the pass the tiles are at),
+        one a frame. llvmpipe makes a program's code per drawing state, and a tile that met four
+        programs new to that state took 0.7-1 s of the window's thread (the gallery traced,
+        empty caches). True when this frame drew one; False once each is drawn."""
+        from viewer.app.driver_cache import drawing_state, entry
+
+        r = self.session.renderer
+        tiles = dataclasses.replace(scene, render=dataclasses.replace(scene.render, msaa=0))
+        state = drawing_state(tiles) + ";traced tiles"
+        by_key: dict[str, list[str]] = {}
+        for name, key in r.forward_keys(scene, raytrace=None).items():
+            if entry(key, state) not in self.made:
+                by_key.setdefault(key, []).append(name)
+        if not by_key:
+            return False
+        key, names = next(iter(by_key.items()))
+        r.render(scene, self.session.camera, size[0], size[1], view_mode, msaa=0, raytrace=None, region=PIXEL,
+                 cull=False, only=tuple(names))
+        self.made.add(entry(key, state))
+        return True
+
     def finish(self) -> None:
         """The frame itself is drawn now (or the scene went): no preparation."""
         self.scene, self.done, self.started, self.drawn, self.waiting = None, [], False, None, None

@@ -511,6 +511,15 @@ class ProgressiveTrace:
     def active(self) -> bool:
         return self._job is not None
 
+    @property
+    def pass_size(self) -> tuple[int, int]:
+        """(w, h) of the pass the next tile belongs to (half the view's size in a coarse pass),
+        or of the view once done."""
+        if self._passes and not self.done:
+            p = self._pass()
+            return p.w, p.h
+        return self.width, self.height
+
     def raster_cost_px(self, scene) -> float | None:
         """The dearest time per pixel (s) that the last raster frame's tiles took where that
         frame was ``scene``'s (the same objects, at whatever size): what its preview at another
