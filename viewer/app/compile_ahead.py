@@ -82,7 +82,7 @@ def params_key(params) -> str:
     return json.dumps(params.to_plain(), sort_keys=True)
 
 
-def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
+def window_frames(renderer, scene, size=SIZE, progress=None, before_each=None) -> list[tuple]:
     """Draw ``scene`` on ``renderer`` in every kind of frame the window's view draws it
     (``viewer.app.view_frames``): while dragged (half the size, no MSAA, a traced scene
     untraced), whole, in tiles over its quarter- and half-resolution previews (the first tile
@@ -90,7 +90,8 @@ def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
     traced mask and traced tiles (half then full resolution, no MSAA). The window's own
     ``ProgressiveTrace`` draws the tiles, so their state is the window's. Returns the kinds drawn
     [(kind, sample count asked (None: the scene's), traced chains (None: the scene's))];
-    ``progress()`` is called after each (the child says it is working)."""
+    ``progress()`` is called after each (the child says it is working), ``before_each()``
+    before each (and once after the last)."""
     from viewer.app.frame_mean import frames_wanted
     from viewer.gl.raytrace import ProgressiveTrace
 
@@ -104,6 +105,11 @@ def window_frames(renderer, scene, size=SIZE, progress=None) -> list[tuple]:
         done.append(kind)
         if progress is not None:
             progress()
+        if before_each is not None:
+            before_each()
+
+    if before_each is not None:
+        before_each()
 
     renderer.render(scene, width=(w + 1) // 2, height=(h + 1) // 2, msaa=0, raytrace=untraced)
     did(("drag", 0, untraced))
@@ -154,9 +160,25 @@ def prepare(renderer, scene, echo=None, progress=None) -> dict:
         echo = echo() if callable(echo) else echo
         for n in used:
             echo.tables.adopt(scene.materials[n], tables[params_key(scene.materials[n])])
-        window_frames(echo, scene, progress=progress)
+        window_frames(echo, scene, progress=progress, before_each=lambda: relink_scene_programs(echo, scene))
         echo.ctx.finish()
     return {"keys": sorted(keys), "tables": tables}
+
+
+def relink_scene_programs(renderer, scene) -> list[str]:
+    """Link again, from Mesa's cache, the programs of ``renderer`` that a frame of ``scene``
+    draws (its forward programs, traced and untraced, and the passes'); the keys relinked. On
+    llvmpipe (Mesa 22.3) the code a program's draw makes in a new state is keyed by what the
+    program's earlier draws in this process made: a program whose code for one state was made
+    (not read from the cache) gets another key for its next state than one whose earlier code
+    was all read from the cache, as the window's is once the child made it. So the echo
+    draws each kind of frame on programs linked anew: a window process that then drew the
+    gallery in every kind of frame made no new code (it made 6 programs' code for the traced
+    tiles again, 2.2 s of its thread, while the echo drew every kind on the same programs)."""
+    renderer.ctx.finish()
+    forward = set(renderer.forward_keys(scene).values()) | set(renderer.forward_keys(scene, raytrace=False).values())
+    keys = [k for k in renderer.program_keys() if not k.startswith("forward:") or k in forward]
+    return renderer.relink_programs(keys)
 
 
 class Preempted(Exception):
