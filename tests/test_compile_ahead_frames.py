@@ -188,3 +188,52 @@ def test_a_child_that_says_it_is_working_is_not_replaced():
         assert ca.replaced == 0 and ca.done[rid]["ok"]
     finally:
         ca.stop()
+
+
+_CHILD = """
+import sys
+from viewer.app.compile_ahead import child_renderer, prepare, window_frames
+from viewer.app.driver_cache import CacheWriters
+from viewer.gl.context import create_offscreen_context
+from viewer.scene import load_scene
+ctx = create_offscreen_context()
+scene = load_scene("lecture:" + sys.argv[2])
+r = child_renderer(ctx)
+if sys.argv[1] == "child":      # the child's work for one request: compiled, then the echo
+    prepare(r, scene, lambda: child_renderer(ctx))
+else:                           # a process that links every program from the cache, as the window
+    window_frames(r, scene)
+ctx.finish()
+CacheWriters().wait()           # every file written (the writer runs at the lowest priority)
+"""
+
+
+def test_a_process_linking_from_the_cache_reads_every_kind_of_frame_the_child_made(tmp_path):
+    """The oracle of the echo: after the child's work for lecture step 10 (absorbing glass, traced)
+    in an empty Mesa cache, a fresh process whose programs link from that cache, as the window's
+    do, draws every kind of frame the window draws and adds no file to the cache: all its code
+    was made by the child. Drawn by an echo on the same programs throughout (not linked anew for
+    each kind), the floor's traced tiles made new code here (1 file, 0.3 s)."""
+    import os
+    import subprocess
+
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path))
+    env.pop("MESA_SHADER_CACHE_DIR", None)
+    if env.get("MESA_SHADER_CACHE_DISABLE", "").lower() in ("1", "true", "yes"):
+        pytest.skip("the driver's cache is disabled here")
+    root = tmp_path / "mesa_shader_cache"
+
+    def files():
+        return {p.relative_to(root) for p in root.rglob("*") if p.is_file() and p.name != "index"}
+
+    def run(role):
+        out = subprocess.run([sys.executable, "-c", _CHILD, role, "10"], env=env, capture_output=True, text=True,
+                             timeout=600)
+        assert out.returncode == 0, out.stderr[-2000:]
+
+    run("child")
+    made = files()
+    if not made:
+        pytest.skip("this driver keeps no disk cache")
+    run("window")
+    assert files() == made

@@ -10,9 +10,11 @@ window's own ``ProgressiveTrace``), because llvmpipe makes a program's machine c
 draw for the state in use (sample count, a scissor, which frame-sized texture is bound) and
 keys its on-disk cache (Mesa's) by that state. It draws them twice: with a renderer whose
 programs it compiles, then with a second renderer (``prepare``'s ``echo``) whose programs link
-from Mesa's cache, as the window's then do: llvmpipe keys some of a program's machine code apart
-for a program linked from that cache and one compiled afresh, and the window's first draw finds
-its code in the cache only when the child drew a program linked as the window's is. The
+from Mesa's cache, as the window's then do, each kind of frame on programs linked anew
+(``relink_scene_programs``): llvmpipe keys the code a program's draw makes in a new state by how
+its earlier code in that process came about (made there, or read from the cache, as the window's
+is), and the window's first draw finds its code in the cache only when the child drew a program
+whose history is the window's. The
 window's own compile and first draw of the same program afterwards are then cache hits; and it builds the
 materials' albedo tables and multiple-scattering terms, which it sends back for the window to
 adopt (``MaterialTables.adopt``) instead of building them itself. A process, not a thread: a GL
