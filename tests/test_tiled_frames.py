@@ -233,7 +233,6 @@ def test_a_preview_at_another_framing_is_as_coarse_as_the_scenes_known_cost_need
     try:
         while s.quality != "full" or s.hdr is None:
             s.render_view(SIZE)
-        assert s.frames._tiles.raster_cost_px(s.scene) > 0
         drawn = []
         render = renderer.render
         renderer.render = lambda *a, **k: drawn.append(tuple(a[2:4])) or render(*a, **k)
@@ -242,12 +241,20 @@ def test_a_preview_at_another_framing_is_as_coarse_as_the_scenes_known_cost_need
         finally:
             renderer.render = render
         assert drawn[0] == ((other[0] + scale - 1) // scale, (other[1] + scale - 1) // scale), drawn
-        # another scene: its cost not known, a quarter whatever the goal
-        pt = ProgressiveTrace(gl_ctx)
-        assert pt.raster_cost_px(s.scene) is None
-        assert s.frames._tiles.raster_cost_px(load_scene("sphere")) is None
     finally:
         s.release()
+    # the cost is known only of the scene whose tiles were drawn: another keeps its base scale
+    scene, other_scene = load_scene("default"), load_scene("sphere")
+    pt = ProgressiveTrace(gl_ctx)
+    try:
+        assert pt.raster_cost_px(scene) is None and pt.preview_scale(scene, 160, 60, 4, goal_s) == 4
+        pt.start(renderer, scene, None, *SIZE, traced=False, rows=4, max_pixels=SIZE[0] * 8)
+        pt.step(0.0)
+        assert pt.raster_cost_px(scene) > 0 and pt.raster_cost_px(other_scene) is None
+        assert pt.preview_scale(scene, 160, 60, 2, goal_s) == scale
+        assert pt.preview_scale(other_scene, 160, 60, 4, goal_s) == 4
+    finally:
+        pt.release()
 
 
 def test_a_traced_view_over_the_budget_tiles_its_untraced_frame_before_tracing(gl_ctx, renderer, tiled):

@@ -349,7 +349,7 @@ class ViewFrames:
             # not known yet); the next follow the time of the last
             self.hdr = t.start(s.renderer, scene, s.camera, w, h, s.view_mode, traced=False,
                                under=under, like_last=same, rows=max(4, h // 32), max_pixels=w * h,
-                               preview_scale=self._preview_scale(t, scene, w, h))
+                               preview_scale=t.preview_scale(scene, w, h, 4 if self._new_scene(scene) else 2, FRAME_GOAL_S))
             if under is None:  # this frame drew the preview
                 return "refining"
         self.hdr = t.step(self.tile_budget_s)
@@ -358,21 +358,6 @@ class ViewFrames:
         self._tiles_under = s.scene
         self._whole_s = ((w, h), t.trace_s, scene.objects)
         return "full"
-
-    def _preview_scale(self, tiles, scene, w, h) -> int:
-        """The tiled frame's preview drawn at 1 / this of the view's resolution: 2, or 4 for a
-        scene whose cost is not known yet; more (up to 16) where this scene's tiles already
-        showed what a pixel costs and the preview would take over a frame's goal at the dearest
-        cost they met (an overestimate: most pixels cost less, and the preview has no MSAA).
-        The soap bubbles' quarter-resolution preview at the whole view (leaving lecture mode,
-        the strip gone) took 0.3 s of llvmpipe's threads, 0.53 s of the window's frame beside
-        two busy processes."""
-        scale = 4 if self._new_scene(scene) else 2
-        per_px = tiles.raster_cost_px(scene)
-        if per_px is not None:
-            while scale < 16 and per_px * w * h / scale ** 2 > FRAME_GOAL_S:
-                scale *= 2
-        return scale
 
     def _trace_step(self, w, h, restart: bool) -> str:
         """The progressive trace: (re)start it with the untraced view, or trace its next strip;
