@@ -66,6 +66,29 @@ def _settle(s, limit=400):
     raise AssertionError("the view did not settle")
 
 
+def _glass_traced(s):
+    """The default scene's ball made glass and traced, the view prepared."""
+    from viewer.scene import material_from_name
+
+    ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
+    s.set_material(ball, material_from_name("glass"))
+    s.set_reflection_mode("ray traced")
+    _prepare(s)
+
+
+def _assert_traced_as_at_once(gl_ctx, s):
+    """The view shows the trace of the same view made in one piece."""
+    from viewer.gl import raytrace
+
+    pt = raytrace.ProgressiveTrace(gl_ctx)
+    try:
+        pt.start(s.renderer, s.scene, s.camera, *SIZE)
+        pt.finish()
+        assert np.array_equal(s.renderer.read_linear(s.hdr), pt.image())
+    finally:
+        pt.release()
+
+
 def test_the_first_frame_defers_the_costly_parts(gl_ctx):
     s = _session(gl_ctx)
     try:
@@ -324,7 +347,6 @@ def test_a_traced_views_bvh_is_made_beside_and_the_untraced_frame_stays_meanwhil
     import threading
 
     from viewer.gl import raytrace
-    from viewer.scene import material_from_name
 
     gate, entered, where = threading.Event(), threading.Event(), []
     made = raytrace.cached_flat_scene
@@ -338,10 +360,7 @@ def test_a_traced_views_bvh_is_made_beside_and_the_untraced_frame_stays_meanwhil
     monkeypatch.setattr(raytrace, "cached_flat_scene", held)
     s = _session(gl_ctx, budget_s=10.0)
     try:
-        ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
-        s.set_material(ball, material_from_name("glass"))
-        s.set_reflection_mode("ray traced")
-        _prepare(s)
+        _glass_traced(s)
         for _ in range(5):
             s.render_view(SIZE)
             assert s.tracing and s.frames.trace.steps == 0 and s.hdr is not None
@@ -355,13 +374,7 @@ def test_a_traced_views_bvh_is_made_beside_and_the_untraced_frame_stays_meanwhil
             s.render_view(SIZE)
             time.sleep(0.002)
         assert not s.tracing and s.frames.trace.steps > 0
-        pt = raytrace.ProgressiveTrace(gl_ctx)   # the same view traced in one piece
-        try:
-            pt.start(s.renderer, s.scene, s.camera, *SIZE)
-            pt.finish()
-            assert np.array_equal(s.renderer.read_linear(s.hdr), pt.image())
-        finally:
-            pt.release()
+        _assert_traced_as_at_once(gl_ctx, s)   # the same view traced in one piece
     finally:
         gate.set()
         s.release()
@@ -550,15 +563,10 @@ def test_a_traced_views_tiles_come_once_each_program_is_drawn_in_their_state_one
     # makes code for apart from the untraced frame's: each program of that state is drawn first
     # into one pixel, one a frame, before any tile; the trace then ends as the one made at once
     from viewer.app.view_prep import PIXEL
-    from viewer.gl import raytrace
-    from viewer.scene import material_from_name
 
     s = _session(gl_ctx, budget_s=10.0)
     try:
-        ball = next(o.material for o in s.scene.objects if o.mesh != "plane")
-        s.set_material(ball, material_from_name("glass"))
-        s.set_reflection_mode("ray traced")
-        _prepare(s)
+        _glass_traced(s)
         calls = []
         render = s.renderer.render
 
@@ -589,12 +597,6 @@ def test_a_traced_views_tiles_come_once_each_program_is_drawn_in_their_state_one
             assert size == half and msaa == 0 and rt is None
         assert {keys[n] for t in trials for n in t[4]} == set(keys.values())
         s.renderer.render = render
-        pt = raytrace.ProgressiveTrace(gl_ctx)   # the trial draws left no trace in the image
-        try:
-            pt.start(s.renderer, s.scene, s.camera, *SIZE)
-            pt.finish()
-            assert np.array_equal(s.renderer.read_linear(s.hdr), pt.image())
-        finally:
-            pt.release()
+        _assert_traced_as_at_once(gl_ctx, s)   # the trial draws left no trace in the image
     finally:
         s.release()

@@ -66,10 +66,10 @@ class CompileControl:
     def _relink_some(self) -> None:
         """Link again, from the driver's cache, the programs this window linked once only (its
         fixed passes at start, a program made here before any child had made it), up to
-        ``RELINK_S`` of them a frame. A program compiled afresh gets machine code of its own on
-        llvmpipe, keyed apart from the code of the same program linked from the driver's cache,
-        which is how the compile-ahead child's echo links it: drawn in a new state, only the
-        relinked one reads the child's code (a lecture step's program took 0.3-0.4 s of this
+        ``RELINK_S`` of them a frame. A program that made machine code here keys its code for a
+        new state apart from one whose code was all read from the driver's cache, as the
+        compile-ahead child's echo draws it (``ProgramCache.relink``): drawn in a new state, only
+        the relinked one reads the child's code (a lecture step's program took 0.3-0.4 s of this
         thread otherwise). Once the child has answered a request, and while this window's own
         cache writes are done (``CacheWriters``: a program whose entry is not written yet would
         be compiled afresh again)."""

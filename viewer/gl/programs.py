@@ -202,10 +202,12 @@ class ProgramCache:
 
     def relink(self, keys=None) -> list[str]:
         """Link this cache's programs again from the same sources: ``keys`` (None: all). Where
-        the driver keeps a cache of linked programs (Mesa's, on disk), a program compiled afresh
-        before its entry was there is then linked from it, as every process that links it later
-        does; llvmpipe keys a program's machine code apart for the two, so only the relinked one
-        finds the code another process (the compile-ahead child) made. Each program that links
+        the driver keeps a cache of linked programs (Mesa's, on disk), each is then linked from
+        it, as every process that links it later does, with no machine code of its own yet:
+        llvmpipe keys the code a program makes for a new state by whether its earlier code was
+        made in this process or read from the disk cache, so only a program whose code so far
+        was all read finds the code another process (the compile-ahead child) made for the next
+        state. Each program that links
         replaces the old one (and its vertex arrays); one that fails, or whose files changed
         since (hot reload's to build and report), keeps the old one. Never raises ShaderError.
         Returns the keys relinked."""
