@@ -58,6 +58,16 @@ def test_window_close_resize_and_zero_framebuffer(display):
                 break
         b = app.capture_window()
         assert b.shape[:2] == (640, 1000), b.shape
+        assert app.layout()["view"].x + app.layout()["view"].w <= 1000   # the new size, not the last frame's
+        # a frame asks the window system for the sizes once (each is a round trip to the server)
+        calls = []
+        real_w, real_f = app.glfw.get_window_size, app.glfw.get_framebuffer_size
+        app.glfw.get_window_size = lambda w: calls.append("window") or real_w(w)
+        app.glfw.get_framebuffer_size = lambda w: calls.append("framebuffer") or real_f(w)
+        app.session.changed()
+        app.frame()
+        app.glfw.get_window_size, app.glfw.get_framebuffer_size = real_w, real_f
+        assert sorted(calls) == ["framebuffer", "window"], calls
         # a minimized window has a 0x0 framebuffer: frames are skipped, nothing breaks
         real = app.glfw.get_framebuffer_size
         app.glfw.get_framebuffer_size = lambda w: (0, 0)

@@ -136,6 +136,40 @@ def test_renderer_close_ends_its_processes(private_tmp):
     assert not list(private_tmp.glob("brdf-viewer-setup-*"))
 
 
+def test_worker_processes_take_the_niceness_asked_for(private_tmp):
+    """``nice``: each worker process runs that much behind this one (the window's reference
+    yields the cores to the window's frames); without it, at this process's own."""
+    from viewer.pathtracer import ReferenceRenderer
+    from viewer.scene import load_scene
+
+    scene = load_scene("sphere", ["camera.width=16", "camera.height=12"])
+    own = os.getpriority(os.PRIO_PROCESS, 0)
+    for nice, expect in ((5, min(19, own + 5)), (0, own)):
+        with ReferenceRenderer(scene, max_depth=2, workers=2, pool="processes", nice=nice) as r:
+            r.warm_up()
+            r.step(1)
+            assert [os.getpriority(os.PRIO_PROCESS, p) for p in r.worker_pids()] == [expect, expect]
+
+
+def test_the_windows_reference_renders_behind_the_window(private_tmp):
+    """The window's CPU engine asks its workers for ``REFERENCE_NICE``."""
+    from viewer.app.reference_cpu import REFERENCE_NICE
+    from viewer.app.reference_view import ReferenceView
+    from viewer.scene.camera import OrbitCamera
+    from viewer.scene import load_scene
+
+    scene = load_scene("sphere")
+    rv = ReferenceView(None, scale=0.1, max_depth=2, workers=1, engine="cpu")
+    try:
+        rv.update(scene, OrbitCamera.from_scene(scene), (160, 120))
+        assert _wait(lambda: rv.spp >= 1)
+        own = os.getpriority(os.PRIO_PROCESS, 0)
+        assert REFERENCE_NICE > 0 and rv.cpu.renderer.nice == REFERENCE_NICE
+        assert [os.getpriority(os.PRIO_PROCESS, p) for p in rv.cpu.renderer.worker_pids()] == [min(19, own + REFERENCE_NICE)]
+    finally:
+        rv.close()
+
+
 def test_a_failing_gpu_engine_falls_back_to_the_cpu_engine(gl_ctx, monkeypatch):
     """The GPU engine that raises (here on being made) is dropped: its error stands in the view,
     ``gpu_failed`` names it, and the next update renders with the cpu engine's thread."""

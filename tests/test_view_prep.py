@@ -34,7 +34,8 @@ def _state(s, scene):
     r = s.renderer
     ssr_on, env_on = frame_switches(scene, False if r.traces(scene) else None)[:2]
     env = scene.environment
-    out = {"dfg": r.ibl().dfg_tex is not None, "targets": r.output.holds(*SIZE, scene.render.msaa)}
+    out = {"dfg": r.ibl().dfg_tex is not None, "targets": r.output.holds(*SIZE, scene.render.msaa),
+           "mips": r.ibl().map_tex is not None, "environment": r.ibl().prefiltered is not None}
     for name in dict.fromkeys(o.material for o in scene.objects):
         out[f"tables {name}"] = not (ssr_on or env_on) or r.tables.built(scene.materials[name], True)
     for name, key in r.forward_keys(scene, raytrace=False if r.traces(scene) else None).items():
@@ -100,6 +101,7 @@ def test_the_first_frame_defers_the_costly_parts(gl_ctx):
         assert not any(built.values()), built  # the DFG table, targets, tables, programs: none made
         kinds = [p.kind for p in s.frames.prep.plan(s.scene, None, SIZE)]
         assert kinds[:2] == ["dfg", "targets"] and {"environment", "tables", "program"} <= set(kinds)
+        assert kinds.index("mips") + 1 == kinds.index("environment")  # the mip chain, then the prefilter
         assert s.trace_status == f"preparing the view: 0 of {len(kinds)} parts ready; next: the DFG table"
         assert r.ibl().dfg_tex is None
     finally:
@@ -130,6 +132,10 @@ def test_one_part_per_frame_with_a_true_label_then_the_frame_itself(gl_ctx, scen
                 assert not state["dfg"]
             elif nxt == "the view's targets":
                 assert not state["targets"]
+            elif nxt == "the environment map's mip chain":
+                assert not state["mips"]
+            elif nxt == "the environment light":
+                assert not state["environment"]
             elif nxt and nxt.startswith("the program of "):
                 names = nxt[len("the program of "):].split(", ")
                 assert all(not state[f"program {n}"] for n in names)
@@ -148,6 +154,38 @@ def test_one_part_per_frame_with_a_true_label_then_the_frame_itself(gl_ctx, scen
     finally:
         s.release()
         plain.release()
+
+
+def test_the_mip_chain_and_the_prefilter_have_a_frame_each(gl_ctx):
+    """However much time a frame may spend on parts, the environment map's mip chain ends its
+    frame (its first draws make its program's code, a cost not known before): the prefilter
+    comes in the next. The light made in two equals the one made at once."""
+    from viewer.gl.ibl import IBL
+
+    s = _session(gl_ctx, budget_s=1e9)
+    try:
+        frames = _prepare(s)
+        firsts = [next((i for i, f in enumerate(frames) if f[0][k]), None) for k in ("mips", "environment")]
+        assert None not in firsts and firsts[0] < firsts[1], firsts
+        ibl = s.renderer.ibl()
+        once = IBL(gl_ctx, use_cache=False)
+        twice = IBL(gl_ctx, use_cache=False)
+        try:
+            c = np.asarray(s.scene.environment.constant, float)
+            twice.upload_map(None, constant=c)
+            assert twice.map_uploaded(None, constant=c) and not once.map_uploaded(None, constant=c)
+            tex = twice.map_tex
+            twice.set_environment(None, constant=c)
+            once.set_environment(None, constant=c)
+            assert twice.map_tex is tex  # not uploaded again
+            assert np.array_equal(once.prefiltered_data, twice.prefiltered_data) and np.array_equal(once.sh, twice.sh)
+            assert once.map_tex.read(level=1) == twice.map_tex.read(level=1)
+            assert ibl.map_uploaded(None, constant=c)
+        finally:
+            once.release()
+            twice.release()
+    finally:
+        s.release()
 
 
 def test_another_scene_never_shows_the_last_ones_frame(gl_ctx):
@@ -321,20 +359,23 @@ def test_a_program_waits_for_the_compile_ahead_child_then_is_made(gl_ctx, monkey
         s.release()
 
 
-def test_parts_within_the_budget_share_a_frame_but_each_program_has_its_own(gl_ctx):
-    """With a budget no part passes, the cheap parts share one frame; a program's trial draw
-    (its cost not known before it: 50-400 ms on llvmpipe) ends its frame, so each program has a
-    frame of its own: the placeholder, the cheap parts with the first program, one frame for
-    each other program, then the frame itself."""
+def test_parts_within_the_budget_share_a_frame_but_each_costly_one_has_its_own(gl_ctx):
+    """With a budget no part passes, the cheap parts (the view's targets, a material's tables)
+    share a frame with the costly part after them; a costly part (its first draws make a
+    program's code, a cost not known before it: the DFG table's pass, the environment map's mip
+    chain, its prefilter, each program's trial draw) ends its frame, so each has a frame of its
+    own: the placeholder, one frame per costly part, then the frame itself."""
     s = _session(gl_ctx, "default", budget_s=1e9)
     try:
         programs = len(set(s.renderer.forward_keys(s.scene).values()))
         frames = _prepare(s)
-        assert programs == 2 and len(frames) == 1 + programs, [label for _, label, _ in frames]
-        made = frames[1][0]
-        assert all(v for k, v in made.items() if not k.startswith("program")), made  # the cheap parts
-        assert sum(v for k, v in made.items() if k.startswith("program")) == 1, made  # one program
-        assert all(frames[2][0].values()), frames[2][0]   # the other program
+        costly = {"dfg", "mips", "environment"}
+        assert programs == 2 and len(frames) == 1 + len(costly) + programs, [label for _, label, _ in frames]
+        assert not any(frames[0][0].values())  # the placeholder: nothing made
+        for before, after in zip(frames, frames[1:]):
+            made = {k for k, v in after[0].items() if v and not before[0][k]}
+            assert len({k for k in made if k in costly or k.startswith("program")}) == 1, made
+        assert all(frames[-1][0].values()), frames[-1][0]  # the cheap parts too, within those frames
         assert s.hdr is not None and s.frame_source.scene is s.scene
     finally:
         s.release()

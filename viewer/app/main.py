@@ -26,6 +26,7 @@ from viewer.app.capture import Capture
 from viewer.app.input_keys import InputKeys
 from viewer.app.pacing import Pacing
 from viewer.app.parts import Part
+from viewer.app.window_geometry import WindowGeometry
 from viewer.gl.context import GL_REQUIRED, GLUnavailable
 
 # "0" turns the compile-ahead child off (viewer/app/compile_ahead.py): programs then compile on
@@ -61,8 +62,10 @@ class App:
     scene and the actions; the panels draw it. Its other jobs are parts of its own that it holds
     and passes itself to, as ``Session`` does: ``keys`` (``viewer.app.input_keys.InputKeys``:
     glfw's callbacks, the mouse, the keys' actions), ``pacing`` (``viewer.app.pacing.Pacing``:
-    the loop's next step and one turn of it) and ``capture`` (``viewer.app.capture.Capture``:
-    the window or the view as drawn, screenshots); the parts' actions scripts and tests call are
+    the loop's next step and one turn of it), ``capture`` (``viewer.app.capture.Capture``:
+    the window or the view as drawn, screenshots) and ``geometry``
+    (``viewer.app.window_geometry.WindowGeometry``: the sizes, read once a frame, the layout, the
+    view's rectangle, fullscreen); the parts' actions scripts and tests call are
     the window's too (``Part``: ``app.tick`` is ``app.pacing.tick``).
 
     The loop (``run``, one ``tick`` per turn) draws while anything changes and otherwise waits on
@@ -83,6 +86,13 @@ class App:
     capture_window = Part("capture")
     capture_view = Part("capture")
     take_screenshot = Part("capture")
+    # geometry: the window's sizes, its layout, the view's rectangle, fullscreen
+    sizes = Part("geometry")
+    layout = Part("geometry")
+    viewport = Part("geometry")
+    view_logical = Part("geometry")
+    panel_width = Part("geometry")
+    toggle_fullscreen = Part("geometry")
     panel_open = False  # lecture mode: the full panel floats over the view (the strip's "menu")
     ui_scale = 1.0
     show_ui = True
@@ -131,6 +141,7 @@ class App:
         self.keys = InputKeys(self)
         self.pacing = Pacing(self)
         self.capture = Capture(self)
+        self.geometry = WindowGeometry(self)
         self.keys.install(self.window)  # before imgui's backend, which chains to its callbacks
         imgui.backends.glfw_init_for_opengl(ctypes.cast(self.window, ctypes.c_void_p).value, True)
         imgui.backends.opengl3_init("#version 410")
@@ -151,7 +162,6 @@ class App:
         self.side_panel = SidePanel(self)
         self.set_ui_scale(state.get("ui_scale", 1.0))
         self.show_ui = bool(state.get("show_ui", True))
-        self._fullscreen_restore = None
         self.frame_count = 0
         self.frame_ms = 0.0
         self.first_frame_s = None
@@ -281,10 +291,7 @@ class App:
     def save_state(self) -> bool:
         """The window's state for the next start, and the scene as last_scene.toml (atomic)."""
         try:
-            if self._fullscreen_restore is not None:
-                x, y, w, h = self._fullscreen_restore
-            else:
-                (x, y), (w, h) = self.glfw.get_window_pos(self.window), self.glfw.get_window_size(self.window)
+            x, y, w, h = self.geometry.window_rect()
         except Exception as e:  # noqa: BLE001 - never lose the session to a state-file problem
             print(f"brdf-viewer: window state not saved: {type(e).__name__}: {e}", file=sys.stderr)
             return False
@@ -295,36 +302,6 @@ class App:
                 self.session.state.pop(k, None)
         return self.session.save_state(st)
 
-    # ------------------------------------------------------------------ layout
-    def layout(self):
-        """The window's parts (``viewer.app.layout.window_layout``) in window points."""
-        from viewer.app.layout import window_layout
-
-        ww, wh = self.glfw.get_window_size(self.window)
-        return window_layout(ww, wh, self.ui_scale, show_ui=self.show_ui, lecture=self.session.lecture_step >= 0,
-                             plots=self.plots.visible, panel_open=self.panel_open)
-
-    def viewport(self):
-        """The 3D view in framebuffer pixels (x, y from the bottom-left, w, h)."""
-        from viewer.app.layout import view_columns
-
-        fw, fh = self.glfw.get_framebuffer_size(self.window)
-        ww, _ = self.glfw.get_window_size(self.window)
-        scale = fw / ww if ww else 1.0
-        v = self.layout()["view"]
-        x0, w = view_columns(v, scale, fw)  # an even width: see viewer.gl.trace_cache
-        return x0, 0, w, fh
-
-    def view_logical(self):
-        """The 3D view in imgui's coordinates (window points, y down)."""
-        return self.layout()["view"].tuple()
-
-    @property
-    def panel_width(self) -> int:
-        lay = self.layout()
-        r = lay.get("strip") or lay.get("panel")
-        return int(r.w) if r is not None else 0
-
     def overlay_plan(self):
         """The view's overlays as drawn this frame: (layout, texts); see ``layout.overlay_layout``."""
         from viewer.app.panels import overlays
@@ -334,19 +311,26 @@ class App:
     # ------------------------------------------------------------------ frame
     def frame(self, wait: bool = True):
         """Draw one frame (``wait``: while nothing is dirty, wait up to 50 ms for input first)."""
-        from viewer.app.panels import twin_dialog
-
-        glfw, imgui, s = self.glfw, self.imgui, self.session
+        glfw, s = self.glfw, self.session
         t0 = time.perf_counter()
         if s.dirty or s.quality != "full" or s.refining or not wait:
             glfw.poll_events()
         else:
             glfw.wait_events_timeout(0.05)
         self.pacing.frame_begins()
-        fw, fh = glfw.get_framebuffer_size(self.window)
-        if fw == 0 or fh == 0:  # minimized: nothing to draw into
-            time.sleep(0.02)
-            return
+        try:
+            (fw, fh), _ = self.geometry.begin_frame()  # read once: see viewer.app.window_geometry
+            if fw == 0 or fh == 0:  # minimized: nothing to draw into
+                time.sleep(0.02)
+                return
+            self._frame(fw, fh, t0)
+        finally:
+            self.geometry.end_frame()
+
+    def _frame(self, fw, fh, t0):
+        from viewer.app.panels import twin_dialog
+
+        glfw, imgui, s = self.glfw, self.imgui, self.session
         s.window_px = (fw, fh)  # what Prepare lecture prepares for
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
@@ -437,25 +421,6 @@ class App:
         scale = float(np.clip(scale if np.isfinite(scale) else 1.0, 0.5, 3.0))
         self.ui_scale = scale
         self.imgui.get_style().font_scale_main = scale
-        self.session.changed()
-
-    def toggle_fullscreen(self):
-        glfw = self.glfw
-        if self._fullscreen_restore is None:
-            monitor = glfw.get_primary_monitor()
-            mode = glfw.get_video_mode(monitor) if monitor else None
-            if not monitor or mode is None:
-                self.session.notify("fullscreen: no monitor reported by the window system", error=True)
-                return
-            x, y = glfw.get_window_pos(self.window)
-            w, h = glfw.get_window_size(self.window)
-            self._fullscreen_restore = (x, y, w, h)
-            glfw.set_window_monitor(self.window, monitor, 0, 0, mode.size.width, mode.size.height,
-                                    mode.refresh_rate)
-        else:
-            x, y, w, h = self._fullscreen_restore
-            self._fullscreen_restore = None
-            glfw.set_window_monitor(self.window, None, x, y, w, h, 0)
         self.session.changed()
 
 

@@ -14,6 +14,11 @@ from __future__ import annotations
 import threading
 import time
 
+#: the worker processes' niceness over the window's: the window's frames first (with the split
+#: view of lecture step 14 rendering at the window's priority, a frame of the window's with 15 ms
+#: of its own CPU took 130-180 ms, and a tile of 30 ms took 55-150 ms), the reference in the time
+#: they leave, which is all of it once the view settles
+REFERENCE_NICE = 10
 PREVIEW_SPP = 4              # the coarse first image's samples per pixel, at a quarter of the resolution
 PREVIEW_MIN_PIXELS = 64 * 64  # smaller views start with full passes at once (a pass is quick there)
 
@@ -115,7 +120,7 @@ class CpuThread:
             else:
                 self.renderer = ReferenceRenderer(scene, camera=camera, width=w, height=h,
                                                   max_depth=v.max_depth, workers=v.workers, pool="processes",
-                                                  **options)   # processes: the GUI thread never waits for the GIL
+                                                  nice=REFERENCE_NICE, **options)   # processes: the GUI thread never waits for the GIL
             r = self.renderer
             key, have = resume_cached(r, v.notice)
             if have:

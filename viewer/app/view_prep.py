@@ -10,7 +10,8 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
   meanwhile make the other parts or wait);
 * "the DFG table" (``viewer.gl.ibl.IBL.ensure_dfg``: the disk cache, else one GPU pass);
 * "the view's targets" (the HDR colour and depth targets at the view's size);
-* "the environment light" (``IBL.set_environment``: the map, its mip chain and prefilter);
+* "the environment map's mip chain" (``IBL.upload_map``: the map on the GPU and its mip chain);
+* "the environment light" (``IBL.set_environment``: its prefilter, from the disk cache or made);
 * "the tables of <material>" (``MaterialUniforms.prepare``: albedo tables, compensation terms),
   one material per frame;
 * "the sky's program" (the background pass, drawn once into one pixel of the view's target);
@@ -39,6 +40,13 @@ PREPARING = "preparing"
 #: parts (a cached DFG table, targets, a material's tables) share a frame, so the view comes
 #: about as soon as it did when the whole first frame was drawn at once
 BUDGET_S = 0.15
+#: the parts that end their frame (after cheap parts only: under an eighth of the budget): their
+#: first draws make a program's code, a cost not known before (50-400 ms a program on llvmpipe, even from the driver's cache; two programs in
+#: one frame made 0.6 s): a trial draw of the scene's programs, the DFG table's pass, the
+#: environment map's mip chain and its prefilter (cold, 0.1-0.2 s apiece; the DFG table, the
+#: view's targets and the mip chain in one frame took 0.21 s of the window's thread, and the
+#: mip chain and the prefilter together 0.3 s, 0.7 s beside two busy processes)
+OWN_FRAME = ("dfg", "mips", "environment", "program", "sky")
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)
 
@@ -46,7 +54,7 @@ PIXEL = (0, 0, 1, 1)
 @dataclasses.dataclass(frozen=True)
 class Part:
     """One part of the frame still to make: its ``name`` (as the label says it) and ``kind``
-    ("map", "dfg", "targets", "environment", "tables", "sky" or "program"); ``materials``: for
+    ("map", "dfg", "targets", "mips", "environment", "tables", "sky" or "program"); ``materials``: for
     tables or a program, the materials of the scene they are for."""
     name: str
     kind: str
@@ -104,8 +112,13 @@ class ViewPrep:
         if size is not None and not ssr_on and not r.output.holds(size[0], size[1], drawn.render.msaa):
             out.append(Part("the view's targets", "targets"))
         env_map = env.radiance_map() if env.map is not None and read is True else None
-        if (env.map is not None and read is not True) or \
-                not ibl_holds(ibl, env_map, None if env_map is not None else self._env_constant(drawn)):
+        constant = None if env_map is not None else self._env_constant(drawn)
+        if (env.map is not None and read is not True) or not ibl_holds(ibl, env_map, constant):
+            # the map's mip chain a part of its own, the prefilter another: cold, each is mostly
+            # llvmpipe making its program's code (0.15-0.2 s apiece); in one frame, 0.3 s of the
+            # window's thread and 0.7 s beside two busy processes
+            if read is True and not ibl.map_uploaded(env_map, constant):
+                out.append(Part("the environment map's mip chain", "mips"))
             out.append(Part("the environment light", "environment"))
         for name in dict.fromkeys(o.material for o in drawn.objects):
             one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
@@ -171,7 +184,7 @@ class ViewPrep:
             self.done.append("the environment map")
         if todo and todo[0].kind == "map":
             self._read_map(drawn.environment)  # on a worker thread: the other parts meanwhile
-            if not self.started or len(todo) == 1 or todo[1].kind == "environment":
+            if not self.started or len(todo) == 1 or todo[1].kind in ("mips", "environment"):
                 self.started = True
                 return True   # waits for the map (the placeholder)
             todo = todo[1:]
@@ -184,17 +197,18 @@ class ViewPrep:
             return True
         import time
 
-        t0 = time.perf_counter()
+        t0, made = time.perf_counter(), 0
         while True:
             part = todo[0]
+            if part.kind in OWN_FRAME and made and time.perf_counter() - t0 > self.budget_s / 8:
+                return True  # after cheap parts only (a target, a material's tables: milliseconds)
             if part.kind in ("program", "sky") and self._beside(drawn, part, raytrace):
                 return True  # the compile-ahead child makes it: the placeholder meanwhile
             self._make(part, drawn, size, view_mode, raytrace)
             self._made(part, drawn, raytrace)
             self.done.append(part.name)
-            # one program a frame: a trial draw's cost is not known before it (50-400 ms a
-            # program on llvmpipe, even from the driver's cache); two in one frame made 0.6 s
-            if part.kind in ("program", "sky") or time.perf_counter() - t0 >= self.budget_s:
+            made += 1
+            if part.kind in OWN_FRAME or time.perf_counter() - t0 >= self.budget_s:
                 return True
             todo = self.plan(drawn, raytrace, size)
             if not todo or any(p.kind == "map" for p in todo):
@@ -324,10 +338,14 @@ class ViewPrep:
             r.ibl().ensure_dfg()
         elif part.kind == "targets":
             r.output.ensure(size[0], size[1], drawn.render.msaa)
-        elif part.kind == "environment":
+        elif part.kind in ("mips", "environment"):
             env = drawn.environment
             env_map = env.radiance_map() if env.map is not None else None
-            r.ibl().set_environment(env_map, constant=None if env_map is not None else self._env_constant(drawn))
+            constant = None if env_map is not None else self._env_constant(drawn)
+            if part.kind == "mips":
+                r.ibl().upload_map(env_map, constant=constant)
+            else:
+                r.ibl().set_environment(env_map, constant=constant)
         elif part.kind == "tables":
             from viewer.gl.program_set import frame_switches
 

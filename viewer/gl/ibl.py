@@ -128,6 +128,14 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
     return sizes
 
 
+def _ident(latlong, constant):
+    """What ``set_environment`` knows a map by without hashing it: the array itself (held, so
+    its identity is not reused) or the constant."""
+    if latlong is not None:
+        return ("map", latlong)
+    return ("constant", tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))))
+
+
 def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
     """Whether ``ibl.set_environment(latlong, constant)`` would do no work now: the same map
     array (or the same constant) is set with its DFG table, and no full prefilter of a quick one
@@ -166,6 +174,8 @@ class IBL:
         self.pending_map = None
         self.stats: dict = {}
         self._key = None
+        self._uploaded = None       # the cache key of the map in ``map_tex``
+        self._content_last = None   # (ident, map, key, settings) of the last map asked for
         self.map_tex = None
         self.prefiltered = None
         self.dfg_tex = None
@@ -213,6 +223,7 @@ class IBL:
         if name in ("ibl_downsample", "ibl_prefilter", "ibl_dfg"):
             self._key = None
             self._last_ident = None
+            self._uploaded = None  # the mip chain is made again by the program as edited
         if name == "ibl_cubemap":
             self._cube_key = None
 
@@ -258,8 +269,7 @@ class IBL:
         t0 = time.perf_counter()
         # Called every frame: the same (read-only, cached) map array or the same constant needs
         # no hash. The array is held, so its identity cannot be reused by another one.
-        ident = ("map", latlong) if latlong is not None else (
-            "constant", tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))))
+        ident = _ident(latlong, constant)
         last = getattr(self, "_last_ident", None)
         if last is not None and self._key is not None and last[0] == ident[0] and (
                 last[1] is ident[1] if ident[0] == "map" else last[1] == ident[1]):
@@ -267,13 +277,7 @@ class IBL:
                 self.stats.update({"unchanged": True, "hash_s": 0.0, "prefilter_passes": 0})
                 return
             self._key = None  # the full prefilter is in the disk cache now: read it below
-        if latlong is None:
-            c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
-            w, h = CONSTANT_MAP_SIZE
-            img = sanitize_map(np.broadcast_to(c, (h, w, 3)))
-        else:
-            img = sanitize_map(latlong)
-        key = cache.content_key(img, self._settings())
+        img, key = self._content(latlong, constant, ident)
         t_hash = time.perf_counter() - t0
         if key == self._key:
             self.stats.update({"unchanged": True, "hash_s": t_hash, "prefilter_passes": 0})
@@ -290,7 +294,9 @@ class IBL:
         nl = len(self.alphas) - 1
 
         t1 = time.perf_counter()
-        self._upload_map(img)
+        if self._uploaded != key:  # not already by ``upload_map``
+            self._upload_map(img)
+            self._uploaded = key
         t_map = time.perf_counter() - t1
 
         cached = False
@@ -354,6 +360,42 @@ class IBL:
                       "total_s": time.perf_counter() - t0,
                       "levels": len(self.alphas), "alphas": self.alphas, "samples": used,
                       "map_size": (w, h), "layer_size": (lw, lh)}
+
+    def _content(self, latlong, constant, ident):
+        """(the map as drawn, its cache key) for ``set_environment``'s arguments; the last
+        map's (by ``ident``, the array's identity or the constant) without hashing it again."""
+        last, settings = self._content_last, self._settings()
+        if last is not None and last[3] == settings and last[0][0] == ident[0] and (
+                last[0][1] is ident[1] if ident[0] == "map" else last[0][1] == ident[1]):
+            return last[1], last[2]
+        if latlong is None:
+            c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
+            w, h = CONSTANT_MAP_SIZE
+            img = sanitize_map(np.broadcast_to(c, (h, w, 3)))
+        else:
+            img = sanitize_map(latlong)
+        key = cache.content_key(img, settings)
+        self._content_last = (ident, img, key, settings)  # img: the scene's own array where it was clean
+        return img, key
+
+    def map_uploaded(self, latlong: np.ndarray | None, constant=None) -> bool:
+        """Whether the map of ``set_environment(latlong, constant)`` and its mip chain are on
+        the GPU already (that call then makes the prefilter alone)."""
+        last = self._content_last
+        if last is None or self._uploaded != last[2] or last[3] != self._settings():
+            return False
+        ident = _ident(latlong, constant)
+        return last[0][0] == ident[0] and (last[0][1] is ident[1] if ident[0] == "map" else last[0][1] == ident[1])
+
+    def upload_map(self, latlong: np.ndarray | None, constant=None) -> None:
+        """The first half of ``set_environment(latlong, constant)``: the map and its mip chain
+        (a new map's first frame made in two, each half its own frame: cold, each is mostly
+        llvmpipe making its program's code, about 0.15 s apiece on this machine). Nothing where
+        they are up already."""
+        img, key = self._content(latlong, constant, _ident(latlong, constant))
+        if self._uploaded != key:
+            self._upload_map(img)
+            self._uploaded = key
 
     def _upload_map(self, img: np.ndarray):
         """The map with its solid-angle weighted mip chain, built level by level on the GPU."""
@@ -532,6 +574,7 @@ class IBL:
             if t is not None:
                 t.release()
         self.map_tex = self.prefiltered = self.dfg_tex = self.cube = None
+        self._uploaded = self._content_last = None
         for v in self._vaos.values():
             v.release()
         for p in self._programs.values():

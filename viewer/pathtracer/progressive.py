@@ -27,6 +27,10 @@ processes for any other (the numpy steps hold the GIL between their array operat
 window asks for processes always (``pool="processes"``), so that its GUI thread never waits
 for the GIL behind a render.
 
+``nice``: the worker processes lower their priority by that much as they start (the window's
+reference, so that the window's frames and its rasterizer threads come first on the cores and
+the reference takes the time they leave); the threads of ``pool="threads"`` run at the caller's.
+
 A worker whose parent dies (killed
 with SIGKILL or SIGTERM, so that it never shut the pool down) notices within
 ``PARENT_CHECK_S`` and exits (``watch_parent``); multiprocessing's resource tracker, which
@@ -108,8 +112,13 @@ def watch_parent(parent_pid: int, every_s: float = PARENT_CHECK_S) -> threading.
     return t
 
 
-def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None):
+def _init_worker(setup: RenderSetup, key: str, parent_pid: int | None = None, nice: int = 0):
     global _INITIAL
+    if nice > 0:
+        try:
+            os.nice(nice)  # before any thread of its own starts: they inherit it
+        except OSError:  # not allowed here: at the parent's priority
+            pass
     keep_freed_memory()
     if parent_pid is not None:
         watch_parent(parent_pid)
@@ -201,7 +210,7 @@ class ReferenceRenderer:
     def __init__(self, scene, camera=None, width=None, height=None, max_depth=8, seed=0,
                  workers=None, env_image=None, kernel: str = "embree", spectral: bool | None = None,
                  strategy: str = "mis", mis_heuristic: str = "power", russian_roulette: bool = True,
-                 integrator: str = "path", pool: str = "auto"):
+                 integrator: str = "path", pool: str = "auto", nice: int = 0):
         if pool not in POOLS:
             raise ValueError(f"pool: {pool!r}; allowed: {', '.join(POOLS)}")
         if int(max_depth) < 1:
@@ -213,6 +222,7 @@ class ReferenceRenderer:
         self.spectral = spectral    # trace wavelengths; None: when a material is dispersive
         self.workers = (os.cpu_count() or 1) if workers is None else int(workers)
         self.pool = pool            # "processes", "threads" or "auto" (asked); self.pool_kind: in use
+        self.nice = max(0, int(nice))  # the worker processes' niceness over this process's
         self.pool_kind = "none"
         self._local: Integrator | None = None
         self._pool: cf.ProcessPoolExecutor | None = None
@@ -243,7 +253,7 @@ class ReferenceRenderer:
                 check_entry_point_guarded()  # one line instead of multiprocessing's 20 in every worker
                 self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
                                                     initializer=_init_worker,
-                                                    initargs=(self.setup, self._key, os.getpid()))
+                                                    initargs=(self.setup, self._key, os.getpid(), self.nice))
         self.pool_kind = kind
 
     def _start_threads(self, first: Integrator | None):
