@@ -336,4 +336,18 @@ def test_a_brdf_file_and_its_built_in_twin_are_one_curve_said_so():
                                                          ("rough", ["rough"])]
     assert len(panel.messages) == 1 and panel.messages[0].startswith("builtin: the same curve as file, at most ")
     assert curve_gap({"a": np.ones(3)}, {"b": np.ones(3)}) is None  # different curves: never merged
+    # the next frame, the same data objects: the same groups and message, nothing compared again
+    compared = []
+
+    def counting(a, b):
+        compared.append(1)
+        return same_data(a, b)
+
+    panel.messages = []
+    assert panel.groups(list(data), data, counting) == [("file = builtin", ["file", "builtin"]), ("rough", ["rough"])]
+    assert not compared and len(panel.messages) == 1
+    data = dict(data, rough=dict(data["builtin"]))  # new data (a slider moved): compared afresh
+    panel.messages = []
+    assert panel.groups(list(data), data, counting) == [("file = builtin = rough", ["file", "builtin", "rough"])]
+    assert compared and len(panel.messages) == 2
     assert curve_gap({"a": "x"}, {"a": "y"}) is None and curve_gap([1.0, 2.0], [1.0, 2.0]) == 0.0

@@ -85,6 +85,7 @@ class PlotsPanel:
         self.solo: str | None = None
         self.tab = TABS[0]  # the tab drawn last
         self.messages: list[str] = []  # why a material is missing from the current tab
+        self._groups: dict = {}  # groups' results: see groups
         self.spectral_material: str | None = None  # the Spectral tab's material (the first one with a table)
         self.sampling = sampling.SamplingTab()
         self.slices = theta.SliceSettings()  # the Theta, Terms and Image slice tabs' angles and options
@@ -240,7 +241,20 @@ class PlotsPanel:
         """Materials whose curves are identical (``same``), or differ by no more than
         ``CURVE_TOL`` of their largest value (``curve_gap``: one would hide under the other),
         drawn once: [(label "a = b", [a, b])]; a message says which were merged, and by how
-        little they differ where they are not identical."""
+        little they differ where they are not identical. Worked out once for the same data
+        objects (the store's, never changed once made: held here, so their identities stand for
+        their content): every pair compared each frame took 40-80 ms of the gallery's frames."""
+        key = (self.tab, tuple(names), tuple(id(data[n]) for n in names))
+        hit = self._groups.get(key)
+        if hit is None:
+            if len(self._groups) >= 16:
+                self._groups.clear()
+            hit = self._groups[key] = ([data[n] for n in names],) + self._compare(names, data, same)
+        self.messages.extend(hit[2])
+        return hit[1]
+
+    def _compare(self, names, data, same):
+        """``groups`` worked out: (the groups, the messages)."""
         out: list[tuple[list[str], list[str], list[str]]] = []  # members, the identical ones, notes of near ones
         for n in names:
             for members, same_as, notes in out:
@@ -256,11 +270,12 @@ class PlotsPanel:
                     break
             else:
                 out.append(([n], [], []))
+        messages = []
         for members, same_as, notes in out:  # one line for the identical ones of a curve
             if same_as:
-                self.messages.append(f"{', '.join(same_as)}: the same curve as {members[0]} (drawn once)")
-            self.messages.extend(notes)
-        return [(" = ".join(members), members) for members, _, _ in out]
+                messages.append(f"{', '.join(same_as)}: the same curve as {members[0]} (drawn once)")
+            messages.extend(notes)
+        return [(" = ".join(members), members) for members, _, _ in out], messages
 
     def y(self, v):
         """The plotted value of f cos: linear, or log10(1 + v) with the log switch."""

@@ -136,19 +136,47 @@ def _ident(latlong, constant):
     return ("constant", tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))))
 
 
+def _same(a, b) -> bool:
+    """Two ``_ident``s are of the same map (the same array, or equal constants)."""
+    return a is not None and a[0] == b[0] and (a[1] is b[1] if a[0] == "map" else a[1] == b[1])
+
+
 def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
     """Whether ``ibl.set_environment(latlong, constant)`` would do no work now: the same map
     array (or the same constant) is set with its DFG table, and no full prefilter of a quick one
     waits in the disk cache."""
-    last = getattr(ibl, "_last_ident", None)
-    if last is None or ibl._key is None or ibl.dfg_tex is None:
+    if ibl._key is None or ibl.dfg_tex is None or not _same(getattr(ibl, "_last_ident", None), _ident(latlong, constant)):
         return False
-    if latlong is not None:
-        same = last[0] == "map" and last[1] is latlong
-    else:
-        c = tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,)))
-        same = last[0] == "constant" and last[1] == c
-    return same and (ibl.provisional is None or not cache.path_for(ibl.provisional).is_file())
+    return ibl.provisional is None or not cache.path_for(ibl.provisional).is_file()
+
+
+def render_dfg(ibl, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> np.ndarray:
+    """(size, size, 2) float32 DFG table computed on the GPU: table[i, j] = (A, B) at
+    NoV = (i + 0.5) / size, alpha = (j + 0.5) / size (``viewer.environment.dfg``), on
+    ``ibl``'s context and program."""
+    ctx = ibl.ctx
+    u, wq = vndf_quadrature(samples)
+    n = len(u)
+    qw = 64
+    rows = (n + qw - 1) // qw
+    q = np.zeros((rows * qw, 3), "f4")
+    q[:n, :2] = u
+    q[:n, 2] = wq
+    qtex = ctx.texture((qw, rows), 3, q.tobytes(), dtype="f4")
+    qtex.filter = (ctx.NEAREST, ctx.NEAREST)
+    prog = ibl._program("ibl_dfg")
+    qtex.use(texture_units.SOURCE)
+    _set(prog, "u_quad", texture_units.SOURCE)
+    _set(prog, "u_quad_count", n)
+    _set(prog, "u_quad_width", qw)
+    _set(prog, "u_size", float(size))
+    tex, fbo = ibl._target(size, size)
+    try:
+        ibl._draw("ibl_dfg", fbo, (0, 0, size, size))
+        data = np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :2]
+        return np.ascontiguousarray(data)
+    finally:
+        release_gl(fbo, tex, qtex)
 
 
 class IBL:
@@ -270,9 +298,7 @@ class IBL:
         # Called every frame: the same (read-only, cached) map array or the same constant needs
         # no hash. The array is held, so its identity cannot be reused by another one.
         ident = _ident(latlong, constant)
-        last = getattr(self, "_last_ident", None)
-        if last is not None and self._key is not None and last[0] == ident[0] and (
-                last[1] is ident[1] if ident[0] == "map" else last[1] == ident[1]):
+        if self._key is not None and _same(getattr(self, "_last_ident", None), ident):
             if self.provisional is None or not cache.path_for(self.provisional).is_file():
                 self.stats.update({"unchanged": True, "hash_s": 0.0, "prefilter_passes": 0})
                 return
@@ -365,8 +391,7 @@ class IBL:
         """(the map as drawn, its cache key) for ``set_environment``'s arguments; the last
         map's (by ``ident``, the array's identity or the constant) without hashing it again."""
         last, settings = self._content_last, self._settings()
-        if last is not None and last[3] == settings and last[0][0] == ident[0] and (
-                last[0][1] is ident[1] if ident[0] == "map" else last[0][1] == ident[1]):
+        if last is not None and last[3] == settings and _same(last[0], ident):
             return last[1], last[2]
         if latlong is None:
             c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
@@ -382,16 +407,12 @@ class IBL:
         """Whether the map of ``set_environment(latlong, constant)`` and its mip chain are on
         the GPU already (that call then makes the prefilter alone)."""
         last = self._content_last
-        if last is None or self._uploaded != last[2] or last[3] != self._settings():
-            return False
-        ident = _ident(latlong, constant)
-        return last[0][0] == ident[0] and (last[0][1] is ident[1] if ident[0] == "map" else last[0][1] == ident[1])
+        return last is not None and self._uploaded == last[2] and last[3] == self._settings() \
+            and _same(last[0], _ident(latlong, constant))
 
     def upload_map(self, latlong: np.ndarray | None, constant=None) -> None:
         """The first half of ``set_environment(latlong, constant)``: the map and its mip chain
-        (a new map's first frame made in two, each half its own frame: cold, each is mostly
-        llvmpipe making its program's code, about 0.15 s apiece on this machine). Nothing where
-        they are up already."""
+        (the window makes each half in a frame of its own: ``viewer.app.view_prep``)."""
         img, key = self._content(latlong, constant, _ident(latlong, constant))
         if self._uploaded != key:
             self._upload_map(img)
@@ -472,7 +493,7 @@ class IBL:
         if hit is not None:
             table = hit["dfg"].astype("f4")
         else:
-            table = self.render_dfg(DFG_SIZE, DFG_SAMPLES)
+            table = render_dfg(self, DFG_SIZE, DFG_SAMPLES)
             if self.use_cache:
                 cache.store(key, {"dfg": table}, kind="dfg")
         tex = self.ctx.texture((DFG_SIZE, DFG_SIZE), 2, np.ascontiguousarray(table).tobytes(), dtype="f4")
@@ -482,33 +503,6 @@ class IBL:
         self.dfg_tex = tex
         self.dfg = table
         self._dfg_s = time.perf_counter() - t0
-
-    def render_dfg(self, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> np.ndarray:
-        """(size, size, 2) float32 DFG table computed on the GPU: table[i, j] = (A, B) at
-        NoV = (i + 0.5) / size, alpha = (j + 0.5) / size (``viewer.environment.dfg``)."""
-        ctx = self.ctx
-        u, wq = vndf_quadrature(samples)
-        n = len(u)
-        qw = 64
-        rows = (n + qw - 1) // qw
-        q = np.zeros((rows * qw, 3), "f4")
-        q[:n, :2] = u
-        q[:n, 2] = wq
-        qtex = ctx.texture((qw, rows), 3, q.tobytes(), dtype="f4")
-        qtex.filter = (ctx.NEAREST, ctx.NEAREST)
-        prog = self._program("ibl_dfg")
-        qtex.use(texture_units.SOURCE)
-        _set(prog, "u_quad", texture_units.SOURCE)
-        _set(prog, "u_quad_count", n)
-        _set(prog, "u_quad_width", qw)
-        _set(prog, "u_size", float(size))
-        tex, fbo = self._target(size, size)
-        try:
-            self._draw("ibl_dfg", fbo, (0, 0, size, size))
-            data = np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :2]
-            return np.ascontiguousarray(data)
-        finally:
-            release_gl(fbo, tex, qtex)
 
     # ------------------------------------------------------------------ cube map
     def cubemap(self, size: int | None = None, rotation_deg: float = 0.0, supersample: int = 1):
