@@ -192,6 +192,18 @@ def test_what_keeps_the_loop_drawing_and_what_slows_it(quiet):
     rv = s.reference = StandInReference()
     rv.busy = True   # the cpu reference renders: frames on its passes and every IDLE_FRAME_S
     assert loop.loop_wait()[0] == "frames" and "reference" in s.pending_work()
+    # a pass just after a frame waits until REFERENCE_FRAME_S after it (the frames would take the
+    # workers' cores); input does not wait
+    import time
+
+    now = time.perf_counter()
+    loop.drawn = (0, now, rv.version, "frames")
+    rv.version += 1
+    assert not loop.wants_frame()
+    loop.drawn = (0, now - Pacing.REFERENCE_FRAME_S, rv.version - 1, "frames")
+    assert loop.wants_frame()
+    loop.drawn = (-1, now, rv.version, "frames")
+    assert loop.wants_frame()   # an input event since the frame
     rv.busy, rv.needs_frames = False, True   # the gpu engine renders in the frames: draw
     assert loop.loop_wait()[0] == "draw"
     rv.needs_frames = False

@@ -17,6 +17,10 @@ class Pacing:
     IDLE_FRAME_S = 0.5  # a frame at least this often while something on screen changes with time
     POLL_S = 0.5        # resting: the hot reloader and the file dialogs are polled this often
     SETTLE_S = 0.5      # frames follow without sleeping for this long after an input event
+    # a new reference image alone is drawn this long after the last frame at the soonest: the
+    # gallery's split view drew each pass at once, 5.6 frames/s of 72-110 ms each, half a core
+    # taken from the reference's workers (see docs/performance.md)
+    REFERENCE_FRAME_S = 0.3
     throttle = True     # False: ``tick`` draws flat out, as ``App.frame`` does
 
     def __init__(self, app):
@@ -77,13 +81,16 @@ class Pacing:
                       self.loop_wait()[0])
 
     def wants_frame(self, kind: str | None = None) -> bool:
-        """Something to draw since the last frame: input, a new reference image, ``IDLE_FRAME_S``
+        """Something to draw since the last frame: input, a new reference image (``REFERENCE_FRAME_S``
+        after the last frame at the soonest), ``IDLE_FRAME_S``
         gone by while something changes with time, the first turn of a rest (the frame that
         shows it: a toast gone), or ``idle`` no more. ``kind``: ``loop_wait``'s (asked when None)."""
         kind = kind or self.loop_wait()[0]
         events, at, version, drawn_kind = self.drawn
-        if kind == "draw" or self.app.keys.input_events != events or self.reference_version() != version:
+        if kind == "draw" or self.app.keys.input_events != events:
             return True
+        if self.reference_version() != version:
+            return time.perf_counter() - at >= self.REFERENCE_FRAME_S
         if kind == "frames":
             return time.perf_counter() - at >= self.IDLE_FRAME_S
         return kind == "rest" and drawn_kind != "rest"
@@ -103,7 +110,8 @@ class Pacing:
             app.session.warm_one()
         elif not self.wants_frame(kind):
             if kind == "frames":
-                wait = self.drawn[1] + self.IDLE_FRAME_S - time.perf_counter()
+                soon = self.REFERENCE_FRAME_S if self.reference_version() != self.drawn[2] else self.IDLE_FRAME_S
+                wait = self.drawn[1] + soon - time.perf_counter()
             app.glfw.wait_events_timeout(max(wait, 0.001))
             if kind == "rest":
                 self.poll_resting()
