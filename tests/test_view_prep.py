@@ -569,6 +569,18 @@ def test_a_new_form_of_the_scene_shown_is_prepared_under_the_image_it_replaces(g
             kept += 1
         assert s.frame_source.form == "untraced" and kept >= len(untraced)
         assert untraced <= set(s.renderer.programs)
+        # its tiles drawn over the stand-ins' image: no note says "drawn untraced" of that view,
+        # the status line says both
+        tiled = 0
+        while s.frames.under_form == "stand-in":
+            m = s.last_message
+            assert m is None or "drawn untraced" not in m.text, m.text
+            assert "drawn untraced until ready (in tiles: " in s.trace_status and "the rest grey stand-ins" in s.trace_status
+            tiled += 1
+            s.render_view(SIZE)
+        assert tiled and s.frame_source.form == "untraced"
+        if s.compiling:  # the traced programs still compile: the note is true of the whole view now
+            assert "drawn untraced until ready" in s.status
     finally:
         s.compile_ahead = None
         s.release()

@@ -203,12 +203,14 @@ class Session:
 
     def message_true(self, m: Message) -> bool:
         """``m`` is true of the view now: it is about no frame, or about the frame shown (the
-        frame's provenance, ``frame_source``: the same scene, drawn the same way) while the
-        programs it waits for compile."""
+        frame's provenance, ``frame_source``: the same scene, drawn the same way, the whole view:
+        not tiles of it over another form, which the status line says) while the programs it
+        waits for compile."""
         if m.frame is None:
             return True
         src = self.frame_source
-        return self.compiling and src is not None and src.scene is m.frame[0] and src.form == m.frame[1]
+        return self.compiling and src is not None and src.scene is m.frame[0] and src.form == m.frame[1] \
+            and self.frames.under_form in (None, "preview", src.form)
 
     @property
     def status(self) -> str:

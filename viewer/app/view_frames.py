@@ -129,6 +129,11 @@ class ViewFrames:
         return self._tiles is not None and self._tiles.active and not self._tiles.done
 
     @property
+    def under_form(self):
+        """What the tiles have not reached yet shows (``UNDER_WORDS``' key); None: the view is whole."""
+        return self._tiles_under_form if self.tiling else None
+
+    @property
     def trace(self):
         """The progressive trace of the still view (``viewer.gl.raytrace.ProgressiveTrace``), or
         None before the first traced view."""
