@@ -503,7 +503,8 @@ def test_the_status_line_says_what_the_frame_shown_was_drawn_from():
     from viewer.app.session import FrameSource, Message
 
     scene, other = object(), object()
-    ns = types.SimpleNamespace(compiling=True, frame_source=FrameSource(scene, {}, "stand-in"), messages=[
+    ns = types.SimpleNamespace(compiling=True, frame_source=FrameSource(scene, {}, "stand-in"),
+                               frames=types.SimpleNamespace(under_form=None), messages=[
         Message("opened lecture:11", False, 0.0),
         Message("compiling gold in the background: drawn with grey stand-ins until ready", False, 1.0,
                 (scene, "stand-in")),
@@ -521,6 +522,14 @@ def test_the_status_line_says_what_the_frame_shown_was_drawn_from():
     assert status() == "opened lecture:11" and toast() is None
     ns.frame_source, ns.compiling = FrameSource(scene, {}, "stand-in"), True
     assert status().startswith("compiling gold") and toast() is ns.messages[-1]
+    # tiles of that form over another (an untraced frame's tiles over the stand-ins' image): the
+    # note is not true of the view yet (the status line says both); over its own preview it is
+    ns.frame_source = FrameSource(scene, {}, "untraced")
+    ns.messages[-1] = Message("compiling gold in the background: drawn untraced until ready", False, 3.0,
+                              (scene, "untraced"))
+    for under, true in (("stand-in", False), ("preview", True), ("untraced", True), (None, True)):
+        ns.frames.under_form = under
+        assert (toast() is ns.messages[-1]) == true and status().startswith("compiling gold") == true, under
 
 
 def test_without_the_child_the_models_warm_up_after_frames_then_the_loop_rests(gl_ctx, renderer):
