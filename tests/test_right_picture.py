@@ -173,11 +173,16 @@ class AnsweringChild(StandIn):
         self.done[rid] = {"id": rid, "ok": True}
 
 
-def test_a_traced_step_is_drawn_untraced_once_its_untraced_programs_are_ready(gl_ctx):
+def test_a_traced_step_is_drawn_untraced_once_its_untraced_programs_are_ready(gl_ctx, monkeypatch):
     # the untraced programs are asked for first: once they are answered the step is drawn
     # untraced (its own materials), long before the traced ones
+    import viewer.app.view_frames as frames
     from viewer.gl.renderer import Renderer
     from viewer.scene.lecture import TOUR
+
+    # one tile a frame, however fast this machine draws them (the tiles of this small view fit
+    # one frame's budget on a quiet machine, and the frames below would not see them)
+    monkeypatch.setattr(frames, "TILE_BUDGET_S", 0.0)
 
     renderer = Renderer(gl_ctx)
     s = _session(gl_ctx, renderer)

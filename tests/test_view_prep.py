@@ -536,10 +536,13 @@ def test_a_new_form_of_the_scene_shown_is_prepared_under_the_image_it_replaces(g
     only then draws the step untraced: never the placeholder again, never another scene."""
     from viewer.app import driver_cache
     from viewer.app.session import Session
+    import viewer.app.view_frames as frames
     from viewer.gl.renderer import Renderer
     from viewer.scene.lecture import TOUR
 
     monkeypatch.setattr(driver_cache, "cache_identity", lambda: "a shader cache")
+    # one tile a frame, however fast this machine draws them (the tiles below are read frame by frame)
+    monkeypatch.setattr(frames, "TILE_BUDGET_S", 0.0)
     s = Session(gl_ctx, "default", renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=True,
                 tiled_frames=True, prepare_frames=True)
     child = s.compile_ahead = _Answering()

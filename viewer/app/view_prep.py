@@ -41,11 +41,12 @@ PREPARING = "preparing"
 #: about as soon as it did when the whole first frame was drawn at once
 BUDGET_S = 0.15
 #: the parts that end their frame (after cheap parts only: under an eighth of the budget): their
-#: first draws make a program's code, a cost not known before (50-400 ms a program on llvmpipe, even from the driver's cache; two programs in
-#: one frame made 0.6 s): a trial draw of the scene's programs, the DFG table's pass, the
-#: environment map's mip chain and its prefilter (cold, 0.1-0.2 s apiece; the DFG table, the
-#: view's targets and the mip chain in one frame took 0.21 s of the window's thread, and the
-#: mip chain and the prefilter together 0.3 s, 0.7 s beside two busy processes)
+#: first draws make a program's code, a cost not known before (50-400 ms a program on llvmpipe,
+#: even from the driver's cache; two programs in one frame made 0.6 s): a trial draw of the
+#: scene's programs, the DFG table's pass, the environment map's mip chain and its prefilter
+#: (cold, 0.1-0.2 s apiece; the DFG table, the view's targets and the mip chain in one frame
+#: took 0.21 s of the window's thread, the mip chain and the prefilter together 0.3 s, 0.7 s
+#: beside two busy processes)
 OWN_FRAME = ("dfg", "mips", "environment", "program", "sky")
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)

@@ -133,7 +133,8 @@ def _ident(latlong, constant):
     its identity is not reused) or the constant."""
     if latlong is not None:
         return ("map", latlong)
-    return ("constant", tuple(np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))))
+    c = np.zeros(3) if constant is None else np.broadcast_to(np.asarray(constant, float), (3,))
+    return ("constant", tuple(c))
 
 
 def _same(a, b) -> bool:
@@ -145,7 +146,8 @@ def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
     """Whether ``ibl.set_environment(latlong, constant)`` would do no work now: the same map
     array (or the same constant) is set with its DFG table, and no full prefilter of a quick one
     waits in the disk cache."""
-    if ibl._key is None or ibl.dfg_tex is None or not _same(getattr(ibl, "_last_ident", None), _ident(latlong, constant)):
+    last = getattr(ibl, "_last_ident", None)
+    if ibl._key is None or ibl.dfg_tex is None or not _same(last, _ident(latlong, constant)):
         return False
     return ibl.provisional is None or not cache.path_for(ibl.provisional).is_file()
 
