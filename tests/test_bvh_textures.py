@@ -97,3 +97,17 @@ def test_empty_scene_and_layout(gl_ctx):
         t, p, _, _ = q.intersect(st, np.zeros((4, 3)), np.eye(3)[[0, 1, 2, 0]])
     q.release()
     assert np.all(p == -1)
+
+
+def test_the_bvh_build_lets_the_window_thread_run():
+    """The window builds a scene's tree on a thread of its own: each compiled step of the build
+    is compiled ``nogil`` (one holding the interpreter lock stops the window's frames for as
+    long as it runs: 0.2-0.7 s for the gallery)."""
+    from numba.core.registry import CPUDispatcher
+
+    from viewer.geometry import bvh_build
+
+    steps = [f for f in vars(bvh_build).values() if isinstance(f, CPUDispatcher)]
+    assert len(steps) >= 10 and "_build" in [f.__name__ for f in steps]
+    held = [f.__name__ for f in steps if not f.targetoptions.get("nogil")]
+    assert not held, held

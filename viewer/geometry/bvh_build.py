@@ -18,7 +18,10 @@ Hierarchies" (IEEE RT'07), as in pbrt-v3/v4 chapter 4.3, in these steps per node
 
 The two children of a node are stored next to each other (``child[node]``, ``child[node] + 1``);
 a leaf stores ``first`` / ``count`` into the triangle order, so every leaf's triangles are
-contiguous. Compiled with ``cache=True`` (the first call in a fresh environment compiles).
+contiguous. Compiled with ``cache=True`` (the first call in a fresh environment compiles) and
+``nogil=True``: the window builds a scene's tree on a thread of its own, and a build holding the
+interpreter lock (0.2-0.7 s for the gallery's 205k triangles) would stop the window's thread for
+as long, a frame that long.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ C_TRAV = 1.0         # SAH cost of visiting a node (two box tests), relative to.
 C_ISECT = 1.0        # ...one ray-triangle test
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _half_area(x0, y0, z0, x1, y1, z1):
     dx = x1 - x0
     dy = y1 - y0
@@ -42,7 +45,7 @@ def _half_area(x0, y0, z0, x1, y1, z1):
     return dx * dy + dy * dz + dz * dx
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _bin_of(c, cmin, scale, n_bins):
     b = int((c - cmin) * scale)
     if b >= n_bins:
@@ -52,7 +55,7 @@ def _bin_of(c, cmin, scale, n_bins):
     return b
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _node_bounds(order, start, end, lo, hi, cent, bounds, node, cmin, cmax):
     """bounds[node] := the bounds of triangles order[start:end]; cmin, cmax := those of their centroids.
     (The box is kept in scalars in the loop: it runs over every triangle at every level.)"""
@@ -87,7 +90,7 @@ def _node_bounds(order, start, end, lo, hi, cent, bounds, node, cmin, cmax):
     bounds[node, 5] = bz1
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _fill_bins(order, start, end, lo, hi, cent, a, cmin_a, scale, n_bins, bin_cnt, bin_box):
     """Count the centroids of order[start:end] per bin along axis a and bound each bin's
     triangles (bin_cnt (n_bins,), bin_box (n_bins, 6))."""
@@ -107,7 +110,7 @@ def _fill_bins(order, start, end, lo, hi, cent, a, cmin_a, scale, n_bins, bin_cn
                 bin_box[b, 3 + k] = hi[p, k]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _grown(x0, y0, z0, x1, y1, z1, bins, b):
     """The union of the box (x0, y0, z0)-(x1, y1, z1) and bins[b] (min xyz, max xyz), as six
     scalars (kept in registers: this runs for every bin of every node)."""
@@ -115,7 +118,7 @@ def _grown(x0, y0, z0, x1, y1, z1, bins, b):
             max(x1, bins[b, 3]), max(y1, bins[b, 4]), max(z1, bins[b, 5]))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area):
     """right_cnt[b], right_area[b] := count and box half-area of bins b .. n_bins - 1 (b >= 1)."""
     x0 = y0 = z0 = np.inf
@@ -129,7 +132,7 @@ def _sweep_right(bin_cnt, bin_box, n_bins, right_cnt, right_area):
         right_area[b] = _half_area(x0, y0, z0, x1, y1, z1) if rc > 0 else 0.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _best_plane(bin_cnt, bin_box, n_bins, right_cnt, right_area, parent_area, c_trav, c_isect):
     """Sweep from the left and score every plane s (bins < s on the left) with the SAH.
     Returns (best cost, best s); (inf, -1) when no plane has triangles on both sides."""
@@ -154,7 +157,7 @@ def _best_plane(bin_cnt, bin_box, n_bins, right_cnt, right_area, parent_area, c_
     return best_cost, best_split
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _partition(order, start, end, cent, a, cmin_a, scale, n_bins, split):
     """Reorder order[start:end] so the triangles whose centroid bin on axis a is < split come
     first. Returns the first index of the right part (the median when one side is empty)."""
@@ -173,7 +176,7 @@ def _partition(order, start, end, cent, a, cmin_a, scale, n_bins, split):
     return i
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _split_node(order, start, end, lo, hi, cent, bounds, node, cmin, cmax, max_leaf, n_bins, c_trav,
                 c_isect, bin_cnt, bin_box, right_cnt, right_area):
     """The node over order[start:end] (its box in bounds[node]): returns the index where its
@@ -212,7 +215,7 @@ def _split_node(order, start, end, lo, hi, cent, bounds, node, cmin, cmax, max_l
     return _partition(order, start, end, cent, a, cmin[a], scale, n_bins, best_split)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _push(st_node, st_start, st_end, st_depth, sp, node, start, end, depth):
     st_node[sp] = node
     st_start[sp] = start
@@ -221,7 +224,7 @@ def _push(st_node, st_start, st_end, st_depth, sp, node, start, end, depth):
     return sp + 1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _build(lo, hi, cent, max_leaf, n_bins, c_trav, c_isect):
     """Binned SAH build. ``lo``/``hi``: (T, 3) triangle bounds, ``cent``: (T, 3) centroids.
     Returns (bounds (M, 6), child (M,), first (M,), count (M,), order (T,), max_depth)."""

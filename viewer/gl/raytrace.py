@@ -172,8 +172,8 @@ BVH_CACHE_KIND = "bvh1"
 def cached_flat_scene(geom):
     """``viewer.geometry.bvh_flat.flatten_scene(geom)``, from the disk cache when it holds the
     same triangles (a lecture step seen before, or drawn by the compile-ahead child, which builds
-    it first): the BVH build is pure Python and takes a second for the soap bubbles on a loaded
-    machine, on the window's thread, in the frame ray tracing starts."""
+    it first): the build and its flattening take 1.5-2 s for the soap bubbles or the gallery on a
+    loaded machine (``RayTrace.ready`` runs them on a thread of their own)."""
     from viewer.environment import cache
     from viewer.geometry.bvh_flat import FlatScene, flatten_scene
 
