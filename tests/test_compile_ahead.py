@@ -82,7 +82,7 @@ class StandIn:
     def __init__(self):
         self.compiled, self.tables, self.requests, self.released = set(), {}, [], False
 
-    def request(self, scene, urgent=True, **priority):
+    def request(self, scene, urgent=True, text=None, **priority):
         self.requests.append((scene, urgent))
         return len(self.requests)  # a request's id, as the child numbers them
 
@@ -285,11 +285,14 @@ def test_a_request_asked_for_again_moves_up_and_outranks_the_one_drawn():
 
 def test_the_window_asks_for_a_traced_steps_untraced_copy_first_and_a_later_scene_in_a_later_batch(gl_ctx):
     from viewer.app.session import STAND_IN_ALBEDO, Session
+    from viewer.scene import scene_to_toml
     from viewer.gl.renderer import Renderer
     from viewer.scene.lecture import tour_scene
 
     class Child(StandIn):
-        def request(self, scene, urgent=True, **priority):
+        def request(self, scene, urgent=True, text=None, **priority):
+            # a text the window gives is the scene's own (written once per scene and state)
+            assert text is None or text == scene_to_toml(scene, absolute_paths=True)
             self.requests.append((scene, urgent, priority))
             return len(self.requests)
 
@@ -464,3 +467,27 @@ def test_a_request_answered_by_the_other_child_is_dropped_from_the_queue():
     q.finished()
     q.close()
     assert q.take()["id"] == 2 and q.take() is None
+
+
+def test_a_scene_s_text_for_the_child_is_written_once_per_state(gl_ctx):
+    """``held_back`` asks for the shown scene's programs every frame while they compile: the
+    scene's text is written once per scene object and state, and again after any change in place
+    (anything that changes the view marks it ``dirty``)."""
+    from viewer.app.session import Session
+    from viewer.gl.renderer import Renderer
+    from viewer.scene import scene_to_toml
+
+    renderer = Renderer(gl_ctx)
+    s = Session(gl_ctx, "default", renderer=renderer, prefetch=False)
+    try:
+        text = s.compiles.scene_text(s.scene)
+        assert text == scene_to_toml(s.scene, absolute_paths=True)
+        assert s.compiles.scene_text(s.scene) is text       # the same state: not written again
+        s.set_reflection_mode("ray traced")                 # the scene's render settings, in place
+        again = s.compiles.scene_text(s.scene)
+        assert again != text and again == scene_to_toml(s.scene, absolute_paths=True)
+        other = s.compiles.untraced_copy(s.scene)           # another scene object: its own text
+        assert s.compiles.scene_text(other) == scene_to_toml(other, absolute_paths=True) != again
+    finally:
+        s.release()
+        renderer.release()

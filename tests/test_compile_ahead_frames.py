@@ -118,7 +118,7 @@ def test_a_steps_timing_message_says_it_is_drawn_with_stand_ins(gl_ctx):
         def __init__(self):
             self.compiled, self.tables, self.done, self.released = set(), {}, {}, False
 
-        def request(self, scene, urgent=True, **priority):
+        def request(self, scene, urgent=True, text=None, **priority):
             return id(scene)
 
         def answered(self, rid):

@@ -33,7 +33,7 @@ class StandInChild:
         self.compiled, self.tables, self.requests, self.answered_ids = set(), {}, [], set()
         self.texts = []  # each request's scene text, written when it was asked for
 
-    def request(self, scene, urgent=True, **priority):
+    def request(self, scene, urgent=True, text=None, **priority):
         from viewer.scene import scene_to_toml
 
         # a scene asked for again is not redone, as the child does; compared by the text written

@@ -18,7 +18,7 @@ class StandIn:
     def __init__(self):
         self.compiled, self.tables, self.requests, self.released = set(), {}, [], False
 
-    def request(self, scene, urgent=True, **priority):
+    def request(self, scene, urgent=True, text=None, **priority):
         self.requests.append((scene, urgent))
         return len(self.requests)
 
@@ -160,7 +160,7 @@ class AnsweringChild(StandIn):
         super().__init__()
         self.done = {}
 
-    def request(self, scene, urgent=True, **priority):  # a scene asked for again keeps its id, as the child's
+    def request(self, scene, urgent=True, text=None, **priority):  # a scene asked for again keeps its id, as the child's
         for i, (sc, _) in enumerate(self.requests):
             if sc is scene:
                 return i + 1

@@ -308,7 +308,7 @@ class _Child:
     def __init__(self):
         self.asked, self.finished, self.done = [], False, {}
 
-    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False):
+    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False, text=None):
         self.asked.append((scene, urgent, lead))
         return 7
 
@@ -509,7 +509,7 @@ class _Answering:
     def __init__(self):
         self.compiled, self.tables, self.requests, self.done, self.states = set(), {}, [], {}, {}
 
-    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False):
+    def request(self, scene, urgent=True, batch=0, ahead=False, lead=False, text=None):
         from viewer.scene import scene_to_toml
 
         text = scene_to_toml(scene)

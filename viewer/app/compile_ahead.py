@@ -442,7 +442,7 @@ class CompileAhead:
         return self._urgent.proc is not None and not self._urgent.error
 
     def request(self, scene, urgent: bool = True, batch: int = 0, ahead: bool = False,
-                lead: bool = False) -> int | None:
+                lead: bool = False, text: str | None = None) -> int | None:
         """Ask for ``scene``'s programs and tables; the request's id (the earlier one for a scene
         already asked for), None when the child it goes to is not running. ``urgent``: the scene
         the window shows (``batch``: a higher number for a later scene shown; its requests in the
@@ -450,13 +450,15 @@ class CompileAhead:
         it, goes first), for the urgent child; else ``ahead``: the next lecture step's, or the
         idle-time warm-up's, for the ahead child. A scene asked for again with a higher priority,
         not answered yet, moves up its child's queue; one sent ahead and now urgent goes to the
-        urgent child as well."""
+        urgent child as well. ``text``: ``scene``'s text (``scene_to_toml`` with absolute paths),
+        where the caller has it already."""
         from viewer.app.driver_cache import drawing_state
         from viewer.scene import scene_to_toml
 
         if not self.alive:
             return None
-        text = scene_to_toml(scene, absolute_paths=True)
+        if text is None:
+            text = scene_to_toml(scene, absolute_paths=True)
         base = None if scene.base_dir is None else str(scene.base_dir)
         priority = [URGENT if urgent else AHEAD if ahead else IDLE, int(batch) if urgent else 0,
                     int(bool(lead and urgent))]

@@ -36,6 +36,7 @@ class CompileControl:
         self.awaiting = None       # the compile-ahead request the view waits for
         self.noted = None          # (request, form of the frame drawn) the last note said
         self._flat = None          # (scene, its untraced copy) asked for first (untraced_copy)
+        self._texts = {}           # (id(scene), session's edits) -> (scene, its text): scene_text
         self.awaiting_flat = None  # that request, while the view shows stand-ins
         self.presets_ahead = True  # with the child: the picker's presets compile ahead while idle
         # models whose programs compile while idle on this thread (with the compile-ahead child
@@ -170,13 +171,14 @@ class CompileControl:
         # so it is drawn untraced in seconds rather than with stand-ins until the traced are ready
         # this scene's requests go before those of the scenes shown before it (``batch``)
         batch = self._batch_for(s.scene)
-        rid_flat = None if ca is None or not traced else ca.request(self.untraced_copy(s.scene), urgent=True,
-                                                                     batch=batch)
+        flat = self.untraced_copy(s.scene) if traced else None
+        rid_flat = None if ca is None or not traced else ca.request(flat, urgent=True, batch=batch,
+                                                                     text=self.scene_text(flat))
         if ca is not None and self._next is not None and self._next[0] == s.lecture_step + 1:
             # the next step's stand-ins (one cheap program) before this step's traced programs
             # (tens of seconds on a loaded machine): the step after opens without a compile here
-            ca.request(self._next[1], urgent=True, batch=batch)
-        rid = None if ca is None else ca.request(s.scene, urgent=True, batch=batch)
+            ca.request(self._next[1], urgent=True, batch=batch, text=self.scene_text(self._next[1]))
+        rid = None if ca is None else ca.request(s.scene, urgent=True, batch=batch, text=self.scene_text(s.scene))
         done_beside = ca is not None and all(
             (keys[n] in progs or keys[n] in ca.compiled) and params_key(s.scene.materials[n]) in ca.tables
             for n in missing)
@@ -236,7 +238,8 @@ class CompileControl:
         ca = self.child
         if ca is None or not ca.alive:
             return None
-        return ca.request(scene, urgent=True, batch=self._batch_for(self.session.scene), lead=True)
+        return ca.request(scene, urgent=True, batch=self._batch_for(self.session.scene), lead=True,
+                          text=self.scene_text(scene))
 
     def _batch_for(self, scene) -> int:
         """The compile-ahead batch of ``scene`` as it is now: a new one (higher) for another
@@ -245,6 +248,20 @@ class CompileControl:
         if key != self._batch[0]:
             self._batch = (key, self._batch[1] + 1)
         return self._batch[1]
+
+    def scene_text(self, scene) -> str:
+        """``scene``'s text for the compile-ahead child, written once per scene object and state
+        (the session's ``edits``): ``held_back`` asks for the shown scene's programs every frame
+        while they compile, and writing the gallery's text takes 15-20 ms."""
+        from viewer.scene import scene_to_toml
+
+        key = (id(scene), self.session.edits)
+        hit = self._texts.get(key)
+        if hit is None or hit[0] is not scene:
+            hit = (scene, scene_to_toml(scene, absolute_paths=True))
+            self._texts = {k: v for k, v in list(self._texts.items())[-7:] if k[1] == key[1]}
+            self._texts[key] = hit
+        return hit[1]
 
     def untraced_copy(self, scene):
         """``scene`` with its traced chains off (the same copy while the scene is the same)."""

@@ -171,6 +171,7 @@ class Session:
         if 0 <= self.state.get("view_mode", 0) < len(VIEW_MODES) and self.same_scene:
             self.view_mode = self.state.get("view_mode", 0)
         self.messages: list[Message] = []
+        self.edits = 0             # times the view was marked to be drawn again (``dirty``)
         self.dirty = True          # the raster image must be rendered again
         self.reference = None      # the ReferenceView, made on first use
         self.wake = None           # called from any thread when the reference has a new image
@@ -356,6 +357,20 @@ class Session:
                 out.setdefault(o.material, []).append((label, d))
         self._extents_for = (self.scene, out)
         return out
+
+    @property
+    def dirty(self) -> bool:
+        """The raster image must be rendered again. Whatever changes the scene in place sets it,
+        so ``edits``, counted here, tells one state of the same scene object from another (what
+        is worked out once per scene state, e.g. the text sent to the compile-ahead child, keys
+        on it)."""
+        return self._dirty
+
+    @dirty.setter
+    def dirty(self, value) -> None:
+        if value:
+            self.edits += 1
+        self._dirty = bool(value)
 
     def changed(self) -> None:
         """Something the raster image depends on changed: render it again (and restart the
