@@ -543,3 +543,29 @@ def test_without_the_child_the_models_warm_up_after_frames_then_the_loop_rests(g
         assert s.warm == [] and s.pending_work() == [] and loop.loop_wait()[0] == "rest" and loop.settled()
     finally:
         s.release()
+
+
+def test_the_warm_up_waits_for_a_finished_view(gl_ctx, renderer, tiled):
+    """A frame that still tiles the view sends no preset to the child (each is a scene's text:
+    20-30 ms for the gallery, on top of the frame's tile); the first finished one does."""
+    s = tiled.Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True,
+                      tiled_frames=True)
+    child = s.compile_ahead = StandInChild()
+    try:
+        s.render_view(SIZE)
+        for rid in range(len(child.requests)):
+            child.answer(rid)
+        s.render_view(SIZE)
+        sent, turns = len(child.requests), 0
+        assert s.tiling and s.warming
+        while s.refining or s.quality != "full":
+            s.warm_one()
+            assert len(child.requests) == sent   # nothing sent while the view is tiled
+            s.render_view(SIZE)
+            turns += 1
+        assert turns > 1
+        s.warm_one()
+        assert len(child.requests) == sent + 1   # the finished view: one preset a turn
+    finally:
+        s.compile_ahead = None
+        s.release()

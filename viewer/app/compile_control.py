@@ -307,10 +307,14 @@ class CompileControl:
         """Compile one model's forward program while idle, so switching models later does not
         wait for the shader compiler (software GL compiles take 0.1-0.5 s each). With the
         compile-ahead child: ask it once for the scene's presets on its first material instead,
-        and nothing compiles here."""
+        and nothing compiles here. Only once the view is finished: never in a frame that still
+        prepares, tiles or refines it (one preset's scene text for the child takes 20-30 ms for
+        the gallery; a model compiled here, far more)."""
         from viewer import brdf
 
         s = self.session
+        if s.dirty or s.quality != "full" or s.refining:
+            return
         if self.on:
             if self.presets_ahead:
                 self._warm_presets_ahead()
