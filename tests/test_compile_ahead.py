@@ -137,7 +137,13 @@ def test_idle_frames_send_the_presets_ahead_one_at_a_time(gl_ctx, renderer):
 
     s = Session(gl_ctx, "default", renderer=renderer, prefetch=False, compile_ahead=True)
     stand_in = s.compile_ahead = StandIn()
+    stand_in.released = True   # the view's own programs, if it asks for them
     try:
+        s.warm_one()
+        assert stand_in.requests == []   # the view not drawn yet: no warm-up
+        while s.dirty or s.refining or s.quality != "full":
+            s.render_view((48, 36))
+        stand_in.requests.clear()
         s.warm_one()
         assert len(stand_in.requests) == 1
         for _ in range(len(PRESETS) + 3):
