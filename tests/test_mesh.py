@@ -432,8 +432,13 @@ def test_loading_is_cached_and_sees_changes(tmp_path, monkeypatch):
     a = load_mesh(str(path))
     b = load_mesh("ball.ply", base_dir=tmp_path)          # same file, other spelling
     assert len(reads) == 1
-    np.testing.assert_array_equal(a.positions, b.positions)
-    a.positions[:] = 0.0                                  # callers get their own arrays
+    # one object for the same file: what is made per mesh (GPU buffers, shadows, the BVH's key)
+    # is made once; its arrays are read-only, and a copy is the caller's own to edit
+    assert a is b
+    with pytest.raises(ValueError):
+        a.positions[:] = 0.0
+    mine = a.copy()
+    mine.positions[:] = 0.0
     assert np.any(load_mesh(str(path)).positions != 0.0)
     assert len(reads) == 1
     trimesh.creation.box().export(path)                   # changed file: read again
@@ -530,3 +535,14 @@ def test_unsupported_extension_is_rejected(tmp_path):
 def test_out_of_range_indices_are_rejected(tmp_path):
     with pytest.raises(ViewerError, match="out of range"):
         build_mesh("bad", np.zeros((3, 3)), None, [[0, 1, 5]])
+
+
+def test_a_scene_loaded_again_shares_its_meshes():
+    """A scene opened again (a lecture step revisited, the default scene after the tour) gets the
+    same mesh objects: the window's buffers, shadow atlas and BVH key, which follow a mesh
+    object, are not made again for the same geometry."""
+    from viewer.scene import load_scene
+
+    first, again = load_scene("default"), load_scene("default")
+    assert first is not again
+    assert all(a.mesh_data is b.mesh_data for a, b in zip(first.objects, again.objects))

@@ -91,7 +91,8 @@ def builtin_names() -> list[str]:
 def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> MeshData:
     """Load a built-in mesh by name or a mesh file (relative paths against ``base_dir``,
     else the working directory). Raises ViewerError on any problem, with a one-line message
-    (a line break in a file name is written as an escape)."""
+    (a line break in a file name is written as an escape). The same file unchanged (or the same
+    built-in) gives the same object, its arrays read-only (``copy()`` for one to edit)."""
     if not isinstance(ref, (str, os.PathLike)) or str(ref).strip() == "":
         raise ViewerError(f"{where}: {ref!r}: expected a built-in mesh name "
                           f"({', '.join(builtin_names())}) or a mesh file path")
@@ -125,10 +126,10 @@ def load_mesh(ref: str, base_dir: Path | None = None, where: str = "mesh") -> Me
     key = ("file", str(path), st.st_mtime_ns, st.st_size)
     cached = _cache_get(key)
     if cached is not None:
-        return cached.copy()
+        return cached
     mesh = read_mesh_file(path, path.stem, where)
     _cache_put(key, mesh)
-    return mesh.copy()
+    return mesh
 
 
 def _load_builtin(name: str, where: str) -> MeshData:
@@ -150,7 +151,7 @@ def _load_builtin(name: str, where: str) -> MeshData:
             else:
                 cached = read_mesh_file(path, name, where)
             _cache_put(key, cached)
-        return cached.copy()
+        return cached
     key = ("builtin", name)
     cached = _cache_get(key)
     if cached is None:
@@ -158,7 +159,7 @@ def _load_builtin(name: str, where: str) -> MeshData:
         cached = build_mesh(name, shape.positions, shape.normals, shape.indices, shape.uvs,
                             where=where, label=f"built-in {name}")
         _cache_put(key, cached)
-    return cached.copy()
+    return cached
 
 
 def clear_cache() -> None:
@@ -175,6 +176,12 @@ def _cache_get(key):
 
 
 def _cache_put(key, mesh: MeshData) -> None:
+    """Keep ``mesh`` for its file (or built-in name), its arrays made read-only: every scene
+    that loads the same mesh gets this one object, so what is made per mesh object (the GPU's
+    vertex buffers, the shadow atlas over the objects, the traced BVH's key) is made once, not
+    again for a scene opened again (``MeshData.copy`` gives an array that may be edited)."""
+    for a in (mesh.positions, mesh.normals, mesh.tangents, mesh.uvs, mesh.indices):
+        a.setflags(write=False)
     with _CACHE_LOCK:
         _CACHE[key] = mesh
         _CACHE.move_to_end(key)
