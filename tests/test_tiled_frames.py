@@ -536,3 +536,28 @@ def test_the_preview_is_enlarged_on_the_gpu_as_upscale_does(gl_ctx, renderer, s,
     finally:
         pt.release()
         src.release()
+
+
+def test_a_tile_is_planned_under_a_fixed_most_however_dear_its_fixed_part():
+    # a tile's fixed part (every triangle through the vertex stage) is a third of its time at
+    # most; where that part is large (the gallery's 205k triangles beside two busy processes:
+    # 0.15 s) the tile stays within TILE_MOST_S, not three times that part
+    from viewer.gl.raytrace import TILE_MOST_S, RasterTileSizes, _Pass, planned_tile_s
+
+    assert planned_tile_s(0.07, 0.07, 0.01) == pytest.approx(0.07)
+    assert planned_tile_s(0.07, 0.07, 0.05) == pytest.approx(0.15)   # the fixed part a third
+    assert planned_tile_s(0.07, 0.07, 0.15) == TILE_MOST_S            # not 0.45 s
+    assert planned_tile_s(1e9, 1e9, 0.15) == pytest.approx(1e9)       # a bake's tiles: whole
+    w, h = 1344, 1080
+    sizes = RasterTileSizes()
+    sizes.start(w, h, like_last=False, contacts=frozenset())
+    p = _Pass(w, h, np.ones((h, w), bool), 1)
+    p.block -= 1                       # the top block was drawn: 4 rows at 0.2 us a pixel
+    per_px = 2e-7                      # the whole frame: 0.29 s, over the most
+    for overhead in (0.01, 0.05, 0.15, 0.3):
+        pixels = sizes.next_pixels(p, h - 4, 4, per_px, 0.07, 4 * w, overhead)
+        assert pixels >= 4 * w         # a block at least, always
+        if pixels > 4 * w:             # more than one block only within the plan
+            assert sizes.next_s <= planned_tile_s(0.07 / 3, 0.07, overhead) + 1e-12
+        assert sizes.next_s <= max(TILE_MOST_S, 0.9 * overhead + per_px * 4 * w) + 1e-12
+    assert sizes.next_s > 0.9 * 0.3    # the dearest: one block, its fixed part alone over the most

@@ -29,6 +29,7 @@ def _session(gl_ctx, scene="default", prepare=True, budget_s=0.0):
 def _state(s, scene):
     """What the renderer holds of the parts of a frame of ``scene``, read from the renderer
     itself: {part: built}."""
+    from viewer.gl.frame_passes import FramePasses
     from viewer.gl.program_set import frame_switches
 
     r = s.renderer
@@ -36,6 +37,8 @@ def _state(s, scene):
     env = scene.environment
     out = {"dfg": r.ibl().dfg_tex is not None, "targets": r.output.holds(*SIZE, scene.render.msaa),
            "mips": r.ibl().map_tex is not None, "environment": r.ibl().prefiltered is not None}
+    if FramePasses.casts_shadows(scene):
+        out["shadows"] = r.shadows_ready(scene)
     for name in dict.fromkeys(o.material for o in scene.objects):
         out[f"tables {name}"] = not (ssr_on or env_on) or r.tables.built(scene.materials[name], True)
     for name, key in r.forward_keys(scene, raytrace=False if r.traces(scene) else None).items():
@@ -102,6 +105,8 @@ def test_the_first_frame_defers_the_costly_parts(gl_ctx):
         kinds = [p.kind for p in s.frames.prep.plan(s.scene, None, SIZE)]
         assert kinds[:2] == ["dfg", "targets"] and {"environment", "tables", "program"} <= set(kinds)
         assert kinds.index("mips") + 1 == kinds.index("environment")  # the mip chain, then the prefilter
+        # the shadow atlas before the trial draws (each would draw it in its own frame)
+        assert kinds.index("shadows") < kinds.index("program")
         assert s.trace_status == f"preparing the view: 0 of {len(kinds)} parts ready; next: the DFG table"
         assert r.ibl().dfg_tex is None
     finally:
@@ -363,13 +368,13 @@ def test_parts_within_the_budget_share_a_frame_but_each_costly_one_has_its_own(g
     """With a budget no part passes, the cheap parts (the view's targets, a material's tables)
     share a frame with the costly part after them; a costly part (its first draws make a
     program's code, a cost not known before it: the DFG table's pass, the environment map's mip
-    chain, its prefilter, each program's trial draw) ends its frame, so each has a frame of its
+    chain, its prefilter, the shadow atlas, each program's trial draw) ends its frame, so each has a frame of its
     own: the placeholder, one frame per costly part, then the frame itself."""
     s = _session(gl_ctx, "default", budget_s=1e9)
     try:
         programs = len(set(s.renderer.forward_keys(s.scene).values()))
         frames = _prepare(s)
-        costly = {"dfg", "mips", "environment"}
+        costly = {"dfg", "mips", "environment", "shadows"}
         assert programs == 2 and len(frames) == 1 + len(costly) + programs, [label for _, label, _ in frames]
         assert not any(frames[0][0].values())  # the placeholder: nothing made
         for before, after in zip(frames, frames[1:]):

@@ -46,8 +46,9 @@ BUDGET_S = 0.15
 #: scene's programs, the DFG table's pass, the environment map's mip chain and its prefilter
 #: (cold, 0.1-0.2 s apiece; the DFG table, the view's targets and the mip chain in one frame
 #: took 0.21 s of the window's thread, the mip chain and the prefilter together 0.3 s, 0.7 s
-#: beside two busy processes)
-OWN_FRAME = ("dfg", "mips", "environment", "program", "sky")
+#: beside two busy processes); and the shadow atlas (every triangle from every shadowed light:
+#: the gallery's took 0.28 s of its first preview frame beside two busy processes)
+OWN_FRAME = ("dfg", "mips", "environment", "shadows", "program", "sky")
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)
 
@@ -55,7 +56,7 @@ PIXEL = (0, 0, 1, 1)
 @dataclasses.dataclass(frozen=True)
 class Part:
     """One part of the frame still to make: its ``name`` (as the label says it) and ``kind``
-    ("map", "dfg", "targets", "mips", "environment", "tables", "sky" or "program"); ``materials``: for
+    ("map", "dfg", "targets", "mips", "environment", "shadows", "tables", "sky" or "program"); ``materials``: for
     tables or a program, the materials of the scene they are for."""
     name: str
     kind: str
@@ -121,6 +122,8 @@ class ViewPrep:
             if read is True and not ibl.map_uploaded(env_map, constant):
                 out.append(Part("the environment map's mip chain", "mips"))
             out.append(Part("the environment light", "environment"))
+        if not r.shadows_ready(drawn):  # before the trial draws, each of which would draw it
+            out.append(Part("the shadow maps", "shadows"))
         for name in dict.fromkeys(o.material for o in drawn.objects):
             one = dataclasses.replace(drawn, objects=[o for o in drawn.objects if o.material == name])
             if not r.material_uniforms.prepared(one, env_tables=ssr_on or env_on) \
@@ -347,6 +350,8 @@ class ViewPrep:
                 r.ibl().upload_map(env_map, constant=constant)
             else:
                 r.ibl().set_environment(env_map, constant=constant)
+        elif part.kind == "shadows":
+            r.draw_shadows(drawn)
         elif part.kind == "tables":
             from viewer.gl.program_set import frame_switches
 

@@ -100,8 +100,7 @@ class FramePasses:
         f = self.begin(scene, camera, width, height, view_mode, msaa, raytrace, region)._replace(
             cull=cull, only=None if only is None else frozenset(only))
         if f.shadows:
-            glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
-            self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects, glass)
+            self.shadow_pass(scene)
         thickness = self.environment(scene, f)
         self.unit_fill.bind()  # before the frame's own textures, which are bound over them
         if f.region is not None:  # applied by every use() of the frame's colour target
@@ -116,6 +115,20 @@ class FramePasses:
                 f.targets.draw_fbo.scissor = None
                 f.targets.draw_fbo.use()
         return self.finish(scene, f, frame_index)
+
+    @staticmethod
+    def casts_shadows(scene) -> bool:
+        """Whether a frame of ``scene`` draws the shadow pass (shadows on, a shadowed light)."""
+        return bool(scene.render.shadows) and len(shadow_lights(scene)) > 0
+
+    def shadow_pass(self, scene) -> None:
+        """The shadow atlas of ``scene`` (drawn unless it holds the scene already)."""
+        glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
+        self.shadows.update(scene, self.program_set.programs["shadow"], self.meshes.draw_objects, glass)
+
+    def shadows_ready(self, scene) -> bool:
+        """A frame of ``scene`` would not draw its shadow atlas (none, or it holds the scene)."""
+        return not self.casts_shadows(scene) or self.shadows.holds(scene)
 
     def begin(self, scene, camera, width, height, view_mode, msaa, raytrace=None, region=None) -> Frame:
         """The frame's size, camera, colour targets (the SSR pass's with SSR) and switches."""
@@ -140,7 +153,7 @@ class FramePasses:
             x0, y0 = max(0, x), max(0, y)
             region = (x0, y0, max(0, min(w, x + rw) - x0), max(0, min(h, y + rh) - y0))
         return Frame(w, h, camera or OrbitCamera.from_scene(scene), targets, view_mode, ssr_on, ssr_debug,
-                     lights, bool(scene.render.shadows) and len(shadow_lights(scene)) > 0, env_rad, env_map, env_on,
+                     lights, self.casts_shadows(scene), env_rad, env_map, env_on,
                      rt_on, region)
 
     def environment(self, scene, f: Frame):

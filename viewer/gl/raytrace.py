@@ -38,6 +38,11 @@ MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 need
 # stages, whatever the scissor) would dominate
 STRIP_PIXELS = 16384
 PROBE_PIXELS = 16      # a trace's first tile: a probe of the fixed part of a tile's time
+# a tile's planned time at most, however large its fixed part: a tile planned at three times
+# that part (so that it is a third of the tile at most) took 0.34 s of the gallery's frames
+# beside two busy processes (its 205k triangles through the vertex stage in every tile), and the
+# window's frame around it 0.1-0.2 s more; tiles then do less each, and the frames stay short
+TILE_MOST_S = 0.2
 
 
 def chain_lobes(params) -> Lobe:
@@ -367,6 +372,13 @@ class _Pass:
         self.x = 0
 
 
+def planned_tile_s(least_s: float, budget_s: float, overhead_s: float) -> float:
+    """The time a tile is planned to take: enough that its fixed part (``overhead_s``) is a
+    third of it at most, and ``least_s`` at least; never over ``TILE_MOST_S`` (or the frame's
+    ``budget_s`` where that is larger: a bake's tiles)."""
+    return min(max(least_s, 3.0 * overhead_s), max(budget_s, TILE_MOST_S))
+
+
 class RasterTileSizes:
     """The sizes of a raster frame's tiles (``ProgressiveTrace.start(traced=False)``), from what
     its tiles cost so far and what the last frame's cost in each block of 4 rows (``like_last``),
@@ -413,7 +425,7 @@ class RasterTileSizes:
                 ref = float(before.mean())
                 self.scale = max(1.0, per_px / ref)
         o = 0.9 * overhead_s
-        target = max(budget_s / 3.0, 3.0 * overhead_s)
+        target = planned_tile_s(budget_s / 3.0, budget_s, overhead_s)
         row_px = 4 * p.w
         total, blocks, b, guessed, dearer = o, 0, p.block, False, 0
         while b >= 0:
@@ -787,7 +799,7 @@ class ProgressiveTrace:
         n = tw * th
         self.overhead_s = dt if self.overhead_s is None else min(self.overhead_s, dt)
         per_px = max(dt - 0.9 * self.overhead_s, 1e-9) / n
-        target = max(budget_s, 3.0 * self.overhead_s)
+        target = planned_tile_s(budget_s, budget_s, self.overhead_s)
         if self.raster:
             pixels = self._sizes.next_pixels(p, y, th, per_px, budget_s, n, self.overhead_s)
             self.pixels = max(16, min(pixels, self.max_pixels))

@@ -183,6 +183,16 @@ class Renderer:
         """The screen-space reflection pass (viewer/gl/ssr.py), created on first use."""
         return self.passes.ssr()
 
+    def shadows_ready(self, scene) -> bool:
+        """A frame of ``scene`` would not draw its shadow atlas (no shadows, or the atlas holds
+        the scene's lights and objects as they are)."""
+        return self.passes.shadows_ready(scene)
+
+    def draw_shadows(self, scene) -> None:
+        """The shadow atlas of ``scene`` drawn now (a frame of its own in the window's view
+        preparation: the gallery's 205k triangles from each light took 0.28 s)."""
+        self.passes.shadow_pass(scene)
+
     # ---------------------------------------------------------------- the frame
     def render(self, scene, camera: OrbitCamera | None = None, width: int | None = None,
                height: int | None = None, view_mode: int = 0, msaa: int | None = None, frame_index: int = 0,

@@ -163,6 +163,20 @@ class ShadowMaps:
         self._texel = np.zeros(SHADOW_LIGHTS)
         self._face_tan = np.zeros(SHADOW_LIGHTS * 6)
 
+    @staticmethod
+    def _key_of(scene, lights, glass):
+        """What the atlas is drawn from: the lights, what the model matrices are made of, and
+        the glass casters' uniforms."""
+        return (tuple((l.type, tuple(np.round(l.position, 9)), tuple(np.round(l.direction, 9))) for l in lights),
+                tuple((id(o.mesh_data), np.asarray(o.translate, float).tobytes(), np.asarray(o.scale, float).tobytes(),
+                       float(o.rotate_y_deg)) for o in scene.objects),
+                tuple(repr(sorted(_glass_uniforms(scene, o).items())) for o in glass))
+
+    def holds(self, scene) -> bool:
+        """Whether the atlas is ``scene``'s as ``update`` would draw it (nothing to draw)."""
+        glass = glass_casters(scene) if glass_shadows(scene) else []
+        return self._atlas is not None and self._key == self._key_of(scene, shadow_lights(scene), glass)
+
     def update(self, scene, prog, draw, glass_prog=None):
         """Render the atlas with the shadow program ``prog`` unless the lights and objects are
         where they were; ``draw(objects, prog)`` draws the objects (instanced by mesh).
@@ -171,10 +185,7 @@ class ShadowMaps:
         lights = shadow_lights(scene)
         glass = glass_casters(scene) if glass_prog is not None else []
         glass_ids = {id(o) for o in glass}
-        key = (tuple((l.type, tuple(np.round(l.position, 9)), tuple(np.round(l.direction, 9))) for l in lights),
-               tuple((id(o.mesh_data), np.asarray(o.translate, float).tobytes(), np.asarray(o.scale, float).tobytes(),
-                      float(o.rotate_y_deg)) for o in scene.objects),   # what the model matrices are made of
-               tuple(repr(sorted(_glass_uniforms(scene, o).items())) for o in glass))
+        key = self._key_of(scene, lights, glass)
         if key == self._key and self._atlas is not None:
             return
         rows = max(1, len(lights))
