@@ -38,11 +38,14 @@ MAX_SEGMENTS = 32  # rays traced per pixel at most (a glass ball at depth 8 need
 # stages, whatever the scissor) would dominate
 STRIP_PIXELS = 16384
 PROBE_PIXELS = 16      # a trace's first tile: a probe of the fixed part of a tile's time
-# a tile's planned time at most, however large its fixed part: a tile planned at three times
-# that part (so that it is a third of the tile at most) took 0.34 s of the gallery's frames
-# beside two busy processes (its 205k triangles through the vertex stage in every tile), and the
-# window's frame around it 0.1-0.2 s more; tiles then do less each, and the frames stay short
-TILE_MOST_S = 0.2
+# a tile's planned time at most, however large its fixed part seems: a tile planned at three
+# times that part (so that it is a third of the tile at most) took 0.34 s of the gallery's
+# frames beside two busy processes, and the window's frame around it 0.1-0.25 s more. The
+# least tile time taken for the fixed part is not always fixed: the gallery's first tile of 4
+# rows across its balls takes 84 ms quiet, 9 ms over 4 x 4 pixels of the same objects (its
+# pixels are dear: llvmpipe shades each of the 4 MSAA samples). Tiles then do less each, and
+# the frames stay short
+TILE_MOST_S = 0.15
 
 
 def chain_lobes(params) -> Lobe:
