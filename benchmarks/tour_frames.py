@@ -193,6 +193,11 @@ def main(argv):
         during=_for_seconds(bound))
     if s.preparing:
         s.prepare_lecture()  # again while it runs: cancelled
+    # the compile-ahead children through the walk: a child that ended leaves the window to
+    # compile the programs itself, and the frames above are then not the design's
+    ca = s.compiles.child
+    ahead = "off" if ca is None else (f"the shown scene's child {'running' if ca.alive else 'ended: ' + ca.error}, "
+                                      f"{ca.replaced} replaced for silence")
     app.close()
     for what, col in (("wall time", "frames"), ("the window thread's CPU time", "cpu")):
         worst = max(max(r[col]) for r in rows)
@@ -200,6 +205,7 @@ def main(argv):
         n500 = sum(sum(x > LIMIT_MS for x in r[col]) for r in rows)
         print(f"in {what}: longest frame over all actions {worst:.0f} ms; frames over {GOAL_MS:.0f} ms: "
               f"{n150}, over {LIMIT_MS:.0f} ms: {n500}")
+    print(f"compile-ahead: {ahead}")
     print(f"load average {os.getloadavg()[0]:.1f}")
 
 
