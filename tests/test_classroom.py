@@ -262,6 +262,10 @@ def test_save_and_reopen_scene_and_screenshot_give_the_same_image(display, tmp_p
     assert res["still"] == "<built-in default>"
 
 
+# every step in the real window, untraced (15-17 s): with -m slow; the default run walks every
+# step forwards and backwards on the session's frames (tests/test_right_picture.py) and renders
+# every scene and step finite with each switch (tests/test_classroom_fixes.py)
+@pytest.mark.slow
 def test_lecture_tour_visits_every_step(display):
     r = run_py("""
         import json, time, numpy as np

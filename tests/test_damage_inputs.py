@@ -152,6 +152,9 @@ def test_carry_over_keeps_a_material_that_fits_and_one_whose_file_no_longer_pars
     assert carry_over(p) is p  # the last good file's material; the hot reloader shows the error
 
 
+# the real window's path of the edits above (its hot-reload watcher, the editor fitting what it
+# draws): 17-19 s of the default run for what the session's test covers, so with -m slow
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("Xvfb") is None, reason="needs Xvfb")
 def test_the_window_survives_a_brdf_file_saved_with_one_parameter_more(display, tmp_path):
     from gui_harness import run_py
