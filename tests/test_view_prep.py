@@ -29,15 +29,15 @@ def _session(gl_ctx, scene="default", prepare=True, budget_s=0.0):
 def _state(s, scene):
     """What the renderer holds of the parts of a frame of ``scene``, read from the renderer
     itself: {part: built}."""
-    from viewer.gl.frame_passes import FramePasses
     from viewer.gl.program_set import frame_switches
+    from viewer.gl.shadow import casts_shadows
 
     r = s.renderer
     ssr_on, env_on = frame_switches(scene, False if r.traces(scene) else None)[:2]
     env = scene.environment
     out = {"dfg": r.ibl().dfg_tex is not None, "targets": r.output.holds(*SIZE, scene.render.msaa),
            "mips": r.ibl().map_tex is not None, "environment": r.ibl().prefiltered is not None}
-    if FramePasses.casts_shadows(scene):
+    if casts_shadows(scene):
         out["shadows"] = r.shadows_ready(scene)
     for name in dict.fromkeys(o.material for o in scene.objects):
         out[f"tables {name}"] = not (ssr_on or env_on) or r.tables.built(scene.materials[name], True)

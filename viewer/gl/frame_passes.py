@@ -19,7 +19,7 @@ from viewer.gl.constants import IBL_MODES, LIGHT_TYPES, MAX_LIGHTS, SSR_VIEW_BAS
 from viewer.gl.program_set import BACKGROUND, SHADOW_GLASS, THICKNESS, absorbing, frame_switches, scene_traces
 from viewer.gl.raytrace import chain_traces, dispersive
 from viewer.gl.shaders import set_uniform as _set
-from viewer.gl.shadow import ShadowMaps, glass_shadows, shadow_lights
+from viewer.gl.shadow import ShadowMaps, casts_shadows, glass_shadows
 from viewer.gl.targets import ThicknessPass
 
 
@@ -116,11 +116,6 @@ class FramePasses:
                 f.targets.draw_fbo.use()
         return self.finish(scene, f, frame_index)
 
-    @staticmethod
-    def casts_shadows(scene) -> bool:
-        """Whether a frame of ``scene`` draws the shadow pass (shadows on, a shadowed light)."""
-        return bool(scene.render.shadows) and len(shadow_lights(scene)) > 0
-
     def shadow_pass(self, scene) -> None:
         """The shadow atlas of ``scene`` (drawn unless it holds the scene already)."""
         glass = self.program_set.get("shadow_glass", SHADOW_GLASS) if glass_shadows(scene) else None
@@ -128,7 +123,7 @@ class FramePasses:
 
     def shadows_ready(self, scene) -> bool:
         """A frame of ``scene`` would not draw its shadow atlas (none, or it holds the scene)."""
-        return not self.casts_shadows(scene) or self.shadows.holds(scene)
+        return not casts_shadows(scene) or self.shadows.holds(scene)
 
     def begin(self, scene, camera, width, height, view_mode, msaa, raytrace=None, region=None) -> Frame:
         """The frame's size, camera, colour targets (the SSR pass's with SSR) and switches."""
@@ -153,7 +148,7 @@ class FramePasses:
             x0, y0 = max(0, x), max(0, y)
             region = (x0, y0, max(0, min(w, x + rw) - x0), max(0, min(h, y + rh) - y0))
         return Frame(w, h, camera or OrbitCamera.from_scene(scene), targets, view_mode, ssr_on, ssr_debug,
-                     lights, self.casts_shadows(scene), env_rad, env_map, env_on,
+                     lights, casts_shadows(scene), env_rad, env_map, env_on,
                      rt_on, region)
 
     def environment(self, scene, f: Frame):

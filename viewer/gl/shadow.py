@@ -50,10 +50,15 @@ def glass_casters(scene) -> list:
     return [o for o in scene.objects if transmissive(scene.materials[o.material])]
 
 
+def casts_shadows(scene) -> bool:
+    """Whether a frame of ``scene`` draws the shadow pass: shadows on and a shadowed light."""
+    return bool(scene.render.shadows) and len(shadow_lights(scene)) > 0
+
+
 def glass_shadows(scene) -> bool:
     """Whether a frame of ``scene`` draws translucent shadows (the GLASS_SHADOW variant of the
-    forward program and the glass atlas): shadows on, a shadowed light, and a glass caster."""
-    return bool(scene.render.shadows) and len(shadow_lights(scene)) > 0 and bool(glass_casters(scene))
+    forward program and the glass atlas): it casts shadows, and has a glass caster."""
+    return casts_shadows(scene) and bool(glass_casters(scene))
 
 
 # how the glass pass finds a caster's path length (shaders/passes/shadow_glass.frag SHAPE_*)
