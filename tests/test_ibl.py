@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from viewer.environment import cache, dfg, latlong, procedural, sh
+from viewer.gl.ibl import mip_sizes
 from viewer.gl.shaders import build_program
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
@@ -183,6 +184,26 @@ def test_mip_chain_is_solid_angle_weighted(ibl):
         p = (got * latlong.solid_angles(h, w)[..., None]).sum((0, 1))
         np.testing.assert_allclose(p, power, rtol=1e-5)
         prev = got
+
+
+@pytest.mark.parametrize("shape", [(5, 7), (33, 65), (3, 1), (1, 9)])
+def test_mip_levels_of_odd_sizes_keep_the_power_and_a_constant(shape):
+    """``latlong.mip_chain`` at sizes that do not halve evenly: each level keeps the map's power
+    (every source texel's solid angle is shared out among the texels over it, whatever the
+    sizes), a constant map stays that constant, and a texel is a mean of the texels under its
+    footprint (between their least and greatest values)."""
+    h, w = shape
+    img = (np.random.default_rng(h * 100 + w).random((h, w, 3)) * 4.0).astype(np.float32)
+    power = (img.astype(np.float64) * latlong.solid_angles(h, w)[..., None]).sum((0, 1))
+    chain = latlong.mip_chain(img)
+    assert [lev.shape[:2] for lev in chain] == [(b, a) for a, b in mip_sizes(w, h)]
+    for lev in chain[1:]:
+        p = (lev.astype(np.float64) * latlong.solid_angles(*lev.shape[:2])[..., None]).sum((0, 1))
+        np.testing.assert_allclose(p, power, rtol=1e-5)  # float32 levels: rounding only
+        assert lev.min() >= img.min() - 1e-6 and lev.max() <= img.max() + 1e-6
+    flat = latlong.mip_chain(np.full((h, w, 3), 0.7, np.float32))
+    for lev in flat:
+        np.testing.assert_allclose(lev, 0.7, rtol=1e-6)
 
 
 # ----------------------------------------------------------------------------- DFG

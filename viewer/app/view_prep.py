@@ -8,7 +8,8 @@ scene's frame) under the label ``label`` gives: what is ready and what comes nex
 
 * "the environment map" (a file read or a sky generated: numpy on a worker thread, the frames
   meanwhile make the other parts or wait);
-* "the DFG table" (``viewer.gl.ibl.IBL.ensure_dfg``: the disk cache, else one GPU pass);
+* "the DFG table" (``viewer.gl.ibl.IBL.ensure_dfg``: the disk cache, else a GPU pass drawn a
+  band of rows a frame);
 * "the view's targets" (the HDR colour and depth targets at the view's size);
 * "the environment map's mip chain" (``IBL.upload_map``: the map on the GPU and its mip chain);
 * "the environment light" (``IBL.set_environment``: its prefilter, from the disk cache or made);
@@ -49,6 +50,10 @@ BUDGET_S = 0.15
 #: beside two busy processes); and the shadow atlas (every triangle from every shadowed light:
 #: the gallery's took 0.28 s of its first preview frame beside two busy processes)
 OWN_FRAME = ("dfg", "mips", "environment", "shadows", "program", "sky")
+#: the rows of the DFG table one frame draws on a disk cache miss (of 32; its first frame links
+#: the pass's program): on llvmpipe the 32x32 pass runs on one rasterizer thread, 80 ms quiet
+#: for the whole table and half a second of its frame beside two busy processes
+DFG_BAND_ROWS = 8
 #: the one pixel of the view's target a part's trial draw covers (x, y, w, h)
 PIXEL = (0, 0, 1, 1)
 
@@ -110,7 +115,9 @@ class ViewPrep:
         if env.map is not None and read is not True:
             out.append(Part("the environment map", "map"))
         if ibl.dfg_tex is None:
-            out.append(Part("the DFG table", "dfg"))
+            rows = ibl.dfg_rows
+            out.append(Part("the DFG table" if rows is None else f"the DFG table ({rows[0]} of {rows[1]} rows drawn)",
+                            "dfg"))
         if size is not None and not ssr_on and not r.output.holds(size[0], size[1], drawn.render.msaa):
             out.append(Part("the view's targets", "targets"))
         env_map = env.radiance_map() if env.map is not None and read is True else None
@@ -208,7 +215,8 @@ class ViewPrep:
                 return True  # after cheap parts only (a target, a material's tables: milliseconds)
             if part.kind in ("program", "sky") and self._beside(drawn, part, raytrace):
                 return True  # the compile-ahead child makes it: the placeholder meanwhile
-            self._make(part, drawn, size, view_mode, raytrace)
+            if self._make(part, drawn, size, view_mode, raytrace) is False:
+                return True  # a share of the part made (a band of the DFG table's rows): the rest next frame
             self._made(part, drawn, raytrace)
             self.done.append(part.name)
             made += 1
@@ -336,11 +344,12 @@ class ViewPrep:
         self.scene, self.done, self.started, self.drawn, self.waiting = None, [], False, None, None
         self.kept = None
 
-    def _make(self, part: Part, drawn, size, view_mode, raytrace) -> None:
+    def _make(self, part: Part, drawn, size, view_mode, raytrace) -> bool | None:
+        """Make ``part`` (False: only a share of it this frame, the rest in the next ones)."""
         r = self.session.renderer
         if part.kind == "dfg":
-            r.ibl().ensure_dfg()
-        elif part.kind == "targets":
+            return r.ibl().ensure_dfg(rows=DFG_BAND_ROWS)
+        if part.kind == "targets":
             r.output.ensure(size[0], size[1], drawn.render.msaa)
         elif part.kind in ("mips", "environment"):
             env = drawn.environment

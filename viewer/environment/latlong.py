@@ -88,6 +88,56 @@ def solid_angles(height: int, width: int) -> np.ndarray:
     return np.broadcast_to(row_solid_angles(height, width)[:, None], (height, width)).copy()
 
 
+def _box_taps(src: int, dst: int, on_sphere: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(dst, taps) source indices and weights of a box filter from ``src`` texels to ``dst``
+    along one axis: destination texel p covers source coordinates [p src / dst, (p + 1) src / dst]
+    and each source texel under it weighs its overlap, as a length (u) or, ``on_sphere`` (v),
+    as the solid angle of the overlap band: integral over [a, b] of sin(pi v) pi dv =
+    cos(pi a) - cos(pi b) = 2 sin(pi (a + b) / 2) sin(pi (b - a) / 2) (the product keeps its
+    precision near the poles). Taps past a texel's footprint weigh 0."""
+    p = np.arange(dst, dtype=np.float64)
+    lo, hi = p * src / dst, (p + 1) * src / dst
+    taps = src // dst if src % dst == 0 else src // dst + 2  # texels a footprint can overlap
+    idx = np.floor(lo).astype(np.int64)[:, None] + np.arange(taps)
+    a = np.maximum(lo[:, None], idx)
+    b = np.minimum(hi[:, None], idx + 1)
+    w = np.clip(b - a, 0.0, None)
+    if on_sphere:
+        w = np.where(w > 0, 2.0 * np.sin(0.5 * math.pi * (a + b) / src) * np.sin(0.5 * math.pi * w / src), 0.0)
+    return np.minimum(idx, src - 1), w
+
+
+def mip_level(level: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The (height, width, 3) float32 mip level below ``level`` (H, W, 3): each texel the
+    solid-angle weighted mean of the texels under its footprint, a box filter on the sphere
+    (a plain box filter would weigh the small polar texels like the equatorial ones), exact for
+    any sizes, odd ones included. The weights are separable (overlap in u times solid angle in
+    v), so rows are filtered first, then columns, in float64."""
+    src = np.asarray(level, dtype=np.float32)
+    iy, wy = _box_taps(src.shape[0], height, True)
+    ix, wx = _box_taps(src.shape[1], width, False)
+    wy = wy / wy.sum(1, keepdims=True)  # normalised: the mean is the weighted sum
+    wx = wx / wx.sum(1, keepdims=True)
+    rows = np.zeros((height, src.shape[1], 3))
+    for t in range(iy.shape[1]):
+        rows += wy[:, t, None, None] * src[iy[:, t]]
+    out = np.zeros((height, width, 3))
+    for t in range(ix.shape[1]):
+        out += wx[None, :, t, None] * rows[:, ix[:, t]]
+    return out.astype(np.float32)
+
+
+def mip_chain(latlong: np.ndarray) -> list[np.ndarray]:
+    """Every level of the map's full mip chain (GL's sizes: halved, at least 1, down to 1 x 1),
+    the map itself first, each level ``mip_level`` of the one above (so each keeps the map's
+    total power, the sum of L dOmega)."""
+    out = [np.ascontiguousarray(latlong, dtype=np.float32)]
+    while out[-1].shape[:2] != (1, 1):
+        h, w = out[-1].shape[:2]
+        out.append(mip_level(out[-1], max(1, w // 2), max(1, h // 2)))
+    return out
+
+
 def lookup(latlong: np.ndarray, dirs, rotation_deg: float = 0.0) -> np.ndarray:
     """Bilinear radiance (N, 3) (or (..., 3)) of the map for world directions ``dirs``, with the
     map turned by ``rotation_deg`` about +y: L(d) = map(R_y(-rotation_deg) d)."""

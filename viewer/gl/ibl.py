@@ -4,10 +4,12 @@
 rotation *not* applied: the rotation is a uniform, so turning the map costs nothing):
 
 1. **The map** as a float RGB 2D texture with a full mip chain (``u_env_map``): the background,
-   mirror reflections and the source of every filtered lookup. The levels are made on the GPU
-   (``passes/ibl_downsample.frag``): each texel is the *solid-angle weighted* mean of the
-   texels under it, a box filter on the sphere (GL's ``glGenerateMipmap`` would weight the
-   small polar texels like equatorial ones), exact for odd sizes too.
+   mirror reflections and the source of every filtered lookup. The levels are made in numpy
+   (``viewer.environment.latlong.mip_chain``) and uploaded: each texel is the *solid-angle
+   weighted* mean of the texels under it, a box filter on the sphere (GL's
+   ``glGenerateMipmap`` would weight the small polar texels like equatorial ones), exact for
+   odd sizes too. (A GPU pass made them before; on llvmpipe its program's first draw cost
+   70-150 ms of the window's thread at every launch, where numpy takes 15 ms for 1024 x 512.)
 2. **GGX-prefiltered radiance** (``u_env_prefiltered``), one level per alpha in ``ALPHAS``
    (Walter et al. 2007's alpha): Karis 2013's split-sum first factor with n = v = r, half
    vectors drawn from D(h)(n.h) (with v = n this *is* Heitz 2018's visible-normal density),
@@ -66,7 +68,7 @@ from viewer.gl import texture_units
 
 from viewer.environment import cache
 from viewer.environment.dfg import DFG_SIZE, vndf_quadrature
-from viewer.environment.latlong import rotation_y
+from viewer.environment.latlong import mip_chain, rotation_y
 from viewer.gl.constants import IBL_MAX_LEVELS
 from viewer.gl.context import release_gl
 from viewer.gl.programs import Recipe
@@ -152,33 +154,72 @@ def holds(ibl, latlong: np.ndarray | None, constant=None) -> bool:
     return ibl.provisional is None or not cache.path_for(ibl.provisional).is_file()
 
 
+class DFGPass:
+    """The DFG table drawn on the GPU in bands of rows: ``step(rows)`` draws the next ``rows``
+    rows (``None``: all that are left) into one target held between calls, ``done`` says
+    whether every row is drawn and ``result()`` reads the table back and releases the target.
+    A texel depends on its own ``gl_FragCoord`` alone, so a table drawn in bands is the table
+    drawn at once, texel for texel. The window draws it a band a frame (``IBL.ensure_dfg``):
+    on llvmpipe a 32x32 target is one rasterizer tile, so the whole pass runs on one thread
+    (80 ms quiet; beside two busy processes its frame took half a second)."""
+
+    def __init__(self, ibl, size: int = DFG_SIZE, samples: int = DFG_SAMPLES):
+        ctx = ibl.ctx
+        self.ibl, self.size, self.row = ibl, int(size), 0
+        u, wq = vndf_quadrature(samples)
+        self.count = len(u)
+        self.width = 64
+        rows = (self.count + self.width - 1) // self.width
+        q = np.zeros((rows * self.width, 3), "f4")
+        q[: self.count, :2] = u
+        q[: self.count, 2] = wq
+        self.qtex = ctx.texture((self.width, rows), 3, q.tobytes(), dtype="f4")
+        self.qtex.filter = (ctx.NEAREST, ctx.NEAREST)
+        ibl._program("ibl_dfg")  # linked now: its first draw then makes its code
+        self.tex, self.fbo = ibl._target(self.size, self.size)
+
+    @property
+    def done(self) -> bool:
+        return self.row >= self.size
+
+    def step(self, rows: int | None = None) -> bool:
+        """Draw the next ``rows`` rows (at least one); True once every row is drawn."""
+        n = self.size - self.row if rows is None else max(1, min(int(rows), self.size - self.row))
+        if n > 0:
+            prog = self.ibl._program("ibl_dfg")  # its uniforms are set again: other passes share the unit
+            self.qtex.use(texture_units.SOURCE)
+            _set(prog, "u_quad", texture_units.SOURCE)
+            _set(prog, "u_quad_count", self.count)
+            _set(prog, "u_quad_width", self.width)
+            _set(prog, "u_size", float(self.size))
+            self.ibl._draw("ibl_dfg", self.fbo, (0, self.row, self.size, n))
+            self.row += n
+        return self.done
+
+    def result(self) -> np.ndarray:
+        """The (size, size, 2) float32 table, once ``done``; the pass's GL objects are released."""
+        try:
+            data = np.frombuffer(self.tex.read(), dtype="f4").reshape(self.size, self.size, 4)[..., :2]
+            return np.ascontiguousarray(data)
+        finally:
+            self.release()
+
+    def release(self) -> None:
+        release_gl(self.fbo, self.tex, self.qtex)
+        self.fbo = self.tex = self.qtex = None
+
+
 def render_dfg(ibl, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> np.ndarray:
     """(size, size, 2) float32 DFG table computed on the GPU: table[i, j] = (A, B) at
     NoV = (i + 0.5) / size, alpha = (j + 0.5) / size (``viewer.environment.dfg``), on
-    ``ibl``'s context and program."""
-    ctx = ibl.ctx
-    u, wq = vndf_quadrature(samples)
-    n = len(u)
-    qw = 64
-    rows = (n + qw - 1) // qw
-    q = np.zeros((rows * qw, 3), "f4")
-    q[:n, :2] = u
-    q[:n, 2] = wq
-    qtex = ctx.texture((qw, rows), 3, q.tobytes(), dtype="f4")
-    qtex.filter = (ctx.NEAREST, ctx.NEAREST)
-    prog = ibl._program("ibl_dfg")
-    qtex.use(texture_units.SOURCE)
-    _set(prog, "u_quad", texture_units.SOURCE)
-    _set(prog, "u_quad_count", n)
-    _set(prog, "u_quad_width", qw)
-    _set(prog, "u_size", float(size))
-    tex, fbo = ibl._target(size, size)
+    ``ibl``'s context and program, in one draw."""
+    job = DFGPass(ibl, size, samples)
     try:
-        ibl._draw("ibl_dfg", fbo, (0, 0, size, size))
-        data = np.frombuffer(tex.read(), dtype="f4").reshape(size, size, 4)[..., :2]
-        return np.ascontiguousarray(data)
-    finally:
-        release_gl(fbo, tex, qtex)
+        job.step()
+    except BaseException:
+        job.release()
+        raise
+    return job.result()
 
 
 class IBL:
@@ -219,6 +260,7 @@ class IBL:
         self._programs = {}
         self._vaos = {}
         self._dfg_s = 0.0
+        self._dfg_job = None  # a DFGPass made a band at a time (``ensure_dfg(rows)``)
         self._quick_sh_source = None
 
     # ------------------------------------------------------------------ helpers
@@ -250,7 +292,10 @@ class IBL:
         if name == "ibl_dfg" and self.dfg_tex is not None:
             self.dfg_tex.release()
             self.dfg_tex = None
-        if name in ("ibl_downsample", "ibl_prefilter", "ibl_dfg"):
+        if name == "ibl_dfg" and self._dfg_job is not None:  # its bands drawn so far are the old program's
+            self._dfg_job.release()
+            self._dfg_job = None
+        if name in ("ibl_prefilter", "ibl_dfg"):
             self._key = None
             self._last_ident = None
             self._uploaded = None  # the mip chain is made again by the program as edited
@@ -312,8 +357,7 @@ class IBL:
             self._last_ident = ident
             return
         tc = time.perf_counter()
-        for name in ("ibl_downsample", "ibl_prefilter"):
-            self._program(name)
+        self._program("ibl_prefilter")
         t_compile = time.perf_counter() - tc
         self.ensure_dfg()
         h, w = img.shape[:2]
@@ -421,39 +465,18 @@ class IBL:
             self._uploaded = key
 
     def _upload_map(self, img: np.ndarray):
-        """The map with its solid-angle weighted mip chain, built level by level on the GPU."""
+        """The map with its solid-angle weighted mip chain (``latlong.mip_chain``)."""
         ctx = self.ctx
         h, w = img.shape[:2]
-        self._quick_sh_source = None  # the first level at most SH_QUICK_WIDTH wide, read back below
+        chain = mip_chain(img)
+        # the first level at most SH_QUICK_WIDTH wide: the quick prefilter's SH source
+        self._quick_sh_source = next((lev for lev in chain[1:] if lev.shape[1] <= SH_QUICK_WIDTH), None)
         if self.map_tex is not None:
             self.map_tex.release()
-        tex = ctx.texture((w, h), 3, img.tobytes(), dtype="f4")
+        tex = ctx.texture((w, h), 3, chain[0].tobytes(), dtype="f4")
         tex.build_mipmaps()  # allocates the chain (GL's box filter); every level is overwritten
-        sizes = mip_sizes(w, h)
-        prog = self._program("ibl_downsample")
-        tex.filter = (ctx.NEAREST_MIPMAP_NEAREST, ctx.NEAREST)  # texelFetch only while building
-        tex.use(texture_units.SOURCE)
-        _set(prog, "u_src", texture_units.SOURCE)
-        scratch = None
-        try:
-            for k in range(1, len(sizes)):
-                sw, sh_ = sizes[k - 1]
-                dw, dh = sizes[k]
-                if scratch is None or scratch[0].size != (dw, dh):
-                    if scratch is not None:
-                        release_gl(scratch[1], scratch[0])
-                    scratch = self._target(dw, dh)
-                _set(prog, "u_src_level", k - 1)
-                _set(prog, "u_src_size", (float(sw), float(sh_)))
-                _set(prog, "u_dst_size", (float(dw), float(dh)))
-                self._draw("ibl_downsample", scratch[1], (0, 0, dw, dh))
-                data = np.frombuffer(scratch[0].read(), dtype="f4").reshape(dh, dw, 4)[:, :, :3]
-                tex.write(np.ascontiguousarray(data).tobytes(), level=k)
-                if self._quick_sh_source is None and dw <= SH_QUICK_WIDTH:
-                    self._quick_sh_source = np.ascontiguousarray(data)
-        finally:
-            if scratch is not None:
-                release_gl(scratch[1], scratch[0])
+        for k, level in enumerate(chain[1:], start=1):
+            tex.write(level.tobytes(), level=k)
         tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
         tex.repeat_x = True
         tex.repeat_y = False
@@ -482,20 +505,40 @@ class IBL:
             release_gl(fbo, tex)
 
     # ------------------------------------------------------------------ DFG
-    def ensure_dfg(self) -> None:
-        """Make the DFG table now (from the disk cache, else on the GPU) unless it is made
-        (the window makes it in a frame of its own: ``viewer.app.view_prep``)."""
+    def ensure_dfg(self, rows: int | None = None) -> bool:
+        """Make the DFG table (from the disk cache, else on the GPU) unless it is made; True
+        once it is. ``rows``: on a cache miss, make only so much of it this call, for a frame's
+        share (``viewer.app.view_prep``): the first call links the pass's program, each later
+        one draws the next ``rows`` rows (``DFGPass``); ``None``: all of it now."""
         if self.dfg_tex is not None:
-            self._dfg_s = 0.0
-            return
+            return True
         t0 = time.perf_counter()
         settings = {"size": DFG_SIZE, "samples": DFG_SAMPLES}
         key = cache.content_key(None, settings, kind="dfg")
-        hit = cache.load(key, kind="dfg", expect={"dfg": (DFG_SIZE, DFG_SIZE, 2)}) if self.use_cache else None
-        if hit is not None:
-            table = hit["dfg"].astype("f4")
-        else:
-            table = render_dfg(self, DFG_SIZE, DFG_SAMPLES)
+        table = None
+        if self._dfg_job is None:
+            self._dfg_s = 0.0
+            hit = cache.load(key, kind="dfg", expect={"dfg": (DFG_SIZE, DFG_SIZE, 2)}) if self.use_cache else None
+            if hit is not None:
+                table = hit["dfg"].astype("f4")
+            else:
+                self._dfg_job = DFGPass(self, DFG_SIZE, DFG_SAMPLES)
+                if rows is not None:
+                    self._dfg_s += time.perf_counter() - t0
+                    return False
+        if table is None:
+            job = self._dfg_job
+            try:
+                job.step(rows)
+            except BaseException:
+                job.release()
+                self._dfg_job = None
+                raise
+            if not job.done:
+                self._dfg_s += time.perf_counter() - t0
+                return False
+            self._dfg_job = None
+            table = job.result()
             if self.use_cache:
                 cache.store(key, {"dfg": table}, kind="dfg")
         tex = self.ctx.texture((DFG_SIZE, DFG_SIZE), 2, np.ascontiguousarray(table).tobytes(), dtype="f4")
@@ -504,7 +547,14 @@ class IBL:
         tex.repeat_y = False
         self.dfg_tex = tex
         self.dfg = table
-        self._dfg_s = time.perf_counter() - t0
+        self._dfg_s += time.perf_counter() - t0
+        return True
+
+    @property
+    def dfg_rows(self) -> tuple[int, int] | None:
+        """(rows drawn, rows) of a DFG table being made a band at a time, else None."""
+        job = self._dfg_job
+        return None if job is None else (job.row, job.size)
 
     # ------------------------------------------------------------------ cube map
     def cubemap(self, size: int | None = None, rotation_deg: float = 0.0, supersample: int = 1):
@@ -570,6 +620,9 @@ class IBL:
             if t is not None:
                 t.release()
         self.map_tex = self.prefiltered = self.dfg_tex = self.cube = None
+        if self._dfg_job is not None:
+            self._dfg_job.release()
+            self._dfg_job = None
         self._uploaded = self._content_last = None
         for v in self._vaos.values():
             v.release()
