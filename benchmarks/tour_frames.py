@@ -197,7 +197,9 @@ def main(argv):
     # compile the programs itself, and the frames above are then not the design's
     ca = s.compiles.child
     ahead = "off" if ca is None else (f"the shown scene's child {'running' if ca.alive else 'ended: ' + ca.error}, "
-                                      f"{ca.replaced} replaced for silence")
+                                      f"{ca.replaced} replaced for silence, "
+                                      f"{len(ca.ended)} ended by themselves"
+                                      + (f" ({'; '.join(ca.ended)})" if ca.ended else ""))
     app.close()
     for what, col in (("wall time", "frames"), ("the window thread's CPU time", "cpu")):
         worst = max(max(r[col]) for r in rows)

@@ -497,3 +497,50 @@ def test_a_scene_s_text_for_the_child_is_written_once_per_state(gl_ctx):
     finally:
         s.release()
         renderer.release()
+
+
+# a stand-in child that gets ready, then dies on its first request as a driver crash would
+# (a message on stderr, a non-zero status)
+CRASHES_ON_WORK = [sys.executable, "-c", (
+    "import sys\n"
+    "print('{\"ready\": true}', flush=True)\n"
+    "sys.stdin.readline()\n"
+    "sys.stderr.write('Segmentation fault in the driver\\n')\n"
+    "sys.exit(139)\n")]
+NEVER_READY = [sys.executable, "-c", "import sys; sys.stderr.write('no EGL display\\n'); sys.exit(1)"]
+
+
+def test_a_child_that_ends_by_itself_is_started_again_a_few_times_with_a_notice():
+    """A child that was serving and ended by itself (a crash) is started again, so the window
+    does not make every later program itself; what it held fails (the window makes it). After
+    ``RESTARTS`` such ends it stays down with its reason, and a child that never got ready (no
+    context) is not started again at all."""
+    from viewer.app.compile_ahead import RESTARTS
+
+    notes = []
+    ca = CompileAhead(on_notice=notes.append, command=CRASHES_ON_WORK, leash=math.inf)
+    try:
+        pids = []
+        for k in range(RESTARTS + 1):
+            _wait(lambda: ca.ready, "the child to be ready", 60)
+            assert ca.alive and ca.pid not in pids
+            pids.append(ca.pid)
+            rid = ca.request(_scene("default", preset=["glass", "gold", "copper", "silver"][k]), urgent=True)
+            assert rid is not None
+            _wait(lambda: ca.answered(rid), "the crash's answer", 60)
+            assert not ca.done[rid]["ok"] and ca.done[rid]["error"] == "Segmentation fault in the driver"
+            if k < RESTARTS:
+                _wait(lambda: len(notes) == k + 1, "the notice", 60)
+                assert "ended (Segmentation fault in the driver): restarted it" in notes[k]
+        _wait(lambda: not ca.alive, "the last end", 60)
+        assert ca.error == "Segmentation fault in the driver" and len(notes) == RESTARTS
+        assert ca.ended == ["Segmentation fault in the driver"] * (RESTARTS + 1)
+        assert ca.request(_scene("sphere")) is None  # the window compiles from here on
+    finally:
+        ca.stop()
+    never = CompileAhead(command=NEVER_READY, leash=math.inf)
+    try:
+        _wait(lambda: not never.alive, "the child that cannot start", 60)
+        assert never.error == "no EGL display" and never.ended == []
+    finally:
+        never.stop()

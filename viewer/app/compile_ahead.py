@@ -25,9 +25,12 @@ The window keeps drawing the material as it was until the child reports the new 
 with work outstanding: then it is replaced and the window compiles the change itself. Requests marked ``urgent`` (the material just changed) go
 before the compile-ahead of the scene's presets. Without a driver cache (a driver that keeps
 none, or ``MESA_SHADER_CACHE_DISABLE``) the window still compiles the program itself, after
-the child's tables, and the frames of that compile are as long as before. Any failure of the child
-that serves the scene shown (no EGL, a crash) turns compile-ahead off with ``error`` set: the
-window then compiles as it always did; a failure of the other stops only the work ahead.
+the child's tables, and the frames of that compile are as long as before. A child that ends by
+itself after it was ready (a crash in the driver, a kill from outside) is started again,
+``RESTARTS`` times at most, with a notice; what it held is compiled by the window. Any other
+failure of the child that serves the scene shown (no EGL, a child that cannot start, the last
+restart ended too) turns compile-ahead off with ``error`` set: the window then compiles as it
+always did; a failure of the other stops only the work ahead.
 
 Two such children run (``CompileAhead``): one for the scene the window shows, at the window's own
 priority, and one for the next lecture step and the warm-up, at niceness ``AHEAD_NICE`` above it
@@ -327,6 +330,8 @@ def serve(inp=sys.stdin, out=sys.stdout) -> int:
 #: (at nice 10 beside two busy processes on two cores a child got a tenth of a core, and a traced
 #: step's ~10 CPU s took 30-100 s), the next step's and the warm-up's behind the window's frames
 URGENT_NICE, AHEAD_NICE = 0, 10
+#: how many times a child that ended by itself after it was ready is started again, per child
+RESTARTS = 3
 
 
 class _Child:
@@ -340,6 +345,7 @@ class _Child:
         self.ready = False
         self.error = ""
         self.replaced = 0
+        self.ended: list[str] = []  # why each of its processes that ended after it was ready ended
         self.sent: dict[int, float] = {}
         self.priority: dict[int, list] = {}
         self.silence = Silence()
@@ -393,6 +399,7 @@ class CompileAhead:
         self._ids: dict[str, int] = {}  # request text -> id (a scene asked for again is not redone)
         self._urgent = _Child("urgent", URGENT_NICE)
         self._ahead: _Child | None = None  # started with the first request of the next step or the warm-up
+        self._stopping = False
         self._start(self._urgent)
 
     def _start(self, child: _Child) -> None:
@@ -435,6 +442,12 @@ class CompileAhead:
     def replaced(self) -> int:
         """Children killed for silence, both kinds together."""
         return sum(c.replaced for c in self._children())
+
+    @property
+    def ended(self) -> list[str]:
+        """Why each child process that ended by itself after it was ready ended (the urgent
+        child's first), whether or not it was started again."""
+        return [w for c in self._children() for w in c.ended]
 
     @property
     def alive(self) -> bool:
@@ -492,9 +505,16 @@ class CompileAhead:
                 line = {"id": rid, "scene": text, "base_dir": base, "priority": priority}
         try:
             child.write(line)
-        except (OSError, ValueError) as e:
-            child.error = child.error or f"stopped ({e})"
-            self._fail(child, "stopped")
+        except (OSError, ValueError, AttributeError) as e:
+            # its process ended (or was just replaced): the reader thread that sees it end
+            # starts another or says why it stays down; this request is made by the window
+            with self._lock:
+                if "id" in line and child.sent.pop(rid, None) is not None:
+                    child.priority.pop(rid, None)
+                    if not any(rid in c.sent for c in self._children()):
+                        self.done.setdefault(rid, {"id": rid, "ok": False, "error": f"stopped ({e})"})
+                if child.proc is None:
+                    child.error = child.error or f"stopped ({e})"
             return None
         return rid
 
@@ -587,10 +607,24 @@ class CompileAhead:
         rc = proc.wait()
         if proc is not child.proc:
             return  # replaced: the new child carries on
-        if not child.error:
-            last = [x for x in err.strip().splitlines() if x.strip()]
-            child.error = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
-        self._fail(child, child.error)  # what it held is compiled by the window, or by the other child
+        last = [x for x in err.strip().splitlines() if x.strip()]
+        why = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
+        with self._lock:
+            # a child that was serving and ended by itself (a crash in the driver, a kill from
+            # outside) is started again, RESTARTS times at most: the window would otherwise make
+            # every later program itself, frames of seconds; one that never got ready (no
+            # context) would fail alike again, and one told to stop is not started again
+            again = child.ready and not self._stopping and why != "stopped" and len(child.ended) < RESTARTS
+            if child.ready and why != "stopped":
+                child.ended.append(why)
+        if not child.error and not again:
+            child.error = why
+        self._fail(child, why)  # what it held is compiled by the window, or by the other child
+        if again:
+            self._start(child)
+            if self.on_notice is not None:
+                which = "" if child is self._urgent else " (the next step's and the warm-up's)"
+                self.on_notice(f"the compile-ahead process{which} ended ({why}): restarted it")
         if self.on_done is not None:
             self.on_done()
 
@@ -598,6 +632,8 @@ class CompileAhead:
         """End both children (a request half done is simply not answered)."""
         from viewer.app.prefetch import stop_child
 
+        with self._lock:
+            self._stopping = True
         children = self._children()
         for c in children:
             if c.proc is not None and c.proc.poll() is None:
