@@ -6,6 +6,7 @@ test waits on the timing of a process)."""
 import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import pytest
 
 from viewer.app.compile_ahead import CompileAhead, params_key, prepare
 from viewer.gl.material_tables import MaterialTables
-from viewer.scene import load_scene, material_from_name
+from viewer.scene import load_scene, material_from_name, scene_to_toml
 
 
 def test_prepare_compiles_the_frames_programs_and_exports_tables_the_window_would_build(gl_ctx):
@@ -544,3 +545,32 @@ def test_a_child_that_ends_by_itself_is_started_again_a_few_times_with_a_notice(
         assert never.error == "no EGL display" and never.ended == []
     finally:
         never.stop()
+
+
+# a stand-in child that gets ready and then never reads its input (as a child's reader thread
+# cannot while its main thread holds the interpreter lock through a long GL call)
+NEVER_READS = [sys.executable, "-c", "import sys, time; print('{\"ready\": true}', flush=True); time.sleep(600)"]
+
+
+def test_the_window_never_waits_on_a_child_that_does_not_read():
+    """Requests to a child that reads nothing fill its pipe (64 KB: sixteen gallery scenes);
+    asking must not wait for it, however many are asked. Run on a thread with a bound that
+    only catches a hang: the old write from the window's thread never returned here."""
+    ca = CompileAhead(command=NEVER_READS, leash=math.inf)
+    try:
+        _wait(lambda: ca.ready, "the child to be ready", 60)
+        got = []
+
+        gallery = load_scene("gallery")
+        text = scene_to_toml(gallery, absolute_paths=True)
+
+        def ask():
+            for k in range(40):  # 40 different requests of about 4 KB each
+                got.append(ca.request(gallery, urgent=False, text=f"{text}\n# request {k}\n"))
+        t = threading.Thread(target=ask, daemon=True)
+        t.start()
+        t.join(120)
+        assert not t.is_alive(), "a request waited on the child's full pipe"
+        assert len(got) == 40 and None not in got and ca.outstanding == len(set(got))
+    finally:
+        ca.stop(timeout=5)

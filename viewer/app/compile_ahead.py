@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import subprocess
 import sys
 import threading
@@ -349,16 +350,42 @@ class _Child:
         self.sent: dict[int, float] = {}
         self.priority: dict[int, list] = {}
         self.silence = Silence()
-        self.writing = threading.Lock()  # a line written whole (the window and a reader thread write)
+        self.outbox = None  # the lines for its process, written by a thread of their own
 
     @property
     def pid(self) -> int | None:
         return None if self.proc is None else self.proc.pid
 
     def write(self, line: dict) -> None:
-        with self.writing:
-            self.proc.stdin.write(json.dumps(line) + "\n")
-            self.proc.stdin.flush()
+        """Queue ``line`` for the child's process; never waits. A child reads its input on a
+        thread of its own, which cannot run while its main thread is in a GL call (the
+        interpreter lock is held through it: seconds for a traced program's code at a low
+        priority on a loaded machine), so its pipe fills: the gallery's forty presets' scene
+        texts are 160 KB, the pipe holds 64 KB, and a write from the window's thread then
+        waited seconds (a 5.4 s frame, with no CPU used in it)."""
+        if self.outbox is None:
+            raise OSError("not running")
+        self.outbox.put(json.dumps(line) + "\n")
+
+    @staticmethod
+    def pump(proc, outbox) -> None:
+        """The writer thread of one process: its queued lines in order, until the ``None`` that
+        ``close`` queues (then its input is closed) or the process is gone."""
+        while (text := outbox.get()) is not None:
+            try:
+                proc.stdin.write(text)
+                proc.stdin.flush()
+            except (OSError, ValueError):
+                return  # it ended: its reader thread sees that and says why
+        try:
+            proc.stdin.close()
+        except (OSError, ValueError):
+            pass
+
+    def close(self) -> None:
+        """Close the process's input once the lines queued before are written (it then ends)."""
+        if self.outbox is not None:
+            self.outbox.put(None)
 
 
 class CompileAhead:
@@ -412,8 +439,11 @@ class CompileAhead:
             return
         child.proc, child.ready = proc, False
         child.silence = Silence(proc.pid)
-        threading.Thread(target=self._read, args=(child, proc), name=f"brdf-viewer-compile-ahead-{child.role}",
-                         daemon=True).start()
+        child.outbox = queue.SimpleQueue()
+        threading.Thread(target=self._read, args=(child, proc, child.outbox),
+                         name=f"brdf-viewer-compile-ahead-{child.role}", daemon=True).start()
+        threading.Thread(target=_Child.pump, args=(proc, child.outbox),
+                         name=f"brdf-viewer-compile-ahead-{child.role}-input", daemon=True).start()
 
     def _children(self) -> list[_Child]:
         return [c for c in (self._urgent, self._ahead) if c is not None]
@@ -568,7 +598,13 @@ class CompileAhead:
             self.on_notice(f"the compile-ahead process{which} did not answer within {self.leash:g} s: "
                            f"restarted it; compiling here meanwhile")
 
-    def _read(self, child: _Child, proc):
+    def _read(self, child: _Child, proc, outbox):
+        try:
+            self._read_lines(child, proc)
+        finally:
+            outbox.put(None)  # its writer thread ends too
+
+    def _read_lines(self, child: _Child, proc):
         for line in proc.stdout:
             try:
                 msg = json.loads(line)
@@ -637,10 +673,7 @@ class CompileAhead:
         children = self._children()
         for c in children:
             if c.proc is not None and c.proc.poll() is None:
-                try:
-                    c.proc.stdin.close()
-                except OSError:
-                    pass
+                c.close()
         for c in children:
             stop_child(c.proc, timeout)
             c.error = c.error or "stopped"
