@@ -646,6 +646,7 @@ class CompileAhead:
         last = [x for x in err.strip().splitlines() if x.strip()]
         why = (last[-1] if last else f"exit status {rc}") if rc not in (0, -15) else "stopped"
         with self._lock:
+            child.outbox = None  # a request from now on fails at once, not queued for the dead
             # a child that was serving and ended by itself (a crash in the driver, a kill from
             # outside) is started again, RESTARTS times at most: the window would otherwise make
             # every later program itself, frames of seconds; one that never got ready (no
