@@ -115,8 +115,8 @@ class ViewPrep:
         if env.map is not None and read is not True:
             out.append(Part("the environment map", "map"))
         if ibl.dfg_tex is None:
-            rows = ibl.dfg_rows
-            out.append(Part("the DFG table" if rows is None else f"the DFG table ({rows[0]} of {rows[1]} rows drawn)",
+            job = ibl.dfg_job  # made a band of rows a frame
+            out.append(Part("the DFG table" if job is None else f"the DFG table ({job.row} of {job.size} rows drawn)",
                             "dfg"))
         if size is not None and not ssr_on and not r.output.holds(size[0], size[1], drawn.render.msaa):
             out.append(Part("the view's targets", "targets"))

@@ -192,7 +192,11 @@ class DFGPass:
             _set(prog, "u_quad_count", self.count)
             _set(prog, "u_quad_width", self.width)
             _set(prog, "u_size", float(self.size))
-            self.ibl._draw("ibl_dfg", self.fbo, (0, self.row, self.size, n))
+            try:
+                self.ibl._draw("ibl_dfg", self.fbo, (0, self.row, self.size, n))
+            except BaseException:
+                self.release()
+                raise
             self.row += n
         return self.done
 
@@ -214,12 +218,18 @@ def render_dfg(ibl, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> np.ndar
     NoV = (i + 0.5) / size, alpha = (j + 0.5) / size (``viewer.environment.dfg``), on
     ``ibl``'s context and program, in one draw."""
     job = DFGPass(ibl, size, samples)
-    try:
-        job.step()
-    except BaseException:
-        job.release()
-        raise
+    job.step()
     return job.result()
+
+
+def _dfg_key() -> str:
+    return cache.content_key(None, {"size": DFG_SIZE, "samples": DFG_SAMPLES}, kind="dfg")
+
+
+def _dfg_on_disk() -> np.ndarray | None:
+    """The DFG table from the disk cache (None: not there, or unreadable)."""
+    hit = cache.load(_dfg_key(), kind="dfg", expect={"dfg": (DFG_SIZE, DFG_SIZE, 2)})
+    return None if hit is None else hit["dfg"].astype("f4")
 
 
 class IBL:
@@ -260,7 +270,7 @@ class IBL:
         self._programs = {}
         self._vaos = {}
         self._dfg_s = 0.0
-        self._dfg_job = None  # a DFGPass made a band at a time (``ensure_dfg(rows)``)
+        self.dfg_job = None  # the DFGPass being made a band at a time (``ensure_dfg(rows)``)
         self._quick_sh_source = None
 
     # ------------------------------------------------------------------ helpers
@@ -292,9 +302,9 @@ class IBL:
         if name == "ibl_dfg" and self.dfg_tex is not None:
             self.dfg_tex.release()
             self.dfg_tex = None
-        if name == "ibl_dfg" and self._dfg_job is not None:  # its bands drawn so far are the old program's
-            self._dfg_job.release()
-            self._dfg_job = None
+        if name == "ibl_dfg" and self.dfg_job is not None:  # its bands drawn so far are the old program's
+            self.dfg_job.release()
+            self.dfg_job = None
         if name in ("ibl_prefilter", "ibl_dfg"):
             self._key = None
             self._last_ident = None
@@ -509,38 +519,31 @@ class IBL:
         """Make the DFG table (from the disk cache, else on the GPU) unless it is made; True
         once it is. ``rows``: on a cache miss, make only so much of it this call, for a frame's
         share (``viewer.app.view_prep``): the first call links the pass's program, each later
-        one draws the next ``rows`` rows (``DFGPass``); ``None``: all of it now."""
+        one draws the next ``rows`` rows (``dfg_job``, a ``DFGPass``); ``None``: all of it now."""
         if self.dfg_tex is not None:
             return True
         t0 = time.perf_counter()
-        settings = {"size": DFG_SIZE, "samples": DFG_SAMPLES}
-        key = cache.content_key(None, settings, kind="dfg")
         table = None
-        if self._dfg_job is None:
+        if self.dfg_job is None:
             self._dfg_s = 0.0
-            hit = cache.load(key, kind="dfg", expect={"dfg": (DFG_SIZE, DFG_SIZE, 2)}) if self.use_cache else None
-            if hit is not None:
-                table = hit["dfg"].astype("f4")
-            else:
-                self._dfg_job = DFGPass(self, DFG_SIZE, DFG_SAMPLES)
+            table = _dfg_on_disk() if self.use_cache else None
+            if table is None:
+                self.dfg_job = DFGPass(self, DFG_SIZE, DFG_SAMPLES)
                 if rows is not None:
                     self._dfg_s += time.perf_counter() - t0
                     return False
         if table is None:
-            job = self._dfg_job
+            job = self.dfg_job
             try:
-                job.step(rows)
-            except BaseException:
-                job.release()
-                self._dfg_job = None
-                raise
-            if not job.done:
-                self._dfg_s += time.perf_counter() - t0
-                return False
-            self._dfg_job = None
-            table = job.result()
+                if not job.step(rows):
+                    self._dfg_s += time.perf_counter() - t0
+                    return False
+                table = job.result()
+            finally:
+                if job.tex is None:  # read back, or failed: released
+                    self.dfg_job = None
             if self.use_cache:
-                cache.store(key, {"dfg": table}, kind="dfg")
+                cache.store(_dfg_key(), {"dfg": table}, kind="dfg")
         tex = self.ctx.texture((DFG_SIZE, DFG_SIZE), 2, np.ascontiguousarray(table).tobytes(), dtype="f4")
         tex.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
         tex.repeat_x = False
@@ -549,12 +552,6 @@ class IBL:
         self.dfg = table
         self._dfg_s += time.perf_counter() - t0
         return True
-
-    @property
-    def dfg_rows(self) -> tuple[int, int] | None:
-        """(rows drawn, rows) of a DFG table being made a band at a time, else None."""
-        job = self._dfg_job
-        return None if job is None else (job.row, job.size)
 
     # ------------------------------------------------------------------ cube map
     def cubemap(self, size: int | None = None, rotation_deg: float = 0.0, supersample: int = 1):
@@ -620,9 +617,9 @@ class IBL:
             if t is not None:
                 t.release()
         self.map_tex = self.prefiltered = self.dfg_tex = self.cube = None
-        if self._dfg_job is not None:
-            self._dfg_job.release()
-            self._dfg_job = None
+        if self.dfg_job is not None:
+            self.dfg_job.release()
+            self.dfg_job = None
         self._uploaded = self._content_last = None
         for v in self._vaos.values():
             v.release()
