@@ -350,6 +350,7 @@ class _Child:
 
     def __init__(self):
         self.asked, self.finished, self.done = [], False, {}
+        self.compiled, self.tables = set(), {}
 
     def request(self, scene, urgent=True, batch=0, ahead=False, lead=False, text=None):
         self.asked.append((scene, urgent, lead))
@@ -703,4 +704,53 @@ def test_a_traced_views_tiles_come_once_each_program_is_drawn_in_their_state_one
         s.renderer.render = render
         _assert_traced_as_at_once(gl_ctx, s)   # the trial draws left no trace in the image
     finally:
+        s.release()
+
+
+def test_a_prepared_traced_step_opens_from_the_cache_while_its_programs_compile_beside(gl_ctx, tmp_path, monkeypatch):
+    """A traced lecture step prepared for this view (its traced frame in the cache, as ``bake
+    --lecture`` leaves it) opens from the cache in the first frame that can read it (once its
+    map is read on the preparation's thread), though none of its programs is made and the
+    compile-ahead child never answers: never grey stand-ins or a placeholder waiting for
+    programs it does not need, no "compiling" read-out over it, and the image is the prepared
+    one. (The soap bubbles' step, prepared, showed stand-ins for 5 s and more beside two busy
+    processes while its traced programs compiled.)"""
+    from viewer.app.session import Session
+    from viewer.gl.raytrace import ProgressiveTrace
+    from viewer.gl.renderer import Renderer
+    from viewer.scene.lecture import TOUR, tour_scene
+
+    monkeypatch.setenv("BRDF_VIEWER_CACHE", str(tmp_path))
+    step = [t.key for t in TOUR].index("tir")
+    other, pt = Renderer(gl_ctx), ProgressiveTrace(gl_ctx)
+    try:  # prepared by another renderer, as the bake's process does
+        pt.start(other, tour_scene(step), None, *SIZE, store=True)
+        while not pt.done:
+            pt.step(0.05)
+        assert pt.stored is not None
+        want = pt.image()
+    finally:
+        pt.release()
+        other.release()
+    s = Session(gl_ctx, "default", renderer=Renderer(gl_ctx), prefetch=False, compile_ahead=True,
+                prepare_frames=True)
+    s.compiles.child = _Child()
+    try:
+        s.lecture(step)
+        forms = []
+        for _ in range(400):  # a bound against a hang: the map's read takes a few frames
+            s.render_view(SIZE)
+            forms.append(getattr(s.frame_source, "form", None))
+            if forms[-1] == "own":
+                break
+            time.sleep(0.002)
+        assert forms[-1] == "own", forms
+        assert set(forms[:-1]) <= {PREPARING}, forms  # the placeholder while the map is read, nothing else
+        assert s.quality == "full" and not s.tracing and not s.dirty
+        assert np.array_equal(s.renderer.read_linear(s.hdr), want)
+        assert not s.pending and "compiling" not in s.trace_status and "preparing" not in s.trace_status
+        assert any("from the prepared cache" in m.text for m in s.messages[-3:])
+        assert not s.frames.prep.active
+    finally:
+        s.compiles.child = None
         s.release()

@@ -138,6 +138,11 @@ class CompileControl:
             self.child = CompileAhead(on_done=lambda: s.wake and s.wake(), on_notice=s.notify)
         return self.child if self.child.alive else None
 
+    def nothing_awaited(self) -> None:
+        """The view waits for no program (drawn with its own, or shown from a prepared frame):
+        no "compiling" read-out, and no redraw when the child answers."""
+        self.pending, self.awaiting, self.awaiting_flat = [], None, None
+
     def held_back(self, rt_now, rt_held, stale: bool):
         """What to draw while programs compile beside the window: None (the scene, now: nothing
         to compile, or no child to compile it), a copy of the scene with the changed materials
@@ -163,7 +168,7 @@ class CompileControl:
         missing = [n for n, k in keys.items() if k not in progs
                    or (needs_tables(s.scene.materials[n]) and not tables.ready(s.scene.materials[n]))]
         if not missing:  # drawn with its own programs: nothing is awaited for this scene
-            self.pending, self.awaiting, self.awaiting_flat = [], None, None
+            self.nothing_awaited()
             return None
         ca = self.worker()
         traced = rt_held is False and s.renderer.traces(s.scene)

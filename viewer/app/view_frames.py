@@ -208,10 +208,17 @@ class ViewFrames:
             self._mean.reset()
         traced = self._progressive()
         quality = "preview" if interacting else "full"
+        # a prepared traced view (a lecture step baked for this window) opens from the traced-
+        # frame cache at once: it needs none of the programs, tables and textures a drawn frame
+        # needs, so nothing is held back or prepared for it (they compile beside for the next change)
+        prepared = traced and not interacting and restart and self._prepared(rw, rh)
+        if prepared:
+            s.compiles.nothing_awaited()
+            self.prep.finish()
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
-            if s.compiles.on else None
+            if s.compiles.on and not prepared else None
         as_drawn = s.scene if held is None or held is UNTRACED else held  # the scene as this frame draws it
-        if held is not KEEP_IMAGE and self.prep.needed(self.frame_source, None if interacting else as_drawn,
+        if not prepared and held is not KEEP_IMAGE and self.prep.needed(self.frame_source, None if interacting else as_drawn,
                                                        False if traced else None) \
                 and self._prepare(as_drawn, traced, rw, rh):
             return  # the placeholder (or the image kept): still dirty, so the next frame follows at once
@@ -410,6 +417,12 @@ class ViewFrames:
         # the true time: from the still view's first frame to the last tile, frames between included
         s.notify(f"ray traced in {t.elapsed_s:.1f} s ({t.steps} tiles, {t.trace_s:.1f} s of them tracing)")
         return "full"
+
+    def _prepared(self, w, h) -> bool:
+        """The traced-frame cache holds the still view at (w, h), and finding out needs no map
+        read here (a map not read yet is read on the preparation's thread; a later frame asks
+        again)."""
+        return self.session.scene.environment.map_read() and self._trace_cached(w, h)
 
     def _trace_cached(self, w, h) -> bool:
         """The traced-frame cache holds the still view at (w, h)."""

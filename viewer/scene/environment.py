@@ -46,6 +46,14 @@ class Environment:
 
         return isinstance(self.map, str) and self.map in builtin_names()
 
+    def map_read(self, width: int = 1024, height: int = 512) -> bool:
+        """Whether ``radiance_map(width, height)`` returns without reading or generating the map
+        (it has none, or it was decoded already)."""
+        if self.map is None:
+            return True
+        key = (str(self.map), type(self.map).__name__) + ((width, height) if self.is_builtin else ())
+        return key in self.__dict__.get("_map_cache", {})
+
     def radiance_map(self, width: int = 1024, height: int = 512) -> np.ndarray | None:
         """float32 (H, W, 3) lat-long radiance with ``intensity`` applied and the rotation *not*
         applied (``lookup`` and the GPU apply it when they look up); None for a constant
