@@ -738,7 +738,8 @@ def test_a_prepared_traced_step_opens_from_the_cache_while_its_programs_compile_
     try:
         s.lecture(step)
         forms = []
-        for _ in range(400):  # a bound against a hang: the map's read takes a few frames
+        deadline = time.monotonic() + 120  # a bound against a hang, not a timing (the map is read beside)
+        while time.monotonic() < deadline:
             s.render_view(SIZE)
             forms.append(getattr(s.frame_source, "form", None))
             if forms[-1] == "own":
