@@ -211,7 +211,7 @@ class ViewFrames:
         # a prepared traced view (a lecture step baked for this window) opens from the traced-
         # frame cache at once: it needs none of the programs, tables and textures a drawn frame
         # needs, so nothing is held back or prepared for it (they compile beside for the next change)
-        prepared = traced and not interacting and restart and self._prepared(rw, rh)
+        prepared = traced and not interacting and restart and opens_prepared(s, rw, rh)
         if prepared:
             s.compiles.nothing_awaited()
             self.prep.finish()
@@ -386,7 +386,7 @@ class ViewFrames:
         if restart:
             self._untraced_tiles = False
         if (restart or not t.active) and not self._untraced_tiles:
-            if self._tiled(s.scene, w, h) and not self._trace_cached(w, h):
+            if self._tiled(s.scene, w, h) and not trace_cached(self.session, w, h):
                 self._untraced_tiles = True
                 t.cancel()
         if self._untraced_tiles:
@@ -417,21 +417,6 @@ class ViewFrames:
         # the true time: from the still view's first frame to the last tile, frames between included
         s.notify(f"ray traced in {t.elapsed_s:.1f} s ({t.steps} tiles, {t.trace_s:.1f} s of them tracing)")
         return "full"
-
-    def _prepared(self, w, h) -> bool:
-        """The traced-frame cache holds the still view at (w, h), and finding out needs no map
-        read here (a map not read yet is read on the preparation's thread; a later frame asks
-        again)."""
-        return self.session.scene.environment.map_read() and self._trace_cached(w, h)
-
-    def _trace_cached(self, w, h) -> bool:
-        """The traced-frame cache holds the still view at (w, h)."""
-        from viewer.gl import trace_cache
-
-        s = self.session
-        key = trace_cache.frame_key(s.scene, s.camera, w, h, s.view_mode, None,
-                                    s.ctx.info.get("GL_RENDERER", ""))
-        return trace_cache.path_for(key).exists()
 
     def _keep_view(self):
         """Copy the view's image into a texture of the session's own unless it has one already
@@ -474,3 +459,18 @@ class ViewFrames:
             s.notify(msg, error=True)
             print("brdf-viewer: " + msg, file=sys.stderr, flush=True)
         self._nonfinite_said = msg
+
+
+def trace_cached(session, w, h) -> bool:
+    """The traced-frame cache holds ``session``'s still view at (w, h)."""
+    from viewer.gl import trace_cache
+
+    key = trace_cache.frame_key(session.scene, session.camera, w, h, session.view_mode, None,
+                                session.ctx.info.get("GL_RENDERER", ""))
+    return trace_cache.path_for(key).exists()
+
+
+def opens_prepared(session, w, h) -> bool:
+    """``trace_cached``, where finding out needs no map read on this thread (a map not read yet
+    is read on the preparation's thread; a later frame asks again)."""
+    return session.scene.environment.map_read() and trace_cached(session, w, h)
