@@ -535,16 +535,14 @@ class CompileAhead:
                 line = {"id": rid, "scene": text, "base_dir": base, "priority": priority}
         try:
             child.write(line)
-        except (OSError, ValueError, AttributeError) as e:
-            # its process ended (or was just replaced): the reader thread that sees it end
-            # starts another or says why it stays down; this request is made by the window
+        except OSError as e:
+            # its process ended: the reader thread that saw it end starts another or says why
+            # it stays down; this request is made by the window
             with self._lock:
                 if "id" in line and child.sent.pop(rid, None) is not None:
                     child.priority.pop(rid, None)
                     if not any(rid in c.sent for c in self._children()):
                         self.done.setdefault(rid, {"id": rid, "ok": False, "error": f"stopped ({e})"})
-                if child.proc is None:
-                    child.error = child.error or f"stopped ({e})"
             return None
         return rid
 

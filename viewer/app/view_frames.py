@@ -208,11 +208,11 @@ class ViewFrames:
             self._mean.reset()
         traced = self._progressive()
         quality = "preview" if interacting else "full"
-        # a prepared traced view (a lecture step baked for this window) opens from the traced-
-        # frame cache at once: it needs none of the programs, tables and textures a drawn frame
-        # needs, so nothing is held back or prepared for it (they compile beside for the next change)
-        prepared = traced and not interacting and restart and opens_prepared(s, rw, rh)
-        if prepared:
+        # a prepared traced view (a lecture step baked) opens from the traced-frame cache at once,
+        # needing no program: nothing held back or prepared (looked up once its map is read)
+        cached = trace_cached(s, rw, rh) if traced and not interacting and restart \
+            and s.scene.environment.map_read() else None
+        if prepared := bool(cached):
             s.compiles.nothing_awaited()
             self.prep.finish()
         held = s.compiles.held_back(False if traced and interacting else None, False if traced else None, stale) \
@@ -227,7 +227,7 @@ class ViewFrames:
             if held is KEEP_IMAGE:
                 quality = self.quality
             elif traced and not interacting and held is None:  # still: untraced, then traced in strips
-                quality = self._trace_step(rw, rh, restart)
+                quality = self._trace_step(rw, rh, restart, cached)
                 source = FrameSource(s.scene, dict(s.scene.materials), "own")
             else:
                 if self._trace is not None:
@@ -371,12 +371,13 @@ class ViewFrames:
         self._whole_s = ((w, h), t.trace_s, scene.objects)
         return "full"
 
-    def _trace_step(self, w, h, restart: bool) -> str:
+    def _trace_step(self, w, h, restart: bool, cached: bool | None = None) -> str:
         """The progressive trace: (re)start it with the untraced view, or trace its next strip;
         "tracing" until the traced image is complete, then "full". Where the untraced frame
         itself is over the tile budget (or its cost is not known: another scene, ray tracing
         just turned on) and the traced-frame cache does not hold the view, the untraced frame is
-        drawn in tiles first (``_tile_step``), then traced from it."""
+        drawn in tiles first (``_tile_step``), then traced from it. ``cached``: whether that
+        cache holds the view, where this frame looked it up already."""
         from viewer.gl.raytrace import ProgressiveTrace
 
         s = self.session
@@ -386,7 +387,7 @@ class ViewFrames:
         if restart:
             self._untraced_tiles = False
         if (restart or not t.active) and not self._untraced_tiles:
-            if self._tiled(s.scene, w, h) and not trace_cached(self.session, w, h):
+            if self._tiled(s.scene, w, h) and not (trace_cached(s, w, h) if cached is None else cached):
                 self._untraced_tiles = True
                 t.cancel()
         if self._untraced_tiles:
@@ -469,8 +470,3 @@ def trace_cached(session, w, h) -> bool:
                                 session.ctx.info.get("GL_RENDERER", ""))
     return trace_cache.path_for(key).exists()
 
-
-def opens_prepared(session, w, h) -> bool:
-    """``trace_cached``, where finding out needs no map read on this thread (a map not read yet
-    is read on the preparation's thread; a later frame asks again)."""
-    return session.scene.environment.map_read() and trace_cached(session, w, h)

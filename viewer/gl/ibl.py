@@ -9,7 +9,7 @@ rotation *not* applied: the rotation is a uniform, so turning the map costs noth
    weighted* mean of the texels under it, a box filter on the sphere (GL's
    ``glGenerateMipmap`` would weight the small polar texels like equatorial ones), exact for
    odd sizes too. (A GPU pass made them before; on llvmpipe its program's first draw cost
-   70-150 ms of the window's thread at every launch, where numpy takes 15 ms for 1024 x 512.)
+   70-150 ms of the window's thread at every launch, where numpy takes 12 ms for 1024 x 512.)
 2. **GGX-prefiltered radiance** (``u_env_prefiltered``), one level per alpha in ``ALPHAS``
    (Walter et al. 2007's alpha): Karis 2013's split-sum first factor with n = v = r, half
    vectors drawn from D(h)(n.h) (with v = n this *is* Heitz 2018's visible-normal density),
@@ -305,10 +305,9 @@ class IBL:
         if name == "ibl_dfg" and self.dfg_job is not None:  # its bands drawn so far are the old program's
             self.dfg_job.release()
             self.dfg_job = None
-        if name in ("ibl_prefilter", "ibl_dfg"):
+        if name in ("ibl_prefilter", "ibl_dfg"):  # prefiltered again (the mip chain is numpy's: kept)
             self._key = None
             self._last_ident = None
-            self._uploaded = None  # the mip chain is made again by the program as edited
         if name == "ibl_cubemap":
             self._cube_key = None
 

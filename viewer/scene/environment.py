@@ -46,13 +46,14 @@ class Environment:
 
         return isinstance(self.map, str) and self.map in builtin_names()
 
+    def _map_key(self, width: int, height: int) -> tuple:
+        """What the decoded map is cached under (before ``intensity``)."""
+        return (str(self.map), type(self.map).__name__) + ((width, height) if self.is_builtin else ())
+
     def map_read(self, width: int = 1024, height: int = 512) -> bool:
         """Whether ``radiance_map(width, height)`` returns without reading or generating the map
         (it has none, or it was decoded already)."""
-        if self.map is None:
-            return True
-        key = (str(self.map), type(self.map).__name__) + ((width, height) if self.is_builtin else ())
-        return key in self.__dict__.get("_map_cache", {})
+        return self.map is None or self._map_key(width, height) in self.__dict__.get("_map_cache", {})
 
     def radiance_map(self, width: int = 1024, height: int = 512) -> np.ndarray | None:
         """float32 (H, W, 3) lat-long radiance with ``intensity`` applied and the rotation *not*
@@ -64,7 +65,7 @@ class Environment:
         if self.map is None:
             return None
         cache = self.__dict__.setdefault("_map_cache", {})
-        key_raw = (str(self.map), type(self.map).__name__) + ((width, height) if self.is_builtin else ())
+        key_raw = self._map_key(width, height)
         key = key_raw + (float(self.intensity),)
         if key in cache:
             return cache[key]
